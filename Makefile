@@ -1,0 +1,36 @@
+# One command each, on a fresh machine: `make demo` (set up + reproduce the paper example),
+# `make test` (set up with the test extras + run the test suite).
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+# torch comes from constraints.txt: 2.13.0 is the only CPU build here; unpinned pulls CUDA.
+PIP := $(BIN)/python -m pip install --disable-pip-version-check -q -c constraints.txt
+OUT ?= out
+
+.PHONY: demo test bench install clean
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+
+$(VENV)/.installed: pyproject.toml constraints.txt | $(BIN)/python
+	$(PIP) torch==2.13.0
+	$(PIP) -e .
+	touch $@
+
+$(VENV)/.installed-test: $(VENV)/.installed
+	$(PIP) -e ".[test]"
+	touch $@
+
+install: $(VENV)/.installed
+
+demo: $(VENV)/.installed
+	$(BIN)/esp-gym paper --out $(OUT)/paper
+
+test: $(VENV)/.installed-test
+	$(BIN)/python -m pytest
+
+bench: $(VENV)/.installed
+	$(BIN)/python benchmarks/step_cost.py
+
+clean:
+	rm -rf $(VENV) $(OUT) .pytest_cache

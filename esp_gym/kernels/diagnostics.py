@@ -1,0 +1,119 @@
+"""Diagnostics from the discrete state ``(r, p, R, Pi)``: energies, pi3, orthogonality, strain.
+
+Velocities come from the continuous Legendre transform of the finite-element Lagrangian,
+inverted with the same Schur complement as the step:
+
+    M_tot v - M e_{N+1} R (rho_c x Omega) = p,      J Omega + M rho_c x (R^T v_{N+1}) = Pi,
+    => y = M_tot^-1 p,  J_eff Omega = Pi - M rho_c x (R^T y_{N+1}),  v = y + M w R (rho_c x Omega).
+
+The energy is then E = H(q_k, p_k) (physics_notes.md, "Conventions"), and
+pi3 = e3 . (sum_a r_a x p_a + R Pi).
+"""
+import math
+
+from ._jit import kernel
+from .so3 import solve3
+from .string import element_strain, tridiag_solve
+
+#: Layout of the scalar output of :func:`diagnostics`.
+DIAG_NAMES = (
+    "kinetic_string",
+    "kinetic_body",
+    "potential_gravity",
+    "potential_elastic",
+    "energy",
+    "pi3",
+    "orthogonality",
+    "stretched_length",
+)
+
+
+@kernel
+def diagnostics(r, p, R, Pi, P, V, strain, omega, out):
+    """Fill ``out`` (8, see DIAG_NAMES), node velocities ``V`` (N+1, 3) [m/s], body angular
+    velocity ``omega`` (3, body frame) [rad/s] and per-element strain energy ``strain`` (N,) [J].
+    """
+    n = r.shape[0] - 1
+    first = P.first
+    M = P.M
+    rho0 = P.rho[0]
+    rho1 = P.rho[1]
+    rho2 = P.rho[2]
+    tridiag_solve(P.inv, P.cp, P.off, first, p, V)
+    for a in range(first):
+        V[a, 0] = 0.0
+        V[a, 1] = 0.0
+        V[a, 2] = 0.0
+    y0 = V[n, 0]
+    y1 = V[n, 1]
+    y2 = V[n, 2]
+    e0 = R[0, 0] * y0 + R[1, 0] * y1 + R[2, 0] * y2
+    e1 = R[0, 1] * y0 + R[1, 1] * y1 + R[2, 1] * y2
+    e2 = R[0, 2] * y0 + R[1, 2] * y1 + R[2, 2] * y2
+    w0, w1, w2 = solve3(
+        P.Jeff,
+        Pi[0] - M * (rho1 * e2 - rho2 * e1),
+        Pi[1] - M * (rho2 * e0 - rho0 * e2),
+        Pi[2] - M * (rho0 * e1 - rho1 * e0),
+    )
+    omega[0] = w0
+    omega[1] = w1
+    omega[2] = w2
+    x0 = rho1 * w2 - rho2 * w1  # rho_c x Omega, then R (rho_c x Omega)
+    x1 = rho2 * w0 - rho0 * w2
+    x2 = rho0 * w1 - rho1 * w0
+    q0 = R[0, 0] * x0 + R[0, 1] * x1 + R[0, 2] * x2
+    q1 = R[1, 0] * x0 + R[1, 1] * x1 + R[1, 2] * x2
+    q2 = R[2, 0] * x0 + R[2, 1] * x1 + R[2, 2] * x2
+    w = P.w
+    for a in range(first, n + 1):
+        V[a, 0] += M * w[a] * q0
+        V[a, 1] += M * w[a] * q1
+        V[a, 2] += M * w[a] * q2
+    # kinetic energy of the string: element a contributes m/6 (|v_a|^2 + v_a.v_b + |v_b|^2)
+    ts = 0.0
+    vg = 0.0
+    for a in range(n):
+        va0 = V[a, 0]
+        va1 = V[a, 1]
+        va2 = V[a, 2]
+        vb0 = V[a + 1, 0]
+        vb1 = V[a + 1, 1]
+        vb2 = V[a + 1, 2]
+        ts += (va0 * va0 + va1 * va1 + va2 * va2 + va0 * vb0 + va1 * vb1 + va2 * vb2
+               + vb0 * vb0 + vb1 * vb1 + vb2 * vb2)
+        vg += r[a, 2] + r[a + 1, 2]
+    ts *= P.m / 6.0
+    # body: M/2 |v|^2 + 1/2 Omega.J Omega + M v . R (Omega x rho_c)
+    J = P.J
+    Jw0 = J[0, 0] * w0 + J[0, 1] * w1 + J[0, 2] * w2
+    Jw1 = J[1, 0] * w0 + J[1, 1] * w1 + J[1, 2] * w2
+    Jw2 = J[2, 0] * w0 + J[2, 1] * w1 + J[2, 2] * w2
+    vn0 = V[n, 0]
+    vn1 = V[n, 1]
+    vn2 = V[n, 2]
+    tb = (0.5 * M * (vn0 * vn0 + vn1 * vn1 + vn2 * vn2) + 0.5 * (w0 * Jw0 + w1 * Jw1 + w2 * Jw2)
+          - M * (vn0 * q0 + vn1 * q1 + vn2 * q2))
+    zc = R[2, 0] * rho0 + R[2, 1] * rho1 + R[2, 2] * rho2
+    pot_g = -P.g * (0.5 * P.m * vg + M * (r[n, 2] + zc))
+    pot_e, length = element_strain(r, P.kappa, P.u, strain)
+    # pi3 = e3 . (sum r_a x p_a + R Pi)
+    pi3 = R[2, 0] * Pi[0] + R[2, 1] * Pi[1] + R[2, 2] * Pi[2]
+    for a in range(n + 1):
+        pi3 += r[a, 0] * p[a, 1] - r[a, 1] * p[a, 0]
+    # || I - R^T R ||_F
+    orth = 0.0
+    for i in range(3):
+        for j in range(3):
+            s = R[0, i] * R[0, j] + R[1, i] * R[1, j] + R[2, i] * R[2, j]
+            if i == j:
+                s -= 1.0
+            orth += s * s
+    out[0] = ts
+    out[1] = tb
+    out[2] = pot_g
+    out[3] = pot_e
+    out[4] = ts + tb + pot_g + pot_e
+    out[5] = pi3
+    out[6] = math.sqrt(orth)
+    out[7] = length

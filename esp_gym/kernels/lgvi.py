@@ -1,0 +1,239 @@
+"""The Lie group variational integrator of the elastic string pendulum (fixed pivot, no inputs).
+
+The paper writes the scheme as a two-step recursion (DEL0)-(DEL4). We run its equivalent
+one-step (position-momentum) form: with the discrete Legendre transforms
+``p_k = -D_1 L_d(g_k, f_k)`` and ``p_{k+1} = D_2 L_d(g_k, f_k)`` the map
+``(g_k, p_k) -> (g_{k+1}, p_{k+1})`` is the same flow, and the momenta give the diagnostics.
+
+From the discrete Lagrangian (Ldka), (Ldkrb) with errata 1-2 fixed, for nodes a = 2..N+1
+(row 1..N here) and the body (notation of the paper; f_a(r) = -dV/dr_a, see nodal_forces)::
+
+    (1/h) M_tot dr  +  (M/h) e_{N+1} (R_k (F_k - I) rho_c)   = p_k + (h/2) f(r_k)        (1)
+    (1/h)(F_k J_d - J_d F_k^T)^vee + (M/h) rho_c^ R_k^T dr_{N+1} = Pi_k + (h/2) tau_g(R_k)   (2)
+    p_{k+1}  = p_k + (h/2) (f(r_k) + f(r_{k+1}))                                           (3)
+    Pi_{k+1} = (1/h)(J_d F_k - F_k^T J_d)^vee + (M/h) rho_c^ R_{k+1}^T dr_{N+1}
+               + (h/2) tau_g(R_{k+1})                                                      (4)
+
+with M_tot the consistent mass matrix (m/6)[1 4 1] with last diagonal M + m/3, and
+tau_g(R) = M g rho_c x (R^T e3) the gravity torque about the attachment point (body frame).
+(1) is linear in dr; eliminating it (Schur complement, s = (M_tot^-1)_{N+1,N+1},
+w = M_tot^-1 e_{N+1}) gives dr = h M_tot^-1 B - M w (R_k (F_k - I) rho_c) and turns (2) into
+
+    (F_k K - K F_k^T)^vee = h Pi_k + (h^2/2) tau_g - M rho_c x (R_k^T d),   d = h (M_tot^-1 B)_{N+1}
+    K = J_d - M^2 s rho_c rho_c^T,  i.e. tr(K) I - K = J_eff = J + M^2 s rho_c^ rho_c^,
+
+a rigid-body equation with a modified inertia, solved by Newton on the Cayley vector.
+"""
+from collections import namedtuple
+
+import numpy as np
+
+from ._jit import kernel
+from .diagnostics import diagnostics
+from .so3 import cayley_minus_identity, cayley_newton
+from .string import nodal_forces, tridiag_solve
+
+#: Scene constants of the stepper, all SI. ``w`` and the Thomas factors are indexed by node.
+LGVIParams = namedtuple(
+    "LGVIParams",
+    "h m kappa u g M rho J Jd Jeff inv cp off w first tol max_iter",
+)
+
+#: Kernel status codes (kept in sync with esp_gym.model.STATUS_MESSAGES).
+OK = 0
+NEWTON_FAILED = 1
+NON_FINITE = 2
+
+
+@kernel
+def lgvi_step(r, p, R, Pi, f, B, X, FmI, jac, P):
+    """Advance the state ``(r, p, R, Pi)`` by one step of length ``P.h``, in place.
+
+    On entry ``f`` holds ``nodal_forces(r)``; on success it holds the forces at the new state.
+    On failure the state is left untouched (only the scratch arrays f, B, X, FmI change) and
+    a non-zero status is returned. Returns ``(status, newton_iterations)``.
+    """
+    h = P.h
+    hh = 0.5 * h
+    n = r.shape[0] - 1
+    first = P.first
+    M = P.M
+    rho0 = P.rho[0]
+    rho1 = P.rho[1]
+    rho2 = P.rho[2]
+    # (1): right-hand side and the string solve with F_k = I
+    for a in range(first, n + 1):
+        B[a, 0] = p[a, 0] + hh * f[a, 0]
+        B[a, 1] = p[a, 1] + hh * f[a, 1]
+        B[a, 2] = p[a, 2] + hh * f[a, 2]
+    tridiag_solve(P.inv, P.cp, P.off, first, B, X)
+    d0 = h * X[n, 0]
+    d1 = h * X[n, 1]
+    d2 = h * X[n, 2]
+    # (2) after the Schur complement: g = h Pi + h^2/2 tau_g(R_k) - M rho_c x (R_k^T d)
+    Mg = M * P.g
+    z0 = R[2, 0]  # R^T e3
+    z1 = R[2, 1]
+    z2 = R[2, 2]
+    t0 = Mg * (rho1 * z2 - rho2 * z1)
+    t1 = Mg * (rho2 * z0 - rho0 * z2)
+    t2 = Mg * (rho0 * z1 - rho1 * z0)
+    e0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2  # R^T d
+    e1 = R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2
+    e2 = R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2
+    g0 = h * (Pi[0] + hh * t0) - M * (rho1 * e2 - rho2 * e1)
+    g1 = h * (Pi[1] + hh * t1) - M * (rho2 * e0 - rho0 * e2)
+    g2 = h * (Pi[2] + hh * t2) - M * (rho0 * e1 - rho1 * e0)
+    c0, c1, c2, iters, converged = cayley_newton(g0, g1, g2, P.Jeff, P.tol, P.max_iter, jac)
+    if not converged:
+        if np.isfinite(c0 + c1 + c2 + d0 + d1 + d2):
+            return NEWTON_FAILED, iters
+        return NON_FINITE, iters
+    cayley_minus_identity(c0, c1, c2, FmI)
+    # q = R_k (F_k - I) rho_c; dr = h X - M w q; new positions go to X
+    s0 = FmI[0, 0] * rho0 + FmI[0, 1] * rho1 + FmI[0, 2] * rho2
+    s1 = FmI[1, 0] * rho0 + FmI[1, 1] * rho1 + FmI[1, 2] * rho2
+    s2 = FmI[2, 0] * rho0 + FmI[2, 1] * rho1 + FmI[2, 2] * rho2
+    q0 = R[0, 0] * s0 + R[0, 1] * s1 + R[0, 2] * s2
+    q1 = R[1, 0] * s0 + R[1, 1] * s1 + R[1, 2] * s2
+    q2 = R[2, 0] * s0 + R[2, 1] * s1 + R[2, 2] * s2
+    w = P.w
+    for a in range(first, n + 1):
+        X[a, 0] = r[a, 0] + (h * X[a, 0] - M * w[a] * q0)
+        X[a, 1] = r[a, 1] + (h * X[a, 1] - M * w[a] * q1)
+        X[a, 2] = r[a, 2] + (h * X[a, 2] - M * w[a] * q2)
+    for a in range(first):
+        X[a, 0] = r[a, 0]
+        X[a, 1] = r[a, 1]
+        X[a, 2] = r[a, 2]
+    dn0 = d0 - M * w[n] * q0  # dr_{N+1}, kept exact for (4)
+    dn1 = d1 - M * w[n] * q1
+    dn2 = d2 - M * w[n] * q2
+    if not np.isfinite(nodal_forces(X, P.kappa, P.u, P.m, M, P.g, f)):
+        return NON_FINITE, iters
+    # R_{k+1} = R_k + R_k (F_k - I)
+    Rn00 = R[0, 0] + (R[0, 0] * FmI[0, 0] + R[0, 1] * FmI[1, 0] + R[0, 2] * FmI[2, 0])
+    Rn01 = R[0, 1] + (R[0, 0] * FmI[0, 1] + R[0, 1] * FmI[1, 1] + R[0, 2] * FmI[2, 1])
+    Rn02 = R[0, 2] + (R[0, 0] * FmI[0, 2] + R[0, 1] * FmI[1, 2] + R[0, 2] * FmI[2, 2])
+    Rn10 = R[1, 0] + (R[1, 0] * FmI[0, 0] + R[1, 1] * FmI[1, 0] + R[1, 2] * FmI[2, 0])
+    Rn11 = R[1, 1] + (R[1, 0] * FmI[0, 1] + R[1, 1] * FmI[1, 1] + R[1, 2] * FmI[2, 1])
+    Rn12 = R[1, 2] + (R[1, 0] * FmI[0, 2] + R[1, 1] * FmI[1, 2] + R[1, 2] * FmI[2, 2])
+    Rn20 = R[2, 0] + (R[2, 0] * FmI[0, 0] + R[2, 1] * FmI[1, 0] + R[2, 2] * FmI[2, 0])
+    Rn21 = R[2, 1] + (R[2, 0] * FmI[0, 1] + R[2, 1] * FmI[1, 1] + R[2, 2] * FmI[2, 1])
+    Rn22 = R[2, 2] + (R[2, 0] * FmI[0, 2] + R[2, 1] * FmI[1, 2] + R[2, 2] * FmI[2, 2])
+    # (4): Pi_{k+1}; (J_d (F-I) - (F-I)^T J_d)^vee = (A - A^T)^vee with A = J_d (F - I)
+    Jd = P.Jd
+    A01 = Jd[0, 0] * FmI[0, 1] + Jd[0, 1] * FmI[1, 1] + Jd[0, 2] * FmI[2, 1]
+    A02 = Jd[0, 0] * FmI[0, 2] + Jd[0, 1] * FmI[1, 2] + Jd[0, 2] * FmI[2, 2]
+    A10 = Jd[1, 0] * FmI[0, 0] + Jd[1, 1] * FmI[1, 0] + Jd[1, 2] * FmI[2, 0]
+    A12 = Jd[1, 0] * FmI[0, 2] + Jd[1, 1] * FmI[1, 2] + Jd[1, 2] * FmI[2, 2]
+    A20 = Jd[2, 0] * FmI[0, 0] + Jd[2, 1] * FmI[1, 0] + Jd[2, 2] * FmI[2, 0]
+    A21 = Jd[2, 0] * FmI[0, 1] + Jd[2, 1] * FmI[1, 1] + Jd[2, 2] * FmI[2, 1]
+    e0 = Rn00 * dn0 + Rn10 * dn1 + Rn20 * dn2  # R_{k+1}^T dr_{N+1}
+    e1 = Rn01 * dn0 + Rn11 * dn1 + Rn21 * dn2
+    e2 = Rn02 * dn0 + Rn12 * dn1 + Rn22 * dn2
+    t0 = Mg * (rho1 * Rn22 - rho2 * Rn21)  # tau_g(R_{k+1})
+    t1 = Mg * (rho2 * Rn20 - rho0 * Rn22)
+    t2 = Mg * (rho0 * Rn21 - rho1 * Rn20)
+    Mh = M / h
+    P0 = (A21 - A12) / h + Mh * (rho1 * e2 - rho2 * e1) + hh * t0
+    P1 = (A02 - A20) / h + Mh * (rho2 * e0 - rho0 * e2) + hh * t1
+    P2 = (A10 - A01) / h + Mh * (rho0 * e1 - rho1 * e0) + hh * t2
+    if not np.isfinite(P0 + P1 + P2):
+        return NON_FINITE, iters
+    # commit
+    for a in range(first, n + 1):
+        r[a, 0] = X[a, 0]
+        r[a, 1] = X[a, 1]
+        r[a, 2] = X[a, 2]
+        p[a, 0] = B[a, 0] + hh * f[a, 0]
+        p[a, 1] = B[a, 1] + hh * f[a, 1]
+        p[a, 2] = B[a, 2] + hh * f[a, 2]
+    R[0, 0] = Rn00
+    R[0, 1] = Rn01
+    R[0, 2] = Rn02
+    R[1, 0] = Rn10
+    R[1, 1] = Rn11
+    R[1, 2] = Rn12
+    R[2, 0] = Rn20
+    R[2, 1] = Rn21
+    R[2, 2] = Rn22
+    Pi[0] = P0
+    Pi[1] = P1
+    Pi[2] = P2
+    return OK, iters
+
+
+@kernel
+def lgvi_advance(r, p, R, Pi, f, B, X, FmI, jac, P, nsteps, stats):
+    """Take up to ``nsteps`` steps; stop at the first failure with the last good state.
+
+    ``stats`` (int64, 4): status, steps taken, total Newton iterations, max per step.
+    """
+    nodal_forces(r, P.kappa, P.u, P.m, P.M, P.g, f)
+    total = 0
+    most = 0
+    for k in range(nsteps):
+        status, iters = lgvi_step(r, p, R, Pi, f, B, X, FmI, jac, P)
+        total += iters
+        if iters > most:
+            most = iters
+        if status != OK:
+            stats[0] = status
+            stats[1] = k
+            stats[2] = total
+            stats[3] = most
+            return
+    stats[0] = OK
+    stats[1] = nsteps
+    stats[2] = total
+    stats[3] = most
+
+
+@kernel
+def lgvi_record(r, p, R, Pi, f, B, X, FmI, jac, P, every, V, strain, omega, out,
+                snap_r, snap_R, snap_omega, snap_v, snap_diag, snap_strain, step_diag, stats):
+    """Take ``len(snap_r) * every`` steps, storing a snapshot after every ``every`` steps.
+
+    Snapshots: node positions, R, Omega (body) and attachment velocity, the DIAG_NAMES scalars
+    and per-element strain energy. If ``step_diag`` has rows, row i receives
+    ``(energy, pi3, orthogonality)`` after step i + 1. Stops at the first failure; ``stats``
+    as in :func:`lgvi_advance` (steps counts steps taken in this call).
+    """
+    n = r.shape[0] - 1
+    per_step = step_diag.shape[0] > 0
+    nodal_forces(r, P.kappa, P.u, P.m, P.M, P.g, f)
+    total = 0
+    most = 0
+    k = 0
+    for j in range(snap_r.shape[0]):
+        for i in range(every):
+            status, iters = lgvi_step(r, p, R, Pi, f, B, X, FmI, jac, P)
+            total += iters
+            if iters > most:
+                most = iters
+            if status != OK:
+                stats[0] = status
+                stats[1] = k
+                stats[2] = total
+                stats[3] = most
+                return
+            if per_step:
+                diagnostics(r, p, R, Pi, P, V, strain, omega, out)
+                step_diag[k, 0] = out[4]
+                step_diag[k, 1] = out[5]
+                step_diag[k, 2] = out[6]
+            k += 1
+        diagnostics(r, p, R, Pi, P, V, strain, omega, out)
+        snap_r[j] = r
+        snap_R[j] = R
+        snap_omega[j] = omega
+        snap_v[j, 0] = V[n, 0]
+        snap_v[j, 1] = V[n, 1]
+        snap_v[j, 2] = V[n, 2]
+        snap_diag[j] = out
+        snap_strain[j] = strain
+    stats[0] = OK
+    stats[1] = k
+    stats[2] = total
+    stats[3] = most

@@ -1,0 +1,112 @@
+"""String kernels: elastic and gravity nodal forces, strain energies, the consistent-mass solve.
+
+Nodes are rows of an ``(N+1, 3)`` array, row 0 the pivot end, row N the attachment node.
+Gravity acts along +e3 (the paper's convention), so the gravity force is ``+m g e3``.
+"""
+import math
+
+import numpy as np
+
+from ._jit import kernel
+
+
+@kernel
+def nodal_forces(r, kappa, u, m, M, g, f):
+    """Write the conservative force on each node, ``f = -dV/dr``, into ``f`` (N+1, 3).
+
+    V = sum_a kappa/2 (|x_a| - u)^2 - g e3 . (sum_a m/2 (r_a + r_{a+1}) + M r_{N+1}),
+    x_a = r_{a+1} - r_a, so with grad V^e_a = kappa (1 - u/|x_a|) x_a (the paper's notation)
+    f_a = m_a g e3 + grad V^e_a - grad V^e_{a-1}, with lumped gravity masses m/2, m, ..., m,
+    m/2 + M (consistent for linear elements). The body's gravity torque is handled in the
+    rotational equation. Returns the sum of all components (non-finite iff any entry is).
+    """
+    n = r.shape[0] - 1
+    for a in range(n + 1):
+        f[a, 0] = 0.0
+        f[a, 1] = 0.0
+        f[a, 2] = m * g
+    f[0, 2] = 0.5 * m * g
+    f[n, 2] = (0.5 * m + M) * g
+    total = 0.0
+    for a in range(n):
+        x0 = r[a + 1, 0] - r[a, 0]
+        x1 = r[a + 1, 1] - r[a, 1]
+        x2 = r[a + 1, 2] - r[a, 2]
+        c = kappa * (1.0 - u / math.sqrt(x0 * x0 + x1 * x1 + x2 * x2))
+        t0 = c * x0
+        t1 = c * x1
+        t2 = c * x2
+        f[a, 0] += t0
+        f[a, 1] += t1
+        f[a, 2] += t2
+        f[a + 1, 0] -= t0
+        f[a + 1, 1] -= t1
+        f[a + 1, 2] -= t2
+        total += t0 + t1 + t2
+    return total + f[n, 0] + f[n, 1] + f[n, 2]
+
+
+@kernel
+def element_strain(r, kappa, u, strain_energy):
+    """Per-element strain energy kappa/2 (|x_a| - u)^2 [J] into ``strain_energy`` (N,).
+
+    Returns ``(elastic potential [J], stretched length [m])``.
+    """
+    n = r.shape[0] - 1
+    total = 0.0
+    length = 0.0
+    for a in range(n):
+        x0 = r[a + 1, 0] - r[a, 0]
+        x1 = r[a + 1, 1] - r[a, 1]
+        x2 = r[a + 1, 2] - r[a, 2]
+        L = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+        e = 0.5 * kappa * (L - u) ** 2
+        strain_energy[a] = e
+        total += e
+        length += L
+    return total, length
+
+
+@kernel
+def tridiag_solve(inv, cp, off, first, b, x):
+    """Solve the constant tridiagonal system ``M x = b`` on rows ``first..N`` (3 columns).
+
+    ``inv``/``cp`` are the Thomas factors of M (from :func:`esp_gym.model.tridiag_factor`),
+    ``off`` its constant off-diagonal. Rows below ``first`` are not touched.
+    """
+    n = b.shape[0] - 1
+    y0 = b[first, 0] * inv[first]
+    y1 = b[first, 1] * inv[first]
+    y2 = b[first, 2] * inv[first]
+    x[first, 0] = y0
+    x[first, 1] = y1
+    x[first, 2] = y2
+    for a in range(first + 1, n + 1):
+        y0 = (b[a, 0] - off * y0) * inv[a]
+        y1 = (b[a, 1] - off * y1) * inv[a]
+        y2 = (b[a, 2] - off * y2) * inv[a]
+        x[a, 0] = y0
+        x[a, 1] = y1
+        x[a, 2] = y2
+    for a in range(n - 1, first - 1, -1):
+        x[a, 0] -= cp[a] * x[a + 1, 0]
+        x[a, 1] -= cp[a] * x[a + 1, 1]
+        x[a, 2] -= cp[a] * x[a + 1, 2]
+
+
+def tridiag_factor(diag, off):
+    """Thomas factors ``(inv, cp)`` of a symmetric tridiagonal matrix with constant ``off``.
+
+    Plain NumPy (run once per scene). Entries where ``diag`` is 0 are left 0 (rows that are
+    not unknowns, e.g. a fixed pivot).
+    """
+    diag = np.asarray(diag, dtype=np.float64)
+    inv = np.zeros_like(diag)
+    cp = np.zeros_like(diag)
+    first = int(np.argmax(diag != 0.0))
+    prev_cp = 0.0
+    for a in range(first, diag.size):
+        inv[a] = 1.0 / (diag[a] - off * prev_cp)
+        cp[a] = off * inv[a]
+        prev_cp = cp[a]
+    return inv, cp
