@@ -16,7 +16,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .kernels.diagnostics import DIAG_NAMES, diagnostics as _diagnostics
-from .kernels.lgvi import LGVIParams, lgvi_advance, lgvi_record
+from .kernels.lgvi import LGVIParams, Work, lgvi_advance, lgvi_record
 from .kernels.string import tridiag_factor
 from .params import Scene
 
@@ -179,9 +179,13 @@ class Simulator:
         self.h = scene.h
         n = scene.string.elements
         self._state = initial_state(scene)
-        self._work = dict(
-            f=np.zeros((n + 1, 3)), B=np.zeros((n + 1, 3)), X=np.zeros((n + 1, 3)),
-            FmI=np.zeros((3, 3)), jac=np.zeros((3, 3)),
+        self._forces = np.zeros((n + 1, 3))
+        # compensated-summation remainders of r, p, R, Pi (part of the state, reset by set_state)
+        self._comp = (np.zeros((n + 1, 3)), np.zeros((n + 1, 3)), np.zeros((3, 3)), np.zeros(3))
+        self._work = Work(
+            fn=np.zeros((n + 1, 3)), B=np.zeros((n + 1, 3)), X=np.zeros((n + 1, 3)),
+            Y=np.zeros((n + 1, 3)), FmI=np.zeros((3, 3)), RF=np.zeros((3, 3)), Rn=np.zeros((3, 3)),
+            jac=np.zeros((3, 3)),
         )
         self._diag_work = dict(V=np.zeros((n + 1, 3)), strain=np.zeros(n), omega=np.zeros(3), out=np.zeros(8))
         self._stats = np.zeros(4, dtype=np.int64)
@@ -205,6 +209,8 @@ class Simulator:
                 raise ValueError(f"state.{name} is not finite")
             getattr(s, name)[...] = new
         s.step = int(state.step)
+        for c in self._comp:
+            c[...] = 0.0
 
     @property
     def step_count(self) -> int:
@@ -217,8 +223,8 @@ class Simulator:
 
     # -- stepping ---------------------------------------------------------------------------
     def _args(self):
-        s, w = self._state, self._work
-        return (s.r, s.p, s.R, s.Pi, w["f"], w["B"], w["X"], w["FmI"], w["jac"], self.params)
+        s = self._state
+        return (s.r, s.p, s.R, s.Pi, *self._comp, self._forces, self._work, self.params)
 
     def _account(self) -> None:
         status, steps, total, most = (int(x) for x in self._stats)

@@ -39,6 +39,9 @@ LGVIParams = namedtuple(
     "h m kappa u g M rho J Jd Jeff inv cp off w first tol max_iter",
 )
 
+#: Scratch arrays of one simulator (allocated once, see esp_gym.model.make_work).
+Work = namedtuple("Work", "fn B X Y FmI RF Rn jac")
+
 #: Kernel status codes (kept in sync with esp_gym.model.STATUS_MESSAGES).
 OK = 0
 NEWTON_FAILED = 1
@@ -46,13 +49,21 @@ NON_FINITE = 2
 
 
 @kernel
-def lgvi_step(r, p, R, Pi, f, B, X, FmI, jac, P):
+def lgvi_step(r, p, R, Pi, rc, pc, Rc, Pic, f, W, P):
     """Advance the state ``(r, p, R, Pi)`` by one step of length ``P.h``, in place.
 
+    ``rc, pc, Rc, Pic`` are the compensated-summation remainders of r, p, R and Pi: increments are added
+    with Kahan's trick, because in a smooth motion the round-off of ``r + dr`` repeats for many
+    steps and would otherwise accumulate linearly into pi3 and the energy.
     On entry ``f`` holds ``nodal_forces(r)``; on success it holds the forces at the new state.
-    On failure the state is left untouched (only the scratch arrays f, B, X, FmI change) and
-    a non-zero status is returned. Returns ``(status, newton_iterations)``.
+    ``W`` is a :class:`Work` of scratch arrays. On failure the state (and f) are left untouched
+    and a non-zero status is returned. Returns ``(status, newton_iterations)``.
     """
+    B = W.B
+    X = W.X
+    Y = W.Y
+    fn = W.fn
+    FmI = W.FmI
     h = P.h
     hh = 0.5 * h
     n = r.shape[0] - 1
@@ -84,13 +95,13 @@ def lgvi_step(r, p, R, Pi, f, B, X, FmI, jac, P):
     g0 = h * (Pi[0] + hh * t0) - M * (rho1 * e2 - rho2 * e1)
     g1 = h * (Pi[1] + hh * t1) - M * (rho2 * e0 - rho0 * e2)
     g2 = h * (Pi[2] + hh * t2) - M * (rho0 * e1 - rho1 * e0)
-    c0, c1, c2, iters, converged = cayley_newton(g0, g1, g2, P.Jeff, P.tol, P.max_iter, jac)
+    c0, c1, c2, iters, converged = cayley_newton(g0, g1, g2, P.Jeff, P.tol, P.max_iter, W.jac)
     if not converged:
         if np.isfinite(c0 + c1 + c2 + d0 + d1 + d2):
             return NEWTON_FAILED, iters
         return NON_FINITE, iters
     cayley_minus_identity(c0, c1, c2, FmI)
-    # q = R_k (F_k - I) rho_c; dr = h X - M w q; new positions go to X
+    # q = R_k (F_k - I) rho_c; dr = h X - M w q (+ remainder) -> Y; new positions r + Y -> X
     s0 = FmI[0, 0] * rho0 + FmI[0, 1] * rho1 + FmI[0, 2] * rho2
     s1 = FmI[1, 0] * rho0 + FmI[1, 1] * rho1 + FmI[1, 2] * rho2
     s2 = FmI[2, 0] * rho0 + FmI[2, 1] * rho1 + FmI[2, 2] * rho2
@@ -99,73 +110,79 @@ def lgvi_step(r, p, R, Pi, f, B, X, FmI, jac, P):
     q2 = R[2, 0] * s0 + R[2, 1] * s1 + R[2, 2] * s2
     w = P.w
     for a in range(first, n + 1):
-        X[a, 0] = r[a, 0] + (h * X[a, 0] - M * w[a] * q0)
-        X[a, 1] = r[a, 1] + (h * X[a, 1] - M * w[a] * q1)
-        X[a, 2] = r[a, 2] + (h * X[a, 2] - M * w[a] * q2)
+        Y[a, 0] = (h * X[a, 0] - M * w[a] * q0) + rc[a, 0]
+        Y[a, 1] = (h * X[a, 1] - M * w[a] * q1) + rc[a, 1]
+        Y[a, 2] = (h * X[a, 2] - M * w[a] * q2) + rc[a, 2]
+        X[a, 0] = r[a, 0] + Y[a, 0]
+        X[a, 1] = r[a, 1] + Y[a, 1]
+        X[a, 2] = r[a, 2] + Y[a, 2]
     for a in range(first):
         X[a, 0] = r[a, 0]
         X[a, 1] = r[a, 1]
         X[a, 2] = r[a, 2]
-    dn0 = d0 - M * w[n] * q0  # dr_{N+1}, kept exact for (4)
-    dn1 = d1 - M * w[n] * q1
-    dn2 = d2 - M * w[n] * q2
-    if not np.isfinite(nodal_forces(X, P.kappa, P.u, P.m, M, P.g, f)):
+    if not np.isfinite(nodal_forces(X, P.kappa, P.u, P.m, M, P.g, fn)):
         return NON_FINITE, iters
-    # R_{k+1} = R_k + R_k (F_k - I)
-    Rn00 = R[0, 0] + (R[0, 0] * FmI[0, 0] + R[0, 1] * FmI[1, 0] + R[0, 2] * FmI[2, 0])
-    Rn01 = R[0, 1] + (R[0, 0] * FmI[0, 1] + R[0, 1] * FmI[1, 1] + R[0, 2] * FmI[2, 1])
-    Rn02 = R[0, 2] + (R[0, 0] * FmI[0, 2] + R[0, 1] * FmI[1, 2] + R[0, 2] * FmI[2, 2])
-    Rn10 = R[1, 0] + (R[1, 0] * FmI[0, 0] + R[1, 1] * FmI[1, 0] + R[1, 2] * FmI[2, 0])
-    Rn11 = R[1, 1] + (R[1, 0] * FmI[0, 1] + R[1, 1] * FmI[1, 1] + R[1, 2] * FmI[2, 1])
-    Rn12 = R[1, 2] + (R[1, 0] * FmI[0, 2] + R[1, 1] * FmI[1, 2] + R[1, 2] * FmI[2, 2])
-    Rn20 = R[2, 0] + (R[2, 0] * FmI[0, 0] + R[2, 1] * FmI[1, 0] + R[2, 2] * FmI[2, 0])
-    Rn21 = R[2, 1] + (R[2, 0] * FmI[0, 1] + R[2, 1] * FmI[1, 1] + R[2, 2] * FmI[2, 1])
-    Rn22 = R[2, 2] + (R[2, 0] * FmI[0, 2] + R[2, 1] * FmI[1, 2] + R[2, 2] * FmI[2, 2])
-    # (4): Pi_{k+1}; (J_d (F-I) - (F-I)^T J_d)^vee = (A - A^T)^vee with A = J_d (F - I)
-    Jd = P.Jd
-    A01 = Jd[0, 0] * FmI[0, 1] + Jd[0, 1] * FmI[1, 1] + Jd[0, 2] * FmI[2, 1]
-    A02 = Jd[0, 0] * FmI[0, 2] + Jd[0, 1] * FmI[1, 2] + Jd[0, 2] * FmI[2, 2]
-    A10 = Jd[1, 0] * FmI[0, 0] + Jd[1, 1] * FmI[1, 0] + Jd[1, 2] * FmI[2, 0]
-    A12 = Jd[1, 0] * FmI[0, 2] + Jd[1, 1] * FmI[1, 2] + Jd[1, 2] * FmI[2, 2]
-    A20 = Jd[2, 0] * FmI[0, 0] + Jd[2, 1] * FmI[1, 0] + Jd[2, 2] * FmI[2, 0]
-    A21 = Jd[2, 0] * FmI[0, 1] + Jd[2, 1] * FmI[1, 1] + Jd[2, 2] * FmI[2, 1]
-    e0 = Rn00 * dn0 + Rn10 * dn1 + Rn20 * dn2  # R_{k+1}^T dr_{N+1}
-    e1 = Rn01 * dn0 + Rn11 * dn1 + Rn21 * dn2
-    e2 = Rn02 * dn0 + Rn12 * dn1 + Rn22 * dn2
-    t0 = Mg * (rho1 * Rn22 - rho2 * Rn21)  # tau_g(R_{k+1})
-    t1 = Mg * (rho2 * Rn20 - rho0 * Rn22)
-    t2 = Mg * (rho0 * Rn21 - rho1 * Rn20)
+    # R_k (F_k - I) + Rc, and R_{k+1} = R_k + that (Kahan)
+    RF = W.RF
+    for i in range(3):
+        for j in range(3):
+            RF[i, j] = (R[i, 0] * FmI[0, j] + R[i, 1] * FmI[1, j] + R[i, 2] * FmI[2, j]) + Rc[i, j]
+    Rn = W.Rn
+    for i in range(3):
+        for j in range(3):
+            Rn[i, j] = R[i, j] + RF[i, j]
+    # (4) in increment form. By (2), u := Pi_k + h/2 tau_g(R_k) - (M/h) rho_c x (R_k^T dr_{N+1})
+    # equals (1/h)(F J_d - J_d F^T)^vee, so (4) reads Pi_{k+1} = F^T u + (M/h) rho_c x
+    # (R_{k+1}^T dr_{N+1}) + h/2 tau_g(R_{k+1}), i.e. Pi_{k+1} = Pi_k + dPi with
+    #   dPi = h/2 (tau_k + tau_{k+1}) + (F - I)^T u + (M/h) rho_c x ((F - I)^T R_k^T dr_{N+1}).
+    # Every term of dPi is O(h) and vanishes exactly where it should (e.g. a steady spin about
+    # a principal axis), and R_{k+1} Pi_{k+1} = R_k u + ... uses the same F, so the Newton
+    # round-off does not leak into pi3.
+    e0 = e0 - M * w[n] * s0  # R_k^T dr_{N+1} = R_k^T d - M s (F - I) rho_c
+    e1 = e1 - M * w[n] * s1
+    e2 = e2 - M * w[n] * s2
     Mh = M / h
-    P0 = (A21 - A12) / h + Mh * (rho1 * e2 - rho2 * e1) + hh * t0
-    P1 = (A02 - A20) / h + Mh * (rho2 * e0 - rho0 * e2) + hh * t1
-    P2 = (A10 - A01) / h + Mh * (rho0 * e1 - rho1 * e0) + hh * t2
-    if not np.isfinite(P0 + P1 + P2):
+    u0 = Pi[0] + hh * t0 - Mh * (rho1 * e2 - rho2 * e1)
+    u1 = Pi[1] + hh * t1 - Mh * (rho2 * e0 - rho0 * e2)
+    u2 = Pi[2] + hh * t2 - Mh * (rho0 * e1 - rho1 * e0)
+    a0 = FmI[0, 0] * e0 + FmI[1, 0] * e1 + FmI[2, 0] * e2  # (F - I)^T R_k^T dr_{N+1}
+    a1 = FmI[0, 1] * e0 + FmI[1, 1] * e1 + FmI[2, 1] * e2
+    a2 = FmI[0, 2] * e0 + FmI[1, 2] * e1 + FmI[2, 2] * e2
+    n0 = Mg * (rho1 * Rn[2, 2] - rho2 * Rn[2, 1])  # tau_g(R_{k+1})
+    n1 = Mg * (rho2 * Rn[2, 0] - rho0 * Rn[2, 2])
+    n2 = Mg * (rho0 * Rn[2, 1] - rho1 * Rn[2, 0])
+    dP0 = hh * (t0 + n0) + (FmI[0, 0] * u0 + FmI[1, 0] * u1 + FmI[2, 0] * u2) + Mh * (rho1 * a2 - rho2 * a1)
+    dP1 = hh * (t1 + n1) + (FmI[0, 1] * u0 + FmI[1, 1] * u1 + FmI[2, 1] * u2) + Mh * (rho2 * a0 - rho0 * a2)
+    dP2 = hh * (t2 + n2) + (FmI[0, 2] * u0 + FmI[1, 2] * u1 + FmI[2, 2] * u2) + Mh * (rho0 * a1 - rho1 * a0)
+    if not np.isfinite(dP0 + dP1 + dP2):
         return NON_FINITE, iters
-    # commit
+    # commit (3) and the compensated updates
     for a in range(first, n + 1):
-        r[a, 0] = X[a, 0]
-        r[a, 1] = X[a, 1]
-        r[a, 2] = X[a, 2]
-        p[a, 0] = B[a, 0] + hh * f[a, 0]
-        p[a, 1] = B[a, 1] + hh * f[a, 1]
-        p[a, 2] = B[a, 2] + hh * f[a, 2]
-    R[0, 0] = Rn00
-    R[0, 1] = Rn01
-    R[0, 2] = Rn02
-    R[1, 0] = Rn10
-    R[1, 1] = Rn11
-    R[1, 2] = Rn12
-    R[2, 0] = Rn20
-    R[2, 1] = Rn21
-    R[2, 2] = Rn22
-    Pi[0] = P0
-    Pi[1] = P1
-    Pi[2] = P2
+        for i in range(3):
+            rc[a, i] = (r[a, i] - X[a, i]) + Y[a, i]
+            r[a, i] = X[a, i]
+            dp = hh * (f[a, i] + fn[a, i]) + pc[a, i]
+            pn = p[a, i] + dp
+            pc[a, i] = (p[a, i] - pn) + dp
+            p[a, i] = pn
+    for a in range(n + 1):
+        f[a, 0] = fn[a, 0]
+        f[a, 1] = fn[a, 1]
+        f[a, 2] = fn[a, 2]
+    for i in range(3):
+        for j in range(3):
+            Rc[i, j] = (R[i, j] - Rn[i, j]) + RF[i, j]
+            R[i, j] = Rn[i, j]
+    for i, dP in enumerate((dP0, dP1, dP2)):
+        y = dP + Pic[i]
+        t = Pi[i] + y
+        Pic[i] = (Pi[i] - t) + y
+        Pi[i] = t
     return OK, iters
 
 
 @kernel
-def lgvi_advance(r, p, R, Pi, f, B, X, FmI, jac, P, nsteps, stats):
+def lgvi_advance(r, p, R, Pi, rc, pc, Rc, Pic, f, W, P, nsteps, stats):
     """Take up to ``nsteps`` steps; stop at the first failure with the last good state.
 
     ``stats`` (int64, 4): status, steps taken, total Newton iterations, max per step.
@@ -174,7 +191,7 @@ def lgvi_advance(r, p, R, Pi, f, B, X, FmI, jac, P, nsteps, stats):
     total = 0
     most = 0
     for k in range(nsteps):
-        status, iters = lgvi_step(r, p, R, Pi, f, B, X, FmI, jac, P)
+        status, iters = lgvi_step(r, p, R, Pi, rc, pc, Rc, Pic, f, W, P)
         total += iters
         if iters > most:
             most = iters
@@ -191,7 +208,7 @@ def lgvi_advance(r, p, R, Pi, f, B, X, FmI, jac, P, nsteps, stats):
 
 
 @kernel
-def lgvi_record(r, p, R, Pi, f, B, X, FmI, jac, P, every, V, strain, omega, out,
+def lgvi_record(r, p, R, Pi, rc, pc, Rc, Pic, f, W, P, every, V, strain, omega, out,
                 snap_r, snap_R, snap_omega, snap_v, snap_diag, snap_strain, step_diag, stats):
     """Take ``len(snap_r) * every`` steps, storing a snapshot after every ``every`` steps.
 
@@ -208,7 +225,7 @@ def lgvi_record(r, p, R, Pi, f, B, X, FmI, jac, P, every, V, strain, omega, out,
     k = 0
     for j in range(snap_r.shape[0]):
         for i in range(every):
-            status, iters = lgvi_step(r, p, R, Pi, f, B, X, FmI, jac, P)
+            status, iters = lgvi_step(r, p, R, Pi, rc, pc, Rc, Pic, f, W, P)
             total += iters
             if iters > most:
                 most = iters

@@ -1,0 +1,1 @@
+"""Visualisation of esp_gym runs: matplotlib figures (:mod:`esp_gym.viz.figures`)."""

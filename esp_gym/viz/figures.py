@@ -1,0 +1,278 @@
+"""Matplotlib figures of a run, after the paper's numerical example.
+
+* :func:`plot_fig_ns` -- Fig. NS, six diagnostics panels: energy transfer, total energy, pi3,
+  orthogonality of R, second components of the body's velocities, stretched length.
+* :func:`plot_fig_sm` -- Fig. SM, four 3-D panels of snapshots: the string coloured element by
+  element by its strain energy, the body drawn as the paper's elliptic cylinder.
+
+Figures are drawn on a bare :class:`~matplotlib.figure.Figure` with an Agg canvas, so importing
+this module neither imports pyplot nor changes the user's backend.
+
+Frames: gravity acts along +e3, so z grows downwards. The 3-D panels invert the z axis (the
+pendulum hangs down) and also the y axis: two reflections make a rotation, so the picture is a
+true view of the motion, not its mirror image. Tick labels stay the spatial coordinates [m].
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional, Sequence
+
+import numpy as np
+from matplotlib import colors as mcolors
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.cm import ScalarMappable
+from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
+from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection  # registers "3d"
+
+#: The paper's elliptic cylinder (body frame): semi-axes along body x and y, height along body z [m].
+CYLINDER_SEMI_AXES = (0.06, 0.04)
+CYLINDER_HEIGHT = 0.1
+
+#: Colours of the energy-transfer panel, as in the paper's caption.
+ENERGY_COLOURS = {
+    "kinetic_body": ("tab:red", "kinetic, body"),
+    "kinetic_string": ("black", "kinetic, string"),
+    "potential_gravity": ("tab:green", "gravitational potential"),
+    "potential_elastic": ("tab:blue", "elastic potential"),
+}
+
+_RC = {"font.size": 10, "axes.titlesize": 10.5, "axes.labelsize": 10, "legend.fontsize": 8.5,
+       "xtick.labelsize": 9, "ytick.labelsize": 9}
+
+
+def _new_figure(figsize) -> Figure:
+    fig = Figure(figsize=figsize, dpi=150)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig: Figure, path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=150, facecolor="white")
+    return path
+
+
+def envelope(t: np.ndarray, y: np.ndarray, max_points: int = 20_000):
+    """Decimate a long series for plotting without losing its extremes: the samples are cut into
+    ``max_points // 2`` bins and each bin contributes its minimum and its maximum (in time order).
+    Short series are returned unchanged."""
+    t = np.asarray(t)
+    y = np.asarray(y)
+    n = len(y)
+    bins = max(1, max_points // 2)
+    if n <= max_points:
+        return t, y
+    edges = np.linspace(0, n, bins + 1).astype(int)
+    lo = np.minimum.reduceat(y, edges[:-1])
+    hi = np.maximum.reduceat(y, edges[:-1])
+    tb = 0.5 * (t[edges[:-1]] + t[np.maximum(edges[1:] - 1, edges[:-1])])
+    return np.repeat(tb, 2), np.column_stack([lo, hi]).ravel()
+
+
+def _series(traj, name: str):
+    """(t, values, is_every_step) of ``name``: the every-step series when the run kept it,
+    otherwise the snapshots. The every-step series starts after step 1, so t = 0 is prepended."""
+    every = getattr(traj, f"{name}_every_step", None)
+    if every is not None and len(every) and traj.t_every_step is not None:
+        return (np.concatenate([traj.t[:1], traj.t_every_step]),
+                np.concatenate([getattr(traj, name)[:1], every]), True)
+    return traj.t, getattr(traj, name), False
+
+
+def plot_fig_ns(traj, path, scene=None, title: Optional[str] = None) -> Path:
+    """Fig. NS of the paper: six panels of diagnostics against time, saved as ``path`` (PNG).
+
+    (a) energy transfer: kinetic energy of the body (red) and of the string (black),
+    gravitational (green) and elastic (blue) potential [J]; (b) total energy as E - E0 [J] with
+    its least-squares drift line; (c) pi3 - pi3(0) [kg m^2/s]; (d) ||I - R^T R||_F (log scale);
+    (e) second components of the attachment velocity [m/s] (spatial frame) and of the body
+    angular velocity Omega [rad/s] (body frame); (f) stretched length of the string [m].
+    (b)-(d) use the every-step series when the trajectory has them. ``scene`` (optional) adds the
+    unstretched length to (f) and the scene name to the title.
+    """
+    import matplotlib
+
+    with matplotlib.rc_context(_RC):
+        fig = _new_figure((11, 10.5))
+        axes = fig.subplots(3, 2, sharex=True)
+        fig.set_layout_engine("constrained")
+        t = traj.t
+        (a, b), (c, d), (e, f) = axes
+
+        for name, (colour, label) in ENERGY_COLOURS.items():
+            a.plot(t, getattr(traj, name), color=colour, lw=1.2, label=label)
+        a.set_ylabel("energy [J]")
+        a.set_title("(a) Energy transfer")
+        lo, hi = a.get_ylim()
+        a.set_ylim(lo, hi + 0.3 * (hi - lo))  # head room for the legend
+        a.legend(loc="upper center", ncols=2, framealpha=0.9)
+
+        ts, E, every = _series(traj, "energy")
+        E0 = E[0]
+        dE = E - E0
+        slope, icpt = np.polyfit(ts, dE, 1) if len(ts) > 1 else (0.0, 0.0)
+        b.plot(*envelope(ts, dE), color="black", lw=0.6,
+               label="E - E0, every step" if every else "E - E0")
+        b.plot(ts[[0, -1]], icpt + slope * ts[[0, -1]], color="tab:orange", lw=1.5, ls="--",
+               label=f"least-squares drift: {slope:+.2e} J/s")
+        b.axhline(0.0, color="grey", lw=0.6)
+        b.set_ylabel("E - E0 [J]")
+        b.set_title(f"(b) Total energy (E0 = {E0:.6f} J, max |E - E0| = {np.abs(dE).max():.2e} J)")
+        b.legend(loc="best", framealpha=0.9)
+
+        ts, p3, every = _series(traj, "pi3")
+        c.plot(*envelope(ts, p3 - p3[0]), color="black", lw=0.6)
+        c.axhline(0.0, color="grey", lw=0.6)
+        c.set_ylabel(r"$\pi_3 - \pi_3(0)$ [kg m$^2$/s]")
+        c.set_title(r"(c) Angular momentum about $e_3$: deviation" + f" (pi3(0) = {p3[0]:.6f})")
+        c.ticklabel_format(axis="y", style="sci", scilimits=(-3, 3))
+
+        ts, orth, every = _series(traj, "orthogonality")
+        keep = orth > 0  # exact zeros (e.g. R(0) = I) have no logarithm
+        d.semilogy(*envelope(ts[keep], orth[keep]), color="black", lw=0.6)
+        if keep.any():  # the first few steps sit far below round-off; do not let them set the scale
+            floor = np.percentile(orth[keep], 1.0)
+            d.set_ylim(10.0 ** np.floor(np.log10(floor)), 10.0 ** np.ceil(np.log10(orth.max()) + 0.3))
+        d.set_ylabel(r"$\|I - R^T R\|_F$")
+        d.set_title(f"(d) Orthogonality error of R (max {orth.max():.1e})")
+        d.grid(True, which="major", alpha=0.3)
+
+        v2 = e.plot(t, traj.attach_velocity[:, 1], color="tab:blue", lw=1.2,
+                    label=r"attachment velocity $v_2$ [m/s] (left)")
+        e.set_ylabel(r"$v_2$ [m/s]", color="tab:blue")
+        e.tick_params(axis="y", colors="tab:blue")
+        e2 = e.twinx()
+        w2 = e2.plot(t, traj.omega[:, 1], color="tab:red", lw=1.2,
+                     label=r"angular velocity $\Omega_2$ [rad/s] (right)")
+        e2.set_ylabel(r"$\Omega_2$ [rad/s]", color="tab:red")
+        e2.tick_params(axis="y", colors="tab:red")
+        e.legend(handles=v2 + w2, loc="lower left", framealpha=0.9)
+        e.set_title("(e) Body velocity / angular velocity, second components")
+        e.set_xlabel("t [s]")
+
+        f.plot(t, traj.stretched_length, color="black", lw=1.2)
+        if scene is not None:
+            f.axhline(scene.string.length, color="grey", lw=0.8, ls="--",
+                      label=f"unstretched length l = {scene.string.length:g} m")
+            f.legend(loc="best", framealpha=0.9)
+        f.set_ylabel("stretched length [m]")
+        f.set_title("(f) Stretched length of the string")
+        f.set_xlabel("t [s]")
+
+        for ax in axes.ravel():
+            ax.set_xlim(t[0], t[-1])
+            ax.grid(True, alpha=0.3)
+        if title is None:
+            name = f"{scene.name}, N = {scene.string.elements}, h = {scene.h:g} s" if scene is not None else ""
+            title = f"Numerical simulation of a 3D elastic string pendulum{' (' + name + ')' if name else ''}"
+        fig.suptitle(title, fontsize=12)
+        return _save(fig, path)
+
+
+def cylinder_faces(R: np.ndarray, r_attach: np.ndarray, rho_c: Sequence[float],
+                   semi_axes=CYLINDER_SEMI_AXES, height: float = CYLINDER_HEIGHT, n: int = 24):
+    """Polygons (spatial frame) of an elliptic cylinder centred at the centre of mass: ``n`` side
+    quads and the two end caps. Body point b sits at ``r_attach + R b``; the cylinder axis is
+    body z, its semi-axes are along body x and y."""
+    th = np.linspace(0.0, 2.0 * np.pi, n + 1)
+    ring = np.column_stack([semi_axes[0] * np.cos(th), semi_axes[1] * np.sin(th), np.zeros_like(th)])
+    rho = np.asarray(rho_c, dtype=float)
+    lo = rho + ring - [0.0, 0.0, 0.5 * height]
+    hi = rho + ring + [0.0, 0.0, 0.5 * height]
+    lo = r_attach + lo @ R.T
+    hi = r_attach + hi @ R.T
+    sides = [np.array([lo[i], lo[i + 1], hi[i + 1], hi[i]]) for i in range(n)]
+    return sides + [lo[:-1], hi[:-1]]
+
+
+def _snapshot_indices(t: np.ndarray, t0: float, t1: float, count: int) -> np.ndarray:
+    """Indices of the snapshots nearest to ``count`` equally spaced times in [t0, t1]."""
+    want = np.linspace(t0, t1, count)
+    idx = np.clip(np.searchsorted(t, want), 0, len(t) - 1)
+    prev = np.clip(idx - 1, 0, len(t) - 1)
+    idx = np.where(np.abs(t[prev] - want) <= np.abs(t[idx] - want), prev, idx)
+    return np.unique(idx)
+
+
+def plot_fig_sm(traj, scene, path, panels: int = 4, snapshots_per_panel: int = 11,
+                cmap: str = "plasma", title: Optional[str] = None) -> Path:
+    """Fig. SM of the paper: snapshots of the maneuver in ``panels`` 3-D panels that split the
+    run's time span evenly (for the paper's 5 s: [0, 1.25], ..., [3.75, 5] s, and with the
+    default 11 snapshots per panel one every 0.125 s).
+
+    Each snapshot draws the string element by element, coloured by its strain energy [J] on one
+    colour scale shared by all panels, and the body as the elliptic cylinder (grey, darker for
+    later snapshots). The thin grey line is the path of the attachment point; the black square
+    is the pivot. Axes are equal, identical across panels, z inverted (gravity points down).
+    """
+    import matplotlib
+
+    t = traj.t
+    nodes = traj.nodes
+    R = traj.R
+    rho_c = np.asarray(scene.body.rho_c, dtype=float)
+    pivot = np.asarray(scene.pivot.position, dtype=float)
+    edges = np.linspace(t[0], t[-1], panels + 1)
+    chosen = [_snapshot_indices(t, edges[i], edges[i + 1], snapshots_per_panel) for i in range(panels)]
+    every = np.unique(np.concatenate(chosen))
+
+    bodies = {k: cylinder_faces(R[k], nodes[k, -1], rho_c) for k in every}
+    pts = np.concatenate([nodes[every].reshape(-1, 3), pivot[None]]
+                         + [np.concatenate(bodies[k]) for k in every])
+    pad = 0.03 * (pts.max(0) - pts.min(0)).max()
+    lo, hi = pts.min(0) - pad, pts.max(0) + pad
+    smax = float(traj.strain_energy[every].max()) or 1.0
+    # square-root scale: most elements carry little strain energy, a few near the body a lot
+    norm = mcolors.PowerNorm(gamma=0.5, vmin=0.0, vmax=smax)
+    colormap = matplotlib.colormaps[cmap]
+
+    with matplotlib.rc_context(_RC):
+        ncols = 2 if panels > 1 else 1
+        nrows = int(np.ceil(panels / ncols))
+        fig = _new_figure((11, 4.6 * nrows + 0.5))
+        fig.subplots_adjust(left=0.0, right=0.86, bottom=0.01, top=0.93, wspace=0.06, hspace=0.02)
+        for i in range(panels):
+            ax = fig.add_subplot(nrows, ncols, i + 1, projection="3d")
+            sel = chosen[i]
+            span = (t >= edges[i]) & (t <= edges[i + 1])
+            path_k = nodes[span, -1]
+            ax.plot(path_k[:, 0], path_k[:, 1], path_k[:, 2], color="0.55", lw=0.7)
+            for j, k in enumerate(sel):
+                seg = np.stack([nodes[k, :-1], nodes[k, 1:]], axis=1)
+                lines = Line3DCollection(seg, cmap=colormap, norm=norm, linewidths=2.0)
+                lines.set_array(traj.strain_energy[k])
+                ax.add_collection3d(lines)
+                grey = 0.8 - 0.55 * j / max(1, len(sel) - 1)
+                body = Poly3DCollection(bodies[k], facecolor=(grey, grey, grey), edgecolor=(0.2, 0.2, 0.2),
+                                        linewidths=0.2, alpha=0.95)
+                ax.add_collection3d(body)
+            for k in (sel[0], sel[-1]):  # label the first and the last snapshot with its time
+                c = np.asarray(bodies[k][-1]).mean(0)
+                ax.text(c[0], c[1], c[2] - 0.1 * (hi[2] - lo[2]), f"{t[k]:g} s", fontsize=8, ha="center",
+                        va="center", color="0.1", zorder=100,  # above the depth-sorted collections
+                        bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.75))
+            ax.scatter(*pivot, color="black", marker="s", s=30, depthshade=False)
+            ax.text(*(pivot - [0.0, 0.0, 0.07 * (hi[2] - lo[2])]), "pivot", fontsize=8, ha="center", zorder=100)
+            ax.set_xlim(lo[0], hi[0])
+            ax.set_ylim(hi[1], lo[1])  # inverted: see the module docstring
+            ax.set_zlim(hi[2], lo[2])  # inverted: gravity (+e3) points down
+            ax.set_box_aspect(tuple(hi - lo), zoom=1.0)  # equal scale on all three axes
+            ax.view_init(elev=16, azim=-72)
+            ax.set_xlabel("x [m]", labelpad=4)
+            ax.set_ylabel("y [m]", labelpad=4)
+            ax.set_zlabel("z [m] (down)", labelpad=0)
+            ax.tick_params(pad=0)
+            for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+                axis.set_major_locator(MaxNLocator(5, steps=[1, 2, 2.5, 5, 10]))
+            ax.set_title(f"({chr(ord('a') + i)}) $t \\in [{t[sel[0]]:g}, {t[sel[-1]]:g}]$ s, "
+                         f"{len(sel)} snapshots", y=0.9)
+        cax = fig.add_axes([0.9, 0.2, 0.018, 0.6])
+        cb = fig.colorbar(ScalarMappable(norm=norm, cmap=colormap), cax=cax)
+        cb.set_label("strain energy per element [J] (square-root scale)")
+        if title is None:
+            title = (f"Snapshots of a 3D elastic string pendulum maneuver ({scene.name}, "
+                     f"N = {scene.string.elements}); bodies darken with time")
+        fig.suptitle(title, fontsize=12)
+        return _save(fig, path)

@@ -1,0 +1,30 @@
+"""Shared fixtures and small reusable checkers for the physics tests."""
+import numpy as np
+import pytest
+
+import esp_gym
+
+#: The paper's example and two scenes far from it (see configs/scenes/*.yaml).
+INVARIANT_SCENES = ["paper_example", "short_stiff", "large_offset"]
+
+
+def state_distance(a, b):
+    """Max abs difference of positions [m], momenta and attitude between two states."""
+    return max(np.abs(a.r - b.r).max(), np.abs(a.p - b.p).max(), np.abs(a.R - b.R).max(),
+               np.abs(a.Pi - b.Pi).max())
+
+
+def drift_ratio(t, de):
+    """|least-squares slope| * duration / max|dE|: ~1 for a steady drift, small for bounded noise."""
+    slope = np.polyfit(t - t[0], de, 1)[0]
+    return abs(slope) * (t[-1] - t[0]) / np.abs(de).max()
+
+
+@pytest.fixture(scope="session")
+def long_runs():
+    """1e5 steps of each invariant scene with every-step diagnostics (computed once)."""
+    runs = {}
+    for name in INVARIANT_SCENES:
+        sim = esp_gym.Simulator(esp_gym.load_scene(name))
+        runs[name] = sim.run(t_final=100_000 * sim.h, record_every=1000, every_step=True)
+    return runs

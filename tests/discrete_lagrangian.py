@@ -1,0 +1,110 @@
+"""The discrete Lagrangian L_d(g_k, f_k) straight from its integral definition (test helper).
+
+Independent of esp_gym.reference and esp_gym.kernels: the string part is the paper's integral
+form of ``L_{d_{k,a}}`` evaluated by Gauss-Legendre quadrature over the natural coordinate
+zeta in [0, 1] (not the closed form (Ldka)), with erratum 1 (kinetic prefactor h/2, not 1/h)
+applied; the closed form's erratum 2 (missing kappa) cannot arise here, since the elastic term
+is integrated from EA directly. The rigid-body part is (Ldkrb) as printed.
+
+    L_{d_{k,a}} = h/2 int_0^1 mu |v_{k,a}(zeta)|^2 u dzeta
+                  - h/2 int_0^1 [1/2 EA (|r'_{k,a}| - 1)^2 - mu g r_{k,a}(zeta).e3] u dzeta
+                  - h/2 int_0^1 [1/2 EA (|r'_{k+1,a}| - 1)^2 - mu g r_{k+1,a}(zeta).e3] u dzeta
+    r_{k,a}(zeta) = (1 - zeta) r_{k,a} + zeta r_{k,a+1},    r'_{k,a} = (r_{k,a+1} - r_{k,a})/u,
+    v_{k,a}(zeta) = ((1 - zeta) dr_{k,a} + zeta dr_{k,a+1})/h
+
+Arrays: r, dr (N+1, 3) [m] with row 0 the fixed pivot (dr[0] = 0), R (3, 3) body -> spatial.
+The rotation increment F_k is passed as ``FmI = F_k - I``: F_k = I + O(h), and a central
+difference of L_d in F would otherwise difference values of ``I - F`` that each carry an
+absolute error eps (physics_notes.md, "Round-off"). L_d is in [J s].
+"""
+import numpy as np
+
+E3 = np.array([0.0, 0.0, 1.0])
+
+#: Gauss-Legendre nodes/weights on [0, 1]. The integrands are polynomials in zeta of degree
+#: <= 2 (kinetic), 1 (gravity) and 0 (elastic), so 3 points are exact; 4 leave a margin.
+_XI, _W = np.polynomial.legendre.leggauss(4)
+ZETA = 0.5 * (_XI + 1.0)
+WEIGHTS = 0.5 * _W
+
+
+def string_kinetic(scene, dr) -> float:
+    """h/2 sum_a int_0^1 mu |v_{k,a}(zeta)|^2 u dzeta [J s] (erratum 1: h/2, not 1/h)."""
+    h, mu, u = scene.h, scene.string.mass_per_length, scene.string.u
+    v = ((1.0 - ZETA)[None, :, None] * dr[:-1, None, :] + ZETA[None, :, None] * dr[1:, None, :]) / h
+    return 0.5 * h * float(np.sum(WEIGHTS[None, :] * mu * np.sum(v * v, axis=2) * u))
+
+
+def string_potential(scene, r) -> float:
+    """sum_a int_0^1 [1/2 EA (|r'_a| - 1)^2 - mu g r_a(zeta).e3] u dzeta [J] at one time."""
+    mu, u, EA, g = scene.string.mass_per_length, scene.string.u, scene.string.EA, scene.gravity
+    strain = np.sqrt(np.sum(((r[1:] - r[:-1]) / u) ** 2, axis=1)) - 1.0  # (N,), constant in zeta
+    z = (1.0 - ZETA)[None, :] * r[:-1, None, 2] + ZETA[None, :] * r[1:, None, 2]  # r_a(zeta).e3
+    integrand = 0.5 * EA * strain[:, None] ** 2 - mu * g * z
+    return float(np.sum(WEIGHTS[None, :] * integrand * u))
+
+
+def string_lagrangian(scene, r, dr) -> float:
+    """L_{d_{k,str}} = sum_a L_{d_{k,a}} [J s]: kinetic minus trapezoidal-in-time potential."""
+    h = scene.h
+    return string_kinetic(scene, dr) - 0.5 * h * string_potential(scene, r) - 0.5 * h * string_potential(scene, r + dr)
+
+
+def rigid_body_lagrangian(scene, r_attach, R, dr_attach, FmI) -> float:
+    """(Ldkrb) as printed, with F_k = I + FmI [J s]::
+
+        1/(2h) M |dr|^2 + 1/h tr((I - F) J_d) + M/h dr . R (F - I) rho_c
+        + h/2 M g (r + R rho_c).e3 + h/2 M g (r + dr + R F rho_c).e3,   J_d = tr(J)/2 I - J
+    """
+    h, M, g = scene.h, scene.body.mass, scene.gravity
+    J = np.array(scene.body.inertia, dtype=float)
+    Jd = 0.5 * np.trace(J) * np.eye(3) - J
+    rho = np.array(scene.body.rho_c, dtype=float)
+    return float(0.5 / h * M * dr_attach @ dr_attach
+                 + np.trace(-FmI @ Jd) / h
+                 + M / h * dr_attach @ (R @ (FmI @ rho))
+                 + 0.5 * h * M * g * (r_attach + R @ rho) @ E3
+                 + 0.5 * h * M * g * (r_attach + dr_attach + R @ rho + R @ (FmI @ rho)) @ E3)
+
+
+def discrete_lagrangian(scene, r, R, dr, FmI) -> float:
+    """L_d(g_k, f_k) = sum_a L_{d_{k,a}} + L_{d_{k,rb}} (Ldk) [J s], g_k = (r, R), f_k = (dr, I + FmI)."""
+    return string_lagrangian(scene, r, dr) + rigid_body_lagrangian(scene, r[-1], R, dr[-1], FmI)
+
+
+# -- rotations -----------------------------------------------------------------------------------
+def hat(v) -> np.ndarray:
+    """``hat(v) @ y == v x y``."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def expm_minus_identity(w) -> np.ndarray:
+    """exp(w^) - I by Rodrigues' formula, sin(t)/t w^ + 2 sin^2(t/2)/t^2 w^ w^, t = |w|, with no
+    cancellation for small t."""
+    t = float(np.linalg.norm(w))
+    W = hat(w)
+    if t == 0.0:
+        return np.zeros((3, 3))
+    return np.sin(t) / t * W + 2.0 * (np.sin(0.5 * t) / t) ** 2 * (W @ W)
+
+
+def expm(w) -> np.ndarray:
+    """exp(w^) in SO(3)."""
+    return np.eye(3) + expm_minus_identity(w)
+
+
+def right_perturbed(F, FmI, w):
+    """F exp(w^) - I given F and F - I (delta F = F zeta^), without cancellation."""
+    return FmI + F @ expm_minus_identity(w)
+
+
+def left_perturbed(F, FmI, w):
+    """exp(w^)^T F - I given F and F - I (R_k -> R_k exp(w^) with R_{k+1} fixed)."""
+    return FmI + expm_minus_identity(w).T @ F
+
+
+def random_rotation(rng, max_angle=np.pi) -> np.ndarray:
+    """A rotation about a random axis by an angle uniform in (0, max_angle]."""
+    axis = rng.normal(size=3)
+    axis /= np.linalg.norm(axis)
+    return expm(axis * rng.uniform(0.1 * max_angle, max_angle))
