@@ -9,6 +9,8 @@ from numba import njit
 JIT_OPTIONS = dict(cache=True, nogil=True, fastmath=False, error_model="numpy", boundscheck=False)
 
 
-def kernel(fn):
-    """Compile ``fn`` as an esp_gym kernel (nopython, cached)."""
+def kernel(fn=None, **extra):
+    """Compile ``fn`` as an esp_gym kernel (nopython, cached); ``extra`` adds numba options."""
+    if fn is None:
+        return lambda f: njit(**JIT_OPTIONS, **extra)(f)
     return njit(**JIT_OPTIONS)(fn)

@@ -48,7 +48,7 @@ NEWTON_FAILED = 1
 NON_FINITE = 2
 
 
-@kernel
+@kernel(inline="always")
 def lgvi_step(r, p, R, Pi, rc, pc, Rc, Pic, f, W, P):
     """Advance the state ``(r, p, R, Pi)`` by one step of length ``P.h``, in place.
 
@@ -159,13 +159,16 @@ def lgvi_step(r, p, R, Pi, rc, pc, Rc, Pic, f, W, P):
     # commit (3) and the compensated updates
     for a in range(first, n + 1):
         for i in range(3):
-            rc[a, i] = (r[a, i] - X[a, i]) + Y[a, i]
-            r[a, i] = X[a, i]
+            x = X[a, i]
+            rc[a, i] = (r[a, i] - x) + Y[a, i]
+            r[a, i] = x
             dp = hh * (f[a, i] + fn[a, i]) + pc[a, i]
-            pn = p[a, i] + dp
-            pc[a, i] = (p[a, i] - pn) + dp
+            p0 = p[a, i]
+            pn = p0 + dp
+            pc[a, i] = (p0 - pn) + dp
             p[a, i] = pn
-    for a in range(n + 1):
+            f[a, i] = fn[a, i]
+    for a in range(first):
         f[a, 0] = fn[a, 0]
         f[a, 1] = fn[a, 1]
         f[a, 2] = fn[a, 2]

@@ -82,9 +82,10 @@ def tridiag_solve(inv, cp, off, first, b, x):
     x[first, 1] = y1
     x[first, 2] = y2
     for a in range(first + 1, n + 1):
-        y0 = (b[a, 0] - off * y0) * inv[a]
-        y1 = (b[a, 1] - off * y1) * inv[a]
-        y2 = (b[a, 2] - off * y2) * inv[a]
+        # (b_a - off y_{a-1}) inv_a with off inv_a = cp_a: one multiply-add on the recurrence
+        y0 = b[a, 0] * inv[a] - cp[a] * y0
+        y1 = b[a, 1] * inv[a] - cp[a] * y1
+        y2 = b[a, 2] * inv[a] - cp[a] * y2
         x[a, 0] = y0
         x[a, 1] = y1
         x[a, 2] = y2
