@@ -254,6 +254,8 @@ class Simulator:
         record_every = int(record_every)
         if record_every < 1:
             raise ValueError(f"record_every must be >= 1, got {record_every}")
+        if every_step and nsteps % record_every:
+            raise ValueError("every_step needs t_final to be a whole number of record_every steps")
         n = self.scene.string.elements
         K = nsteps // record_every
         snap = dict(
@@ -285,8 +287,6 @@ class Simulator:
                 j = j1
             rest = nsteps - K * record_every
             if rest:
-                if every_step:
-                    raise ValueError("every_step needs t_final to be a whole number of record_every steps")
                 self.step(rest)
                 bar.update(rest)
         wall = _time.perf_counter() - start

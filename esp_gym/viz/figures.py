@@ -17,6 +17,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Optional, Sequence
 
+import matplotlib
 import numpy as np
 from matplotlib import colors as mcolors
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -54,21 +55,38 @@ def _save(fig: Figure, path) -> Path:
     return path
 
 
-def envelope(t: np.ndarray, y: np.ndarray, max_points: int = 20_000):
-    """Decimate a long series for plotting without losing its extremes: the samples are cut into
-    ``max_points // 2`` bins and each bin contributes its minimum and its maximum (in time order).
-    Short series are returned unchanged."""
-    t = np.asarray(t)
-    y = np.asarray(y)
-    n = len(y)
-    bins = max(1, max_points // 2)
-    if n <= max_points:
-        return t, y
-    edges = np.linspace(0, n, bins + 1).astype(int)
-    lo = np.minimum.reduceat(y, edges[:-1])
-    hi = np.maximum.reduceat(y, edges[:-1])
-    tb = 0.5 * (t[edges[:-1]] + t[np.maximum(edges[1:] - 1, edges[:-1])])
-    return np.repeat(tb, 2), np.column_stack([lo, hi]).ravel()
+def binned(t: np.ndarray, y: np.ndarray, bins: int = 1000):
+    """Cut a long series into ``bins`` consecutive bins: (bin centre times, min, median, max).
+    Series with at most ``2 * bins`` samples come back unbinned (min = median = max = y)."""
+    t = np.asarray(t, dtype=float)
+    y = np.asarray(y, dtype=float)
+    if len(y) <= 2 * bins:
+        return t, y, y, y
+    edges = np.linspace(0, len(y), bins + 1).astype(int)
+    starts = edges[:-1]
+    tb = 0.5 * (t[starts] + t[edges[1:] - 1])
+    lo = np.minimum.reduceat(y, starts)
+    hi = np.maximum.reduceat(y, starts)
+    med = np.array([np.median(y[i:j]) for i, j in zip(starts, edges[1:])])
+    return tb, lo, med, hi
+
+
+def _band(ax, t, y, colour="black", label=None, bins: int = 1000):
+    """Draw a long, noisy series as the band between its per-bin minimum and maximum (a plain
+    line when it is short), so round-off noise reads as a band rather than a black smear."""
+    tb, lo, _, hi = binned(t, y, bins)
+    if len(tb) == len(t):
+        ax.plot(t, y, color=colour, lw=0.8, label=label)
+    else:
+        ax.fill_between(tb, lo, hi, color=colour, lw=0.3, alpha=0.85, label=label)
+
+
+def _note(ax, text, loc="lower left"):
+    """A small text box in a corner of ``ax``."""
+    x, ha = (0.02, "left") if "left" in loc else (0.98, "right")
+    y, va = (0.04, "bottom") if "lower" in loc else (0.96, "top")
+    ax.text(x, y, text, transform=ax.transAxes, ha=ha, va=va, fontsize=8.5,
+            bbox=dict(boxstyle="round,pad=0.3", fc="white", ec="0.7", alpha=0.9))
 
 
 def _series(traj, name: str):
@@ -92,8 +110,6 @@ def plot_fig_ns(traj, path, scene=None, title: Optional[str] = None) -> Path:
     (b)-(d) use the every-step series when the trajectory has them. ``scene`` (optional) adds the
     unstretched length to (f) and the scene name to the title.
     """
-    import matplotlib
-
     with matplotlib.rc_context(_RC):
         fig = _new_figure((11, 10.5))
         axes = fig.subplots(3, 2, sharex=True)
@@ -113,30 +129,40 @@ def plot_fig_ns(traj, path, scene=None, title: Optional[str] = None) -> Path:
         E0 = E[0]
         dE = E - E0
         slope, icpt = np.polyfit(ts, dE, 1) if len(ts) > 1 else (0.0, 0.0)
-        b.plot(*envelope(ts, dE), color="black", lw=0.6,
-               label="E - E0, every step" if every else "E - E0")
+        _band(b, ts, dE, label="E - E0" + (", every step (min..max per bin)" if every else ""))
         b.plot(ts[[0, -1]], icpt + slope * ts[[0, -1]], color="tab:orange", lw=1.5, ls="--",
-               label=f"least-squares drift: {slope:+.2e} J/s")
+               label=f"least-squares drift {slope:+.2e} J/s")
         b.axhline(0.0, color="grey", lw=0.6)
         b.set_ylabel("E - E0 [J]")
-        b.set_title(f"(b) Total energy (E0 = {E0:.6f} J, max |E - E0| = {np.abs(dE).max():.2e} J)")
-        b.legend(loc="best", framealpha=0.9)
+        b.set_title("(b) Total energy")
+        b.ticklabel_format(axis="y", style="sci", scilimits=(-3, 3))
+        b.legend(loc="upper left", framealpha=0.9)
+        _note(b, f"E0 = {E0:.6f} J\nmax |E - E0| = {np.abs(dE).max():.2e} J")
 
         ts, p3, every = _series(traj, "pi3")
-        c.plot(*envelope(ts, p3 - p3[0]), color="black", lw=0.6)
+        _band(c, ts, p3 - p3[0])
         c.axhline(0.0, color="grey", lw=0.6)
         c.set_ylabel(r"$\pi_3 - \pi_3(0)$ [kg m$^2$/s]")
-        c.set_title(r"(c) Angular momentum about $e_3$: deviation" + f" (pi3(0) = {p3[0]:.6f})")
+        c.set_title(r"(c) Angular momentum about $e_3$: deviation from the initial value")
         c.ticklabel_format(axis="y", style="sci", scilimits=(-3, 3))
+        _note(c, rf"$\pi_3(0)$ = {p3[0]:.6f} kg m$^2$/s" + "\n"
+              + rf"max $|\pi_3 - \pi_3(0)|$ = {np.abs(p3 - p3[0]).max():.1e}")
 
         ts, orth, every = _series(traj, "orthogonality")
-        keep = orth > 0  # exact zeros (e.g. R(0) = I) have no logarithm
-        d.semilogy(*envelope(ts[keep], orth[keep]), color="black", lw=0.6)
-        if keep.any():  # the first few steps sit far below round-off; do not let them set the scale
-            floor = np.percentile(orth[keep], 1.0)
-            d.set_ylim(10.0 ** np.floor(np.log10(floor)), 10.0 ** np.ceil(np.log10(orth.max()) + 0.3))
+        tb, _, med, hi = binned(ts, orth, bins=500)
+        if len(tb) == len(ts):
+            d.semilogy(ts, np.where(orth > 0, orth, np.nan), color="black", lw=0.8)
+        else:
+            d.semilogy(tb, np.where(hi > 0, hi, np.nan), color="black", lw=0.9, label="maximum per bin")
+            d.semilogy(tb, np.where(med > 0, med, np.nan), color="tab:grey", lw=0.9, label="median per bin")
+            d.legend(loc="lower right", framealpha=0.9)
+        positive = orth[orth > 0]  # exact zeros (e.g. R(0) = I) have no logarithm
+        if positive.size:  # the first steps sit far below round-off; do not let them set the scale
+            typical = np.percentile(med[med > 0] if (med > 0).any() else positive, 5.0)
+            d.set_ylim(10.0 ** (np.floor(np.log10(typical)) - 1), 10.0 ** np.ceil(np.log10(positive.max()) + 0.3))
         d.set_ylabel(r"$\|I - R^T R\|_F$")
-        d.set_title(f"(d) Orthogonality error of R (max {orth.max():.1e})")
+        d.set_title("(d) Orthogonality error of the rotation matrices")
+        _note(d, f"max = {orth.max():.1e}", loc="upper left")
         d.grid(True, which="major", alpha=0.3)
 
         v2 = e.plot(t, traj.attach_velocity[:, 1], color="tab:blue", lw=1.2,
@@ -207,8 +233,6 @@ def plot_fig_sm(traj, scene, path, panels: int = 4, snapshots_per_panel: int = 1
     later snapshots). The thin grey line is the path of the attachment point; the black square
     is the pivot. Axes are equal, identical across panels, z inverted (gravity points down).
     """
-    import matplotlib
-
     t = traj.t
     nodes = traj.nodes
     R = traj.R
@@ -221,8 +245,9 @@ def plot_fig_sm(traj, scene, path, panels: int = 4, snapshots_per_panel: int = 1
     bodies = {k: cylinder_faces(R[k], nodes[k, -1], rho_c) for k in every}
     pts = np.concatenate([nodes[every].reshape(-1, 3), pivot[None]]
                          + [np.concatenate(bodies[k]) for k in every])
-    pad = 0.03 * (pts.max(0) - pts.min(0)).max()
-    lo, hi = pts.min(0) - pad, pts.max(0) + pad
+    mid, span = 0.5 * (pts.max(0) + pts.min(0)), pts.max(0) - pts.min(0)
+    span = np.maximum(span, 0.35 * span.max()) + 0.06 * span.max()  # no flat box for a short run
+    lo, hi = mid - 0.5 * span, mid + 0.5 * span
     smax = float(traj.strain_energy[every].max()) or 1.0
     # square-root scale: most elements carry little strain energy, a few near the body a lot
     norm = mcolors.PowerNorm(gamma=0.5, vmin=0.0, vmax=smax)
@@ -231,10 +256,12 @@ def plot_fig_sm(traj, scene, path, panels: int = 4, snapshots_per_panel: int = 1
     with matplotlib.rc_context(_RC):
         ncols = 2 if panels > 1 else 1
         nrows = int(np.ceil(panels / ncols))
-        fig = _new_figure((11, 4.6 * nrows + 0.5))
-        fig.subplots_adjust(left=0.0, right=0.86, bottom=0.01, top=0.93, wspace=0.06, hspace=0.02)
+        fig = _new_figure((11, 4.0 * nrows + 0.4))
+        # 3-D axes draw in a square; the projected box is wider than tall, so the rows may overlap
+        fig.subplots_adjust(left=0.0, right=0.86, bottom=-0.02, top=1.0, wspace=0.06, hspace=-0.16)
         for i in range(panels):
             ax = fig.add_subplot(nrows, ncols, i + 1, projection="3d")
+            ax.patch.set_visible(False)  # the squares overlap; let no panel hide its neighbour
             sel = chosen[i]
             span = (t >= edges[i]) & (t <= edges[i + 1])
             path_k = nodes[span, -1]
@@ -267,12 +294,12 @@ def plot_fig_sm(traj, scene, path, panels: int = 4, snapshots_per_panel: int = 1
             for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
                 axis.set_major_locator(MaxNLocator(5, steps=[1, 2, 2.5, 5, 10]))
             ax.set_title(f"({chr(ord('a') + i)}) $t \\in [{t[sel[0]]:g}, {t[sel[-1]]:g}]$ s, "
-                         f"{len(sel)} snapshots", y=0.9)
+                         f"{len(sel)} snapshots", y=0.88)
         cax = fig.add_axes([0.9, 0.2, 0.018, 0.6])
         cb = fig.colorbar(ScalarMappable(norm=norm, cmap=colormap), cax=cax)
         cb.set_label("strain energy per element [J] (square-root scale)")
         if title is None:
             title = (f"Snapshots of a 3D elastic string pendulum maneuver ({scene.name}, "
                      f"N = {scene.string.elements}); bodies darken with time")
-        fig.suptitle(title, fontsize=12)
+        fig.suptitle(title, fontsize=12, y=0.995)
         return _save(fig, path)

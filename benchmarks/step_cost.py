@@ -1,0 +1,224 @@
+"""Cost of one LGVI step against the number of elements N, and the cost of starting up.
+
+Prints three tables and writes ``OUT/step_cost.json`` and ``OUT/step_cost.png``
+(OUT = benchmarks/out unless ``--out`` says otherwise):
+
+1. microseconds per step (median over repeats, no recording) for the scene ``paper_example``
+   with N in {5, 10, 20, 40, 80}; h = min(1e-4, 0.8 h_max(N)) stays under each N's stability
+   bound and is reported;
+2. start-up: wall time from process start to the first completed step (``sim.step(1)``) and to
+   the first recorded run (``sim.run(..., every_step=True)``, which needs the recording and
+   diagnostics kernels too), in a fresh process whose NUMBA_CACHE_DIR is an empty temporary
+   directory (cold: everything compiles) and then again with the same directory (cached);
+3. the paper's example, 50,000 steps after compilation: plain stepping and a recorded run
+   (snapshots every 100 steps plus energy, pi3 and orthogonality after every step).
+
+Usage: ``python benchmarks/step_cost.py [--quick] [--out DIR]``. ``--quick`` runs N in {5, 20},
+fewer steps and repeats, a 5,000-step paper run and start-up to the first step only: a smoke
+test, not a measurement.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+
+# Run in a fresh interpreter: prints the wall-clock times (time.time(), comparable with the
+# parent's) after imports, after the first step and (unless argv[1] == "step") after the first
+# recorded run.
+_STARTUP_CHILD = r"""
+import json, sys, time
+import esp_gym
+t_import = time.time()
+scene = esp_gym.load_scene("paper_example")
+sim = esp_gym.Simulator(scene)
+sim.step(1)
+t_step = time.time()
+t_run = None
+if sys.argv[1] != "step":
+    sim.run(t_final=100 * scene.h, record_every=10, every_step=True)
+    t_run = time.time()
+print(json.dumps({"t_import": t_import, "t_first_step": t_step, "t_first_run": t_run}))
+"""
+
+
+def scene_for(n: int, h_max: float = 1e-4, safety: float = 0.8):
+    """paper_example with N = n and h = min(h_max, safety * stability bound)."""
+    import esp_gym
+
+    bound = esp_gym.load_scene("paper_example", N=n, allow_unstable_h=True).string.stability_bound
+    h = min(h_max, safety * bound)
+    return esp_gym.load_scene("paper_example", N=n, h=h), bound
+
+
+def time_steps(scene, steps: int, repeats: int) -> dict:
+    """Median, min and max microseconds per step of ``sim.step(steps)`` from the initial state."""
+    import esp_gym
+
+    esp_gym.Simulator(scene).step(2)  # make sure everything is loaded
+    per_step = []
+    iters = 0
+    for _ in range(repeats):
+        sim = esp_gym.Simulator(scene)
+        start = time.perf_counter()
+        sim.step(steps)
+        per_step.append((time.perf_counter() - start) / steps * 1e6)
+        iters = sim.newton_iterations
+    return {"us_per_step": float(np.median(per_step)), "us_per_step_min": float(min(per_step)),
+            "us_per_step_max": float(max(per_step)), "steps": steps, "repeats": repeats,
+            "newton_iterations_mean": iters / steps}
+
+
+def startup(cache_dir: str, first_run: bool = True) -> dict:
+    """Seconds from spawning a Python process to its first step and (if ``first_run``) to its
+    first recorded run, with NUMBA_CACHE_DIR = ``cache_dir``."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
+    start = time.time()
+    proc = subprocess.run([sys.executable, "-c", _STARTUP_CHILD, "run" if first_run else "step"],
+                          env=env, capture_output=True, text=True, check=True)
+    child = json.loads(proc.stdout.strip().splitlines()[-1])
+    run = child["t_first_run"]
+    return {"import_s": child["t_import"] - start, "first_step_s": child["t_first_step"] - start,
+            "first_run_s": None if run is None else run - start}
+
+
+def paper_timing(steps: int, repeats: int) -> dict:
+    """The paper's example after compilation: plain stepping and a recorded run."""
+    import esp_gym
+
+    scene = esp_gym.load_scene("paper_example")
+    plain = time_steps(scene, steps, repeats)
+    esp_gym.Simulator(scene).run(t_final=100 * scene.h, record_every=100, every_step=True)
+    walls = []
+    for _ in range(repeats):
+        traj = esp_gym.Simulator(scene).run(t_final=steps * scene.h, record_every=100, every_step=True)
+        walls.append(traj.wall_time_s)
+    wall = float(np.median(walls))
+    return {"steps": steps, "h": scene.h, "N": scene.string.elements,
+            "plain_s": plain["us_per_step"] * steps * 1e-6, "plain_us_per_step": plain["us_per_step"],
+            "recorded_s": wall, "recorded_us_per_step": wall / steps * 1e6}
+
+
+def plot(results: dict, path: Path) -> None:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import NullFormatter
+
+    rows = results["step_cost"]
+    n = np.array([r["N"] for r in rows], dtype=float)
+    us = np.array([r["us_per_step"] for r in rows])
+    lo = np.array([r["us_per_step_min"] for r in rows])
+    hi = np.array([r["us_per_step_max"] for r in rows])
+    fig = Figure(figsize=(10, 4.2), dpi=150, layout="constrained")
+    FigureCanvasAgg(fig)
+    a, b = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.3, 1]})
+    a.errorbar(n, us, yerr=[us - lo, hi - us], fmt="o-", color="tab:blue", capsize=3,
+               label="median over repeats (bars: min..max)")
+    ref = us[-1] * n / n[-1]
+    a.plot(n, ref, ls="--", color="grey", label="proportional to N")
+    hs = sorted({r["h"] for r in rows})
+    if len(hs) > 1:  # label h where it differs between N
+        for x, y, r in zip(n, us, rows):
+            a.annotate(f"h={r['h']:.2g}", (x, y), textcoords="offset points", xytext=(4, -12), fontsize=7.5)
+    a.set_xscale("log")
+    a.set_yscale("log")
+    a.set_xticks(n, [f"{int(x)}" for x in n])
+    a.xaxis.set_minor_formatter(NullFormatter())
+    yt = [v for v in (0.1, 0.2, 0.5, 1, 2, 5, 10, 20, 50, 100) if ref.min() / 1.5 <= v <= hi.max() * 1.5]
+    a.set_yticks(yt, [f"{v:g}" for v in yt])
+    a.yaxis.set_minor_formatter(NullFormatter())
+    a.set_xlabel("elements N")
+    a.set_ylabel("time per step [us]")
+    a.set_title("LGVI step cost, paper_example (no recording)"
+                + (f", h = {hs[0]:g} s" if len(hs) == 1 else ""))
+    a.grid(True, which="both", alpha=0.3)
+    a.legend(fontsize=8)
+
+    su = results["startup"]
+    keys = [k for k in ("first_step_s", "first_run_s") if su["cold"][k] is not None]
+    labels = [{"first_step_s": "first step", "first_run_s": "first recorded run"}[k] for k in keys]
+    x = np.arange(len(labels))
+    cold = [su["cold"][k] for k in keys]
+    warm = [su["cached"][k] for k in keys]
+    b.bar(x - 0.2, cold, 0.4, color="tab:red", label="cold (empty numba cache)")
+    b.bar(x + 0.2, warm, 0.4, color="tab:green", label="cached")
+    for xs, vals in ((x - 0.2, cold), (x + 0.2, warm)):
+        for xi, v in zip(xs, vals):
+            b.annotate(f"{v:.2f} s", (xi, v), ha="center", va="bottom", fontsize=8)
+    b.set_xticks(x, labels)
+    b.set_ylabel("seconds from process start")
+    b.set_title("Start-up (N = 20)")
+    b.legend(fontsize=8)
+    b.grid(True, axis="y", alpha=0.3)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="fast smoke-test variant")
+    parser.add_argument("--out", default=str(HERE / "out"), help="output directory (default: %(default)s)")
+    args = parser.parse_args(argv)
+    out = Path(args.out)
+
+    elements = (5, 20) if args.quick else (5, 10, 20, 40, 80)
+    steps, repeats = (2_000, 3) if args.quick else (20_000, 7)
+    paper_steps = 5_000 if args.quick else 50_000
+
+    # start-up first, while the parent has compiled nothing (the children do not share its state)
+    with tempfile.TemporaryDirectory(prefix="esp_gym_numba_cache_") as cache:
+        cold = startup(cache, first_run=not args.quick)
+        cached = startup(cache, first_run=not args.quick)
+    print("start-up: seconds from process start (fresh NUMBA_CACHE_DIR, then the same one)")
+    print(f"{'':8} {'imports':>8} {'first step':>11} {'first recorded run':>19}")
+    for name, s in (("cold", cold), ("cached", cached)):
+        run = "(skipped)" if s["first_run_s"] is None else f"{s['first_run_s']:.2f}"
+        print(f"{name:8} {s['import_s']:8.2f} {s['first_step_s']:11.2f} {run:>19}")
+
+    rows = []
+    for n in elements:
+        scene, bound = scene_for(n)
+        r = time_steps(scene, steps, repeats)
+        rows.append({"N": n, "h": scene.h, "h_bound": bound, **r})
+    print(f"\nstep cost, paper_example, median of {repeats} x {steps} steps (no recording)")
+    print(f"{'N':>4} {'h [s]':>9} {'h_max [s]':>10} {'us/step':>8} {'min':>7} {'max':>7} {'ns/step/elem':>13} {'Newton/step':>12}")
+    for r in rows:
+        print(f"{r['N']:4d} {r['h']:9.2e} {r['h_bound']:10.2e} {r['us_per_step']:8.3f} {r['us_per_step_min']:7.3f} "
+              f"{r['us_per_step_max']:7.3f} {1e3 * r['us_per_step'] / r['N']:13.1f} {r['newton_iterations_mean']:12.2f}")
+
+    paper = paper_timing(paper_steps, 3 if args.quick else 5)
+    print(f"\npaper example after compilation (N = {paper['N']}, h = {paper['h']:g} s, {paper['steps']} steps)")
+    print(f"  plain stepping: {paper['plain_s'] * 1e3:8.2f} ms ({paper['plain_us_per_step']:.3f} us/step)")
+    print(f"  recorded run:   {paper['recorded_s'] * 1e3:8.2f} ms ({paper['recorded_us_per_step']:.3f} us/step; "
+          "snapshots every 100 steps + per-step energy, pi3, orthogonality)")
+
+    import numba
+
+    results = {
+        "quick": args.quick,
+        "step_cost": rows,
+        "startup": {"cold": cold, "cached": cached},
+        "paper_example": paper,
+        "machine": {"python": platform.python_version(), "numpy": np.__version__, "numba": numba.__version__,
+                    "processor": platform.processor() or platform.machine(), "cpus": os.cpu_count()},
+    }
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "step_cost.json", "w") as fh:
+        json.dump(results, fh, indent=2)
+    plot(results, out / "step_cost.png")
+    print(f"\nwrote {out / 'step_cost.json'} and {out / 'step_cost.png'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
