@@ -41,16 +41,22 @@ class SimulationError(RuntimeError):
 
 @dataclass
 class State:
-    """A discrete state ``(q_k, p_k)`` at step ``step``; arrays are copies owned by the caller."""
+    """A discrete state ``(q_k, p_k)`` at step ``step``; arrays are copies owned by the caller.
+
+    ``remainders`` holds the compensated-summation remainders of (r, p, R, Pi): restoring them
+    makes save/restore bit-exact; ``None`` (e.g. after editing the momenta) restarts them at 0.
+    """
 
     r: np.ndarray
     p: np.ndarray
     R: np.ndarray
     Pi: np.ndarray
     step: int = 0
+    remainders: Optional[tuple] = None
 
     def copy(self) -> "State":
-        return State(self.r.copy(), self.p.copy(), self.R.copy(), self.Pi.copy(), self.step)
+        rem = None if self.remainders is None else tuple(a.copy() for a in self.remainders)
+        return State(self.r.copy(), self.p.copy(), self.R.copy(), self.Pi.copy(), self.step, rem)
 
 
 def hat(v) -> np.ndarray:
@@ -195,11 +201,13 @@ class Simulator:
     # -- state ------------------------------------------------------------------------------
     @property
     def state(self) -> State:
-        """A copy of the current discrete state."""
-        return self._state.copy()
+        """A copy of the current discrete state (with its summation remainders)."""
+        st = self._state.copy()
+        st.remainders = tuple(a.copy() for a in self._comp)
+        return st
 
     def set_state(self, state: State) -> None:
-        """Replace the state (copied, shape-checked)."""
+        """Replace the state (copied, shape- and finiteness-checked)."""
         s = self._state
         for name in ("r", "p", "R", "Pi"):
             new = np.asarray(getattr(state, name), dtype=np.float64)
@@ -209,8 +217,9 @@ class Simulator:
                 raise ValueError(f"state.{name} is not finite")
             getattr(s, name)[...] = new
         s.step = int(state.step)
-        for c in self._comp:
-            c[...] = 0.0
+        rem = getattr(state, "remainders", None)
+        for i, c in enumerate(self._comp):
+            c[...] = 0.0 if rem is None else rem[i]
 
     @property
     def step_count(self) -> int:

@@ -1,6 +1,7 @@
-"""The discrete Lagrangian L_d(g_k, f_k) straight from its integral definition (test helper).
+"""The discrete Lagrangian L_d(g_k, f_k) straight from its integral definition (test helper),
+plus the rotations, scenes and random states the physics tests share.
 
-Independent of esp_gym.reference and esp_gym.kernels: the string part is the paper's integral
+L_d uses neither esp_gym.reference nor esp_gym.kernels: the string part is the paper's integral
 form of ``L_{d_{k,a}}`` evaluated by Gauss-Legendre quadrature over the natural coordinate
 zeta in [0, 1] (not the closed form (Ldka)), with erratum 1 (kinetic prefactor h/2, not 1/h)
 applied; the closed form's erratum 2 (missing kappa) cannot arise here, since the elastic term
@@ -47,7 +48,8 @@ def string_potential(scene, r) -> float:
 def string_lagrangian(scene, r, dr) -> float:
     """L_{d_{k,str}} = sum_a L_{d_{k,a}} [J s]: kinetic minus trapezoidal-in-time potential."""
     h = scene.h
-    return string_kinetic(scene, dr) - 0.5 * h * string_potential(scene, r) - 0.5 * h * string_potential(scene, r + dr)
+    return (string_kinetic(scene, dr)
+            - 0.5 * h * string_potential(scene, r) - 0.5 * h * string_potential(scene, r + dr))
 
 
 def rigid_body_lagrangian(scene, r_attach, R, dr_attach, FmI) -> float:
@@ -94,17 +96,63 @@ def expm(w) -> np.ndarray:
 
 
 def right_perturbed(F, FmI, w):
-    """F exp(w^) - I given F and F - I (delta F = F zeta^), without cancellation."""
+    """F exp(w^) - I from F and F - I, without cancellation (delta F = F zeta^; also R_{k+1} ->
+    R_{k+1} exp(w^) at fixed R_k)."""
     return FmI + F @ expm_minus_identity(w)
 
 
 def left_perturbed(F, FmI, w):
-    """exp(w^)^T F - I given F and F - I (R_k -> R_k exp(w^) with R_{k+1} fixed)."""
-    return FmI + expm_minus_identity(w).T @ F
+    """exp(w^) F - I from F and F - I, without cancellation (R_k -> R_k exp(-w^) at fixed
+    R_{k+1} turns F = R_k^T R_{k+1} into exp(w^) F)."""
+    return FmI + expm_minus_identity(w) @ F
 
 
 def random_rotation(rng, max_angle=np.pi) -> np.ndarray:
-    """A rotation about a random axis by an angle uniform in (0, max_angle]."""
+    """A rotation about a random axis by an angle uniform in [max_angle/10, max_angle] [rad]."""
     axis = rng.normal(size=3)
     axis /= np.linalg.norm(axis)
     return expm(axis * rng.uniform(0.1 * max_angle, max_angle))
+
+
+# -- scenes and states for the tests ------------------------------------------------------------
+def cylinder_inertia_about(mass, a, b, height, rho_c) -> np.ndarray:
+    """Inertia [kg m^2] of a solid elliptic cylinder (semi-axes a, b along body e1, e2 [m], axis
+    along e3) about a point at -rho_c from its centre of mass (body frame):
+    J = J_cm + M (|rho_c|^2 I - rho_c rho_c^T),  J_cm = M diag(b^2/4 + H^2/12, a^2/4 + H^2/12, (a^2 + b^2)/4).
+    """
+    rho = np.asarray(rho_c, dtype=float)
+    J_cm = mass * np.diag([b * b / 4 + height ** 2 / 12, a * a / 4 + height ** 2 / 12, (a * a + b * b) / 4])
+    return J_cm + mass * (rho @ rho * np.eye(3) - np.outer(rho, rho))
+
+
+#: The paper's cylinder (0.1 kg, 0.06/0.04/0.1 m) hung from a lug 0.13 m from its centre: a larger
+#: rho_c than the paper's and the inertia of the actual body (~1e-3 kg m^2, erratum 6).
+GEOMETRIC_RHO_C = (0.10, 0.04, 0.08)
+GEOMETRIC_OVERRIDES = dict(
+    rho_c=list(GEOMETRIC_RHO_C),
+    J=cylinder_inertia_about(0.1, 0.06, 0.04, 0.1, GEOMETRIC_RHO_C).tolist(),
+)
+
+
+def random_nodes(scene, rng, stretch=(0.8, 1.25)) -> np.ndarray:
+    """Nodes (N+1, 3) [m]: a random walk from the pivot roughly along e1 whose element lengths are
+    uniform in ``stretch`` times u (so elements are stretched and compressed)."""
+    n, u = scene.string.elements, scene.string.u
+    d = np.array([1.0, 0.0, 0.0]) + 0.5 * rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    steps = d * (u * rng.uniform(*stretch, size=n))[:, None]
+    return np.asarray(scene.pivot.position, dtype=float) + np.vstack([np.zeros(3), np.cumsum(steps, axis=0)])
+
+
+def random_state(scene, rng, speed=0.5, spin=2.0):
+    """A perturbed discrete state: :func:`random_nodes`, node velocities uniform in +-speed [m/s],
+    a random attitude, Omega uniform in +-spin [rad/s]; momenta by the continuous Legendre
+    transform of the finite-element Lagrangian (any momenta would do for these tests)."""
+    from esp_gym.model import State, legendre_momenta
+
+    r = random_nodes(scene, rng)
+    v = rng.uniform(-speed, speed, size=r.shape)
+    v[0] = 0.0
+    R = random_rotation(rng)
+    p, Pi = legendre_momenta(scene, r, v, R, rng.uniform(-spin, spin, size=3))
+    return State(r, p, R, Pi, 0)

@@ -36,6 +36,7 @@ def test_time_reversible(name):
     st = sim.state
     st.p *= -1
     st.Pi *= -1
+    st.remainders = None
     sim.set_state(st)
     sim.step(5000)
     back = sim.state
