@@ -206,11 +206,12 @@ class Scene(_Frozen):
 def _format_errors(err: ValidationError, source: str) -> str:
     lines = [f"invalid scene {source}:"]
     for e in err.errors():
-        loc = ".".join(str(x) for x in e["loc"]) or "scene"
+        loc = ".".join(str(x) for x in e["loc"])
         msg = e["msg"].removeprefix("Value error, ")
         if e["type"] == "extra_forbidden":
             msg = "unknown key"
-        lines.append(f"  {loc}: {msg}")
+        # scene-level rules (h vs the bound, row counts) name their field in the message
+        lines.append(f"  {loc}: {msg}" if loc else f"  {msg}")
     return "\n".join(lines)
 
 
