@@ -15,8 +15,8 @@ from typing import Optional
 import numpy as np
 from tqdm.auto import tqdm
 
-from .kernels.diagnostics import DIAG_NAMES, diagnostics as _diagnostics
-from .kernels.lgvi import LGVIParams, Work, lgvi_advance, lgvi_record
+from .kernels.diagnostics import DIAG_NAMES, DiagWork, diagnostics as diagnostics_kernel
+from .kernels.lgvi import LGVIParams, Snapshots, StateArrays, Work, lgvi_advance, lgvi_record
 from .kernels.string import tridiag_factor
 from .params import Scene
 
@@ -65,14 +65,17 @@ def hat(v) -> np.ndarray:
 
 
 def consistent_mass_diagonal(scene: Scene) -> np.ndarray:
-    """Diagonal (N+1,) of the consistent mass matrix of the unknown nodes; 0 for the fixed pivot.
+    """Diagonal (N+1,) of the consistent mass matrix of the unknown nodes; 0 for a fixed pivot.
 
-    Off-diagonal entries are all ``m/6``; the attachment node carries the body mass M.
+    Off-diagonal entries are all ``m/6``; the attachment node carries the body mass M, a free
+    pivot its point mass M_p.
     """
     n, m = scene.string.elements, scene.string.m
     diag = np.full(n + 1, 4.0 * m / 6.0)
-    diag[0] = 0.0  # fixed pivot: not an unknown
+    diag[0] = 2.0 * m / 6.0 + scene.pivot.mass if scene.pivot.is_free else 0.0
     diag[n] = 2.0 * m / 6.0 + scene.body.mass
+    if n == 0:  # pragma: no cover - N >= 1 is validated
+        raise ValueError("N >= 1")
     return diag
 
 
@@ -81,23 +84,27 @@ def build_params(scene: Scene) -> LGVIParams:
     n, m = scene.string.elements, scene.string.m
     M = scene.body.mass
     rho = np.array(scene.body.rho_c, dtype=float)
-    J = np.array(scene.body.inertia, dtype=float)
+    J = scene.body.J
     J = 0.5 * (J + J.T)
     Jd = 0.5 * np.trace(J) * np.eye(3) - J
     off = m / 6.0
-    inv, cp = tridiag_factor(consistent_mass_diagonal(scene), off)
-    # w = M_tot^-1 e_{N+1}: the attachment row of the inverse (Schur complement column)
-    w = np.zeros(n + 1)
-    dense = np.diag(consistent_mass_diagonal(scene)[1:]) + off * (np.eye(n, k=1) + np.eye(n, k=-1))
-    e = np.zeros(n)
+    diag = consistent_mass_diagonal(scene)
+    first = 0 if scene.pivot.is_free else 1
+    inv, cp = tridiag_factor(diag, off)
+    # w = M_tot^-1 e_{N+1}: the attachment column of the inverse (Schur complement)
+    k = n + 1 - first
+    dense = np.diag(diag[first:]) + off * (np.eye(k, k=1) + np.eye(k, k=-1))
+    e = np.zeros(k)
     e[-1] = 1.0
-    w[1:] = np.linalg.solve(dense, e)
+    w = np.zeros(n + 1)
+    w[first:] = np.linalg.solve(dense, e)
     s = inv[n]  # (M_tot^-1)_{N+1,N+1} equals the last Thomas pivot inverse
     Jeff = J + M * M * s * hat(rho) @ hat(rho)
     return LGVIParams(
         h=float(scene.h), m=float(m), kappa=float(scene.string.kappa), u=float(scene.string.u),
-        g=float(scene.gravity), M=float(M), rho=rho, J=J, Jd=Jd, Jeff=Jeff,
-        inv=inv, cp=cp, off=float(off), w=w, first=1,
+        g=float(scene.gravity), M=float(M), Mp=float(scene.pivot.mass or 0.0), rho=rho, J=J, Jd=Jd,
+        Jeff=Jeff, inv=inv, cp=cp, off=float(off), w=w, first=first,
+        slack=scene.string.law == "slack",
         tol=float(scene.solver.newton_tol), max_iter=int(scene.solver.newton_max_iter),
     )
 
@@ -105,17 +112,21 @@ def build_params(scene: Scene) -> LGVIParams:
 def legendre_momenta(scene: Scene, r: np.ndarray, v: np.ndarray, R: np.ndarray, Omega: np.ndarray):
     """Continuous Legendre transform of the finite-element Lagrangian: velocities -> momenta.
 
-    p = M_str v + body terms at the attachment node, Pi = J Omega + M rho_c x (R^T v_attach).
-    Used to start the integrator (physics_notes.md, "Initialisation").
+    p = M_str v + body terms at the attachment node (+ M_p v_1 at a free pivot),
+    Pi = J Omega + M rho_c x (R^T v_attach). Used to start the integrator
+    (physics_notes.md, "Initialisation").
     """
     m, M = scene.string.m, scene.body.mass
     rho = np.array(scene.body.rho_c, dtype=float)
-    J = np.array(scene.body.inertia, dtype=float)
+    J = scene.body.J
     p = np.zeros_like(v)
     p[:-1] += (m / 6.0) * (2.0 * v[:-1] + v[1:])
     p[1:] += (m / 6.0) * (v[:-1] + 2.0 * v[1:])
     p[-1] += M * (v[-1] + R @ np.cross(Omega, rho))
-    p[0] = 0.0  # the fixed pivot carries no momentum of its own
+    if scene.pivot.is_free:
+        p[0] += scene.pivot.mass * v[0]
+    else:
+        p[0] = 0.0  # the fixed pivot carries no momentum of its own
     Pi = J @ Omega + M * np.cross(rho, R.T @ v[-1])
     return p, Pi
 
@@ -135,7 +146,9 @@ class Trajectory:
     """Snapshots of a run every ``record_every`` steps (K of them, t = 0 included).
 
     Units: t [s]; nodes (K, N+1, 3) [m]; R (K, 3, 3); omega (K, 3) body frame [rad/s];
-    attach_velocity (K, 3) [m/s]; energies [J]; pi3 [kg m^2/s]; strain_energy (K, N) [J].
+    attach_velocity (K, 3) [m/s]; energies and work [J]; pi3 and angular impulse [kg m^2/s];
+    linear momentum and impulses (K, 3) [kg m/s]; strain_energy (K, N) [J]. The balances
+    (work, impulses, residuals) count from the simulator's last balance reset.
     ``*_every_step`` hold (energy, pi3, orthogonality) after every step when requested.
     """
 
@@ -146,6 +159,7 @@ class Trajectory:
     attach_velocity: np.ndarray
     kinetic_string: np.ndarray
     kinetic_body: np.ndarray
+    kinetic_pivot: np.ndarray
     potential_gravity: np.ndarray
     potential_elastic: np.ndarray
     energy: np.ndarray
@@ -153,6 +167,13 @@ class Trajectory:
     orthogonality: np.ndarray
     stretched_length: np.ndarray
     strain_energy: np.ndarray
+    linear_momentum: np.ndarray
+    work: np.ndarray
+    angular_impulse_z: np.ndarray
+    energy_balance_residual: np.ndarray
+    pi3_balance_residual: np.ndarray
+    gravity_impulse: np.ndarray
+    pivot_impulse: np.ndarray
     t_every_step: Optional[np.ndarray] = None
     energy_every_step: Optional[np.ndarray] = None
     pi3_every_step: Optional[np.ndarray] = None
@@ -170,6 +191,18 @@ class Trajectory:
         np.savez_compressed(path, **self.arrays())
 
 
+def _vector_input(name: str, value) -> np.ndarray:
+    """An input 3-vector [SI], checked: shape (3,), finite."""
+    if value is None:
+        return np.zeros(3)
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.shape != (3,):
+        raise ValueError(f"{name} must be a 3-vector, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite, got {arr.tolist()}")
+    return arr
+
+
 class Simulator:
     """Steps a :class:`~esp_gym.params.Scene` with the compiled LGVI.
 
@@ -184,79 +217,101 @@ class Simulator:
         self.params = build_params(scene)
         self.h = scene.h
         n = scene.string.elements
-        self._state = initial_state(scene)
-        self._forces = np.zeros((n + 1, 3))
-        # compensated-summation remainders of r, p, R, Pi (part of the state, reset by set_state)
-        self._comp = (np.zeros((n + 1, 3)), np.zeros((n + 1, 3)), np.zeros((3, 3)), np.zeros(3))
-        self._work = Work(
-            fn=np.zeros((n + 1, 3)), B=np.zeros((n + 1, 3)), X=np.zeros((n + 1, 3)),
-            Y=np.zeros((n + 1, 3)), FmI=np.zeros((3, 3)), RF=np.zeros((3, 3)), Rn=np.zeros((3, 3)),
-            jac=np.zeros((3, 3)),
-        )
-        self._diag_work = dict(V=np.zeros((n + 1, 3)), strain=np.zeros(n), omega=np.zeros(3), out=np.zeros(8))
+        st = initial_state(scene)
+        z = np.zeros
+        self._arrays = StateArrays(
+            r=st.r, p=st.p, R=st.R, Pi=st.Pi, rc=z((n + 1, 3)), pc=z((n + 1, 3)), Rc=z((3, 3)),
+            Pic=z(3), f=z((n + 1, 3)), acc=z(8), accc=z(8))
+        self._step = 0
+        self._work = Work(fn=z((n + 1, 3)), B=z((n + 1, 3)), X=z((n + 1, 3)), Y=z((n + 1, 3)),
+                          FmI=z((3, 3)), RF=z((3, 3)), Rn=z((3, 3)), jac=z((3, 3)))
+        self._diag = DiagWork(V=z((n + 1, 3)), strain=z(n), omega=z(3), out=z(len(DIAG_NAMES)))
+        self._inputs = z(9)
         self._stats = np.zeros(4, dtype=np.int64)
         self.newton_iterations = 0  #: total Newton iterations so far
         self.newton_iterations_max = 0  #: most iterations in any one step so far
+        self.reset_balances()
 
     # -- state ------------------------------------------------------------------------------
     @property
     def state(self) -> State:
         """A copy of the current discrete state (with its summation remainders)."""
-        st = self._state.copy()
-        st.remainders = tuple(a.copy() for a in self._comp)
-        return st
+        a = self._arrays
+        return State(a.r.copy(), a.p.copy(), a.R.copy(), a.Pi.copy(), self._step,
+                     (a.rc.copy(), a.pc.copy(), a.Rc.copy(), a.Pic.copy()))
 
     def set_state(self, state: State) -> None:
-        """Replace the state (copied, shape- and finiteness-checked)."""
-        s = self._state
+        """Replace the state (copied, shape- and finiteness-checked); resets the balances."""
+        a = self._arrays
         for name in ("r", "p", "R", "Pi"):
             new = np.asarray(getattr(state, name), dtype=np.float64)
-            if new.shape != getattr(s, name).shape:
-                raise ValueError(f"state.{name} has shape {new.shape}, expected {getattr(s, name).shape}")
+            if new.shape != getattr(a, name).shape:
+                raise ValueError(f"state.{name} has shape {new.shape}, expected {getattr(a, name).shape}")
             if not np.all(np.isfinite(new)):
                 raise ValueError(f"state.{name} is not finite")
-            getattr(s, name)[...] = new
-        s.step = int(state.step)
+        for name in ("r", "p", "R", "Pi"):
+            getattr(a, name)[...] = getattr(state, name)
+        self._step = int(state.step)
         rem = getattr(state, "remainders", None)
-        for i, c in enumerate(self._comp):
+        for i, c in enumerate((a.rc, a.pc, a.Rc, a.Pic)):
             c[...] = 0.0 if rem is None else rem[i]
+        self.reset_balances()
+
+    def reset_balances(self) -> None:
+        """Start the input balances (work, impulses) afresh from the current state."""
+        self._arrays.acc[...] = 0.0
+        self._arrays.accc[...] = 0.0
+        self._update_diag()
+        out = self._diag.out
+        self._E0 = float(out[4])
+        self._pi3_0 = float(out[5])
+        self._P0 = out[9:12].copy()
 
     @property
     def step_count(self) -> int:
-        return self._state.step
+        return self._step
 
     @property
     def time(self) -> float:
         """Simulated time k*h [s]."""
-        return self._state.step * self.h
+        return self._step * self.h
 
     # -- stepping ---------------------------------------------------------------------------
-    def _args(self):
-        s = self._state
-        return (s.r, s.p, s.R, s.Pi, *self._comp, self._forces, self._work, self.params)
+    def _set_inputs(self, pivot_force, body_torque, spatial_torque) -> None:
+        up = _vector_input("pivot_force", pivot_force)
+        tb = _vector_input("body_torque", body_torque)
+        ts = _vector_input("spatial_torque", spatial_torque)
+        if not self.scene.pivot.is_free and np.any(up != 0):
+            raise ValueError("pivot_force needs a free pivot (this scene's pivot.kind is 'fixed')")
+        self._inputs[0:3], self._inputs[3:6], self._inputs[6:9] = up, tb, ts
 
     def _account(self) -> None:
         status, steps, total, most = (int(x) for x in self._stats)
-        self._state.step += steps
+        self._step += steps
         self.newton_iterations += total
         self.newton_iterations_max = max(self.newton_iterations_max, most)
         if status != 0:
-            raise SimulationError(status, self._state.step, self.time, most)
+            raise SimulationError(status, self._step, self.time, most)
 
-    def step(self, n: int = 1) -> None:
-        """Advance ``n`` steps in one compiled call. Raises :class:`SimulationError` on failure
-        (the simulator then holds the last good state)."""
+    def step(self, n: int = 1, pivot_force=None, body_torque=None, spatial_torque=None) -> None:
+        """Advance ``n`` steps in one compiled call with inputs held constant: ``pivot_force``
+        (spatial frame, free pivot only) [N], ``body_torque`` (body frame) [N m],
+        ``spatial_torque`` (spatial frame) [N m]; ``None`` means zero. Bad inputs raise
+        ValueError before anything moves. Raises :class:`SimulationError` on failure (the
+        simulator then holds the last good state)."""
         n = int(n)
         if n < 0:
             raise ValueError(f"n must be >= 0, got {n}")
-        lgvi_advance(*self._args(), n, self._stats)
+        self._set_inputs(pivot_force, body_torque, spatial_torque)
+        lgvi_advance(self._arrays, self._work, self.params, self._inputs, n, self._stats)
         self._account()
 
     def run(self, t_final: float, record_every: int = 100, every_step: bool = False,
-            progress: bool = False) -> Trajectory:
-        """Advance by ``t_final`` seconds (a whole number of steps), recording every
-        ``record_every`` steps (and energy, pi3, orthogonality after every step if
-        ``every_step``). Returns a :class:`Trajectory` whose first snapshot is the current state."""
+            progress: bool = False, pivot_force=None, body_torque=None, spatial_torque=None) -> Trajectory:
+        """Advance by ``t_final`` seconds (a whole number of steps) with constant inputs (as in
+        :meth:`step`), recording every ``record_every`` steps (and energy, pi3, orthogonality
+        after every step if ``every_step``). Returns a :class:`Trajectory` whose first snapshot
+        is the current state."""
         nsteps = int(round(t_final / self.h))
         if nsteps < 0 or abs(nsteps * self.h - t_final) > 1e-9 * max(1.0, abs(t_final)):
             raise ValueError(f"t_final = {t_final} s is not a whole number of steps h = {self.h} s")
@@ -265,19 +320,18 @@ class Simulator:
             raise ValueError(f"record_every must be >= 1, got {record_every}")
         if every_step and nsteps % record_every:
             raise ValueError("every_step needs t_final to be a whole number of record_every steps")
+        self._set_inputs(pivot_force, body_torque, spatial_torque)
         n = self.scene.string.elements
         K = nsteps // record_every
-        snap = dict(
-            r=np.empty((K + 1, n + 1, 3)), R=np.empty((K + 1, 3, 3)), omega=np.empty((K + 1, 3)),
-            v=np.empty((K + 1, 3)), diag=np.empty((K + 1, 8)), strain=np.empty((K + 1, n)),
-        )
-        per_step = np.empty((nsteps if every_step else 0, 3))
-        d = self._diag_work
-        s = self._state
-        _diagnostics(s.r, s.p, s.R, s.Pi, self.params, d["V"], d["strain"], d["omega"], d["out"])
-        snap["r"][0], snap["R"][0], snap["omega"][0] = s.r, s.R, d["omega"]
-        snap["v"][0], snap["diag"][0], snap["strain"][0] = d["V"][-1], d["out"], d["strain"]
-        step0 = s.step
+        e = np.empty
+        snap = Snapshots(r=e((K + 1, n + 1, 3)), R=e((K + 1, 3, 3)), omega=e((K + 1, 3)), v=e((K + 1, 3)),
+                         diag=e((K + 1, len(DIAG_NAMES))), strain=e((K + 1, n)), acc=e((K + 1, 8)),
+                         step_diag=e((nsteps if every_step else 0, 3)))
+        a, d = self._arrays, self._diag
+        self._update_diag()
+        snap.r[0], snap.R[0], snap.omega[0], snap.v[0] = a.r, a.R, d.omega, d.V[-1]
+        snap.diag[0], snap.strain[0], snap.acc[0] = d.out, d.strain, a.acc
+        step0 = self._step
         iters0 = self.newton_iterations
         start = _time.perf_counter()
         chunk = max(1, min(K, 2_000_000 // (record_every * max(n, 1)) or 1))
@@ -286,48 +340,68 @@ class Simulator:
             j = 0
             while j < K:
                 j1 = min(K, j + chunk)
-                k0 = (j) * record_every
-                lgvi_record(*self._args(), record_every, d["V"], d["strain"], d["omega"], d["out"],
-                            snap["r"][j + 1:j1 + 1], snap["R"][j + 1:j1 + 1], snap["omega"][j + 1:j1 + 1],
-                            snap["v"][j + 1:j1 + 1], snap["diag"][j + 1:j1 + 1], snap["strain"][j + 1:j1 + 1],
-                            per_step[k0:j1 * record_every] if every_step else per_step, self._stats)
+                rows = slice(j + 1, j1 + 1)
+                part = Snapshots(*(x[rows] for x in snap[:-1]),
+                                 step_diag=snap.step_diag[j * record_every:j1 * record_every])
+                lgvi_record(a, self._work, self.params, self._inputs, record_every, d, part, self._stats)
                 self._account()
                 bar.update((j1 - j) * record_every)
                 j = j1
             rest = nsteps - K * record_every
             if rest:
-                self.step(rest)
+                lgvi_advance(a, self._work, self.params, self._inputs, rest, self._stats)
+                self._account()
                 bar.update(rest)
         wall = _time.perf_counter() - start
         t = (step0 + record_every * np.arange(K + 1)) * self.h
-        diag = {name: snap["diag"][:, i].copy() for i, name in enumerate(DIAG_NAMES)}
+        cols = {name: snap.diag[:, i].copy() for i, name in enumerate(DIAG_NAMES) if "momentum" not in name}
         traj = Trajectory(
-            t=t, nodes=snap["r"], R=snap["R"], omega=snap["omega"], attach_velocity=snap["v"],
-            strain_energy=snap["strain"], steps=nsteps, newton_iterations=self.newton_iterations - iters0,
-            wall_time_s=wall, **diag,
+            t=t, nodes=snap.r, R=snap.R, omega=snap.omega, attach_velocity=snap.v,
+            strain_energy=snap.strain, linear_momentum=snap.diag[:, 9:12].copy(),
+            work=snap.acc[:, 0].copy(), angular_impulse_z=snap.acc[:, 1].copy(),
+            energy_balance_residual=cols["energy"] - self._E0 - snap.acc[:, 0],
+            pi3_balance_residual=cols["pi3"] - self._pi3_0 - snap.acc[:, 1],
+            gravity_impulse=snap.acc[:, 2:5].copy(), pivot_impulse=snap.acc[:, 5:8].copy(),
+            steps=nsteps, newton_iterations=self.newton_iterations - iters0, wall_time_s=wall, **cols,
         )
         if every_step:
             traj.t_every_step = (step0 + 1 + np.arange(nsteps)) * self.h
-            traj.energy_every_step = per_step[:, 0].copy()
-            traj.pi3_every_step = per_step[:, 1].copy()
-            traj.orthogonality_every_step = per_step[:, 2].copy()
+            traj.energy_every_step = snap.step_diag[:, 0].copy()
+            traj.pi3_every_step = snap.step_diag[:, 1].copy()
+            traj.orthogonality_every_step = snap.step_diag[:, 2].copy()
         return traj
 
     # -- diagnostics ------------------------------------------------------------------------
+    def _update_diag(self) -> None:
+        diagnostics_kernel(self._arrays, self.params, self._diag)
+
     def diagnostics(self) -> dict:
         """Diagnostics of the current state from the discrete momenta (SI units).
 
-        Keys: time, energy, kinetic_string, kinetic_body, potential_gravity, potential_elastic,
-        pi3, orthogonality, stretched_length (scalars); attach_position (3,), omega (3,, body
-        frame), attach_velocity (3,), strain_energy (N,) per element.
+        Scalars: time, energy, kinetic_string, kinetic_body, kinetic_pivot, potential_gravity,
+        potential_elastic, pi3, orthogonality, stretched_length; the input balances since the
+        last :meth:`reset_balances`: work, energy_balance_residual (E - E0 - W),
+        angular_impulse_z, pi3_balance_residual (pi3 - pi3_0 - angular impulse).
+        Vectors (3,): attach_position, attach_velocity, pivot_position, omega (body frame),
+        linear_momentum, gravity_impulse, pivot_impulse, momentum_balance_residual
+        (P - P0 - impulses; with a fixed pivot it is the pivot's reaction impulse);
+        strain_energy (N,) per element.
         """
-        d = self._diag_work
-        s = self._state
-        _diagnostics(s.r, s.p, s.R, s.Pi, self.params, d["V"], d["strain"], d["omega"], d["out"])
+        self._update_diag()
+        a, d = self._arrays, self._diag
         out = {"time": self.time}
-        out.update({name: float(d["out"][i]) for i, name in enumerate(DIAG_NAMES)})
-        out["attach_position"] = s.r[-1].copy()
-        out["attach_velocity"] = d["V"][-1].copy()
-        out["omega"] = d["omega"].copy()
-        out["strain_energy"] = d["strain"].copy()
+        out.update({name: float(d.out[i]) for i, name in enumerate(DIAG_NAMES) if "momentum" not in name})
+        out["work"] = float(a.acc[0])
+        out["energy_balance_residual"] = out["energy"] - self._E0 - out["work"]
+        out["angular_impulse_z"] = float(a.acc[1])
+        out["pi3_balance_residual"] = out["pi3"] - self._pi3_0 - out["angular_impulse_z"]
+        out["attach_position"] = a.r[-1].copy()
+        out["attach_velocity"] = d.V[-1].copy()
+        out["pivot_position"] = a.r[0].copy()
+        out["omega"] = d.omega.copy()
+        out["linear_momentum"] = d.out[9:12].copy()
+        out["gravity_impulse"] = a.acc[2:5].copy()
+        out["pivot_impulse"] = a.acc[5:8].copy()
+        out["momentum_balance_residual"] = out["linear_momentum"] - self._P0 - a.acc[2:5] - a.acc[5:8]
+        out["strain_energy"] = d.strain.copy()
         return out

@@ -9,14 +9,15 @@ from __future__ import annotations
 import copy
 import math
 from pathlib import Path
-from typing import Any, Literal, Optional
+from typing import Annotated, Any, Literal, Optional, Union
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationError, field_validator, model_validator
 
 Vec3 = tuple[float, float, float]
 Mat3 = tuple[Vec3, Vec3, Vec3]
+PosVec3 = tuple[PositiveFloat, PositiveFloat, PositiveFloat]
 
 SCENES_DIR = Path(__file__).resolve().parent.parent / "configs" / "scenes"
 
@@ -47,6 +48,9 @@ class StringParams(_Frozen):
     mass_per_length: float = Field(gt=0, description="mass per unstretched length mu [kg/m]")
     EA: float = Field(gt=0, description="axial stiffness E*A [N]")
     elements: int = Field(ge=1, description="number of finite elements N")
+    law: Literal["elastic", "slack"] = Field(
+        "elastic", description="elastic: the paper's law, resists compression; slack: tension only, "
+                               "energy EA/2 max(|r'| - 1, 0)^2 (a real string goes slack)")
 
     @property
     def u(self) -> float:
@@ -70,16 +74,78 @@ class StringParams(_Frozen):
         return 2.0 / math.sqrt(12.0 * self.kappa / self.m)
 
 
+class Box(_Frozen):
+    """Solid box centred on the centre of mass, edges ``size`` along body x, y, z [m]."""
+
+    kind: Literal["box"]
+    size: PosVec3
+
+    def inertia_cm(self, mass: float) -> np.ndarray:
+        a, b, c = self.size
+        return mass / 12.0 * np.diag([b * b + c * c, a * a + c * c, a * a + b * b])
+
+
+class Cylinder(_Frozen):
+    """Solid circular cylinder, axis along body z, centred on the centre of mass [m]."""
+
+    kind: Literal["cylinder"]
+    radius: PositiveFloat
+    height: PositiveFloat
+
+    def inertia_cm(self, mass: float) -> np.ndarray:
+        r, H = self.radius, self.height
+        side = mass * (r * r / 4.0 + H * H / 12.0)
+        return np.diag([side, side, mass * r * r / 2.0])
+
+
+class EllipticCylinder(_Frozen):
+    """Solid elliptic cylinder (the paper's load): semi-axes along body x and y, height along
+    body z, centred on the centre of mass [m]."""
+
+    kind: Literal["elliptic_cylinder"]
+    semi_axes: tuple[PositiveFloat, PositiveFloat]
+    height: PositiveFloat
+
+    def inertia_cm(self, mass: float) -> np.ndarray:
+        (a, b), H = self.semi_axes, self.height
+        return mass * np.diag([b * b / 4.0 + H * H / 12.0, a * a / 4.0 + H * H / 12.0, (a * a + b * b) / 4.0])
+
+
+class Sphere(_Frozen):
+    """Solid sphere centred on the centre of mass [m]."""
+
+    kind: Literal["sphere"]
+    radius: PositiveFloat
+
+    def inertia_cm(self, mass: float) -> np.ndarray:
+        return 0.4 * mass * self.radius ** 2 * np.eye(3)
+
+
+Shape = Annotated[Union[Box, Cylinder, EllipticCylinder, Sphere], Field(discriminator="kind")]
+
+
+def inertia_about_attachment(mass: float, inertia_cm: np.ndarray, rho_c) -> np.ndarray:
+    """Parallel-axis theorem: J = J_cm + M (|rho_c|^2 I - rho_c rho_c^T) [kg m^2], the inertia
+    about the attachment point, rho_c the attachment -> centre-of-mass vector (body frame)."""
+    rho = np.asarray(rho_c, dtype=float)
+    return inertia_cm + mass * (rho @ rho * np.eye(3) - np.outer(rho, rho))
+
+
 class BodyParams(_Frozen):
-    """Rigid load: mass, inertia about the attachment point (body frame), centre-of-mass offset."""
+    """Rigid load: mass, centre-of-mass offset, and its inertia about the attachment point
+    (body frame) given either directly (``inertia``) or by its ``shape`` (then computed by the
+    parallel-axis theorem). With both, ``inertia`` is used and ``shape`` only draws the body."""
 
     mass: float = Field(gt=0, description="body mass M [kg]")
-    inertia: Mat3 = Field(description="inertia J about the attachment point, body frame [kg m^2]")
+    inertia: Optional[Mat3] = Field(None, description="inertia J about the attachment point, body frame [kg m^2]")
     rho_c: Vec3 = Field(description="attachment point -> centre of mass, body frame [m]")
+    shape: Optional[Shape] = Field(None, description="geometry centred on the centre of mass")
 
     @field_validator("inertia")
     @classmethod
-    def _inertia_is_physical(cls, J: Mat3) -> Mat3:
+    def _inertia_is_physical(cls, J: Optional[Mat3]) -> Optional[Mat3]:
+        if J is None:
+            return J
         A = np.array(J, dtype=float)
         scale = np.abs(A).max()
         if scale == 0:
@@ -96,12 +162,41 @@ class BodyParams(_Frozen):
                 f"({lam[0]:.4g} + {lam[1]:.4g} < {lam[2]:.4g}); no mass distribution has it")
         return J
 
+    @model_validator(mode="after")
+    def _inertia_or_shape(self) -> "BodyParams":
+        if self.inertia is None and self.shape is None:
+            raise ValueError("body needs an inertia or a shape to compute it from")
+        return self
+
+    @property
+    def J(self) -> np.ndarray:
+        """Inertia about the attachment point, body frame [kg m^2] (given, or from the shape)."""
+        if self.inertia is not None:
+            return np.array(self.inertia, dtype=float)
+        return inertia_about_attachment(self.mass, self.shape.inertia_cm(self.mass), self.rho_c)
+
 
 class PivotParams(_Frozen):
-    """Where the string is held. ``fixed``: the paper's pivot at ``position``."""
+    """Where the string is held. ``fixed``: the paper's pivot at ``position``. ``free``: node 1
+    is a point mass ``mass`` [kg] free in 3-D (a crane hook, a drone), starting at ``position``
+    with ``velocity`` [m/s], pushed by the pivot force input."""
 
-    kind: Literal["fixed"] = "fixed"
+    kind: Literal["fixed", "free"] = "fixed"
     position: Vec3 = (0.0, 0.0, 0.0)
+    mass: Optional[float] = Field(None, gt=0, description="point mass of a free pivot [kg]")
+    velocity: Vec3 = (0.0, 0.0, 0.0)
+
+    @model_validator(mode="after")
+    def _mass_iff_free(self) -> "PivotParams":
+        if self.kind == "free" and self.mass is None:
+            raise ValueError("a free pivot needs its point mass (pivot.mass > 0)")
+        if self.kind == "fixed" and (self.mass is not None or any(self.velocity)):
+            raise ValueError("pivot.mass and pivot.velocity belong to a free pivot (kind: free)")
+        return self
+
+    @property
+    def is_free(self) -> bool:
+        return self.kind == "free"
 
 
 class SolverParams(_Frozen):
@@ -116,8 +211,9 @@ class InitialState(_Frozen):
 
     The string is straight from the pivot along ``direction`` with element length
     ``stretch * u``, unless ``nodes`` (N+1 rows, the first at the pivot) is given. Node velocities
-    are zero except the attachment node's (``attach_velocity``), unless ``node_velocities``
-    (N+1 rows, the first zero for a fixed pivot) is given. ``R0`` maps body to spatial frame;
+    are zero except the attachment node's (``attach_velocity``) and a free pivot's
+    (``pivot.velocity``), unless ``node_velocities`` (N+1 rows, the first zero for a fixed
+    pivot) is given. ``R0`` maps body to spatial frame;
     ``Omega0`` is the body-frame angular velocity [rad/s].
     """
 
@@ -173,14 +269,14 @@ class Scene(_Frozen):
             if len(init.nodes) != n1:
                 raise ValueError(f"initial.nodes needs N+1 = {n1} rows, got {len(init.nodes)}")
             if not np.allclose(init.nodes[0], self.pivot.position, rtol=0, atol=1e-12):
-                raise ValueError("initial.nodes[0] must be at pivot.position (the pivot is fixed)")
+                raise ValueError("initial.nodes[0] must be at pivot.position")
             x = np.diff(np.array(init.nodes, dtype=float), axis=0)
             if np.any(np.linalg.norm(x, axis=1) == 0):
                 raise ValueError("initial.nodes has an element of zero length")
         if init.node_velocities is not None:
             if len(init.node_velocities) != n1:
                 raise ValueError(f"initial.node_velocities needs N+1 = {n1} rows, got {len(init.node_velocities)}")
-            if np.any(np.array(init.node_velocities[0]) != 0):
+            if not self.pivot.is_free and np.any(np.array(init.node_velocities[0]) != 0):
                 raise ValueError("initial.node_velocities[0] must be zero (the pivot is fixed)")
         return self
 
@@ -199,6 +295,7 @@ class Scene(_Frozen):
         if self.initial.node_velocities is not None:
             return np.array(self.initial.node_velocities, dtype=float)
         v = np.zeros((self.string.elements + 1, 3))
+        v[0] = self.pivot.velocity
         v[-1] = self.initial.attach_velocity
         return v
 

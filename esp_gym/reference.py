@@ -67,7 +67,7 @@ class Constants:
 
     @classmethod
     def from_scene(cls, scene: Scene) -> "Constants":
-        J = np.array(scene.body.inertia, dtype=float)
+        J = scene.body.J
         return cls(
             h=float(scene.h), u=float(scene.string.u), m=float(scene.string.m),
             kappa=float(scene.string.kappa), g=float(scene.gravity), M=float(scene.body.mass),

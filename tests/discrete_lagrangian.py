@@ -59,7 +59,7 @@ def rigid_body_lagrangian(scene, r_attach, R, dr_attach, FmI) -> float:
         + h/2 M g (r + R rho_c).e3 + h/2 M g (r + dr + R F rho_c).e3,   J_d = tr(J)/2 I - J
     """
     h, M, g = scene.h, scene.body.mass, scene.gravity
-    J = np.array(scene.body.inertia, dtype=float)
+    J = scene.body.J
     Jd = 0.5 * np.trace(J) * np.eye(3) - J
     rho = np.array(scene.body.rho_c, dtype=float)
     return float(0.5 / h * M * dr_attach @ dr_attach

@@ -11,11 +11,14 @@ pi3 = e3 . (sum_a r_a x p_a + R Pi).
 """
 import math
 
+from collections import namedtuple
+
 from ._jit import kernel
 from .so3 import solve3
 from .string import element_strain, tridiag_solve
 
-#: Layout of the scalar output of :func:`diagnostics`.
+#: Layout of the scalar output of :func:`diagnostics` (energy and pi3 at fixed positions: the
+#: recording kernel reads them by index).
 DIAG_NAMES = (
     "kinetic_string",
     "kinetic_body",
@@ -25,14 +28,29 @@ DIAG_NAMES = (
     "pi3",
     "orthogonality",
     "stretched_length",
+    "kinetic_pivot",
+    "linear_momentum_x",
+    "linear_momentum_y",
+    "linear_momentum_z",
 )
+
+#: Scratch and outputs of :func:`diagnostics`: node velocities V (N+1, 3) [m/s], per-element
+#: strain energy (N,) [J], body angular velocity omega (3,, body frame) [rad/s], and ``out``
+#: (len(DIAG_NAMES),).
+DiagWork = namedtuple("DiagWork", "V strain omega out")
 
 
 @kernel
-def diagnostics(r, p, R, Pi, P, V, strain, omega, out):
-    """Fill ``out`` (8, see DIAG_NAMES), node velocities ``V`` (N+1, 3) [m/s], body angular
-    velocity ``omega`` (3, body frame) [rad/s] and per-element strain energy ``strain`` (N,) [J].
-    """
+def diagnostics(S, P, D):
+    """Fill the :class:`DiagWork` ``D`` from the state ``S`` (kernels/lgvi.py StateArrays)."""
+    r = S.r
+    p = S.p
+    R = S.R
+    Pi = S.Pi
+    V = D.V
+    strain = D.strain
+    omega = D.omega
+    out = D.out
     n = r.shape[0] - 1
     first = P.first
     M = P.M
@@ -95,12 +113,19 @@ def diagnostics(r, p, R, Pi, P, V, strain, omega, out):
     tb = (0.5 * M * (vn0 * vn0 + vn1 * vn1 + vn2 * vn2) + 0.5 * (w0 * Jw0 + w1 * Jw1 + w2 * Jw2)
           - M * (vn0 * q0 + vn1 * q1 + vn2 * q2))
     zc = R[2, 0] * rho0 + R[2, 1] * rho1 + R[2, 2] * rho2
-    pot_g = -P.g * (0.5 * P.m * vg + M * (r[n, 2] + zc))
-    pot_e, length = element_strain(r, P.kappa, P.u, strain)
-    # pi3 = e3 . (sum r_a x p_a + R Pi)
+    pot_g = -P.g * (0.5 * P.m * vg + M * (r[n, 2] + zc) + P.Mp * r[0, 2])
+    pot_e, length = element_strain(r, P.kappa, P.u, P.slack, strain)
+    tp = 0.5 * P.Mp * (V[0, 0] * V[0, 0] + V[0, 1] * V[0, 1] + V[0, 2] * V[0, 2])
+    # pi3 = e3 . (sum r_a x p_a + R Pi); total linear momentum sum p_a
     pi3 = R[2, 0] * Pi[0] + R[2, 1] * Pi[1] + R[2, 2] * Pi[2]
+    P0 = 0.0
+    P1 = 0.0
+    P2 = 0.0
     for a in range(n + 1):
         pi3 += r[a, 0] * p[a, 1] - r[a, 1] * p[a, 0]
+        P0 += p[a, 0]
+        P1 += p[a, 1]
+        P2 += p[a, 2]
     # || I - R^T R ||_F
     orth = 0.0
     for i in range(3):
@@ -113,7 +138,11 @@ def diagnostics(r, p, R, Pi, P, V, strain, omega, out):
     out[1] = tb
     out[2] = pot_g
     out[3] = pot_e
-    out[4] = ts + tb + pot_g + pot_e
+    out[4] = ts + tb + tp + pot_g + pot_e
     out[5] = pi3
     out[6] = math.sqrt(orth)
     out[7] = length
+    out[8] = tp
+    out[9] = P0
+    out[10] = P1
+    out[11] = P2

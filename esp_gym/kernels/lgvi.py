@@ -1,4 +1,4 @@
-"""The Lie group variational integrator of the elastic string pendulum (fixed pivot, no inputs).
+"""The Lie group variational integrator of the elastic string pendulum, with inputs.
 
 The paper writes the scheme as a two-step recursion (DEL0)-(DEL4). We run its equivalent
 one-step (position-momentum) form: with the discrete Legendre transforms
@@ -23,8 +23,21 @@ w = M_tot^-1 e_{N+1}) gives dr = h M_tot^-1 B - M w (R_k (F_k - I) rho_c) and tu
     K = J_d - M^2 s rho_c rho_c^T,  i.e. tr(K) I - K = J_eff = J + M^2 s rho_c^ rho_c^,
 
 a rigid-body equation with a modified inertia, solved by Newton on the Cayley vector.
+
+Inputs (physics_notes.md, "Inputs through the discrete Lagrange-d'Alembert principle") are held
+constant over a step and enter as discrete forces split half and half, f_d^- = f_d^+ = (h/2) u:
+
+* a free pivot (row 0 unknown, point mass M_p) pushed by the spatial force u_p: (h/2) u_p joins
+  the right-hand side of (1) at row 0, and (3) gains h u_p there;
+* a body torque tau (body frame) and a spatial torque T: the left half uses
+  tau^- = tau + R_k^T T in (2), the right half tau^+ = tau + R_{k+1}^T T in (4).
+
+With zero inputs and a fixed pivot every added term is an exact zero, so the scheme is the
+paper's, bit for bit.
 """
 from collections import namedtuple
+
+import math
 
 import numpy as np
 
@@ -33,13 +46,21 @@ from .diagnostics import diagnostics
 from .so3 import cayley_minus_identity, cayley_newton
 from .string import nodal_forces, tridiag_solve
 
-#: Scene constants of the stepper, all SI. ``w`` and the Thomas factors are indexed by node.
+#: Scene constants of the stepper, all SI. ``w`` and the Thomas factors are indexed by node;
+#: ``first`` is the first unknown node (1: fixed pivot, 0: free pivot of mass ``Mp``);
+#: ``slack``: tension-only string law.
 LGVIParams = namedtuple(
     "LGVIParams",
-    "h m kappa u g M rho J Jd Jeff inv cp off w first tol max_iter",
+    "h m kappa u g M Mp rho J Jd Jeff inv cp off w first slack tol max_iter",
 )
 
-#: Scratch arrays of one simulator (allocated once, see esp_gym.model.make_work).
+#: The state the kernels advance: positions r and momenta p (N+1, 3), R (3, 3), Pi (3,), the
+#: compensated-summation remainders rc, pc, Rc, Pic of each, the forces f at r (N+1, 3), and
+#: the input accumulators acc (8,) with remainders accc: [work, angular impulse about e3,
+#: gravity impulse (3), pivot-force impulse (3)].
+StateArrays = namedtuple("StateArrays", "r p R Pi rc pc Rc Pic f acc accc")
+
+#: Scratch arrays of one simulator (allocated once in esp_gym.model).
 Work = namedtuple("Work", "fn B X Y FmI RF Rn jac")
 
 #: Kernel status codes (kept in sync with esp_gym.model.STATUS_MESSAGES).
@@ -48,17 +69,32 @@ NEWTON_FAILED = 1
 NON_FINITE = 2
 
 
-@kernel(inline="always")
-def lgvi_step(r, p, R, Pi, rc, pc, Rc, Pic, f, W, P):
-    """Advance the state ``(r, p, R, Pi)`` by one step of length ``P.h``, in place.
+@kernel
+def kahan_add(x, c, i, dx):
+    """x[i] += dx with Kahan compensation, the remainder kept in c[i]."""
+    y = dx + c[i]
+    t = x[i] + y
+    c[i] = (x[i] - t) + y
+    x[i] = t
 
-    ``rc, pc, Rc, Pic`` are the compensated-summation remainders of r, p, R and Pi: increments are added
-    with Kahan's trick, because in a smooth motion the round-off of ``r + dr`` repeats for many
+
+@kernel(inline="always")
+def lgvi_step(S, W, P, inputs):
+    """Advance the state ``S`` (:class:`StateArrays`) by one step of length ``P.h``, in place.
+
+    ``inputs`` (9,): pivot force u_p (spatial) [N], body torque tau (body frame) [N m], spatial
+    torque T [N m], held over the step. Increments are added with Kahan's trick (remainders in
+    S.rc, pc, Rc, Pic), because in a smooth motion the round-off of ``r + dr`` repeats for many
     steps and would otherwise accumulate linearly into pi3 and the energy.
-    On entry ``f`` holds ``nodal_forces(r)``; on success it holds the forces at the new state.
-    ``W`` is a :class:`Work` of scratch arrays. On failure the state (and f) are left untouched
-    and a non-zero status is returned. Returns ``(status, newton_iterations)``.
+    On entry ``S.f`` holds ``nodal_forces(r)``; on success it holds the forces at the new state.
+    On failure the state is left untouched and a non-zero status is returned.
+    Returns ``(status, newton_iterations)``.
     """
+    r = S.r
+    p = S.p
+    R = S.R
+    Pi = S.Pi
+    f = S.f
     B = W.B
     X = W.X
     Y = W.Y
@@ -72,23 +108,40 @@ def lgvi_step(r, p, R, Pi, rc, pc, Rc, Pic, f, W, P):
     rho0 = P.rho[0]
     rho1 = P.rho[1]
     rho2 = P.rho[2]
+    up0 = inputs[0]
+    up1 = inputs[1]
+    up2 = inputs[2]
+    tb0 = inputs[3]
+    tb1 = inputs[4]
+    tb2 = inputs[5]
+    ts0 = inputs[6]
+    ts1 = inputs[7]
+    ts2 = inputs[8]
     # (1): right-hand side and the string solve with F_k = I
     for a in range(first, n + 1):
         B[a, 0] = p[a, 0] + hh * f[a, 0]
         B[a, 1] = p[a, 1] + hh * f[a, 1]
         B[a, 2] = p[a, 2] + hh * f[a, 2]
+    if first == 0:
+        B[0, 0] += hh * up0
+        B[0, 1] += hh * up1
+        B[0, 2] += hh * up2
     tridiag_solve(P.inv, P.cp, P.off, first, B, X)
     d0 = h * X[n, 0]
     d1 = h * X[n, 1]
     d2 = h * X[n, 2]
-    # (2) after the Schur complement: g = h Pi + h^2/2 tau_g(R_k) - M rho_c x (R_k^T d)
+    # left torque: gravity about the attachment point tau_g(R_k) = M g rho_c x (R_k^T e3) + tau^-
     Mg = M * P.g
     z0 = R[2, 0]  # R^T e3
     z1 = R[2, 1]
     z2 = R[2, 2]
-    t0 = Mg * (rho1 * z2 - rho2 * z1)
-    t1 = Mg * (rho2 * z0 - rho0 * z2)
-    t2 = Mg * (rho0 * z1 - rho1 * z0)
+    l0 = tb0 + (R[0, 0] * ts0 + R[1, 0] * ts1 + R[2, 0] * ts2)  # tau^- = tau + R_k^T T
+    l1 = tb1 + (R[0, 1] * ts0 + R[1, 1] * ts1 + R[2, 1] * ts2)
+    l2 = tb2 + (R[0, 2] * ts0 + R[1, 2] * ts1 + R[2, 2] * ts2)
+    t0 = Mg * (rho1 * z2 - rho2 * z1) + l0
+    t1 = Mg * (rho2 * z0 - rho0 * z2) + l1
+    t2 = Mg * (rho0 * z1 - rho1 * z0) + l2
+    # (2) after the Schur complement: g = h Pi + h^2/2 tau_k - M rho_c x (R_k^T d)
     e0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2  # R^T d
     e1 = R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2
     e2 = R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2
@@ -109,6 +162,10 @@ def lgvi_step(r, p, R, Pi, rc, pc, Rc, Pic, f, W, P):
     q1 = R[1, 0] * s0 + R[1, 1] * s1 + R[1, 2] * s2
     q2 = R[2, 0] * s0 + R[2, 1] * s1 + R[2, 2] * s2
     w = P.w
+    rc = S.rc
+    dr00 = h * X[0, 0] - M * w[0] * q0  # pivot displacement (used only when it is free)
+    dr01 = h * X[0, 1] - M * w[0] * q1
+    dr02 = h * X[0, 2] - M * w[0] * q2
     for a in range(first, n + 1):
         Y[a, 0] = (h * X[a, 0] - M * w[a] * q0) + rc[a, 0]
         Y[a, 1] = (h * X[a, 1] - M * w[a] * q1) + rc[a, 1]
@@ -120,10 +177,11 @@ def lgvi_step(r, p, R, Pi, rc, pc, Rc, Pic, f, W, P):
         X[a, 0] = r[a, 0]
         X[a, 1] = r[a, 1]
         X[a, 2] = r[a, 2]
-    if not np.isfinite(nodal_forces(X, P.kappa, P.u, P.m, M, P.g, fn)):
+    if not np.isfinite(nodal_forces(X, P.kappa, P.u, P.m, M, P.Mp, P.g, P.slack, fn)):
         return NON_FINITE, iters
     # R_k (F_k - I) + Rc, and R_{k+1} = R_k + that (Kahan)
     RF = W.RF
+    Rc = S.Rc
     for i in range(3):
         for j in range(3):
             RF[i, j] = (R[i, 0] * FmI[0, j] + R[i, 1] * FmI[1, j] + R[i, 2] * FmI[2, j]) + Rc[i, j]
@@ -131,9 +189,9 @@ def lgvi_step(r, p, R, Pi, rc, pc, Rc, Pic, f, W, P):
     for i in range(3):
         for j in range(3):
             Rn[i, j] = R[i, j] + RF[i, j]
-    # (4) in increment form. By (2), u := Pi_k + h/2 tau_g(R_k) - (M/h) rho_c x (R_k^T dr_{N+1})
+    # (4) in increment form. By (2), u := Pi_k + h/2 tau_k - (M/h) rho_c x (R_k^T dr_{N+1})
     # equals (1/h)(F J_d - J_d F^T)^vee, so (4) reads Pi_{k+1} = F^T u + (M/h) rho_c x
-    # (R_{k+1}^T dr_{N+1}) + h/2 tau_g(R_{k+1}), i.e. Pi_{k+1} = Pi_k + dPi with
+    # (R_{k+1}^T dr_{N+1}) + h/2 tau_{k+1}, i.e. Pi_{k+1} = Pi_k + dPi with
     #   dPi = h/2 (tau_k + tau_{k+1}) + (F - I)^T u + (M/h) rho_c x ((F - I)^T R_k^T dr_{N+1}).
     # Every term of dPi is O(h) and vanishes exactly where it should (e.g. a steady spin about
     # a principal axis), and R_{k+1} Pi_{k+1} = R_k u + ... uses the same F, so the Newton
@@ -148,15 +206,38 @@ def lgvi_step(r, p, R, Pi, rc, pc, Rc, Pic, f, W, P):
     a0 = FmI[0, 0] * e0 + FmI[1, 0] * e1 + FmI[2, 0] * e2  # (F - I)^T R_k^T dr_{N+1}
     a1 = FmI[0, 1] * e0 + FmI[1, 1] * e1 + FmI[2, 1] * e2
     a2 = FmI[0, 2] * e0 + FmI[1, 2] * e1 + FmI[2, 2] * e2
-    n0 = Mg * (rho1 * Rn[2, 2] - rho2 * Rn[2, 1])  # tau_g(R_{k+1})
-    n1 = Mg * (rho2 * Rn[2, 0] - rho0 * Rn[2, 2])
-    n2 = Mg * (rho0 * Rn[2, 1] - rho1 * Rn[2, 0])
+    # right torque tau_{k+1} = tau_g(R_{k+1}) + tau + R_{k+1}^T T
+    m0 = tb0 + (Rn[0, 0] * ts0 + Rn[1, 0] * ts1 + Rn[2, 0] * ts2)  # tau^+ = tau + R_{k+1}^T T
+    m1 = tb1 + (Rn[0, 1] * ts0 + Rn[1, 1] * ts1 + Rn[2, 1] * ts2)
+    m2 = tb2 + (Rn[0, 2] * ts0 + Rn[1, 2] * ts1 + Rn[2, 2] * ts2)
+    n0 = Mg * (rho1 * Rn[2, 2] - rho2 * Rn[2, 1]) + m0
+    n1 = Mg * (rho2 * Rn[2, 0] - rho0 * Rn[2, 2]) + m1
+    n2 = Mg * (rho0 * Rn[2, 1] - rho1 * Rn[2, 0]) + m2
     dP0 = hh * (t0 + n0) + (FmI[0, 0] * u0 + FmI[1, 0] * u1 + FmI[2, 0] * u2) + Mh * (rho1 * a2 - rho2 * a1)
     dP1 = hh * (t1 + n1) + (FmI[0, 1] * u0 + FmI[1, 1] * u1 + FmI[2, 1] * u2) + Mh * (rho2 * a0 - rho0 * a2)
     dP2 = hh * (t2 + n2) + (FmI[0, 2] * u0 + FmI[1, 2] * u1 + FmI[2, 2] * u2) + Mh * (rho0 * a1 - rho1 * a0)
     if not np.isfinite(dP0 + dP1 + dP2):
         return NON_FINITE, iters
-    # commit (3) and the compensated updates
+    # -- commit -------------------------------------------------------------------------------
+    # balances of the inputs (before r and R move): discrete work u_p . dr_0 + tau_avg . theta
+    # (theta the rotation vector of F, tau_avg = (tau^- + tau^+)/2), angular impulse about e3
+    # e3 . [h/2 (r_0k + r_0k+1) x u_p + h/2 (R_k tau^- + R_{k+1} tau^+)], linear impulses.
+    acc = S.acc
+    accc = S.accc
+    ff = c0 * c0 + c1 * c1 + c2 * c2
+    th = 2.0 if ff == 0.0 else 2.0 * math.atan(math.sqrt(ff)) / math.sqrt(ff)
+    work = 0.5 * th * ((l0 + m0) * c0 + (l1 + m1) * c1 + (l2 + m2) * c2)
+    ang = hh * ((R[2, 0] + Rn[2, 0]) * tb0 + (R[2, 1] + Rn[2, 1]) * tb1 + (R[2, 2] + Rn[2, 2]) * tb2) + h * ts2
+    if first == 0:
+        work += up0 * dr00 + up1 * dr01 + up2 * dr02
+        ang += hh * ((2.0 * r[0, 0] + dr00) * up1 - (2.0 * r[0, 1] + dr01) * up0)
+        kahan_add(acc, accc, 5, h * up0)
+        kahan_add(acc, accc, 6, h * up1)
+        kahan_add(acc, accc, 7, h * up2)
+    kahan_add(acc, accc, 0, work)
+    kahan_add(acc, accc, 1, ang)
+    kahan_add(acc, accc, 4, h * P.g * (M + P.Mp + n * P.m))
+    pc = S.pc
     for a in range(first, n + 1):
         for i in range(3):
             x = X[a, i]
@@ -168,6 +249,10 @@ def lgvi_step(r, p, R, Pi, rc, pc, Rc, Pic, f, W, P):
             pc[a, i] = (p0 - pn) + dp
             p[a, i] = pn
             f[a, i] = fn[a, i]
+    if first == 0:  # the pivot force's impulse h u_p, compensated like the rest of p
+        kahan_add(p[0], pc[0], 0, h * up0)
+        kahan_add(p[0], pc[0], 1, h * up1)
+        kahan_add(p[0], pc[0], 2, h * up2)
     for a in range(first):
         f[a, 0] = fn[a, 0]
         f[a, 1] = fn[a, 1]
@@ -176,84 +261,79 @@ def lgvi_step(r, p, R, Pi, rc, pc, Rc, Pic, f, W, P):
         for j in range(3):
             Rc[i, j] = (R[i, j] - Rn[i, j]) + RF[i, j]
             R[i, j] = Rn[i, j]
-    for i, dP in enumerate((dP0, dP1, dP2)):
-        y = dP + Pic[i]
-        t = Pi[i] + y
-        Pic[i] = (Pi[i] - t) + y
-        Pi[i] = t
+    kahan_add(Pi, S.Pic, 0, dP0)
+    kahan_add(Pi, S.Pic, 1, dP1)
+    kahan_add(Pi, S.Pic, 2, dP2)
     return OK, iters
 
 
 @kernel
-def lgvi_advance(r, p, R, Pi, rc, pc, Rc, Pic, f, W, P, nsteps, stats):
-    """Take up to ``nsteps`` steps; stop at the first failure with the last good state.
-
-    ``stats`` (int64, 4): status, steps taken, total Newton iterations, max per step.
-    """
-    nodal_forces(r, P.kappa, P.u, P.m, P.M, P.g, f)
-    total = 0
-    most = 0
-    for k in range(nsteps):
-        status, iters = lgvi_step(r, p, R, Pi, rc, pc, Rc, Pic, f, W, P)
-        total += iters
-        if iters > most:
-            most = iters
-        if status != OK:
-            stats[0] = status
-            stats[1] = k
-            stats[2] = total
-            stats[3] = most
-            return
-    stats[0] = OK
-    stats[1] = nsteps
+def _finish(stats, status, steps, total, most):
+    stats[0] = status
+    stats[1] = steps
     stats[2] = total
     stats[3] = most
 
 
 @kernel
-def lgvi_record(r, p, R, Pi, rc, pc, Rc, Pic, f, W, P, every, V, strain, omega, out,
-                snap_r, snap_R, snap_omega, snap_v, snap_diag, snap_strain, step_diag, stats):
-    """Take ``len(snap_r) * every`` steps, storing a snapshot after every ``every`` steps.
-
-    Snapshots: node positions, R, Omega (body) and attachment velocity, the DIAG_NAMES scalars
-    and per-element strain energy. If ``step_diag`` has rows, row i receives
-    ``(energy, pi3, orthogonality)`` after step i + 1. Stops at the first failure; ``stats``
-    as in :func:`lgvi_advance` (steps counts steps taken in this call).
+def lgvi_advance(S, W, P, inputs, nsteps, stats):
+    """Take up to ``nsteps`` steps with constant ``inputs``; stop at the first failure with
+    the last good state. ``stats`` (int64, 4): status, steps taken, total Newton iterations,
+    max per step.
     """
-    n = r.shape[0] - 1
-    per_step = step_diag.shape[0] > 0
-    nodal_forces(r, P.kappa, P.u, P.m, P.M, P.g, f)
+    nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
+    total = 0
+    most = 0
+    for k in range(nsteps):
+        status, iters = lgvi_step(S, W, P, inputs)
+        total += iters
+        most = max(most, iters)
+        if status != OK:
+            _finish(stats, status, k, total, most)
+            return
+    _finish(stats, OK, nsteps, total, most)
+
+
+#: Recording buffers: per snapshot j the node positions, R, Omega, attachment velocity,
+#: DIAG_NAMES scalars and strain energy; step_diag (per step, possibly 0 rows) receives
+#: (energy, pi3, orthogonality).
+Snapshots = namedtuple("Snapshots", "r R omega v diag strain acc step_diag")
+
+
+@kernel
+def lgvi_record(S, W, P, inputs, every, D, snap, stats):
+    """Take ``len(snap.r) * every`` steps, storing a snapshot after every ``every`` steps
+    (``D`` is the diagnostics scratch, see kernels/diagnostics.py). Stops at the first failure;
+    ``stats`` as in :func:`lgvi_advance` (steps counts steps taken in this call).
+    """
+    n = S.r.shape[0] - 1
+    per_step = snap.step_diag.shape[0] > 0
+    nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
     total = 0
     most = 0
     k = 0
-    for j in range(snap_r.shape[0]):
+    for j in range(snap.r.shape[0]):
         for i in range(every):
-            status, iters = lgvi_step(r, p, R, Pi, rc, pc, Rc, Pic, f, W, P)
+            status, iters = lgvi_step(S, W, P, inputs)
             total += iters
-            if iters > most:
-                most = iters
+            most = max(most, iters)
             if status != OK:
-                stats[0] = status
-                stats[1] = k
-                stats[2] = total
-                stats[3] = most
+                _finish(stats, status, k, total, most)
                 return
             if per_step:
-                diagnostics(r, p, R, Pi, P, V, strain, omega, out)
-                step_diag[k, 0] = out[4]
-                step_diag[k, 1] = out[5]
-                step_diag[k, 2] = out[6]
+                diagnostics(S, P, D)
+                snap.step_diag[k, 0] = D.out[4]
+                snap.step_diag[k, 1] = D.out[5]
+                snap.step_diag[k, 2] = D.out[6]
             k += 1
-        diagnostics(r, p, R, Pi, P, V, strain, omega, out)
-        snap_r[j] = r
-        snap_R[j] = R
-        snap_omega[j] = omega
-        snap_v[j, 0] = V[n, 0]
-        snap_v[j, 1] = V[n, 1]
-        snap_v[j, 2] = V[n, 2]
-        snap_diag[j] = out
-        snap_strain[j] = strain
-    stats[0] = OK
-    stats[1] = k
-    stats[2] = total
-    stats[3] = most
+        diagnostics(S, P, D)
+        snap.r[j] = S.r
+        snap.R[j] = S.R
+        snap.omega[j] = D.omega
+        snap.v[j, 0] = D.V[n, 0]
+        snap.v[j, 1] = D.V[n, 1]
+        snap.v[j, 2] = D.V[n, 2]
+        snap.diag[j] = D.out
+        snap.strain[j] = D.strain
+        snap.acc[j] = S.acc
+    _finish(stats, OK, k, total, most)

@@ -11,21 +11,23 @@ from ._jit import kernel
 
 
 @kernel
-def nodal_forces(r, kappa, u, m, M, g, f):
+def nodal_forces(r, kappa, u, m, M, Mp, g, slack, f):
     """Write the conservative force on each node, ``f = -dV/dr``, into ``f`` (N+1, 3).
 
-    V = sum_a kappa/2 (|x_a| - u)^2 - g e3 . (sum_a m/2 (r_a + r_{a+1}) + M r_{N+1}),
+    V = sum_a kappa/2 (|x_a| - u)^2 - g e3 . (sum_a m/2 (r_a + r_{a+1}) + M r_{N+1} + Mp r_1),
     x_a = r_{a+1} - r_a, so with grad V^e_a = kappa (1 - u/|x_a|) x_a (the paper's notation)
-    f_a = m_a g e3 + grad V^e_a - grad V^e_{a-1}, with lumped gravity masses m/2, m, ..., m,
-    m/2 + M (consistent for linear elements). The body's gravity torque is handled in the
-    rotational equation. Returns the sum of all components (non-finite iff any entry is).
+    f_a = m_a g e3 + grad V^e_a - grad V^e_{a-1}, with gravity masses m/2 + Mp, m, ..., m,
+    m/2 + M (consistent for linear elements; Mp the pivot's point mass, 0 when fixed). The
+    body's gravity torque is handled in the rotational equation. With ``slack`` the string
+    resists no compression: the element energy is kappa/2 max(|x_a| - u, 0)^2.
+    Returns the sum of all components (non-finite iff any entry is).
     """
     n = r.shape[0] - 1
     for a in range(n + 1):
         f[a, 0] = 0.0
         f[a, 1] = 0.0
         f[a, 2] = m * g
-    f[0, 2] = 0.5 * m * g
+    f[0, 2] = (0.5 * m + Mp) * g
     f[n, 2] = (0.5 * m + M) * g
     total = 0.0
     for a in range(n):
@@ -33,6 +35,8 @@ def nodal_forces(r, kappa, u, m, M, g, f):
         x1 = r[a + 1, 1] - r[a, 1]
         x2 = r[a + 1, 2] - r[a, 2]
         c = kappa * (1.0 - u / math.sqrt(x0 * x0 + x1 * x1 + x2 * x2))
+        if slack and c < 0.0:
+            c = 0.0
         t0 = c * x0
         t1 = c * x1
         t2 = c * x2
@@ -47,8 +51,9 @@ def nodal_forces(r, kappa, u, m, M, g, f):
 
 
 @kernel
-def element_strain(r, kappa, u, strain_energy):
-    """Per-element strain energy kappa/2 (|x_a| - u)^2 [J] into ``strain_energy`` (N,).
+def element_strain(r, kappa, u, slack, strain_energy):
+    """Per-element strain energy kappa/2 (|x_a| - u)^2 [J] into ``strain_energy`` (N,); with
+    ``slack`` a compressed element stores none.
 
     Returns ``(elastic potential [J], stretched length [m])``.
     """
@@ -61,6 +66,8 @@ def element_strain(r, kappa, u, strain_energy):
         x2 = r[a + 1, 2] - r[a, 2]
         L = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
         e = 0.5 * kappa * (L - u) ** 2
+        if slack and L < u:
+            e = 0.0
         strain_energy[a] = e
         total += e
         length += L
