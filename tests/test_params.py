@@ -30,6 +30,10 @@ from esp_gym.params import SceneError, load_scene
     ({"initial": {"direction": [0, 0, 0]}}, "initial.direction"),
     ({"pivot": {"kind": "floating"}}, "pivot.kind"),
     ({"solver": {"newton_tol": 1e-3}}, "solver.newton_tol"),
+    ({"pivot": {"kind": "free"}}, "pivot.mass > 0"),
+    ({"pivot": {"kind": "free", "mass": -1.0}}, "pivot.mass"),
+    ({"pivot": {"mass": 0.5}}, "belong to a free pivot"),
+    ({"string": {"law": "rubber"}}, "string.law"),
 ])
 def test_bad_field_is_named(overrides, needle):
     with pytest.raises(SceneError) as err:

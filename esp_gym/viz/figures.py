@@ -26,7 +26,8 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection  # registers "3d"
 
-#: The paper's elliptic cylinder (body frame): semi-axes along body x and y, height along body z [m].
+#: The paper's elliptic cylinder (body frame): semi-axes along body x and y, height along body z [m];
+#: the default when a scene has no cylinder shape.
 CYLINDER_SEMI_AXES = (0.06, 0.04)
 CYLINDER_HEIGHT = 0.1
 
@@ -242,7 +243,14 @@ def plot_fig_sm(traj, scene, path, panels: int = 4, snapshots_per_panel: int = 1
     chosen = [_snapshot_indices(t, edges[i], edges[i + 1], snapshots_per_panel) for i in range(panels)]
     every = np.unique(np.concatenate(chosen))
 
-    bodies = {k: cylinder_faces(R[k], nodes[k, -1], rho_c) for k in every}
+    shape = scene.body.shape  # draw the scene's own cylinder; other shapes as the paper's
+    if getattr(shape, "kind", None) == "elliptic_cylinder":
+        dims = dict(semi_axes=shape.semi_axes, height=shape.height)
+    elif getattr(shape, "kind", None) == "cylinder":
+        dims = dict(semi_axes=(shape.radius, shape.radius), height=shape.height)
+    else:
+        dims = {}
+    bodies = {k: cylinder_faces(R[k], nodes[k, -1], rho_c, **dims) for k in every}
     pts = np.concatenate([nodes[every].reshape(-1, 3), pivot[None]]
                          + [np.concatenate(bodies[k]) for k in every])
     mid, span = 0.5 * (pts.max(0) + pts.min(0)), pts.max(0) - pts.min(0)
