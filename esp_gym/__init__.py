@@ -1,11 +1,25 @@
-"""esp_gym: the 3D elastic string pendulum (Lee, Leok & McClamroch) as a fast, exact simulator.
+"""esp_gym: the 3D elastic string pendulum (Lee, Leok & McClamroch) as a fast, exact simulator
+and the Gymnasium environment ``ElasticStringPendulum-v0``.
 
-``import esp_gym`` stays light: the compiled physics is imported on first use.
+``import esp_gym`` registers the environment and stays light: the compiled physics is imported
+on first use.
 """
+from gymnasium.envs.registration import register, registry
+
 from .params import Scene, SceneError, available_scenes, load_scene
 
 __all__ = ["Scene", "SceneError", "Simulator", "SimulationError", "Trajectory", "available_scenes", "load_scene"]
 __version__ = "0.1.0"
+
+ENV_ID = "ElasticStringPendulum-v0"
+
+if ENV_ID not in registry:
+    register(
+        id=ENV_ID,
+        entry_point="esp_gym.env:ElasticStringPendulumEnv",
+        vector_entry_point="esp_gym.vector:ElasticStringPendulumVectorEnv",
+        max_episode_steps=500,
+    )
 
 
 def __getattr__(name):

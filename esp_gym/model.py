@@ -232,6 +232,16 @@ class Simulator:
         self.newton_iterations_max = 0  #: most iterations in any one step so far
         self.reset_balances()
 
+    @property
+    def kernel_args(self):
+        """``(StateArrays, Work, LGVIParams, DiagWork)``: the live arrays the kernels advance
+        (for the environment's compiled step; mutate only through kernels)."""
+        return self._arrays, self._work, self.params, self._diag
+
+    def advance_counter(self, steps: int) -> None:
+        """Count ``steps`` taken by an external kernel call on :attr:`kernel_args`."""
+        self._step += int(steps)
+
     # -- state ------------------------------------------------------------------------------
     @property
     def state(self) -> State:

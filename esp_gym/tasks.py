@@ -1,0 +1,140 @@
+"""Tasks of ElasticStringPendulum-v0: targets, initial-state distributions and reward weights.
+
+The reward itself is compiled (esp_gym/kernels/task.py) so the single and the batched
+environments share it; this module holds what varies per task, as small pure functions.
+Every distance is in metres, spatial frame, gravity along +e3 (so "below" is +z).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .kernels.task import TASK_PARAM_NAMES
+from .model import State, legendre_momenta
+from .params import Scene
+
+
+@dataclass(frozen=True)
+class Task:
+    """Reward weights and scales, and the start/target distribution of one task.
+
+    Each reward term is ``weight * 1/(1 + (x/scale)^2)`` (1 at x = 0, 1/2 at x = scale), the
+    control term is ``-w_control * |a|^2 / 6``; so a step's reward lies in
+    [-w_control, w_load_position + w_load_velocity + w_pivot_position + w_swing + w_spin].
+    """
+
+    name: str
+    w_load_position: float = 0.35
+    w_load_velocity: float = 0.2
+    w_pivot_position: float = 0.2
+    w_swing: float = 0.15
+    w_spin: float = 0.1
+    w_control: float = 0.1
+    scale_position: float = 0.2  #: [m]
+    scale_velocity: float = 0.5  #: [m/s]
+    scale_swing: float = 0.2  #: [rad]
+    scale_spin: float = 1.0  #: [rad/s]
+    max_swing_deg: float = 30.0  #: stabilize: initial swing up to this angle [deg]
+    max_speed: float = 0.3  #: initial speeds up to this, per axis [m/s]
+    max_spin: float = 0.5  #: initial body rates up to this, per axis [rad/s]
+    target_box: tuple = (0.0, 0.0, 0.0)  #: transport: pivot target uniform in +-box [m]
+    max_stretch: float = 1.5  #: terminate when the stretched length exceeds this times l
+    workspace_radius: float = 4.0  #: terminate when pivot or load is this far from its target [m]
+
+    def params(self, scene: Scene) -> np.ndarray:
+        """The compiled kernel's task parameter vector (TASK_PARAM_NAMES)."""
+        values = dict(
+            w_load_position=self.w_load_position, w_load_velocity=self.w_load_velocity,
+            w_pivot_position=self.w_pivot_position, w_swing=self.w_swing, w_spin=self.w_spin,
+            w_control=self.w_control, scale_position=self.scale_position,
+            scale_velocity=self.scale_velocity, scale_swing=self.scale_swing, scale_spin=self.scale_spin,
+            max_stretched_length=self.max_stretch * scene.string.length,
+            workspace_radius=self.workspace_radius, string_length=scene.string.length)
+        return np.array([values[k] for k in TASK_PARAM_NAMES], dtype=np.float64)
+
+    @property
+    def max_reward(self) -> float:
+        return self.w_load_position + self.w_load_velocity + self.w_pivot_position + self.w_swing + self.w_spin
+
+
+TASKS = {
+    # bring a swinging load to rest below the pivot, pivot held at the origin
+    "stabilize": Task("stabilize"),
+    # carry a load hanging at rest to a random target with little swing
+    "transport": Task("transport", max_swing_deg=3.0, max_speed=0.05, max_spin=0.1, target_box=(1.0, 1.0, 0.5),
+                      w_load_position=0.45, w_load_velocity=0.1, w_swing=0.2, w_spin=0.05),
+}
+
+
+def get_task(name: str) -> Task:
+    if name not in TASKS:
+        raise ValueError(f"unknown task {name!r}; choose one of {sorted(TASKS)}")
+    return TASKS[name]
+
+
+def static_node_depths(scene: Scene) -> np.ndarray:
+    """Depth below the pivot [m] of each node of the string hanging at rest (N+1,).
+
+    Tension at unstretched arclength s is g (M + mu (l - s)); integrating the strain T/EA gives
+    z(s) = s + g (M s + mu (l s - s^2/2)) / EA, exact at the nodes of linear elements.
+    """
+    st = scene.string
+    s = np.linspace(0.0, st.length, st.elements + 1)
+    M, mu, g = scene.body.mass, st.mass_per_length, scene.gravity
+    return s + g * (M * s + mu * (st.length * s - 0.5 * s * s)) / st.EA
+
+
+def hanging_depth(scene: Scene) -> float:
+    """Depth of the load's centre of mass below the pivot at rest [m]."""
+    return float(static_node_depths(scene)[-1] + np.linalg.norm(scene.body.rho_c))
+
+
+def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The smallest rotation taking unit vector a to unit vector b (Rodrigues)."""
+    v = np.cross(a, b)
+    c = float(a @ b)
+    if c < -1.0 + 1e-12:  # opposite: rotate by pi about any axis perpendicular to a
+        axis = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+        axis /= np.linalg.norm(axis)
+        return 2.0 * np.outer(axis, axis) - np.eye(3)
+    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + vx + vx @ vx / (1.0 + c)
+
+
+def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * k @ k
+
+
+def sample_episode(task: Task, scene: Scene, rng: np.random.Generator):
+    """Initial state and targets of one episode: ``(State, target (6,))``.
+
+    The string starts straight, statically stretched, at a swing angle up to max_swing_deg in a
+    random azimuth from the pivot; the body hangs with its centre of mass along the string
+    (random yaw about it); pivot and attachment velocities are uniform in +-max_speed per axis
+    (the string's velocity interpolates between them), body rates uniform in +-max_spin.
+    stabilize: targets are the origin for the pivot and the rest position below it for the load;
+    the pivot starts within 0.1 m of the origin. transport: the pivot starts at the origin and
+    its target is uniform in +-target_box.
+    """
+    origin = np.zeros(3)
+    box = np.asarray(task.target_box, dtype=float)
+    pivot_target = rng.uniform(-box, box) if np.any(box) else origin.copy()
+    start = rng.uniform(-0.1, 0.1, 3) if task.name == "stabilize" else origin.copy()
+    theta = math.radians(task.max_swing_deg) * rng.uniform(0.0, 1.0)
+    phi = rng.uniform(0.0, 2.0 * math.pi)
+    d = np.array([math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), math.cos(theta)])
+    r = start + static_node_depths(scene)[:, None] * d
+    rho = np.asarray(scene.body.rho_c, dtype=float)
+    R = _rotation_between(rho / np.linalg.norm(rho), d)
+    R = _axis_rotation(d, rng.uniform(-math.pi, math.pi)) @ R
+    v_pivot = rng.uniform(-task.max_speed, task.max_speed, 3)
+    v_attach = rng.uniform(-task.max_speed, task.max_speed, 3)
+    frac = np.linspace(0.0, 1.0, scene.string.elements + 1)[:, None]
+    v = v_pivot + frac * (v_attach - v_pivot)
+    Omega = rng.uniform(-task.max_spin, task.max_spin, 3)
+    p, Pi = legendre_momenta(scene, r, v, R, Omega)
+    target = np.concatenate([pivot_target, pivot_target + hanging_depth(scene) * np.array([0.0, 0.0, 1.0])])
+    return State(np.ascontiguousarray(r), p, np.ascontiguousarray(R), Pi, 0), target

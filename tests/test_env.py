@@ -1,0 +1,208 @@
+"""ElasticStringPendulum-v0: API conformance, determinism, reward bookkeeping, failure paths,
+and the batched environments against the single one."""
+import pickle
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env as gym_check_env
+from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+import esp_gym
+from esp_gym.env import ElasticStringPendulumEnv
+from esp_gym.kernels.task import REWARD_TERMS
+from esp_gym.vector import ElasticStringPendulumSB3VecEnv
+
+ENV_ID = "ElasticStringPendulum-v0"
+
+
+def _rollout(env, actions, seed):
+    obs, _ = env.reset(seed=seed)
+    out = [obs]
+    for a in actions:
+        obs, r, te, tr, info = env.step(a)
+        out.append((obs, r, te, tr))
+        if te or tr:
+            break
+    return out
+
+
+def _same(a, b):
+    return all(np.array_equal(x[0], y[0]) and x[1:] == y[1:] for x, y in zip(a[1:], b[1:])) and np.array_equal(a[0], b[0])
+
+
+@pytest.mark.parametrize("task", ["stabilize", "transport"])
+def test_gymnasium_env_checker_passes(task):
+    env = gym.make(ENV_ID, task=task)
+    gym_check_env(env.unwrapped, skip_render_check=True)
+
+
+def test_sb3_env_checker_passes():
+    sb3_check_env(gym.make(ENV_ID).unwrapped, warn=True)
+
+
+def test_make_with_module_prefix_and_spaces():
+    env = gym.make("esp_gym:ElasticStringPendulum-v0")
+    assert env.spec.max_episode_steps == 500
+    assert env.action_space.shape == (6,) and env.action_space.dtype == np.float32
+    assert env.observation_space.shape == (22,) and env.observation_space.dtype == np.float32
+    u = env.unwrapped
+    assert u.setup.substeps * u.scene.h == pytest.approx(0.02, rel=1e-12)
+    assert u.scene.h <= 0.8 * u.scene.string.stability_bound
+    assert (u.setup.substeps - 1) * 0.8 * u.scene.string.stability_bound < 0.02  # the largest such h
+
+
+def test_zero_action_holds_the_system_up():
+    """The hover feed-forward equals the total weight: with a = 0 the vertical momentum of the
+    whole system does not change (only the initial velocities move it)."""
+    env = gym.make(ENV_ID).unwrapped
+    env.reset(seed=3)
+    p0 = env.sim.diagnostics()["linear_momentum"][2]
+    for _ in range(50):
+        env.step(np.zeros(6))
+    assert env.sim.diagnostics()["linear_momentum"][2] == pytest.approx(p0, abs=1e-12)
+
+
+def test_seeded_rollouts_are_deterministic():
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1, 1, (100, 6)).astype(np.float32)
+    a = _rollout(gym.make(ENV_ID), actions, seed=42)
+    b = _rollout(gym.make(ENV_ID), actions, seed=42)
+    c = _rollout(gym.make(ENV_ID), actions, seed=43)
+    assert _same(a, b)
+    assert not np.array_equal(a[0], c[0])
+
+
+def test_pickle_round_trip_continues_identically():
+    env = gym.make(ENV_ID)
+    env.reset(seed=5)
+    for _ in range(10):
+        env.step(env.action_space.sample())
+    clone = pickle.loads(pickle.dumps(env))
+    rng = np.random.default_rng(1)
+    for _ in range(30):
+        a = rng.uniform(-1, 1, 6)
+        x, y = env.step(a), clone.step(a)
+        assert np.array_equal(x[0], y[0]) and x[1:4] == y[1:4]
+
+
+@pytest.mark.parametrize("task", ["stabilize", "transport"])
+def test_reward_terms_sum_exactly_and_are_bounded(task):
+    env = gym.make(ENV_ID, task=task)
+    env.reset(seed=7)
+    w_max = env.unwrapped.setup.task.max_reward
+    for _ in range(100):
+        _, r, te, tr, info = env.step(env.action_space.sample())
+        terms = [info["reward_" + k] for k in REWARD_TERMS]
+        assert sum(terms) == r
+        assert -0.1 <= r <= w_max <= 1.0
+        if te or tr:
+            env.reset()
+
+
+@pytest.mark.parametrize("bad, match", [
+    (np.zeros(5), "shape"), (np.zeros((1, 6)), "shape"),
+    (np.array([0, 0, np.nan, 0, 0, 0]), "finite"), (np.array([np.inf, 0, 0, 0, 0, 0]), "finite"),
+])
+def test_bad_actions_raise_and_leave_the_state_untouched(bad, match):
+    env = gym.make(ENV_ID).unwrapped
+    env.reset(seed=0)
+    before = env.sim.state
+    with pytest.raises(ValueError, match=match):
+        env.step(bad)
+    after = env.sim.state
+    assert np.array_equal(before.r, after.r) and before.step == after.step
+
+
+def test_out_of_range_actions_are_clipped():
+    a, b = gym.make(ENV_ID).unwrapped, gym.make(ENV_ID).unwrapped
+    a.reset(seed=1)
+    b.reset(seed=1)
+    big = np.array([3.0, -7.0, 2.0, 1.5, -1.5, 9.0])
+    assert np.array_equal(a.step(big)[0], b.step(np.clip(big, -1, 1))[0])
+
+
+def test_physics_failure_terminates_with_a_reason_and_reset_recovers():
+    env = gym.make(ENV_ID, torque_limit=1e4)  # absurd torque: Newton cannot follow the spin
+    env.reset(seed=1)
+    obs, r, terminated, truncated, info = env.step(np.array([0, 0, 0, 1, 1, 1.0]))
+    assert terminated and not truncated
+    assert info["termination_reason"].startswith("physics_failure")
+    assert np.all(np.isfinite(obs)) and np.isfinite(r)
+    obs, _ = env.reset(seed=2)
+    assert np.all(np.isfinite(obs))
+    assert not env.step(np.zeros(6))[2]
+
+
+def test_overstretch_terminates():
+    env = gym.make(ENV_ID, force_limit=1e4)
+    env.reset(seed=1)
+    _, _, terminated, _, info = env.step(np.array([1.0, 0, 0, 0, 0, 0]))
+    assert terminated and info["termination_reason"] == "string_overstretched"
+
+
+def test_time_limit_truncates():
+    env = gym.make(ENV_ID, max_episode_steps=5)
+    env.reset(seed=0)
+    flags = [env.step(np.zeros(6))[3] for _ in range(5)]
+    assert flags == [False] * 4 + [True]
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(task="juggle"), "unknown task"),
+    (dict(scene="paper_example"), "needs pivot.kind: free"),
+    (dict(h=3e-3), "must divide the control period"),
+    (dict(h=2e-3), "exceeds the stability bound"),
+    (dict(control_period=-1.0), "control_period"),
+    (dict(scene_overrides={"N": 0}), "string.elements"),
+    (dict(render_mode="ansi"), "render_mode"),
+])
+def test_bad_arguments_are_named(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        ElasticStringPendulumEnv(**kwargs)
+
+
+def test_vector_env_equals_single_envs_bit_for_bit():
+    """gymnasium.make_vec uses the batched entry point; with seeds s+i and the same actions each
+    sub-environment reproduces a single env exactly, through next-step autoresets."""
+    B, T = 4, 60
+    venv = gym.make_vec(ENV_ID, num_envs=B, max_episode_steps=T)
+    assert type(venv).__name__ == "ElasticStringPendulumVectorEnv"
+    envs = [gym.make(ENV_ID, max_episode_steps=T) for _ in range(B)]
+    vo, _ = venv.reset(seed=10)
+    assert np.array_equal(vo, np.stack([e.reset(seed=10 + i)[0] for i, e in enumerate(envs)]))
+    rng = np.random.default_rng(0)
+    done = [False] * B
+    ended = 0
+    for _ in range(150):
+        a = rng.uniform(-1.2, 1.2, (B, 6)).astype(np.float32)
+        vo, vr, vte, vtr, vi = venv.step(a)
+        for i, e in enumerate(envs):
+            if done[i]:
+                o, r, te, tr = e.reset()[0], 0.0, False, False
+            else:
+                o, r, te, tr, _ = e.step(a[i])
+            assert np.array_equal(o, vo[i]) and (r, te, tr) == (vr[i], vte[i], vtr[i])
+            done[i] = te or tr
+            ended += done[i]
+    assert ended >= B  # autoreset was exercised
+
+
+def test_sb3_vec_env_equals_single_envs_with_immediate_reset():
+    B, T = 3, 40
+    vec = ElasticStringPendulumSB3VecEnv(num_envs=B, max_episode_steps=T)
+    vec.seed(20)
+    envs = [gym.make(ENV_ID, max_episode_steps=T) for _ in range(B)]
+    assert np.array_equal(vec.reset(), np.stack([e.reset(seed=20 + i)[0] for i, e in enumerate(envs)]))
+    rng = np.random.default_rng(2)
+    for _ in range(100):
+        a = rng.uniform(-1, 1, (B, 6)).astype(np.float32)
+        obs, rew, dones, infos = vec.step(a)
+        for i, e in enumerate(envs):
+            o, r, te, tr, _ = e.step(a[i])
+            assert np.float32(r) == rew[i] and (te or tr) == dones[i]
+            if te or tr:
+                assert np.array_equal(infos[i]["terminal_observation"], o)
+                assert infos[i]["TimeLimit.truncated"] == (tr and not te)
+                o, _ = e.reset()
+            assert np.array_equal(o, obs[i])
