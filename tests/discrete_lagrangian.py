@@ -8,12 +8,21 @@ applied; the closed form's erratum 2 (missing kappa) cannot arise here, since th
 is integrated from EA directly. The rigid-body part is (Ldkrb) as printed.
 
     L_{d_{k,a}} = h/2 int_0^1 mu |v_{k,a}(zeta)|^2 u dzeta
-                  - h/2 int_0^1 [1/2 EA (|r'_{k,a}| - 1)^2 - mu g r_{k,a}(zeta).e3] u dzeta
-                  - h/2 int_0^1 [1/2 EA (|r'_{k+1,a}| - 1)^2 - mu g r_{k+1,a}(zeta).e3] u dzeta
+                  - h/2 int_0^1 [W(|r'_{k,a}|) - mu g r_{k,a}(zeta).e3] u dzeta
+                  - h/2 int_0^1 [W(|r'_{k+1,a}|) - mu g r_{k+1,a}(zeta).e3] u dzeta
     r_{k,a}(zeta) = (1 - zeta) r_{k,a} + zeta r_{k,a+1},    r'_{k,a} = (r_{k,a+1} - r_{k,a})/u,
     v_{k,a}(zeta) = ((1 - zeta) dr_{k,a} + zeta dr_{k,a+1})/h
 
-Arrays: r, dr (N+1, 3) [m] with row 0 the fixed pivot (dr[0] = 0), R (3, 3) body -> spatial.
+with the strain energy density W(s) = 1/2 EA (s - 1)^2 of the paper's law (``string.law:
+elastic``) or W(s) = 1/2 EA max(s - 1, 0)^2 of the tension-only law (``slack``; C^1, so first
+derivatives of L_d exist everywhere, second ones jump where |r'| = 1). A free pivot (``pivot.kind:
+free``, physics_notes.md "Inputs") adds its point mass M_p at row 0, with the same midpoint
+kinetic and trapezoidal gravity terms as the body's translation in (Ldkrb)::
+
+    L_{d_{k,p}} = M_p/(2h) |dr_0|^2 + h/2 M_p g (r_0 + (r_0 + dr_0)).e3
+
+Arrays: r, dr (N+1, 3) [m] with row 0 the pivot (fixed: dr[0] = 0 and L_{d_{k,p}} = 0; free:
+row 0 is a free node like the others), R (3, 3) body -> spatial.
 The rotation increment F_k is passed as ``FmI = F_k - I``: F_k = I + O(h), and a central
 difference of L_d in F would otherwise difference values of ``I - F`` that each carry an
 absolute error eps (physics_notes.md, "Round-off"). L_d is in [J s].
@@ -37,9 +46,12 @@ def string_kinetic(scene, dr) -> float:
 
 
 def string_potential(scene, r) -> float:
-    """sum_a int_0^1 [1/2 EA (|r'_a| - 1)^2 - mu g r_a(zeta).e3] u dzeta [J] at one time."""
+    """sum_a int_0^1 [W(|r'_a|) - mu g r_a(zeta).e3] u dzeta [J] at one time; W(s) = 1/2 EA (s - 1)^2,
+    or 1/2 EA max(s - 1, 0)^2 for the slack law (a compressed element stores no energy)."""
     mu, u, EA, g = scene.string.mass_per_length, scene.string.u, scene.string.EA, scene.gravity
     strain = np.sqrt(np.sum(((r[1:] - r[:-1]) / u) ** 2, axis=1)) - 1.0  # (N,), constant in zeta
+    if scene.string.law == "slack":
+        strain = np.maximum(strain, 0.0)
     z = (1.0 - ZETA)[None, :] * r[:-1, None, 2] + ZETA[None, :] * r[1:, None, 2]  # r_a(zeta).e3
     integrand = 0.5 * EA * strain[:, None] ** 2 - mu * g * z
     return float(np.sum(WEIGHTS[None, :] * integrand * u))
@@ -69,9 +81,20 @@ def rigid_body_lagrangian(scene, r_attach, R, dr_attach, FmI) -> float:
                  + 0.5 * h * M * g * (r_attach + dr_attach + R @ rho + R @ (FmI @ rho)) @ E3)
 
 
+def pivot_lagrangian(scene, r_pivot, dr_pivot) -> float:
+    """L_{d_{k,p}} = M_p/(2h) |dr_0|^2 + h/2 M_p g (2 r_0 + dr_0).e3 of a free pivot [J s]; 0 when
+    the pivot is fixed."""
+    if not scene.pivot.is_free:
+        return 0.0
+    h, Mp, g = scene.h, scene.pivot.mass, scene.gravity
+    return float(0.5 / h * Mp * dr_pivot @ dr_pivot + 0.5 * h * Mp * g * (2.0 * r_pivot + dr_pivot) @ E3)
+
+
 def discrete_lagrangian(scene, r, R, dr, FmI) -> float:
-    """L_d(g_k, f_k) = sum_a L_{d_{k,a}} + L_{d_{k,rb}} (Ldk) [J s], g_k = (r, R), f_k = (dr, I + FmI)."""
-    return string_lagrangian(scene, r, dr) + rigid_body_lagrangian(scene, r[-1], R, dr[-1], FmI)
+    """L_d(g_k, f_k) = sum_a L_{d_{k,a}} + L_{d_{k,rb}} (Ldk) (+ L_{d_{k,p}} for a free pivot)
+    [J s], g_k = (r, R), f_k = (dr, I + FmI)."""
+    return (string_lagrangian(scene, r, dr) + rigid_body_lagrangian(scene, r[-1], R, dr[-1], FmI)
+            + pivot_lagrangian(scene, r[0], dr[0]))
 
 
 # -- rotations -----------------------------------------------------------------------------------
@@ -145,14 +168,16 @@ def random_nodes(scene, rng, stretch=(0.8, 1.25)) -> np.ndarray:
 
 
 def random_state(scene, rng, speed=0.5, spin=2.0):
-    """A perturbed discrete state: :func:`random_nodes`, node velocities uniform in +-speed [m/s],
-    a random attitude, Omega uniform in +-spin [rad/s]; momenta by the continuous Legendre
-    transform of the finite-element Lagrangian (any momenta would do for these tests)."""
+    """A perturbed discrete state: :func:`random_nodes`, node velocities uniform in +-speed [m/s]
+    (the pivot's too when it is free), a random attitude, Omega uniform in +-spin [rad/s];
+    momenta by the continuous Legendre transform of the finite-element Lagrangian (any momenta
+    would do for these tests)."""
     from esp_gym.model import State, legendre_momenta
 
     r = random_nodes(scene, rng)
     v = rng.uniform(-speed, speed, size=r.shape)
-    v[0] = 0.0
+    if not scene.pivot.is_free:
+        v[0] = 0.0
     R = random_rotation(rng)
     p, Pi = legendre_momenta(scene, r, v, R, rng.uniform(-spin, spin, size=3))
     return State(r, p, R, Pi, 0)

@@ -1,0 +1,121 @@
+"""Environment steps per second of ElasticStringPendulum-v0 (default scene, 50 Hz control).
+
+Prints a table and writes ``OUT/env_throughput.json`` and ``OUT/env_throughput.png``
+(OUT = benchmarks/out unless ``--out``):
+
+* single: ``gymnasium.make`` (with its wrappers: time limit, order enforcing, env checker) and
+  the bare env, zero and random actions, resets included when episodes end;
+* batched: ``gymnasium.make_vec`` (one parallel compiled call per step) and the SB3 VecEnv,
+  for 1 to 64 environments.
+
+Each figure is the median of ``--repeats`` timed runs after a warm-up (compilation excluded).
+Usage: ``python benchmarks/env_throughput.py [--quick] [--out DIR]``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+import esp_gym
+from esp_gym.vector import ElasticStringPendulumSB3VecEnv
+
+HERE = Path(__file__).resolve().parent
+
+
+def _time(fn, repeats):
+    out = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        n = fn()
+        out.append(n / (time.perf_counter() - start))
+    return float(np.median(out))
+
+
+def single(make, steps, random_actions, repeats):
+    env = make()
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    acts = rng.uniform(-1, 1, (steps, 6)).astype(np.float32) if random_actions else np.zeros((steps, 6), np.float32)
+    env.step(acts[0])
+
+    def run():
+        for a in acts:
+            _, _, te, tr, _ = env.step(a)
+            if te or tr:
+                env.reset()
+        return steps
+
+    return _time(run, repeats)
+
+
+def batched(make, num_envs, steps, repeats, sb3):
+    venv = make(num_envs)
+    venv.reset() if sb3 else venv.reset(seed=0)
+    acts = np.random.default_rng(0).uniform(-1, 1, (num_envs, 6)).astype(np.float32)
+    venv.step(acts)
+    n = max(20, steps // num_envs)
+
+    def run():
+        for _ in range(n):
+            venv.step(acts)
+        return n * num_envs
+
+    return _time(run, repeats)
+
+
+def main(argv=None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="small smoke run, not a measurement")
+    ap.add_argument("--out", default=str(HERE / "out"), help="output directory")
+    ap.add_argument("--repeats", type=int, default=5)
+    args = ap.parse_args(argv)
+    steps = 2_000 if args.quick else 20_000
+    repeats = 1 if args.quick else args.repeats
+    counts = [1, 4] if args.quick else [1, 2, 4, 8, 16, 32, 64]
+    res = {"single": {}, "batched_gymnasium": {}, "batched_sb3": {}}
+    env_id = esp_gym.ENV_ID
+    res["single"]["gymnasium.make, zero actions"] = single(lambda: gym.make(env_id), steps, False, repeats)
+    res["single"]["gymnasium.make, random actions"] = single(lambda: gym.make(env_id), steps, True, repeats)
+    res["single"]["bare env, random actions"] = single(lambda: gym.make(env_id).unwrapped, steps, True, repeats)
+    for b in counts:
+        res["batched_gymnasium"][b] = batched(lambda n: gym.make_vec(env_id, num_envs=n), b, 4 * steps, repeats, False)
+        res["batched_sb3"][b] = batched(lambda n: ElasticStringPendulumSB3VecEnv(num_envs=n), b, 4 * steps, repeats, True)
+    setup = gym.make(env_id).unwrapped.setup
+    print(f"ElasticStringPendulum-v0, scene {setup.scene.name} (N={setup.scene.string.elements}), "
+          f"{setup.substeps} physics steps of {setup.scene.h * 1e3:.3f} ms per 20 ms control step")
+    print("\nsingle environment                 steps/s")
+    for k, v in res["single"].items():
+        print(f"  {k:32s} {v:10,.0f}")
+    print("\nbatched (one compiled call)  envs   Gymnasium VectorEnv   SB3 VecEnv   [steps/s]")
+    for b in counts:
+        print(f"  {'':26s} {b:4d}   {res['batched_gymnasium'][b]:19,.0f}   {res['batched_sb3'][b]:10,.0f}")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "env_throughput.json").write_text(json.dumps(res, indent=2))
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 3.6), layout="constrained")
+    ax.plot(counts, [res["batched_gymnasium"][b] for b in counts], "o-", label="Gymnasium VectorEnv (make_vec)")
+    ax.plot(counts, [res["batched_sb3"][b] for b in counts], "s-", label="SB3 VecEnv")
+    ax.axhline(res["single"]["gymnasium.make, random actions"], color="grey", ls="--", label="single env (gymnasium.make)")
+    ax.set_xscale("log", base=2)
+    ax.set_xlabel("environments")
+    ax.set_ylabel("environment steps / s")
+    ax.set_title("ElasticStringPendulum-v0 throughput (2 cores, 50 Hz control)")
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    fig.savefig(out / "env_throughput.png", dpi=130)
+    print(f"\nwrote {out}/env_throughput.json and env_throughput.png")
+    return res
+
+
+if __name__ == "__main__":
+    main()
