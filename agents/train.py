@@ -46,6 +46,7 @@ class Settings:
     resume: Optional[str] = field(default=None, metadata={"help": "checkpoint .zip to resume from (its run directory is reused)"})
     progress: bool = field(default=True, metadata={"help": "show a progress bar"})
     threads: int = field(default=1, metadata={"help": "torch threads (the physics uses the other core)", "type": int})
+    reference_episodes: int = field(default=10, metadata={"help": "episodes for the zero/baseline reference returns drawn on the learning curve", "type": int})
 
 
 def _make_vec_env(n_envs: int, task: str, seed: int, env_kwargs: dict, max_episode_steps: int = 500):
@@ -84,8 +85,9 @@ def train(s: Settings) -> Path:
         from agents.evaluate import evaluate_policy
         from agents.controllers import ZeroPolicy
 
-        refs = {"baseline_return": evaluate_policy(None, s.task, 10, seed=10_000, env_kwargs=cfg.env_kwargs)["mean_return"],
-                "zero_return": evaluate_policy(ZeroPolicy(), s.task, 10, seed=10_000, env_kwargs=cfg.env_kwargs)["mean_return"]}
+        n_ref = max(1, s.reference_episodes)
+        refs = {"baseline_return": evaluate_policy(None, s.task, n_ref, seed=10_000, env_kwargs=cfg.env_kwargs)["mean_return"],
+                "zero_return": evaluate_policy(ZeroPolicy(), s.task, n_ref, seed=10_000, env_kwargs=cfg.env_kwargs)["mean_return"]}
         (run_dir / "references.json").write_text(json.dumps(refs))
 
     venv = VecMonitor(_make_vec_env(cfg.n_envs, s.task, s.seed, cfg.env_kwargs), str(run_dir / "monitor.csv"))

@@ -20,11 +20,11 @@ SHIPPED = ROOT / "models" / "stabilize_ppo" / "model.zip"
 
 @pytest.mark.parametrize("algo, budget", [
     ("ppo", ["total_timesteps=1024", "n_envs=4", "n_steps=128", "batch_size=256", "n_epochs=2"]),
-    ("sac", ["total_timesteps=400", "n_envs=2", "learning_starts=100", "buffer_size=1000"]),
+    ("sac", ["total_timesteps=1200", "n_envs=2", "learning_starts=100", "buffer_size=2000"]),
 ])
 def test_training_smoke_writes_a_loadable_run(tmp_path, algo, budget):
     cmd = [sys.executable, str(ROOT / "agents" / "train.py"), "--algo", algo, "--set", *budget,
-           "--eval-freq", "512", "--eval-episodes", "1", "--checkpoint-freq", "512",
+           "--eval-freq", "512", "--eval-episodes", "1", "--checkpoint-freq", "512", "--reference-episodes", "1",
            "--runs", str(tmp_path), "--run-name", "smoke", "--no-progress"]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=900, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
