@@ -206,3 +206,15 @@ def test_sb3_vec_env_equals_single_envs_with_immediate_reset():
                 assert infos[i]["TimeLimit.truncated"] == (tr and not te)
                 o, _ = e.reset()
             assert np.array_equal(o, obs[i])
+
+
+def test_rgb_array_render_gives_frames():
+    env = gym.make(ENV_ID, render_mode="rgb_array")
+    env.reset(seed=0)
+    frames = []
+    for _ in range(3):
+        env.step(env.action_space.sample())
+        frames.append(env.render())
+    assert all(f.dtype == np.uint8 and f.ndim == 3 and f.shape[2] == 3 for f in frames)
+    assert not np.array_equal(frames[0], frames[-1])  # the scene moves
+    assert gym.make(ENV_ID).render() is None  # no render_mode: nothing
