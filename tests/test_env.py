@@ -217,4 +217,4 @@ def test_rgb_array_render_gives_frames():
         frames.append(env.render())
     assert all(f.dtype == np.uint8 and f.ndim == 3 and f.shape[2] == 3 for f in frames)
     assert not np.array_equal(frames[0], frames[-1])  # the scene moves
-    assert gym.make(ENV_ID).render() is None  # no render_mode: nothing
+    assert gym.make(ENV_ID).unwrapped.render() is None  # no render_mode: nothing
