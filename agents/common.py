@@ -80,6 +80,25 @@ def load_run_config(algo_name: str, env_id: str, task: str, overrides: list[str]
         raise ValueError(f"invalid config {algo_name}/{env_id}/{task}: {err}") from None
 
 
+def linear_schedule(start: float):
+    """SB3 schedule falling linearly from ``start`` to 0 over training (progress 1 -> 0)."""
+    def schedule(progress_remaining: float) -> float:
+        return progress_remaining * start
+    return schedule
+
+
+def resolve_schedules(algo_kwargs: dict) -> dict:
+    """Turn "lin_X" values of learning_rate / clip_range into linear schedules (zoo style)."""
+    out = dict(algo_kwargs)
+    for key in ("learning_rate", "clip_range"):
+        value = out.get(key)
+        if isinstance(value, str):
+            if not value.startswith("lin_"):
+                raise ValueError(f"{key}: {value!r} is neither a number nor lin_<start>")
+            out[key] = linear_schedule(float(value[4:]))
+    return out
+
+
 class TqdmCallback(BaseCallback):
     """A tqdm progress bar over the training timesteps (SB3's own needs `rich`)."""
 

@@ -29,7 +29,8 @@ import numpy as np
 import yaml
 
 import esp_gym
-from agents.common import ROOT, TqdmCallback, json_default, load_run_config, parse_settings, plot_learning_curve
+from agents.common import (ROOT, TqdmCallback, json_default, load_run_config, parse_settings, plot_learning_curve,
+                           resolve_schedules)
 
 
 @dataclass
@@ -105,7 +106,7 @@ def train(s: Settings) -> Path:
     if s.resume:
         model = cls.load(s.resume, env=venv, device="cpu")
     else:
-        model = cls(cfg.policy, venv, seed=s.seed, device="cpu", verbose=0, **cfg.algo)
+        model = cls(cfg.policy, venv, seed=s.seed, device="cpu", verbose=0, **resolve_schedules(cfg.algo))
     callbacks = CallbackList([
         EvalCallback(eval_env, n_eval_episodes=s.eval_episodes, eval_freq=max(1, s.eval_freq // cfg.n_envs),
                      log_path=str(run_dir), best_model_save_path=str(run_dir / "best"), deterministic=True, verbose=0),

@@ -62,9 +62,12 @@ def test_evaluate_cli_prints_one_json_line():
     assert {"mean_return", "std_return", "success_rate", "mean_final_swing_deg"} <= set(stats)
 
 
-@pytest.mark.skipif(not SHIPPED.is_file(), reason="no shipped policy yet")
-def test_shipped_policy_loads_and_beats_the_baseline_on_a_few_seeds():
+def test_shipped_policy_loads_and_stabilizes():
+    """The shipped policy (with its VecNormalize statistics) runs seeded episodes to the time
+    limit and brings the load to rest: far above the zero action's ~165 (the 50-episode
+    comparison with the baseline is agents/compare.py, quoted in the README)."""
+    assert SHIPPED.is_file() and (SHIPPED.parent / "vecnormalize.pkl").is_file()
     policy = SB3Policy(SHIPPED)
-    trained = evaluate_policy(policy, episodes=5, seed=777)
-    base = evaluate_policy(None, episodes=5, seed=777)
-    assert trained["mean_return"] > base["mean_return"]
+    assert policy.obs_rms is not None
+    stats = evaluate_policy(policy, episodes=3, seed=777)
+    assert stats["mean_return"] > 420 and stats["success_rate"] == 1.0
