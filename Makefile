@@ -34,3 +34,4 @@ bench: $(VENV)/.installed
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache
+	find esp_gym tests agents -name __pycache__ -prune -exec rm -rf {} +

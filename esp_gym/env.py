@@ -73,7 +73,7 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
         resolved = load_scene(scene, **overrides)
     if not resolved.pivot.is_free:
         raise ValueError(f"ElasticStringPendulum-v0 pushes the pivot: scene {resolved.name!r} needs pivot.kind: free")
-    bound = resolved.string.stability_bound
+    bound = resolved.stability_bound
     if h is None:
         substeps = math.ceil(control_period / (safety * bound) - 1e-9)
     else:

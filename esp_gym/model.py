@@ -16,7 +16,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .kernels.diagnostics import DIAG_NAMES, DiagWork, diagnostics as diagnostics_kernel
-from .kernels.lgvi import LGVIParams, Snapshots, StateArrays, Work, lgvi_advance, lgvi_record
+from .kernels.lgvi import LGVIParams, Snapshots, StateArrays, Work, lgvi_advance, lgvi_record, state_size
 from .kernels.string import tridiag_factor
 from .params import Scene
 
@@ -64,19 +64,21 @@ def hat(v) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
-def consistent_mass_diagonal(scene: Scene) -> np.ndarray:
-    """Diagonal (N+1,) of the consistent mass matrix of the unknown nodes; 0 for a fixed pivot.
-
-    Off-diagonal entries are all ``m/6``; the attachment node carries the body mass M, a free
-    pivot its point mass M_p.
+def mass_matrix(scene: Scene):
+    """``(diagonal (N+1,), off-diagonal, end share)`` of the string's mass matrix on the unknown
+    nodes, with the body mass M at the attachment node and a free pivot's M_p at node 1 (a fixed
+    pivot's diagonal entry is 0: not an unknown). Consistent mass: element matrix
+    m/6 [[2, 1], [1, 2]] (end share 2m/6, off m/6); lumped: m/2 on each end node, no coupling.
     """
     n, m = scene.string.elements, scene.string.m
-    diag = np.full(n + 1, 4.0 * m / 6.0)
-    diag[0] = 2.0 * m / 6.0 + scene.pivot.mass if scene.pivot.is_free else 0.0
-    diag[n] = 2.0 * m / 6.0 + scene.body.mass
-    if n == 0:  # pragma: no cover - N >= 1 is validated
-        raise ValueError("N >= 1")
-    return diag
+    if scene.string.mass_model == "consistent":
+        off, end = m / 6.0, 2.0 * m / 6.0  # written as in the paper, so results stay bit-stable
+    else:
+        off, end = 0.0, 0.5 * m
+    diag = np.full(n + 1, 2.0 * end)
+    diag[0] = end + scene.pivot.mass if scene.pivot.is_free else 0.0
+    diag[n] = end + scene.body.mass
+    return diag, off, end
 
 
 def build_params(scene: Scene) -> LGVIParams:
@@ -87,8 +89,7 @@ def build_params(scene: Scene) -> LGVIParams:
     J = scene.body.J
     J = 0.5 * (J + J.T)
     Jd = 0.5 * np.trace(J) * np.eye(3) - J
-    off = m / 6.0
-    diag = consistent_mass_diagonal(scene)
+    diag, off, _ = mass_matrix(scene)
     first = 0 if scene.pivot.is_free else 1
     inv, cp = tridiag_factor(diag, off)
     # w = M_tot^-1 e_{N+1}: the attachment column of the inverse (Schur complement)
@@ -106,6 +107,7 @@ def build_params(scene: Scene) -> LGVIParams:
         Jeff=Jeff, inv=inv, cp=cp, off=float(off), w=w, first=first,
         slack=scene.string.law == "slack",
         tol=float(scene.solver.newton_tol), max_iter=int(scene.solver.newton_max_iter),
+        order=int(scene.solver.order),
     )
 
 
@@ -116,12 +118,13 @@ def legendre_momenta(scene: Scene, r: np.ndarray, v: np.ndarray, R: np.ndarray, 
     Pi = J Omega + M rho_c x (R^T v_attach). Used to start the integrator
     (physics_notes.md, "Initialisation").
     """
-    m, M = scene.string.m, scene.body.mass
+    M = scene.body.mass
     rho = np.array(scene.body.rho_c, dtype=float)
     J = scene.body.J
+    _, off, end = mass_matrix(scene)
     p = np.zeros_like(v)
-    p[:-1] += (m / 6.0) * (2.0 * v[:-1] + v[1:])
-    p[1:] += (m / 6.0) * (v[:-1] + 2.0 * v[1:])
+    p[:-1] += end * v[:-1] + off * v[1:]
+    p[1:] += off * v[:-1] + end * v[1:]
     p[-1] += M * (v[-1] + R @ np.cross(Omega, rho))
     if scene.pivot.is_free:
         p[0] += scene.pivot.mass * v[0]
@@ -224,7 +227,8 @@ class Simulator:
             Pic=z(3), f=z((n + 1, 3)), acc=z(8), accc=z(8))
         self._step = 0
         self._work = Work(fn=z((n + 1, 3)), B=z((n + 1, 3)), X=z((n + 1, 3)), Y=z((n + 1, 3)),
-                          FmI=z((3, 3)), RF=z((3, 3)), Rn=z((3, 3)), jac=z((3, 3)))
+                          FmI=z((3, 3)), RF=z((3, 3)), Rn=z((3, 3)), jac=z((3, 3)),
+                          backup=z(state_size(self._arrays)))
         self._diag = DiagWork(V=z((n + 1, 3)), strain=z(n), omega=z(3), out=z(len(DIAG_NAMES)))
         self._inputs = z(9)
         self._stats = np.zeros(4, dtype=np.int64)

@@ -39,8 +39,13 @@ WEIGHTS = 0.5 * _W
 
 
 def string_kinetic(scene, dr) -> float:
-    """h/2 sum_a int_0^1 mu |v_{k,a}(zeta)|^2 u dzeta [J s] (erratum 1: h/2, not 1/h)."""
+    """h/2 sum_a int_0^1 mu |v_{k,a}(zeta)|^2 u dzeta [J s] (erratum 1: h/2, not 1/h). With
+    ``mass_model: lumped`` the zeta-integral is taken by the trapezoid rule (nodal quadrature),
+    which is what lumping the mass means: m/2 |v|^2 at each end of an element."""
     h, mu, u = scene.h, scene.string.mass_per_length, scene.string.u
+    if scene.string.mass_model == "lumped":
+        v2 = np.sum((dr / h) ** 2, axis=1)
+        return 0.5 * h * float(np.sum(0.5 * mu * u * (v2[:-1] + v2[1:])))
     v = ((1.0 - ZETA)[None, :, None] * dr[:-1, None, :] + ZETA[None, :, None] * dr[1:, None, :]) / h
     return 0.5 * h * float(np.sum(WEIGHTS[None, :] * mu * np.sum(v * v, axis=2) * u))
 

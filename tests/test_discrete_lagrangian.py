@@ -228,10 +228,13 @@ def legendre_errors(scene, before, after, L=discrete_lagrangian):
 KERNEL_SCENES = {
     "paper-N5": dict(N=5),
     "geometric-N3": dict(N=3, **GEOMETRIC_OVERRIDES),
+    "lumped-paper-N5": dict(N=5, string={"mass_model": "lumped"}),
+    "lumped-geometric-N3": dict(N=3, string={"mass_model": "lumped"}, **GEOMETRIC_OVERRIDES),
 }
 
 
-@pytest.mark.parametrize("scene_id, seed", [("paper-N5", 11), ("geometric-N3", 12)])
+@pytest.mark.parametrize("scene_id, seed", [("paper-N5", 11), ("geometric-N3", 12), ("lumped-paper-N5", 13),
+                                            ("lumped-geometric-N3", 14)])
 def test_kernel_step_satisfies_discrete_legendre_transforms(scene_id, seed):
     """The kernel's step (q_k, p_k) -> (q_{k+1}, p_{k+1}) satisfies p_k = -D_1 L_d and
     p_{k+1} = D_2 L_d [kg m/s, kg m^2/s], L_d from the quadrature, at a random perturbed state

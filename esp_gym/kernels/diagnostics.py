@@ -88,9 +88,11 @@ def diagnostics(S, P, D):
         V[a, 0] += M * w[a] * q0
         V[a, 1] += M * w[a] * q1
         V[a, 2] += M * w[a] * q2
-    # kinetic energy of the string: element a contributes m/6 (|v_a|^2 + v_a.v_b + |v_b|^2)
+    # kinetic energy of the string: element a contributes 1/2 [v_a v_b] M_e [v_a v_b]^T with
+    # M_e = [[m/2 - off, off], [off, m/2 - off]] (consistent: off = m/6; lumped: off = 0)
     ts = 0.0
     vg = 0.0
+    end = 0.5 * P.m - P.off
     for a in range(n):
         va0 = V[a, 0]
         va1 = V[a, 1]
@@ -98,10 +100,10 @@ def diagnostics(S, P, D):
         vb0 = V[a + 1, 0]
         vb1 = V[a + 1, 1]
         vb2 = V[a + 1, 2]
-        ts += (va0 * va0 + va1 * va1 + va2 * va2 + va0 * vb0 + va1 * vb1 + va2 * vb2
-               + vb0 * vb0 + vb1 * vb1 + vb2 * vb2)
+        ts += (end * (va0 * va0 + va1 * va1 + va2 * va2 + vb0 * vb0 + vb1 * vb1 + vb2 * vb2)
+               + 2.0 * P.off * (va0 * vb0 + va1 * vb1 + va2 * vb2))
         vg += r[a, 2] + r[a + 1, 2]
-    ts *= P.m / 6.0
+    ts *= 0.5
     # body: M/2 |v|^2 + 1/2 Omega.J Omega + M v . R (Omega x rho_c)
     J = P.J
     Jw0 = J[0, 0] * w0 + J[0, 1] * w1 + J[0, 2] * w2

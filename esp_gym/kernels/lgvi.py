@@ -51,8 +51,13 @@ from .string import nodal_forces, tridiag_solve
 #: ``slack``: tension-only string law.
 LGVIParams = namedtuple(
     "LGVIParams",
-    "h m kappa u g M Mp rho J Jd Jeff inv cp off w first slack tol max_iter",
+    "h m kappa u g M Mp rho J Jd Jeff inv cp off w first slack tol max_iter order",
 )
+
+#: Yoshida's symmetric triple jump: three LGVI steps of gamma_1 h, gamma_2 h, gamma_1 h make a
+#: 4th-order symplectic map (the LGVI is symmetric and of order 2).
+YOSHIDA_GAMMA_1 = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))
+YOSHIDA_GAMMA_2 = -(2.0 ** (1.0 / 3.0)) / (2.0 - 2.0 ** (1.0 / 3.0))
 
 #: The state the kernels advance: positions r and momenta p (N+1, 3), R (3, 3), Pi (3,), the
 #: compensated-summation remainders rc, pc, Rc, Pic of each, the forces f at r (N+1, 3), and
@@ -60,8 +65,9 @@ LGVIParams = namedtuple(
 #: gravity impulse (3), pivot-force impulse (3)].
 StateArrays = namedtuple("StateArrays", "r p R Pi rc pc Rc Pic f acc accc")
 
-#: Scratch arrays of one simulator (allocated once in esp_gym.model).
-Work = namedtuple("Work", "fn B X Y FmI RF Rn jac")
+#: Scratch arrays of one simulator (allocated once in esp_gym.model); ``backup`` holds a copy
+#: of the state during a composed (order 4) step, so a failure can restore the step's start.
+Work = namedtuple("Work", "fn B X Y FmI RF Rn jac backup")
 
 #: Kernel status codes (kept in sync with esp_gym.model.STATUS_MESSAGES).
 OK = 0
@@ -79,8 +85,8 @@ def kahan_add(x, c, i, dx):
 
 
 @kernel(inline="always")
-def lgvi_step(S, W, P, inputs):
-    """Advance the state ``S`` (:class:`StateArrays`) by one step of length ``P.h``, in place.
+def lgvi_substep(S, W, P, inputs, h):
+    """Advance the state ``S`` (:class:`StateArrays`) by one LGVI step of length ``h``, in place.
 
     ``inputs`` (9,): pivot force u_p (spatial) [N], body torque tau (body frame) [N m], spatial
     torque T [N m], held over the step. Increments are added with Kahan's trick (remainders in
@@ -100,7 +106,6 @@ def lgvi_step(S, W, P, inputs):
     Y = W.Y
     fn = W.fn
     FmI = W.FmI
-    h = P.h
     hh = 0.5 * h
     n = r.shape[0] - 1
     first = P.first
@@ -265,6 +270,61 @@ def lgvi_step(S, W, P, inputs):
     kahan_add(Pi, S.Pic, 1, dP1)
     kahan_add(Pi, S.Pic, 2, dP2)
     return OK, iters
+
+
+@kernel
+def state_size(S):
+    """Number of floats :func:`save_state` writes."""
+    return 4 * S.r.size + 2 * S.R.size + 2 * S.Pi.size + 2 * S.acc.size
+
+
+@kernel
+def save_state(S, buf):
+    """Copy the whole state (with remainders and balances) into ``buf``."""
+    k = 0
+    for a in (S.r, S.p, S.rc, S.pc, S.R, S.Rc):
+        for i in range(a.shape[0]):
+            for j in range(a.shape[1]):
+                buf[k] = a[i, j]
+                k += 1
+    for a in (S.Pi, S.Pic, S.acc, S.accc):
+        for i in range(a.shape[0]):
+            buf[k] = a[i]
+            k += 1
+
+
+@kernel
+def restore_state(S, buf):
+    """Inverse of :func:`save_state`."""
+    k = 0
+    for a in (S.r, S.p, S.rc, S.pc, S.R, S.Rc):
+        for i in range(a.shape[0]):
+            for j in range(a.shape[1]):
+                a[i, j] = buf[k]
+                k += 1
+    for a in (S.Pi, S.Pic, S.acc, S.accc):
+        for i in range(a.shape[0]):
+            a[i] = buf[k]
+            k += 1
+
+
+@kernel(inline="always")
+def lgvi_step(S, W, P, inputs):
+    """One step of length ``P.h``: the LGVI itself (``P.order == 2``) or Yoshida's composition
+    of three LGVI steps (``P.order == 4``; a failure in any substep restores the step's start,
+    and the forces ``S.f`` are then recomputed by the caller's next call).
+    Returns ``(status, newton_iterations)``."""
+    if P.order == 2:
+        return lgvi_substep(S, W, P, inputs, P.h)
+    save_state(S, W.backup)
+    total = 0
+    for gamma in (YOSHIDA_GAMMA_1, YOSHIDA_GAMMA_2, YOSHIDA_GAMMA_1):
+        status, iters = lgvi_substep(S, W, P, inputs, gamma * P.h)
+        total += iters
+        if status != OK:
+            restore_state(S, W.backup)
+            return status, total
+    return OK, total
 
 
 @kernel
