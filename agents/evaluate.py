@@ -9,6 +9,10 @@ by agents/train.py; its VecNormalize statistics (vecnormalize.pkl beside it) are
 
 Success: the episode runs to the time limit and ends with the load within 0.1 m of its target
 and swinging less than 5 degrees.
+
+``--record FILE.rrd`` also writes a Rerun recording of the first episode (esp_gym.viz.recording:
+the 3-D scene, energy and momentum diagnostics, reward terms and actions); the statistics are
+the same with or without it.
 """
 from __future__ import annotations
 
@@ -80,12 +84,18 @@ def load_policy(spec: str):
 
 def evaluate_policy(policy, task: str = "stabilize", episodes: int = 50, seed: int = 0,
                     record: Optional[str] = None, env_kwargs: Optional[dict] = None) -> dict:
-    """Run ``episodes`` seeded episodes (seed + i) and return the statistics."""
+    """Run ``episodes`` seeded episodes (seed + i) and return the statistics; ``record``: a
+    ``.rrd`` path for a Rerun recording of the first episode."""
     if policy is None:
         policy = baseline(task)
     returns, finals, swings, successes = [], [], [], []
     for i in range(episodes):
         env = gym.make(esp_gym.ENV_ID, task=task, **(env_kwargs or {}))
+        recording = bool(record) and i == 0
+        if recording:
+            from esp_gym.viz.recording import RecordRerun
+
+            env = RecordRerun(env, record)
         u = env.unwrapped
         obs, _ = env.reset(seed=seed + i)
         total, swing_sum, steps = 0.0, 0.0, 0
@@ -101,6 +111,8 @@ def evaluate_policy(policy, task: str = "stabilize", episodes: int = 50, seed: i
         finals.append(final_swing)
         swings.append(math.degrees(swing_sum / steps))
         successes.append(bool(truncated and not terminated and dist < SUCCESS_DISTANCE and final_swing < SUCCESS_SWING_DEG))
+        if recording:
+            env.close()
     return {
         "mean_return": float(np.mean(returns)), "std_return": float(np.std(returns)),
         "success_rate": float(np.mean(successes)), "mean_final_swing_deg": float(np.mean(finals)),
@@ -114,10 +126,13 @@ def main(argv=None) -> dict:
     ap.add_argument("--task", default="stabilize", choices=["stabilize", "transport"])
     ap.add_argument("--episodes", type=int, default=50)
     ap.add_argument("--seed", type=int, default=0, help="episode i uses seed + i")
+    ap.add_argument("--record", metavar="FILE.rrd", default=None,
+                    help="write a Rerun recording of the first episode to FILE.rrd")
     args = ap.parse_args(argv)
     if args.episodes < 1:
         ap.error("--episodes must be >= 1")
-    stats = evaluate_policy(load_policy(args.policy), task=args.task, episodes=args.episodes, seed=args.seed)
+    stats = evaluate_policy(load_policy(args.policy), task=args.task, episodes=args.episodes, seed=args.seed,
+                            record=args.record)
     stats["policy"] = args.policy
     print(json.dumps(stats))
     return stats

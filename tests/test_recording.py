@@ -1,0 +1,269 @@
+"""Rerun recordings (esp_gym/viz/recording.py): written, then read back with
+``rerun.chunk.RrdReader`` and compared with the simulator; cut short by termination and by
+signals, they stay readable and complete.
+
+Precision: scalar series are stored as float64 (Rerun's Scalar component), so they must equal
+the simulator's diagnostics bit for bit. 3-D geometry is stored in Rerun's float32 component
+types (Position3D, Translation3D, TransformMat3x3, Vector3D), so it must equal the float64
+state rounded once to float32 (``np.float32(x)``), exactly.
+"""
+import signal
+import subprocess
+import sys
+
+import gymnasium as gym
+import numpy as np
+import pyarrow as pa
+import pytest
+from rerun.chunk import RrdReader
+
+import esp_gym
+from esp_gym.viz import recording as R
+from esp_gym.viz.recording import RecordRerun
+
+ENV_ID = "ElasticStringPendulum-v0"
+PARTS = ("kinetic_string", "kinetic_body", "kinetic_pivot", "potential_gravity", "potential_elastic", "work")
+WORLD_ENTITIES = {R.STRING, R.BODY, R.BODY_SHAPE, R.BODY_COM, R.BODY_TORQUE, R.PIVOT, R.PIVOT_FORCE, R.LOAD_TRAIL}
+DIAG_ENTITIES = {"/diag/energy/total", "/diag/energy/parts", "/diag/energy_residual", "/diag/pi3",
+                 "/diag/pi3_residual", "/diag/orthogonality", "/diag/stretched_length", "/diag/newton_iterations"}
+RL_ENTITIES = {"/rl/reward/total", "/rl/reward/terms", "/rl/return", "/rl/action", R.TARGET_PIVOT, R.TARGET_LOAD}
+
+
+def read(path, entity):
+    """The temporal rows of ``entity``, sorted by step: {column: list}, ``time`` in ns. Uses
+    ``stream()``, which also reads a file without its footer."""
+    rows = {}
+    for chunk in RrdReader(path).stream():
+        if chunk.entity_path != entity or chunk.is_static:
+            continue
+        batch = chunk.to_record_batch()
+        for name in batch.schema.names:
+            col = batch.column(name)
+            if name == "time":
+                col = col.cast(pa.int64())
+            rows.setdefault(name, []).extend(col.to_pylist())
+    order = np.argsort(rows["step"], kind="stable")
+    return {k: [v[i] for i in order] for k, v in rows.items()}
+
+
+def values(path, entity, component="Scalars:scalars"):
+    """(steps, values) of the rows of ``entity`` where ``component`` is not null; a
+    one-element batch is unwrapped."""
+    rows = read(path, entity)
+    keep = [i for i, v in enumerate(rows[component]) if v is not None]
+    vals = [rows[component][i] for i in keep]
+    vals = [v[0] if len(v) == 1 else v for v in vals]
+    return np.array([rows["step"][i] for i in keep]), vals
+
+
+def entities(path):
+    return {chunk.entity_path for chunk in RrdReader(path).stream()}
+
+
+def rollout(env, steps, seed=0, actions_seed=0):
+    """Reset and step with seeded random actions (some outside [-1, 1], so clipped); returns
+    the simulator's diagnostics after the reset and each step, the actions and the step
+    results."""
+    rng = np.random.default_rng(actions_seed)
+    env.reset(seed=seed)
+    sim = env.unwrapped.sim
+    diags, actions, results = [sim.diagnostics()], [], []
+    for _ in range(steps):
+        a = rng.uniform(-1.3, 1.3, 6)
+        out = env.step(a)
+        diags.append(sim.diagnostics())
+        actions.append(a)
+        results.append(out)
+        if out[2] or out[3]:
+            break
+    return diags, np.array(actions), results
+
+
+def test_env_recording_holds_the_simulator_diagnostics(tmp_path):
+    path = tmp_path / "env.rrd"
+    env = RecordRerun(gym.make(ENV_ID), path)
+    u = env.unwrapped
+    diags, actions, results = rollout(env, 20)
+    env.close()
+    n = len(diags)
+    assert n == 21
+
+    reader = RrdReader(path)
+    assert len(reader.recordings()) == 1 and len(reader.blueprints()) >= 1  # the default blueprint
+    assert len(reader.store()) > 0  # closed: the file has its footer and manifest
+    assert WORLD_ENTITIES | DIAG_ENTITIES | RL_ENTITIES <= entities(path)
+
+    # timelines: the control step, and time = step x control period [s]
+    rows = read(path, "/diag/energy/total")
+    assert rows["step"] == list(range(n))
+    assert rows["time"] == [round(k * 0.02 * 1e9) for k in range(n)]
+
+    # scalars: float64, bit for bit the simulator's diagnostics
+    for entity, key in [("/diag/energy/total", "energy"), ("/diag/energy_residual", "energy_balance_residual"),
+                        ("/diag/pi3", "pi3"), ("/diag/pi3_residual", "pi3_balance_residual"),
+                        ("/diag/orthogonality", "orthogonality"), ("/diag/stretched_length", "stretched_length")]:
+        steps, vals = values(path, entity)
+        assert len(vals) == n, entity
+        assert vals == [d[key] for d in diags], entity
+    _, parts = values(path, "/diag/energy/parts")
+    assert parts == [[d[p] for p in PARTS] for d in diags]
+    assert max(abs(d["energy_balance_residual"]) for d in diags) > 0  # a non-trivial comparison
+
+    # what env.step applied and returned, from the first step on (the reset sample has none)
+    steps, reward = values(path, "/rl/reward/total")
+    assert list(steps) == list(range(1, n))
+    assert reward == [r[1] for r in results]
+    _, terms = values(path, "/rl/reward/terms")
+    assert terms == [[r[4]["reward_" + t] for t in R.REWARD_TERMS] for r in results]
+    _, action = values(path, "/rl/action")
+    assert np.array_equal(action, np.clip(actions, -1.0, 1.0))
+    _, ret = values(path, "/rl/return")
+    assert np.allclose(ret, np.cumsum(reward), rtol=1e-12, atol=1e-12)
+    _, newton = values(path, "/diag/newton_iterations")
+    assert len(newton) == n - 1 and all(1.0 <= x <= 20.0 for x in newton)
+
+    # 3-D: float32 of the state
+    rows = read(path, R.BODY)
+    f32 = lambda x: np.asarray(x, dtype=np.float32)  # noqa: E731
+    assert np.array_equal(f32(rows["Transform3D:translation"])[:, 0], f32([d["attach_position"] for d in diags]))
+    st = u.sim.state  # the last state: R column-major (Rerun's TransformMat3x3 layout)
+    assert np.array_equal(f32(rows["Transform3D:mat3x3"][-1][0]), f32(st.R.T.reshape(-1)))
+    strips = f32(read(path, R.STRING)["LineStrips3D:strips"][-1])  # (N, 2, 3)
+    assert np.array_equal(strips[:, 0], f32(st.r[:-1])) and np.array_equal(strips[:, 1], f32(st.r[1:]))
+    assert np.array_equal(f32(read(path, R.PIVOT)["Points3D:positions"][-1][0]), f32(st.r[0]))
+    setup = u.setup
+    force = read(path, R.PIVOT_FORCE)["Arrows3D:vectors"]
+    expected = 0.05 * ((setup.hover + setup.force_limit * np.clip(actions[:, :3], -1, 1)) - setup.hover)
+    assert np.allclose(f32([v[0] for v in force[1:]]), expected, rtol=1e-6, atol=1e-7)
+    trail = read(path, R.LOAD_TRAIL)["LineStrips3D:strips"]
+    load = st.r[-1] + st.R @ np.asarray(u.scene.body.rho_c)
+    assert np.allclose(trail[-1][0][-1], load, atol=1e-6)  # the trail ends at the load
+    assert len(trail[-1][0]) == 5  # 20 steps: the samples 20, 15, 10, 5, 0 (every 0.1 s)
+    steps, pivot_target = values(path, R.TARGET_PIVOT, "Points3D:positions")
+    assert list(steps) == [0] and np.array_equal(f32(pivot_target[0]), f32(u.target[:3]))
+
+
+@pytest.mark.filterwarnings("ignore:RRD file has no footer")
+@pytest.mark.parametrize("flush_on_episode_end", [True, False])
+def test_recording_cut_by_early_termination_is_complete(tmp_path, flush_on_episode_end):
+    path = tmp_path / "cut.rrd"
+    env = RecordRerun(gym.make(ENV_ID), path, flush_on_episode_end=flush_on_episode_end)
+    env.reset(seed=1)
+    steps = 0
+    while True:  # full force along x: the pivot leaves the 4 m workspace within ~1.2 s
+        _, _, terminated, truncated, info = env.step(np.array([1.0, 0, 0, 0, 0, 0]))
+        steps += 1
+        if terminated or truncated:
+            break
+    assert terminated and steps < 500, info
+    if flush_on_episode_end:  # written at the episode's end: readable before close, no footer yet
+        steps_seen, _ = values(path, "/diag/energy/total")
+        assert list(steps_seen) == list(range(steps + 1))
+        with pytest.raises(RuntimeError):
+            RrdReader(path).store()
+    env.close()
+    assert len(RrdReader(path).store()) > 0
+    steps_seen, reward = values(path, "/rl/reward/total")
+    assert list(steps_seen) == list(range(1, steps + 1))
+
+
+def test_episodes_follow_each_other_on_the_step_timeline(tmp_path):
+    path = tmp_path / "two.rrd"
+    env = RecordRerun(gym.make(ENV_ID, max_episode_steps=5), path, flush_every=4)  # flushes mid-episode
+    for seed in (0, 1):
+        env.reset(seed=seed)
+        truncated = False
+        while not truncated:
+            _, _, _, truncated, _ = env.step(np.zeros(6))
+    env.close()
+    steps, energy = values(path, "/diag/energy/total")
+    assert list(steps) == list(range(12))  # reset 0, steps 1-5, reset 6, steps 7-11
+    steps, reward = values(path, "/rl/reward/total")
+    assert list(steps) == [1, 2, 3, 4, 5, 7, 8, 9, 10, 11]
+    _, ret = values(path, "/rl/return")  # restarts with each episode
+    assert np.allclose(ret, np.r_[np.cumsum(reward[:5]), np.cumsum(reward[5:])], rtol=1e-12)
+    steps, _ = values(path, R.TARGET_LOAD, "Points3D:positions")
+    assert list(steps) == [0, 6]
+    trail = read(path, R.LOAD_TRAIL)["LineStrips3D:strips"]
+    assert len(trail[6][0]) == 1  # the trail restarts at a reset
+
+
+def test_free_simulation_via_the_cli(tmp_path):
+    out = tmp_path / "paper.rrd"
+    proc = subprocess.run([sys.executable, "-m", "esp_gym.cli", "record", "--scene", "paper_example",
+                           "--t-final", "0.2", "--out", str(out), "--no-progress"],
+                          capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert len(RrdReader(out).store()) > 0
+    assert WORLD_ENTITIES | DIAG_ENTITIES <= entities(out)
+    assert not (RL_ENTITIES & entities(out))
+    # default: ~50 samples per simulated second, h = 1e-4 s -> every 200 steps, t = 0 included
+    sim = esp_gym.Simulator(esp_gym.load_scene("paper_example"))
+    expected = [sim.diagnostics()]
+    for _ in range(10):
+        sim.step(200)
+        expected.append(sim.diagnostics())
+    rows = read(out, "/diag/energy/total")
+    assert rows["step"] == [200 * k for k in range(11)]
+    assert rows["time"] == [round(200 * k * 1e-4 * 1e9) for k in range(11)]
+    for entity, key in [("/diag/energy/total", "energy"), ("/diag/energy_residual", "energy_balance_residual"),
+                        ("/diag/pi3", "pi3"), ("/diag/pi3_residual", "pi3_balance_residual")]:
+        assert values(out, entity)[1] == [d[key] for d in expected], entity  # reruns are bit-identical
+    newton_steps, newton = values(out, "/diag/newton_iterations")
+    assert list(newton_steps) == [200 * k for k in range(1, 11)]
+    static = {c.entity_path: c.to_record_batch().schema.names for c in RrdReader(out).stream() if c.is_static}
+    assert "Mesh3D:vertex_positions" in static[R.BODY_SHAPE]  # the paper's elliptic cylinder
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_recording_of_a_killed_process_is_complete(tmp_path, signum):
+    """A rollout buffering everything (no flush before the signal) is killed mid-episode: the
+    file is closed with its footer and holds every step the child reported."""
+    path = tmp_path / "killed.rrd"
+    child = (
+        "import sys, numpy as np, gymnasium as gym, esp_gym\n"
+        "from esp_gym.viz.recording import RecordRerun\n"
+        "env = RecordRerun(gym.make('ElasticStringPendulum-v0'), sys.argv[1], flush_every=100000, flush_seconds=1e6)\n"
+        "env.reset(seed=0)\n"
+        "k = 0\n"
+        "while True:\n"
+        "    env.step(np.zeros(6))\n"
+        "    k += 1\n"
+        "    print(k, flush=True)\n"
+    )
+    proc = subprocess.Popen([sys.executable, "-c", child, str(path)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        while True:
+            line = proc.stdout.readline()
+            assert line, f"the child ended early: {proc.stderr.read()}"
+            if int(line) >= 30:
+                break
+        proc.send_signal(signum)
+        printed = proc.stdout.read().split()  # to EOF, from the same (buffered) file object
+        err = proc.stderr.read()
+        proc.wait(timeout=60)
+    finally:
+        proc.kill()
+    last = int(printed[-1]) if printed else 30
+    assert proc.returncode == -signum, err  # ends as the signal would have ended it
+    assert len(RrdReader(path).store()) > 0  # closed: footer and manifest written
+    steps, _ = values(path, "/rl/reward/total")
+    assert len(steps) in (last, last + 1) and list(steps) == list(range(1, len(steps) + 1))
+    steps, _ = values(path, "/diag/energy/total")
+    assert list(steps) == list(range(len(steps)))
+
+
+def test_equivalent_box_and_quaternion():
+    """A shape-less body is drawn as the box of its mass and inertia about the centre of mass:
+    the rod of large_offset (0.3 m long, radius 0.03 m) becomes a 0.3 m long box."""
+    scene = esp_gym.load_scene("large_offset")
+    half, Q = R.equivalent_box(scene.body.mass, scene.body.J, scene.body.rho_c)
+    assert np.isclose(half.max(), 0.15, rtol=1e-6) and abs(abs(Q[:, np.argmax(half)] @ [1, 0, 0]) - 1) < 1e-9
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        A, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        A *= np.sign(np.linalg.det(A))
+        x, y, z, w = R.quaternion_xyzw(A)
+        K = np.array([[0, -z, y], [z, 0, -x], [-y, x, 0]])
+        assert np.allclose(np.eye(3) + 2 * w * K + 2 * K @ K, A, atol=1e-12)
