@@ -240,7 +240,7 @@ class ElasticStringPendulumEnv(gym.Env):
         S, W, P, D = self.sim.kernel_args
         env_step(S, W, P, D, self._inputs, self.setup.substeps, self._target, self.setup.task_params,
                  self._action, self._obs, self._terms, self._result)
-        self.sim.advance_counter(self._result[1])
+        self.sim.advance_counter(self._result[1], self._result[2], self._result[3])
         info = {}
         reward = 0.0
         for name, value in zip(REWARD_TERMS, self._terms.tolist()):

@@ -242,9 +242,12 @@ class Simulator:
         (for the environment's compiled step; mutate only through kernels)."""
         return self._arrays, self._work, self.params, self._diag
 
-    def advance_counter(self, steps: int) -> None:
-        """Count ``steps`` taken by an external kernel call on :attr:`kernel_args`."""
+    def advance_counter(self, steps: int, newton_iterations: int = 0, newton_iterations_max: int = 0) -> None:
+        """Count ``steps`` (and their Newton iterations) taken by an external kernel call on
+        :attr:`kernel_args`."""
         self._step += int(steps)
+        self.newton_iterations += int(newton_iterations)
+        self.newton_iterations_max = max(self.newton_iterations_max, int(newton_iterations_max))
 
     # -- state ------------------------------------------------------------------------------
     @property
