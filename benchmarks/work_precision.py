@@ -1,0 +1,498 @@
+"""Work-precision of the LGVI against general-purpose integrators of the same finite-element
+model (``esp_gym/ode.py``), and their long-run energy behaviour.
+
+1. Work-precision on the paper example over [0, T] (T = 1 s: the motion is chaotic after
+   ~2 s, so pointwise errors are only meaningful early). Error = max over samples every 0.01 s
+   of the load (attachment node) position error [m] against a reference: DOP853 at
+   rtol = atol = 1e-13, cross-checked against the Richardson extrapolation of two LGVI runs
+   with tiny h (the LGVI is symmetric, so its error expands in h^2, h^4). Methods:
+
+   * the LGVI (``esp_gym.Simulator``) at h = 0.01 s / k from near the stability bound
+     (7.2e-4 s) down to 1e-6 s;
+   * a compiled classical RK4 with fixed h (``ElasticStringODE.rk4``, numba);
+   * SciPy ``solve_ivp`` RK45 and DOP853 (numba right-hand side called from Python) at
+     rtol = atol = tol;
+   * SciPy Radau and BDF (implicit; Jacobian by finite differences over the vectorised numba
+     right-hand side); a tolerance whose solve passes ``--time-limit`` seconds is abandoned,
+     and so are the tighter ones.
+
+   Wall time = building the integrator's objects from a validated scene (``Simulator`` or
+   ``ElasticStringODE``) plus the integration with its samples, after compilation: median of
+   ``--repeats`` runs when a run takes under 0.5 s, else one run.
+   For each error level 1e-3, 1e-5, 1e-7 m the time each method needs is read off its Pareto
+   front (log-log interpolation between measured points).
+
+2. Long run: 100 s of the paper example, energy, pi3 and ||I - R^T R|| every 0.01 s, for the
+   LGVI at h = 1e-4 s, RK4 at the h whose cost matches the LGVI's, and DOP853 at its cheapest
+   tolerance (the tightest whose 1-s cost is within 1.25x of its cheapest: below that it is
+   stability-bound and cannot be made cheaper) and at tol = 1e-10.
+
+Prints tables and writes ``OUT/work_precision.json``, ``OUT/work_precision.png`` (error vs wall
+time) and ``OUT/energy_longrun.png`` (OUT = benchmarks/out unless ``--out``).
+
+Usage: ``python benchmarks/work_precision.py [--quick] [--out DIR]``. ``--quick``: a few
+points per method, a looser reference, a 5-s long run: a smoke test (< 30 s), not a measurement.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+
+#: Error levels [m] at which the methods are ranked.
+LEVELS = (1e-3, 1e-5, 1e-7)
+
+
+@dataclass
+class Settings:
+    quick: bool = False
+    """smoke test: few points, loose reference, short long run"""
+    out: str = str(HERE / "out")
+    """output directory"""
+    scene: str = "paper_example"
+    """scene name (configs/scenes)"""
+    t_final: float = 1.0
+    """work-precision horizon [s]"""
+    sample: float = 0.01
+    """sampling interval of the load position [s]"""
+    repeats: int = 5
+    """timing repeats for runs under 0.5 s (median)"""
+    time_limit: float = 60.0
+    """abandon an implicit solve after this many seconds [s]"""
+    longrun: float = 100.0
+    """long-run horizon [s]"""
+    lgvi_k: tuple = (14, 16, 20, 25, 32, 40, 50, 64, 100, 160, 250, 400, 640, 1000, 1600, 2500, 4000,
+                     6400, 10000)
+    """LGVI steps per sample: h = sample / k"""
+    rk4_k: tuple = (10, 11, 12, 14, 16, 20, 25, 32, 40, 50, 64, 100, 160, 250, 400)
+    """RK4 steps per sample: h = sample / k"""
+    explicit_tols: tuple = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
+    """rtol = atol for RK45 and DOP853"""
+    implicit_tols: tuple = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
+    """rtol = atol for Radau and BDF"""
+    reference_tol: float = 1e-13
+    """DOP853 tolerance of the reference"""
+    richardson_k: tuple = (5000, 10000)
+    """LGVI steps per sample of the reference cross-check (h, h/2)"""
+
+    @classmethod
+    def quick_settings(cls, out: str) -> "Settings":
+        return cls(quick=True, out=out, repeats=1, longrun=5.0, lgvi_k=(16, 100, 400), rk4_k=(12, 50),
+                   explicit_tols=(1e-4, 1e-7), implicit_tols=(1e-4,), reference_tol=1e-10,
+                   richardson_k=(500, 1000), time_limit=10.0)
+
+
+class TooSlow(Exception):
+    """Raised from inside a solve that passed its time limit."""
+
+
+def timed(fn, repeats: int):
+    """Run ``fn()``; if it took < 0.5 s, run it ``repeats`` times more and take the median.
+    Returns ``(result of the first run, wall time [s])``."""
+    start = time.perf_counter()
+    result = fn()
+    wall = time.perf_counter() - start
+    if wall < 0.5 and repeats > 1:
+        walls = []
+        for _ in range(repeats):
+            start = time.perf_counter()
+            fn()
+            walls.append(time.perf_counter() - start)
+        wall = float(np.median(walls))
+    return result, wall
+
+
+# -- the integrators -----------------------------------------------------------------------------
+def lgvi_samples(scene_name: str, k: int, t_final: float, sample: float):
+    """LGVI with h = sample/k: returns a function giving (load positions (K+1, 3), steps)."""
+    import esp_gym
+
+    h = sample / k
+    scene = esp_gym.load_scene(scene_name, h=h, allow_unstable_h=True)
+
+    def run():
+        sim = esp_gym.Simulator(scene)
+        traj = sim.run(t_final, record_every=k)
+        return traj.nodes[:, -1].copy(), traj.steps
+
+    return run, h
+
+
+def rk4_samples(scene, k: int, t_final: float, sample: float):
+    """Compiled RK4 with h = sample/k: function giving (load positions, steps)."""
+    from esp_gym.ode import ElasticStringODE
+
+    h = sample / k
+    nsteps = int(round(t_final / h))
+
+    def run():
+        ode = ElasticStringODE(scene)
+        Y = ode.rk4(ode.y0(), h, nsteps, k)
+        return ode.attach_position(Y), nsteps
+
+    return run, h
+
+
+def ivp_samples(scene, method: str, tol: float, t_eval: np.ndarray, deadline_s: float | None = None):
+    """SciPy solve_ivp: function giving (load positions, nfev). Implicit methods get the
+    vectorised right-hand side (their finite-difference Jacobian then costs one call)."""
+    from scipy.integrate import solve_ivp
+
+    from esp_gym.ode import ElasticStringODE
+
+    implicit = method in ("Radau", "BDF")
+
+    def run():
+        ode = ElasticStringODE(scene)
+        fun = ode.rhs_columns if implicit else ode.rhs
+        if deadline_s is not None:
+            limit = time.perf_counter() + deadline_s
+            inner = fun
+
+            def fun(t, y):
+                if time.perf_counter() > limit:
+                    raise TooSlow
+                return inner(t, y)
+        sol = solve_ivp(fun, (t_eval[0], t_eval[-1]), ode.y0(), method=method, rtol=tol, atol=tol,
+                        t_eval=t_eval, vectorized=implicit)
+        if sol.status != 0:
+            raise FloatingPointError(sol.message)
+        return ode.attach_position(sol.y.T), ode.nfev  # right-hand sides, Jacobian columns included
+
+    return run
+
+
+def load_error(x: np.ndarray, ref: np.ndarray) -> float:
+    """Max over samples of the load position error [m]."""
+    return float(np.linalg.norm(x - ref, axis=1).max())
+
+
+# -- work-precision ----------------------------------------------------------------------------
+def reference(cfg: Settings, scene, t_eval):
+    """DOP853 at cfg.reference_tol, and its cross-checks."""
+    runner = ivp_samples(scene, "DOP853", cfg.reference_tol, t_eval)
+    start = time.perf_counter()
+    ref, nfev = runner()
+    wall = time.perf_counter() - start
+    looser, _ = ivp_samples(scene, "DOP853", cfg.reference_tol * 10, t_eval)()
+    k1, k2 = cfg.richardson_k
+    x1, _ = lgvi_samples(cfg.scene, k1, cfg.t_final, cfg.sample)[0]()
+    x2, _ = lgvi_samples(cfg.scene, k2, cfg.t_final, cfg.sample)[0]()
+    rich = x2 + (x2 - x1) * (k1 ** 2 / (k2 ** 2 - k1 ** 2))
+    info = {
+        "method": "DOP853", "tol": cfg.reference_tol, "nfev": int(nfev), "wall_s": wall,
+        "vs_DOP853_tol_x10_m": load_error(looser, ref),
+        "lgvi_h": [cfg.sample / k1, cfg.sample / k2],
+        "vs_lgvi_fine_m": load_error(x2, ref),
+        "vs_lgvi_richardson_m": load_error(rich, ref),
+    }
+    return ref, info
+
+
+def work_precision(cfg: Settings):
+    import esp_gym
+
+    scene = esp_gym.load_scene(cfg.scene)
+    ns = int(round(cfg.t_final / cfg.sample))
+    t_eval = np.arange(ns + 1) * cfg.sample
+    # compile everything before timing anything
+    lgvi_samples(cfg.scene, 10, 2 * cfg.sample, cfg.sample)[0]()
+    rk4_samples(scene, 10, 2 * cfg.sample, cfg.sample)[0]()
+    for method in ("RK45", "Radau"):
+        ivp_samples(scene, method, 1e-3, t_eval[:3])()
+
+    ref, ref_info = reference(cfg, scene, t_eval)
+    print(f"reference: DOP853 rtol = atol = {cfg.reference_tol:g} ({ref_info['nfev']} evaluations, "
+          f"{ref_info['wall_s']:.2f} s); its distance to DOP853 at 10x the tolerance "
+          f"{ref_info['vs_DOP853_tol_x10_m']:.1e} m, to the LGVI at h = {ref_info['lgvi_h'][1]:.1e} s "
+          f"{ref_info['vs_lgvi_fine_m']:.1e} m, to the Richardson extrapolation of the LGVI at "
+          f"h = {ref_info['lgvi_h'][0]:.1e}, {ref_info['lgvi_h'][1]:.1e} s {ref_info['vs_lgvi_richardson_m']:.1e} m")
+
+    results = {}
+
+    def record(name, param, runner):
+        try:
+            (x, work), wall = timed(runner, cfg.repeats)
+            row = {"param": param, "wall_s": wall, "error_m": load_error(x, ref), "work": int(work),
+                   "status": "ok"}
+        except TooSlow:
+            row = {"param": param, "wall_s": None, "error_m": None, "work": None,
+                   "status": f"abandoned after {cfg.time_limit:g} s"}
+        except (esp_gym.SimulationError, FloatingPointError) as err:
+            row = {"param": param, "wall_s": None, "error_m": None, "work": None, "status": f"failed: {err}"}
+        results.setdefault(name, []).append(row)
+        return row
+
+    for k in cfg.lgvi_k:
+        runner, h = lgvi_samples(cfg.scene, k, cfg.t_final, cfg.sample)
+        record("LGVI (esp_gym)", {"h": h}, runner)
+    for k in cfg.rk4_k:
+        runner, h = rk4_samples(scene, k, cfg.t_final, cfg.sample)
+        record("RK4 (numba, fixed h)", {"h": h}, runner)
+    for method in ("RK45", "DOP853"):
+        for tol in cfg.explicit_tols:
+            record(f"{method} (SciPy)", {"tol": tol}, ivp_samples(scene, method, tol, t_eval))
+    for method in ("Radau", "BDF"):
+        for tol in cfg.implicit_tols:
+            row = record(f"{method} (SciPy, implicit)", {"tol": tol},
+                         ivp_samples(scene, method, tol, t_eval, deadline_s=cfg.time_limit))
+            if row["status"].startswith("abandoned"):
+                break
+    return results, ref_info
+
+
+def pareto_time(rows, level: float):
+    """Wall time [s] to reach error <= level on the method's Pareto front (log-log
+    interpolation between the bracketing measured points); None if never reached."""
+    pts = sorted((r["wall_s"], r["error_m"]) for r in rows if r["status"] == "ok" and r["error_m"] > 0)
+    front = []
+    for t, e in pts:
+        if not front or e < front[-1][1]:
+            front.append((t, e))
+    if not front or front[-1][1] > level:
+        return None
+    if front[0][1] <= level:
+        return front[0][0]
+    for (t0, e0), (t1, e1) in zip(front, front[1:]):
+        if e1 <= level < e0:
+            s = (np.log(level) - np.log(e0)) / (np.log(e1) - np.log(e0))
+            return float(np.exp(np.log(t0) + s * (np.log(t1) - np.log(t0))))
+    return None  # pragma: no cover
+
+
+def ranking(results):
+    table = {}
+    for level in LEVELS:
+        times = {name: pareto_time(rows, level) for name, rows in results.items()}
+        table[f"{level:g}"] = times
+    return table
+
+
+# -- long run ------------------------------------------------------------------------------------
+def drift_stats(t, E, pi3, orth, wall, label, extra):
+    dE = E - E[0]
+    dpi = pi3 - pi3[0]
+    return {
+        "label": label, "wall_s": wall, **extra,
+        "max_abs_energy_error_J": float(np.abs(dE).max()),
+        "energy_slope_J_per_s": float(np.polyfit(t, dE, 1)[0]),
+        "final_energy_error_J": float(dE[-1]),
+        "max_abs_pi3_error": float(np.abs(dpi).max()),
+        "pi3_slope_per_s": float(np.polyfit(t, dpi, 1)[0]),
+        "max_orthogonality": float(orth.max()),
+        "final_orthogonality": float(orth[-1]),
+    }
+
+
+def long_run(cfg: Settings, wp):
+    """LGVI h = 1e-4 vs RK4 and DOP853 at a comparable cost over cfg.longrun seconds."""
+    from scipy.integrate import solve_ivp
+
+    import esp_gym
+    from esp_gym.ode import ElasticStringODE
+
+    T = cfg.longrun
+    every_lgvi = int(round(cfg.sample / 1e-4))
+    scene = esp_gym.load_scene(cfg.scene, h=1e-4)
+    start = time.perf_counter()
+    sim = esp_gym.Simulator(scene)
+    traj = sim.run(T, record_every=every_lgvi)
+    wall = time.perf_counter() - start
+    series = {"LGVI h = 1e-4 s": (traj.t, traj.energy, traj.pi3, traj.orthogonality)}
+    stats = [drift_stats(traj.t, traj.energy, traj.pi3, traj.orthogonality, wall, "LGVI h = 1e-4 s",
+                         {"h": 1e-4, "steps": traj.steps})]
+    lgvi_wall = wall
+
+    # RK4: the h (from the work-precision steps) whose cost over T matches the LGVI's
+    rk4_rows = [r for r in wp["RK4 (numba, fixed h)"] if r["status"] == "ok"]
+    us_per_step = np.median([r["wall_s"] / r["work"] for r in rk4_rows])
+    ks = [k for k in (10, 12, 14, 16, 20, 25, 32, 40, 50, 64, 100) if cfg.sample / k < 1e-3]
+    k = min(ks, key=lambda k: abs(np.log(T / (cfg.sample / k) * us_per_step / lgvi_wall)))
+    h = cfg.sample / k
+    ode = ElasticStringODE(esp_gym.load_scene(cfg.scene))
+    start = time.perf_counter()
+    Y = ode.rk4(ode.y0(), h, int(round(T / h)), k)
+    wall = time.perf_counter() - start
+    inv = ode.invariants(Y)
+    t = np.arange(len(Y)) * cfg.sample
+    label = f"RK4 h = {h:.3g} s"
+    series[label] = (t, inv[:, 0], inv[:, 1], inv[:, 2])
+    stats.append(drift_stats(t, inv[:, 0], inv[:, 1], inv[:, 2], wall, label,
+                             {"h": h, "steps": int(round(T / h))}))
+
+    # DOP853: its cheapest tolerance, and a tight one
+    dop = [r for r in wp["DOP853 (SciPy)"] if r["status"] == "ok"]
+    cheapest = min(r["wall_s"] for r in dop)
+    tol_cheap = min(r["param"]["tol"] for r in dop if r["wall_s"] <= 1.25 * cheapest)
+    t_eval = np.arange(int(round(T / cfg.sample)) + 1) * cfg.sample
+    for tol in sorted({tol_cheap, 1e-10}, reverse=True):
+        ode = ElasticStringODE(esp_gym.load_scene(cfg.scene))
+        start = time.perf_counter()
+        sol = solve_ivp(ode.rhs, (0.0, T), ode.y0(), method="DOP853", rtol=tol, atol=tol, t_eval=t_eval)
+        wall = time.perf_counter() - start
+        inv = ode.invariants(sol.y.T)
+        label = f"DOP853 tol = {tol:g}"
+        series[label] = (sol.t, inv[:, 0], inv[:, 1], inv[:, 2])
+        stats.append(drift_stats(sol.t, inv[:, 0], inv[:, 1], inv[:, 2], wall, label,
+                                 {"tol": tol, "nfev": int(sol.nfev), "status": int(sol.status)}))
+    return stats, series
+
+
+# -- output --------------------------------------------------------------------------------------
+def fmt(x, spec=".2e"):
+    return "-" if x is None else format(x, spec)
+
+
+def print_tables(cfg, results, rank, stats):
+    print(f"\nwork-precision, {cfg.scene}, [0, {cfg.t_final:g}] s; error = max load position error over "
+          f"samples every {cfg.sample:g} s")
+    print(f"{'method':30} {'h [s] / tol':>12} {'wall [ms]':>10} {'error [m]':>10} {'steps/nfev':>11}  status")
+    for name, rows in results.items():
+        for r in rows:
+            p = r["param"].get("h", r["param"].get("tol"))
+            wall = None if r["wall_s"] is None else 1e3 * r["wall_s"]
+            print(f"{name:30} {p:12.3e} {fmt(wall, '10.3f'):>10} {fmt(r['error_m']):>10} "
+                  f"{fmt(r['work'], 'd'):>11}  {r['status']}")
+    print("\ntime to reach a load position error [ms] (Pareto front, log-log interpolation)")
+    names = list(results)
+    print(f"{'method':30} " + " ".join(f"{'<= ' + format(lv, 'g') + ' m':>12}" for lv in LEVELS))
+    for name in names:
+        print(f"{name:30} " + " ".join(
+            f"{fmt(None if rank[f'{lv:g}'][name] is None else 1e3 * rank[f'{lv:g}'][name], '12.3f'):>12}"
+            for lv in LEVELS))
+    for lv in LEVELS:
+        times = {n: t for n, t in rank[f"{lv:g}"].items() if t is not None}
+        order = sorted(times, key=times.get)
+        lg = times.get("LGVI (esp_gym)")
+        where = ("LGVI: not reached" if lg is None else
+                 f"LGVI rank {order.index('LGVI (esp_gym)') + 1} of {len(order)}, {lg / times[order[0]]:.2f}x "
+                 "the fastest")
+        print(f"  {lv:g} m: fastest {order[0]} ({1e3 * times[order[0]]:.2f} ms); {where}")
+    print(f"\nlong run: {cfg.scene}, {cfg.longrun:g} s, invariants every {cfg.sample:g} s")
+    print(f"{'':24} {'wall [s]':>9} {'max|dE| [J]':>12} {'dE slope [J/s]':>15} {'max|dpi3|':>10} "
+          f"{'pi3 slope [/s]':>15} {'max orth':>9}")
+    for s in stats:
+        print(f"{s['label']:24} {s['wall_s']:9.2f} {s['max_abs_energy_error_J']:12.2e} "
+              f"{s['energy_slope_J_per_s']:15.2e} {s['max_abs_pi3_error']:10.2e} {s['pi3_slope_per_s']:15.2e} "
+              f"{s['max_orthogonality']:9.1e}")
+
+
+COLORS = {"LGVI (esp_gym)": "tab:red", "RK4 (numba, fixed h)": "tab:blue", "RK45 (SciPy)": "tab:orange",
+          "DOP853 (SciPy)": "tab:green", "Radau (SciPy, implicit)": "tab:purple",
+          "BDF (SciPy, implicit)": "tab:brown"}
+
+
+def plot_wp(cfg, results, path):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(8.5, 6), dpi=150, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    for name, rows in results.items():
+        ok = [r for r in rows if r["status"] == "ok"]
+        t = np.array([r["wall_s"] for r in ok])
+        e = np.array([r["error_m"] for r in ok])
+        ax.loglog(t, e, "o-", ms=4, lw=1.6 if name.startswith("LGVI") else 1.1, color=COLORS.get(name),
+                  label=name)
+        if ok and "h" in ok[0]["param"]:  # label the largest and smallest h
+            below = name.startswith("LGVI")
+            for i, xy in ((0, (-10, -14) if below else (-10, 8)), (len(ok) - 1, (6, -3))):
+                ax.annotate(f"h={ok[i]['param']['h']:.1e}", (t[i], e[i]), textcoords="offset points",
+                            xytext=xy, fontsize=7, color=COLORS.get(name))
+    for lv in LEVELS:
+        ax.axhline(lv, color="grey", ls=":", lw=0.8)
+    ax.set_xlabel("wall time [s] (after compilation; median of repeats for fast runs)")
+    ax.set_ylabel(f"max load position error over [0, {cfg.t_final:g}] s [m]")
+    ax.set_title(f"Work-precision, {cfg.scene} (N = 20), reference DOP853 tol {cfg.reference_tol:g}")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.savefig(path)
+
+
+def plot_energy(cfg, series, path):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(10, 10), dpi=150, layout="constrained")
+    FigureCanvasAgg(fig)
+    a, b, c, d = fig.subplots(4, 1, sharex=True)
+    colors = ["tab:red", "tab:blue", "tab:green", "tab:olive"]
+    window = max(1, int(round(1.0 / cfg.sample)))  # 1-s windows
+
+    def window_max(t, x):
+        k = len(x) // window
+        if k == 0:
+            return t[-1:], np.abs(x[-1:])
+        return t[window:k * window + 1:window], np.abs(x[1:k * window + 1]).reshape(k, window).max(axis=1)
+
+    for (label, (t, E, pi3, orth)), col in zip(series.items(), colors):
+        a.plot(t, E - E[0], lw=0.8, color=col, label=label)
+        for ax, x in ((b, E - E[0]), (c, pi3 - pi3[0]), (d, orth)):
+            tw, xw = window_max(t, x)
+            ax.semilogy(tw, np.maximum(xw, 1e-20), lw=1.0, color=col, label=label)
+    a.set_ylabel("E - E0 [J]")
+    a.set_title(f"Long run, {cfg.scene}: LGVI vs RK4 and DOP853 (E0 = {series[next(iter(series))][1][0]:.5f} J; "
+                "lower panels: max per 1-s window)")
+    b.set_ylabel("max |E - E0| [J]")
+    c.set_ylabel("max |pi3 - pi3(0)| [kg m^2/s]")
+    d.set_ylabel("max ||I - R^T R||_F")
+    d.set_xlabel("t [s]")
+    for ax in (a, b, c, d):
+        ax.grid(True, which="both", alpha=0.3)
+    a.legend(fontsize=8, loc="lower left")
+    fig.savefig(path)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="fast smoke-test variant")
+    parser.add_argument("--out", default=str(HERE / "out"), help="output directory (default: %(default)s)")
+    parser.add_argument("--repeats", type=int, default=None, help="timing repeats (default 5, quick 1)")
+    parser.add_argument("--time-limit", type=float, default=None, help="seconds per implicit solve (default 60)")
+    args = parser.parse_args(argv)
+    cfg = Settings.quick_settings(args.out) if args.quick else Settings(out=args.out)
+    if args.repeats is not None:
+        cfg.repeats = args.repeats
+    if args.time_limit is not None:
+        cfg.time_limit = args.time_limit
+    out = Path(cfg.out)
+    out.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+
+    results, ref_info = work_precision(cfg)
+    rank = ranking(results)
+    stats, series = long_run(cfg, results)
+    print_tables(cfg, results, rank, stats)
+
+    import numba
+    import scipy
+
+    payload = {
+        "settings": asdict(cfg), "reference": ref_info, "work_precision": results,
+        "time_to_error_s": rank, "long_run": stats,
+        "machine": {"python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__,
+                    "numba": numba.__version__, "processor": platform.processor() or platform.machine(),
+                    "cpus": os.cpu_count()},
+        "total_wall_s": time.perf_counter() - start,
+    }
+    with open(out / "work_precision.json", "w") as fh:
+        json.dump(payload, fh, indent=2)
+    plot_wp(cfg, results, out / "work_precision.png")
+    plot_energy(cfg, series, out / "energy_longrun.png")
+    print(f"\nwrote {out / 'work_precision.json'}, {out / 'work_precision.png'}, {out / 'energy_longrun.png'} "
+          f"({payload['total_wall_s']:.0f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

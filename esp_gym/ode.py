@@ -1,0 +1,394 @@
+"""The finite-element model of the elastic string pendulum as a first-order ODE ``y' = f(t, y)``.
+
+This is the *same* spatial model the LGVI discretises in time (consistent mass, the elastic law
+of ``kernels/string.py``, the body of the paper's Sec. 3), written as ordinary differential
+equations so that general-purpose integrators (SciPy's RK45, DOP853, Radau, BDF, a compiled RK4)
+can solve it and be compared with the LGVI (``benchmarks/work_precision.py``). Its exact flow
+is what the LGVI converges to as h -> 0.
+
+State (``size = 6 n_free + 12``, SI units)::
+
+    y = [ r (n_free, 3) | v (n_free, 3) | R (3, 3) row-major | Omega (3,) ]
+
+``r, v``: positions [m] and velocities [m/s] of the nodes that move (rows 1..N for a fixed
+pivot, 0..N for a free one; row N the attachment node), ``R`` body -> spatial, ``Omega`` the
+body-frame angular velocity [rad/s]. ``R`` is integrated as 9 numbers (R' = R Omega^), so a
+general-purpose method lets it drift off SO(3); :meth:`ElasticStringODE.orthogonality`
+measures that.
+
+Derivation. The finite-element Lagrangian (paper Sec. 3 with the tent functions of Sec. 4.1)::
+
+    L = 1/2 v^T M_str v + 1/2 M |v_N|^2 + 1/2 Omega.J Omega + M v_N . R (Omega x rho_c)
+        + 1/2 M_p |v_0|^2 - V(r) + M g e3 . R rho_c,
+
+``M_str`` the consistent mass (m/6)[1 4 1] (per element (m/6)[[2, 1], [1, 2]]), ``V`` the
+potential of ``nodal_forces``: elastic energy and the gravity of the string's element masses,
+of the body mass at node N and of a free pivot's M_p (its force is ``f = -dV/dr``); the
+last term is the rest of the body's gravity potential. With p = dL/dv and
+Pi = dL/dOmega = J Omega + M rho_c x (R^T v_N) (the Legendre transform of
+``esp_gym.model.legendre_momenta``), the Euler-Lagrange equations in r and the Euler-Poincare
+equation on SO(3) (variations delta R = R eta^) are::
+
+    M_tot a - M e_N R (rho_c x Omega')  = f(r) - M e_N R (Omega x (Omega x rho_c)) + e_0 u_p  (T)
+    J Omega' + M rho_c x (R^T a_N)      = -Omega x J Omega + M g rho_c x (R^T e3)
+                                          + tau + R^T T                                  (Rot)
+
+``M_tot`` = M_str with M added at the attachment node (and M_p at a free pivot), ``a = v'``.
+(Rot) is the paper's rotational equation with erratum 4 (``M``, not ``m``): the terms
+``M (Omega x rho_c) x R^T v`` of dL/dR and ``M rho_c x (Omega x R^T v)`` of d/dt Pi cancel with
+``Pi x Omega`` by the Jacobi identity. Inputs (constant): ``u_p`` spatial force on a free pivot
+[N], ``tau`` body torque [N m], ``T`` spatial torque [N m], as in ``Simulator.step``.
+
+The coupled linear system for (a, Omega') is solved like the LGVI's step and the diagnostics'
+Legendre transform (kernels/diagnostics.py): with ``w = M_tot^-1 e_N`` and
+``s = (M_tot^-1)_{N,N}``,
+
+    Y = M_tot^-1 (rhs of (T) with Omega' = 0)                 (one Thomas solve, 3 columns)
+    J_eff Omega' = rhs of (Rot) - M rho_c x (R^T Y_N),   J_eff = J + M^2 s rho_c^ rho_c^
+    a = Y + M w R (rho_c x Omega').
+
+``J_eff`` is ``LGVIParams.Jeff``: the body's inertia less what the string carries.
+
+Energy E = T + V and pi3 = e3 . (sum_a r_a x p_a + R Pi) are conserved by the exact flow
+(without inputs; pi3 needs the pivot on the e3 axis through the origin, as for the LGVI).
+"""
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+
+from .kernels._jit import kernel
+from .kernels.diagnostics import DIAG_NAMES, DiagWork, diagnostics as diagnostics_kernel
+from .kernels.lgvi import StateArrays
+from .kernels.so3 import solve3
+from .kernels.string import nodal_forces, tridiag_solve
+from .model import State, build_params, legendre_momenta
+from .params import Scene
+
+#: Scratch of the right-hand side: full (N+1, 3) node positions (row 0 holds the fixed pivot),
+#: forces and the solve's right-hand side / solution.
+ODEWork = namedtuple("ODEWork", "r f X")
+
+
+@kernel
+def ode_rhs(y, P, r0, inputs, W, dy):
+    """Write ``f(y)`` (the ODE of this module's docstring) into ``dy``; returns 0.
+
+    ``P``: :class:`esp_gym.kernels.lgvi.LGVIParams` (h, tol, max_iter are not used); ``r0``
+    (3,) the fixed pivot's position [m]; ``inputs`` (9,) = (u_p [N, spatial], tau [N m, body],
+    T [N m, spatial]); ``W`` an :class:`ODEWork`. Non-finite inputs give non-finite output
+    (no exception): callers check.
+    """
+    r = W.r
+    f = W.f
+    X = W.X
+    n = r.shape[0] - 1
+    first = P.first
+    nf = n + 1 - first
+    ov = 3 * nf  # offset of v in y
+    oR = 6 * nf  # offset of R
+    oW = oR + 9  # offset of Omega
+    M = P.M
+    rho0 = P.rho[0]
+    rho1 = P.rho[1]
+    rho2 = P.rho[2]
+    for a in range(first):
+        r[a, 0] = r0[0]
+        r[a, 1] = r0[1]
+        r[a, 2] = r0[2]
+    for a in range(first, n + 1):
+        j = 3 * (a - first)
+        r[a, 0] = y[j]
+        r[a, 1] = y[j + 1]
+        r[a, 2] = y[j + 2]
+        dy[j] = y[ov + j]
+        dy[j + 1] = y[ov + j + 1]
+        dy[j + 2] = y[ov + j + 2]
+    R00 = y[oR]
+    R01 = y[oR + 1]
+    R02 = y[oR + 2]
+    R10 = y[oR + 3]
+    R11 = y[oR + 4]
+    R12 = y[oR + 5]
+    R20 = y[oR + 6]
+    R21 = y[oR + 7]
+    R22 = y[oR + 8]
+    w0 = y[oW]
+    w1 = y[oW + 1]
+    w2 = y[oW + 2]
+    # R' = R Omega^ (column j of Omega^ is Omega x e_j)
+    dy[oR] = R01 * w2 - R02 * w1
+    dy[oR + 1] = R02 * w0 - R00 * w2
+    dy[oR + 2] = R00 * w1 - R01 * w0
+    dy[oR + 3] = R11 * w2 - R12 * w1
+    dy[oR + 4] = R12 * w0 - R10 * w2
+    dy[oR + 5] = R10 * w1 - R11 * w0
+    dy[oR + 6] = R21 * w2 - R22 * w1
+    dy[oR + 7] = R22 * w0 - R20 * w2
+    dy[oR + 8] = R20 * w1 - R21 * w0
+    # (T) with Omega' = 0: f(r) - M e_N R (Omega x (Omega x rho_c)) + e_0 u_p
+    nodal_forces(r, P.kappa, P.u, P.m, M, P.Mp, P.g, P.slack, f)
+    if first == 0:
+        f[0, 0] += inputs[0]
+        f[0, 1] += inputs[1]
+        f[0, 2] += inputs[2]
+    x0 = w1 * rho2 - w2 * rho1  # Omega x rho_c
+    x1 = w2 * rho0 - w0 * rho2
+    x2 = w0 * rho1 - w1 * rho0
+    c0 = w1 * x2 - w2 * x1  # Omega x (Omega x rho_c)
+    c1 = w2 * x0 - w0 * x2
+    c2 = w0 * x1 - w1 * x0
+    f[n, 0] -= M * (R00 * c0 + R01 * c1 + R02 * c2)
+    f[n, 1] -= M * (R10 * c0 + R11 * c1 + R12 * c2)
+    f[n, 2] -= M * (R20 * c0 + R21 * c1 + R22 * c2)
+    tridiag_solve(P.inv, P.cp, P.off, first, f, X)
+    # (Rot) after the Schur complement
+    J = P.J
+    Jw0 = J[0, 0] * w0 + J[0, 1] * w1 + J[0, 2] * w2
+    Jw1 = J[1, 0] * w0 + J[1, 1] * w1 + J[1, 2] * w2
+    Jw2 = J[2, 0] * w0 + J[2, 1] * w1 + J[2, 2] * w2
+    Mg = M * P.g
+    e0 = R00 * X[n, 0] + R10 * X[n, 1] + R20 * X[n, 2]  # R^T Y_N
+    e1 = R01 * X[n, 0] + R11 * X[n, 1] + R21 * X[n, 2]
+    e2 = R02 * X[n, 0] + R12 * X[n, 1] + R22 * X[n, 2]
+    ts0 = inputs[6]
+    ts1 = inputs[7]
+    ts2 = inputs[8]
+    b0 = (-(w1 * Jw2 - w2 * Jw1) + Mg * (rho1 * R22 - rho2 * R21) + inputs[3]
+          + (R00 * ts0 + R10 * ts1 + R20 * ts2) - M * (rho1 * e2 - rho2 * e1))
+    b1 = (-(w2 * Jw0 - w0 * Jw2) + Mg * (rho2 * R20 - rho0 * R22) + inputs[4]
+          + (R01 * ts0 + R11 * ts1 + R21 * ts2) - M * (rho2 * e0 - rho0 * e2))
+    b2 = (-(w0 * Jw1 - w1 * Jw0) + Mg * (rho0 * R21 - rho1 * R20) + inputs[5]
+          + (R02 * ts0 + R12 * ts1 + R22 * ts2) - M * (rho0 * e1 - rho1 * e0))
+    d0, d1, d2 = solve3(P.Jeff, b0, b1, b2)
+    dy[oW] = d0
+    dy[oW + 1] = d1
+    dy[oW + 2] = d2
+    # a = Y + M w R (rho_c x Omega')
+    z0 = rho1 * d2 - rho2 * d1
+    z1 = rho2 * d0 - rho0 * d2
+    z2 = rho0 * d1 - rho1 * d0
+    q0 = M * (R00 * z0 + R01 * z1 + R02 * z2)
+    q1 = M * (R10 * z0 + R11 * z1 + R12 * z2)
+    q2 = M * (R20 * z0 + R21 * z1 + R22 * z2)
+    w = P.w
+    for a in range(first, n + 1):
+        j = ov + 3 * (a - first)
+        dy[j] = X[a, 0] + w[a] * q0
+        dy[j + 1] = X[a, 1] + w[a] * q1
+        dy[j + 2] = X[a, 2] + w[a] * q2
+    return 0
+
+
+@kernel
+def ode_rhs_columns(Y, P, r0, inputs, W, dY):
+    """:func:`ode_rhs` for each column of ``Y`` (size, k) into ``dY`` (SciPy's ``vectorized``
+    form, used by the finite-difference Jacobian of Radau and BDF)."""
+    y = np.empty(Y.shape[0])
+    dy = np.empty(Y.shape[0])
+    for c in range(Y.shape[1]):
+        for i in range(Y.shape[0]):
+            y[i] = Y[i, c]
+        ode_rhs(y, P, r0, inputs, W, dy)
+        for i in range(Y.shape[0]):
+            dY[i, c] = dy[i]
+
+
+@kernel
+def rk4_run(y0, h, nsteps, every, P, r0, inputs, W, out):
+    """Classical fixed-step RK4 on :func:`ode_rhs`: ``nsteps`` steps of ``h`` [s] from ``y0``,
+    storing the state after every ``every`` steps in ``out`` (rows 1..; row 0 = y0).
+
+    Returns the number of steps taken: fewer than ``nsteps`` if the state became non-finite
+    (then the rows after the last good sample are left untouched).
+    """
+    size = y0.shape[0]
+    y = y0.copy()
+    yt = np.empty(size)
+    k1 = np.empty(size)
+    k2 = np.empty(size)
+    k3 = np.empty(size)
+    k4 = np.empty(size)
+    h2 = 0.5 * h
+    h6 = h / 6.0
+    for i in range(size):
+        out[0, i] = y[i]
+    row = 1
+    for k in range(nsteps):
+        ode_rhs(y, P, r0, inputs, W, k1)
+        for i in range(size):
+            yt[i] = y[i] + h2 * k1[i]
+        ode_rhs(yt, P, r0, inputs, W, k2)
+        for i in range(size):
+            yt[i] = y[i] + h2 * k2[i]
+        ode_rhs(yt, P, r0, inputs, W, k3)
+        for i in range(size):
+            yt[i] = y[i] + h * k3[i]
+        ode_rhs(yt, P, r0, inputs, W, k4)
+        total = 0.0
+        for i in range(size):
+            y[i] += h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
+            total += y[i]
+        if not np.isfinite(total):
+            return k
+        if (k + 1) % every == 0 and row < out.shape[0]:
+            for i in range(size):
+                out[row, i] = y[i]
+            row += 1
+    return nsteps
+
+
+class ElasticStringODE:
+    """The finite-element model of a :class:`~esp_gym.params.Scene` as ``y' = f(t, y)``.
+
+    >>> ode = ElasticStringODE(load_scene("paper_example"))
+    >>> sol = scipy.integrate.solve_ivp(ode.rhs, (0, 1), ode.y0(), method="DOP853",
+    ...                                 rtol=1e-10, atol=1e-10)
+    >>> ode.energy(sol.y.T)  # (K,) [J]
+
+    ``pivot_force`` (spatial, free pivot only) [N], ``body_torque`` (body frame) [N m] and
+    ``spatial_torque`` [N m] are constant inputs, as in :meth:`esp_gym.Simulator.step`.
+    Everything the scene's time step governs (h, Newton settings) is ignored.
+    """
+
+    def __init__(self, scene: Scene, pivot_force=None, body_torque=None, spatial_torque=None):
+        self.scene = scene
+        self.params = build_params(scene)
+        n = scene.string.elements
+        self.first = self.params.first
+        self.n_free = n + 1 - self.first
+        self.size = 6 * self.n_free + 12
+        self.r0 = np.array(scene.pivot.position, dtype=np.float64)
+        inputs = np.zeros(9)
+        for i, (name, value) in enumerate((("pivot_force", pivot_force), ("body_torque", body_torque),
+                                           ("spatial_torque", spatial_torque))):
+            if value is not None:
+                arr = np.asarray(value, dtype=np.float64)
+                if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+                    raise ValueError(f"{name} must be a finite 3-vector, got {value!r}")
+                inputs[3 * i:3 * i + 3] = arr
+        if not scene.pivot.is_free and np.any(inputs[:3] != 0):
+            raise ValueError("pivot_force needs a free pivot (this scene's pivot.kind is 'fixed')")
+        self.inputs = inputs
+        z = np.zeros
+        self.work = ODEWork(r=z((n + 1, 3)), f=z((n + 1, 3)), X=z((n + 1, 3)))
+        # the simulator's state and diagnostics arrays, for _diagnose
+        self._diag = (StateArrays(r=z((n + 1, 3)), p=z((n + 1, 3)), R=z((3, 3)), Pi=z(3), rc=z((n + 1, 3)),
+                                  pc=z((n + 1, 3)), Rc=z((3, 3)), Pic=z(3), f=z((n + 1, 3)), acc=z(8), accc=z(8)),
+                      DiagWork(V=z((n + 1, 3)), strain=z(n), omega=z(3), out=z(len(DIAG_NAMES))))
+        self.nfev = 0  #: right-hand side evaluations through :meth:`rhs` / :meth:`rhs_columns`
+
+    # -- right-hand side --------------------------------------------------------------------
+    def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
+        """``f(t, y)`` (autonomous: t is ignored) for ``scipy.integrate.solve_ivp``."""
+        dy = np.empty(self.size)
+        ode_rhs(np.ascontiguousarray(y, dtype=np.float64), self.params, self.r0, self.inputs, self.work, dy)
+        self.nfev += 1
+        return dy
+
+    def rhs_columns(self, t: float, Y: np.ndarray) -> np.ndarray:
+        """``f`` of each column of ``Y`` (size, k): pass with ``vectorized=True`` to solve_ivp."""
+        Y = np.asarray(Y, dtype=np.float64)
+        if Y.ndim == 1:
+            return self.rhs(t, Y)
+        dY = np.empty(Y.shape)
+        ode_rhs_columns(Y, self.params, self.r0, self.inputs, self.work, dY)
+        self.nfev += Y.shape[1]
+        return dY
+
+    def rk4(self, y0: np.ndarray, h: float, nsteps: int, every: int = 1) -> np.ndarray:
+        """Classical RK4 (compiled), ``nsteps`` steps of ``h`` [s]; returns the states after
+        every ``every`` steps, (nsteps // every + 1, size), row 0 = y0. Raises
+        ``FloatingPointError`` if the state becomes non-finite."""
+        every = int(every)
+        out = np.empty((int(nsteps) // every + 1, self.size))
+        done = rk4_run(np.ascontiguousarray(y0, dtype=np.float64), float(h), int(nsteps), every,
+                       self.params, self.r0, self.inputs, self.work, out)
+        if done < nsteps:
+            raise FloatingPointError(f"RK4 with h = {h:g} s became non-finite at step {done + 1}")
+        return out
+
+    # -- states -----------------------------------------------------------------------------
+    def pack(self, r: np.ndarray, v: np.ndarray, R: np.ndarray, Omega: np.ndarray) -> np.ndarray:
+        """(r, v) (N+1, 3), R (3, 3), Omega (3,) -> y (the pivot row is dropped if fixed)."""
+        f = self.first
+        return np.concatenate([np.asarray(r, float)[f:].ravel(), np.asarray(v, float)[f:].ravel(),
+                               np.asarray(R, float).ravel(), np.asarray(Omega, float).ravel()])
+
+    def unpack(self, y: np.ndarray) -> dict:
+        """y (or Y with states along the last axis) -> ``r``, ``v`` (..., N+1, 3), ``R``
+        (..., 3, 3), ``Omega`` (..., 3) (copies; a fixed pivot's row is its position, at rest)."""
+        y = np.asarray(y, dtype=np.float64)
+        lead = y.shape[:-1]
+        k = 3 * self.n_free
+        n1 = self.scene.string.elements + 1
+        r = np.empty(lead + (n1, 3))
+        v = np.zeros(lead + (n1, 3))
+        r[..., self.first:, :] = y[..., :k].reshape(lead + (self.n_free, 3))
+        v[..., self.first:, :] = y[..., k:2 * k].reshape(lead + (self.n_free, 3))
+        if self.first:
+            r[..., 0, :] = self.r0
+        return {"r": r, "v": v, "R": y[..., 2 * k:2 * k + 9].reshape(lead + (3, 3)).copy(),
+                "Omega": y[..., 2 * k + 9:].copy()}
+
+    def y0(self) -> np.ndarray:
+        """The scene's initial state (the same configuration and velocities the LGVI starts from)."""
+        s = self.scene
+        return self.pack(s.initial_nodes(), s.initial_velocities(), np.array(s.initial.R0, dtype=float),
+                         np.array(s.initial.Omega0, dtype=float))
+
+    def _diagnose(self, state: State) -> DiagWork:
+        """The simulator's diagnostics kernel on ``state`` (velocities, energies, pi3, ...);
+        the returned arrays are reused by the next call."""
+        S, D = self._diag
+        for name in ("r", "p", "R", "Pi"):
+            getattr(S, name)[...] = getattr(state, name)
+        diagnostics_kernel(S, self.params, D)
+        return D
+
+    def from_state(self, state: State) -> np.ndarray:
+        """A discrete LGVI state (r, p, R, Pi) -> y, with velocities from the continuous
+        Legendre transform inverted as in the diagnostics (kernels/diagnostics.py)."""
+        D = self._diagnose(state)
+        return self.pack(state.r, D.V, state.R, D.omega)
+
+    def to_state(self, y: np.ndarray, step: int = 0) -> State:
+        """y -> a :class:`~esp_gym.model.State` with momenta from ``legendre_momenta``."""
+        u = self.unpack(y)
+        p, Pi = legendre_momenta(self.scene, u["r"], u["v"], u["R"], u["Omega"])
+        return State(np.ascontiguousarray(u["r"]), np.ascontiguousarray(p), np.ascontiguousarray(u["R"]),
+                     np.ascontiguousarray(Pi), int(step))
+
+    # -- invariants -------------------------------------------------------------------------
+    def invariants(self, Y: np.ndarray) -> np.ndarray:
+        """(energy [J], pi3 [kg m^2/s], ||I - R^T R||_F) of y (size,) or of each row of Y
+        (K, size); shape (3,) or (K, 3). Computed like the simulator's: momenta by
+        ``legendre_momenta``, then the diagnostics kernel (which inverts that transform again
+        assuming R^T R = I: off SO(3) the energy is off by ~ its size x ||I - R^T R||)."""
+        Y = np.asarray(Y, dtype=np.float64)
+        rows = Y.reshape(-1, self.size)
+        out = np.empty((rows.shape[0], 3))
+        i = DIAG_NAMES.index
+        cols = [i("energy"), i("pi3"), i("orthogonality")]
+        for k, y in enumerate(rows):
+            out[k] = self._diagnose(self.to_state(y)).out[cols]
+        return out[0] if Y.ndim == 1 else out
+
+    def energy(self, Y: np.ndarray):
+        """Total energy E = T + V [J] of y or of each row of Y."""
+        return self.invariants(Y)[..., 0]
+
+    def pi3(self, Y: np.ndarray):
+        """Angular momentum about e3 through the origin [kg m^2/s] of y or of each row of Y."""
+        return self.invariants(Y)[..., 1]
+
+    def orthogonality(self, Y: np.ndarray):
+        """||I - R^T R||_F of y or of each row of Y."""
+        return self.invariants(Y)[..., 2]
+
+    def attach_position(self, Y: np.ndarray) -> np.ndarray:
+        """Position of the attachment node (the load) [m], (3,) or (K, 3)."""
+        Y = np.asarray(Y, dtype=np.float64)
+        k = 3 * self.n_free
+        return Y[..., k - 3:k].copy()
