@@ -170,6 +170,18 @@ class BodyParams(_Frozen):
     def _inertia_or_shape(self) -> "BodyParams":
         if self.inertia is None and self.shape is None:
             raise ValueError("body needs an inertia or a shape to compute it from")
+        if self.inertia is not None:
+            # J about the attachment point = J_cm + M (|rho|^2 I - rho rho^T): J_cm must itself be
+            # an inertia, else no body of this mass and offset has J (and J_eff turns indefinite)
+            rho = np.asarray(self.rho_c, dtype=float)
+            shift = self.mass * (rho @ rho * np.eye(3) - np.outer(rho, rho))
+            lam = np.linalg.eigvalsh(0.5 * (self.J + self.J.T) - shift)
+            tol = 1e-12 * max(1.0, float(np.abs(self.J).max()))
+            if lam[0] <= -tol or lam[0] + lam[1] < lam[2] - tol:
+                raise ValueError(
+                    "body.inertia: J - M (|rho_c|^2 I - rho_c rho_c^T), the inertia about the centre of "
+                    f"mass, is not an inertia (eigenvalues {np.array2string(lam, precision=4)}): no body of "
+                    "this mass and offset has this J")
         return self
 
     @property

@@ -71,7 +71,7 @@ def scene_dicts(draw, pivot=None, physical=None):
     """A random scene as a plain dict (valid by construction). ``pivot``: None (either), "fixed"
     (on the e3 axis, so pi3 balances) or "free". ``physical``: J from a body's inertia by the
     parallel-axis theorem (True), taken as given (False, see :func:`inertias`) or either (None,
-    physical three times in four)."""
+    physical; a non-physical J is now a SceneError, see the test below)."""
     n = draw(st.integers(1, 12))
     length = draw(uniform(0.2, 2.0))
     mu = draw(log_uniform(0.005, 0.2))
@@ -97,8 +97,8 @@ def scene_dicts(draw, pivot=None, physical=None):
         nodes.append(nodes[-1] + u * draw(uniform(0.7, 1.3)) * d / np.linalg.norm(d))
     mass = draw(log_uniform(0.01, 2.0))
     rho_c = list(draw(vec3(-0.2, 0.2)))
-    if physical is None:
-        physical = draw(st.integers(0, 3)) > 0
+    if physical is None:  # J from a body: other J are rejected by the scene validation
+        physical = True
     vmax = draw(uniform(0.0, 2.0))
     vel = [list(draw(vec3(-vmax, vmax))) for _ in range(n + 1)]
     if kind == "fixed":
@@ -404,14 +404,12 @@ def test_forced_lgvi_converges_to_the_forced_ode_at_order_2():
     assert abs(slope - 2.0) <= 0.15, (slope, errs)
 
 
-@pytest.mark.xfail(strict=True, reason="params.BodyParams checks J itself, not J - M(|rho_c|^2 I - rho_c rho_c^T): "
-                   "an inertia no body has about its attachment point passes, and J_eff can be indefinite")
 def test_scene_rejects_an_inertia_no_body_has_about_its_attachment_point():
     """A 2 kg body 0.2 m off the attachment point has at least M |rho_c|^2 = 0.08 kg m^2 about
     the axes normal to the offset, whatever its shape; J = diag(0.01, 0.01, 0.015) is positive
-    definite and obeys the triangle inequalities, so it passes, and the simulator then runs an
-    indefinite kinetic energy (J_eff has negative eigenvalues)."""
-    with pytest.raises(SceneError):
+    definite and obeys the triangle inequalities, but J_cm = J - M(|rho|^2 I - rho rho^T) is not
+    an inertia, so the scene is rejected (J_eff would be indefinite)."""
+    with pytest.raises(SceneError, match="centre of mass"):
         esp_gym.load_scene("paper_example", **{"body.mass": 2.0, "body.rho_c": [0.2, 0.0, 0.0],
                                                "body.inertia": [[0.01, 0, 0], [0, 0.01, 0], [0, 0, 0.015]]})
 
