@@ -73,6 +73,8 @@ class Settings:
     lgvi_k: tuple = (14, 16, 20, 25, 32, 40, 50, 64, 100, 160, 250, 400, 640, 1000, 1600, 2500, 4000,
                      6400, 10000)
     """LGVI steps per sample: h = sample / k"""
+    lgvi4_k: tuple = (25, 28, 32, 40, 50, 64, 80, 100, 130, 160, 250, 400)
+    """steps per sample of the LGVI's 4th-order composition (solver.order: 4)"""
     rk4_k: tuple = (10, 11, 12, 14, 16, 20, 25, 32, 40, 50, 64, 100, 160, 250, 400)
     """RK4 steps per sample: h = sample / k"""
     explicit_tols: tuple = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
@@ -86,7 +88,7 @@ class Settings:
 
     @classmethod
     def quick_settings(cls, out: str) -> "Settings":
-        return cls(quick=True, out=out, repeats=1, longrun=5.0, lgvi_k=(16, 100, 400), rk4_k=(12, 50),
+        return cls(quick=True, out=out, repeats=1, longrun=5.0, lgvi_k=(16, 100, 400), lgvi4_k=(30, 100), rk4_k=(12, 50),
                    explicit_tols=(1e-4, 1e-7), implicit_tols=(1e-4,), reference_tol=1e-10,
                    richardson_k=(500, 1000), time_limit=10.0)
 
@@ -112,12 +114,13 @@ def timed(fn, repeats: int):
 
 
 # -- the integrators -----------------------------------------------------------------------------
-def lgvi_samples(scene_name: str, k: int, t_final: float, sample: float):
-    """LGVI with h = sample/k: returns a function giving (load positions (K+1, 3), steps)."""
+def lgvi_samples(scene_name: str, k: int, t_final: float, sample: float, order: int = 2):
+    """LGVI (or its order-4 composition) with h = sample/k: returns a function giving
+    (load positions (K+1, 3), steps)."""
     import esp_gym
 
     h = sample / k
-    scene = esp_gym.load_scene(scene_name, h=h, allow_unstable_h=True)
+    scene = esp_gym.load_scene(scene_name, h=h, allow_unstable_h=True, solver={"order": order})
 
     def run():
         sim = esp_gym.Simulator(scene)
@@ -206,6 +209,7 @@ def work_precision(cfg: Settings):
     t_eval = np.arange(ns + 1) * cfg.sample
     # compile everything before timing anything
     lgvi_samples(cfg.scene, 10, 2 * cfg.sample, cfg.sample)[0]()
+    lgvi_samples(cfg.scene, 30, 2 * cfg.sample, cfg.sample, order=4)[0]()
     rk4_samples(scene, 10, 2 * cfg.sample, cfg.sample)[0]()
     for method in ("RK45", "Radau"):
         ivp_samples(scene, method, 1e-3, t_eval[:3])()
@@ -235,6 +239,9 @@ def work_precision(cfg: Settings):
     for k in cfg.lgvi_k:
         runner, h = lgvi_samples(cfg.scene, k, cfg.t_final, cfg.sample)
         record("LGVI (esp_gym)", {"h": h}, runner)
+    for k in cfg.lgvi4_k:
+        runner, h = lgvi_samples(cfg.scene, k, cfg.t_final, cfg.sample, order=4)
+        record("LGVI order 4 (Yoshida)", {"h": h}, runner)
     for k in cfg.rk4_k:
         runner, h = rk4_samples(scene, k, cfg.t_final, cfg.sample)
         record("RK4 (numba, fixed h)", {"h": h}, runner)
@@ -386,7 +393,7 @@ def print_tables(cfg, results, rank, stats):
               f"{s['max_orthogonality']:9.1e}")
 
 
-COLORS = {"LGVI (esp_gym)": "tab:red", "RK4 (numba, fixed h)": "tab:blue", "RK45 (SciPy)": "tab:orange",
+COLORS = {"LGVI (esp_gym)": "tab:red", "LGVI order 4 (Yoshida)": "darkred", "RK4 (numba, fixed h)": "tab:blue", "RK45 (SciPy)": "tab:orange",
           "DOP853 (SciPy)": "tab:green", "Radau (SciPy, implicit)": "tab:purple",
           "BDF (SciPy, implicit)": "tab:brown"}
 
