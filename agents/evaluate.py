@@ -46,13 +46,15 @@ class SB3Policy:
         path = Path(path)
         if not path.is_file():
             raise FileNotFoundError(f"no model at {path}")
-        algo = SAC if "sac" in path.name.lower() or (path.parent / "sac").exists() else None
+        args = path.parent / "args.json"  # written by train.py beside the model
+        algo = json.loads(args.read_text()).get("algo") if args.is_file() else None
+        candidates = [{"ppo": PPO, "sac": SAC}[algo]] if algo in ("ppo", "sac") else [PPO, SAC]
         self.model = None
-        for cls in ([algo] if algo else []) + [PPO, SAC]:
+        for cls in candidates:
             try:
                 self.model = cls.load(path, device="cpu")
                 break
-            except Exception:  # noqa: BLE001 - try the next algorithm
+            except (ValueError, KeyError, RuntimeError, TypeError):  # not this algorithm's file
                 continue
         if self.model is None:
             raise ValueError(f"{path} is not a PPO or SAC model")

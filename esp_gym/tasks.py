@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .kernels.task import TASK_PARAM_NAMES
-from .model import State, legendre_momenta
+from .model import State, hat, legendre_momenta
 from .params import Scene
 
 
@@ -99,12 +99,13 @@ def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         axis = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
         axis /= np.linalg.norm(axis)
         return 2.0 * np.outer(axis, axis) - np.eye(3)
-    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    vx = hat(v)
     return np.eye(3) + vx + vx @ vx / (1.0 + c)
 
 
 def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
-    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    """Rotation by ``angle`` about the unit vector ``axis`` (Rodrigues)."""
+    k = hat(axis)
     return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * k @ k
 
 
