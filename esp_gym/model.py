@@ -16,7 +16,8 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .kernels.diagnostics import DIAG_NAMES, DiagWork, diagnostics as diagnostics_kernel
-from .kernels.lgvi import LGVIParams, Snapshots, StateArrays, Work, lgvi_advance, lgvi_record, state_size
+from .kernels.lgvi import (LGVIParams, Snapshots, StateArrays, Work, lgvi_advance, lgvi_record, specialised_kernels,
+                           state_size)
 from .kernels.string import tridiag_factor
 from .params import Scene
 
@@ -107,7 +108,7 @@ def build_params(scene: Scene) -> LGVIParams:
         Jeff=Jeff, inv=inv, cp=cp, off=float(off), w=w, first=first,
         slack=scene.string.law == "slack",
         tol=float(scene.solver.newton_tol), max_iter=int(scene.solver.newton_max_iter),
-        order=int(scene.solver.order),
+        gammas=scene.solver.scheme.weights(),
     )
 
 
@@ -215,9 +216,13 @@ class Simulator:
     >>> sim.diagnostics()["energy"]
     """
 
-    def __init__(self, scene: Scene):
+    def __init__(self, scene: Scene, specialise: bool = True):
         self.scene = scene
         self.params = build_params(scene)
+        #: Run kernels compiled for this scene (fixed or free pivot, rho_c = 0 or not) and, per
+        #: call, for whether any input is non-zero; ``False`` runs the general kernel (same
+        #: results, every term computed: for tests and benchmarks).
+        self.specialise = bool(specialise)
         self.h = scene.h
         n = scene.string.elements
         st = initial_state(scene)
@@ -294,6 +299,13 @@ class Simulator:
         return self._step * self.h
 
     # -- stepping ---------------------------------------------------------------------------
+    def _kernels(self):
+        """``(advance, record)`` for this scene and the current inputs."""
+        if not self.specialise:
+            return lgvi_advance, lgvi_record
+        return specialised_kernels(free=self.params.first == 0, forced=bool(np.any(self._inputs != 0.0)),
+                                   coupled=bool(np.any(self.params.rho != 0.0)))
+
     def _set_inputs(self, pivot_force, body_torque, spatial_torque) -> None:
         up = _vector_input("pivot_force", pivot_force)
         tb = _vector_input("body_torque", body_torque)
@@ -320,7 +332,8 @@ class Simulator:
         if n < 0:
             raise ValueError(f"n must be >= 0, got {n}")
         self._set_inputs(pivot_force, body_torque, spatial_torque)
-        lgvi_advance(self._arrays, self._work, self.params, self._inputs, n, self._stats)
+        advance, _ = self._kernels()
+        advance(self._arrays, self._work, self.params, self._inputs, n, self._stats)
         self._account()
 
     def run(self, t_final: float, record_every: int = 100, every_step: bool = False,
@@ -338,6 +351,7 @@ class Simulator:
         if every_step and nsteps % record_every:
             raise ValueError("every_step needs t_final to be a whole number of record_every steps")
         self._set_inputs(pivot_force, body_torque, spatial_torque)
+        advance, record = self._kernels()
         n = self.scene.string.elements
         K = nsteps // record_every
         e = np.empty
@@ -360,13 +374,13 @@ class Simulator:
                 rows = slice(j + 1, j1 + 1)
                 part = Snapshots(*(x[rows] for x in snap[:-1]),
                                  step_diag=snap.step_diag[j * record_every:j1 * record_every])
-                lgvi_record(a, self._work, self.params, self._inputs, record_every, d, part, self._stats)
+                record(a, self._work, self.params, self._inputs, record_every, d, part, self._stats)
                 self._account()
                 bar.update((j1 - j) * record_every)
                 j = j1
             rest = nsteps - K * record_every
             if rest:
-                lgvi_advance(a, self._work, self.params, self._inputs, rest, self._stats)
+                advance(a, self._work, self.params, self._inputs, rest, self._stats)
                 self._account()
                 bar.update(rest)
         wall = _time.perf_counter() - start

@@ -15,6 +15,8 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationError, field_validator, model_validator
 
+from .compositions import COMPOSITIONS, DEFAULT_FOR_ORDER, Composition
+
 Vec3 = tuple[float, float, float]
 Mat3 = tuple[Vec3, Vec3, Vec3]
 PosVec3 = tuple[PositiveFloat, PositiveFloat, PositiveFloat]
@@ -216,20 +218,34 @@ class PivotParams(_Frozen):
 
 
 class SolverParams(_Frozen):
-    """Newton on the Cayley vector: relative stopping tolerance and iteration cap; the order of
-    the time stepper: 2 (the paper's LGVI) or 4 (Yoshida's composition of three LGVI steps)."""
+    """Newton on the Cayley vector (relative stopping tolerance, iteration cap) and the time
+    stepper: ``order`` 2 is the paper's LGVI; 4 and 6 compose LGVI substeps symmetrically
+    (esp_gym/compositions.py), by default Suzuki's 5-stage (order 4) and Kahan-Li's 9-stage
+    (order 6) schemes; ``composition`` names another scheme of that order (``triple_jump``)."""
 
     newton_tol: float = Field(1e-14, gt=0, le=1e-10)
     newton_max_iter: int = Field(25, ge=2, le=200)
-    order: Literal[2, 4] = 2
+    order: Literal[2, 4, 6] = 2
+    composition: Optional[Literal[tuple(COMPOSITIONS)]] = Field(
+        None, description="composition scheme (default: the order's, see esp_gym/compositions.py)")
+
+    @model_validator(mode="after")
+    def _composition_has_the_order(self) -> "SolverParams":
+        if self.composition is not None and COMPOSITIONS[self.composition].order != self.order:
+            c = COMPOSITIONS[self.composition]
+            raise ValueError(f"composition {c.name!r} has order {c.order}, but order is {self.order}; "
+                             f"set order: {c.order} or drop composition")
+        return self
+
+    @property
+    def scheme(self) -> Composition:
+        """The composition this solver runs (``lgvi`` for order 2)."""
+        return COMPOSITIONS[self.composition or DEFAULT_FOR_ORDER[self.order]]
 
     @property
     def largest_substep(self) -> float:
-        """Largest |substep| / h: 1, or |gamma_2| = 2^(1/3) / (2 - 2^(1/3)) = 1.7024 for order 4."""
-        if self.order == 2:
-            return 1.0
-        c = 2.0 ** (1.0 / 3.0)
-        return c / (2.0 - c)
+        """Largest |substep| / h of the scheme (1 for the plain LGVI, 1.7024 for triple jump)."""
+        return self.scheme.largest_substep
 
 
 class InitialState(_Frozen):
@@ -284,14 +300,15 @@ class Scene(_Frozen):
     @property
     def stability_bound(self) -> float:
         """Largest stable h [s]: the string's bound, divided by the largest substep of the
-        order-4 composition when it is used."""
+        composition when one is used."""
         return self.string.stability_bound / self.solver.largest_substep
 
     @model_validator(mode="after")
     def _consistent(self) -> "Scene":
         bound = self.stability_bound
         if self.h > bound and not self.allow_unstable_h:
-            composed = "" if self.solver.order == 2 else f", divided by {self.solver.largest_substep:.4f} for order 4"
+            scheme = self.solver.scheme
+            composed = "" if scheme.stages == 1 else f", divided by {scheme.largest_substep:.4f} for {scheme.name}"
             raise ValueError(
                 f"h = {self.h:.6g} s exceeds the stability bound h_max = {bound:.6g} s "
                 f"(2/omega_max, omega_max = sqrt(12 EA/(mu u^2)) for N = {self.string.elements}{composed}); "

@@ -51,13 +51,8 @@ from .string import nodal_forces, tridiag_solve
 #: ``slack``: tension-only string law.
 LGVIParams = namedtuple(
     "LGVIParams",
-    "h m kappa u g M Mp rho J Jd Jeff inv cp off w first slack tol max_iter order",
+    "h m kappa u g M Mp rho J Jd Jeff inv cp off w first slack tol max_iter gammas",
 )
-
-#: Yoshida's symmetric triple jump: three LGVI steps of gamma_1 h, gamma_2 h, gamma_1 h make a
-#: 4th-order symplectic map (the LGVI is symmetric and of order 2).
-YOSHIDA_GAMMA_1 = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))
-YOSHIDA_GAMMA_2 = -(2.0 ** (1.0 / 3.0)) / (2.0 - 2.0 ** (1.0 / 3.0))
 
 #: The state the kernels advance: positions r and momenta p (N+1, 3), R (3, 3), Pi (3,), the
 #: compensated-summation remainders rc, pc, Rc, Pic of each, the forces f at r (N+1, 3), and
@@ -66,7 +61,7 @@ YOSHIDA_GAMMA_2 = -(2.0 ** (1.0 / 3.0)) / (2.0 - 2.0 ** (1.0 / 3.0))
 StateArrays = namedtuple("StateArrays", "r p R Pi rc pc Rc Pic f acc accc")
 
 #: Scratch arrays of one simulator (allocated once in esp_gym.model); ``backup`` holds a copy
-#: of the state during a composed (order 4) step, so a failure can restore the step's start.
+#: of the state during a composed step, so a failure can restore the step's start.
 Work = namedtuple("Work", "fn B X Y FmI RF Rn jac backup")
 
 #: Kernel status codes (kept in sync with esp_gym.model.STATUS_MESSAGES).
@@ -85,11 +80,34 @@ def kahan_add(x, c, i, dx):
 
 
 @kernel(inline="always")
-def lgvi_substep(S, W, P, inputs, h):
+def commit_node(r, p, rc, pc, f, fn, X, Y, a, i, impulse, hh):
+    """Commit coordinate ``i`` of node ``a`` of a step: the position
+    r + dr (X, with dr + remainder in Y) and the momentum p + (h/2 (f + fn) + impulse), both
+    with Kahan's compensation; then f <- fn. ``impulse + 0.0`` is exact, so rows without an
+    external impulse get the same bits as a plain h/2 (f + fn)."""
+    x = X[a, i]
+    rc[a, i] = (r[a, i] - x) + Y[a, i]
+    r[a, i] = x
+    dp = (hh * (f[a, i] + fn[a, i]) + impulse) + pc[a, i]
+    p0 = p[a, i]
+    pn = p0 + dp
+    pc[a, i] = (p0 - pn) + dp
+    p[a, i] = pn
+    f[a, i] = fn[a, i]
+
+
+@kernel(inline="always")
+def lgvi_substep(S, W, P, inputs, h, free, forced, coupled):
     """Advance the state ``S`` (:class:`StateArrays`) by one LGVI step of length ``h``, in place.
 
     ``inputs`` (9,): pivot force u_p (spatial) [N], body torque tau (body frame) [N m], spatial
-    torque T [N m], held over the step. Increments are added with Kahan's trick (remainders in
+    torque T [N m], held over the step. The flags say what the scene needs (see
+    :func:`specialised_kernels`; passed as constants, the compiler drops what is off):
+    ``free`` the pivot is a free point mass (``P.first == 0``), ``forced`` the inputs are
+    read (else they are taken as zero and the input balances are not updated), ``coupled``
+    rho_c != 0 (else the body's rotation is decoupled from the string: no gravity torque, no
+    coupling terms). Each flag off gives the same numbers as the flag on with what it drops
+    equal to zero (the dropped terms are exact zeros there). Increments are added with Kahan's trick (remainders in
     S.rc, pc, Rc, Pic), because in a smooth motion the round-off of ``r + dr`` repeats for many
     steps and would otherwise accumulate linearly into pi3 and the energy.
     On entry ``S.f`` holds ``nodal_forces(r)``; on success it holds the forces at the new state.
@@ -108,26 +126,28 @@ def lgvi_substep(S, W, P, inputs, h):
     FmI = W.FmI
     hh = 0.5 * h
     n = r.shape[0] - 1
-    first = P.first
+    first = 0 if free else 1
     M = P.M
     rho0 = P.rho[0]
     rho1 = P.rho[1]
     rho2 = P.rho[2]
-    up0 = inputs[0]
-    up1 = inputs[1]
-    up2 = inputs[2]
-    tb0 = inputs[3]
-    tb1 = inputs[4]
-    tb2 = inputs[5]
-    ts0 = inputs[6]
-    ts1 = inputs[7]
-    ts2 = inputs[8]
+    up0 = up1 = up2 = tb0 = tb1 = tb2 = ts0 = ts1 = ts2 = 0.0
+    if forced:
+        up0 = inputs[0]
+        up1 = inputs[1]
+        up2 = inputs[2]
+        tb0 = inputs[3]
+        tb1 = inputs[4]
+        tb2 = inputs[5]
+        ts0 = inputs[6]
+        ts1 = inputs[7]
+        ts2 = inputs[8]
     # (1): right-hand side and the string solve with F_k = I
     for a in range(first, n + 1):
         B[a, 0] = p[a, 0] + hh * f[a, 0]
         B[a, 1] = p[a, 1] + hh * f[a, 1]
         B[a, 2] = p[a, 2] + hh * f[a, 2]
-    if first == 0:
+    if free and forced:
         B[0, 0] += hh * up0
         B[0, 1] += hh * up1
         B[0, 2] += hh * up2
@@ -140,19 +160,35 @@ def lgvi_substep(S, W, P, inputs, h):
     z0 = R[2, 0]  # R^T e3
     z1 = R[2, 1]
     z2 = R[2, 2]
-    l0 = tb0 + (R[0, 0] * ts0 + R[1, 0] * ts1 + R[2, 0] * ts2)  # tau^- = tau + R_k^T T
-    l1 = tb1 + (R[0, 1] * ts0 + R[1, 1] * ts1 + R[2, 1] * ts2)
-    l2 = tb2 + (R[0, 2] * ts0 + R[1, 2] * ts1 + R[2, 2] * ts2)
-    t0 = Mg * (rho1 * z2 - rho2 * z1) + l0
-    t1 = Mg * (rho2 * z0 - rho0 * z2) + l1
-    t2 = Mg * (rho0 * z1 - rho1 * z0) + l2
+    l0 = l1 = l2 = t0 = t1 = t2 = 0.0
+    if forced:
+        l0 = tb0 + (R[0, 0] * ts0 + R[1, 0] * ts1 + R[2, 0] * ts2)  # tau^- = tau + R_k^T T
+        l1 = tb1 + (R[0, 1] * ts0 + R[1, 1] * ts1 + R[2, 1] * ts2)
+        l2 = tb2 + (R[0, 2] * ts0 + R[1, 2] * ts1 + R[2, 2] * ts2)
+        t0 = l0
+        t1 = l1
+        t2 = l2
+    if coupled:
+        t0 = Mg * (rho1 * z2 - rho2 * z1) + l0
+        t1 = Mg * (rho2 * z0 - rho0 * z2) + l1
+        t2 = Mg * (rho0 * z1 - rho1 * z0) + l2
     # (2) after the Schur complement: g = h Pi + h^2/2 tau_k - M rho_c x (R_k^T d)
-    e0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2  # R^T d
-    e1 = R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2
-    e2 = R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2
-    g0 = h * (Pi[0] + hh * t0) - M * (rho1 * e2 - rho2 * e1)
-    g1 = h * (Pi[1] + hh * t1) - M * (rho2 * e0 - rho0 * e2)
-    g2 = h * (Pi[2] + hh * t2) - M * (rho0 * e1 - rho1 * e0)
+    e0 = e1 = e2 = 0.0
+    if coupled:
+        e0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2  # R^T d
+        e1 = R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2
+        e2 = R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2
+        g0 = h * (Pi[0] + hh * t0) - M * (rho1 * e2 - rho2 * e1)
+        g1 = h * (Pi[1] + hh * t1) - M * (rho2 * e0 - rho0 * e2)
+        g2 = h * (Pi[2] + hh * t2) - M * (rho0 * e1 - rho1 * e0)
+    elif forced:
+        g0 = h * (Pi[0] + hh * t0)
+        g1 = h * (Pi[1] + hh * t1)
+        g2 = h * (Pi[2] + hh * t2)
+    else:
+        g0 = h * Pi[0]
+        g1 = h * Pi[1]
+        g2 = h * Pi[2]
     c0, c1, c2, iters, converged = cayley_newton(g0, g1, g2, P.Jeff, P.tol, P.max_iter, W.jac)
     if not converged:
         if np.isfinite(c0 + c1 + c2 + d0 + d1 + d2):
@@ -160,24 +196,37 @@ def lgvi_substep(S, W, P, inputs, h):
         return NON_FINITE, iters
     cayley_minus_identity(c0, c1, c2, FmI)
     # q = R_k (F_k - I) rho_c; dr = h X - M w q (+ remainder) -> Y; new positions r + Y -> X
-    s0 = FmI[0, 0] * rho0 + FmI[0, 1] * rho1 + FmI[0, 2] * rho2
-    s1 = FmI[1, 0] * rho0 + FmI[1, 1] * rho1 + FmI[1, 2] * rho2
-    s2 = FmI[2, 0] * rho0 + FmI[2, 1] * rho1 + FmI[2, 2] * rho2
-    q0 = R[0, 0] * s0 + R[0, 1] * s1 + R[0, 2] * s2
-    q1 = R[1, 0] * s0 + R[1, 1] * s1 + R[1, 2] * s2
-    q2 = R[2, 0] * s0 + R[2, 1] * s1 + R[2, 2] * s2
     w = P.w
     rc = S.rc
-    dr00 = h * X[0, 0] - M * w[0] * q0  # pivot displacement (used only when it is free)
-    dr01 = h * X[0, 1] - M * w[0] * q1
-    dr02 = h * X[0, 2] - M * w[0] * q2
-    for a in range(first, n + 1):
-        Y[a, 0] = (h * X[a, 0] - M * w[a] * q0) + rc[a, 0]
-        Y[a, 1] = (h * X[a, 1] - M * w[a] * q1) + rc[a, 1]
-        Y[a, 2] = (h * X[a, 2] - M * w[a] * q2) + rc[a, 2]
-        X[a, 0] = r[a, 0] + Y[a, 0]
-        X[a, 1] = r[a, 1] + Y[a, 1]
-        X[a, 2] = r[a, 2] + Y[a, 2]
+    s0 = s1 = s2 = q0 = q1 = q2 = 0.0
+    if coupled:
+        s0 = FmI[0, 0] * rho0 + FmI[0, 1] * rho1 + FmI[0, 2] * rho2
+        s1 = FmI[1, 0] * rho0 + FmI[1, 1] * rho1 + FmI[1, 2] * rho2
+        s2 = FmI[2, 0] * rho0 + FmI[2, 1] * rho1 + FmI[2, 2] * rho2
+        q0 = R[0, 0] * s0 + R[0, 1] * s1 + R[0, 2] * s2
+        q1 = R[1, 0] * s0 + R[1, 1] * s1 + R[1, 2] * s2
+        q2 = R[2, 0] * s0 + R[2, 1] * s1 + R[2, 2] * s2
+    dr00 = dr01 = dr02 = 0.0
+    if free and forced:  # pivot displacement, for the work of the pivot force
+        dr00 = h * X[0, 0] - M * w[0] * q0
+        dr01 = h * X[0, 1] - M * w[0] * q1
+        dr02 = h * X[0, 2] - M * w[0] * q2
+    if coupled:
+        for a in range(first, n + 1):
+            Y[a, 0] = (h * X[a, 0] - M * w[a] * q0) + rc[a, 0]
+            Y[a, 1] = (h * X[a, 1] - M * w[a] * q1) + rc[a, 1]
+            Y[a, 2] = (h * X[a, 2] - M * w[a] * q2) + rc[a, 2]
+            X[a, 0] = r[a, 0] + Y[a, 0]
+            X[a, 1] = r[a, 1] + Y[a, 1]
+            X[a, 2] = r[a, 2] + Y[a, 2]
+    else:
+        for a in range(first, n + 1):
+            Y[a, 0] = h * X[a, 0] + rc[a, 0]
+            Y[a, 1] = h * X[a, 1] + rc[a, 1]
+            Y[a, 2] = h * X[a, 2] + rc[a, 2]
+            X[a, 0] = r[a, 0] + Y[a, 0]
+            X[a, 1] = r[a, 1] + Y[a, 1]
+            X[a, 2] = r[a, 2] + Y[a, 2]
     for a in range(first):
         X[a, 0] = r[a, 0]
         X[a, 1] = r[a, 1]
@@ -201,26 +250,48 @@ def lgvi_substep(S, W, P, inputs, h):
     # Every term of dPi is O(h) and vanishes exactly where it should (e.g. a steady spin about
     # a principal axis), and R_{k+1} Pi_{k+1} = R_k u + ... uses the same F, so the Newton
     # round-off does not leak into pi3.
-    e0 = e0 - M * w[n] * s0  # R_k^T dr_{N+1} = R_k^T d - M s (F - I) rho_c
-    e1 = e1 - M * w[n] * s1
-    e2 = e2 - M * w[n] * s2
     Mh = M / h
-    u0 = Pi[0] + hh * t0 - Mh * (rho1 * e2 - rho2 * e1)
-    u1 = Pi[1] + hh * t1 - Mh * (rho2 * e0 - rho0 * e2)
-    u2 = Pi[2] + hh * t2 - Mh * (rho0 * e1 - rho1 * e0)
-    a0 = FmI[0, 0] * e0 + FmI[1, 0] * e1 + FmI[2, 0] * e2  # (F - I)^T R_k^T dr_{N+1}
-    a1 = FmI[0, 1] * e0 + FmI[1, 1] * e1 + FmI[2, 1] * e2
-    a2 = FmI[0, 2] * e0 + FmI[1, 2] * e1 + FmI[2, 2] * e2
+    if coupled:
+        e0 = e0 - M * w[n] * s0  # R_k^T dr_{N+1} = R_k^T d - M s (F - I) rho_c
+        e1 = e1 - M * w[n] * s1
+        e2 = e2 - M * w[n] * s2
+        u0 = Pi[0] + hh * t0 - Mh * (rho1 * e2 - rho2 * e1)
+        u1 = Pi[1] + hh * t1 - Mh * (rho2 * e0 - rho0 * e2)
+        u2 = Pi[2] + hh * t2 - Mh * (rho0 * e1 - rho1 * e0)
+    elif forced:
+        u0 = Pi[0] + hh * t0
+        u1 = Pi[1] + hh * t1
+        u2 = Pi[2] + hh * t2
+    else:
+        u0 = Pi[0]
+        u1 = Pi[1]
+        u2 = Pi[2]
     # right torque tau_{k+1} = tau_g(R_{k+1}) + tau + R_{k+1}^T T
-    m0 = tb0 + (Rn[0, 0] * ts0 + Rn[1, 0] * ts1 + Rn[2, 0] * ts2)  # tau^+ = tau + R_{k+1}^T T
-    m1 = tb1 + (Rn[0, 1] * ts0 + Rn[1, 1] * ts1 + Rn[2, 1] * ts2)
-    m2 = tb2 + (Rn[0, 2] * ts0 + Rn[1, 2] * ts1 + Rn[2, 2] * ts2)
-    n0 = Mg * (rho1 * Rn[2, 2] - rho2 * Rn[2, 1]) + m0
-    n1 = Mg * (rho2 * Rn[2, 0] - rho0 * Rn[2, 2]) + m1
-    n2 = Mg * (rho0 * Rn[2, 1] - rho1 * Rn[2, 0]) + m2
-    dP0 = hh * (t0 + n0) + (FmI[0, 0] * u0 + FmI[1, 0] * u1 + FmI[2, 0] * u2) + Mh * (rho1 * a2 - rho2 * a1)
-    dP1 = hh * (t1 + n1) + (FmI[0, 1] * u0 + FmI[1, 1] * u1 + FmI[2, 1] * u2) + Mh * (rho2 * a0 - rho0 * a2)
-    dP2 = hh * (t2 + n2) + (FmI[0, 2] * u0 + FmI[1, 2] * u1 + FmI[2, 2] * u2) + Mh * (rho0 * a1 - rho1 * a0)
+    m0 = m1 = m2 = n0 = n1 = n2 = 0.0
+    if forced:
+        m0 = tb0 + (Rn[0, 0] * ts0 + Rn[1, 0] * ts1 + Rn[2, 0] * ts2)  # tau^+ = tau + R_{k+1}^T T
+        m1 = tb1 + (Rn[0, 1] * ts0 + Rn[1, 1] * ts1 + Rn[2, 1] * ts2)
+        m2 = tb2 + (Rn[0, 2] * ts0 + Rn[1, 2] * ts1 + Rn[2, 2] * ts2)
+        n0 = m0
+        n1 = m1
+        n2 = m2
+    dP0 = FmI[0, 0] * u0 + FmI[1, 0] * u1 + FmI[2, 0] * u2  # (F - I)^T u
+    dP1 = FmI[0, 1] * u0 + FmI[1, 1] * u1 + FmI[2, 1] * u2
+    dP2 = FmI[0, 2] * u0 + FmI[1, 2] * u1 + FmI[2, 2] * u2
+    if coupled:
+        n0 = Mg * (rho1 * Rn[2, 2] - rho2 * Rn[2, 1]) + m0
+        n1 = Mg * (rho2 * Rn[2, 0] - rho0 * Rn[2, 2]) + m1
+        n2 = Mg * (rho0 * Rn[2, 1] - rho1 * Rn[2, 0]) + m2
+        a0 = FmI[0, 0] * e0 + FmI[1, 0] * e1 + FmI[2, 0] * e2  # (F - I)^T R_k^T dr_{N+1}
+        a1 = FmI[0, 1] * e0 + FmI[1, 1] * e1 + FmI[2, 1] * e2
+        a2 = FmI[0, 2] * e0 + FmI[1, 2] * e1 + FmI[2, 2] * e2
+        dP0 = hh * (t0 + n0) + dP0 + Mh * (rho1 * a2 - rho2 * a1)
+        dP1 = hh * (t1 + n1) + dP1 + Mh * (rho2 * a0 - rho0 * a2)
+        dP2 = hh * (t2 + n2) + dP2 + Mh * (rho0 * a1 - rho1 * a0)
+    elif forced:
+        dP0 = hh * (t0 + n0) + dP0
+        dP1 = hh * (t1 + n1) + dP1
+        dP2 = hh * (t2 + n2) + dP2
     if not np.isfinite(dP0 + dP1 + dP2):
         return NON_FINITE, iters
     # -- commit -------------------------------------------------------------------------------
@@ -229,35 +300,30 @@ def lgvi_substep(S, W, P, inputs, h):
     # e3 . [h/2 (r_0k + r_0k+1) x u_p + h/2 (R_k tau^- + R_{k+1} tau^+)], linear impulses.
     acc = S.acc
     accc = S.accc
-    ff = c0 * c0 + c1 * c1 + c2 * c2
-    th = 2.0 if ff == 0.0 else 2.0 * math.atan(math.sqrt(ff)) / math.sqrt(ff)
-    work = 0.5 * th * ((l0 + m0) * c0 + (l1 + m1) * c1 + (l2 + m2) * c2)
-    ang = hh * ((R[2, 0] + Rn[2, 0]) * tb0 + (R[2, 1] + Rn[2, 1]) * tb1 + (R[2, 2] + Rn[2, 2]) * tb2) + h * ts2
-    if first == 0:
-        work += up0 * dr00 + up1 * dr01 + up2 * dr02
-        ang += hh * ((2.0 * r[0, 0] + dr00) * up1 - (2.0 * r[0, 1] + dr01) * up0)
-        kahan_add(acc, accc, 5, h * up0)
-        kahan_add(acc, accc, 6, h * up1)
-        kahan_add(acc, accc, 7, h * up2)
-    kahan_add(acc, accc, 0, work)
-    kahan_add(acc, accc, 1, ang)
+    if forced:
+        ff = c0 * c0 + c1 * c1 + c2 * c2
+        th = 2.0 if ff == 0.0 else 2.0 * math.atan(math.sqrt(ff)) / math.sqrt(ff)
+        work = 0.5 * th * ((l0 + m0) * c0 + (l1 + m1) * c1 + (l2 + m2) * c2)
+        ang = hh * ((R[2, 0] + Rn[2, 0]) * tb0 + (R[2, 1] + Rn[2, 1]) * tb1 + (R[2, 2] + Rn[2, 2]) * tb2) + h * ts2
+        if free:
+            work += up0 * dr00 + up1 * dr01 + up2 * dr02
+            ang += hh * ((2.0 * r[0, 0] + dr00) * up1 - (2.0 * r[0, 1] + dr01) * up0)
+            kahan_add(acc, accc, 5, h * up0)
+            kahan_add(acc, accc, 6, h * up1)
+            kahan_add(acc, accc, 7, h * up2)
+        kahan_add(acc, accc, 0, work)
+        kahan_add(acc, accc, 1, ang)
     kahan_add(acc, accc, 4, h * P.g * (M + P.Mp + n * P.m))
     pc = S.pc
-    for a in range(first, n + 1):
+    start = first
+    if free and forced:  # the pivot row: its impulse h/2 (f_k + f_k+1) + h u_p in one compensated sum
+        commit_node(r, p, rc, pc, f, fn, X, Y, 0, 0, h * up0, hh)
+        commit_node(r, p, rc, pc, f, fn, X, Y, 0, 1, h * up1, hh)
+        commit_node(r, p, rc, pc, f, fn, X, Y, 0, 2, h * up2, hh)
+        start = 1
+    for a in range(start, n + 1):
         for i in range(3):
-            x = X[a, i]
-            rc[a, i] = (r[a, i] - x) + Y[a, i]
-            r[a, i] = x
-            dp = hh * (f[a, i] + fn[a, i]) + pc[a, i]
-            p0 = p[a, i]
-            pn = p0 + dp
-            pc[a, i] = (p0 - pn) + dp
-            p[a, i] = pn
-            f[a, i] = fn[a, i]
-    if first == 0:  # the pivot force's impulse h u_p, compensated like the rest of p
-        kahan_add(p[0], pc[0], 0, h * up0)
-        kahan_add(p[0], pc[0], 1, h * up1)
-        kahan_add(p[0], pc[0], 2, h * up2)
+            commit_node(r, p, rc, pc, f, fn, X, Y, a, i, 0.0, hh)
     for a in range(first):
         f[a, 0] = fn[a, 0]
         f[a, 1] = fn[a, 1]
@@ -309,20 +375,24 @@ def restore_state(S, buf):
 
 
 @kernel(inline="always")
-def lgvi_step(S, W, P, inputs):
-    """One step of length ``P.h``: the LGVI itself (``P.order == 2``) or Yoshida's composition
-    of three LGVI steps (``P.order == 4``; a failure in any substep restores the step's start,
-    and the forces ``S.f`` are then recomputed by the caller's next call).
+def lgvi_step(S, W, P, inputs, free, forced, coupled):
+    """One step of length ``P.h``: the LGVI itself (one weight ``P.gammas == [1]``) or the
+    symmetric composition of LGVI substeps of lengths ``gamma_i h`` (esp_gym/compositions.py).
+    A failure in any substep restores the step's start (the forces ``S.f`` are then recomputed
+    by the caller's next call). Flags as in :func:`lgvi_substep`.
     Returns ``(status, newton_iterations)``."""
-    if P.order == 2:
-        return lgvi_substep(S, W, P, inputs, P.h)
-    save_state(S, W.backup)
+    gammas = P.gammas
+    composed = gammas.shape[0] > 1
+    if composed:
+        save_state(S, W.backup)
     total = 0
-    for gamma in (YOSHIDA_GAMMA_1, YOSHIDA_GAMMA_2, YOSHIDA_GAMMA_1):
-        status, iters = lgvi_substep(S, W, P, inputs, gamma * P.h)
+    for i in range(gammas.shape[0]):  # one substep site: the substep is inlined once
+        # gamma = 1.0 for the plain LGVI, and 1.0 * h == h exactly
+        status, iters = lgvi_substep(S, W, P, inputs, gammas[i] * P.h, free, forced, coupled)
         total += iters
         if status != OK:
-            restore_state(S, W.backup)
+            if composed:
+                restore_state(S, W.backup)
             return status, total
     return OK, total
 
@@ -335,8 +405,8 @@ def _finish(stats, status, steps, total, most):
     stats[3] = most
 
 
-@kernel
-def lgvi_advance(S, W, P, inputs, nsteps, stats):
+@kernel(inline="always")
+def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled):
     """Take up to ``nsteps`` steps with constant ``inputs``; stop at the first failure with
     the last good state. ``stats`` (int64, 4): status, steps taken, total Newton iterations,
     max per step.
@@ -345,7 +415,7 @@ def lgvi_advance(S, W, P, inputs, nsteps, stats):
     total = 0
     most = 0
     for k in range(nsteps):
-        status, iters = lgvi_step(S, W, P, inputs)
+        status, iters = lgvi_step(S, W, P, inputs, free, forced, coupled)
         total += iters
         most = max(most, iters)
         if status != OK:
@@ -360,11 +430,11 @@ def lgvi_advance(S, W, P, inputs, nsteps, stats):
 Snapshots = namedtuple("Snapshots", "r R omega v diag strain acc step_diag")
 
 
-@kernel
-def lgvi_record(S, W, P, inputs, every, D, snap, stats):
+@kernel(inline="always")
+def record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled):
     """Take ``len(snap.r) * every`` steps, storing a snapshot after every ``every`` steps
     (``D`` is the diagnostics scratch, see kernels/diagnostics.py). Stops at the first failure;
-    ``stats`` as in :func:`lgvi_advance` (steps counts steps taken in this call).
+    ``stats`` as in :func:`advance_loop` (steps counts steps taken in this call).
     """
     n = S.r.shape[0] - 1
     per_step = snap.step_diag.shape[0] > 0
@@ -374,7 +444,7 @@ def lgvi_record(S, W, P, inputs, every, D, snap, stats):
     k = 0
     for j in range(snap.r.shape[0]):
         for i in range(every):
-            status, iters = lgvi_step(S, W, P, inputs)
+            status, iters = lgvi_step(S, W, P, inputs, free, forced, coupled)
             total += iters
             most = max(most, iters)
             if status != OK:
@@ -387,13 +457,61 @@ def lgvi_record(S, W, P, inputs, every, D, snap, stats):
                 snap.step_diag[k, 2] = D.out[6]
             k += 1
         diagnostics(S, P, D)
-        snap.r[j] = S.r
-        snap.R[j] = S.R
-        snap.omega[j] = D.omega
-        snap.v[j, 0] = D.V[n, 0]
-        snap.v[j, 1] = D.V[n, 1]
-        snap.v[j, 2] = D.V[n, 2]
-        snap.diag[j] = D.out
-        snap.strain[j] = D.strain
-        snap.acc[j] = S.acc
+        # element loops, not slice assignment: the kernels run without numba's runtime (NRT)
+        for a in range(n + 1):
+            for i in range(3):
+                snap.r[j, a, i] = S.r[a, i]
+        for i in range(3):
+            for c in range(3):
+                snap.R[j, i, c] = S.R[i, c]
+            snap.omega[j, i] = D.omega[i]
+            snap.v[j, i] = D.V[n, i]
+        for i in range(D.out.shape[0]):
+            snap.diag[j, i] = D.out[i]
+        for i in range(n):
+            snap.strain[j, i] = D.strain[i]
+        for i in range(S.acc.shape[0]):
+            snap.acc[j, i] = S.acc[i]
     _finish(stats, OK, k, total, most)
+
+
+@kernel
+def lgvi_advance(S, W, P, inputs, nsteps, stats):
+    """The general path: :func:`advance_loop` with every term in, the pivot read from ``P``."""
+    advance_loop(S, W, P, inputs, nsteps, stats, P.first == 0, True, True)
+
+
+@kernel
+def lgvi_record(S, W, P, inputs, every, D, snap, stats):
+    """The general path of :func:`record_loop`."""
+    record_loop(S, W, P, inputs, every, D, snap, stats, P.first == 0, True, True)
+
+
+def _compile_specialised(free: bool, forced: bool, coupled: bool):
+    """``(advance, record)`` compiled with the flags as constants (closure variables are
+    compile-time constants in numba, and its cache keys closures by their values)."""
+
+    @kernel
+    def advance(S, W, P, inputs, nsteps, stats):
+        advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled)
+
+    @kernel
+    def record(S, W, P, inputs, every, D, snap, stats):
+        record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled)
+
+    return advance, record
+
+
+_SPECIALISED = {}
+
+
+def specialised_kernels(free: bool, forced: bool, coupled: bool):
+    """``(advance, record)`` with the signatures of :func:`lgvi_advance`/:func:`lgvi_record`,
+    compiled for one kind of scene: ``free`` pivot or fixed, inputs ``forced`` or all zero,
+    body ``coupled`` to the string (rho_c != 0) or not. What a flag turns off is not computed
+    at all; the results are those of the general path (tests/test_specialised.py).
+    Compiled on first use (and cached on disk); created once per process."""
+    key = (bool(free), bool(forced), bool(coupled))
+    if key not in _SPECIALISED:
+        _SPECIALISED[key] = _compile_specialised(*key)
+    return _SPECIALISED[key]

@@ -108,7 +108,7 @@ def env_step_one(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, resul
     most = 0
     k = 0
     while k < nsub:
-        status, iters = lgvi_step(S, W, P, inputs)
+        status, iters = lgvi_step(S, W, P, inputs, P.first == 0, True, True)
         total += iters
         most = max(most, iters)
         if status != OK:
