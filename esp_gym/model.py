@@ -231,7 +231,7 @@ class Simulator:
             r=st.r, p=st.p, R=st.R, Pi=st.Pi, rc=z((n + 1, 3)), pc=z((n + 1, 3)), Rc=z((3, 3)),
             Pic=z(3), f=z((n + 1, 3)), acc=z(8), accc=z(8))
         self._step = 0
-        self._work = Work(fn=z((n + 1, 3)), B=z((n + 1, 3)), X=z((n + 1, 3)), Y=z((n + 1, 3)),
+        self._work = Work(fn=z((n + 1, 3)), X=z((n + 1, 3)), Y=z((n + 1, 3)),
                           FmI=z((3, 3)), RF=z((3, 3)), Rn=z((3, 3)), jac=z((3, 3)),
                           backup=z(state_size(self._arrays)))
         self._diag = DiagWork(V=z((n + 1, 3)), strain=z(n), omega=z(3), out=z(len(DIAG_NAMES)))

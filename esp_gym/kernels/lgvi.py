@@ -44,7 +44,7 @@ import numpy as np
 from ._jit import kernel
 from .diagnostics import diagnostics
 from .so3 import cayley_minus_identity, cayley_newton
-from .string import nodal_forces, tridiag_solve
+from .string import nodal_forces, string_solve
 
 #: Scene constants of the stepper, all SI. ``w`` and the Thomas factors are indexed by node;
 #: ``first`` is the first unknown node (1: fixed pivot, 0: free pivot of mass ``Mp``);
@@ -62,7 +62,7 @@ StateArrays = namedtuple("StateArrays", "r p R Pi rc pc Rc Pic f acc accc")
 
 #: Scratch arrays of one simulator (allocated once in esp_gym.model); ``backup`` holds a copy
 #: of the state during a composed step, so a failure can restore the step's start.
-Work = namedtuple("Work", "fn B X Y FmI RF Rn jac backup")
+Work = namedtuple("Work", "fn X Y FmI RF Rn jac backup")
 
 #: Kernel status codes (kept in sync with esp_gym.model.STATUS_MESSAGES).
 OK = 0
@@ -119,7 +119,6 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled):
     R = S.R
     Pi = S.Pi
     f = S.f
-    B = W.B
     X = W.X
     Y = W.Y
     fn = W.fn
@@ -143,15 +142,7 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled):
         ts1 = inputs[7]
         ts2 = inputs[8]
     # (1): right-hand side and the string solve with F_k = I
-    for a in range(first, n + 1):
-        B[a, 0] = p[a, 0] + hh * f[a, 0]
-        B[a, 1] = p[a, 1] + hh * f[a, 1]
-        B[a, 2] = p[a, 2] + hh * f[a, 2]
-    if free and forced:
-        B[0, 0] += hh * up0
-        B[0, 1] += hh * up1
-        B[0, 2] += hh * up2
-    tridiag_solve(P.inv, P.cp, P.off, first, B, X)
+    string_solve(P.inv, P.cp, first, p, f, hh, inputs, free and forced, X)
     d0 = h * X[n, 0]
     d1 = h * X[n, 1]
     d2 = h * X[n, 2]

@@ -23,12 +23,12 @@ def nodal_forces(r, kappa, u, m, M, Mp, g, slack, f):
     Returns the sum of all components (non-finite iff any entry is).
     """
     n = r.shape[0] - 1
-    for a in range(n + 1):
-        f[a, 0] = 0.0
-        f[a, 1] = 0.0
-        f[a, 2] = m * g
-    f[0, 2] = (0.5 * m + Mp) * g
-    f[n, 2] = (0.5 * m + M) * g
+    # one pass, each node written once: f_a = (gravity_a - t_{a-1}) + t_a with the previous
+    # element's tension t carried in registers: the same operations in the same order as
+    # accumulating element by element into a zeroed array, at half the memory traffic
+    t0 = 0.0
+    t1 = 0.0
+    t2 = 0.0
     total = 0.0
     for a in range(n):
         x0 = r[a + 1, 0] - r[a, 0]
@@ -37,16 +37,22 @@ def nodal_forces(r, kappa, u, m, M, Mp, g, slack, f):
         c = kappa * (1.0 - u / math.sqrt(x0 * x0 + x1 * x1 + x2 * x2))
         if slack and c < 0.0:
             c = 0.0
+        if a == 0:
+            f[0, 0] = 0.0 + c * x0
+            f[0, 1] = 0.0 + c * x1
+            f[0, 2] = (0.5 * m + Mp) * g + c * x2
+        else:
+            f[a, 0] = (0.0 - t0) + c * x0
+            f[a, 1] = (0.0 - t1) + c * x1
+            f[a, 2] = (m * g - t2) + c * x2
         t0 = c * x0
         t1 = c * x1
         t2 = c * x2
-        f[a, 0] += t0
-        f[a, 1] += t1
-        f[a, 2] += t2
-        f[a + 1, 0] -= t0
-        f[a + 1, 1] -= t1
-        f[a + 1, 2] -= t2
         total += t0 + t1 + t2
+    gz = (0.5 * m + M) * g
+    f[n, 0] = 0.0 - t0
+    f[n, 1] = 0.0 - t1
+    f[n, 2] = gz - t2
     return total + f[n, 0] + f[n, 1] + f[n, 2]
 
 
@@ -82,24 +88,60 @@ def tridiag_solve(inv, cp, off, first, b, x):
     ``off`` its constant off-diagonal. Rows below ``first`` are not touched.
     """
     n = b.shape[0] - 1
-    y0 = b[first, 0] * inv[first]
-    y1 = b[first, 1] * inv[first]
-    y2 = b[first, 2] * inv[first]
-    x[first, 0] = y0
-    x[first, 1] = y1
-    x[first, 2] = y2
-    for a in range(first + 1, n + 1):
+    y0 = 0.0
+    y1 = 0.0
+    y2 = 0.0
+    for a in range(first, n + 1):
         # (b_a - off y_{a-1}) inv_a with off inv_a = cp_a: one multiply-add on the recurrence
+        # (cp_first = off inv_first multiplies y = 0 there)
         y0 = b[a, 0] * inv[a] - cp[a] * y0
         y1 = b[a, 1] * inv[a] - cp[a] * y1
         y2 = b[a, 2] * inv[a] - cp[a] * y2
         x[a, 0] = y0
         x[a, 1] = y1
         x[a, 2] = y2
-    for a in range(n - 1, first - 1, -1):
-        x[a, 0] -= cp[a] * x[a + 1, 0]
-        x[a, 1] -= cp[a] * x[a + 1, 1]
-        x[a, 2] -= cp[a] * x[a + 1, 2]
+    # back substitution with x_{a+1} carried in registers
+    for k in range(n - first):
+        a = n - 1 - k
+        y0 = x[a, 0] - cp[a] * y0
+        y1 = x[a, 1] - cp[a] * y1
+        y2 = x[a, 2] - cp[a] * y2
+        x[a, 0] = y0
+        x[a, 1] = y1
+        x[a, 2] = y2
+
+
+@kernel(inline="always")
+def string_solve(inv, cp, first, p, f, hh, pivot_force, push_pivot, x):
+    """:func:`tridiag_solve` of ``M x = p + hh f`` (the LGVI's string right-hand side) with the
+    right-hand side formed on the fly, plus ``hh pivot_force`` (3,) at row 0 if ``push_pivot``.
+    Same operations in the same order as forming b first (bit-identical), one pass less."""
+    n = p.shape[0] - 1
+    y0 = 0.0
+    y1 = 0.0
+    y2 = 0.0
+    for a in range(first, n + 1):
+        b0 = p[a, 0] + hh * f[a, 0]
+        b1 = p[a, 1] + hh * f[a, 1]
+        b2 = p[a, 2] + hh * f[a, 2]
+        if push_pivot and a == 0:
+            b0 += hh * pivot_force[0]
+            b1 += hh * pivot_force[1]
+            b2 += hh * pivot_force[2]
+        y0 = b0 * inv[a] - cp[a] * y0
+        y1 = b1 * inv[a] - cp[a] * y1
+        y2 = b2 * inv[a] - cp[a] * y2
+        x[a, 0] = y0
+        x[a, 1] = y1
+        x[a, 2] = y2
+    for k in range(n - first):
+        a = n - 1 - k
+        y0 = x[a, 0] - cp[a] * y0
+        y1 = x[a, 1] - cp[a] * y1
+        y2 = x[a, 2] - cp[a] * y2
+        x[a, 0] = y0
+        x[a, 1] = y1
+        x[a, 2] = y2
 
 
 def tridiag_factor(diag, off):

@@ -138,7 +138,7 @@ def env_reset_observe(S, P, D, target, tp, action, obs, terms):
 
 @kernel(parallel=True)
 def env_step_batch(r, p, R, Pi, rc, pc, Rc, Pic, f, acc, accc,
-                   fn, B, X, Y, FmI, RF, Rn, jac, backup, V, strain, omega, dout,
+                   fn, X, Y, FmI, RF, Rn, jac, backup, V, strain, omega, dout,
                    P, inputs, active, nsub, target, tp, action, obs, terms, result):
     """:func:`env_step_one` for every environment b with ``active[b]``, in parallel.
 
@@ -148,6 +148,6 @@ def env_step_batch(r, p, R, Pi, rc, pc, Rc, Pic, f, acc, accc,
     for b in prange(r.shape[0]):
         if active[b]:
             S = StateArrays(r[b], p[b], R[b], Pi[b], rc[b], pc[b], Rc[b], Pic[b], f[b], acc[b], accc[b])
-            W = Work(fn[b], B[b], X[b], Y[b], FmI[b], RF[b], Rn[b], jac[b], backup[b])
+            W = Work(fn[b], X[b], Y[b], FmI[b], RF[b], Rn[b], jac[b], backup[b])
             D = DiagWork(V[b], strain[b], omega[b], dout[b])
             env_step_one(S, W, P, D, inputs[b], nsub, target[b], tp, action[b], obs[b], terms[b], result[b])
