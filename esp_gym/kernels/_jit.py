@@ -16,7 +16,10 @@ import os
 from pathlib import Path
 
 import numba
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 _HERE = Path(__file__).resolve().parent
 _DIGEST = hashlib.sha256(b"".join(p.read_bytes() for p in sorted(_HERE.glob("*.py")))).hexdigest()[:16]
@@ -57,3 +60,29 @@ def kernel(fn=None, **extra):
             numba.config.CACHE_DIR = previous
 
     return compile_ if fn is None else compile_(fn)
+
+
+@intrinsic
+def _fma_intrinsic(typingctx, a, b, c):
+    """LLVM's ``llvm.fma.f64``: ``a * b + c`` with one rounding."""
+    if not all(isinstance(t, types.Float) for t in (a, b, c)):
+        return None
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        x, y, z = (context.cast(builder, v, t, types.float64) for v, t in zip(args, signature.args))
+        d = ir.DoubleType()
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(d, [d, d, d]), "llvm.fma.f64")
+        return builder.call(fn, [x, y, z])
+
+    return sig, codegen
+
+
+@kernel(inline="always")
+def fma(a, b, c):
+    """``a * b + c`` rounded once (IEEE fused multiply-add; correctly rounded on every machine:
+    a hardware instruction where there is one, else libm's fma). Used on the latency-bound
+    recurrences (the Thomas sweeps), where it halves the dependency chain. fastmath's
+    ``contract`` would do this everywhere, but where it fuses depends on the expression's shape,
+    so the specialised kernels would no longer equal the general one bit for bit."""
+    return _fma_intrinsic(a, b, c)

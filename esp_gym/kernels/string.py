@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from ._jit import kernel
+from ._jit import fma, kernel
 
 
 @kernel
@@ -92,20 +92,21 @@ def tridiag_solve(inv, cp, off, first, b, x):
     y1 = 0.0
     y2 = 0.0
     for a in range(first, n + 1):
-        # (b_a - off y_{a-1}) inv_a with off inv_a = cp_a: one multiply-add on the recurrence
+        # (b_a - off y_{a-1}) inv_a with off inv_a = cp_a: one fused multiply-add on the
+        # recurrence (the chain of dependent operations is what limits this loop)
         # (cp_first = off inv_first multiplies y = 0 there)
-        y0 = b[a, 0] * inv[a] - cp[a] * y0
-        y1 = b[a, 1] * inv[a] - cp[a] * y1
-        y2 = b[a, 2] * inv[a] - cp[a] * y2
+        y0 = fma(-cp[a], y0, b[a, 0] * inv[a])
+        y1 = fma(-cp[a], y1, b[a, 1] * inv[a])
+        y2 = fma(-cp[a], y2, b[a, 2] * inv[a])
         x[a, 0] = y0
         x[a, 1] = y1
         x[a, 2] = y2
     # back substitution with x_{a+1} carried in registers
     for k in range(n - first):
         a = n - 1 - k
-        y0 = x[a, 0] - cp[a] * y0
-        y1 = x[a, 1] - cp[a] * y1
-        y2 = x[a, 2] - cp[a] * y2
+        y0 = fma(-cp[a], y0, x[a, 0])
+        y1 = fma(-cp[a], y1, x[a, 1])
+        y2 = fma(-cp[a], y2, x[a, 2])
         x[a, 0] = y0
         x[a, 1] = y1
         x[a, 2] = y2
@@ -128,17 +129,17 @@ def string_solve(inv, cp, first, p, f, hh, pivot_force, push_pivot, x):
             b0 += hh * pivot_force[0]
             b1 += hh * pivot_force[1]
             b2 += hh * pivot_force[2]
-        y0 = b0 * inv[a] - cp[a] * y0
-        y1 = b1 * inv[a] - cp[a] * y1
-        y2 = b2 * inv[a] - cp[a] * y2
+        y0 = fma(-cp[a], y0, b0 * inv[a])
+        y1 = fma(-cp[a], y1, b1 * inv[a])
+        y2 = fma(-cp[a], y2, b2 * inv[a])
         x[a, 0] = y0
         x[a, 1] = y1
         x[a, 2] = y2
     for k in range(n - first):
         a = n - 1 - k
-        y0 = x[a, 0] - cp[a] * y0
-        y1 = x[a, 1] - cp[a] * y1
-        y2 = x[a, 2] - cp[a] * y2
+        y0 = fma(-cp[a], y0, x[a, 0])
+        y1 = fma(-cp[a], y1, x[a, 1])
+        y2 = fma(-cp[a], y2, x[a, 2])
         x[a, 0] = y0
         x[a, 1] = y1
         x[a, 2] = y2
