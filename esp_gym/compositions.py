@@ -3,7 +3,7 @@
 The LGVI is a symmetric one-step map Phi_h of order 2. A composition
 ``Phi_{gamma_s h} o ... o Phi_{gamma_1 h}`` with palindromic weights (gamma_i = gamma_{s+1-i})
 summing to 1 is again symmetric and symplectic; the weights below solve the order conditions
-for order 4 or 6 (Hairer, Lubich, Wanner, *Geometric Numerical Integration*, Sec. V.3).
+for order 4, 6 or 8 (Hairer, Lubich, Wanner, *Geometric Numerical Integration*, Sec. V.3).
 Each substep is a full LGVI step, so the Lie group structure (R_{k+1} = R_k F_k), pi3 and the
 energy behaviour carry over.
 
@@ -11,7 +11,8 @@ Two numbers decide what a composition costs: ``stages`` (LGVI substeps per step)
 ``largest_substep`` (max |gamma_i|): the explicit string update is stable while
 ``largest_substep * h`` is below the LGVI's bound, so the stable h is that bound divided by it.
 Triple jump has a large negative middle weight (-1.70), hence a small stable h and a large
-error constant; Suzuki's five-stage and Kahan-Li's nine-stage schemes keep every weight below 1.
+error constant; Suzuki's five-stage and Kahan-Li's nine- and seventeen-stage schemes keep every
+weight below 1.
 The measured orders are asserted in tests/test_variants.py.
 """
 from __future__ import annotations
@@ -61,9 +62,15 @@ COMPOSITIONS = {
                                                  -0.70624617255763935980996482, 0.08221359629355080023149045,
                                                  0.79854399093482996339895035)),
                     "Kahan & Li 1997, s9odr6a"),
+        Composition("kahan_li17", 8, _palindrome((0.13020248308889008087881763, 0.56116298177510838456196441,
+                                                  -0.38947496264484728640807860, 0.15884190655515560089621075,
+                                                  -0.39590389413323757733623154, 0.18453964097831570709183254,
+                                                  0.25837438768632204729397911, 0.29501172360931029887096624,
+                                                  -0.60550853383003451169892108)),
+                    "Kahan & Li 1997, s17odr8a"),
     )
 }
 
 #: The composition each order uses unless the scene names one (the cheapest per accuracy in
 #: benchmarks/work_precision.py).
-DEFAULT_FOR_ORDER = {2: "lgvi", 4: "suzuki5", 6: "kahan_li9"}
+DEFAULT_FOR_ORDER = {2: "lgvi", 4: "suzuki5", 6: "kahan_li9", 8: "kahan_li17"}

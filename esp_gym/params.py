@@ -219,13 +219,13 @@ class PivotParams(_Frozen):
 
 class SolverParams(_Frozen):
     """Newton on the Cayley vector (relative stopping tolerance, iteration cap) and the time
-    stepper: ``order`` 2 is the paper's LGVI; 4 and 6 compose LGVI substeps symmetrically
-    (esp_gym/compositions.py), by default Suzuki's 5-stage (order 4) and Kahan-Li's 9-stage
-    (order 6) schemes; ``composition`` names another scheme of that order (``triple_jump``)."""
+    stepper: ``order`` 2 is the paper's LGVI; 4, 6 and 8 compose LGVI substeps symmetrically
+    (esp_gym/compositions.py), by default Suzuki's 5-stage (order 4) and Kahan-Li's 9- and
+    17-stage (orders 6, 8) schemes; ``composition`` names another scheme of that order (``triple_jump``)."""
 
     newton_tol: float = Field(1e-14, gt=0, le=1e-10)
     newton_max_iter: int = Field(25, ge=2, le=200)
-    order: Literal[2, 4, 6] = 2
+    order: Literal[2, 4, 6, 8] = 2
     composition: Optional[Literal[tuple(COMPOSITIONS)]] = Field(
         None, description="composition scheme (default: the order's, see esp_gym/compositions.py)")
 
