@@ -109,6 +109,62 @@ def paper_timing(steps: int, repeats: int) -> dict:
             "recorded_s": wall, "recorded_us_per_step": wall / steps * 1e6}
 
 
+#: Scenes of the specialisation table: (label, paper_example overrides, step inputs).
+SPECIALISED_CASES = (
+    ("fixed pivot, no inputs", {}, {}),
+    ("fixed pivot, torques", {}, {"body_torque": [0.0, 0.01, 0.0], "spatial_torque": [0.0, 0.0, 0.01]}),
+    ("free pivot, no inputs", {"pivot": {"kind": "free", "mass": 0.3}}, {}),
+    ("free pivot, pushed", {"pivot": {"kind": "free", "mass": 0.3}}, {"pivot_force": [0.1, 0.0, -3.0]}),
+    ("rho_c = 0, no inputs", {"rho_c": [0.0, 0.0, 0.0]}, {}),
+    ("order 4 (Suzuki), no inputs", {"solver": {"order": 4}}, {}),
+)
+
+
+def specialisation_timing(steps: int, repeats: int) -> list:
+    """us/step of the general kernel and of the kernel specialised for each case (medians of
+    ``repeats`` alternating runs, so both see the same machine state)."""
+    import esp_gym
+
+    rows = []
+    for label, overrides, inputs in SPECIALISED_CASES:
+        scene = esp_gym.load_scene("paper_example", **overrides)
+        runs = {True: [], False: []}
+        for spec in (True, False):
+            esp_gym.Simulator(scene, specialise=spec).step(2, **inputs)  # compile
+        for _ in range(repeats):
+            for spec in (True, False):
+                sim = esp_gym.Simulator(scene, specialise=spec)
+                start = time.perf_counter()
+                sim.step(steps, **inputs)
+                runs[spec].append((time.perf_counter() - start) / steps * 1e6)
+        general, special = float(np.median(runs[False])), float(np.median(runs[True]))
+        rows.append({"case": label, "general_us": general, "specialised_us": special, "speedup": general / special})
+    return rows
+
+
+def diagnostics_timing(steps: int, repeats: int) -> dict:
+    """us/step of the paper example with diagnostics off (plain stepping), with snapshots every
+    100 steps, and with energy, pi3 and orthogonality after every step as well."""
+    import esp_gym
+
+    scene = esp_gym.load_scene("paper_example")
+    modes = {"off (step)": lambda sim: sim.step(steps),
+             "snapshots every 100 steps": lambda sim: sim.run(steps * scene.h, record_every=100),
+             "every step": lambda sim: sim.run(steps * scene.h, record_every=100, every_step=True)}
+    for fn in modes.values():
+        fn(esp_gym.Simulator(scene))  # compile
+    out = {}
+    for name, fn in modes.items():
+        walls = []
+        for _ in range(repeats):
+            sim = esp_gym.Simulator(scene)
+            start = time.perf_counter()
+            fn(sim)
+            walls.append((time.perf_counter() - start) / steps * 1e6)
+        out[name] = float(np.median(walls))
+    return out
+
+
 def plot(results: dict, path: Path) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -202,9 +258,21 @@ def main(argv=None) -> int:
     print(f"  recorded run:   {paper['recorded_s'] * 1e3:8.2f} ms ({paper['recorded_us_per_step']:.3f} us/step; "
           "snapshots every 100 steps + per-step energy, pi3, orthogonality)")
 
+    spec = specialisation_timing(steps, repeats)
+    print(f"\nspecialised kernels, paper_example (N = 20, h = 1e-4 s), median of {repeats} x {steps} steps")
+    print(f"{'scene':30} {'general [us]':>13} {'specialised [us]':>17} {'speed-up':>9}")
+    for r in spec:
+        print(f"{r['case']:30} {r['general_us']:13.3f} {r['specialised_us']:17.3f} {r['speedup']:9.2f}")
+    diag = diagnostics_timing(steps, repeats)
+    print("\ndiagnostics, paper_example: us/step")
+    for name, us in diag.items():
+        print(f"  {name:28} {us:7.3f}  ({us / diag['off (step)']:.2f}x)")
+
     import numba
 
     results = {
+        "specialised": spec,
+        "diagnostics_us_per_step": diag,
         "quick": args.quick,
         "step_cost": rows,
         "startup": {"cold": cold, "cached": cached},

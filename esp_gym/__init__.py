@@ -8,7 +8,8 @@ from gymnasium.envs.registration import register, registry
 
 from .params import Scene, SceneError, available_scenes, load_scene
 
-__all__ = ["Scene", "SceneError", "Simulator", "SimulationError", "Trajectory", "available_scenes", "load_scene"]
+__all__ = ["Scene", "SceneError", "Simulator", "SimulationError", "StepChoice", "Trajectory", "available_scenes", "choose_h",
+           "load_scene"]
 __version__ = "0.1.0"
 
 ENV_ID = "ElasticStringPendulum-v0"
@@ -27,4 +28,8 @@ def __getattr__(name):
         from . import model
 
         return getattr(model, name)
+    if name in ("choose_h", "StepChoice"):
+        from . import stepsize
+
+        return getattr(stepsize, name)
     raise AttributeError(f"module 'esp_gym' has no attribute {name!r}")

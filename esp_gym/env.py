@@ -21,6 +21,7 @@ ACTION_SIZE = 6
 TERMINATION_REASONS = {
     1: "physics_failure: " + STATUS_MESSAGES[1],
     2: "physics_failure: " + STATUS_MESSAGES[2],
+    5: "physics_failure: " + STATUS_MESSAGES[5],
     TERM_OVERSTRETCH: "string_overstretched",
     TERM_WORKSPACE: "left_workspace",
 }

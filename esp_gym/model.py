@@ -24,6 +24,7 @@ from .params import Scene
 STATUS_MESSAGES = {
     1: "Newton's method on the Cayley vector did not converge",
     2: "the state became non-finite (inf or NaN)",
+    5: "an element stretched beyond solver.max_stretch times its rest length (the step is blowing up)",
 }
 
 
@@ -109,6 +110,7 @@ def build_params(scene: Scene) -> LGVIParams:
         slack=scene.string.law == "slack",
         tol=float(scene.solver.newton_tol), max_iter=int(scene.solver.newton_max_iter),
         gammas=scene.solver.scheme.weights(),
+        max_len2=float((scene.solver.max_stretch * scene.string.u) ** 2),
     )
 
 

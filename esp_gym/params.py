@@ -226,6 +226,10 @@ class SolverParams(_Frozen):
     newton_tol: float = Field(1e-14, gt=0, le=1e-10)
     newton_max_iter: int = Field(25, ge=2, le=200)
     order: Literal[2, 4, 6, 8] = 2
+    max_stretch: float = Field(
+        10.0, gt=1.0, description="blow-up guard: a step that stretches an element beyond this many rest "
+                                  "lengths stops with an error (an unstable step grows geometrically; this "
+                                  "catches it while the state is still finite)")
     composition: Optional[Literal[tuple(COMPOSITIONS)]] = Field(
         None, description="composition scheme (default: the order's, see esp_gym/compositions.py)")
 

@@ -67,6 +67,27 @@ def test_unstable_step_raises_and_keeps_last_good_state():
     assert np.isfinite(sim.diagnostics()["energy"])
 
 
+@pytest.mark.parametrize("factor", [1.03, 1.5])
+def test_blow_up_guard_stops_an_unstable_run_while_it_is_finite(factor):
+    """Just above the bound the instability grows slowly; the guard (an element past
+    solver.max_stretch = 10 rest lengths) stops it with its own status while every element is
+    still far from overflow; with the guard relaxed to 1e6 the same run goes on for more steps
+    (negative control: the guard, not something else, stopped it)."""
+    bound = esp_gym.load_scene("paper_example").string.stability_bound
+    scene = esp_gym.load_scene("paper_example", h=factor * bound, allow_unstable_h=True)
+    sim = esp_gym.Simulator(scene)
+    with pytest.raises(SimulationError, match="max_stretch") as err:
+        sim.step(1_000_000)
+    assert err.value.status == 5
+    st = sim.state
+    assert np.abs(st.r).max() < 20.0 and np.all(np.isfinite(st.p))
+    loose = esp_gym.Simulator(esp_gym.load_scene("paper_example", h=factor * bound, allow_unstable_h=True,
+                                                 solver={"max_stretch": 1e6}))
+    with pytest.raises(SimulationError) as err_loose:
+        loose.step(1_000_000)
+    assert err_loose.value.step > err.value.step
+
+
 def test_overrides_reach_the_simulator():
     scene = esp_gym.load_scene("paper_example", h=2.5e-5, N=40)
     sim = esp_gym.Simulator(scene)

@@ -48,10 +48,11 @@ from .string import nodal_forces, string_solve
 
 #: Scene constants of the stepper, all SI. ``w`` and the Thomas factors are indexed by node;
 #: ``first`` is the first unknown node (1: fixed pivot, 0: free pivot of mass ``Mp``);
+#: ``max_len2``: the blow-up guard, the squared element length [m^2] no step may exceed;
 #: ``slack``: tension-only string law.
 LGVIParams = namedtuple(
     "LGVIParams",
-    "h m kappa u g M Mp rho J Jd Jeff inv cp off w first slack tol max_iter gammas",
+    "h m kappa u g M Mp rho J Jd Jeff inv cp off w first slack tol max_iter gammas max_len2",
 )
 
 #: The state the kernels advance: positions r and momenta p (N+1, 3), R (3, 3), Pi (3,), the
@@ -68,6 +69,10 @@ Work = namedtuple("Work", "fn X Y FmI RF Rn jac backup")
 OK = 0
 NEWTON_FAILED = 1
 NON_FINITE = 2
+#: An element grew past solver.max_stretch times its rest length: an unstable step blowing up
+#: (typically h above the stability bound) caught while the state is still finite. (3 and 4
+#: are the environment's termination codes, kernels/task.py.)
+BLOW_UP = 5
 
 
 @kernel
@@ -222,8 +227,11 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled):
         X[a, 0] = r[a, 0]
         X[a, 1] = r[a, 1]
         X[a, 2] = r[a, 2]
-    if not np.isfinite(nodal_forces(X, P.kappa, P.u, P.m, M, P.Mp, P.g, P.slack, fn)):
+    total, longest = nodal_forces(X, P.kappa, P.u, P.m, M, P.Mp, P.g, P.slack, fn)
+    if not np.isfinite(total):
         return NON_FINITE, iters
+    if longest > P.max_len2:
+        return BLOW_UP, iters
     # R_k (F_k - I) + Rc, and R_{k+1} = R_k + that (Kahan)
     RF = W.RF
     Rc = S.Rc

@@ -20,7 +20,8 @@ def nodal_forces(r, kappa, u, m, M, Mp, g, slack, f):
     m/2 + M (consistent for linear elements; Mp the pivot's point mass, 0 when fixed). The
     body's gravity torque is handled in the rotational equation. With ``slack`` the string
     resists no compression: the element energy is kappa/2 max(|x_a| - u, 0)^2.
-    Returns the sum of all components (non-finite iff any entry is).
+    Returns ``(sum of all components, longest squared element length)``: the sum is
+    non-finite iff any entry is; the length [m^2] feeds the stepper's blow-up guard.
     """
     n = r.shape[0] - 1
     # one pass, each node written once: f_a = (gravity_a - t_{a-1}) + t_a with the previous
@@ -30,11 +31,14 @@ def nodal_forces(r, kappa, u, m, M, Mp, g, slack, f):
     t1 = 0.0
     t2 = 0.0
     total = 0.0
+    longest = 0.0
     for a in range(n):
         x0 = r[a + 1, 0] - r[a, 0]
         x1 = r[a + 1, 1] - r[a, 1]
         x2 = r[a + 1, 2] - r[a, 2]
-        c = kappa * (1.0 - u / math.sqrt(x0 * x0 + x1 * x1 + x2 * x2))
+        s = x0 * x0 + x1 * x1 + x2 * x2
+        longest = max(longest, s)
+        c = kappa * (1.0 - u / math.sqrt(s))
         if slack and c < 0.0:
             c = 0.0
         if a == 0:
@@ -53,7 +57,7 @@ def nodal_forces(r, kappa, u, m, M, Mp, g, slack, f):
     f[n, 0] = 0.0 - t0
     f[n, 1] = 0.0 - t1
     f[n, 2] = gz - t2
-    return total + f[n, 0] + f[n, 1] + f[n, 2]
+    return total + f[n, 0] + f[n, 1] + f[n, 2], longest
 
 
 @kernel
