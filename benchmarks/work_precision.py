@@ -49,7 +49,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 
 #: Error levels [m] at which the methods are ranked.
-LEVELS = (1e-3, 1e-5, 1e-7)
+LEVELS = (1e-3, 1e-5, 1e-7, 1e-9)
 
 
 @dataclass
@@ -213,7 +213,7 @@ def work_precision(cfg: Settings):
     ns = int(round(cfg.t_final / cfg.sample))
     t_eval = np.arange(ns + 1) * cfg.sample
     # compile everything before timing anything
-    lgvi_samples(cfg.scene, 10, 2 * cfg.sample, cfg.sample)[0]()
+    lgvi_samples(cfg.scene, 20, 2 * cfg.sample, cfg.sample)[0]()
     for name, ks in cfg.composition_k:
         lgvi_samples(cfg.scene, 100, 2 * cfg.sample, cfg.sample, composition=name)[0]()
     rk4_samples(scene, 10, 2 * cfg.sample, cfg.sample)[0]()

@@ -84,6 +84,22 @@ def element_strain(r, kappa, u, slack, strain_energy):
     return total, length
 
 
+@kernel(inline="always")
+def back_substitute(cp, first, y0, y1, y2, x):
+    """Back substitution of the Thomas algorithm on rows N-1 .. first of ``x`` (3 columns),
+    whose forward sweep left (y0, y1, y2) = row N: x_a -= cp_a x_{a+1}, with x_{a+1} carried in
+    registers and one fused multiply-add per entry."""
+    n = x.shape[0] - 1
+    for k in range(n - first):
+        a = n - 1 - k
+        y0 = fma(-cp[a], y0, x[a, 0])
+        y1 = fma(-cp[a], y1, x[a, 1])
+        y2 = fma(-cp[a], y2, x[a, 2])
+        x[a, 0] = y0
+        x[a, 1] = y1
+        x[a, 2] = y2
+
+
 @kernel
 def tridiag_solve(inv, cp, off, first, b, x):
     """Solve the constant tridiagonal system ``M x = b`` on rows ``first..N`` (3 columns).
@@ -105,15 +121,7 @@ def tridiag_solve(inv, cp, off, first, b, x):
         x[a, 0] = y0
         x[a, 1] = y1
         x[a, 2] = y2
-    # back substitution with x_{a+1} carried in registers
-    for k in range(n - first):
-        a = n - 1 - k
-        y0 = fma(-cp[a], y0, x[a, 0])
-        y1 = fma(-cp[a], y1, x[a, 1])
-        y2 = fma(-cp[a], y2, x[a, 2])
-        x[a, 0] = y0
-        x[a, 1] = y1
-        x[a, 2] = y2
+    back_substitute(cp, first, y0, y1, y2, x)
 
 
 @kernel(inline="always")
@@ -139,14 +147,7 @@ def string_solve(inv, cp, first, p, f, hh, pivot_force, push_pivot, x):
         x[a, 0] = y0
         x[a, 1] = y1
         x[a, 2] = y2
-    for k in range(n - first):
-        a = n - 1 - k
-        y0 = fma(-cp[a], y0, x[a, 0])
-        y1 = fma(-cp[a], y1, x[a, 1])
-        y2 = fma(-cp[a], y2, x[a, 2])
-        x[a, 0] = y0
-        x[a, 1] = y1
-        x[a, 2] = y2
+    back_substitute(cp, first, y0, y1, y2, x)
 
 
 def tridiag_factor(diag, off):
