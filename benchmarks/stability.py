@@ -442,7 +442,8 @@ def plot(cfg, bounds, long, traces, sweep, cases, path):
         rows = [r for r in sweep if r["case"] == case and r["law"] == law and r["max_abs_energy_error_J"] is not None]
         d.semilogy([r["h_over_h_max"] for r in rows], [r["max_abs_energy_error_J"] for r in rows], "o",
                    ls=ls, color=col, ms=4, label=f"{case}, {law} law")
-    d.axvline(0.8, color="grey", ls=":", lw=1, label="environment default (safety 0.8)")
+    d.axvline(0.5, color="grey", ls=":", lw=1, label="environment default (safety 0.5)")
+    d.axvline(0.7, color="grey", ls="--", lw=1, label="choose_h default (safety 0.7)")
     d.set_xlabel("h / h_max")
     d.set_ylabel("max |E - E0 - W| [J]")
     d.set_title("Tension-only vs elastic law near the bound")

@@ -112,9 +112,11 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled):
     read (else they are taken as zero and the input balances are not updated), ``coupled``
     rho_c != 0 (else the body's rotation is decoupled from the string: no gravity torque, no
     coupling terms). Each flag off gives the same numbers as the flag on with what it drops
-    equal to zero (the dropped terms are exact zeros there). Increments are added with Kahan's trick (remainders in
-    S.rc, pc, Rc, Pic), because in a smooth motion the round-off of ``r + dr`` repeats for many
-    steps and would otherwise accumulate linearly into pi3 and the energy.
+    equal to zero (the dropped terms are exact zeros there).
+
+    Increments are added with Kahan's trick (remainders in S.rc, pc, Rc, Pic), because in a
+    smooth motion the round-off of ``r + dr`` repeats for many steps and would otherwise
+    accumulate linearly into pi3 and the energy.
     On entry ``S.f`` holds ``nodal_forces(r)``; on success it holds the forces at the new state.
     On failure the state is left untouched and a non-zero status is returned.
     Returns ``(status, newton_iterations)``.
