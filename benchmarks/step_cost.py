@@ -11,7 +11,9 @@ Prints three tables and writes ``OUT/step_cost.json`` and ``OUT/step_cost.png``
    diagnostics kernels too), in a fresh process whose NUMBA_CACHE_DIR is an empty temporary
    directory (cold: everything compiles) and then again with the same directory (cached);
 3. the paper's example, 50,000 steps after compilation: plain stepping and a recorded run
-   (snapshots every 100 steps plus energy, pi3 and orthogonality after every step).
+   (snapshots every 100 steps plus energy, pi3 and orthogonality after every step);
+4. the kernels specialised for a scene (fixed/free pivot, inputs or none, rho_c = 0, a
+   composition) against the general kernel, and the cost of diagnostics.
 
 Usage: ``python benchmarks/step_cost.py [--quick] [--out DIR]``. ``--quick`` runs N in {5, 20},
 fewer steps and repeats, a 5,000-step paper run and start-up to the first step only: a smoke
@@ -120,13 +122,13 @@ SPECIALISED_CASES = (
 )
 
 
-def specialisation_timing(steps: int, repeats: int) -> list:
+def specialisation_timing(steps: int, repeats: int, cases=SPECIALISED_CASES) -> list:
     """us/step of the general kernel and of the kernel specialised for each case (medians of
     ``repeats`` alternating runs, so both see the same machine state)."""
     import esp_gym
 
     rows = []
-    for label, overrides, inputs in SPECIALISED_CASES:
+    for label, overrides, inputs in cases:
         scene = esp_gym.load_scene("paper_example", **overrides)
         runs = {True: [], False: []}
         for spec in (True, False):
@@ -258,7 +260,7 @@ def main(argv=None) -> int:
     print(f"  recorded run:   {paper['recorded_s'] * 1e3:8.2f} ms ({paper['recorded_us_per_step']:.3f} us/step; "
           "snapshots every 100 steps + per-step energy, pi3, orthogonality)")
 
-    spec = specialisation_timing(steps, repeats)
+    spec = specialisation_timing(steps, repeats, SPECIALISED_CASES[:2] if args.quick else SPECIALISED_CASES)
     print(f"\nspecialised kernels, paper_example (N = 20, h = 1e-4 s), median of {repeats} x {steps} steps")
     print(f"{'scene':30} {'general [us]':>13} {'specialised [us]':>17} {'speed-up':>9}")
     for r in spec:
