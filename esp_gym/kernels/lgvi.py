@@ -345,34 +345,58 @@ def state_size(S):
     return 4 * S.r.size + 2 * S.R.size + 2 * S.Pi.size + 2 * S.acc.size
 
 
+@kernel(inline="always")
+def _move_rows(a, buf, k, to_buf):
+    """Copy the (rows, 3) array ``a`` to ``buf[k:]`` (or back, if not ``to_buf``); returns the
+    next offset. Per-array calls with the 3 columns spelled out: a loop over a tuple of arrays
+    compiled to ~5x slower code, which cost 13 % of a composed step."""
+    for i in range(a.shape[0]):
+        if to_buf:
+            buf[k] = a[i, 0]
+            buf[k + 1] = a[i, 1]
+            buf[k + 2] = a[i, 2]
+        else:
+            a[i, 0] = buf[k]
+            a[i, 1] = buf[k + 1]
+            a[i, 2] = buf[k + 2]
+        k += 3
+    return k
+
+
+@kernel(inline="always")
+def _move_vector(a, buf, k, to_buf):
+    for i in range(a.shape[0]):
+        if to_buf:
+            buf[k + i] = a[i]
+        else:
+            a[i] = buf[k + i]
+    return k + a.shape[0]
+
+
+@kernel(inline="always")
+def _move_state(S, buf, to_buf):
+    k = _move_rows(S.r, buf, 0, to_buf)
+    k = _move_rows(S.p, buf, k, to_buf)
+    k = _move_rows(S.rc, buf, k, to_buf)
+    k = _move_rows(S.pc, buf, k, to_buf)
+    k = _move_rows(S.R, buf, k, to_buf)
+    k = _move_rows(S.Rc, buf, k, to_buf)
+    k = _move_vector(S.Pi, buf, k, to_buf)
+    k = _move_vector(S.Pic, buf, k, to_buf)
+    k = _move_vector(S.acc, buf, k, to_buf)
+    _move_vector(S.accc, buf, k, to_buf)
+
+
 @kernel
 def save_state(S, buf):
     """Copy the whole state (with remainders and balances) into ``buf``."""
-    k = 0
-    for a in (S.r, S.p, S.rc, S.pc, S.R, S.Rc):
-        for i in range(a.shape[0]):
-            for j in range(a.shape[1]):
-                buf[k] = a[i, j]
-                k += 1
-    for a in (S.Pi, S.Pic, S.acc, S.accc):
-        for i in range(a.shape[0]):
-            buf[k] = a[i]
-            k += 1
+    _move_state(S, buf, True)
 
 
 @kernel
 def restore_state(S, buf):
     """Inverse of :func:`save_state`."""
-    k = 0
-    for a in (S.r, S.p, S.rc, S.pc, S.R, S.Rc):
-        for i in range(a.shape[0]):
-            for j in range(a.shape[1]):
-                a[i, j] = buf[k]
-                k += 1
-    for a in (S.Pi, S.Pic, S.acc, S.accc):
-        for i in range(a.shape[0]):
-            a[i] = buf[k]
-            k += 1
+    _move_state(S, buf, False)
 
 
 @kernel(inline="always")
