@@ -60,12 +60,16 @@ def cayley_newton(g0, g1, g2, J, tol, max_iter, jac):
         dphi/df = g^ + (g . f) I + f g^T - 2 J.
 
     The first iterate is the linearisation (2J - g^) f = g, i.e. one Newton step from f = 0.
-    Iterates until the Newton correction satisfies |df| <= tol |f| (tol = 1e-14 or smaller).
+    Iterates until the Newton correction satisfies |df| <= tol |f| (tol = 1e-14 or smaller), or
+    until the next correction, predicted from the last two as |df|^2 / |df_prev| (conservative
+    for quadratic convergence), does: that saves the iteration that only confirmed convergence
+    (2 instead of 3 per step at h = 1e-4; pi3 and orthogonality unchanged at round-off).
     ``jac`` is a 3x3 scratch array. Returns ``(f0, f1, f2, iterations, converged)``.
     """
     f0 = 0.0
     f1 = 0.0
     f2 = 0.0
+    dd_prev = 0.0
     for it in range(1, max_iter + 1):
         gf = g0 * f0 + g1 * f1 + g2 * f2
         Jf0 = J[0, 0] * f0 + J[0, 1] * f1 + J[0, 2] * f2
@@ -93,4 +97,9 @@ def cayley_newton(g0, g1, g2, J, tol, max_iter, jac):
             return f0, f1, f2, it, False
         if dd <= tol * tol * ff:
             return f0, f1, f2, it, True
+        # quadratic convergence: the next correction is about |d|^2 / |d_prev|; stop if that
+        # is below the tolerance already
+        if it > 1 and dd * dd <= tol * tol * ff * dd_prev:
+            return f0, f1, f2, it, True
+        dd_prev = dd
     return f0, f1, f2, max_iter, False
