@@ -73,9 +73,10 @@ class Settings:
     lgvi_k: tuple = (14, 16, 20, 25, 32, 40, 50, 64, 100, 160, 250, 400, 640, 1000, 1600, 2500, 4000,
                      6400, 10000)
     """LGVI steps per sample: h = sample / k"""
-    composition_k: tuple = (("triple_jump", (25, 32, 40, 64, 100, 160, 250, 400)),
+    composition_k: tuple = (("triple_jump", (18, 20, 25, 32, 40, 64, 100, 160, 250, 400)),
                             ("suzuki5", (11, 12, 14, 16, 20, 25, 32, 50, 80, 130, 200)),
-                            ("kahan_li9", (12, 13, 14, 16, 18, 20, 25, 32, 40, 50, 64, 100)))
+                            ("kahan_li9", (12, 13, 14, 16, 18, 20, 25, 32, 40, 50, 64, 100)),
+                            ("kahan_li17", (7, 8, 9, 10, 11, 12, 14, 16, 20, 25, 32, 50)))
     """steps per sample of each composition of the LGVI (esp_gym/compositions.py)"""
     rk4_k: tuple = (10, 11, 12, 14, 16, 20, 25, 32, 40, 50, 64, 100, 160, 250, 400)
     """RK4 steps per sample: h = sample / k"""
@@ -285,7 +286,7 @@ def pareto_time(rows, level: float):
 
 #: Labels of the LGVI variants; "LGVI frontier" is the Pareto front over all of them.
 LABELS = {"lgvi": "LGVI (esp_gym)", "triple_jump": "LGVI o4 triple jump", "suzuki5": "LGVI o4 Suzuki 5",
-          "kahan_li9": "LGVI o6 Kahan-Li 9"}
+          "kahan_li9": "LGVI o6 Kahan-Li 9", "kahan_li17": "LGVI o8 Kahan-Li 17"}
 FRONTIER = "LGVI frontier"
 
 
@@ -417,8 +418,8 @@ def print_tables(cfg, results, rank, stats):
 
 
 COLORS = {"LGVI (esp_gym)": "tab:red", "LGVI o4 triple jump": "salmon", "LGVI o4 Suzuki 5": "darkred",
-          "LGVI o6 Kahan-Li 9": "magenta", "RK4 (numba, fixed h)": "tab:blue", "RK45 (SciPy)": "tab:orange",
-          "DOP853 (SciPy)": "tab:green", "Radau (SciPy, implicit)": "tab:purple",
+          "LGVI o6 Kahan-Li 9": "magenta", "LGVI o8 Kahan-Li 17": "indigo", "RK4 (numba, fixed h)": "tab:blue",
+          "RK45 (SciPy)": "tab:orange", "DOP853 (SciPy)": "tab:green", "Radau (SciPy, implicit)": "tab:purple",
           "BDF (SciPy, implicit)": "tab:brown"}
 
 

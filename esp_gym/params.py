@@ -247,9 +247,10 @@ class SolverParams(_Frozen):
         return COMPOSITIONS[self.composition or DEFAULT_FOR_ORDER[self.order]]
 
     @property
-    def largest_substep(self) -> float:
-        """Largest |substep| / h of the scheme (1 for the plain LGVI, 1.7024 for triple jump)."""
-        return self.scheme.largest_substep
+    def bound_factor(self) -> float:
+        """The scheme's stable h relative to one LGVI step's (1 for the LGVI; from the
+        composition's exact stability interval otherwise, see esp_gym/compositions.py)."""
+        return self.scheme.bound_factor
 
 
 class InitialState(_Frozen):
@@ -303,16 +304,16 @@ class Scene(_Frozen):
 
     @property
     def stability_bound(self) -> float:
-        """Largest stable h [s]: the string's bound, divided by the largest substep of the
-        composition when one is used."""
-        return self.string.stability_bound / self.solver.largest_substep
+        """Largest stable h [s]: the string's bound, times the composition's bound factor
+        when one is used."""
+        return self.string.stability_bound * self.solver.bound_factor
 
     @model_validator(mode="after")
     def _consistent(self) -> "Scene":
         bound = self.stability_bound
         if self.h > bound and not self.allow_unstable_h:
             scheme = self.solver.scheme
-            composed = "" if scheme.stages == 1 else f", divided by {scheme.largest_substep:.4f} for {scheme.name}"
+            composed = "" if scheme.stages == 1 else f", times {scheme.bound_factor:.4f} for {scheme.name}"
             raise ValueError(
                 f"h = {self.h:.6g} s exceeds the stability bound h_max = {bound:.6g} s "
                 f"(2/omega_max, omega_max = sqrt(12 EA/(mu u^2)) for N = {self.string.elements}{composed}); "

@@ -2,9 +2,9 @@
 
 Two limits decide h:
 
-* stability: the string update is explicit, so every LGVI substep must stay below
-  ``2 / omega_max`` (``Scene.stability_bound`` already divides by the composition's largest
-  substep). Long runs need a margin: ``safety`` (default 0.7; benchmarks/stability.py measured
+* stability: the string update is explicit, so h omega_max must stay inside the scheme's
+  stability interval (2 for the LGVI; ``Scene.stability_bound`` already scales by a
+  composition's interval, esp_gym/compositions.py). Long runs need a margin: ``safety`` (default 0.7; benchmarks/stability.py measured
   one blow-up in twelve 100-s runs at 0.8 of the bound and none at 0.7);
 * accuracy: the global error of an order-p scheme behaves like ``C h^p`` while h is in the
   asymptotic range. A pilot pair of runs at ``h1`` and ``h1/2`` over ``horizon`` seconds from

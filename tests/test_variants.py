@@ -60,11 +60,48 @@ def test_composition_must_match_the_order():
         esp_gym.load_scene("paper_example", solver={"order": 4, "composition": "leapfrog"})
     scene = esp_gym.load_scene("paper_example", solver={"order": 4})
     assert scene.solver.scheme.name == "suzuki5"
-    # the stable h shrinks by the largest |substep|: 0.658 for Suzuki, 1.702 for triple jump
+    # the stable h scales with the composition's stability interval on q'' = -omega^2 q
     base = scene.string.stability_bound
-    assert scene.stability_bound == pytest.approx(base / 0.6579630871775028, rel=1e-12)
-    tj = esp_gym.load_scene("paper_example", **_composition("triple_jump"))
-    assert tj.stability_bound == pytest.approx(base / 1.7024143839193153, rel=1e-12)
+    assert scene.stability_bound == pytest.approx(base * COMPOSITIONS["suzuki5"].stability_interval / 2, rel=1e-12)
+    assert esp_gym.load_scene("paper_example").stability_bound == base  # the LGVI: exactly the string's
+
+
+@pytest.mark.parametrize("scheme", ["triple_jump", "suzuki5", "kahan_li9", "kahan_li17"])
+def test_stability_interval_is_exact_on_the_linear_oscillator(scheme):
+    """Independent check of the interval: step x' = v, v' = -x with the composed velocity
+    Verlet at h just inside / outside the interval for 2,000 steps: bounded inside (|x| < 10),
+    growing outside (|x| > 10). Interval (in h omega): triple jump 1.573 (> 2/1.702: a product
+    of maps can be stable although one is not), Suzuki 2.721 (< 2/0.658: the reverse)."""
+    c = COMPOSITIONS[scheme]
+    xc = c.stability_interval
+
+    def amplitude(hw):
+        x, v = 1.0, 0.0
+        for _ in range(2000):
+            for g in c.gammas:
+                t = g * hw
+                v -= 0.5 * t * x
+                x += t * v
+                v -= 0.5 * t * x
+        return abs(x)
+
+    assert amplitude(0.99 * xc) < 10.0
+    assert amplitude(1.01 * xc) > 10.0
+
+
+def test_suzuki_blows_up_above_its_interval_on_the_string_but_not_below():
+    """On the paper example itself: 1.05 times the interval-based bound ends in a
+    SimulationError within 2 s; 0.95 runs 2 s (the nominal bound 2 / max|gamma| would have
+    allowed 1.12 times the interval-based one)."""
+    scene = esp_gym.load_scene("paper_example", **ORDER4)
+    for factor, fails in ((0.95, False), (1.05, True)):
+        h = factor * scene.stability_bound
+        sim = esp_gym.Simulator(esp_gym.load_scene("paper_example", h=h, allow_unstable_h=True, **ORDER4))
+        if fails:
+            with pytest.raises(SimulationError):
+                sim.step(int(2.0 / h))
+        else:
+            sim.step(int(2.0 / h))
 
 
 @pytest.mark.parametrize("variant", [ORDER4, ORDER6, LUMPED], ids=["order4", "order6", "lumped"])
@@ -117,3 +154,28 @@ def test_order4_failure_restores_the_step_start():
     a, b = sim.state, again.state
     assert np.array_equal(a.r, b.r) and np.array_equal(a.p, b.p) and np.array_equal(a.Pi, b.Pi)
     assert np.isfinite(sim.diagnostics()["energy"])
+
+
+@pytest.mark.parametrize("use_run", [False, True], ids=["step", "run"])
+def test_composed_failure_after_checkpoints_holds_the_last_good_step(use_run):
+    """A composed step that fails part-way is undone by rewinding to the last checkpoint
+    (every 64 steps) and replaying: after a failure well past the first checkpoint, through
+    both the plain and the recording loop, the simulator holds exactly (bit for bit) the state
+    a fresh run of the completed steps reaches."""
+    base = esp_gym.load_scene("paper_example", **ORDER4)
+    # just above its bound Suzuki's composition blows up after a few hundred steps
+    scene = esp_gym.load_scene("paper_example", h=1.03 * base.stability_bound, allow_unstable_h=True, **ORDER4)
+    sim = esp_gym.Simulator(scene)
+    with pytest.raises(SimulationError):
+        if use_run:
+            sim.run(t_final=20_000 * scene.h, record_every=10, every_step=True)
+        else:
+            sim.step(20_000)
+    k = sim.step_count
+    assert k > 64 and k % 64 != 0, k  # the failure is past a checkpoint, inside an interval
+    again = esp_gym.Simulator(scene)
+    again.step(k)
+    a, b = sim.state, again.state
+    for name in ("r", "p", "R", "Pi"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert all(np.array_equal(x, y) for x, y in zip(a.remainders, b.remainders))

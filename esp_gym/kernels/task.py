@@ -12,8 +12,7 @@ from numba import prange
 
 from ._jit import kernel
 from .diagnostics import DiagWork, diagnostics
-from .lgvi import OK, StateArrays, Work, lgvi_step
-from .string import nodal_forces
+from .lgvi import OK, StateArrays, Work, advance_loop
 
 #: Layout of the task parameter vector.
 TASK_PARAM_NAMES = (
@@ -102,24 +101,11 @@ def env_step_one(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, resul
     """One control step: ``nsub`` physics steps with constant ``inputs`` (9: pivot force,
     body torque, spatial torque), then observation, reward terms and termination code.
     ``result`` (int64, 5): status, steps taken, Newton iterations (total, max), termination."""
-    nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
-    status = OK
-    total = 0
-    most = 0
-    k = 0
-    while k < nsub:
-        status, iters = lgvi_step(S, W, P, inputs, P.first == 0, True, True)
-        total += iters
-        most = max(most, iters)
-        if status != OK:
-            break
-        k += 1
+    # the general kernel: an environment always has inputs and, as a rule, an off-centre load
+    advance_loop(S, W, P, inputs, nsub, result, P.first == 0, True, True)
+    status = result[0]
     diagnostics(S, P, D)
     code = env_observe(S, P, D, target, tp, action, obs, terms)
-    result[0] = status
-    result[1] = k
-    result[2] = total
-    result[3] = most
     result[4] = status if status != OK else code
 
 
