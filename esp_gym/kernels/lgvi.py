@@ -437,7 +437,7 @@ def _rewind(S, W, P):
 
 
 @kernel(inline="always")
-def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled):
+def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, forces_ready=False):
     """Take up to ``nsteps`` steps with constant ``inputs``; stop at the first failure with
     the last good state. ``stats`` (int64, >= 4): status, steps taken, total Newton iterations,
     max per step.
@@ -447,9 +447,11 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled):
     ``CHECKPOINT`` steps; after a failure the loop rewinds to the checkpoint and replays the
     steps that had succeeded. The replay is deterministic (same state bits, inputs and code),
     so it ends on exactly the state after the last good step. One call site of the step keeps
-    the inlined code single.
+    the inlined code single. ``forces_ready``: ``S.f`` already holds the forces at ``S.r`` (as
+    it does after any successful step), so they are not recomputed.
     """
-    nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
+    if not forces_ready:
+        nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
     composed = P.gammas.shape[0] > 1
     total = 0
     most = 0
@@ -487,46 +489,32 @@ Snapshots = namedtuple("Snapshots", "r R omega v diag strain acc step_diag")
 @kernel(inline="always")
 def record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled):
     """Take ``len(snap.r) * every`` steps, storing a snapshot after every ``every`` steps
-    (``D`` is the diagnostics scratch, see kernels/diagnostics.py). Stops at the first failure;
-    ``stats`` as in :func:`advance_loop` (steps counts steps taken in this call), and so is the
-    recovery of a composed step (a replay writes the same values again).
+    (``D`` is the diagnostics scratch, see kernels/diagnostics.py) and, if ``snap.step_diag``
+    has rows, energy, pi3 and orthogonality after every step. The steps are taken by
+    :func:`advance_loop` (one step at a time when every step is recorded), so failures and
+    their recovery are its; ``stats`` as there (steps counts steps taken in this call).
     """
     n = S.r.shape[0] - 1
     per_step = snap.step_diag.shape[0] > 0
+    chunk = 1 if per_step else every
     nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
-    composed = P.gammas.shape[0] > 1
     total = 0
     most = 0
-    failed = OK
-    target = snap.r.shape[0] * every
     k = 0
-    k0 = 0
-    while k < target:
-        if composed and failed == OK and k % CHECKPOINT == 0:
-            save_state(S, W.backup)
-            k0 = k
-        status, iters = lgvi_step(S, W, P, inputs, free, forced, coupled)
-        if failed == OK:
-            total += iters
-            most = max(most, iters)
-        if status != OK:
-            if failed != OK or not composed:
-                _finish(stats, status, k, total, most)
+    for j in range(snap.r.shape[0]):
+        for _ in range(every // chunk):
+            advance_loop(S, W, P, inputs, chunk, stats, free, forced, coupled, True)
+            total += stats[2]
+            most = max(most, stats[3])
+            if stats[0] != OK:
+                _finish(stats, stats[0], k + stats[1], total, most)
                 return
-            failed = status
-            target = k
-            _rewind(S, W, P)
-            k = k0
-            continue
-        if per_step:
-            diagnostics(S, P, D)
-            snap.step_diag[k, 0] = D.out[4]
-            snap.step_diag[k, 1] = D.out[5]
-            snap.step_diag[k, 2] = D.out[6]
-        k += 1
-        if k % every:
-            continue
-        j = k // every - 1
+            k += chunk
+            if per_step:
+                diagnostics(S, P, D)
+                snap.step_diag[k - 1, 0] = D.out[4]
+                snap.step_diag[k - 1, 1] = D.out[5]
+                snap.step_diag[k - 1, 2] = D.out[6]
         diagnostics(S, P, D)
         # element loops, not slice assignment: the kernels run without numba's runtime (NRT)
         for a in range(n + 1):
@@ -543,7 +531,7 @@ def record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled):
             snap.strain[j, i] = D.strain[i]
         for i in range(S.acc.shape[0]):
             snap.acc[j, i] = S.acc[i]
-    _finish(stats, failed, target, total, most)
+    _finish(stats, OK, k, total, most)
 
 
 @kernel
