@@ -50,7 +50,7 @@ def test_loose_target_gives_the_stable_step():
     assert choice.h == pytest.approx(0.7 * scene.stability_bound, rel=1e-12)
     assert esp_gym.choose_h(scene).h == choice.h  # no target: stability alone, no pilot runs
     assert esp_gym.choose_h(scene).error_estimate is None
-    # a composition with a small largest substep is allowed a larger step
+    # a composition with a wide stability interval (Suzuki: 2.72 in h omega) is allowed a larger step
     suzuki = esp_gym.load_scene("paper_example", solver={"order": 4})
     assert esp_gym.choose_h(suzuki).h > choice.h
     assert choice.scene(scene).h == choice.h
