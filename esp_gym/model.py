@@ -124,6 +124,7 @@ def build_params(scene: Scene) -> LGVIParams:
         tol=float(scene.solver.newton_tol), max_iter=int(scene.solver.newton_max_iter),
         gammas=scene.solver.scheme.weights(),
         max_len2=float((scene.solver.max_stretch * scene.string.u) ** 2),
+        compensated=bool(scene.solver.compensated),
     )
 
 
@@ -319,7 +320,8 @@ class Simulator:
         if not self.specialise:
             return lgvi_advance, lgvi_record
         return specialised_kernels(free=self.params.first == 0, forced=bool(np.any(self._inputs != 0.0)),
-                                   coupled=bool(np.any(self.params.rho != 0.0)))
+                                   coupled=bool(np.any(self.params.rho != 0.0)),
+                                   compensated=self.params.compensated)
 
     def _set_inputs(self, pivot_force, body_torque, spatial_torque) -> None:
         up = _vector_input("pivot_force", pivot_force)

@@ -11,7 +11,8 @@ FREE = {"pivot": {"kind": "free", "mass": 0.3}}
 DECOUPLED = {"rho_c": [0.0, 0.0, 0.0], "initial": {"Omega0": [0.3, -2.0, 5.0]}}
 
 CASES = {
-    # scene overrides, inputs, the flags the simulator must pick (free, forced, coupled)
+    # scene overrides, inputs, the flags the simulator must pick (free, forced, coupled
+    # [, compensated])
     "fixed-unforced": ({}, {}, (False, False, True)),
     "fixed-torques": ({}, {"body_torque": [0.0, 0.01, 0.02], "spatial_torque": [0.0, 0.0, 0.03]},
                       (False, True, True)),
@@ -22,6 +23,11 @@ CASES = {
     "decoupled-free-pushed": ({**DECOUPLED, **FREE}, {"pivot_force": [0.0, 0.5, -3.0]}, (True, True, False)),
     "order6-free-pushed": ({**FREE, "solver": {"order": 6}}, {"pivot_force": [0.1, 0.0, -3.0]},
                            (True, True, True)),
+    # plain (uncompensated) state updates: the general path reads P.compensated at run time
+    "plain-fixed-unforced": ({"solver": {"compensated": False}}, {}, (False, False, True, False)),
+    "plain-order4-free-pushed": ({**FREE, "solver": {"order": 4, "compensated": False}},
+                                 {"pivot_force": [0.1, 0.0, -3.0], "spatial_torque": [0.0, 0.0, 0.02]},
+                                 (True, True, True, False)),
 }
 
 

@@ -49,10 +49,11 @@ from .string import nodal_forces, string_solve
 #: Scene constants of the stepper, all SI. ``w`` and the Thomas factors are indexed by node;
 #: ``first`` is the first unknown node (1: fixed pivot, 0: free pivot of mass ``Mp``);
 #: ``max_len2``: the blow-up guard, the squared element length [m^2] no step may exceed;
-#: ``slack``: tension-only string law.
+#: ``slack``: tension-only string law; ``compensated``: Kahan-compensated state updates (the
+#: general path reads it at run time, the specialised kernels compile it in).
 LGVIParams = namedtuple(
     "LGVIParams",
-    "h m kappa u g M Mp rho J Jd Jeff inv cp off w first slack tol max_iter gammas max_len2",
+    "h m kappa u g M Mp rho J Jd Jeff inv cp off w first slack tol max_iter gammas max_len2 compensated",
 )
 
 #: The state the kernels advance: positions r and momenta p (N+1, 3), R (3, 3), Pi (3,), the
@@ -85,24 +86,30 @@ def kahan_add(x, c, i, dx):
 
 
 @kernel(inline="always")
-def commit_node(r, p, rc, pc, f, fn, X, Y, a, i, impulse, hh):
+def commit_node(r, p, rc, pc, f, fn, X, Y, a, i, impulse, hh, compensated):
     """Commit coordinate ``i`` of node ``a`` of a step: the position
     r + dr (X, with dr + remainder in Y) and the momentum p + (h/2 (f + fn) + impulse), both
-    with Kahan's compensation; then f <- fn. ``impulse + 0.0`` is exact, so rows without an
-    external impulse get the same bits as a plain h/2 (f + fn)."""
+    with Kahan's compensation if ``compensated`` (else plain sums, remainders untouched); then
+    f <- fn. ``impulse + 0.0`` is exact, so rows without an external impulse get the same bits
+    as a plain h/2 (f + fn)."""
     x = X[a, i]
-    rc[a, i] = (r[a, i] - x) + Y[a, i]
+    if compensated:
+        rc[a, i] = (r[a, i] - x) + Y[a, i]
     r[a, i] = x
-    dp = (hh * (f[a, i] + fn[a, i]) + impulse) + pc[a, i]
+    dp = hh * (f[a, i] + fn[a, i]) + impulse
     p0 = p[a, i]
-    pn = p0 + dp
-    pc[a, i] = (p0 - pn) + dp
-    p[a, i] = pn
+    if compensated:
+        dp += pc[a, i]
+        pn = p0 + dp
+        pc[a, i] = (p0 - pn) + dp
+        p[a, i] = pn
+    else:
+        p[a, i] = p0 + dp
     f[a, i] = fn[a, i]
 
 
 @kernel(inline="always")
-def lgvi_substep(S, W, P, inputs, h, free, forced, coupled):
+def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
     """Advance the state ``S`` (:class:`StateArrays`) by one LGVI step of length ``h``, in place.
 
     ``inputs`` (9,): pivot force u_p (spatial) [N], body torque tau (body frame) [N m], spatial
@@ -114,9 +121,11 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled):
     coupling terms). Each flag off gives the same numbers as the flag on with what it drops
     equal to zero (the dropped terms are exact zeros there).
 
-    Increments are added with Kahan's trick (remainders in S.rc, pc, Rc, Pic), because in a
-    smooth motion the round-off of ``r + dr`` repeats for many steps and would otherwise
-    accumulate linearly into pi3 and the energy.
+    With ``compensated`` the increments are added with Kahan's trick (remainders in S.rc, pc,
+    Rc, Pic), because in a smooth motion the round-off of ``r + dr`` repeats for many steps
+    and would otherwise accumulate linearly into pi3 and the energy; without it they are plain
+    sums (~13 % cheaper; for runs short enough that round-off does not matter, see
+    ``solver.compensated``) and the remainders are left as they are.
     On entry ``S.f`` holds ``nodal_forces(r)``; on success it holds the forces at the new state.
     On failure the state is left untouched and a non-zero status is returned.
     Returns ``(status, newton_iterations)``.
@@ -209,22 +218,24 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled):
         dr00 = h * X[0, 0] - M * w[0] * q0
         dr01 = h * X[0, 1] - M * w[0] * q1
         dr02 = h * X[0, 2] - M * w[0] * q2
-    if coupled:
-        for a in range(first, n + 1):
-            Y[a, 0] = (h * X[a, 0] - M * w[a] * q0) + rc[a, 0]
-            Y[a, 1] = (h * X[a, 1] - M * w[a] * q1) + rc[a, 1]
-            Y[a, 2] = (h * X[a, 2] - M * w[a] * q2) + rc[a, 2]
-            X[a, 0] = r[a, 0] + Y[a, 0]
-            X[a, 1] = r[a, 1] + Y[a, 1]
-            X[a, 2] = r[a, 2] + Y[a, 2]
-    else:
-        for a in range(first, n + 1):
-            Y[a, 0] = h * X[a, 0] + rc[a, 0]
-            Y[a, 1] = h * X[a, 1] + rc[a, 1]
-            Y[a, 2] = h * X[a, 2] + rc[a, 2]
-            X[a, 0] = r[a, 0] + Y[a, 0]
-            X[a, 1] = r[a, 1] + Y[a, 1]
-            X[a, 2] = r[a, 2] + Y[a, 2]
+    for a in range(first, n + 1):
+        y0 = h * X[a, 0]
+        y1 = h * X[a, 1]
+        y2 = h * X[a, 2]
+        if coupled:
+            y0 = y0 - M * w[a] * q0
+            y1 = y1 - M * w[a] * q1
+            y2 = y2 - M * w[a] * q2
+        if compensated:
+            y0 = y0 + rc[a, 0]
+            y1 = y1 + rc[a, 1]
+            y2 = y2 + rc[a, 2]
+            Y[a, 0] = y0
+            Y[a, 1] = y1
+            Y[a, 2] = y2
+        X[a, 0] = r[a, 0] + y0
+        X[a, 1] = r[a, 1] + y1
+        X[a, 2] = r[a, 2] + y2
     for a in range(first):
         X[a, 0] = r[a, 0]
         X[a, 1] = r[a, 1]
@@ -239,7 +250,9 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled):
     Rc = S.Rc
     for i in range(3):
         for j in range(3):
-            RF[i, j] = (R[i, 0] * FmI[0, j] + R[i, 1] * FmI[1, j] + R[i, 2] * FmI[2, j]) + Rc[i, j]
+            RF[i, j] = R[i, 0] * FmI[0, j] + R[i, 1] * FmI[1, j] + R[i, 2] * FmI[2, j]
+            if compensated:
+                RF[i, j] += Rc[i, j]
     Rn = W.Rn
     for i in range(3):
         for j in range(3):
@@ -318,24 +331,30 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled):
     pc = S.pc
     start = first
     if free and forced:  # the pivot row: its impulse h/2 (f_k + f_k+1) + h u_p in one compensated sum
-        commit_node(r, p, rc, pc, f, fn, X, Y, 0, 0, h * up0, hh)
-        commit_node(r, p, rc, pc, f, fn, X, Y, 0, 1, h * up1, hh)
-        commit_node(r, p, rc, pc, f, fn, X, Y, 0, 2, h * up2, hh)
+        commit_node(r, p, rc, pc, f, fn, X, Y, 0, 0, h * up0, hh, compensated)
+        commit_node(r, p, rc, pc, f, fn, X, Y, 0, 1, h * up1, hh, compensated)
+        commit_node(r, p, rc, pc, f, fn, X, Y, 0, 2, h * up2, hh, compensated)
         start = 1
     for a in range(start, n + 1):
         for i in range(3):
-            commit_node(r, p, rc, pc, f, fn, X, Y, a, i, 0.0, hh)
+            commit_node(r, p, rc, pc, f, fn, X, Y, a, i, 0.0, hh, compensated)
     for a in range(first):
         f[a, 0] = fn[a, 0]
         f[a, 1] = fn[a, 1]
         f[a, 2] = fn[a, 2]
     for i in range(3):
         for j in range(3):
-            Rc[i, j] = (R[i, j] - Rn[i, j]) + RF[i, j]
+            if compensated:
+                Rc[i, j] = (R[i, j] - Rn[i, j]) + RF[i, j]
             R[i, j] = Rn[i, j]
-    kahan_add(Pi, S.Pic, 0, dP0)
-    kahan_add(Pi, S.Pic, 1, dP1)
-    kahan_add(Pi, S.Pic, 2, dP2)
+    if compensated:
+        kahan_add(Pi, S.Pic, 0, dP0)
+        kahan_add(Pi, S.Pic, 1, dP1)
+        kahan_add(Pi, S.Pic, 2, dP2)
+    else:
+        Pi[0] += dP0
+        Pi[1] += dP1
+        Pi[2] += dP2
     return OK, iters
 
 
@@ -400,7 +419,7 @@ def restore_state(S, buf):
 
 
 @kernel(inline="always")
-def lgvi_step(S, W, P, inputs, free, forced, coupled):
+def lgvi_step(S, W, P, inputs, free, forced, coupled, compensated):
     """One step of length ``P.h``: the LGVI itself (one weight ``P.gammas == [1]``) or the
     symmetric composition of LGVI substeps of lengths ``gamma_i h`` (esp_gym/compositions.py).
     Flags as in :func:`lgvi_substep`. A failing LGVI step leaves the state untouched; a
@@ -410,7 +429,7 @@ def lgvi_step(S, W, P, inputs, free, forced, coupled):
     total = 0
     for i in range(gammas.shape[0]):  # one substep site: the substep is inlined once
         # gamma = 1.0 for the plain LGVI, and 1.0 * h == h exactly
-        status, iters = lgvi_substep(S, W, P, inputs, gammas[i] * P.h, free, forced, coupled)
+        status, iters = lgvi_substep(S, W, P, inputs, gammas[i] * P.h, free, forced, coupled, compensated)
         total += iters
         if status != OK:
             return status, total
@@ -437,7 +456,7 @@ def _rewind(S, W, P):
 
 
 @kernel(inline="always")
-def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, forces_ready=False):
+def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, forces_ready=False):
     """Take up to ``nsteps`` steps with constant ``inputs``; stop at the first failure with
     the last good state. ``stats`` (int64, >= 4): status, steps taken, total Newton iterations,
     max per step.
@@ -463,7 +482,7 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, forces_r
         if composed and failed == OK and k % CHECKPOINT == 0:
             save_state(S, W.backup)
             k0 = k
-        status, iters = lgvi_step(S, W, P, inputs, free, forced, coupled)
+        status, iters = lgvi_step(S, W, P, inputs, free, forced, coupled, compensated)
         if failed == OK:
             total += iters
             most = max(most, iters)
@@ -487,7 +506,7 @@ Snapshots = namedtuple("Snapshots", "r R omega v diag strain acc step_diag")
 
 
 @kernel(inline="always")
-def record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled):
+def record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled, compensated):
     """Take ``len(snap.r) * every`` steps, storing a snapshot after every ``every`` steps
     (``D`` is the diagnostics scratch, see kernels/diagnostics.py) and, if ``snap.step_diag``
     has rows, energy, pi3 and orthogonality after every step. The steps are taken by
@@ -503,7 +522,7 @@ def record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled):
     k = 0
     for j in range(snap.r.shape[0]):
         for _ in range(every // chunk):
-            advance_loop(S, W, P, inputs, chunk, stats, free, forced, coupled, True)
+            advance_loop(S, W, P, inputs, chunk, stats, free, forced, coupled, compensated, True)
             total += stats[2]
             most = max(most, stats[3])
             if stats[0] != OK:
@@ -536,27 +555,28 @@ def record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled):
 
 @kernel
 def lgvi_advance(S, W, P, inputs, nsteps, stats):
-    """The general path: :func:`advance_loop` with every term in, the pivot read from ``P``."""
-    advance_loop(S, W, P, inputs, nsteps, stats, P.first == 0, True, True)
+    """The general path: :func:`advance_loop` with every term in, the pivot and the
+    compensation read from ``P``."""
+    advance_loop(S, W, P, inputs, nsteps, stats, P.first == 0, True, True, P.compensated)
 
 
 @kernel
 def lgvi_record(S, W, P, inputs, every, D, snap, stats):
     """The general path of :func:`record_loop`."""
-    record_loop(S, W, P, inputs, every, D, snap, stats, P.first == 0, True, True)
+    record_loop(S, W, P, inputs, every, D, snap, stats, P.first == 0, True, True, P.compensated)
 
 
-def _compile_specialised(free: bool, forced: bool, coupled: bool):
+def _compile_specialised(free: bool, forced: bool, coupled: bool, compensated: bool):
     """``(advance, record)`` compiled with the flags as constants (closure variables are
     compile-time constants in numba, and its cache keys closures by their values)."""
 
     @kernel
     def advance(S, W, P, inputs, nsteps, stats):
-        advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled)
+        advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated)
 
     @kernel
     def record(S, W, P, inputs, every, D, snap, stats):
-        record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled)
+        record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled, compensated)
 
     return advance, record
 
@@ -564,13 +584,14 @@ def _compile_specialised(free: bool, forced: bool, coupled: bool):
 _SPECIALISED = {}
 
 
-def specialised_kernels(free: bool, forced: bool, coupled: bool):
+def specialised_kernels(free: bool, forced: bool, coupled: bool, compensated: bool = True):
     """``(advance, record)`` with the signatures of :func:`lgvi_advance`/:func:`lgvi_record`,
     compiled for one kind of scene: ``free`` pivot or fixed, inputs ``forced`` or all zero,
-    body ``coupled`` to the string (rho_c != 0) or not. What a flag turns off is not computed
-    at all; the results are those of the general path (tests/test_specialised.py).
+    body ``coupled`` to the string (rho_c != 0) or not, state updates ``compensated`` or plain
+    (as ``P.compensated`` must say). What a flag turns off is not computed at all; the
+    results are those of the general path (tests/test_specialised.py).
     Compiled on first use (and cached on disk); created once per process."""
-    key = (bool(free), bool(forced), bool(coupled))
+    key = (bool(free), bool(forced), bool(coupled), bool(compensated))
     if key not in _SPECIALISED:
         _SPECIALISED[key] = _compile_specialised(*key)
     return _SPECIALISED[key]

@@ -102,7 +102,7 @@ def env_step_one(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, resul
     body torque, spatial torque), then observation, reward terms and termination code.
     ``result`` (int64, 5): status, steps taken, Newton iterations (total, max), termination."""
     # the general kernel: an environment always has inputs and, as a rule, an off-centre load
-    advance_loop(S, W, P, inputs, nsub, result, P.first == 0, True, True)
+    advance_loop(S, W, P, inputs, nsub, result, P.first == 0, True, True, P.compensated)
     status = result[0]
     diagnostics(S, P, D)
     code = env_observe(S, P, D, target, tp, action, obs, terms)
