@@ -9,6 +9,9 @@ model (``esp_gym/ode.py``), and their long-run energy behaviour.
 
    * the LGVI (``esp_gym.Simulator``) at h = 0.01 s / k from near the stability bound
      (7.2e-4 s) down to 1e-6 s;
+   * the same LGVI variants with ``solver.compensated = false`` ("plain sums": no Kahan
+     compensation of the state updates, which only matters over 1e6+ steps; RK4 has none
+     either), whose Pareto front is reported separately as "LGVI frontier, plain sums";
    * a compiled classical RK4 with fixed h (``ElasticStringODE.rk4``, numba);
    * SciPy ``solve_ivp`` RK45 and DOP853 (numba right-hand side called from Python) at
      rtol = atol = tol;
@@ -75,9 +78,15 @@ class Settings:
     """LGVI steps per sample: h = sample / k"""
     composition_k: tuple = (("triple_jump", (18, 20, 25, 32, 40, 64, 100, 160, 250, 400)),
                             ("suzuki5", (11, 12, 14, 16, 20, 25, 32, 50, 80, 130, 200)),
+                            ("wide5", (9, 10, 11, 12, 14, 16, 20, 25, 32, 50)),
                             ("kahan_li9", (12, 13, 14, 16, 18, 20, 25, 32, 40, 50, 64, 100)),
                             ("kahan_li17", (7, 8, 9, 10, 11, 12, 14, 16, 20, 25, 32, 50)))
     """steps per sample of each composition of the LGVI (esp_gym/compositions.py)"""
+    plain_k: tuple = (("lgvi", (14, 16, 20, 25, 32, 40, 50, 64, 100, 160, 250)),
+                      ("suzuki5", (11, 12, 14, 16, 20, 25, 32, 50, 80)),
+                      ("wide5", (9, 10, 11, 12, 14, 16, 20)),
+                      ("kahan_li17", (7, 8, 9, 10, 12, 16, 25, 50)))
+    """steps per sample of the variants run with solver.compensated = false (plain sums)"""
     rk4_k: tuple = (10, 11, 12, 14, 16, 20, 25, 32, 40, 50, 64, 100, 160, 250, 400)
     """RK4 steps per sample: h = sample / k"""
     explicit_tols: tuple = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
@@ -92,7 +101,8 @@ class Settings:
     @classmethod
     def quick_settings(cls, out: str) -> "Settings":
         return cls(quick=True, out=out, repeats=1, longrun=5.0, lgvi_k=(16, 100, 400),
-                   composition_k=(("suzuki5", (14, 50)), ("kahan_li9", (16, 50))), rk4_k=(12, 50),
+                   composition_k=(("suzuki5", (14, 50)), ("kahan_li9", (16, 50))),
+                   plain_k=(("wide5", (10, 50)),), rk4_k=(12, 50),
                    explicit_tols=(1e-4, 1e-7), implicit_tols=(1e-4,), reference_tol=1e-10,
                    richardson_k=(500, 1000), time_limit=10.0)
 
@@ -118,14 +128,16 @@ def timed(fn, repeats: int):
 
 
 # -- the integrators -----------------------------------------------------------------------------
-def lgvi_samples(scene_name: str, k: int, t_final: float, sample: float, composition: str = "lgvi"):
+def lgvi_samples(scene_name: str, k: int, t_final: float, sample: float, composition: str = "lgvi",
+                 compensated: bool = True):
     """LGVI (or one of its compositions) with h = sample/k: returns a function giving
     (load positions (K+1, 3), steps)."""
     import esp_gym
     from esp_gym.compositions import COMPOSITIONS
 
     h = sample / k
-    solver = {"order": COMPOSITIONS[composition].order, "composition": composition}
+    solver = {"order": COMPOSITIONS[composition].order, "composition": composition,
+              "compensated": compensated}
     scene = esp_gym.load_scene(scene_name, h=h, allow_unstable_h=True, solver=solver)
 
     def run():
@@ -217,6 +229,8 @@ def work_precision(cfg: Settings):
     lgvi_samples(cfg.scene, 20, 2 * cfg.sample, cfg.sample)[0]()
     for name, ks in cfg.composition_k:
         lgvi_samples(cfg.scene, 100, 2 * cfg.sample, cfg.sample, composition=name)[0]()
+    for name, ks in cfg.plain_k:
+        lgvi_samples(cfg.scene, 100, 2 * cfg.sample, cfg.sample, composition=name, compensated=False)[0]()
     rk4_samples(scene, 10, 2 * cfg.sample, cfg.sample)[0]()
     for method in ("RK45", "Radau"):
         ivp_samples(scene, method, 1e-3, t_eval[:3])()
@@ -250,6 +264,10 @@ def work_precision(cfg: Settings):
         for k in ks:
             runner, h = lgvi_samples(cfg.scene, k, cfg.t_final, cfg.sample, composition=name)
             record(LABELS[name], {"h": h}, runner)
+    for name, ks in cfg.plain_k:
+        for k in ks:
+            runner, h = lgvi_samples(cfg.scene, k, cfg.t_final, cfg.sample, composition=name, compensated=False)
+            record(LABELS[name] + PLAIN, {"h": h}, runner)
     for k in cfg.rk4_k:
         runner, h = rk4_samples(scene, k, cfg.t_final, cfg.sample)
         record("RK4 (numba, fixed h)", {"h": h}, runner)
@@ -284,10 +302,15 @@ def pareto_time(rows, level: float):
     return None  # pragma: no cover
 
 
-#: Labels of the LGVI variants; "LGVI frontier" is the Pareto front over all of them.
+#: Labels of the LGVI variants. "LGVI frontier" is the Pareto front over the default
+#: (compensated) variants, "LGVI frontier, plain sums" over those run with
+#: solver.compensated = false.
 LABELS = {"lgvi": "LGVI (esp_gym)", "triple_jump": "LGVI o4 triple jump", "suzuki5": "LGVI o4 Suzuki 5",
-          "kahan_li9": "LGVI o6 Kahan-Li 9", "kahan_li17": "LGVI o8 Kahan-Li 17"}
+          "wide5": "LGVI o4 wide5", "kahan_li9": "LGVI o6 Kahan-Li 9", "kahan_li17": "LGVI o8 Kahan-Li 17"}
+PLAIN = ", plain sums"
 FRONTIER = "LGVI frontier"
+FRONTIER_PLAIN = "LGVI frontier" + PLAIN
+FRONTIERS = (FRONTIER, FRONTIER_PLAIN)
 
 
 def is_lgvi(name: str) -> bool:
@@ -295,12 +318,15 @@ def is_lgvi(name: str) -> bool:
 
 
 def ranking(results):
-    """Time to each error level for every method, plus the LGVI frontier (best LGVI variant)."""
+    """Time to each error level for every method, plus the LGVI frontiers (best LGVI variant,
+    compensated and plain)."""
     table = {}
     for level in LEVELS:
         times = {name: pareto_time(rows, level) for name, rows in results.items()}
-        lgvi = [t for name, t in times.items() if is_lgvi(name) and t is not None]
-        times[FRONTIER] = min(lgvi) if lgvi else None
+        for frontier, plain in ((FRONTIER, False), (FRONTIER_PLAIN, True)):
+            lgvi = [t for name, t in times.items()
+                    if is_lgvi(name) and name.endswith(PLAIN) == plain and t is not None]
+            times[frontier] = min(lgvi) if lgvi else None
         table[f"{level:g}"] = times
     return table
 
@@ -391,7 +417,7 @@ def print_tables(cfg, results, rank, stats):
             print(f"{name:30} {p:12.3e} {fmt(wall, '10.3f'):>10} {fmt(r['error_m']):>10} "
                   f"{fmt(r['work'], 'd'):>11}  {r['status']}")
     print("\ntime to reach a load position error [ms] (Pareto front, log-log interpolation)")
-    names = list(results) + [FRONTIER]
+    names = list(results) + list(FRONTIERS)
     print(f"{'method':30} " + " ".join(f"{'<= ' + format(lv, 'g') + ' m':>12}" for lv in LEVELS))
     for name in names:
         print(f"{name:30} " + " ".join(
@@ -399,15 +425,18 @@ def print_tables(cfg, results, rank, stats):
             for lv in LEVELS))
     for lv in LEVELS:
         times = {n: t for n, t in rank[f"{lv:g}"].items() if t is not None}
-        lg = times.get(FRONTIER)
         others = {n: t for n, t in times.items() if not is_lgvi(n)}
         best = min(others, key=others.get) if others else None
-        if lg is None or best is None:
-            print(f"  {lv:g} m: LGVI frontier {fmt(lg)} s, best general-purpose {best}")
-            continue
-        lead = min((n for n in times if is_lgvi(n) and n != FRONTIER), key=times.get)
-        print(f"  {lv:g} m: LGVI frontier {1e3 * lg:.2f} ms ({lead}); best general-purpose {best} "
-              f"{1e3 * others[best]:.2f} ms: the LGVI is {others[best] / lg:.2f}x as fast")
+        for frontier in FRONTIERS:
+            lg = times.get(frontier)
+            if lg is None or best is None:
+                print(f"  {lv:g} m: {frontier} {fmt(lg)} s, best general-purpose {best}")
+                continue
+            plain = frontier == FRONTIER_PLAIN
+            lead = min((n for n in times if is_lgvi(n) and n not in FRONTIERS and n.endswith(PLAIN) == plain),
+                       key=times.get)
+            print(f"  {lv:g} m: {frontier} {1e3 * lg:.2f} ms ({lead}); best general-purpose {best} "
+                  f"{1e3 * others[best]:.2f} ms: the LGVI is {others[best] / lg:.2f}x as fast")
     print(f"\nlong run: {cfg.scene}, {cfg.longrun:g} s, invariants every {cfg.sample:g} s")
     print(f"{'':24} {'wall [s]':>9} {'max|dE| [J]':>12} {'dE slope [J/s]':>15} {'max|dpi3|':>10} "
           f"{'pi3 slope [/s]':>15} {'max orth':>9}")
@@ -418,6 +447,7 @@ def print_tables(cfg, results, rank, stats):
 
 
 COLORS = {"LGVI (esp_gym)": "tab:red", "LGVI o4 triple jump": "salmon", "LGVI o4 Suzuki 5": "darkred",
+          "LGVI o4 wide5": "darkorange",
           "LGVI o6 Kahan-Li 9": "magenta", "LGVI o8 Kahan-Li 17": "indigo", "RK4 (numba, fixed h)": "tab:blue",
           "RK45 (SciPy)": "tab:orange", "DOP853 (SciPy)": "tab:green", "Radau (SciPy, implicit)": "tab:purple",
           "BDF (SciPy, implicit)": "tab:brown"}
@@ -434,9 +464,10 @@ def plot_wp(cfg, results, path):
         ok = [r for r in rows if r["status"] == "ok"]
         t = np.array([r["wall_s"] for r in ok])
         e = np.array([r["error_m"] for r in ok])
-        ax.loglog(t, e, "o-", ms=4, lw=1.6 if name.startswith("LGVI") else 1.1, color=COLORS.get(name),
-                  label=name)
-        if ok and "h" in ok[0]["param"]:  # label the largest and smallest h
+        plain = name.endswith(PLAIN)
+        ax.loglog(t, e, "x--" if plain else "o-", ms=4, lw=1.6 if name.startswith("LGVI") else 1.1,
+                  color=COLORS.get(name.removesuffix(PLAIN)), label=name)
+        if ok and "h" in ok[0]["param"] and not plain:  # label the largest and smallest h
             below = name.startswith("LGVI")
             for i, xy in ((0, (-10, -14) if below else (-10, 8)), (len(ok) - 1, (6, -3))):
                 ax.annotate(f"h={ok[i]['param']['h']:.1e}", (t[i], e[i]), textcoords="offset points",

@@ -103,6 +103,14 @@ COMPOSITIONS = {
                     "Yoshida 1990; Creutz & Gocksch 1989; Suzuki 1990"),
         Composition("suzuki5", 4, (_SUZUKI_P, _SUZUKI_P, 1.0 - 4.0 * _SUZUKI_P, _SUZUKI_P, _SUZUKI_P),
                     "Suzuki 1990 (fractal decomposition, 5 stages)"),
+        # the 5-stage order-4 family (a, b, 1 - 2a - 2b, b, a) with 2a^3 + 2b^3 + (1-2a-2b)^3 = 0
+        # trades error constant for stability: Suzuki's member (a = b) has the smallest phase
+        # error, a = 1/5 a 22 % wider interval (3.319 vs 2.721, 0.664 per stage, within 7 % of
+        # the family's widest) at 6x the leading phase-error constant. For stability-limited
+        # runs: where the fastest steps Suzuki can take are already more accurate than needed.
+        Composition("wide5", 4, (0.2, 0.81748462964498403636, -1.03496925928996807272,
+                                 0.81748462964498403636, 0.2),
+                    "5-stage symmetric family (Suzuki 1990), outer weight 1/5 (this project)"),
         Composition("kahan_li9", 6, _palindrome((0.39216144400731413927925056, 0.33259913678935943859974864,
                                                  -0.70624617255763935980996482, 0.08221359629355080023149045,
                                                  0.79854399093482996339895035)),
