@@ -12,7 +12,8 @@ Prints three tables and writes ``OUT/step_cost.json`` and ``OUT/step_cost.png``
    directory (cold: everything compiles) and then again with the same directory (cached);
 3. the paper's example, 50,000 steps after compilation: plain stepping and a recorded run
    (snapshots every 100 steps plus energy, pi3 and orthogonality after every step);
-4. the kernels specialised for a scene (fixed/free pivot, inputs or none, rho_c = 0, a
+4. plain against Kahan-compensated state updates (``solver.compensated``);
+5. the kernels specialised for a scene (fixed/free pivot, inputs or none, rho_c = 0, a
    composition) against the general kernel, and the cost of diagnostics.
 
 Usage: ``python benchmarks/step_cost.py [--quick] [--out DIR]``. ``--quick`` runs N in {5, 20},
@@ -144,6 +145,36 @@ def specialisation_timing(steps: int, repeats: int, cases=SPECIALISED_CASES) -> 
     return rows
 
 
+COMPENSATION_CASES = (
+    ("LGVI, no inputs", {}, {}),
+    ("free pivot, pushed", {"pivot": {"kind": "free", "mass": 0.3}}, {"pivot_force": [0.2, -0.1, -3.0]}),
+    ("order 4 (Suzuki), no inputs", {"solver": {"order": 4}}, {}),
+)
+
+
+def compensation_timing(steps: int, repeats: int, cases=COMPENSATION_CASES) -> list:
+    """us/step with Kahan-compensated state updates (the default) and with plain sums
+    (``solver.compensated: false``), both on the specialised kernels, alternating runs."""
+    import esp_gym
+
+    rows = []
+    for label, overrides, inputs in cases:
+        scenes = {c: esp_gym.load_scene("paper_example", **overrides, **{"solver.compensated": c})
+                  for c in (True, False)}
+        runs = {True: [], False: []}
+        for scene in scenes.values():
+            esp_gym.Simulator(scene).step(2, **inputs)  # compile
+        for _ in range(repeats):
+            for c, scene in scenes.items():
+                sim = esp_gym.Simulator(scene)
+                start = time.perf_counter()
+                sim.step(steps, **inputs)
+                runs[c].append((time.perf_counter() - start) / steps * 1e6)
+        kahan, plain = float(np.median(runs[True])), float(np.median(runs[False]))
+        rows.append({"case": label, "compensated_us": kahan, "plain_us": plain, "speedup": kahan / plain})
+    return rows
+
+
 def diagnostics_timing(steps: int, repeats: int) -> dict:
     """us/step of the paper example with diagnostics off (plain stepping), with snapshots every
     100 steps, and with energy, pi3 and orthogonality after every step as well."""
@@ -265,6 +296,12 @@ def main(argv=None) -> int:
     print(f"{'scene':30} {'general [us]':>13} {'specialised [us]':>17} {'speed-up':>9}")
     for r in spec:
         print(f"{r['case']:30} {r['general_us']:13.3f} {r['specialised_us']:17.3f} {r['speedup']:9.2f}")
+    comp = compensation_timing(steps, repeats, COMPENSATION_CASES[:1] if args.quick else COMPENSATION_CASES)
+    print(f"\nstate updates, paper_example: Kahan-compensated (default) vs plain sums, median of "
+          f"{repeats} x {steps} steps")
+    print(f"{'scene':30} {'compensated [us]':>17} {'plain [us]':>11} {'speed-up':>9}")
+    for r in comp:
+        print(f"{r['case']:30} {r['compensated_us']:17.3f} {r['plain_us']:11.3f} {r['speedup']:9.2f}")
     diag = diagnostics_timing(steps, repeats)
     print("\ndiagnostics, paper_example: us/step")
     for name, us in diag.items():
@@ -274,6 +311,7 @@ def main(argv=None) -> int:
 
     results = {
         "specialised": spec,
+        "compensation": comp,
         "diagnostics_us_per_step": diag,
         "quick": args.quick,
         "step_cost": rows,

@@ -447,7 +447,7 @@ def print_tables(cfg, results, rank, stats):
 
 
 COLORS = {"LGVI (esp_gym)": "tab:red", "LGVI o4 triple jump": "salmon", "LGVI o4 Suzuki 5": "darkred",
-          "LGVI o4 wide5": "darkorange",
+          "LGVI o4 wide5": "goldenrod",
           "LGVI o6 Kahan-Li 9": "magenta", "LGVI o8 Kahan-Li 17": "indigo", "RK4 (numba, fixed h)": "tab:blue",
           "RK45 (SciPy)": "tab:orange", "DOP853 (SciPy)": "tab:green", "Radau (SciPy, implicit)": "tab:purple",
           "BDF (SciPy, implicit)": "tab:brown"}
