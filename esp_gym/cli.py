@@ -95,6 +95,16 @@ def _time_plain_steps(scene, steps: int, repeats: int = 3):
     return float(np.median(times)), sim.state.r
 
 
+def check_paper_args(t_final: float, record_every: int, h: float = PAPER["h"]) -> None:
+    """Raise ValueError unless ``t_final`` [s] is a positive whole number of ``record_every``
+    steps of ``h`` [s]."""
+    steps = int(round(t_final / h))
+    if (record_every < 1 or steps < record_every or steps % record_every
+            or abs(steps * h - t_final) > 1e-9 * max(1.0, abs(t_final))):
+        raise ValueError(f"t_final = {t_final:g} s is {t_final / h:g} steps of h = {h:g} s: "
+                         f"it must be a positive whole number of record_every = {record_every} steps")
+
+
 def run_paper(out: Path, t_final: float = PAPER["t_final"], record_every: int = 100,
               progress: bool = True, argv: Optional[Sequence[str]] = None) -> dict:
     """Run the paper's example, write the outputs into ``out`` and return the summary."""
@@ -102,13 +112,10 @@ def run_paper(out: Path, t_final: float = PAPER["t_final"], record_every: int = 
     from .params import load_scene
     from .viz.figures import plot_fig_ns, plot_fig_sm
 
+    scene = load_scene(PAPER["scene"], N=PAPER["N"], h=PAPER["h"])
+    check_paper_args(t_final, record_every, scene.h)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    scene = load_scene(PAPER["scene"], N=PAPER["N"], h=PAPER["h"])
-    steps = int(round(t_final / scene.h))
-    if record_every < 1 or steps < record_every or steps % record_every:
-        raise ValueError(f"t_final = {t_final:g} s is {t_final / scene.h:g} steps of h = {scene.h:g} s: "
-                         f"it must be a positive whole number of record_every = {record_every} steps")
 
     # Load (or compile) the kernels first so that the timings below are of the simulation only.
     start = time.perf_counter()
@@ -172,15 +179,17 @@ def _print_summary(s: dict, out: Path) -> None:
 def _cmd_paper(args, argv) -> int:
     from .model import SimulationError
 
+    try:  # only argument errors are reported briefly: anything later keeps its traceback
+        check_paper_args(args.t_final, args.record_every)
+    except ValueError as err:
+        print(f"esp-gym paper: {err}", file=sys.stderr)
+        return 2
     try:
         summary = run_paper(Path(args.out), t_final=args.t_final, record_every=args.record_every,
                             progress=not args.no_progress, argv=argv)
     except SimulationError as err:
         print(f"esp-gym paper: {err}", file=sys.stderr)
         return 1
-    except ValueError as err:  # e.g. t_final not a whole number of record_every steps
-        print(f"esp-gym paper: {err}", file=sys.stderr)
-        return 2
     _print_summary(summary, Path(args.out))
     return 0
 

@@ -5,6 +5,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -60,6 +61,30 @@ def test_paper_command_rejects_a_partial_record_interval(tmp_path):
         capture_output=True, text=True, timeout=600)
     assert proc.returncode == 2
     assert "whole number" in proc.stderr
+
+
+@pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")  # projecting the poison
+def test_snapshot_figure_does_not_autoscale_over_uninitialised_memory(tmp_path, monkeypatch):
+    """CI stop 9: matplotlib pads the ragged body polygons (quads and 24-gon caps) with
+    np.empty and, with autolim, scaled the axes over the padding; whatever the memory held
+    could overflow the limits. Poisoning np.empty makes that failure certain."""
+    from esp_gym.model import Simulator
+    from esp_gym.params import load_scene
+    from esp_gym.viz.figures import plot_fig_sm
+
+    scene = load_scene("paper_example", N=5, h=1e-3)
+    traj = Simulator(scene).run(t_final=0.04, record_every=10)
+    real_empty = np.empty
+
+    def poisoned(shape, dtype=float, *args, **kwargs):
+        a = real_empty(shape, dtype, *args, **kwargs)
+        if np.issubdtype(a.dtype, np.floating):
+            a.fill(-1.79e308)
+        return a
+
+    monkeypatch.setattr(np, "empty", poisoned)
+    path = plot_fig_sm(traj, scene, tmp_path / "fig_sm.png")
+    assert path.stat().st_size > 0
 
 
 def test_step_cost_quick_runs(tmp_path):

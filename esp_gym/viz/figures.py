@@ -278,11 +278,14 @@ def plot_fig_sm(traj, scene, path, panels: int = 4, snapshots_per_panel: int = 1
                 seg = np.stack([nodes[k, :-1], nodes[k, 1:]], axis=1)
                 lines = Line3DCollection(seg, cmap=colormap, norm=norm, linewidths=2.0)
                 lines.set_array(traj.strain_energy[k])
-                ax.add_collection3d(lines)
+                # autolim=False: the box is set below from our own points. matplotlib 3.11 pads
+                # ragged polygon lists (quads + 24-gon caps) with np.empty and autoscales over
+                # the padding, so garbage there could overflow the limits (CI, stop 9).
+                ax.add_collection3d(lines, autolim=False)
                 grey = 0.8 - 0.55 * j / max(1, len(sel) - 1)
                 body = Poly3DCollection(bodies[k], facecolor=(grey, grey, grey), edgecolor=(0.2, 0.2, 0.2),
                                         linewidths=0.2, alpha=0.95)
-                ax.add_collection3d(body)
+                ax.add_collection3d(body, autolim=False)
             for k in (sel[0], sel[-1]):  # label the first and the last snapshot with its time
                 c = np.asarray(bodies[k][-1]).mean(0)
                 ax.text(c[0], c[1], c[2] - 0.1 * (hi[2] - lo[2]), f"{t[k]:g} s", fontsize=8, ha="center",
