@@ -98,3 +98,19 @@ def test_step_cost_quick_runs(tmp_path):
     assert all(r["us_per_step"] > 0 and r["h"] < r["h_bound"] for r in results["step_cost"])
     assert results["startup"]["cold"]["first_step_s"] > 0
     assert (tmp_path / "step_cost.png").stat().st_size > 0
+
+
+def test_spatial_convergence_quick_shows_order_2_on_smooth_data(tmp_path):
+    """The finite elements converge at order 2 in N on smooth data (the hanging start), and
+    more slowly from the paper's velocity jump at the attachment point (order ~1)."""
+    proc = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "spatial_convergence.py"), "--quick", "--out", str(tmp_path)],
+        capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    table = json.loads((tmp_path / "spatial_convergence.json").read_text())["table"]
+    for mass in ("consistent", "lumped"):
+        smooth = [o for o in table[f"hanging/{mass}"]["order"] if o is not None]
+        assert smooth and all(abs(o - 2.0) < 0.2 for o in smooth), smooth
+    jump = [o for o in table["paper/consistent"]["order"] if o is not None]
+    assert jump and all(o < 1.5 for o in jump), jump
+    assert (tmp_path / "spatial_convergence.png").stat().st_size > 0
