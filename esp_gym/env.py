@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any, Optional, Union
 
@@ -10,8 +11,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from .kernels.task import (OBS_SIZE, REWARD_TERMS, TERM_OVERSTRETCH, TERM_WORKSPACE, env_reset_observe,
-                           env_step)
+from .kernels.task import (ACTION_PARAM_SIZE, OBS_SIZE, REWARD_TERMS, TERM_OVERSTRETCH, TERM_WORKSPACE,
+                           actions_inputs, env_reset_observe, env_step)
 from .model import STATUS_MESSAGES, Simulator
 from .params import Scene, load_scene, scene_from_dict
 from .tasks import Task, get_task, sample_episode
@@ -48,11 +49,19 @@ class EnvSetup:
     def action_space(self) -> spaces.Box:
         return spaces.Box(-1.0, 1.0, (ACTION_SIZE,), np.float32)
 
+    @cached_property
+    def action_params(self) -> np.ndarray:
+        """The compiled action path's constants (kernels/task.py ``ap``): box bounds, hover
+        force, force and torque limits."""
+        space = self.action_space
+        ap = np.concatenate([space.low, space.high, self.hover, [self.force_limit, self.torque_limit]])
+        assert ap.shape == (ACTION_PARAM_SIZE,)
+        return ap.astype(np.float64)
+
     def inputs(self, action: np.ndarray, out: np.ndarray) -> None:
-        """Clipped action(s) (..., 6) -> kernel inputs (..., 9): pivot force, body torque, 0."""
-        out[..., 0:3] = self.hover + self.force_limit * action[..., 0:3]
-        out[..., 3:6] = self.torque_limit * action[..., 3:6]
-        out[..., 6:9] = 0.0
+        """Clipped action(s) (..., 6) -> kernel inputs (..., 9), C-contiguous float64: pivot
+        force, body torque, 0 (the compiled mapping the single env's step uses)."""
+        actions_inputs(action.reshape(-1, ACTION_SIZE), self.action_params, out.reshape(-1, 9))
 
 
 def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabilize",
@@ -93,16 +102,6 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
     return EnvSetup(scene=resolved, task=t, task_params=t.params(resolved), control_period=float(control_period),
                     substeps=substeps, hover=np.array([0.0, 0.0, -weight]), force_limit=float(force_limit),
                     torque_limit=float(torque_limit))
-
-
-def check_action(action, space: spaces.Box) -> np.ndarray:
-    """Validate and clip an action: wrong shape, NaN or inf raise ValueError."""
-    a = np.asarray(action, dtype=np.float64)
-    if a.shape != space.shape:
-        raise ValueError(f"action must have shape {space.shape}, got {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise ValueError(f"action must be finite, got {a.tolist()}")
-    return np.clip(a, space.low, space.high)
 
 
 class ElasticStringPendulumEnv(gym.Env):
@@ -236,11 +235,17 @@ class ElasticStringPendulumEnv(gym.Env):
         return self._obs.astype(np.float32), {}
 
     def step(self, action):
-        self._action[:] = check_action(action, self.action_space)
-        self.setup.inputs(self._action, self._inputs)
+        # the shape here; finiteness, clipping and the inputs inside the compiled step
+        raw = np.asarray(action, dtype=np.float64)
+        if raw.shape != self.action_space.shape:
+            raise ValueError(f"action must have shape {self.action_space.shape}, got {raw.shape}")
+        if not (raw.flags.c_contiguous and raw.flags.writeable):  # one compiled signature only
+            raw = raw.copy()
         S, W, P, D = self.sim.kernel_args
-        env_step(S, W, P, D, self._inputs, self.setup.substeps, self._target, self.setup.task_params,
-                 self._action, self._obs, self._terms, self._result)
+        if not env_step(S, W, P, D, raw, self.setup.action_params, self._inputs, self.setup.substeps,
+                        self._target, self.setup.task_params, self._action, self._obs, self._terms,
+                        self._result):
+            raise ValueError(f"action must be finite, got {raw.tolist()}")
         self.sim.advance_counter(self._result[1], self._result[2], self._result[3])
         info = {}
         reward = 0.0

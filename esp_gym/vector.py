@@ -19,7 +19,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .env import ACTION_SIZE, TERMINATION_REASONS, EnvSetup, check_action, make_setup
+from .env import ACTION_SIZE, TERMINATION_REASONS, EnvSetup, make_setup
 from .kernels.diagnostics import DiagWork
 from .kernels.lgvi import StateArrays, Work
 from .kernels.task import OBS_SIZE, REWARD_TERMS, env_reset_observe, env_step_batch

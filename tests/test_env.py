@@ -122,6 +122,23 @@ def test_out_of_range_actions_are_clipped():
     assert np.array_equal(a.step(big)[0], b.step(np.clip(big, -1, 1))[0])
 
 
+def test_any_array_layout_of_an_action_steps_the_same():
+    """The compiled step takes C-contiguous writeable float64: strided, read-only, float32 and
+    list actions are converted, and step exactly as the plain array does."""
+    base = np.array([0.375, -0.25, 0.5, 0.125, -0.375, 0.25])  # exact in float32
+    strided = np.zeros(12)
+    strided[::2] = base
+    frozen = base.copy()
+    frozen.flags.writeable = False
+    results = []
+    for action in (base, strided[::2], frozen, base.astype(np.float32), base.tolist()):
+        env = gym.make(ENV_ID).unwrapped
+        env.reset(seed=4)
+        results.append(env.step(action)[0])
+    for obs in results[1:]:
+        assert np.array_equal(obs, results[0])
+
+
 def test_physics_failure_terminates_with_a_reason_and_reset_recovers():
     env = gym.make(ENV_ID, torque_limit=1e4)  # absurd torque: Newton cannot follow the spin
     env.reset(seed=1)

@@ -29,6 +29,10 @@ OBS_LAYOUT = (
 )
 OBS_SIZE = 22
 
+#: Layout of the action parameter vector ``ap`` (float64, 17): the action box's low (6) and
+#: high (6) bounds, the hover force (3) [N], force_limit [N] and torque_limit [N m].
+ACTION_PARAM_SIZE = 17
+
 #: Termination codes (result[4]); 1 and 2 are the physics kernel's failure statuses.
 TERM_NONE = 0
 TERM_OVERSTRETCH = 3
@@ -97,6 +101,42 @@ def env_observe(S, P, D, target, tp, action, obs, terms):
 
 
 @kernel(inline="always")
+def action_inputs(action, ap, inputs):
+    """Clipped action (6,) -> kernel inputs (9,): pivot force hover + force_limit a[0:3] [N]
+    (spatial), body torque torque_limit a[3:6] [N m], no spatial torque. The same operations
+    as the NumPy expression, so the same bits."""
+    for i in range(3):
+        inputs[i] = ap[12 + i] + ap[15] * action[i]
+        inputs[3 + i] = ap[16] * action[3 + i]
+        inputs[6 + i] = 0.0
+
+
+@kernel
+def actions_inputs(actions, ap, inputs):
+    """:func:`action_inputs` row by row: actions (B, 6) -> inputs (B, 9)."""
+    for b in range(actions.shape[0]):
+        action_inputs(actions[b], ap, inputs[b])
+
+
+@kernel(inline="always")
+def take_action(raw, ap, action, inputs):
+    """Check, clip and map a raw action (6,): False, touching nothing, if any entry is not
+    finite; else ``action`` = raw clipped to [low, high] (as np.clip) and ``inputs`` from it."""
+    for i in range(6):
+        if not np.isfinite(raw[i]):
+            return False
+    for i in range(6):
+        a = raw[i]
+        if a < ap[i]:
+            a = ap[i]
+        elif a > ap[6 + i]:
+            a = ap[6 + i]
+        action[i] = a
+    action_inputs(action, ap, inputs)
+    return True
+
+
+@kernel(inline="always")
 def env_step_one(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, result):
     """One control step: ``nsub`` physics steps with constant ``inputs`` (9: pivot force,
     body torque, spatial torque), then observation, reward terms and termination code.
@@ -110,9 +150,14 @@ def env_step_one(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, resul
 
 
 @kernel
-def env_step(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, result):
-    """:func:`env_step_one` for one environment."""
+def env_step(S, W, P, D, raw, ap, inputs, nsub, target, tp, action, obs, terms, result):
+    """:func:`take_action` of the raw action, then :func:`env_step_one`, for one environment
+    (one compiled call per control step). Returns False, with nothing changed, if the raw
+    action is not finite."""
+    if not take_action(raw, ap, action, inputs):
+        return False
     env_step_one(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, result)
+    return True
 
 
 @kernel
