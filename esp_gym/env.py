@@ -18,6 +18,8 @@ from .params import Scene, load_scene, scene_from_dict
 from .tasks import Task, get_task, sample_episode
 
 ACTION_SIZE = 6
+#: info keys of the reward terms, in REWARD_TERMS order
+INFO_REWARD_KEYS = tuple("reward_" + name for name in REWARD_TERMS)
 
 TERMINATION_REASONS = {
     1: "physics_failure: " + STATUS_MESSAGES[1],
@@ -242,16 +244,14 @@ class ElasticStringPendulumEnv(gym.Env):
         if not (raw.flags.c_contiguous and raw.flags.writeable):  # one compiled signature only
             raw = raw.copy()
         S, W, P, D = self.sim.kernel_args
-        if not env_step(S, W, P, D, raw, self.setup.action_params, self._inputs, self.setup.substeps,
-                        self._target, self.setup.task_params, self._action, self._obs, self._terms,
-                        self._result):
+        if not env_step(tuple(S), tuple(W), tuple(P), tuple(D), raw, self.setup.action_params, self._inputs,
+                        self.setup.substeps, self._target, self.setup.task_params, self._action, self._obs,
+                        self._terms, self._result):
             raise ValueError(f"action must be finite, got {raw.tolist()}")
         self.sim.advance_counter(self._result[1], self._result[2], self._result[3])
-        info = {}
-        reward = 0.0
-        for name, value in zip(REWARD_TERMS, self._terms.tolist()):
-            info["reward_" + name] = value
-            reward += value
+        terms = self._terms.tolist()
+        info = dict(zip(INFO_REWARD_KEYS, terms))
+        reward = sum(terms)  # left to right, in REWARD_TERMS order: the documented sum, same bits
         code = int(self._result[4])
         if code:
             info["termination_reason"] = TERMINATION_REASONS[code]

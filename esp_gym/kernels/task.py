@@ -12,7 +12,7 @@ from numba import prange
 
 from ._jit import kernel
 from .diagnostics import DiagWork, diagnostics
-from .lgvi import OK, StateArrays, Work, advance_loop
+from .lgvi import OK, LGVIParams, StateArrays, Work, advance_loop
 
 #: Layout of the task parameter vector.
 TASK_PARAM_NAMES = (
@@ -150,13 +150,18 @@ def env_step_one(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, resul
 
 
 @kernel
-def env_step(S, W, P, D, raw, ap, inputs, nsub, target, tp, action, obs, terms, result):
+def env_step(s, w, p, d, raw, ap, inputs, nsub, target, tp, action, obs, terms, result):
     """:func:`take_action` of the raw action, then :func:`env_step_one`, for one environment
     (one compiled call per control step). Returns False, with nothing changed, if the raw
-    action is not finite."""
+    action is not finite.
+
+    ``s, w, p, d`` are the fields of StateArrays, Work, LGVIParams and DiagWork as *plain*
+    tuples: numba's dispatcher types a plain tuple about twice as fast as a namedtuple (3 us
+    less per call here), and the namedtuples are rebuilt for free in compiled code."""
     if not take_action(raw, ap, action, inputs):
         return False
-    env_step_one(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, result)
+    env_step_one(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), inputs, nsub, target, tp, action,
+                 obs, terms, result)
     return True
 
 
