@@ -252,6 +252,9 @@ class Simulator:
                           backup=z(state_size(self._arrays)))
         self._diag = DiagWork(V=z((n + 1, 3)), strain=z(n), omega=z(3), out=z(len(DIAG_NAMES)))
         self._inputs = z(9)
+        self._forced = False  #: any input non-zero (picks the forced or the unforced kernels)
+        self._coupled = bool(np.any(self.params.rho != 0.0))  # rho_c != 0: rotation coupled
+        self._kernel_cache: dict = {}
         self._stats = np.zeros(4, dtype=np.int64)
         self.newton_iterations = 0  #: total Newton iterations so far
         self.newton_iterations_max = 0  #: most iterations in any one step so far
@@ -319,17 +322,27 @@ class Simulator:
         """``(advance, record)`` for this scene and the current inputs."""
         if not self.specialise:
             return lgvi_advance, lgvi_record
-        return specialised_kernels(free=self.params.first == 0, forced=bool(np.any(self._inputs != 0.0)),
-                                   coupled=bool(np.any(self.params.rho != 0.0)),
-                                   compensated=self.params.compensated)
+        key = (self.params.first == 0, self._forced, self._coupled, self.params.compensated)
+        kernels = self._kernel_cache.get(key)
+        if kernels is None:
+            kernels = self._kernel_cache[key] = specialised_kernels(*key)
+        return kernels
 
     def _set_inputs(self, pivot_force, body_torque, spatial_torque) -> None:
+        """Validate and hold the inputs; ``self._forced`` says whether any is non-zero."""
+        if pivot_force is None and body_torque is None and spatial_torque is None:
+            # the common unforced call: no validation to do (~4 us of NumPy saved per call)
+            if self._forced:
+                self._inputs.fill(0.0)
+                self._forced = False
+            return
         up = _vector_input("pivot_force", pivot_force)
         tb = _vector_input("body_torque", body_torque)
         ts = _vector_input("spatial_torque", spatial_torque)
         if not self.scene.pivot.is_free and np.any(up != 0):
             raise ValueError("pivot_force needs a free pivot (this scene's pivot.kind is 'fixed')")
         self._inputs[0:3], self._inputs[3:6], self._inputs[6:9] = up, tb, ts
+        self._forced = bool(np.any(self._inputs != 0.0))
 
     def _account(self) -> None:
         status, steps, total, most = (int(x) for x in self._stats)
