@@ -63,7 +63,10 @@ class EnvSetup:
     def inputs(self, action: np.ndarray, out: np.ndarray) -> None:
         """Clipped action(s) (..., 6) -> kernel inputs (..., 9), C-contiguous float64: pivot
         force, body torque, 0 (the compiled mapping the single env's step uses)."""
-        actions_inputs(action.reshape(-1, ACTION_SIZE), self.action_params, out.reshape(-1, 9))
+        if not (out.flags.c_contiguous and out.dtype == np.float64):  # reshape must be a view
+            raise ValueError("out must be a C-contiguous float64 array")
+        actions_inputs(np.ascontiguousarray(action, dtype=np.float64).reshape(-1, ACTION_SIZE), self.action_params,
+                       out.reshape(-1, 9))
 
 
 def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabilize",
