@@ -12,7 +12,7 @@ import numpy as np
 from gymnasium import spaces
 
 from .kernels.task import (ACTION_PARAM_SIZE, OBS_SIZE, REWARD_TERMS, TERM_OVERSTRETCH, TERM_WORKSPACE,
-                           actions_inputs, env_reset_observe, env_step)
+                           env_reset_observe, env_step)
 from .model import STATUS_MESSAGES, Simulator
 from .params import Scene, load_scene, scene_from_dict
 from .tasks import Task, get_task, sample_episode
@@ -60,13 +60,17 @@ class EnvSetup:
         assert ap.shape == (ACTION_PARAM_SIZE,)
         return ap.astype(np.float64)
 
-    def inputs(self, action: np.ndarray, out: np.ndarray) -> None:
-        """Clipped action(s) (..., 6) -> kernel inputs (..., 9), C-contiguous float64: pivot
-        force, body torque, 0 (the compiled mapping the single env's step uses)."""
-        if not (out.flags.c_contiguous and out.dtype == np.float64):  # reshape must be a view
-            raise ValueError("out must be a C-contiguous float64 array")
-        actions_inputs(np.ascontiguousarray(action, dtype=np.float64).reshape(-1, ACTION_SIZE), self.action_params,
-                       out.reshape(-1, 9))
+
+def raw_actions(actions, shape: tuple, name: str = "action") -> np.ndarray:
+    """``actions`` as the compiled step takes them: float64, C-contiguous, writeable (copied
+    only if needed, so one compiled signature serves every caller), of ``shape`` (ValueError
+    otherwise). Finiteness and clipping are the kernel's (kernels/task.py ``take_action``)."""
+    raw = np.asarray(actions, dtype=np.float64)
+    if raw.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {raw.shape}")
+    if not (raw.flags.c_contiguous and raw.flags.writeable):
+        raw = raw.copy()
+    return raw
 
 
 def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabilize",
@@ -240,12 +244,7 @@ class ElasticStringPendulumEnv(gym.Env):
         return self._obs.astype(np.float32), {}
 
     def step(self, action):
-        # the shape here; finiteness, clipping and the inputs inside the compiled step
-        raw = np.asarray(action, dtype=np.float64)
-        if raw.shape != self.action_space.shape:
-            raise ValueError(f"action must have shape {self.action_space.shape}, got {raw.shape}")
-        if not (raw.flags.c_contiguous and raw.flags.writeable):  # one compiled signature only
-            raw = raw.copy()
+        raw = raw_actions(action, self.action_space.shape)
         S, W, P, D = self.sim.kernel_args
         if not env_step(tuple(S), tuple(W), tuple(P), tuple(D), raw, self.setup.action_params, self._inputs,
                         self.setup.substeps, self._target, self.setup.task_params, self._action, self._obs,

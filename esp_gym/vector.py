@@ -19,10 +19,10 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .env import ACTION_SIZE, TERMINATION_REASONS, EnvSetup, make_setup
+from .env import ACTION_SIZE, TERMINATION_REASONS, EnvSetup, make_setup, raw_actions
 from .kernels.diagnostics import DiagWork
 from .kernels.lgvi import StateArrays, Work
-from .kernels.task import OBS_SIZE, REWARD_TERMS, env_reset_observe, env_step_batch
+from .kernels.task import OBS_SIZE, REWARD_TERMS, actions_finite, env_reset_observe, env_step_batch
 from .model import Simulator
 from .tasks import sample_episode
 
@@ -66,12 +66,12 @@ class BatchPhysics:
         self.action[i] = 0.0
         env_reset_observe(S, P, D, self.target[i], self.setup.task_params, self.action[i], self.obs[i], self.terms[i])
 
-    def step(self, actions: np.ndarray, active: np.ndarray) -> None:
-        """One control step of every active sub-environment (actions already clipped)."""
-        self.action[active] = actions[active]
-        self.setup.inputs(self.action, self.inputs)
-        env_step_batch(*self.S, *self.W, *self.D, self.params, self.inputs, active, self.setup.substeps,
-                       self.target, self.setup.task_params, self.action, self.obs, self.terms, self.result)
+    def step(self, raw: np.ndarray, active: np.ndarray) -> None:
+        """One control step of every active sub-environment; ``raw`` from
+        :func:`_checked_actions` (clipped and mapped to inputs in the compiled step)."""
+        env_step_batch(*self.S, *self.W, *self.D, self.params, raw, self.setup.action_params, self.inputs, active,
+                       self.setup.substeps, self.target, self.setup.task_params, self.action, self.obs, self.terms,
+                       self.result)
 
     def rewards(self) -> np.ndarray:
         """Sum of the reward terms in REWARD_TERMS order (the single env's order)."""
@@ -81,13 +81,13 @@ class BatchPhysics:
         return out
 
 
-def _check_actions(actions, space, num_envs) -> np.ndarray:
-    a = np.asarray(actions, dtype=np.float64)
-    if a.shape != (num_envs,) + space.shape:
-        raise ValueError(f"actions must have shape {(num_envs,) + space.shape}, got {a.shape}")
-    if not np.all(np.isfinite(a)):
+def _checked_actions(actions, space, num_envs) -> np.ndarray:
+    """Raw actions (num_envs, 6) for :meth:`BatchPhysics.step`: shape and finiteness checked
+    (ValueError, before anything changes); clipped in the compiled step."""
+    raw = raw_actions(actions, (num_envs,) + space.shape, "actions")
+    if not actions_finite(raw):
         raise ValueError("actions must be finite")
-    return np.clip(a, space.low, space.high)
+    return raw
 
 
 def _seeds(seed, n) -> list:
@@ -139,7 +139,7 @@ class ElasticStringPendulumVectorEnv(VectorEnv):
         return self.batch.obs.astype(np.float32), {}
 
     def step(self, actions):
-        a = _check_actions(actions, self.single_action_space, self.num_envs)
+        a = _checked_actions(actions, self.single_action_space, self.num_envs)
         resetting = self._autoreset.copy()
         for i in np.flatnonzero(resetting):
             self.batch.reset_env(i, self._rngs[i])
@@ -197,7 +197,7 @@ class ElasticStringPendulumSB3VecEnv(_SB3VecEnv):
         return self.batch.obs.astype(np.float32)
 
     def step_async(self, actions: np.ndarray) -> None:
-        self._actions = _check_actions(actions, self.action_space, self.num_envs)
+        self._actions = _checked_actions(actions, self.action_space, self.num_envs)
 
     def step_wait(self):
         b = self.batch

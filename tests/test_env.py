@@ -179,6 +179,34 @@ def test_bad_arguments_are_named(kwargs, match):
         ElasticStringPendulumEnv(**kwargs)
 
 
+@pytest.mark.parametrize("kind", ["gymnasium", "sb3"])
+def test_vector_bad_actions_raise_and_change_nothing(kind):
+    """A NaN in one row, or a wrong shape, raises before any sub-environment steps or
+    autoresets: the next good step equals that of a twin that never saw the bad call (with
+    episodes of 2 steps, so sub-environments are due to reset when the bad call comes)."""
+    def make():
+        if kind == "gymnasium":
+            env = gym.make_vec(ENV_ID, num_envs=3, max_episode_steps=2)
+            env.reset(seed=5)
+            return lambda a: env.step(a)[0]
+        env = ElasticStringPendulumSB3VecEnv(num_envs=3, max_episode_steps=2)
+        env.seed(5)
+        env.reset()
+        return lambda a: env.step(a)[0]
+
+    good = np.full((3, 6), 0.25)
+    bad = good.copy()
+    bad[1, 4] = np.nan
+    step, twin = make(), make()
+    for _ in range(2):
+        assert np.array_equal(step(good), twin(good))
+    with pytest.raises(ValueError, match="finite"):
+        step(bad)
+    with pytest.raises(ValueError, match="shape"):
+        step(good[:2])
+    assert np.array_equal(step(good), twin(good))
+
+
 def test_vector_env_equals_single_envs_bit_for_bit():
     """gymnasium.make_vec uses the batched entry point; with seeds s+i and the same actions each
     sub-environment reproduces a single env exactly, through next-step autoresets."""

@@ -112,10 +112,14 @@ def action_inputs(action, ap, inputs):
 
 
 @kernel
-def actions_inputs(actions, ap, inputs):
-    """:func:`action_inputs` row by row: actions (B, 6) -> inputs (B, 9)."""
-    for b in range(actions.shape[0]):
-        action_inputs(actions[b], ap, inputs[b])
+def actions_finite(raw):
+    """Whether every entry of the raw actions (B, 6) is finite (the batched envs check this
+    before any sub-environment resets, so a bad call changes nothing)."""
+    for b in range(raw.shape[0]):
+        for i in range(raw.shape[1]):
+            if not np.isfinite(raw[b, i]):
+                return False
+    return True
 
 
 @kernel(inline="always")
@@ -175,14 +179,16 @@ def env_reset_observe(S, P, D, target, tp, action, obs, terms):
 @kernel(parallel=True)
 def env_step_batch(r, p, R, Pi, rc, pc, Rc, Pic, f, acc, accc,
                    fn, X, Y, FmI, RF, Rn, jac, backup, V, strain, omega, dout,
-                   P, inputs, active, nsub, target, tp, action, obs, terms, result):
-    """:func:`env_step_one` for every environment b with ``active[b]``, in parallel.
+                   P, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, result):
+    """:func:`take_action` of ``raw[b]`` and :func:`env_step_one` for every environment b with
+    ``active[b]``, in parallel (the raw actions must be finite: :func:`actions_finite`).
 
     Every array carries a leading batch axis: the state (StateArrays fields), the scratch (Work
-    and DiagWork fields), inputs (B, 9), target (B, 6), action (B, A), obs, terms, result.
+    and DiagWork fields), raw (B, 6), inputs (B, 9), target (B, 6), action (B, A), obs, terms,
+    result.
     """
     for b in prange(r.shape[0]):
-        if active[b]:
+        if active[b] and take_action(raw[b], ap, action[b], inputs[b]):
             S = StateArrays(r[b], p[b], R[b], Pi[b], rc[b], pc[b], Rc[b], Pic[b], f[b], acc[b], accc[b])
             W = Work(fn[b], X[b], Y[b], FmI[b], RF[b], Rn[b], jac[b], backup[b])
             D = DiagWork(V[b], strain[b], omega[b], dout[b])
