@@ -13,7 +13,7 @@ feedback, and rate damping of the load's spin.
 * Body: tau = -k_spin Omega (body frame), damping the spin of the load.
 
 Gains were chosen by grid search on the mean return of seeded `stabilize` episodes (seeds
-1000+): first coarse (`python agents/controllers.py --tune --episodes 10`: kp in {1, 2, 4, 8},
+1000+): first coarse (`python -m agents.tune --task stabilize --episodes 10`: kp in {1, 2, 4, 8},
 kd in {1, 2, 4, 8}, k_sway in {0, 1, 2, 4, 8}, k_spin in {0, 0.01, 0.02, 0.05}; best kp 4,
 kd 2, k_sway 0, k_spin 0.02: 472.5), then refined with 20 episodes (kp in {3, 4, 6}, kd in
 {1.5, 2, 3}, k_sway in {-1, -0.5, 0, 0.5}, kp_z in {8, 16}; best kp 4, kd 2, k_sway 0,
@@ -24,17 +24,11 @@ position gains (large initial errors would saturate the force) and k_sway = 2.
 """
 from __future__ import annotations
 
-import argparse
-import itertools
-import json
-import sys
-from dataclasses import dataclass, replace
-from pathlib import Path
+from dataclasses import dataclass
 
 import numpy as np
 
-if __package__ in (None, ""):  # run as a script: make `agents` importable
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from esp_gym.kernels.layout import ACTION, OBSERVATION
 
 
 @dataclass(frozen=True)
@@ -49,17 +43,23 @@ class AntiSwayPD:
     k_spin: float = 0.02
 
     def act(self, obs: np.ndarray, setup) -> np.ndarray:
-        """Action in [-1, 1]^6 for one observation (or a batch (B, 22))."""
+        """Action in [-1, 1]^6 for one observation (or a batch (B, OBSERVATION.size)); the
+        observation is read by name (esp_gym/kernels/layout.py)."""
         obs = np.asarray(obs, dtype=np.float64)
-        e_p, v_p, v_l, w = obs[..., 0:3], obs[..., 3:6], obs[..., 9:12], obs[..., 18:21]
+        e_p = obs[..., OBSERVATION["pivot_position_error"]]
+        v_p = obs[..., OBSERVATION["pivot_velocity"]]
+        v_l = obs[..., OBSERVATION["load_velocity"]]
+        w = obs[..., OBSERVATION["angular_velocity"]]
+        horizontal, vertical = slice(0, 2), 2  # x, y and z of a spatial vector
         acc = np.empty_like(e_p)
-        sway = v_l[..., 0:2] - v_p[..., 0:2]
-        acc[..., 0:2] = -self.kp * e_p[..., 0:2] - self.kd * v_p[..., 0:2] + self.k_sway * sway
-        acc[..., 2] = -self.kp_z * e_p[..., 2] - self.kd_z * v_p[..., 2]
-        mass = -setup.hover[2] / setup.scene.gravity if setup.scene.gravity > 0 else 1.0
-        action = np.empty(obs.shape[:-1] + (6,))
-        action[..., 0:3] = mass * acc / setup.force_limit
-        action[..., 3:6] = -self.k_spin * w / setup.torque_limit if setup.torque_limit > 0 else 0.0
+        sway = v_l[..., horizontal] - v_p[..., horizontal]
+        acc[..., horizontal] = (-self.kp * e_p[..., horizontal] - self.kd * v_p[..., horizontal]
+                                + self.k_sway * sway)
+        acc[..., vertical] = -self.kp_z * e_p[..., vertical] - self.kd_z * v_p[..., vertical]
+        mass = -setup.hover[vertical] / setup.scene.gravity if setup.scene.gravity > 0 else 1.0
+        action = np.empty(obs.shape[:-1] + (ACTION.size,))
+        action[..., ACTION["pivot_force"]] = mass * acc / setup.force_limit
+        action[..., ACTION["body_torque"]] = -self.k_spin * w / setup.torque_limit if setup.torque_limit > 0 else 0.0
         return np.clip(action, -1.0, 1.0)
 
 
@@ -73,39 +73,10 @@ class ZeroPolicy:
     """The zero action: hover, no torque."""
 
     def act(self, obs, setup):
-        return np.zeros(np.shape(obs)[:-1] + (6,))
+        return np.zeros(np.shape(obs)[:-1] + (ACTION.size,))
 
 
 def baseline(task: str) -> AntiSwayPD:
     if task not in BASELINES:
         raise ValueError(f"no baseline for task {task!r}; known: {sorted(BASELINES)}")
     return BASELINES[task]
-
-
-COARSE_GRID = dict(kp=[1, 2, 4, 8], kd=[1, 2, 4, 8], k_sway=[0, 1, 2, 4, 8], k_spin=[0, 0.01, 0.02, 0.05])
-
-
-def _tune(task: str, episodes: int, grid: dict) -> None:
-    """Grid search of the gains on seeded episodes (prints the top results as JSON lines)."""
-    from agents.evaluate import evaluate_policy
-
-    results = []
-    base = baseline(task)
-    for values in itertools.product(*grid.values()):
-        ctrl = replace(base, **dict(zip(grid, values)))
-        stats = evaluate_policy(ctrl, task=task, episodes=episodes, seed=1000)
-        results.append((stats["mean_return"], dict(zip(grid, values))))
-    results.sort(key=lambda x: -x[0])
-    for ret, gains in results[:10]:
-        print(json.dumps({"mean_return": ret, **gains}))
-
-
-if __name__ == "__main__":
-    ap = argparse.ArgumentParser(description="tune the baseline gains by grid search")
-    ap.add_argument("--tune", action="store_true")
-    ap.add_argument("--task", default="stabilize")
-    ap.add_argument("--episodes", type=int, default=20)
-    ap.add_argument("--grid", type=json.loads, default=COARSE_GRID, help="JSON dict of gain -> values")
-    a = ap.parse_args()
-    if a.tune:
-        _tune(a.task, a.episodes, a.grid)

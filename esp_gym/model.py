@@ -1,13 +1,12 @@
-"""The Python face of the physics: initial state, the Simulator (step/run) and diagnostics.
+"""The Python face of the physics: the Simulator (step/run), its Trajectory and diagnostics.
 
-Arrays follow one layout everywhere: node positions ``r`` and momenta ``p`` are ``(N+1, 3)``
-(row 0 the pivot, row N the attachment node), ``R`` (3, 3) maps body to spatial frame, ``Pi`` is
-the body's conjugate momentum (body frame, ``J Omega + M rho_c x R^T v_attach``) [kg m^2/s].
+The state, its layout and the scene's constants are in esp_gym/state.py.
 """
 from __future__ import annotations
 
 import contextlib
 import dataclasses
+from collections import namedtuple
 import time as _time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,17 +15,19 @@ from typing import Optional
 import numpy as np
 from tqdm.auto import tqdm
 
-from .kernels.diagnostics import DIAG_NAMES, DiagWork, diagnostics as diagnostics_kernel
-from .kernels.lgvi import (LGVIParams, Snapshots, StateArrays, Work, lgvi_advance, lgvi_record, specialised_kernels,
-                           state_size)
-from .kernels.string import tridiag_factor
+from .kernels.diagnostics import diagnostics as diagnostics_kernel
+from .kernels.layout import (BALANCE, DIAG, DIAG_NAMES, INPUTS, LOOP_REPORT_SIZE, OK, REPORT, STEP_DIAG,
+                             DiagWork, Snapshots, StateArrays, Work, status_message)
+from .kernels.loops import lgvi_advance, lgvi_record, state_size
+from .kernels.specialise import specialised_kernels
 from .params import Scene
+from .state import State, build_params, initial_state, legendre_momenta  # noqa: F401  (re-exported)
 
-STATUS_MESSAGES = {
-    1: "Newton's method on the Cayley vector did not converge",
-    2: "the state became non-finite (inf or NaN)",
-    5: "an element stretched beyond solver.max_stretch times its rest length (the step is blowing up)",
-}
+#: The live arrays of a simulator that the compiled kernels advance: ``state``
+#: (:class:`~esp_gym.kernels.layout.StateArrays`), ``work`` (Work), ``params`` (LGVIParams),
+#: ``diag`` (DiagWork). For kernel-level collaborators (esp_gym/control.py, the recorder);
+#: mutate them only through kernels.
+Buffers = namedtuple("Buffers", "state work params diag")
 
 
 class _NoBar:
@@ -44,121 +45,9 @@ class SimulationError(RuntimeError):
         self.step = step
         self.time = time
         super().__init__(
-            f"step {step} (t = {time:.6g} s) failed: {STATUS_MESSAGES.get(status, status)} "
+            f"step {step} (t = {time:.6g} s) failed: {status_message(status)} "
             f"(Newton iterations in the failing step: {newton_iterations}); "
             "the simulator holds the last good state. A smaller h usually helps.")
-
-
-@dataclass
-class State:
-    """A discrete state ``(q_k, p_k)`` at step ``step``; arrays are copies owned by the caller.
-
-    ``remainders`` holds the compensated-summation remainders of (r, p, R, Pi): restoring them
-    makes save/restore bit-exact; ``None`` (e.g. after editing the momenta) restarts them at 0.
-    """
-
-    r: np.ndarray
-    p: np.ndarray
-    R: np.ndarray
-    Pi: np.ndarray
-    step: int = 0
-    remainders: Optional[tuple] = None
-
-    def copy(self) -> "State":
-        rem = None if self.remainders is None else tuple(a.copy() for a in self.remainders)
-        return State(self.r.copy(), self.p.copy(), self.R.copy(), self.Pi.copy(), self.step, rem)
-
-
-def hat(v) -> np.ndarray:
-    """The hat map: ``hat(v) @ y == np.cross(v, y)``."""
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-def cross3(a, b) -> np.ndarray:
-    """``np.cross`` of two 3-vectors, same formula and bits, without its ~80 us of overhead."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
-def mass_matrix(scene: Scene):
-    """``(diagonal (N+1,), off-diagonal, end share)`` of the string's mass matrix on the unknown
-    nodes, with the body mass M at the attachment node and a free pivot's M_p at node 1 (a fixed
-    pivot's diagonal entry is 0: not an unknown). Consistent mass: element matrix
-    m/6 [[2, 1], [1, 2]] (end share 2m/6, off m/6); lumped: m/2 on each end node, no coupling.
-    """
-    n, m = scene.string.elements, scene.string.m
-    if scene.string.mass_model == "consistent":
-        off, end = m / 6.0, 2.0 * m / 6.0  # written as in the paper, so results stay bit-stable
-    else:
-        off, end = 0.0, 0.5 * m
-    diag = np.full(n + 1, 2.0 * end)
-    diag[0] = end + scene.pivot.mass if scene.pivot.is_free else 0.0
-    diag[n] = end + scene.body.mass
-    return diag, off, end
-
-
-def build_params(scene: Scene) -> LGVIParams:
-    """Scene -> the flat constants of the compiled stepper (see kernels/lgvi.py)."""
-    n, m = scene.string.elements, scene.string.m
-    M = scene.body.mass
-    rho = np.array(scene.body.rho_c, dtype=float)
-    J = scene.body.J
-    J = 0.5 * (J + J.T)
-    Jd = 0.5 * np.trace(J) * np.eye(3) - J
-    diag, off, _ = mass_matrix(scene)
-    first = 0 if scene.pivot.is_free else 1
-    inv, cp = tridiag_factor(diag, off)
-    # w = M_tot^-1 e_{N+1}: the attachment column of the inverse (Schur complement)
-    k = n + 1 - first
-    dense = np.diag(diag[first:]) + off * (np.eye(k, k=1) + np.eye(k, k=-1))
-    e = np.zeros(k)
-    e[-1] = 1.0
-    w = np.zeros(n + 1)
-    w[first:] = np.linalg.solve(dense, e)
-    s = inv[n]  # (M_tot^-1)_{N+1,N+1} equals the last Thomas pivot inverse
-    Jeff = J + M * M * s * hat(rho) @ hat(rho)
-    return LGVIParams(
-        h=float(scene.h), m=float(m), kappa=float(scene.string.kappa), u=float(scene.string.u),
-        g=float(scene.gravity), M=float(M), Mp=float(scene.pivot.mass or 0.0), rho=rho, J=J, Jd=Jd,
-        Jeff=Jeff, inv=inv, cp=cp, off=float(off), w=w, first=first,
-        slack=scene.string.law == "slack",
-        tol=float(scene.solver.newton_tol), max_iter=int(scene.solver.newton_max_iter),
-        gammas=scene.solver.scheme.weights(),
-        max_len2=float((scene.solver.max_stretch * scene.string.u) ** 2),
-        compensated=bool(scene.solver.compensated),
-    )
-
-
-def legendre_momenta(scene: Scene, r: np.ndarray, v: np.ndarray, R: np.ndarray, Omega: np.ndarray):
-    """Continuous Legendre transform of the finite-element Lagrangian: velocities -> momenta.
-
-    p = M_str v + body terms at the attachment node (+ M_p v_1 at a free pivot),
-    Pi = J Omega + M rho_c x (R^T v_attach). Used to start the integrator
-    (physics_notes.md, "Initialisation").
-    """
-    M = scene.body.mass
-    rho = np.array(scene.body.rho_c, dtype=float)
-    J = scene.body.J
-    _, off, end = mass_matrix(scene)
-    p = np.zeros_like(v)
-    p[:-1] += end * v[:-1] + off * v[1:]
-    p[1:] += off * v[:-1] + end * v[1:]
-    p[-1] += M * (v[-1] + R @ cross3(Omega, rho))
-    if scene.pivot.is_free:
-        p[0] += scene.pivot.mass * v[0]
-    else:
-        p[0] = 0.0  # the fixed pivot carries no momentum of its own
-    Pi = J @ Omega + M * cross3(rho, R.T @ v[-1])
-    return p, Pi
-
-
-def initial_state(scene: Scene) -> State:
-    """The state at t = 0: configuration from the scene, momenta by the Legendre transform."""
-    r = scene.initial_nodes()
-    v = scene.initial_velocities()
-    R = np.array(scene.initial.R0, dtype=float)
-    Omega = np.array(scene.initial.Omega0, dtype=float)
-    p, Pi = legendre_momenta(scene, r, v, R, Omega)
-    return State(np.ascontiguousarray(r), np.ascontiguousarray(p), np.ascontiguousarray(R), Pi, 0)
 
 
 @dataclass
@@ -245,33 +134,34 @@ class Simulator:
         z = np.zeros
         self._arrays = StateArrays(
             r=st.r, p=st.p, R=st.R, Pi=st.Pi, rc=z((n + 1, 3)), pc=z((n + 1, 3)), Rc=z((3, 3)),
-            Pic=z(3), f=z((n + 1, 3)), acc=z(8), accc=z(8))
+            Pic=z(3), f=z((n + 1, 3)), acc=z(BALANCE.size), accc=z(BALANCE.size))
         self._step = 0
         self._work = Work(fn=z((n + 1, 3)), X=z((n + 1, 3)), Y=z((n + 1, 3)),
                           FmI=z((3, 3)), RF=z((3, 3)), Rn=z((3, 3)), jac=z((3, 3)),
                           backup=z(state_size(self._arrays)))
-        self._diag = DiagWork(V=z((n + 1, 3)), strain=z(n), omega=z(3), out=z(len(DIAG_NAMES)))
-        self._inputs = z(9)
+        self._diag = DiagWork(V=z((n + 1, 3)), strain=z(n), omega=z(3), out=z(DIAG.size))
+        self._inputs = z(INPUTS.size)
         self._forced = False  #: any input non-zero (picks the forced or the unforced kernels)
         self._coupled = bool(np.any(self.params.rho != 0.0))  # rho_c != 0: rotation coupled
         self._kernel_cache: dict = {}
-        self._stats = np.zeros(4, dtype=np.int64)
+        self._stats = np.zeros(LOOP_REPORT_SIZE, dtype=np.int64)
         self.newton_iterations = 0  #: total Newton iterations so far
         self.newton_iterations_max = 0  #: most iterations in any one step so far
         self.reset_balances()
 
     @property
-    def kernel_args(self):
-        """``(StateArrays, Work, LGVIParams, DiagWork)``: the live arrays the kernels advance
-        (for the environment's compiled step; mutate only through kernels)."""
-        return self._arrays, self._work, self.params, self._diag
+    def buffers(self) -> Buffers:
+        """The live arrays the kernels advance (:data:`Buffers`), for kernel-level collaborators
+        (esp_gym/control.py, the recorder); mutate them only through kernels and report the
+        steps taken with :meth:`count_steps`."""
+        return Buffers(self._arrays, self._work, self.params, self._diag)
 
-    def advance_counter(self, steps: int, newton_iterations: int = 0, newton_iterations_max: int = 0) -> None:
-        """Count ``steps`` (and their Newton iterations) taken by an external kernel call on
-        :attr:`kernel_args`."""
-        self._step += int(steps)
-        self.newton_iterations += int(newton_iterations)
-        self.newton_iterations_max = max(self.newton_iterations_max, int(newton_iterations_max))
+    def count_steps(self, report: np.ndarray) -> None:
+        """Count the steps and Newton iterations of a :data:`~esp_gym.kernels.layout.REPORT`
+        of a kernel call on :attr:`buffers` (the step counter, time and Newton totals)."""
+        self._step += int(report[REPORT.scalar("steps")])
+        self.newton_iterations += int(report[REPORT.scalar("newton_total")])
+        self.newton_iterations_max = max(self.newton_iterations_max, int(report[REPORT.scalar("newton_max")]))
 
     # -- state ------------------------------------------------------------------------------
     @property
@@ -304,9 +194,9 @@ class Simulator:
         self._arrays.accc[...] = 0.0
         self._update_diag()
         out = self._diag.out
-        self._E0 = float(out[4])
-        self._pi3_0 = float(out[5])
-        self._P0 = out[9:12].copy()
+        self._E0 = float(out[DIAG.scalar("energy")])
+        self._pi3_0 = float(out[DIAG.scalar("pi3")])
+        self._P0 = out[DIAG["linear_momentum"]].copy()
 
     @property
     def step_count(self) -> int:
@@ -341,16 +231,16 @@ class Simulator:
         ts = _vector_input("spatial_torque", spatial_torque)
         if not self.scene.pivot.is_free and np.any(up != 0):
             raise ValueError("pivot_force needs a free pivot (this scene's pivot.kind is 'fixed')")
-        self._inputs[0:3], self._inputs[3:6], self._inputs[6:9] = up, tb, ts
+        self._inputs[INPUTS["pivot_force"]] = up
+        self._inputs[INPUTS["body_torque"]] = tb
+        self._inputs[INPUTS["spatial_torque"]] = ts
         self._forced = bool(np.any(self._inputs != 0.0))
 
     def _account(self) -> None:
-        status, steps, total, most = (int(x) for x in self._stats)
-        self._step += steps
-        self.newton_iterations += total
-        self.newton_iterations_max = max(self.newton_iterations_max, most)
-        if status != 0:
-            raise SimulationError(status, self._step, self.time, most)
+        self.count_steps(self._stats)
+        status = int(self._stats[REPORT.scalar("status")])
+        if status != OK:
+            raise SimulationError(status, self._step, self.time, int(self._stats[REPORT.scalar("newton_max")]))
 
     def step(self, n: int = 1, pivot_force=None, body_torque=None, spatial_torque=None) -> None:
         """Advance ``n`` steps in one compiled call with inputs held constant: ``pivot_force``
@@ -386,8 +276,8 @@ class Simulator:
         K = nsteps // record_every
         e = np.empty
         snap = Snapshots(r=e((K + 1, n + 1, 3)), R=e((K + 1, 3, 3)), omega=e((K + 1, 3)), v=e((K + 1, 3)),
-                         diag=e((K + 1, len(DIAG_NAMES))), strain=e((K + 1, n)), acc=e((K + 1, 8)),
-                         step_diag=e((nsteps if every_step else 0, 3)))
+                         diag=e((K + 1, DIAG.size)), strain=e((K + 1, n)), acc=e((K + 1, BALANCE.size)),
+                         step_diag=e((nsteps if every_step else 0, STEP_DIAG.size)))
         a, d = self._arrays, self._diag
         self._update_diag()
         snap.r[0], snap.R[0], snap.omega[0], snap.v[0] = a.r, a.R, d.omega, d.V[-1]
@@ -417,21 +307,24 @@ class Simulator:
                 bar.update(rest)
         wall = _time.perf_counter() - start
         t = (step0 + record_every * np.arange(K + 1)) * self.h
-        cols = {name: snap.diag[:, i].copy() for i, name in enumerate(DIAG_NAMES) if "momentum" not in name}
+        cols = {name: snap.diag[:, DIAG.scalar(name)].copy() for name in DIAG.names if name != "linear_momentum"}
+        work = snap.acc[:, BALANCE.scalar("work")]
+        impulse = snap.acc[:, BALANCE.scalar("angular_impulse_z")]
         traj = Trajectory(
             t=t, nodes=snap.r, R=snap.R, omega=snap.omega, attach_velocity=snap.v,
-            strain_energy=snap.strain, linear_momentum=snap.diag[:, 9:12].copy(),
-            work=snap.acc[:, 0].copy(), angular_impulse_z=snap.acc[:, 1].copy(),
-            energy_balance_residual=cols["energy"] - self._E0 - snap.acc[:, 0],
-            pi3_balance_residual=cols["pi3"] - self._pi3_0 - snap.acc[:, 1],
-            gravity_impulse=snap.acc[:, 2:5].copy(), pivot_impulse=snap.acc[:, 5:8].copy(),
+            strain_energy=snap.strain, linear_momentum=snap.diag[:, DIAG["linear_momentum"]].copy(),
+            work=work.copy(), angular_impulse_z=impulse.copy(),
+            energy_balance_residual=cols["energy"] - self._E0 - work,
+            pi3_balance_residual=cols["pi3"] - self._pi3_0 - impulse,
+            gravity_impulse=snap.acc[:, BALANCE["gravity_impulse"]].copy(),
+            pivot_impulse=snap.acc[:, BALANCE["pivot_impulse"]].copy(),
             steps=nsteps, newton_iterations=self.newton_iterations - iters0, wall_time_s=wall, **cols,
         )
         if every_step:
             traj.t_every_step = (step0 + 1 + np.arange(nsteps)) * self.h
-            traj.energy_every_step = snap.step_diag[:, 0].copy()
-            traj.pi3_every_step = snap.step_diag[:, 1].copy()
-            traj.orthogonality_every_step = snap.step_diag[:, 2].copy()
+            traj.energy_every_step = snap.step_diag[:, STEP_DIAG.scalar("energy")].copy()
+            traj.pi3_every_step = snap.step_diag[:, STEP_DIAG.scalar("pi3")].copy()
+            traj.orthogonality_every_step = snap.step_diag[:, STEP_DIAG.scalar("orthogonality")].copy()
         return traj
 
     # -- diagnostics ------------------------------------------------------------------------
@@ -453,18 +346,19 @@ class Simulator:
         self._update_diag()
         a, d = self._arrays, self._diag
         out = {"time": self.time}
-        out.update({name: float(d.out[i]) for i, name in enumerate(DIAG_NAMES) if "momentum" not in name})
-        out["work"] = float(a.acc[0])
+        out.update({name: float(d.out[DIAG.scalar(name)]) for name in DIAG.names if name != "linear_momentum"})
+        out["work"] = float(a.acc[BALANCE.scalar("work")])
         out["energy_balance_residual"] = out["energy"] - self._E0 - out["work"]
-        out["angular_impulse_z"] = float(a.acc[1])
+        out["angular_impulse_z"] = float(a.acc[BALANCE.scalar("angular_impulse_z")])
         out["pi3_balance_residual"] = out["pi3"] - self._pi3_0 - out["angular_impulse_z"]
         out["attach_position"] = a.r[-1].copy()
         out["attach_velocity"] = d.V[-1].copy()
         out["pivot_position"] = a.r[0].copy()
         out["omega"] = d.omega.copy()
-        out["linear_momentum"] = d.out[9:12].copy()
-        out["gravity_impulse"] = a.acc[2:5].copy()
-        out["pivot_impulse"] = a.acc[5:8].copy()
-        out["momentum_balance_residual"] = out["linear_momentum"] - self._P0 - a.acc[2:5] - a.acc[5:8]
+        out["linear_momentum"] = d.out[DIAG["linear_momentum"]].copy()
+        out["gravity_impulse"] = a.acc[BALANCE["gravity_impulse"]].copy()
+        out["pivot_impulse"] = a.acc[BALANCE["pivot_impulse"]].copy()
+        out["momentum_balance_residual"] = (out["linear_momentum"] - self._P0 - out["gravity_impulse"]
+                                            - out["pivot_impulse"])
         out["strain_energy"] = d.strain.copy()
         return out

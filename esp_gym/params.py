@@ -235,7 +235,7 @@ class SolverParams(_Frozen):
     compensated: bool = Field(
         True, description="add the state increments with Kahan's compensation: keeps energy and pi3 "
                           "round-off bounded over 1e7+ steps; false is ~13 % faster per step and "
-                          "loses nothing over short horizons (README, 'Run time against error')")
+                          "loses nothing over short horizons (docs/performance.md)")
 
     @model_validator(mode="after")
     def _composition_has_the_order(self) -> "SolverParams":

@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kernels.task import TASK_PARAM_NAMES
-from .model import State, hat, legendre_momenta
+from .kernels.layout import TASK_PARAM_NAMES
+from .state import State, hat, legendre_momenta
 from .params import Scene
 
 

@@ -10,7 +10,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import esp_gym
 from esp_gym.env import ElasticStringPendulumEnv
-from esp_gym.kernels.task import REWARD_TERMS
+from esp_gym.kernels.layout import REWARD_TERMS
 from esp_gym.vector import ElasticStringPendulumSB3VecEnv
 
 ENV_ID = "ElasticStringPendulum-v0"
@@ -263,3 +263,39 @@ def test_rgb_array_render_gives_frames():
     assert all(f.dtype == np.uint8 and f.ndim == 3 and f.shape[2] == 3 for f in frames)
     assert not np.array_equal(frames[0], frames[-1])  # the scene moves
     assert gym.make(ENV_ID).unwrapped.render() is None  # no render_mode: nothing
+
+
+def test_observation_structure_names_the_observation_of_a_known_state():
+    """Each named slice of ``observation_structure`` holds what its name says, recomputed in
+    NumPy from the simulator's state and diagnostics (a swapped or shifted slice fails)."""
+    env = gym.make(ENV_ID).unwrapped
+    obs, _ = env.reset(seed=11)
+    obs, *_ = env.step(np.array([0.3, -0.2, 0.1, 0.5, -0.4, 0.2]))
+    structure = env.observation_structure
+    # the slices tile the observation in order
+    stops = [0] + [s.stop for s in structure.values()]
+    assert [s.start for s in structure.values()] == stops[:-1] and stops[-1] == env.observation_space.shape[0]
+    st, d = env.sim.state, env.sim.diagnostics()
+    rho = np.asarray(env.scene.body.rho_c)
+    target = env.target
+    expected = {
+        "pivot_position_error": st.r[0] - target[:3],
+        "pivot_velocity": _pivot_velocity(env),
+        "load_position_error": st.r[-1] + st.R @ rho - target[3:],
+        "load_velocity": d["attach_velocity"] + st.R @ np.cross(d["omega"], rho),
+        "attitude_6d": np.concatenate([st.R[:, 0], st.R[:, 1]]),
+        "angular_velocity": d["omega"],
+        "string_stretch": [d["stretched_length"] / env.scene.string.length - 1.0],
+    }
+    assert set(expected) == set(structure)
+    for name, value in expected.items():
+        # float32 observation of float64 values computed in another order: a few ulps of float32
+        np.testing.assert_allclose(obs[structure[name]], value, rtol=1e-6, atol=1e-6, err_msg=name)
+    # negative control: a neighbouring slice does not match (the test can fail)
+    assert not np.allclose(obs[structure["pivot_velocity"]], expected["load_velocity"], rtol=1e-6, atol=1e-6)
+
+
+def _pivot_velocity(env) -> np.ndarray:
+    """Velocity of node 0 (the free pivot) from the simulator's live diagnostics arrays."""
+    env.sim.diagnostics()
+    return env.sim.buffers.diag.V[0].copy()

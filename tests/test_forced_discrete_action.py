@@ -1,6 +1,6 @@
 """The forced kernel satisfies the discrete Lagrange-d'Alembert principle of its L_d.
 
-physics_notes.md, "Inputs through the discrete Lagrange-d'Alembert principle": inputs u (pivot
+docs/physics.md, "Inputs through the discrete Lagrange–d'Alembert principle": inputs u (pivot
 force u_p on node 0 of a free pivot, spatial frame [N]; body torque tau, body frame [N m];
 spatial torque T [N m]) are held over a step and enter as the discrete forces
 
@@ -53,6 +53,7 @@ import numpy as np
 import pytest
 
 import esp_gym
+from esp_gym.kernels.layout import INPUTS
 
 from discrete_lagrangian import (
     GEOMETRIC_OVERRIDES, discrete_lagrangian, expm, left_perturbed, random_nodes, random_rotation,
@@ -77,7 +78,7 @@ def discrete_forces(scene, R0, R1, inputs, rule="split"):
     = (u_p [N], tau [N m] body frame, T [N m] spatial): ``((f^- nodes (N+1, 3), tau^- (3,)),
     (f^+ nodes, tau^+))`` [kg m/s], [kg m^2/s] (body frame), per ``rule`` (FORCE_RULES)."""
     h, n = scene.h, scene.string.elements
-    up, tau, T = inputs[0:3], inputs[3:6], inputs[6:9]
+    up, tau, T = (inputs[INPUTS[name]] for name in ("pivot_force", "body_torque", "spatial_torque"))
     nodes = np.zeros((n + 1, 3))
     nodes[0] = 0.5 * h * up
     left = (nodes, 0.5 * h * (tau + R0.T @ T))
@@ -176,7 +177,7 @@ def kernel_run(scene, state, inputs):
     sim.set_state(state)
     states = [sim.state]
     for u in inputs:
-        sim.step(1, pivot_force=u[0:3], body_torque=u[3:6], spatial_torque=u[6:9])
+        sim.step(1, **{name: u[INPUTS[name]] for name in INPUTS.names})
         states.append(sim.state)
     return states
 

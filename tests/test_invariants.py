@@ -60,7 +60,7 @@ def test_paper_example_energy_components_are_consistent():
     sim.step(12_345)
     d = sim.diagnostics()
     st = sim.state
-    v = sim._diag.V
+    v = sim.buffers.diag.V
     T = 0.5 * (np.sum(st.p * v) + st.Pi @ d["omega"])
     assert d["kinetic_string"] + d["kinetic_body"] == pytest.approx(T, rel=1e-13)
     assert d["energy"] == pytest.approx(

@@ -4,8 +4,13 @@ numba's on-disk cache (``cache=True``) checks only the modification time of the 
 defines a function, so a kernel that calls into an edited sibling file would load stale machine
 code. The cache therefore lives in a directory named after a hash of every kernel source file:
 any edit here starts a fresh cache. Its base is ``$NUMBA_CACHE_DIR`` if set, else this package's
-``__pycache__`` (or ``~/.cache/esp_gym`` where that is not writable). ``_jit.kernel`` sets it for
-every kernel, including those compiled later (the specialised step kernels of lgvi.py).
+``__pycache__`` (or ``~/.cache/esp_gym`` where that is not writable). ``jit.kernel`` sets it for
+every kernel, including those compiled later (the specialised step kernels of specialise.py).
+
+Modules: layout.py (every packed array's named layout and the status table), so3.py, string.py,
+lgvi.py (one step), loops.py (many steps, checkpoints, recorded runs), specialise.py,
+diagnostics.py, task.py (the environment's control step), recording.py (recording samples),
+ode.py (the ODE form, for verification). Importing this package compiles nothing: each module
+compiles its kernels on first call (or loads them from the cache).
 """
-from ._jit import CACHE_DIR  # noqa: F401
-from . import diagnostics, lgvi, ode, so3, string, task  # noqa: F401,E402
+from .jit import CACHE_DIR  # noqa: F401

@@ -6,43 +6,22 @@ inverted with the same Schur complement as the step:
     M_tot v - M e_{N+1} R (rho_c x Omega) = p,      J Omega + M rho_c x (R^T v_{N+1}) = Pi,
     => y = M_tot^-1 p,  J_eff Omega = Pi - M rho_c x (R^T y_{N+1}),  v = y + M w R (rho_c x Omega).
 
-The energy is then E = H(q_k, p_k) (physics_notes.md, "Conventions"), and
+The energy is then E = H(q_k, p_k) (docs/physics.md, "Conventions"), and
 pi3 = e3 . (sum_a r_a x p_a + R Pi).
 """
 import math
 
-from collections import namedtuple
-
-from ._jit import kernel
+from .jit import kernel
+from .layout import (D_ENERGY, D_KINETIC_BODY, D_KINETIC_PIVOT, D_KINETIC_STRING, D_LINEAR_MOMENTUM,
+                     D_ORTHOGONALITY, D_PI3, D_POTENTIAL_ELASTIC, D_POTENTIAL_GRAVITY, D_STRETCHED_LENGTH)
 from .so3 import solve3
 from .string import element_strain, tridiag_solve
-
-#: Layout of the scalar output of :func:`diagnostics` (energy and pi3 at fixed positions: the
-#: recording kernel reads them by index).
-DIAG_NAMES = (
-    "kinetic_string",
-    "kinetic_body",
-    "potential_gravity",
-    "potential_elastic",
-    "energy",
-    "pi3",
-    "orthogonality",
-    "stretched_length",
-    "kinetic_pivot",
-    "linear_momentum_x",
-    "linear_momentum_y",
-    "linear_momentum_z",
-)
-
-#: Scratch and outputs of :func:`diagnostics`: node velocities V (N+1, 3) [m/s], per-element
-#: strain energy (N,) [J], body angular velocity omega (3,, body frame) [rad/s], and ``out``
-#: (len(DIAG_NAMES),).
-DiagWork = namedtuple("DiagWork", "V strain omega out")
 
 
 @kernel
 def diagnostics(S, P, D):
-    """Fill the :class:`DiagWork` ``D`` from the state ``S`` (kernels/lgvi.py StateArrays)."""
+    """Fill the :class:`~.layout.DiagWork` ``D`` (``D.out``: :data:`~.layout.DIAG`) from the state
+    ``S`` (:class:`~.layout.StateArrays`)."""
     r = S.r
     p = S.p
     R = S.R
@@ -136,15 +115,15 @@ def diagnostics(S, P, D):
             if i == j:
                 s -= 1.0
             orth += s * s
-    out[0] = ts
-    out[1] = tb
-    out[2] = pot_g
-    out[3] = pot_e
-    out[4] = ts + tb + tp + pot_g + pot_e
-    out[5] = pi3
-    out[6] = math.sqrt(orth)
-    out[7] = length
-    out[8] = tp
-    out[9] = P0
-    out[10] = P1
-    out[11] = P2
+    out[D_KINETIC_STRING] = ts
+    out[D_KINETIC_BODY] = tb
+    out[D_POTENTIAL_GRAVITY] = pot_g
+    out[D_POTENTIAL_ELASTIC] = pot_e
+    out[D_ENERGY] = ts + tb + tp + pot_g + pot_e
+    out[D_PI3] = pi3
+    out[D_ORTHOGONALITY] = math.sqrt(orth)
+    out[D_STRETCHED_LENGTH] = length
+    out[D_KINETIC_PIVOT] = tp
+    out[D_LINEAR_MOMENTUM] = P0
+    out[D_LINEAR_MOMENTUM + 1] = P1
+    out[D_LINEAR_MOMENTUM + 2] = P2

@@ -24,7 +24,7 @@ w = M_tot^-1 e_{N+1}) gives dr = h M_tot^-1 B - M w (R_k (F_k - I) rho_c) and tu
 
 a rigid-body equation with a modified inertia, solved by Newton on the Cayley vector.
 
-Inputs (physics_notes.md, "Inputs through the discrete Lagrange-d'Alembert principle") are held
+Inputs (docs/physics.md, "Inputs through the discrete Lagrange–d'Alembert principle") are held
 constant over a step and enter as discrete forces split half and half, f_d^- = f_d^+ = (h/2) u:
 
 * a free pivot (row 0 unknown, point mass M_p) pushed by the spatial force u_p: (h/2) u_p joins
@@ -35,45 +35,15 @@ constant over a step and enter as discrete forces split half and half, f_d^- = f
 With zero inputs and a fixed pivot every added term is an exact zero, so the scheme is the
 paper's, bit for bit.
 """
-from collections import namedtuple
-
 import math
 
 import numpy as np
 
-from ._jit import kernel
-from .diagnostics import diagnostics
+from .jit import kernel
+from .layout import (B_ANGULAR_IMPULSE_Z, B_GRAVITY_IMPULSE, B_PIVOT_IMPULSE, B_WORK, BLOW_UP, IN_BODY_TORQUE,
+                     IN_PIVOT_FORCE, IN_SPATIAL_TORQUE, NEWTON_FAILED, NON_FINITE, OK)
 from .so3 import cayley_minus_identity, cayley_newton
 from .string import nodal_forces, string_solve
-
-#: Scene constants of the stepper, all SI. ``w`` and the Thomas factors are indexed by node;
-#: ``first`` is the first unknown node (1: fixed pivot, 0: free pivot of mass ``Mp``);
-#: ``max_len2``: the blow-up guard, the squared element length [m^2] no step may exceed;
-#: ``slack``: tension-only string law; ``compensated``: Kahan-compensated state updates (the
-#: general path reads it at run time, the specialised kernels compile it in).
-LGVIParams = namedtuple(
-    "LGVIParams",
-    "h m kappa u g M Mp rho J Jd Jeff inv cp off w first slack tol max_iter gammas max_len2 compensated",
-)
-
-#: The state the kernels advance: positions r and momenta p (N+1, 3), R (3, 3), Pi (3,), the
-#: compensated-summation remainders rc, pc, Rc, Pic of each, the forces f at r (N+1, 3), and
-#: the input accumulators acc (8,) with remainders accc: [work, angular impulse about e3,
-#: gravity impulse (3), pivot-force impulse (3)].
-StateArrays = namedtuple("StateArrays", "r p R Pi rc pc Rc Pic f acc accc")
-
-#: Scratch arrays of one simulator (allocated once in esp_gym.model); ``backup`` holds a copy
-#: of the state during a composed step, so a failure can restore the step's start.
-Work = namedtuple("Work", "fn X Y FmI RF Rn jac backup")
-
-#: Kernel status codes (kept in sync with esp_gym.model.STATUS_MESSAGES).
-OK = 0
-NEWTON_FAILED = 1
-NON_FINITE = 2
-#: An element grew past solver.max_stretch times its rest length: an unstable step blowing up
-#: (typically h above the stability bound) caught while the state is still finite. (3 and 4
-#: are the environment's termination codes, kernels/task.py.)
-BLOW_UP = 5
 
 
 @kernel
@@ -148,17 +118,17 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
     rho2 = P.rho[2]
     up0 = up1 = up2 = tb0 = tb1 = tb2 = ts0 = ts1 = ts2 = 0.0
     if forced:
-        up0 = inputs[0]
-        up1 = inputs[1]
-        up2 = inputs[2]
-        tb0 = inputs[3]
-        tb1 = inputs[4]
-        tb2 = inputs[5]
-        ts0 = inputs[6]
-        ts1 = inputs[7]
-        ts2 = inputs[8]
+        up0 = inputs[IN_PIVOT_FORCE]
+        up1 = inputs[IN_PIVOT_FORCE + 1]
+        up2 = inputs[IN_PIVOT_FORCE + 2]
+        tb0 = inputs[IN_BODY_TORQUE]
+        tb1 = inputs[IN_BODY_TORQUE + 1]
+        tb2 = inputs[IN_BODY_TORQUE + 2]
+        ts0 = inputs[IN_SPATIAL_TORQUE]
+        ts1 = inputs[IN_SPATIAL_TORQUE + 1]
+        ts2 = inputs[IN_SPATIAL_TORQUE + 2]
     # (1): right-hand side and the string solve with F_k = I
-    string_solve(P.inv, P.cp, first, p, f, hh, inputs, free and forced, X)
+    string_solve(P.inv, P.cp, first, p, f, hh, up0, up1, up2, free and forced, X)
     d0 = h * X[n, 0]
     d1 = h * X[n, 1]
     d2 = h * X[n, 2]
@@ -322,12 +292,12 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
         if free:
             work += up0 * dr00 + up1 * dr01 + up2 * dr02
             ang += hh * ((2.0 * r[0, 0] + dr00) * up1 - (2.0 * r[0, 1] + dr01) * up0)
-            kahan_add(acc, accc, 5, h * up0)
-            kahan_add(acc, accc, 6, h * up1)
-            kahan_add(acc, accc, 7, h * up2)
-        kahan_add(acc, accc, 0, work)
-        kahan_add(acc, accc, 1, ang)
-    kahan_add(acc, accc, 4, h * P.g * (M + P.Mp + n * P.m))
+            kahan_add(acc, accc, B_PIVOT_IMPULSE, h * up0)
+            kahan_add(acc, accc, B_PIVOT_IMPULSE + 1, h * up1)
+            kahan_add(acc, accc, B_PIVOT_IMPULSE + 2, h * up2)
+        kahan_add(acc, accc, B_WORK, work)
+        kahan_add(acc, accc, B_ANGULAR_IMPULSE_Z, ang)
+    kahan_add(acc, accc, B_GRAVITY_IMPULSE + 2, h * P.g * (M + P.Mp + n * P.m))  # weight along +e3
     pc = S.pc
     start = first
     if free and forced:  # the pivot row: its impulse h/2 (f_k + f_k+1) + h u_p in one compensated sum
@@ -358,65 +328,6 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
     return OK, iters
 
 
-@kernel
-def state_size(S):
-    """Number of floats :func:`save_state` writes."""
-    return 4 * S.r.size + 2 * S.R.size + 2 * S.Pi.size + 2 * S.acc.size
-
-
-@kernel(inline="always")
-def _move_rows(a, buf, k, to_buf):
-    """Copy the (rows, 3) array ``a`` to ``buf[k:]`` (or back, if not ``to_buf``); returns the
-    next offset. Per-array calls with the 3 columns spelled out: a loop over a tuple of arrays
-    compiled to ~5x slower code, which cost 13 % of a composed step."""
-    for i in range(a.shape[0]):
-        if to_buf:
-            buf[k] = a[i, 0]
-            buf[k + 1] = a[i, 1]
-            buf[k + 2] = a[i, 2]
-        else:
-            a[i, 0] = buf[k]
-            a[i, 1] = buf[k + 1]
-            a[i, 2] = buf[k + 2]
-        k += 3
-    return k
-
-
-@kernel(inline="always")
-def _move_vector(a, buf, k, to_buf):
-    for i in range(a.shape[0]):
-        if to_buf:
-            buf[k + i] = a[i]
-        else:
-            a[i] = buf[k + i]
-    return k + a.shape[0]
-
-
-@kernel(inline="always")
-def _move_state(S, buf, to_buf):
-    k = _move_rows(S.r, buf, 0, to_buf)
-    k = _move_rows(S.p, buf, k, to_buf)
-    k = _move_rows(S.rc, buf, k, to_buf)
-    k = _move_rows(S.pc, buf, k, to_buf)
-    k = _move_rows(S.R, buf, k, to_buf)
-    k = _move_rows(S.Rc, buf, k, to_buf)
-    k = _move_vector(S.Pi, buf, k, to_buf)
-    k = _move_vector(S.Pic, buf, k, to_buf)
-    k = _move_vector(S.acc, buf, k, to_buf)
-    _move_vector(S.accc, buf, k, to_buf)
-
-
-@kernel
-def save_state(S, buf):
-    """Copy the whole state (with remainders and balances) into ``buf``."""
-    _move_state(S, buf, True)
-
-
-@kernel
-def restore_state(S, buf):
-    """Inverse of :func:`save_state`."""
-    _move_state(S, buf, False)
-
 
 @kernel(inline="always")
 def lgvi_step(S, W, P, inputs, free, forced, coupled, compensated):
@@ -435,163 +346,3 @@ def lgvi_step(S, W, P, inputs, free, forced, coupled, compensated):
             return status, total
     return OK, total
 
-
-#: Composed steps are checkpointed every this many steps (see advance_loop).
-CHECKPOINT = 64
-
-
-@kernel
-def _finish(stats, status, steps, total, most):
-    stats[0] = status
-    stats[1] = steps
-    stats[2] = total
-    stats[3] = most
-
-
-@kernel(inline="always")
-def _rewind(S, W, P):
-    """Back to the last checkpoint, with the forces of its configuration."""
-    restore_state(S, W.backup)
-    nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
-
-
-@kernel(inline="always")
-def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, forces_ready=False):
-    """Take up to ``nsteps`` steps with constant ``inputs``; stop at the first failure with
-    the last good state. ``stats`` (int64, >= 4): status, steps taken, total Newton iterations,
-    max per step.
-
-    A composed step that fails part-way has moved the state. Instead of copying the state
-    before every step (that cost 13 % of a composed step), the state is saved every
-    ``CHECKPOINT`` steps; after a failure the loop rewinds to the checkpoint and replays the
-    steps that had succeeded. The replay is deterministic (same state bits, inputs and code),
-    so it ends on exactly the state after the last good step. One call site of the step keeps
-    the inlined code single. ``forces_ready``: ``S.f`` already holds the forces at ``S.r`` (as
-    it does after any successful step), so they are not recomputed.
-    """
-    if not forces_ready:
-        nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
-    composed = P.gammas.shape[0] > 1
-    total = 0
-    most = 0
-    failed = OK
-    target = nsteps
-    k = 0
-    k0 = 0
-    while k < target:
-        if composed and failed == OK and k % CHECKPOINT == 0:
-            save_state(S, W.backup)
-            k0 = k
-        status, iters = lgvi_step(S, W, P, inputs, free, forced, coupled, compensated)
-        if failed == OK:
-            total += iters
-            most = max(most, iters)
-        if status != OK:
-            if failed != OK or not composed:  # (a replayed step cannot fail: it did not before)
-                _finish(stats, status, k, total, most)
-                return
-            failed = status
-            target = k
-            _rewind(S, W, P)
-            k = k0
-            continue
-        k += 1
-    _finish(stats, failed, target, total, most)
-
-
-#: Recording buffers: per snapshot j the node positions, R, Omega, attachment velocity,
-#: DIAG_NAMES scalars and strain energy; step_diag (per step, possibly 0 rows) receives
-#: (energy, pi3, orthogonality).
-Snapshots = namedtuple("Snapshots", "r R omega v diag strain acc step_diag")
-
-
-@kernel(inline="always")
-def record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled, compensated):
-    """Take ``len(snap.r) * every`` steps, storing a snapshot after every ``every`` steps
-    (``D`` is the diagnostics scratch, see kernels/diagnostics.py) and, if ``snap.step_diag``
-    has rows, energy, pi3 and orthogonality after every step. The steps are taken by
-    :func:`advance_loop` (one step at a time when every step is recorded), so failures and
-    their recovery are its; ``stats`` as there (steps counts steps taken in this call).
-    """
-    n = S.r.shape[0] - 1
-    per_step = snap.step_diag.shape[0] > 0
-    chunk = 1 if per_step else every
-    nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
-    total = 0
-    most = 0
-    k = 0
-    for j in range(snap.r.shape[0]):
-        for _ in range(every // chunk):
-            advance_loop(S, W, P, inputs, chunk, stats, free, forced, coupled, compensated, True)
-            total += stats[2]
-            most = max(most, stats[3])
-            if stats[0] != OK:
-                _finish(stats, stats[0], k + stats[1], total, most)
-                return
-            k += chunk
-            if per_step:
-                diagnostics(S, P, D)
-                snap.step_diag[k - 1, 0] = D.out[4]
-                snap.step_diag[k - 1, 1] = D.out[5]
-                snap.step_diag[k - 1, 2] = D.out[6]
-        diagnostics(S, P, D)
-        # element loops, not slice assignment: the kernels run without numba's runtime (NRT)
-        for a in range(n + 1):
-            for i in range(3):
-                snap.r[j, a, i] = S.r[a, i]
-        for i in range(3):
-            for c in range(3):
-                snap.R[j, i, c] = S.R[i, c]
-            snap.omega[j, i] = D.omega[i]
-            snap.v[j, i] = D.V[n, i]
-        for i in range(D.out.shape[0]):
-            snap.diag[j, i] = D.out[i]
-        for i in range(n):
-            snap.strain[j, i] = D.strain[i]
-        for i in range(S.acc.shape[0]):
-            snap.acc[j, i] = S.acc[i]
-    _finish(stats, OK, k, total, most)
-
-
-@kernel
-def lgvi_advance(S, W, P, inputs, nsteps, stats):
-    """The general path: :func:`advance_loop` with every term in, the pivot and the
-    compensation read from ``P``."""
-    advance_loop(S, W, P, inputs, nsteps, stats, P.first == 0, True, True, P.compensated)
-
-
-@kernel
-def lgvi_record(S, W, P, inputs, every, D, snap, stats):
-    """The general path of :func:`record_loop`."""
-    record_loop(S, W, P, inputs, every, D, snap, stats, P.first == 0, True, True, P.compensated)
-
-
-def _compile_specialised(free: bool, forced: bool, coupled: bool, compensated: bool):
-    """``(advance, record)`` compiled with the flags as constants (closure variables are
-    compile-time constants in numba, and its cache keys closures by their values)."""
-
-    @kernel
-    def advance(S, W, P, inputs, nsteps, stats):
-        advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated)
-
-    @kernel
-    def record(S, W, P, inputs, every, D, snap, stats):
-        record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled, compensated)
-
-    return advance, record
-
-
-_SPECIALISED = {}
-
-
-def specialised_kernels(free: bool, forced: bool, coupled: bool, compensated: bool = True):
-    """``(advance, record)`` with the signatures of :func:`lgvi_advance`/:func:`lgvi_record`,
-    compiled for one kind of scene: ``free`` pivot or fixed, inputs ``forced`` or all zero,
-    body ``coupled`` to the string (rho_c != 0) or not, state updates ``compensated`` or plain
-    (as ``P.compensated`` must say). What a flag turns off is not computed at all; the
-    results are those of the general path (tests/test_specialised.py).
-    Compiled on first use (and cached on disk); created once per process."""
-    key = (bool(free), bool(forced), bool(coupled), bool(compensated))
-    if key not in _SPECIALISED:
-        _SPECIALISED[key] = _compile_specialised(*key)
-    return _SPECIALISED[key]

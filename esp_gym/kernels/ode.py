@@ -1,8 +1,8 @@
 """Compiled right-hand side of the finite-element model as a first-order ODE, and a fixed-step
 RK4 on it: the general-purpose baselines of ``benchmarks/work_precision.py``.
 
-The model, the state layout and the derivation are in ``esp_gym/ode.py`` (its Python face,
-:class:`~esp_gym.ode.ElasticStringODE`). The kernels live here so that they share the
+The model, the state layout and the derivation are in ``esp_gym/verify/ode.py`` (its Python face,
+:class:`~esp_gym.verify.ode.ElasticStringODE`). The kernels live here so that they share the
 kernels' compile options (no numba runtime, so no reference counting in the loops: the
 comparison with the LGVI is between equally lean kernels) and their source-hashed cache.
 """
@@ -10,7 +10,8 @@ from collections import namedtuple
 
 import numpy as np
 
-from ._jit import kernel
+from .jit import kernel
+from .layout import IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE
 from .so3 import solve3
 from .string import nodal_forces, tridiag_solve
 
@@ -23,7 +24,7 @@ ODEWork = namedtuple("ODEWork", "r f X")
 def ode_rhs(y, P, r0, inputs, W, dy):
     """Write ``f(y)`` (the ODE of this module's docstring) into ``dy``; returns 0.
 
-    ``P``: :class:`esp_gym.kernels.lgvi.LGVIParams` (h, tol, max_iter are not used); ``r0``
+    ``P``: :class:`esp_gym.kernels.layout.LGVIParams` (h, tol, max_iter are not used); ``r0``
     (3,) the fixed pivot's position [m]; ``inputs`` (9,) = (u_p [N, spatial], tau [N m, body],
     T [N m, spatial]); ``W`` an :class:`ODEWork`. Non-finite inputs give non-finite output
     (no exception): callers check.
@@ -78,9 +79,9 @@ def ode_rhs(y, P, r0, inputs, W, dy):
     # (T) with Omega' = 0: f(r) - M e_N R (Omega x (Omega x rho_c)) + e_0 u_p
     nodal_forces(r, P.kappa, P.u, P.m, M, P.Mp, P.g, P.slack, f)
     if first == 0:
-        f[0, 0] += inputs[0]
-        f[0, 1] += inputs[1]
-        f[0, 2] += inputs[2]
+        f[0, 0] += inputs[IN_PIVOT_FORCE]
+        f[0, 1] += inputs[IN_PIVOT_FORCE + 1]
+        f[0, 2] += inputs[IN_PIVOT_FORCE + 2]
     x0 = w1 * rho2 - w2 * rho1  # Omega x rho_c
     x1 = w2 * rho0 - w0 * rho2
     x2 = w0 * rho1 - w1 * rho0
@@ -100,14 +101,14 @@ def ode_rhs(y, P, r0, inputs, W, dy):
     e0 = R00 * X[n, 0] + R10 * X[n, 1] + R20 * X[n, 2]  # R^T Y_N
     e1 = R01 * X[n, 0] + R11 * X[n, 1] + R21 * X[n, 2]
     e2 = R02 * X[n, 0] + R12 * X[n, 1] + R22 * X[n, 2]
-    ts0 = inputs[6]
-    ts1 = inputs[7]
-    ts2 = inputs[8]
-    b0 = (-(w1 * Jw2 - w2 * Jw1) + Mg * (rho1 * R22 - rho2 * R21) + inputs[3]
+    ts0 = inputs[IN_SPATIAL_TORQUE]
+    ts1 = inputs[IN_SPATIAL_TORQUE + 1]
+    ts2 = inputs[IN_SPATIAL_TORQUE + 2]
+    b0 = (-(w1 * Jw2 - w2 * Jw1) + Mg * (rho1 * R22 - rho2 * R21) + inputs[IN_BODY_TORQUE]
           + (R00 * ts0 + R10 * ts1 + R20 * ts2) - M * (rho1 * e2 - rho2 * e1))
-    b1 = (-(w2 * Jw0 - w0 * Jw2) + Mg * (rho2 * R20 - rho0 * R22) + inputs[4]
+    b1 = (-(w2 * Jw0 - w0 * Jw2) + Mg * (rho2 * R20 - rho0 * R22) + inputs[IN_BODY_TORQUE + 1]
           + (R01 * ts0 + R11 * ts1 + R21 * ts2) - M * (rho2 * e0 - rho0 * e2))
-    b2 = (-(w0 * Jw1 - w1 * Jw0) + Mg * (rho0 * R21 - rho1 * R20) + inputs[5]
+    b2 = (-(w0 * Jw1 - w1 * Jw0) + Mg * (rho0 * R21 - rho1 * R20) + inputs[IN_BODY_TORQUE + 2]
           + (R02 * ts0 + R12 * ts1 + R22 * ts2) - M * (rho0 * e1 - rho1 * e0))
     d0, d1, d2 = solve3(P.Jeff, b0, b1, b2)
     dy[oW] = d0

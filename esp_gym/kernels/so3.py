@@ -4,7 +4,7 @@ All functions work on scalars and 3x3 arrays without allocating in the hot path.
 """
 import numpy as np
 
-from ._jit import kernel
+from .jit import kernel
 
 
 @kernel
@@ -35,7 +35,7 @@ def cayley_minus_identity(f0, f1, f2, out):
     """Write ``F - I`` for ``F = cay(f) = (I - f^)^-1 (I + f^)`` into ``out`` (3x3).
 
     ``F - I = 2/(1+|f|^2) (f^ + f^ f^)``. F = I + O(h), so forming F and subtracting I would
-    lose about four digits (physics_notes.md, "Round-off"); every user of F takes F - I.
+    lose about four digits (docs/physics.md, "Round-off"); every user of F takes F - I.
     """
     c = 2.0 / (1.0 + f0 * f0 + f1 * f1 + f2 * f2)
     # f^ f^ = f f^T - |f|^2 I

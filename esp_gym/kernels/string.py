@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from ._jit import fma, kernel
+from .jit import fma, kernel
 
 
 @kernel
@@ -125,9 +125,10 @@ def tridiag_solve(inv, cp, off, first, b, x):
 
 
 @kernel(inline="always")
-def string_solve(inv, cp, first, p, f, hh, pivot_force, push_pivot, x):
+def string_solve(inv, cp, first, p, f, hh, up0, up1, up2, push_pivot, x):
     """:func:`tridiag_solve` of ``M x = p + hh f`` (the LGVI's string right-hand side) with the
-    right-hand side formed on the fly, plus ``hh pivot_force`` (3,) at row 0 if ``push_pivot``.
+    right-hand side formed on the fly, plus ``hh (up0, up1, up2)`` (the pivot force, spatial
+    [N]) at row 0 if ``push_pivot``.
     Same operations in the same order as forming b first (bit-identical), one pass less."""
     n = p.shape[0] - 1
     y0 = 0.0
@@ -138,9 +139,9 @@ def string_solve(inv, cp, first, p, f, hh, pivot_force, push_pivot, x):
         b1 = p[a, 1] + hh * f[a, 1]
         b2 = p[a, 2] + hh * f[a, 2]
         if push_pivot and a == 0:
-            b0 += hh * pivot_force[0]
-            b1 += hh * pivot_force[1]
-            b2 += hh * pivot_force[2]
+            b0 += hh * up0
+            b1 += hh * up1
+            b2 += hh * up2
         y0 = fma(-cp[a], y0, b0 * inv[a])
         y1 = fma(-cp[a], y1, b1 * inv[a])
         y2 = fma(-cp[a], y2, b2 * inv[a])

@@ -1,42 +1,30 @@
 """Compiled per-environment step of the Gymnasium environment: inputs -> physics -> observation,
 reward terms, termination. The single and the batched environments call the same
-:func:`env_step_one`, so their results agree bit for bit.
+:func:`env_step_one`, so their results agree bit for bit; esp_gym/control.py is their
+Python face.
 
-Task parameters ``tp`` (float64, see :data:`TASK_PARAM_NAMES`) and per-env targets
-``target`` (6,: pivot target, load target [m], spatial frame) come from esp_gym/tasks.py.
+Every packed vector is laid out in kernels/layout.py: the observation (OBSERVATION), reward
+terms (REWARD), task parameters ``tp`` (TASK_PARAMS, from esp_gym/tasks.py), action
+parameters ``ap`` (ACTION_PARAMS), targets (TARGET, spatial frame [m]), inputs (INPUTS) and
+the step report (REPORT).
 """
 import math
 
 import numpy as np
 from numba import prange
 
-from ._jit import kernel
-from .diagnostics import DiagWork, diagnostics
-from .lgvi import OK, LGVIParams, StateArrays, Work, advance_loop
-
-#: Layout of the task parameter vector.
-TASK_PARAM_NAMES = (
-    "w_load_position", "w_load_velocity", "w_pivot_position", "w_swing", "w_spin", "w_control",
-    "scale_position", "scale_velocity", "scale_swing", "scale_spin",
-    "max_stretched_length", "workspace_radius", "string_length",
-)
-#: Reward terms, in the order they are summed (env info keys are "reward_" + name).
-REWARD_TERMS = ("load_position", "load_velocity", "pivot_position", "swing", "spin", "control")
-#: Observation layout: (name, size).
-OBS_LAYOUT = (
-    ("pivot_position_error", 3), ("pivot_velocity", 3), ("load_position_error", 3),
-    ("load_velocity", 3), ("attitude_6d", 6), ("angular_velocity", 3), ("string_stretch", 1),
-)
-OBS_SIZE = 22
-
-#: Layout of the action parameter vector ``ap`` (float64, 17): the action box's low (6) and
-#: high (6) bounds, the hover force (3) [N], force_limit [N] and torque_limit [N m].
-ACTION_PARAM_SIZE = 17
-
-#: Termination codes (result[4]); 1 and 2 are the physics kernel's failure statuses.
-TERM_NONE = 0
-TERM_OVERSTRETCH = 3
-TERM_WORKSPACE = 4
+from .jit import kernel
+from .diagnostics import diagnostics
+from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, ACTION_SIZE, AP_FORCE_LIMIT, AP_HIGH, AP_HOVER, AP_LOW,
+                     AP_TORQUE_LIMIT, D_STRETCHED_LENGTH, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE,
+                     O_ANGULAR_VELOCITY, O_ATTITUDE, O_LOAD_ERROR, O_LOAD_VELOCITY, O_PIVOT_ERROR, O_PIVOT_VELOCITY,
+                     O_STRETCH, OK, R_STATUS, R_TERMINATION, RW_CONTROL, RW_LOAD_POSITION, RW_LOAD_VELOCITY,
+                     RW_PIVOT_POSITION, RW_SPIN, RW_SWING, T_LOAD, T_PIVOT, TERM_NONE, TERM_OVERSTRETCH,
+                     TERM_WORKSPACE, TP_MAX_STRETCHED_LENGTH, TP_SCALE_POSITION, TP_SCALE_SPIN, TP_SCALE_SWING,
+                     TP_SCALE_VELOCITY, TP_STRING_LENGTH, TP_W_CONTROL, TP_W_LOAD_POSITION, TP_W_LOAD_VELOCITY,
+                     TP_W_PIVOT_POSITION, TP_W_SPIN, TP_W_SWING, TP_WORKSPACE_RADIUS, DiagWork, LGVIParams,
+                     StateArrays, Work)
+from .loops import advance_loop
 
 
 @kernel
@@ -48,8 +36,8 @@ def _tol(x, scale):
 
 @kernel(inline="always")
 def env_observe(S, P, D, target, tp, action, obs, terms):
-    """Observation (OBS_SIZE) and reward terms of the current state (``D`` filled by
-    diagnostics). Returns the termination code (TERM_*)."""
+    """Observation (OBSERVATION) and reward terms (REWARD) of the current state (``D`` filled
+    by diagnostics). Returns the termination code (TERM_*)."""
     r = S.r
     R = S.R
     n = r.shape[0] - 1
@@ -66,18 +54,20 @@ def env_observe(S, P, D, target, tp, action, obs, terms):
     for i in range(3):
         ci = r[n, i] + (R[i, 0] * rho[0] + R[i, 1] * rho[1] + R[i, 2] * rho[2])
         vi = V[n, i] + (R[i, 0] * x0 + R[i, 1] * x1 + R[i, 2] * x2)
-        obs[i] = r[0, i] - target[i]
-        obs[3 + i] = V[0, i]
-        obs[6 + i] = ci - target[3 + i]
-        obs[9 + i] = vi
-        obs[12 + i] = R[i, 0]
-        obs[15 + i] = R[i, 1]
-        obs[18 + i] = w[i]
-        ep += obs[i] * obs[i]
-        el += obs[6 + i] * obs[6 + i]
+        ei = r[0, i] - target[T_PIVOT + i]
+        li = ci - target[T_LOAD + i]
+        obs[O_PIVOT_ERROR + i] = ei
+        obs[O_PIVOT_VELOCITY + i] = V[0, i]
+        obs[O_LOAD_ERROR + i] = li
+        obs[O_LOAD_VELOCITY + i] = vi
+        obs[O_ATTITUDE + i] = R[i, 0]
+        obs[O_ATTITUDE + 3 + i] = R[i, 1]
+        obs[O_ANGULAR_VELOCITY + i] = w[i]
+        ep += ei * ei
+        el += li * li
         vl += vi * vi
-    length = D.out[7]
-    obs[21] = length / tp[12] - 1.0
+    length = D.out[D_STRETCHED_LENGTH]
+    obs[O_STRETCH] = length / tp[TP_STRING_LENGTH] - 1.0
     # swing: angle of (load - pivot) from the downward vertical e3
     dx = (r[n, 0] - r[0, 0]) + (R[0, 0] * rho[0] + R[0, 1] * rho[1] + R[0, 2] * rho[2])  # load - pivot
     dy = (r[n, 1] - r[0, 1]) + (R[1, 0] * rho[0] + R[1, 1] * rho[1] + R[1, 2] * rho[2])
@@ -87,33 +77,34 @@ def env_observe(S, P, D, target, tp, action, obs, terms):
     a2 = 0.0
     for i in range(action.shape[0]):
         a2 += action[i] * action[i]
-    terms[0] = tp[0] * _tol(math.sqrt(el), tp[6])
-    terms[1] = tp[1] * _tol(math.sqrt(vl), tp[7])
-    terms[2] = tp[2] * _tol(math.sqrt(ep), tp[6])
-    terms[3] = tp[3] * _tol(swing, tp[8])
-    terms[4] = tp[4] * _tol(spin, tp[9])
-    terms[5] = -tp[5] * a2 / action.shape[0]
-    if not (length <= tp[10]):
+    terms[RW_LOAD_POSITION] = tp[TP_W_LOAD_POSITION] * _tol(math.sqrt(el), tp[TP_SCALE_POSITION])
+    terms[RW_LOAD_VELOCITY] = tp[TP_W_LOAD_VELOCITY] * _tol(math.sqrt(vl), tp[TP_SCALE_VELOCITY])
+    terms[RW_PIVOT_POSITION] = tp[TP_W_PIVOT_POSITION] * _tol(math.sqrt(ep), tp[TP_SCALE_POSITION])
+    terms[RW_SWING] = tp[TP_W_SWING] * _tol(swing, tp[TP_SCALE_SWING])
+    terms[RW_SPIN] = tp[TP_W_SPIN] * _tol(spin, tp[TP_SCALE_SPIN])
+    terms[RW_CONTROL] = -tp[TP_W_CONTROL] * a2 / action.shape[0]
+    if not (length <= tp[TP_MAX_STRETCHED_LENGTH]):
         return TERM_OVERSTRETCH
-    if not (ep <= tp[11] * tp[11] and el <= tp[11] * tp[11]):
+    radius = tp[TP_WORKSPACE_RADIUS]
+    if not (ep <= radius * radius and el <= radius * radius):
         return TERM_WORKSPACE
     return TERM_NONE
 
 
 @kernel(inline="always")
 def action_inputs(action, ap, inputs):
-    """Clipped action (6,) -> kernel inputs (9,): pivot force hover + force_limit a[0:3] [N]
-    (spatial), body torque torque_limit a[3:6] [N m], no spatial torque. The same operations
-    as the NumPy expression, so the same bits."""
+    """Clipped action (ACTION) -> kernel inputs (INPUTS): pivot force hover + force_limit x
+    the action's pivot force [N] (spatial), body torque torque_limit x its body torque [N m],
+    no spatial torque."""
     for i in range(3):
-        inputs[i] = ap[12 + i] + ap[15] * action[i]
-        inputs[3 + i] = ap[16] * action[3 + i]
-        inputs[6 + i] = 0.0
+        inputs[IN_PIVOT_FORCE + i] = ap[AP_HOVER + i] + ap[AP_FORCE_LIMIT] * action[A_PIVOT_FORCE + i]
+        inputs[IN_BODY_TORQUE + i] = ap[AP_TORQUE_LIMIT] * action[A_BODY_TORQUE + i]
+        inputs[IN_SPATIAL_TORQUE + i] = 0.0
 
 
 @kernel
 def actions_finite(raw):
-    """Whether every entry of the raw actions (B, 6) is finite (the batched envs check this
+    """Whether every entry of the raw actions (B, ACTION) is finite (the batched envs check this
     before any sub-environment resets, so a bad call changes nothing)."""
     for b in range(raw.shape[0]):
         for i in range(raw.shape[1]):
@@ -124,17 +115,17 @@ def actions_finite(raw):
 
 @kernel(inline="always")
 def take_action(raw, ap, action, inputs):
-    """Check, clip and map a raw action (6,): False, touching nothing, if any entry is not
+    """Check, clip and map a raw action (ACTION): False, touching nothing, if any entry is not
     finite; else ``action`` = raw clipped to [low, high] (as np.clip) and ``inputs`` from it."""
-    for i in range(6):
+    for i in range(ACTION_SIZE):
         if not np.isfinite(raw[i]):
             return False
-    for i in range(6):
+    for i in range(ACTION_SIZE):
         a = raw[i]
-        if a < ap[i]:
-            a = ap[i]
-        elif a > ap[6 + i]:
-            a = ap[6 + i]
+        if a < ap[AP_LOW + i]:
+            a = ap[AP_LOW + i]
+        elif a > ap[AP_HIGH + i]:
+            a = ap[AP_HIGH + i]
         action[i] = a
     action_inputs(action, ap, inputs)
     return True
@@ -142,15 +133,14 @@ def take_action(raw, ap, action, inputs):
 
 @kernel(inline="always")
 def env_step_one(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, result):
-    """One control step: ``nsub`` physics steps with constant ``inputs`` (9: pivot force,
-    body torque, spatial torque), then observation, reward terms and termination code.
-    ``result`` (int64, 5): status, steps taken, Newton iterations (total, max), termination."""
+    """One control step: ``nsub`` physics steps with constant ``inputs`` (INPUTS), then
+    observation, reward terms and termination code. ``result``: the step's REPORT (int64)."""
     # the general kernel: an environment always has inputs and, as a rule, an off-centre load
     advance_loop(S, W, P, inputs, nsub, result, P.first == 0, True, True, P.compensated)
-    status = result[0]
+    status = result[R_STATUS]
     diagnostics(S, P, D)
     code = env_observe(S, P, D, target, tp, action, obs, terms)
-    result[4] = status if status != OK else code
+    result[R_TERMINATION] = status if status != OK else code
 
 
 @kernel
@@ -176,20 +166,40 @@ def env_reset_observe(S, P, D, target, tp, action, obs, terms):
     return env_observe(S, P, D, target, tp, action, obs, terms)
 
 
+@kernel(inline="always")
+def state_row(S, b):
+    """Sub-environment ``b`` of a stacked :class:`StateArrays` (views)."""
+    return StateArrays(S.r[b], S.p[b], S.R[b], S.Pi[b], S.rc[b], S.pc[b], S.Rc[b], S.Pic[b], S.f[b], S.acc[b],
+                       S.accc[b])
+
+
+@kernel(inline="always")
+def work_row(W, b):
+    """Sub-environment ``b`` of a stacked :class:`Work` (views)."""
+    return Work(W.fn[b], W.X[b], W.Y[b], W.FmI[b], W.RF[b], W.Rn[b], W.jac[b], W.backup[b])
+
+
+@kernel(inline="always")
+def diag_row(D, b):
+    """Sub-environment ``b`` of a stacked :class:`DiagWork` (views)."""
+    return DiagWork(D.V[b], D.strain[b], D.omega[b], D.out[b])
+
+
 @kernel(parallel=True)
-def env_step_batch(r, p, R, Pi, rc, pc, Rc, Pic, f, acc, accc,
-                   fn, X, Y, FmI, RF, Rn, jac, backup, V, strain, omega, dout,
-                   P, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, result):
+def env_step_batch(s, w, d, p, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, result):
     """:func:`take_action` of ``raw[b]`` and :func:`env_step_one` for every environment b with
     ``active[b]``, in parallel (the raw actions must be finite: :func:`actions_finite`).
 
-    Every array carries a leading batch axis: the state (StateArrays fields), the scratch (Work
-    and DiagWork fields), raw (B, 6), inputs (B, 9), target (B, 6), action (B, A), obs, terms,
-    result.
+    ``s, w, d`` are StateArrays, Work and DiagWork whose arrays carry a leading batch axis, and
+    ``p`` the shared LGVIParams, all as plain tuples (see :func:`env_step`); the other arrays
+    are batched too: raw (B, ACTION), inputs (B, INPUTS), target (B, TARGET), action, obs,
+    terms, result (B, REPORT).
     """
-    for b in prange(r.shape[0]):
+    S = StateArrays(*s)
+    W = Work(*w)
+    D = DiagWork(*d)
+    P = LGVIParams(*p)
+    for b in prange(raw.shape[0]):
         if active[b] and take_action(raw[b], ap, action[b], inputs[b]):
-            S = StateArrays(r[b], p[b], R[b], Pi[b], rc[b], pc[b], Rc[b], Pic[b], f[b], acc[b], accc[b])
-            W = Work(fn[b], X[b], Y[b], FmI[b], RF[b], Rn[b], jac[b], backup[b])
-            D = DiagWork(V[b], strain[b], omega[b], dout[b])
-            env_step_one(S, W, P, D, inputs[b], nsub, target[b], tp, action[b], obs[b], terms[b], result[b])
+            env_step_one(state_row(S, b), work_row(W, b), P, diag_row(D, b), inputs[b], nsub, target[b], tp,
+                         action[b], obs[b], terms[b], result[b])

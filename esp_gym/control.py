@@ -1,0 +1,279 @@
+"""The control step of ElasticStringPendulum-v0: the one Python face of the compiled step that the
+single environment, the batched environments and the recording wrapper share.
+
+A :class:`ControlStep` owns the arrays of one environment (or, with ``num_envs``, of a batch:
+every array gains a leading axis) and the compiled calls on them (kernels/task.py):
+
+* :meth:`ControlStep.reset` puts a state and its targets in and computes the observation;
+* :meth:`ControlStep.step` takes a raw action, checks, clips and maps it to inputs, advances
+  ``setup.substeps`` physics steps and fills the report: observation, reward terms, clipped
+  action, inputs, and :data:`~esp_gym.kernels.layout.REPORT` (status, steps, Newton
+  iterations, termination code).
+
+Everything is readable through named, read-only views (``observation``, ``reward_terms``,
+``action``, ``inputs``, ``target``, ``report``) laid out in kernels/layout.py.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+from typing import Optional, Union
+
+import numpy as np
+from gymnasium import spaces
+
+from .kernels.layout import (ACTION, ACTION_PARAMS, ACTION_SIZE, INPUTS, OBSERVATION, REPORT, REWARD,
+                             REWARD_TERMS, TARGET, termination_reason)
+from .kernels.task import actions_finite, env_reset_observe, env_step, env_step_batch
+from .model import Simulator
+from .state import State
+from .params import Scene, load_scene, scene_from_dict
+from .tasks import Task, get_task
+
+#: info keys of the reward terms, in REWARD_TERMS order
+INFO_REWARD_KEYS = tuple("reward_" + name for name in REWARD_TERMS)
+_TERMINATION = REPORT.scalar("termination")
+
+
+@dataclass(frozen=True)
+class EnvSetup:
+    """Everything the single and the batched environments share, resolved and validated."""
+
+    scene: Scene
+    task: Task
+    task_params: np.ndarray
+    control_period: float  #: [s]
+    substeps: int  #: physics steps per control step
+    hover: np.ndarray  #: feed-forward pivot force holding the whole system up [N]
+    force_limit: float  #: pivot force per axis at |action| = 1, added to the hover force [N]
+    torque_limit: float  #: body torque per axis at |action| = 1 [N m]
+
+    @property
+    def observation_space(self) -> spaces.Box:
+        return spaces.Box(-np.inf, np.inf, (OBSERVATION.size,), np.float32)
+
+    @property
+    def action_space(self) -> spaces.Box:
+        return spaces.Box(-1.0, 1.0, (ACTION_SIZE,), np.float32)
+
+    @cached_property
+    def action_params(self) -> np.ndarray:
+        """The compiled action path's constants (:data:`~esp_gym.kernels.layout.ACTION_PARAMS`):
+        box bounds, hover force, force and torque limits."""
+        space = self.action_space
+        ap = np.zeros(ACTION_PARAMS.size)
+        ap[ACTION_PARAMS["low"]] = space.low
+        ap[ACTION_PARAMS["high"]] = space.high
+        ap[ACTION_PARAMS["hover_force"]] = self.hover
+        ap[ACTION_PARAMS["force_limit"]] = self.force_limit
+        ap[ACTION_PARAMS["torque_limit"]] = self.torque_limit
+        return ap
+
+
+def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabilize",
+               control_period: float = 0.02, h: Optional[float] = None, safety: float = 0.5,
+               force_limit: Optional[float] = None, torque_limit: float = 0.02,
+               scene_overrides: Optional[dict] = None) -> EnvSetup:
+    """Resolve the environment's arguments (see :class:`~esp_gym.env.ElasticStringPendulumEnv`)."""
+    if not (control_period > 0 and math.isfinite(control_period)):
+        raise ValueError(f"control_period must be a positive time [s], got {control_period}")
+    if not 0 < safety <= 1:
+        raise ValueError(f"safety must be in (0, 1], got {safety}")
+    overrides = dict(scene_overrides or {})
+    if isinstance(scene, Scene):
+        base = scene.model_dump()
+        for k, v in overrides.items():
+            base[k] = v
+        resolved = scene_from_dict(base, source=repr(scene.name))
+    else:
+        resolved = load_scene(scene, **overrides)
+    if not resolved.pivot.is_free:
+        raise ValueError(f"ElasticStringPendulum-v0 pushes the pivot: scene {resolved.name!r} needs pivot.kind: free")
+    bound = resolved.stability_bound
+    if h is None:
+        substeps = math.ceil(control_period / (safety * bound) - 1e-9)
+    else:
+        substeps = int(round(control_period / h))
+        if substeps < 1 or abs(substeps * h - control_period) > 1e-9 * control_period:
+            raise ValueError(f"h = {h} s must divide the control period {control_period} s")
+    h_used = control_period / substeps
+    resolved = scene_from_dict({**resolved.model_dump(), "h": h_used}, source=repr(resolved.name))
+    weight = resolved.gravity * (resolved.body.mass + resolved.pivot.mass
+                                 + resolved.string.length * resolved.string.mass_per_length)
+    if force_limit is None:
+        force_limit = 0.6 * weight if weight > 0 else 1.0
+    if not (force_limit > 0 and torque_limit >= 0):
+        raise ValueError("force_limit must be > 0 and torque_limit >= 0")
+    t = get_task(task)
+    return EnvSetup(scene=resolved, task=t, task_params=t.params(resolved), control_period=float(control_period),
+                    substeps=substeps, hover=np.array([0.0, 0.0, -weight]), force_limit=float(force_limit),
+                    torque_limit=float(torque_limit))
+
+
+def raw_actions(actions, shape: tuple, name: str = "action") -> np.ndarray:
+    """``actions`` as the compiled step takes them: float64, C-contiguous, writeable (copied
+    only if needed, so one compiled signature serves every caller), of ``shape`` (ValueError
+    otherwise). Finiteness and clipping are the kernel's (kernels/task.py ``take_action``)."""
+    raw = np.asarray(actions, dtype=np.float64)
+    if raw.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {raw.shape}")
+    if not (raw.flags.c_contiguous and raw.flags.writeable):
+        raw = raw.copy()
+    return raw
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    view = a.view()
+    view.flags.writeable = False
+    return view
+
+
+class ControlStep:
+    """The compiled control step of one environment, or of ``num_envs`` stacked ones.
+
+    One environment (``num_envs=None``) steps the :class:`~esp_gym.model.Simulator`
+    :attr:`sim` in place (its step counter and Newton totals follow). A batch keeps stacked
+    copies of a simulator's arrays and steps every active sub-environment in one parallel
+    call; both run the same compiled :func:`~esp_gym.kernels.task.env_step_one`, so their
+    numbers agree bit for bit.
+
+    Views (read-only; leading batch axis for a batch; layouts in kernels/layout.py):
+    ``observation`` (OBSERVATION), ``reward_terms`` (REWARD), ``action`` (the clipped
+    action, ACTION), ``inputs`` (INPUTS: pivot force [N], body torque [N m], spatial torque),
+    ``target`` (TARGET [m]), ``report`` (REPORT, int64).
+    """
+
+    def __init__(self, setup: EnvSetup, num_envs: Optional[int] = None):
+        self.setup = setup
+        self.num_envs = None if num_envs is None else int(num_envs)
+        if self.num_envs is not None and self.num_envs < 1:
+            raise ValueError(f"num_envs must be >= 1, got {num_envs}")
+        batch = () if self.num_envs is None else (self.num_envs,)
+        #: The simulator stepped in place (one environment), or the template of the batch's arrays.
+        self.sim = Simulator(setup.scene)
+        state, work, params, diag = self.sim.buffers
+        if batch:
+            def stack(t):
+                return type(t)(*(np.zeros(batch + a.shape) for a in t))
+
+            state, work, diag = stack(state), stack(work), stack(diag)
+        self._state, self._diag, self._params = state, diag, params
+        self._work = work
+        z = np.zeros
+        self._inputs = z(batch + (INPUTS.size,))
+        self._target = z(batch + (TARGET.size,))
+        self._action = z(batch + (ACTION.size,))
+        self._obs = z(batch + (OBSERVATION.size,))
+        self._terms = z(batch + (REWARD.size,))
+        self._report = z(batch + (REPORT.size,), dtype=np.int64)
+        self._make_views()
+
+    def _make_views(self) -> None:
+        # plain tuples: numba's dispatcher types them ~2x faster than namedtuples (kernels/task.py)
+        self._kernel_tuples = (tuple(self._state), tuple(self._work), tuple(self._params), tuple(self._diag))
+        self.observation = _read_only(self._obs)
+        self.reward_terms = _read_only(self._terms)
+        self.action = _read_only(self._action)
+        self.inputs = _read_only(self._inputs)
+        self.target = _read_only(self._target)
+        self.report = _read_only(self._report)
+
+    # a pickled view would come back as a copy: pickle the arrays, rebuild the views
+    _VIEWS = ("_kernel_tuples", "observation", "reward_terms", "action", "inputs", "target", "report")
+
+    def __getstate__(self) -> dict:
+        return {k: v for k, v in self.__dict__.items() if k not in self._VIEWS}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._make_views()
+
+    # -- reset ------------------------------------------------------------------------------------
+    def reset(self, state: State, target, index: Optional[int] = None) -> int:
+        """Put ``state`` (balances restarted) and ``target`` (TARGET [m]) in, zero the action
+        and compute the observation and reward terms; ``index``: the sub-environment of a batch.
+        Returns the termination code of the new state."""
+        if self.num_envs is None:
+            if index is not None:
+                raise ValueError("index is for batches (num_envs given)")
+            self.sim.set_state(state)
+            S, D, obs, terms, action, tgt = self._state, self._diag, self._obs, self._terms, self._action, self._target
+        else:
+            i = int(index)
+            S = type(self._state)(*(a[i] for a in self._state))
+            D = type(self._diag)(*(a[i] for a in self._diag))
+            S.r[...], S.p[...], S.R[...], S.Pi[...] = state.r, state.p, state.R, state.Pi
+            for a in (S.rc, S.pc, S.Rc, S.Pic, S.acc, S.accc):
+                a[...] = 0.0
+            obs, terms, action, tgt = self._obs[i], self._terms[i], self._action[i], self._target[i]
+        tgt[...] = target
+        action[...] = 0.0
+        return int(env_reset_observe(S, self._params, D, tgt, self.setup.task_params, action, obs, terms))
+
+    # -- step -------------------------------------------------------------------------------------
+    def step(self, actions, active: Optional[np.ndarray] = None) -> None:
+        """One control step. ``actions``: the raw action (ACTION; a batch: (num_envs, ACTION)),
+        any float array; clipped to the box in the compiled step. ValueError, with nothing
+        changed, if its shape is wrong or an entry is not finite. ``active`` (batch only, bool
+        (num_envs,)): the sub-environments to step (default: all)."""
+        s, w, p, d = self._kernel_tuples
+        setup = self.setup
+        if self.num_envs is None:
+            raw = raw_actions(actions, (ACTION.size,))
+            if not env_step(s, w, p, d, raw, setup.action_params, self._inputs, setup.substeps, self._target,
+                            setup.task_params, self._action, self._obs, self._terms, self._report):
+                raise ValueError(f"action must be finite, got {raw.tolist()}")
+            self.sim.count_steps(self._report)
+            return
+        raw = self.checked_actions(actions)
+        if active is None:
+            active = np.ones(self.num_envs, dtype=bool)
+        env_step_batch(s, w, d, p, raw, setup.action_params, self._inputs, active, setup.substeps, self._target,
+                       setup.task_params, self._action, self._obs, self._terms, self._report)
+
+    def checked_actions(self, actions) -> np.ndarray:
+        """The raw actions of a batch, (num_envs, ACTION) float64, shape and finiteness checked
+        (ValueError naming the argument); for callers that must check before they change
+        anything (the vector envs' autoreset)."""
+        raw = raw_actions(actions, (self.num_envs, ACTION.size), "actions")
+        if not actions_finite(raw):
+            raise ValueError("actions must be finite")
+        return raw
+
+    # -- the report, by name ----------------------------------------------------------------------
+    def reward(self):
+        """The reward: the terms summed left to right in REWARD_TERMS order (the documented sum;
+        a float, or (num_envs,) for a batch)."""
+        if self.num_envs is None:
+            return sum(self._terms.tolist())
+        out = np.zeros(self.num_envs)
+        for j in range(REWARD.size):
+            out += self._terms[:, j]
+        return out
+
+    def reward_info(self) -> dict:
+        """``{"reward_<term>": value}`` of the last step (one environment)."""
+        return dict(zip(INFO_REWARD_KEYS, self._terms.tolist()))
+
+    @property
+    def termination(self):
+        """The termination code of the last step (0: none; kernels/layout.py STATUS), an int or
+        (num_envs,) int64."""
+        if self.num_envs is None:
+            return int(self._report[_TERMINATION])
+        return self._report[:, _TERMINATION]
+
+    @staticmethod
+    def termination_reason(code: int) -> str:
+        """``info["termination_reason"]`` of a termination code."""
+        return termination_reason(code)
+
+    def sub_state(self, index: int):
+        """The live StateArrays and DiagWork of sub-environment ``index`` of a batch (views),
+        or of the one environment (``index`` ignored); for recorders."""
+        if self.num_envs is None:
+            return self._state, self._diag
+        i = int(index)
+        return type(self._state)(*(a[i] for a in self._state)), type(self._diag)(*(a[i] for a in self._diag))

@@ -1,0 +1,303 @@
+"""Every packed array of the kernels, by name: the one place that knows what index means what.
+
+Two kinds of structure cross the boundary between the compiled kernels and Python:
+
+* **namedtuples of arrays** (:class:`StateArrays`, :class:`Work`, :class:`LGVIParams`,
+  :class:`DiagWork`, :class:`Snapshots`): numba types their fields by name;
+* **packed vectors** (the diagnostics, the input balances, the step report, the inputs, the
+  observation, the reward terms, the task and action parameters, the targets, a recording
+  sample): each is a :class:`Layout` of named fields. Python reads them with
+  ``LAYOUT["name"]`` (a slice) or ``LAYOUT.scalar("name")`` (an int); kernels read them
+  through the module-level integer offsets below (numba compiles a module global into a
+  constant; this file is inside the kernels' hashed cache, see ``jit.py``, so editing a
+  layout recompiles every kernel).
+
+Status and termination codes share one table, :data:`STATUS`, with their messages.
+"""
+from collections import namedtuple
+
+
+class Layout:
+    """Named fields of a packed 1-D array: ``fields`` is a sequence of ``(name, size)``.
+
+    ``layout["name"]`` is the field's slice, ``layout.scalar("name")`` its index (size-1 fields
+    only), ``layout.start("name")`` its first index, ``layout.size`` the total length and
+    ``layout.names`` the field names in order. ``layout.structure()`` maps name -> slice (as
+    Gymnasium's ``observation_structure``)."""
+
+    def __init__(self, *fields):
+        self.fields = tuple((str(name), int(size)) for name, size in fields)
+        self._slices = {}
+        k = 0
+        for name, size in self.fields:
+            if name in self._slices or size < 1:
+                raise ValueError(f"bad layout field {name!r} (size {size})")
+            self._slices[name] = slice(k, k + size)
+            k += size
+        self.size = k
+        self.names = tuple(name for name, _ in self.fields)
+
+    def __getitem__(self, name: str) -> slice:
+        return self._slices[name]
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._slices
+
+    def __len__(self) -> int:
+        return self.size
+
+    def start(self, name: str) -> int:
+        return self._slices[name].start
+
+    def scalar(self, name: str) -> int:
+        s = self._slices[name]
+        if s.stop - s.start != 1:
+            raise ValueError(f"field {name!r} has {s.stop - s.start} entries, not 1")
+        return s.start
+
+    def structure(self) -> dict:
+        return dict(self._slices)
+
+    def scalar_names(self) -> tuple:
+        """One name per entry: a field of size k > 1 gives ``name_0 .. name_{k-1}``, or
+        ``name_x, name_y, name_z`` for k = 3."""
+        out = []
+        for name, size in self.fields:
+            if size == 1:
+                out.append(name)
+            elif size == 3:
+                out.extend(f"{name}_{c}" for c in "xyz")
+            else:
+                out.extend(f"{name}_{i}" for i in range(size))
+        return tuple(out)
+
+    def __repr__(self) -> str:
+        return f"Layout({', '.join(f'{n}[{s}]' for n, s in self.fields)})"
+
+
+# -- arrays of the stepper (kernels/lgvi.py, kernels/loops.py) ------------------------------------
+
+#: Scene constants of the stepper, all SI. ``w`` and the Thomas factors are indexed by node;
+#: ``first`` is the first unknown node (1: fixed pivot, 0: free pivot of mass ``Mp``);
+#: ``max_len2``: the blow-up guard, the squared element length [m^2] no step may exceed;
+#: ``slack``: tension-only string law; ``compensated``: Kahan-compensated state updates (the
+#: general path reads it at run time, the specialised kernels compile it in).
+LGVIParams = namedtuple(
+    "LGVIParams",
+    "h m kappa u g M Mp rho J Jd Jeff inv cp off w first slack tol max_iter gammas max_len2 compensated",
+)
+
+#: The state the kernels advance: positions r and momenta p (N+1, 3), R (3, 3), Pi (3,), the
+#: compensated-summation remainders rc, pc, Rc, Pic of each, the forces f at r (N+1, 3), and
+#: the input balances acc (:data:`BALANCE`) with their remainders accc.
+StateArrays = namedtuple("StateArrays", "r p R Pi rc pc Rc Pic f acc accc")
+
+#: Scratch arrays of one simulator; ``backup`` holds a checkpoint of the state during composed
+#: steps (kernels/loops.py), so a failure can go back to it.
+Work = namedtuple("Work", "fn X Y FmI RF Rn jac backup")
+
+#: Scratch and outputs of the diagnostics: node velocities V (N+1, 3) [m/s], per-element strain
+#: energy (N,) [J], body angular velocity omega (3,, body frame) [rad/s], and ``out``
+#: (:data:`DIAG`).
+DiagWork = namedtuple("DiagWork", "V strain omega out")
+
+#: Recording buffers of a run: per snapshot j the node positions, R, Omega, attachment
+#: velocity, :data:`DIAG`, strain energies and :data:`BALANCE`; ``step_diag`` (per step,
+#: possibly 0 rows) receives :data:`STEP_DIAG`.
+Snapshots = namedtuple("Snapshots", "r R omega v diag strain acc step_diag")
+
+# -- packed vectors -------------------------------------------------------------------------------
+
+#: Diagnostics of a state (kernels/diagnostics.py) [J, kg m^2/s, -, m, kg m/s].
+DIAG = Layout(("kinetic_string", 1), ("kinetic_body", 1), ("potential_gravity", 1), ("potential_elastic", 1),
+              ("energy", 1), ("pi3", 1), ("orthogonality", 1), ("stretched_length", 1), ("kinetic_pivot", 1),
+              ("linear_momentum", 3))
+D_KINETIC_STRING = DIAG.scalar("kinetic_string")
+D_KINETIC_BODY = DIAG.scalar("kinetic_body")
+D_POTENTIAL_GRAVITY = DIAG.scalar("potential_gravity")
+D_POTENTIAL_ELASTIC = DIAG.scalar("potential_elastic")
+D_ENERGY = DIAG.scalar("energy")
+D_PI3 = DIAG.scalar("pi3")
+D_ORTHOGONALITY = DIAG.scalar("orthogonality")
+D_STRETCHED_LENGTH = DIAG.scalar("stretched_length")
+D_KINETIC_PIVOT = DIAG.scalar("kinetic_pivot")
+D_LINEAR_MOMENTUM = DIAG.start("linear_momentum")
+#: One name per diagnostics entry (linear_momentum_x, _y, _z).
+DIAG_NAMES = DIAG.scalar_names()
+
+#: Input balances accumulated by the step since the last reset: input work [J], angular
+#: impulse about e3 [kg m^2/s], gravity impulse and pivot-force impulse (3 each) [kg m/s].
+BALANCE = Layout(("work", 1), ("angular_impulse_z", 1), ("gravity_impulse", 3), ("pivot_impulse", 3))
+B_WORK = BALANCE.scalar("work")
+B_ANGULAR_IMPULSE_Z = BALANCE.scalar("angular_impulse_z")
+B_GRAVITY_IMPULSE = BALANCE.start("gravity_impulse")
+B_PIVOT_IMPULSE = BALANCE.start("pivot_impulse")
+
+#: Energy, pi3 and orthogonality after every step of a recorded run.
+STEP_DIAG = Layout(("energy", 1), ("pi3", 1), ("orthogonality", 1))
+SD_ENERGY = STEP_DIAG.scalar("energy")
+SD_PI3 = STEP_DIAG.scalar("pi3")
+SD_ORTHOGONALITY = STEP_DIAG.scalar("orthogonality")
+
+#: Inputs held over a step: pivot force (spatial) [N], body torque (body frame) [N m], spatial
+#: torque [N m].
+INPUTS = Layout(("pivot_force", 3), ("body_torque", 3), ("spatial_torque", 3))
+IN_PIVOT_FORCE = INPUTS.start("pivot_force")
+IN_BODY_TORQUE = INPUTS.start("body_torque")
+IN_SPATIAL_TORQUE = INPUTS.start("spatial_torque")
+
+#: The report of a run of steps (int64): status (:data:`STATUS`), steps taken, Newton
+#: iterations in all and at most in one step; for a control step also its termination code.
+REPORT = Layout(("status", 1), ("steps", 1), ("newton_total", 1), ("newton_max", 1), ("termination", 1))
+R_STATUS = REPORT.scalar("status")
+R_STEPS = REPORT.scalar("steps")
+R_NEWTON_TOTAL = REPORT.scalar("newton_total")
+R_NEWTON_MAX = REPORT.scalar("newton_max")
+R_TERMINATION = REPORT.scalar("termination")
+#: A run of steps fills the first four entries only.
+LOOP_REPORT_SIZE = R_TERMINATION
+
+# -- the environment (kernels/task.py) ------------------------------------------------------------
+
+#: The action in [-1, 1]: pivot force (spatial, x force_limit, added to the hover force) and
+#: body torque (body frame, x torque_limit).
+ACTION = Layout(("pivot_force", 3), ("body_torque", 3))
+A_PIVOT_FORCE = ACTION.start("pivot_force")
+A_BODY_TORQUE = ACTION.start("body_torque")
+ACTION_SIZE = ACTION.size
+
+#: The constants of the action path: the box bounds (ACTION.size each), the hover force [N],
+#: force_limit [N] and torque_limit [N m].
+ACTION_PARAMS = Layout(("low", ACTION_SIZE), ("high", ACTION_SIZE), ("hover_force", 3), ("force_limit", 1),
+                       ("torque_limit", 1))
+AP_LOW = ACTION_PARAMS.start("low")
+AP_HIGH = ACTION_PARAMS.start("high")
+AP_HOVER = ACTION_PARAMS.start("hover_force")
+AP_FORCE_LIMIT = ACTION_PARAMS.scalar("force_limit")
+AP_TORQUE_LIMIT = ACTION_PARAMS.scalar("torque_limit")
+
+#: The episode's targets [m], spatial frame.
+TARGET = Layout(("pivot", 3), ("load", 3))
+T_PIVOT = TARGET.start("pivot")
+T_LOAD = TARGET.start("load")
+
+#: The observation (spatial frame unless stated): pivot position - target [m], pivot velocity
+#: [m/s], load centre of mass - target [m], its velocity [m/s], the first two columns of R
+#: (body x and y axes), the body angular velocity (body frame) [rad/s], and the string stretch
+#: (stretched length / l - 1).
+OBSERVATION = Layout(("pivot_position_error", 3), ("pivot_velocity", 3), ("load_position_error", 3),
+                     ("load_velocity", 3), ("attitude_6d", 6), ("angular_velocity", 3), ("string_stretch", 1))
+O_PIVOT_ERROR = OBSERVATION.start("pivot_position_error")
+O_PIVOT_VELOCITY = OBSERVATION.start("pivot_velocity")
+O_LOAD_ERROR = OBSERVATION.start("load_position_error")
+O_LOAD_VELOCITY = OBSERVATION.start("load_velocity")
+O_ATTITUDE = OBSERVATION.start("attitude_6d")
+O_ANGULAR_VELOCITY = OBSERVATION.start("angular_velocity")
+O_STRETCH = OBSERVATION.scalar("string_stretch")
+OBS_SIZE = OBSERVATION.size
+
+#: Reward terms, in the order they are summed (env info keys are "reward_" + name).
+REWARD_TERMS = ("load_position", "load_velocity", "pivot_position", "swing", "spin", "control")
+REWARD = Layout(*((name, 1) for name in REWARD_TERMS))
+RW_LOAD_POSITION = REWARD.scalar("load_position")
+RW_LOAD_VELOCITY = REWARD.scalar("load_velocity")
+RW_PIVOT_POSITION = REWARD.scalar("pivot_position")
+RW_SWING = REWARD.scalar("swing")
+RW_SPIN = REWARD.scalar("spin")
+RW_CONTROL = REWARD.scalar("control")
+
+#: The task's constants (esp_gym/tasks.py): reward weights, shaping scales [m, m/s, rad,
+#: rad/s], termination limits [m] and the string's rest length [m].
+TASK_PARAMS = Layout(*((name, 1) for name in (
+    "w_load_position", "w_load_velocity", "w_pivot_position", "w_swing", "w_spin", "w_control",
+    "scale_position", "scale_velocity", "scale_swing", "scale_spin",
+    "max_stretched_length", "workspace_radius", "string_length")))
+TASK_PARAM_NAMES = TASK_PARAMS.names
+TP_W_LOAD_POSITION = TASK_PARAMS.scalar("w_load_position")
+TP_W_LOAD_VELOCITY = TASK_PARAMS.scalar("w_load_velocity")
+TP_W_PIVOT_POSITION = TASK_PARAMS.scalar("w_pivot_position")
+TP_W_SWING = TASK_PARAMS.scalar("w_swing")
+TP_W_SPIN = TASK_PARAMS.scalar("w_spin")
+TP_W_CONTROL = TASK_PARAMS.scalar("w_control")
+TP_SCALE_POSITION = TASK_PARAMS.scalar("scale_position")
+TP_SCALE_VELOCITY = TASK_PARAMS.scalar("scale_velocity")
+TP_SCALE_SWING = TASK_PARAMS.scalar("scale_swing")
+TP_SCALE_SPIN = TASK_PARAMS.scalar("scale_spin")
+TP_MAX_STRETCHED_LENGTH = TASK_PARAMS.scalar("max_stretched_length")
+TP_WORKSPACE_RADIUS = TASK_PARAMS.scalar("workspace_radius")
+TP_STRING_LENGTH = TASK_PARAMS.scalar("string_length")
+
+# -- a recording sample (kernels/recording.py, esp_gym/viz/recorder.py) ---------------------------
+
+#: The fixed head of a recording sample row; then the nodes r (N+1, 3), the per-element strain
+#: energies (N) and the diagnostics (:data:`DIAG`): see :func:`sample_columns`. ``stepped`` is
+#: 1 for a sample after a step, 0 after a reset; ``newton`` the mean Newton iterations per
+#: physics step; ``inputs`` pivot force [N] (spatial) and body torque [N m] (body frame);
+#: ``balances`` work, E - E0 - W, angular impulse, pi3 - pi3_0 - impulse; ``target`` NaN but at
+#: an episode's reset; ``R`` row-major.
+SAMPLE_HEAD = Layout(("step", 1), ("time", 1), ("episode", 1), ("stepped", 1), ("newton", 1), ("reward", 1),
+                     ("action", ACTION_SIZE), ("terms", len(REWARD_TERMS)), ("inputs", 6), ("balances", 4),
+                     ("target", TARGET.size), ("R", 9))
+S_STEP = SAMPLE_HEAD.scalar("step")
+S_TIME = SAMPLE_HEAD.scalar("time")
+S_EPISODE = SAMPLE_HEAD.scalar("episode")
+S_STEPPED = SAMPLE_HEAD.scalar("stepped")
+S_NEWTON = SAMPLE_HEAD.scalar("newton")
+S_REWARD = SAMPLE_HEAD.scalar("reward")
+S_ACTION = SAMPLE_HEAD.start("action")
+S_TERMS = SAMPLE_HEAD.start("terms")
+S_INPUTS = SAMPLE_HEAD.start("inputs")
+S_BALANCES = SAMPLE_HEAD.start("balances")
+S_TARGET = SAMPLE_HEAD.start("target")
+S_ROT = SAMPLE_HEAD.start("R")
+S_NODES = SAMPLE_HEAD.size
+#: Offsets inside the ``balances`` field.
+SB_WORK, SB_ENERGY_RESIDUAL, SB_ANGULAR_IMPULSE, SB_PI3_RESIDUAL = range(4)
+
+
+def sample_layout(n_elements: int) -> Layout:
+    """The whole sample row for a string of ``n_elements`` elements."""
+    return Layout(*SAMPLE_HEAD.fields, ("nodes", 3 * (n_elements + 1)), ("strain", n_elements), ("diag", DIAG.size))
+
+
+# -- status and termination codes -----------------------------------------------------------------
+
+Status = namedtuple("Status", "name message reason")
+
+#: Codes a kernel returns (``REPORT["status"]``) or an environment step ends with
+#: (``REPORT["termination"]``): name, message, and the env's ``info["termination_reason"]``.
+STATUS = {
+    0: Status("ok", "", ""),
+    1: Status("newton_failed", "Newton's method on the Cayley vector did not converge", None),
+    2: Status("non_finite", "the state became non-finite (inf or NaN)", None),
+    3: Status("overstretched", "the string stretched past the task's limit", "string_overstretched"),
+    4: Status("left_workspace", "the pivot or the load left the workspace", "left_workspace"),
+    5: Status("blow_up", "an element stretched beyond solver.max_stretch times its rest length "
+                         "(the step is blowing up)", None),
+}
+OK = 0
+#: A control step that does not end the episode.
+TERM_NONE = OK
+NEWTON_FAILED = 1
+NON_FINITE = 2
+TERM_OVERSTRETCH = 3
+TERM_WORKSPACE = 4
+#: An element grew past solver.max_stretch times its rest length: an unstable step blowing up
+#: (typically h above the stability bound) caught while the state is still finite.
+BLOW_UP = 5
+#: Codes of the physics (failures of a step); the others are the environment's terminations.
+PHYSICS_FAILURES = (NEWTON_FAILED, NON_FINITE, BLOW_UP)
+
+
+def status_message(code: int) -> str:
+    """The message of a status code (the code itself if it is unknown)."""
+    status = STATUS.get(int(code))
+    return str(code) if status is None else status.message
+
+
+def termination_reason(code: int) -> str:
+    """``info["termination_reason"]`` of a termination code ("" for 0)."""
+    code = int(code)
+    if code in PHYSICS_FAILURES:
+        return "physics_failure: " + STATUS[code].message
+    return STATUS[code].reason

@@ -1,0 +1,200 @@
+"""The loops around the LGVI step (kernels/lgvi.py): many steps in one compiled call with
+failure recovery (:func:`advance_loop`), and the same with snapshots for a recorded run
+(:func:`record_loop`); the checkpoint (save/restore) they need for composed steps; and the
+general-path entry points :func:`lgvi_advance`, :func:`lgvi_record` (the specialised ones are
+in kernels/specialise.py).
+
+``stats`` is the first ``LOOP_REPORT_SIZE`` entries of a :data:`~.layout.REPORT` (int64).
+"""
+from .jit import kernel
+from .diagnostics import diagnostics
+from .layout import (D_ENERGY, D_ORTHOGONALITY, D_PI3, OK, R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS, SD_ENERGY,
+                     SD_ORTHOGONALITY, SD_PI3)
+from .lgvi import lgvi_step
+from .string import nodal_forces
+
+
+@kernel
+def state_size(S):
+    """Number of floats :func:`save_state` writes."""
+    return 4 * S.r.size + 2 * S.R.size + 2 * S.Pi.size + 2 * S.acc.size
+
+
+@kernel(inline="always")
+def _move_rows(a, buf, k, to_buf):
+    """Copy the (rows, 3) array ``a`` to ``buf[k:]`` (or back, if not ``to_buf``); returns the
+    next offset. Per-array calls with the 3 columns spelled out: a loop over a tuple of arrays
+    compiled to ~5x slower code, which cost 13 % of a composed step."""
+    for i in range(a.shape[0]):
+        if to_buf:
+            buf[k] = a[i, 0]
+            buf[k + 1] = a[i, 1]
+            buf[k + 2] = a[i, 2]
+        else:
+            a[i, 0] = buf[k]
+            a[i, 1] = buf[k + 1]
+            a[i, 2] = buf[k + 2]
+        k += 3
+    return k
+
+
+@kernel(inline="always")
+def _move_vector(a, buf, k, to_buf):
+    for i in range(a.shape[0]):
+        if to_buf:
+            buf[k + i] = a[i]
+        else:
+            a[i] = buf[k + i]
+    return k + a.shape[0]
+
+
+@kernel(inline="always")
+def _move_state(S, buf, to_buf):
+    k = _move_rows(S.r, buf, 0, to_buf)
+    k = _move_rows(S.p, buf, k, to_buf)
+    k = _move_rows(S.rc, buf, k, to_buf)
+    k = _move_rows(S.pc, buf, k, to_buf)
+    k = _move_rows(S.R, buf, k, to_buf)
+    k = _move_rows(S.Rc, buf, k, to_buf)
+    k = _move_vector(S.Pi, buf, k, to_buf)
+    k = _move_vector(S.Pic, buf, k, to_buf)
+    k = _move_vector(S.acc, buf, k, to_buf)
+    _move_vector(S.accc, buf, k, to_buf)
+
+
+@kernel
+def save_state(S, buf):
+    """Copy the whole state (with remainders and balances) into ``buf``."""
+    _move_state(S, buf, True)
+
+
+@kernel
+def restore_state(S, buf):
+    """Inverse of :func:`save_state`."""
+    _move_state(S, buf, False)
+
+
+#: Composed steps are checkpointed every this many steps (see advance_loop).
+CHECKPOINT = 64
+
+
+@kernel
+def _finish(stats, status, steps, total, most):
+    stats[R_STATUS] = status
+    stats[R_STEPS] = steps
+    stats[R_NEWTON_TOTAL] = total
+    stats[R_NEWTON_MAX] = most
+
+
+@kernel(inline="always")
+def _rewind(S, W, P):
+    """Back to the last checkpoint, with the forces of its configuration."""
+    restore_state(S, W.backup)
+    nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
+
+
+@kernel(inline="always")
+def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, forces_ready=False):
+    """Take up to ``nsteps`` steps with constant ``inputs``; stop at the first failure with
+    the last good state. ``stats`` (int64, >= 4): status, steps taken, total Newton iterations,
+    max per step.
+
+    A composed step that fails part-way has moved the state. Instead of copying the state
+    before every step (that cost 13 % of a composed step), the state is saved every
+    ``CHECKPOINT`` steps; after a failure the loop rewinds to the checkpoint and replays the
+    steps that had succeeded. The replay is deterministic (same state bits, inputs and code),
+    so it ends on exactly the state after the last good step. One call site of the step keeps
+    the inlined code single. ``forces_ready``: ``S.f`` already holds the forces at ``S.r`` (as
+    it does after any successful step), so they are not recomputed.
+    """
+    if not forces_ready:
+        nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
+    composed = P.gammas.shape[0] > 1
+    total = 0
+    most = 0
+    failed = OK
+    target = nsteps
+    k = 0
+    k0 = 0
+    while k < target:
+        if composed and failed == OK and k % CHECKPOINT == 0:
+            save_state(S, W.backup)
+            k0 = k
+        status, iters = lgvi_step(S, W, P, inputs, free, forced, coupled, compensated)
+        if failed == OK:
+            total += iters
+            most = max(most, iters)
+        if status != OK:
+            if failed != OK or not composed:  # (a replayed step cannot fail: it did not before)
+                _finish(stats, status, k, total, most)
+                return
+            failed = status
+            target = k
+            _rewind(S, W, P)
+            k = k0
+            continue
+        k += 1
+    _finish(stats, failed, target, total, most)
+
+
+
+@kernel(inline="always")
+def record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled, compensated):
+    """Take ``len(snap.r) * every`` steps, storing a snapshot after every ``every`` steps
+    (``D`` is the diagnostics scratch, see kernels/diagnostics.py) and, if ``snap.step_diag``
+    has rows, energy, pi3 and orthogonality after every step. The steps are taken by
+    :func:`advance_loop` (one step at a time when every step is recorded), so failures and
+    their recovery are its; ``stats`` as there (steps counts steps taken in this call).
+    """
+    n = S.r.shape[0] - 1
+    per_step = snap.step_diag.shape[0] > 0
+    chunk = 1 if per_step else every
+    nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
+    total = 0
+    most = 0
+    k = 0
+    for j in range(snap.r.shape[0]):
+        for _ in range(every // chunk):
+            advance_loop(S, W, P, inputs, chunk, stats, free, forced, coupled, compensated, True)
+            total += stats[R_NEWTON_TOTAL]
+            most = max(most, stats[R_NEWTON_MAX])
+            if stats[R_STATUS] != OK:
+                _finish(stats, stats[R_STATUS], k + stats[R_STEPS], total, most)
+                return
+            k += chunk
+            if per_step:
+                diagnostics(S, P, D)
+                snap.step_diag[k - 1, SD_ENERGY] = D.out[D_ENERGY]
+                snap.step_diag[k - 1, SD_PI3] = D.out[D_PI3]
+                snap.step_diag[k - 1, SD_ORTHOGONALITY] = D.out[D_ORTHOGONALITY]
+        diagnostics(S, P, D)
+        # element loops, not slice assignment: the kernels run without numba's runtime (NRT)
+        for a in range(n + 1):
+            for i in range(3):
+                snap.r[j, a, i] = S.r[a, i]
+        for i in range(3):
+            for c in range(3):
+                snap.R[j, i, c] = S.R[i, c]
+            snap.omega[j, i] = D.omega[i]
+            snap.v[j, i] = D.V[n, i]
+        for i in range(D.out.shape[0]):
+            snap.diag[j, i] = D.out[i]
+        for i in range(n):
+            snap.strain[j, i] = D.strain[i]
+        for i in range(S.acc.shape[0]):
+            snap.acc[j, i] = S.acc[i]
+    _finish(stats, OK, k, total, most)
+
+
+@kernel
+def lgvi_advance(S, W, P, inputs, nsteps, stats):
+    """The general path: :func:`advance_loop` with every term in, the pivot and the
+    compensation read from ``P``."""
+    advance_loop(S, W, P, inputs, nsteps, stats, P.first == 0, True, True, P.compensated)
+
+
+@kernel
+def lgvi_record(S, W, P, inputs, every, D, snap, stats):
+    """The general path of :func:`record_loop`."""
+    record_loop(S, W, P, inputs, every, D, snap, stats, P.first == 0, True, True, P.compensated)
+

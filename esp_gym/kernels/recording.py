@@ -1,0 +1,133 @@
+"""Compiled helpers of the Rerun recorder (esp_gym/viz/recorder.py): copy a sample of the live
+arrays into a row, turn buffered rows into the 3-D columns Rerun stores, and build the load's
+trail.
+
+A sample row is laid out by :func:`~.layout.sample_layout`: the fixed head
+(:data:`~.layout.SAMPLE_HEAD`, offsets ``S_*``), then the nodes r (N+1, 3), the per-element
+strain energies (N) and the diagnostics (:data:`~.layout.DIAG`). The variable part's offsets
+come from the array shapes. Explicit loops throughout: the kernels compile without numba's
+runtime (``jit.py``), so there is no slice assignment.
+"""
+import math
+
+from .jit import kernel
+from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, B_ANGULAR_IMPULSE_Z, B_WORK, D_ENERGY, D_PI3, IN_BODY_TORQUE,
+                     IN_PIVOT_FORCE, R_NEWTON_TOTAL, R_STEPS, S_ACTION, S_BALANCES, S_EPISODE, S_INPUTS, S_NEWTON,
+                     S_NODES, S_REWARD, S_ROT, S_STEP, S_STEPPED, S_TARGET, S_TERMS, S_TIME, SAMPLE_HEAD,
+                     SB_ANGULAR_IMPULSE, SB_ENERGY_RESIDUAL, SB_PI3_RESIDUAL, SB_WORK)
+
+_HEAD_SIZES = dict(SAMPLE_HEAD.fields)
+#: Entries of the head's action, reward-terms and target fields.
+N_ACTION = _HEAD_SIZES["action"]
+N_TERMS = _HEAD_SIZES["terms"]
+N_TARGET = _HEAD_SIZES["target"]
+
+
+@kernel
+def capture_sample(buf, i, r, R, out, strain, acc, action, terms, report, inputs, target, E0, pi30, step, t,
+                   episode, stepped, reward):
+    """Write one sample into row ``i`` of ``buf`` from live arrays: nodes ``r``, ``R``, the
+    diagnostics ``out`` (DIAG) and ``strain`` energies (current), the balances ``acc``
+    (BALANCE), the applied ``action`` (ACTION) and reward ``terms`` (REWARD), the step
+    ``report`` (REPORT: the Newton column is newton_total / steps, NaN without steps), the
+    ``inputs`` (INPUTS: pivot force, body torque) and ``target`` (TARGET; NaN when not an
+    episode's reset). The balance residuals are computed as in ``Simulator.diagnostics``
+    (same operations, same order, so the same bits)."""
+    row = buf[i]
+    row[S_STEP] = step
+    row[S_TIME] = t
+    row[S_EPISODE] = episode
+    row[S_STEPPED] = stepped
+    row[S_NEWTON] = report[R_NEWTON_TOTAL] / report[R_STEPS] if report[R_STEPS] > 0 else math.nan
+    row[S_REWARD] = reward
+    for k in range(N_ACTION):
+        row[S_ACTION + k] = action[k]
+    for k in range(N_TERMS):
+        row[S_TERMS + k] = terms[k]
+    for c in range(3):
+        row[S_INPUTS + IN_PIVOT_FORCE + c] = inputs[IN_PIVOT_FORCE + c]
+        row[S_INPUTS + IN_BODY_TORQUE + c] = inputs[IN_BODY_TORQUE + c]
+    row[S_BALANCES + SB_WORK] = acc[B_WORK]
+    row[S_BALANCES + SB_ENERGY_RESIDUAL] = out[D_ENERGY] - E0 - acc[B_WORK]
+    row[S_BALANCES + SB_ANGULAR_IMPULSE] = acc[B_ANGULAR_IMPULSE_Z]
+    row[S_BALANCES + SB_PI3_RESIDUAL] = out[D_PI3] - pi30 - acc[B_ANGULAR_IMPULSE_Z]
+    for k in range(N_TARGET):
+        row[S_TARGET + k] = target[k]
+    for a in range(3):
+        for c in range(3):
+            row[S_ROT + 3 * a + c] = R[a, c]
+    for a in range(r.shape[0]):
+        for c in range(3):
+            row[S_NODES + 3 * a + c] = r[a, c]
+    base = S_NODES + 3 * r.shape[0]
+    for k in range(strain.shape[0]):
+        row[base + k] = strain[k]
+    base += strain.shape[0]
+    for k in range(out.shape[0]):
+        row[base + k] = out[k]
+
+
+@kernel
+def sample_geometry(buf, n, inv_strain_scale, lut, inputs_from_action, force_offset, force_limit, torque_limit,
+                    force_scale, torque_scale, rho, pts, colors, translation, mat, pivot, force_vec, torque_vec,
+                    load):
+    """The 3-D columns of the first ``n`` rows of ``buf`` (float32 unless stated): element end
+    points ``pts`` (n, N, 2, 3); strain colours (n N,) uint32 from ``lut`` at sqrt(E / scale)
+    clipped to [0, 1] (NaN -> 0); the attachment point ``translation`` and R column-major
+    ``mat`` (n, 9) (Rerun's layout); the pivot; the arrows ``force_scale`` x (pivot force -
+    force_offset) and ``torque_scale`` x body torque, with the inputs taken from the action
+    (force_offset + force_limit a_force, torque_limit a_torque) or from the input columns; and
+    the load's centre of mass r_N + R rho_c (n, 3) float64."""
+    N = pts.shape[1]
+    strain0 = S_NODES + 3 * (N + 1)
+    for i in range(n):
+        row = buf[i]
+        for a in range(N):
+            for c in range(3):
+                pts[i, a, 0, c] = row[S_NODES + 3 * a + c]
+                pts[i, a, 1, c] = row[S_NODES + 3 * (a + 1) + c]
+            x = row[strain0 + a] * inv_strain_scale
+            x = min(x, 1.0) if x > 0.0 else 0.0
+            colors[i * N + a] = lut[int(math.sqrt(x) * 255.0 + 0.5)]
+        for c in range(3):
+            translation[i, c] = row[S_NODES + 3 * N + c]
+            pivot[i, c] = row[S_NODES + c]
+            acc = row[S_NODES + 3 * N + c]
+            for k in range(3):
+                mat[i, 3 * c + k] = row[S_ROT + 3 * k + c]
+                acc += row[S_ROT + 3 * c + k] * rho[k]
+            load[i, c] = acc
+            if inputs_from_action:
+                force = force_offset[c] + force_limit * row[S_ACTION + A_PIVOT_FORCE + c]
+                torque = torque_limit * row[S_ACTION + A_BODY_TORQUE + c]
+            else:
+                force = row[S_INPUTS + IN_PIVOT_FORCE + c]
+                torque = row[S_INPUTS + IN_BODY_TORQUE + c]
+            force_vec[i, c] = force_scale * (force - force_offset[c])
+            torque_vec[i, c] = torque_scale * torque
+
+
+@kernel
+def trail_points(points, episode, first_new, span, stride, offsets, out):
+    """Strips through ``points`` (M, 3) for each sample k >= ``first_new``: the points
+    k - stride (m - 1), ..., k - stride, k (oldest first) that lie within ``span`` samples of k
+    and in k's episode. Fills ``offsets`` (M - first_new + 1,) and, if ``out`` is large enough
+    (offsets[-1] rows), the float32 points. Returns the total number of points."""
+    start = 0
+    total = 0
+    offsets[0] = 0
+    for k in range(points.shape[0]):
+        if k > 0 and episode[k] != episode[k - 1]:
+            start = k
+        if k < first_new:
+            continue
+        lo = max(k - span + 1, start)
+        m = (k - lo) // stride + 1
+        if out.shape[0] >= total + m:
+            for j in range(m):
+                src = k - stride * (m - 1 - j)
+                for c in range(3):
+                    out[total + j, c] = points[src, c]
+        total += m
+        offsets[k - first_new + 1] = total
+    return total

@@ -1,0 +1,35 @@
+"""Specialised entry points: the loops of kernels/loops.py compiled for one kind of scene, with
+what it does not need compiled out."""
+from .jit import kernel
+from .loops import advance_loop, record_loop
+
+
+def _compile_specialised(free: bool, forced: bool, coupled: bool, compensated: bool):
+    """``(advance, record)`` compiled with the flags as constants (closure variables are
+    compile-time constants in numba, and its cache keys closures by their values)."""
+
+    @kernel
+    def advance(S, W, P, inputs, nsteps, stats):
+        advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated)
+
+    @kernel
+    def record(S, W, P, inputs, every, D, snap, stats):
+        record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled, compensated)
+
+    return advance, record
+
+
+_SPECIALISED = {}
+
+
+def specialised_kernels(free: bool, forced: bool, coupled: bool, compensated: bool = True):
+    """``(advance, record)`` with the signatures of :func:`lgvi_advance`/:func:`lgvi_record`,
+    compiled for one kind of scene: ``free`` pivot or fixed, inputs ``forced`` or all zero,
+    body ``coupled`` to the string (rho_c != 0) or not, state updates ``compensated`` or plain
+    (as ``P.compensated`` must say). What a flag turns off is not computed at all; the
+    results are those of the general path (tests/test_specialised.py).
+    Compiled on first use (and cached on disk); created once per process."""
+    key = (bool(free), bool(forced), bool(coupled), bool(compensated))
+    if key not in _SPECIALISED:
+        _SPECIALISED[key] = _compile_specialised(*key)
+    return _SPECIALISED[key]

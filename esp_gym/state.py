@@ -1,0 +1,129 @@
+"""The discrete state of the elastic string pendulum and the constants of a scene: what the
+stepper needs before its first step (docs/physics.md).
+
+Arrays follow one layout everywhere: node positions ``r`` and momenta ``p`` are ``(N+1, 3)``
+(row 0 the pivot, row N the attachment node), ``R`` (3, 3) maps body to spatial frame, ``Pi`` is
+the body's conjugate momentum (body frame, ``J Omega + M rho_c x R^T v_attach``) [kg m^2/s].
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from .kernels.layout import LGVIParams
+from .kernels.string import tridiag_factor
+from .params import Scene
+
+
+@dataclass
+class State:
+    """A discrete state ``(q_k, p_k)`` at step ``step``; arrays are copies owned by the caller.
+
+    ``remainders`` holds the compensated-summation remainders of (r, p, R, Pi): restoring them
+    makes save/restore bit-exact; ``None`` (e.g. after editing the momenta) restarts them at 0.
+    """
+
+    r: np.ndarray
+    p: np.ndarray
+    R: np.ndarray
+    Pi: np.ndarray
+    step: int = 0
+    remainders: Optional[tuple] = None
+
+    def copy(self) -> "State":
+        rem = None if self.remainders is None else tuple(a.copy() for a in self.remainders)
+        return State(self.r.copy(), self.p.copy(), self.R.copy(), self.Pi.copy(), self.step, rem)
+
+
+def hat(v) -> np.ndarray:
+    """The hat map: ``hat(v) @ y == np.cross(v, y)``."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def cross3(a, b) -> np.ndarray:
+    """``np.cross`` of two 3-vectors, same formula and bits, without its ~80 us of overhead."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def mass_matrix(scene: Scene):
+    """``(diagonal (N+1,), off-diagonal, end share)`` of the string's mass matrix on the unknown
+    nodes, with the body mass M at the attachment node and a free pivot's M_p at node 1 (a fixed
+    pivot's diagonal entry is 0: not an unknown). Consistent mass: element matrix
+    m/6 [[2, 1], [1, 2]] (end share 2m/6, off m/6); lumped: m/2 on each end node, no coupling.
+    """
+    n, m = scene.string.elements, scene.string.m
+    if scene.string.mass_model == "consistent":
+        off, end = m / 6.0, 2.0 * m / 6.0  # written as in the paper, so results stay bit-stable
+    else:
+        off, end = 0.0, 0.5 * m
+    diag = np.full(n + 1, 2.0 * end)
+    diag[0] = end + scene.pivot.mass if scene.pivot.is_free else 0.0
+    diag[n] = end + scene.body.mass
+    return diag, off, end
+
+
+def build_params(scene: Scene) -> LGVIParams:
+    """Scene -> the flat constants of the compiled stepper (see kernels/lgvi.py)."""
+    n, m = scene.string.elements, scene.string.m
+    M = scene.body.mass
+    rho = np.array(scene.body.rho_c, dtype=float)
+    J = scene.body.J
+    J = 0.5 * (J + J.T)
+    Jd = 0.5 * np.trace(J) * np.eye(3) - J
+    diag, off, _ = mass_matrix(scene)
+    first = 0 if scene.pivot.is_free else 1
+    inv, cp = tridiag_factor(diag, off)
+    # w = M_tot^-1 e_{N+1}: the attachment column of the inverse (Schur complement)
+    k = n + 1 - first
+    dense = np.diag(diag[first:]) + off * (np.eye(k, k=1) + np.eye(k, k=-1))
+    e = np.zeros(k)
+    e[-1] = 1.0
+    w = np.zeros(n + 1)
+    w[first:] = np.linalg.solve(dense, e)
+    s = inv[n]  # (M_tot^-1)_{N+1,N+1} equals the last Thomas pivot inverse
+    Jeff = J + M * M * s * hat(rho) @ hat(rho)
+    return LGVIParams(
+        h=float(scene.h), m=float(m), kappa=float(scene.string.kappa), u=float(scene.string.u),
+        g=float(scene.gravity), M=float(M), Mp=float(scene.pivot.mass or 0.0), rho=rho, J=J, Jd=Jd,
+        Jeff=Jeff, inv=inv, cp=cp, off=float(off), w=w, first=first,
+        slack=scene.string.law == "slack",
+        tol=float(scene.solver.newton_tol), max_iter=int(scene.solver.newton_max_iter),
+        gammas=scene.solver.scheme.weights(),
+        max_len2=float((scene.solver.max_stretch * scene.string.u) ** 2),
+        compensated=bool(scene.solver.compensated),
+    )
+
+
+def legendre_momenta(scene: Scene, r: np.ndarray, v: np.ndarray, R: np.ndarray, Omega: np.ndarray):
+    """Continuous Legendre transform of the finite-element Lagrangian: velocities -> momenta.
+
+    p = M_str v + body terms at the attachment node (+ M_p v_1 at a free pivot),
+    Pi = J Omega + M rho_c x (R^T v_attach). Used to start the integrator
+    (docs/physics.md, "Initialisation").
+    """
+    M = scene.body.mass
+    rho = np.array(scene.body.rho_c, dtype=float)
+    J = scene.body.J
+    _, off, end = mass_matrix(scene)
+    p = np.zeros_like(v)
+    p[:-1] += end * v[:-1] + off * v[1:]
+    p[1:] += off * v[:-1] + end * v[1:]
+    p[-1] += M * (v[-1] + R @ cross3(Omega, rho))
+    if scene.pivot.is_free:
+        p[0] += scene.pivot.mass * v[0]
+    else:
+        p[0] = 0.0  # the fixed pivot carries no momentum of its own
+    Pi = J @ Omega + M * cross3(rho, R.T @ v[-1])
+    return p, Pi
+
+
+def initial_state(scene: Scene) -> State:
+    """The state at t = 0: configuration from the scene, momenta by the Legendre transform."""
+    r = scene.initial_nodes()
+    v = scene.initial_velocities()
+    R = np.array(scene.initial.R0, dtype=float)
+    Omega = np.array(scene.initial.Omega0, dtype=float)
+    p, Pi = legendre_momenta(scene, r, v, R, Omega)
+    return State(np.ascontiguousarray(r), np.ascontiguousarray(p), np.ascontiguousarray(R), Pi, 0)

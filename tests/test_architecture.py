@@ -1,0 +1,157 @@
+"""The shape of the house (docs/architecture.md), checked statically on the sources: no module
+imports another module's private name, nobody edits ``sys.path``, the import graph has no cycle,
+no bare index reads a packed layout outside kernels/layout.py, and source files stay short.
+
+Each checker is a small function; the negative controls feed it a made-up offender.
+"""
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGES = ("esp_gym", "agents", "benchmarks")
+#: Longest source file allowed in esp_gym/ [lines] ("~400": a little slack for a docstring).
+MAX_LINES = 450
+
+
+def sources(packages=PACKAGES):
+    for pkg in packages:
+        for path in sorted((ROOT / pkg).rglob("*.py")):
+            if "__pycache__" not in path.parts:
+                yield path
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def resolve(module: str, is_package: bool, node: ast.ImportFrom) -> str:
+    """The absolute module an ``ImportFrom`` names."""
+    if not node.level:
+        return node.module or ""
+    base = module.split(".")
+    base = base if is_package else base[:-1]
+    base = base[:len(base) - (node.level - 1)]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def private_imports(module: str, is_package: bool, tree: ast.AST) -> list:
+    """``from X import _name`` of a name private to another module (``__future__`` aside)."""
+    bad = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module != "__future__":
+            for alias in node.names:
+                if alias.name.startswith("_") and not alias.name.startswith("__"):
+                    bad.append(f"{module}: from {resolve(module, is_package, node)} import {alias.name}")
+    return bad
+
+
+def module_imports(module: str, is_package: bool, tree: ast.Module, known: set) -> set:
+    """Project modules imported at module level (imports inside functions run later and
+    cannot form an import-time cycle)."""
+    out = set()
+    for node in tree.body:
+        if isinstance(node, ast.Import):
+            out.update(a.name for a in node.names if a.name in known)
+        elif isinstance(node, ast.ImportFrom):
+            target = resolve(module, is_package, node)
+            for alias in node.names:
+                sub = f"{target}.{alias.name}"
+                out.add(sub if sub in known else target)
+    return {m for m in out if m in known and m != module}
+
+
+def find_cycle(graph: dict):
+    """One cycle of the directed graph ``{node: successors}`` as a list, or None."""
+    state = {}
+    stack = []
+
+    def visit(v):
+        state[v] = 1
+        stack.append(v)
+        for w in sorted(graph.get(v, ())):
+            if state.get(w) == 1:
+                return stack[stack.index(w):] + [w]
+            if w not in state:
+                found = visit(w)
+                if found:
+                    return found
+        stack.pop()
+        state[v] = 2
+        return None
+
+    for v in sorted(graph):
+        if v not in state:
+            found = visit(v)
+            if found:
+                return found
+    return None
+
+
+#: A bare index into one of the packed vectors (diagnostics, balances, reports, inputs,
+#: observation, reward terms, task/action parameters) under the names the code gives them.
+PACKED = re.compile(r"(?<![.\w])(out|acc|accc|result|report|stats|_stats|tp|ap|obs|inputs|terms|_terms|_result)"
+                    r"\[(\.\.\., ?|:, ?)?\d+(:\d+)?\]")
+
+
+#: Matches that index something else than a packed layout (docs/architecture.md lists them).
+NOT_LAYOUTS = {
+    "esp_gym/verify/mujoco_chain.py": ["out[0] = self.attachment_position()"],  # row 0 of a (K, 3) trajectory
+    "esp_gym/verify/ode.py": ["return out[0] if Y.ndim == 1 else out"],  # the one row of a single state
+}
+
+
+def bare_layout_indexes(text: str) -> list:
+    return [line.strip() for line in text.splitlines() if PACKED.search(line)]
+
+
+def _parsed():
+    for path in sources():
+        module = module_name(path)
+        yield path, module, path.name == "__init__.py", ast.parse(path.read_text(), str(path))
+
+
+def test_no_module_imports_a_private_name():
+    bad = [b for _, m, pkg, tree in _parsed() for b in private_imports(m, pkg, tree)]
+    assert bad == []
+    # negative control
+    tree = ast.parse("from .model import _hidden\n")
+    assert private_imports("esp_gym.env", False, tree) == ["esp_gym.env: from esp_gym.model import _hidden"]
+
+
+def test_nobody_edits_sys_path():
+    offenders = [str(p.relative_to(ROOT)) for p in list(sources()) + sorted((ROOT / "tests").glob("*.py"))
+                 if re.search(r"sys\.path\.(insert|append)", p.read_text()) and p.name != "test_architecture.py"]
+    assert offenders == []
+
+
+def test_the_import_graph_has_no_cycle():
+    parsed = list(_parsed())
+    known = {m for _, m, _, _ in parsed}
+    graph = {m: module_imports(m, pkg, tree, known) for _, m, pkg, tree in parsed}
+    assert find_cycle(graph) is None, find_cycle(graph)
+    # negative control: agents.controllers <-> agents.evaluate, as it once was
+    assert find_cycle({"a.x": {"a.y"}, "a.y": {"a.x"}}) == ["a.x", "a.y", "a.x"]
+
+
+def test_packed_layouts_are_read_by_name_outside_their_module():
+    layout = ROOT / "esp_gym" / "kernels" / "layout.py"
+    found = {str(p.relative_to(ROOT)): bare_layout_indexes(p.read_text())
+             for p in list(sources()) + sorted((ROOT / "tests").glob("*.py"))
+             if p not in (layout, Path(__file__).resolve())}
+    assert {k: v for k, v in found.items() if v and v != NOT_LAYOUTS.get(k)} == {}
+    # negative controls: the patterns the layouts replaced
+    assert bare_layout_indexes("e = out[4]\nv = obs[..., 9:12]\nx = tp[6]\nok = acc[2:5]") == [
+        "e = out[4]", "v = obs[..., 9:12]", "x = tp[6]", "ok = acc[2:5]"]
+
+
+@pytest.mark.parametrize("path", [p for p in sources(("esp_gym",))], ids=lambda p: str(p.relative_to(ROOT)))
+def test_source_files_are_short(path):
+    assert len(path.read_text().splitlines()) <= MAX_LINES
