@@ -74,7 +74,8 @@ def rollout(env, steps, seed=0, actions_seed=0):
         diags.append(sim.diagnostics())
         actions.append(a)
         results.append(out)
-        if out[2] or out[3]:
+        _, _, terminated, truncated, _ = out
+        if terminated or truncated:
             break
     return diags, np.array(actions), results
 

@@ -1,0 +1,130 @@
+"""Recording runs to Rerun: rollouts of ElasticStringPendulum-v0 (the Gymnasium wrapper
+:class:`RecordRerun`) and free simulations (:func:`record_simulation`).
+"""
+from __future__ import annotations
+
+import time as _time
+from pathlib import Path
+from typing import Optional
+
+import gymnasium as gym
+
+from ..control import ControlStep
+from .recorder import Recorder
+
+
+class RecordRerun(gym.Wrapper):
+    """Records rollouts of ElasticStringPendulum-v0 to a Rerun ``.rrd`` at the control rate.
+
+    Every ``reset`` and every ``step`` adds one sample: the state and its diagnostics, and for
+    steps the applied (clipped) action, the reward and its terms (``info["reward_*"]``) and
+    the mean Newton iterations per physics step; each episode's targets are logged at its
+    reset. Episodes follow each other on the ``step`` timeline (one step apart) and ``time``
+    is ``step`` times the control period. Samples are buffered and written every
+    ``flush_every`` samples, after ``flush_seconds`` of wall time, when an episode ends
+    (``flush_on_episode_end``), on :meth:`close`, at exit and on SIGTERM/SIGINT.
+
+    There is no every-physics-step option: the environment advances its physics steps inside
+    one compiled call (kernels/task.py), so the intermediate states never reach Python;
+    recording them would mean re-stepping the physics outside the environment's own kernel.
+
+    The sample is copied by one compiled call (:meth:`Recorder.add_sample`) from the env's
+    live arrays, read through its :class:`~esp_gym.control.ControlStep` (``env.unwrapped.control``):
+    the simulator's state and diagnostics (which the step leaves current), the clipped action,
+    the reward terms, the inputs and the step report (the same numbers as the clipped action
+    and ``info["reward_*"]``, which the tests check). ``recorder_kwargs`` go to
+    :class:`Recorder` (``flush_every``, ``flush_seconds``, ``trail_seconds``, ``strain_scale``,
+    ``force_scale``, ``torque_scale``, ...).
+    """
+
+    def __init__(self, env: gym.Env, path, *, flush_on_episode_end: bool = False, **recorder_kwargs):
+        super().__init__(env)
+        control = getattr(env.unwrapped, "control", None)
+        if not isinstance(control, ControlStep) or control.num_envs is not None:
+            raise TypeError("RecordRerun records ElasticStringPendulum-v0 (an env with one ControlStep, `control`)")
+        self.control = control
+        setup = control.setup
+        self.flush_on_episode_end = bool(flush_on_episode_end)
+        self.recorder = Recorder(path, setup.scene, env=True, sample_period=setup.control_period,
+                                 force_offset=setup.hover, action_scale=(setup.force_limit, setup.torque_limit),
+                                 **recorder_kwargs)
+        self._live = None  # the simulator's live (StateArrays, DiagWork), from the first reset on
+        self._episode = -1
+        self._step = -1  # step index of the last sample
+
+    def reset(self, **kwargs):
+        obs, info = self.env.reset(**kwargs)
+        rec = self.recorder
+        if not rec.closed:
+            if rec.buffered and self.flush_on_episode_end:
+                rec.flush(wait=True)
+            control = self.control
+            self._live = control.sub_state(0)
+            self._episode += 1
+            self._step += 1
+            rec.start_episode(control.sim)
+            self._add(stepped=False, reward=float("nan"), target=control.target)
+        return obs, info
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        if self._live is not None and not self.recorder.closed:
+            self._step += 1
+            self._add(stepped=True, reward=reward, inputs=self.control.inputs)
+            if self.flush_on_episode_end and (terminated or truncated):
+                self.recorder.flush(wait=True)  # on disk when the episode ends
+        return obs, reward, terminated, truncated, info
+
+    def _add(self, **sample) -> None:
+        control, rec = self.control, self.recorder
+        state, diag = self._live
+        rec.add_sample(state, diag, report=control.report, step=self._step, time=self._step * rec.sample_period,
+                       episode=self._episode, action=control.action, terms=control.reward_terms, **sample)
+
+    def close(self):
+        self.recorder.close()
+        super().close()
+
+
+# -- free simulations -----------------------------------------------------------------------------
+
+def default_record_every(h: float, rate: float = 50.0) -> int:
+    """Physics steps between samples for ~``rate`` samples per simulated second."""
+    return max(1, int(round(1.0 / (rate * h))))
+
+
+def record_simulation(sim, path, t_final: float, record_every: Optional[int] = None, progress: bool = False,
+                      pivot_force=None, body_torque=None, **recorder_kwargs) -> dict:
+    """Advance ``sim`` by ``t_final`` seconds (a whole number of steps) with constant inputs
+    (as in ``Simulator.step``: pivot force spatial [N], body torque body frame [N m]) and
+    record it to ``path``: the current state, then every ``record_every`` physics steps
+    (default: ~50 samples per simulated second) and at the end. Returns a summary (samples,
+    steps, wall time, largest |E - E0 - W| and |pi3 - pi3_0 - impulse| at the samples). A
+    :class:`~esp_gym.model.SimulationError` propagates after the recording of the steps before
+    it is closed."""
+    from tqdm.auto import tqdm
+
+    nsteps = int(round(t_final / sim.h))
+    if nsteps < 0 or abs(nsteps * sim.h - t_final) > 1e-9 * max(1.0, abs(t_final)):
+        raise ValueError(f"t_final = {t_final} s is not a whole number of steps h = {sim.h} s")
+    record_every = default_record_every(sim.h) if record_every is None else int(record_every)
+    if record_every < 1:
+        raise ValueError(f"record_every must be >= 1, got {record_every}")
+    start = _time.perf_counter()
+    with Recorder(path, sim.scene, sample_period=record_every * sim.h, **recorder_kwargs) as rec:
+        rec.start_episode(sim)
+        rec.sample(sim, pivot_force=pivot_force, body_torque=body_torque)
+        done = 0
+        with tqdm(total=nsteps, disable=not progress, unit="step", unit_scale=True,
+                  desc=f"{sim.scene.name} -> {Path(path).name}") as bar:
+            while done < nsteps:
+                k = min(record_every, nsteps - done)
+                sim.step(k, pivot_force=pivot_force, body_torque=body_torque)
+                rec.sample(sim, pivot_force=pivot_force, body_torque=body_torque)
+                done += k
+                bar.update(k)
+        samples = rec.samples
+        worst = rec.max_abs_residuals
+    return {"path": str(path), "scene": sim.scene.name, "steps": nsteps, "record_every": record_every,
+            "samples": samples, "wall_time_s": _time.perf_counter() - start,
+            "max_abs_energy_balance_residual": float(worst[0]), "max_abs_pi3_balance_residual": float(worst[1])}
