@@ -30,8 +30,8 @@ test: $(VENV)/.installed-test
 	$(BIN)/python -m pytest
 
 bench: $(VENV)/.installed
-	$(BIN)/python benchmarks/step_cost.py
+	$(BIN)/python -m benchmarks.step_cost
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache
-	find esp_gym tests agents -name __pycache__ -prune -exec rm -rf {} +
+	find esp_gym tests agents benchmarks -name __pycache__ -prune -exec rm -rf {} +

@@ -1,7 +1,7 @@
-"""The README's table: zero action, classical baseline and a trained policy on the same seeded
+"""The comparison table of docs/agents.md: zero action, classical baseline and a trained policy on the same seeded
 episodes.
 
-    python agents/compare.py --model models/stabilize_ppo/model.zip --task stabilize --episodes 50
+    python -m agents.compare --model models/stabilize_ppo/model.zip --task stabilize --episodes 50
 
 Prints a Markdown table (mean +- std of the return, success rate, swing measures) and writes it
 with the raw numbers to ``--out`` (JSON).
@@ -10,20 +10,17 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
-
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from agents.controllers import ZeroPolicy
 from agents.evaluate import SB3Policy, evaluate_policy
+from esp_gym.tasks import TASKS
 
 
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--model", required=True, help="trained model .zip")
-    ap.add_argument("--task", default="stabilize", choices=["stabilize", "transport"])
+    ap.add_argument("--task", default="stabilize", choices=sorted(TASKS))
     ap.add_argument("--episodes", type=int, default=50)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default=None, help="JSON file for the results")

@@ -1,11 +1,11 @@
 """Deterministic evaluation of a policy on seeded episodes of ElasticStringPendulum-v0.
 
-    python agents/evaluate.py --policy {zero,baseline,PATH} --task stabilize --episodes 50 --seed 0
+    python -m agents.evaluate --policy {zero,baseline,PATH} --task stabilize --episodes 50 --seed 0
 
 prints one JSON line: mean_return, std_return, success_rate, mean_final_swing_deg (the swing
 measure: the load's swing angle at the episode's end, degrees), mean_swing_deg (over all steps),
 episodes, task, policy. Episode i uses seed ``seed + i``. A PATH is an SB3 model (.zip) saved
-by agents/train.py; its VecNormalize statistics (vecnormalize.pkl beside it) are applied.
+by ``python -m agents.train``; its VecNormalize statistics (vecnormalize.pkl beside it) are applied.
 
 Success: the episode runs to the time limit and ends with the load within 0.1 m of its target
 and swinging less than 5 degrees.
@@ -19,19 +19,15 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 from pathlib import Path
 from typing import Optional
 
-import numpy as np
-
-if __package__ in (None, ""):  # run as a script: make `agents` importable
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
 import gymnasium as gym
+import numpy as np
 
 import esp_gym
 from agents.controllers import ZeroPolicy, baseline
+from esp_gym.tasks import TASKS
 
 SUCCESS_DISTANCE = 0.1  #: [m]
 SUCCESS_SWING_DEG = 5.0
@@ -125,7 +121,7 @@ def evaluate_policy(policy, task: str = "stabilize", episodes: int = 50, seed: i
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--policy", default="baseline", help="zero, baseline or the path of a model .zip")
-    ap.add_argument("--task", default="stabilize", choices=["stabilize", "transport"])
+    ap.add_argument("--task", default="stabilize", choices=sorted(TASKS))
     ap.add_argument("--episodes", type=int, default=50)
     ap.add_argument("--seed", type=int, default=0, help="episode i uses seed + i")
     ap.add_argument("--record", metavar="FILE.rrd", default=None,

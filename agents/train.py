@@ -1,8 +1,8 @@
 """Train a Stable-Baselines3 agent (PPO or SAC) on ElasticStringPendulum-v0.
 
-    python agents/train.py --algo ppo --task stabilize --seed 0
-    python agents/train.py --algo ppo --task stabilize --set total_timesteps=200000 n_envs=8
-    python agents/train.py --resume runs/RUN/checkpoints/model_100000_steps.zip
+    python -m agents.train --algo ppo --task stabilize --seed 0
+    python -m agents.train --algo ppo --task stabilize --set total_timesteps=200000 n_envs=8
+    python -m agents.train --resume runs/RUN/checkpoints/model_100000_steps.zip
 
 Hyper-parameters come from configs/agents/{ppo,sac}.yaml keyed by env id and task; ``--set``
 overrides them (validated: unknown keys are errors). The batched SB3 VecEnv of esp_gym steps all
@@ -22,21 +22,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
-if __package__ in (None, ""):  # run as a script: make `agents` importable
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
-import numpy as np
 import yaml
 
 import esp_gym
 from agents.common import (ROOT, TqdmCallback, json_default, load_run_config, parse_settings, plot_learning_curve,
                            resolve_schedules)
+from agents.controllers import ZeroPolicy
+from agents.evaluate import evaluate_policy
+from esp_gym.tasks import TASKS
 
 
 @dataclass
 class Settings:
     algo: str = field(default="ppo", metadata={"help": "algorithm", "choices": ["ppo", "sac"]})
-    task: str = field(default="stabilize", metadata={"help": "task", "choices": ["stabilize", "transport"]})
+    task: str = field(default="stabilize", metadata={"help": "task", "choices": sorted(TASKS)})
     seed: int = field(default=0, metadata={"help": "seed of the agent and of the environments (seed + i)", "type": int})
     set: list = field(default_factory=list, metadata={"help": "hyper-parameter overrides KEY=VALUE (YAML values)", "nargs": "*"})
     runs: str = field(default=str(ROOT / "runs"), metadata={"help": "where run directories go"})
@@ -50,7 +49,8 @@ class Settings:
     reference_episodes: int = field(default=10, metadata={"help": "episodes for the zero/baseline reference returns drawn on the learning curve", "type": int})
 
 
-def _make_vec_env(n_envs: int, task: str, seed: int, env_kwargs: dict, max_episode_steps: int = 500):
+def _make_vec_env(n_envs: int, task: str, seed: int, env_kwargs: dict,
+                  max_episode_steps: int = esp_gym.MAX_EPISODE_STEPS):
     from esp_gym.vector import ElasticStringPendulumSB3VecEnv
 
     venv = ElasticStringPendulumSB3VecEnv(num_envs=n_envs, task=task, max_episode_steps=max_episode_steps, **env_kwargs)
@@ -58,8 +58,9 @@ def _make_vec_env(n_envs: int, task: str, seed: int, env_kwargs: dict, max_episo
     return venv
 
 
-def train(s: Settings) -> Path:
-    """Run one training; returns the run directory."""
+def train(s: Settings, argv: Optional[list] = None) -> Path:
+    """Run one training; returns the run directory. ``argv``: the command-line arguments
+    recorded in command.txt (default: this process's)."""
     import torch
     from stable_baselines3 import PPO, SAC
     from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
@@ -82,10 +83,8 @@ def train(s: Settings) -> Path:
         run_dir.mkdir(parents=True, exist_ok=False)
         (run_dir / "config.yaml").write_text(yaml.safe_dump(cfg.model_dump(), sort_keys=False))
         (run_dir / "args.json").write_text(json.dumps(dataclasses.asdict(s), indent=2, default=json_default))
-        (run_dir / "command.txt").write_text(shlex.join([sys.executable] + sys.argv) + "\n")
-        from agents.evaluate import evaluate_policy
-        from agents.controllers import ZeroPolicy
-
+        args = sys.argv[1:] if argv is None else list(argv)
+        (run_dir / "command.txt").write_text(shlex.join([sys.executable, "-m", "agents.train", *args]) + "\n")
         n_ref = max(1, s.reference_episodes)
         refs = {"baseline_return": evaluate_policy(None, s.task, n_ref, seed=10_000, env_kwargs=cfg.env_kwargs)["mean_return"],
                 "zero_return": evaluate_policy(ZeroPolicy(), s.task, n_ref, seed=10_000, env_kwargs=cfg.env_kwargs)["mean_return"]}
@@ -132,7 +131,7 @@ def train(s: Settings) -> Path:
 
 
 def main(argv=None) -> Path:
-    return train(parse_settings(Settings, argv, description=__doc__.split("\n\n")[0]))
+    return train(parse_settings(Settings, argv, description=__doc__.split("\n\n")[0]), argv)
 
 
 if __name__ == "__main__":

@@ -9,31 +9,21 @@ Prints a table and writes ``OUT/env_throughput.json`` and ``OUT/env_throughput.p
   for 1 to 64 environments.
 
 Each figure is the median of ``--repeats`` timed runs after a warm-up (compilation excluded).
-Usage: ``python benchmarks/env_throughput.py [--quick] [--out DIR]``.
+Usage: ``python -m benchmarks.env_throughput [--quick] [--out DIR]``.
 """
 from __future__ import annotations
-
-import argparse
-import json
-import time
-from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 
 import esp_gym
+from benchmarks.common import arg_parser, figure, finish, machine, wall_times
 from esp_gym.vector import ElasticStringPendulumSB3VecEnv
 
-HERE = Path(__file__).resolve().parent
 
-
-def _time(fn, repeats):
-    out = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        n = fn()
-        out.append(n / (time.perf_counter() - start))
-    return float(np.median(out))
+def _rate(fn, steps: int, repeats: int) -> float:
+    """Median over ``repeats`` timed calls of ``fn()`` of ``steps`` / wall time [steps/s]."""
+    return float(np.median([steps / wall for wall in wall_times(fn, repeats)]))
 
 
 def single(make, steps, random_actions, repeats):
@@ -48,9 +38,8 @@ def single(make, steps, random_actions, repeats):
             _, _, te, tr, _ = env.step(a)
             if te or tr:
                 env.reset()
-        return steps
 
-    return _time(run, repeats)
+    return _rate(run, steps, repeats)
 
 
 def batched(make, num_envs, steps, repeats, sb3):
@@ -63,15 +52,12 @@ def batched(make, num_envs, steps, repeats, sb3):
     def run():
         for _ in range(n):
             venv.step(acts)
-        return n * num_envs
 
-    return _time(run, repeats)
+    return _rate(run, n * num_envs, repeats)
 
 
 def main(argv=None) -> dict:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="small smoke run, not a measurement")
-    ap.add_argument("--out", default=str(HERE / "out"), help="output directory")
+    ap = arg_parser(__doc__, quick="small smoke run, not a measurement")
     ap.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args(argv)
     steps = 2_000 if args.quick else 20_000
@@ -94,15 +80,14 @@ def main(argv=None) -> dict:
     print("\nbatched (one compiled call)  envs   Gymnasium VectorEnv   SB3 VecEnv   [steps/s]")
     for b in counts:
         print(f"  {'':26s} {b:4d}   {res['batched_gymnasium'][b]:19,.0f}   {res['batched_sb3'][b]:10,.0f}")
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "env_throughput.json").write_text(json.dumps(res, indent=2))
-    import matplotlib
+    finish(args.out, "env_throughput", {**res, "machine": machine("gymnasium", "stable_baselines3")},
+           {"env_throughput.png": lambda path: _plot(res, counts, path)})
+    return res
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6, 3.6), layout="constrained")
+def _plot(res: dict, counts: list, path) -> None:
+    fig = figure((6, 3.6), dpi=130)
+    ax = fig.subplots()
     ax.plot(counts, [res["batched_gymnasium"][b] for b in counts], "o-", label="Gymnasium VectorEnv (make_vec)")
     ax.plot(counts, [res["batched_sb3"][b] for b in counts], "s-", label="SB3 VecEnv")
     ax.axhline(res["single"]["gymnasium.make, random actions"], color="grey", ls="--", label="single env (gymnasium.make)")
@@ -112,9 +97,7 @@ def main(argv=None) -> dict:
     ax.set_title("ElasticStringPendulum-v0 throughput (2 cores, 50 Hz control)")
     ax.grid(True, alpha=0.3)
     ax.legend()
-    fig.savefig(out / "env_throughput.png", dpi=130)
-    print(f"\nwrote {out}/env_throughput.json and env_throughput.png")
-    return res
+    fig.savefig(path)
 
 
 if __name__ == "__main__":

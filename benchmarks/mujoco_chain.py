@@ -2,7 +2,7 @@
 long-run energy behaviour.
 
 With ``string.mass_model: lumped`` the scene is a chain of point masses and linear springs
-carrying a rigid body, which MuJoCo represents exactly (``esp_gym/mujoco_chain.py``: slide-joint
+carrying a rigid body, which MuJoCo represents exactly (``esp_gym/verify/mujoco_chain.py``: slide-joint
 point masses, tendon springs, a free-joint load; tests/test_mujoco_chain.py shows the two
 models are the same ODE). Both sides integrate that one ODE, so the comparison is of the
 integrators and their implementations only.
@@ -33,27 +33,21 @@ Prints tables and writes ``OUT/mujoco_chain.json`` and ``OUT/mujoco_chain.png`` 
 time; OUT = benchmarks/out unless ``--out``). Needs the optional dependency: ``pip install
 esp_gym[bench]``.
 
-Usage: ``python benchmarks/mujoco_chain.py [--quick] [--out DIR]``. ``--quick``: a few points per
+Usage: ``python -m benchmarks.mujoco_chain [--quick] [--out DIR]``. ``--quick``: a few points per
 method, a loose reference, a short stability scan and long run: a smoke test, not a measurement.
 """
 from __future__ import annotations
 
-import argparse
-import json
 import math
-import os
-import platform
 import sys
 import time
 from dataclasses import asdict, dataclass
-from pathlib import Path
 
 import numpy as np
 from tqdm.auto import tqdm
 
-from work_precision import LEVELS, load_error, pareto_time, timed
-
-HERE = Path(__file__).resolve().parent
+from benchmarks.common import (DEFAULT_OUT, LEVELS, arg_parser, energy_stats, figure, finish, fmt, load_error,
+                               machine, pareto_time, print_runs, print_time_to_error, timed)
 
 LGVI, SUZUKI = "LGVI (esp_gym)", "LGVI o4 Suzuki 5"
 #: MuJoCo integrators in the work-precision comparison (all five are in the stability scan).
@@ -67,7 +61,7 @@ EVALUATIONS = {LGVI: 1, SUZUKI: 5, "MuJoCo RK4": 4}
 class Settings:
     quick: bool = False
     """smoke test: few points, loose reference, short scans"""
-    out: str = str(HERE / "out")
+    out: str = str(DEFAULT_OUT)
     """output directory"""
     scene: str = "paper_example"
     """scene name (configs/scenes), run with string.mass_model = lumped"""
@@ -138,7 +132,7 @@ class Unstable(Exception):
 def mujoco_runner(cfg: Settings, integrator: str, k: int, t_final: float | None = None):
     """MuJoCo ``integrator`` at h = sample/k, compiled once: a function giving (attachment
     positions, steps) that resets the data and runs."""
-    from esp_gym.mujoco_chain import MujocoChain
+    from esp_gym.verify.mujoco_chain import MujocoChain
 
     chain = MujocoChain(lumped_scene(cfg, cfg.sample), integrator, h=cfg.sample / k)
     T = cfg.t_final if t_final is None else t_final
@@ -230,7 +224,7 @@ def setup_costs(cfg: Settings):
     import timeit
 
     import esp_gym
-    from esp_gym.mujoco_chain import MujocoChain
+    from esp_gym.verify.mujoco_chain import MujocoChain
 
     scene = lumped_scene(cfg, cfg.cost_h)
     chain = MujocoChain(scene, "RK4")
@@ -293,7 +287,7 @@ def lgvi_stable(cfg: Settings, h: float, suzuki: bool):
 
 def mujoco_stable(cfg: Settings, h: float, integrator: str):
     """:func:`survives` for MuJoCo ``integrator`` at h."""
-    from esp_gym.mujoco_chain import MujocoChain
+    from esp_gym.verify.mujoco_chain import MujocoChain
 
     scene = lumped_scene(cfg, h)
     chain = MujocoChain(scene, integrator, h=h)
@@ -330,12 +324,6 @@ def stability(cfg: Settings):
 
 
 # -- long run ------------------------------------------------------------------------------------
-def energy_stats(t, E, wall, label, extra):
-    dE = E - E[0]
-    return {"label": label, "wall_s": wall, **extra, "max_abs_energy_error_J": float(np.abs(dE).max()),
-            "energy_slope_J_per_s": float(np.polyfit(t, dE, 1)[0]), "final_energy_error_J": float(dE[-1])}
-
-
 def lgvi_longrun(cfg: Settings, k: int):
     import esp_gym
 
@@ -347,7 +335,7 @@ def lgvi_longrun(cfg: Settings, k: int):
 
 
 def mujoco_longrun(cfg: Settings, integrator: str, k: int):
-    from esp_gym.mujoco_chain import MujocoChain
+    from esp_gym.verify.mujoco_chain import MujocoChain
 
     chain = MujocoChain(lumped_scene(cfg, cfg.sample), integrator, h=cfg.sample / k)
     K = int(round(cfg.longrun / cfg.sample))
@@ -384,10 +372,6 @@ def long_run(cfg: Settings, stab, costs):
 
 
 # -- output --------------------------------------------------------------------------------------
-def fmt(x, spec=".2e"):
-    return "-" if x is None else format(x, spec)
-
-
 def print_tables(cfg, ref_info, setup, results, rank, costs, stab, stats):
     print(f"\nreference: {ref_info['method']} at h = {ref_info['h']:.3g} s ({ref_info['wall_s']:.2f} s); its "
           f"distance to itself at 2h {ref_info['vs_half_steps_m']:.1e} m, to the Richardson extrapolation of the "
@@ -399,18 +383,9 @@ def print_tables(cfg, ref_info, setup, results, rank, costs, stab, stats):
           f"{1e3 * setup['mujoco_compile_s']:.2f} ms, not timed)")
     print(f"\nwork-precision, {cfg.scene} with lumped mass, [0, {cfg.t_final:g}] s; error = max attachment point "
           f"error over samples every {cfg.sample:g} s")
-    print(f"{'method':22} {'h [s]':>10} {'wall [ms]':>10} {'error [m]':>10} {'steps':>9}  status")
-    for name, rows in results.items():
-        for r in rows:
-            wall = None if r["wall_s"] is None else 1e3 * r["wall_s"]
-            print(f"{name:22} {r['param']['h']:10.3e} {fmt(wall, '10.3f'):>10} {fmt(r['error_m']):>10} "
-                  f"{fmt(r['work'], 'd'):>9}  {r['status']}")
+    print_runs(results, 22)
     print("\ntime to reach an attachment point error [ms] (Pareto front, log-log interpolation)")
-    print(f"{'method':22} " + " ".join(f"{'<= ' + format(lv, 'g') + ' m':>12}" for lv in LEVELS))
-    for name in results:
-        print(f"{name:22} " + " ".join(
-            f"{fmt(None if rank[f'{lv:g}'][name] is None else 1e3 * rank[f'{lv:g}'][name], '12.3f'):>12}"
-            for lv in LEVELS))
+    print_time_to_error(rank, results, 22)
     for lv in LEVELS:
         times = {n: t for n, t in rank[f"{lv:g}"].items() if t is not None}
         mj = {n: t for n, t in times.items() if n.startswith("MuJoCo")}
@@ -446,11 +421,7 @@ COLORS = {LGVI: "tab:red", SUZUKI: "darkred", "MuJoCo RK4": "tab:blue", "MuJoCo 
 
 
 def plot(cfg, results, ref_info, path):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(8.5, 6), dpi=150, layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = figure((8.5, 6))
     ax = fig.subplots()
     for name, rows in results.items():
         ok = [r for r in rows if r["status"] == "ok"]
@@ -468,9 +439,7 @@ def plot(cfg, results, ref_info, path):
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--quick", action="store_true", help="fast smoke-test variant")
-    parser.add_argument("--out", default=str(HERE / "out"), help="output directory (default: %(default)s)")
+    parser = arg_parser(__doc__)
     parser.add_argument("--repeats", type=int, default=None, help="timing repeats (default 5, quick 1)")
     parser.add_argument("--stability-horizon", type=float, default=None, help="seconds per stability run (default 10)")
     args = parser.parse_args(argv)
@@ -479,8 +448,6 @@ def main(argv=None) -> int:
         cfg.repeats = args.repeats
     if args.stability_horizon is not None:
         cfg.stability_horizon = args.stability_horizon
-    out = Path(cfg.out)
-    out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     import mujoco
 
@@ -498,20 +465,13 @@ def main(argv=None) -> int:
     stats = long_run(cfg, stab, costs)
     print_tables(cfg, ref_info, setup, results, rank, costs, stab, stats)
 
-    import numba
-
     payload = {
         "settings": asdict(cfg), "reference": ref_info, "setup_s": setup, "work_precision": results,
         "time_to_error_s": rank, "step_cost": costs, "stability": stab, "long_run": stats,
-        "machine": {"python": platform.python_version(), "numpy": np.__version__, "numba": numba.__version__,
-                    "mujoco": mujoco.__version__, "processor": platform.processor() or platform.machine(),
-                    "cpus": os.cpu_count()},
-        "total_wall_s": time.perf_counter() - start,
+        "machine": machine("mujoco"), "total_wall_s": time.perf_counter() - start,
     }
-    with open(out / "mujoco_chain.json", "w") as fh:
-        json.dump(payload, fh, indent=2)
-    plot(cfg, results, ref_info, out / "mujoco_chain.png")
-    print(f"\nwrote {out / 'mujoco_chain.json'}, {out / 'mujoco_chain.png'} ({payload['total_wall_s']:.0f} s)")
+    finish(cfg.out, "mujoco_chain", payload, {"mujoco_chain.png": lambda path: plot(cfg, results, ref_info, path)},
+           start)
     return 0
 
 

@@ -12,13 +12,10 @@ paper example (``record_simulation`` at 50 samples/s vs ``Simulator.step``) is t
 
 Prints a table and writes ``OUT/recording_overhead.json`` and ``OUT/recording_overhead.png``
 (OUT = benchmarks/out unless ``--out``). Usage:
-``python benchmarks/recording_overhead.py [--episodes 8] [--repeats 9] [--quick] [--out DIR]``.
+``python -m benchmarks.recording_overhead [--episodes 8] [--repeats 9] [--quick] [--out DIR]``.
 """
 from __future__ import annotations
 
-import argparse
-import json
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -26,12 +23,10 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE.parent))  # agents/
-
-import esp_gym  # noqa: E402
-from agents.controllers import ZeroPolicy, baseline  # noqa: E402
-from esp_gym.viz.recording import RecordRerun, record_simulation  # noqa: E402
+import esp_gym
+from agents.controllers import ZeroPolicy, baseline
+from benchmarks.common import arg_parser, figure, finish, machine
+from esp_gym.viz.recording import RecordRerun, record_simulation
 
 
 def rollout(policy, episodes: int, path=None, seed: int = 0):
@@ -101,11 +96,10 @@ def free_simulation(repeats, tmp, t_final=5.0):
 
 
 def main(argv=None) -> dict:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--episodes", type=int, default=8, help="episodes per timed run (500 steps each)")
+    ap = arg_parser(__doc__, quick="2 episodes, 1 repeat: a smoke run, not a measurement")
+    ap.add_argument("--episodes", type=int, default=8,
+                    help=f"episodes per timed run ({esp_gym.MAX_EPISODE_STEPS} steps each)")
     ap.add_argument("--repeats", type=int, default=9, help="interleaved plain/recorded pairs")
-    ap.add_argument("--quick", action="store_true", help="2 episodes, 1 repeat: a smoke run, not a measurement")
-    ap.add_argument("--out", default=str(HERE / "out"), help="output directory")
     args = ap.parse_args(argv)
     episodes, repeats = (2, 1) if args.quick else (args.episodes, args.repeats)
     with tempfile.TemporaryDirectory() as tmp:
@@ -125,21 +119,14 @@ def main(argv=None) -> dict:
     print(f"\nfree simulation ({free['scene']}, {free['t_final']:g} s, {free['samples']} samples): "
           f"{free['plain_s'] * 1e3:.0f} ms plain, {free['recorded_s'] * 1e3:.0f} ms recorded "
           f"(incl. creating and closing the recording), {free['file_bytes'] / 1e6:.2f} MB")
-    results = {"rollouts": rows, "free_simulation": free, "quick": args.quick}
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "recording_overhead.json").write_text(json.dumps(results, indent=2))
-    _plot(rows, out / "recording_overhead.png")
+    results = {"rollouts": rows, "free_simulation": free, "quick": args.quick, "machine": machine("rerun")}
+    finish(args.out, "recording_overhead", results, {"recording_overhead.png": lambda path: _plot(rows, path)})
     return results
 
 
 def _plot(rows, path):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(5, 3.2))
+    fig = figure((5, 3.2), dpi=120, layout="tight")
+    ax = fig.subplots()
     x = np.arange(len(rows))
     ax.bar(x - 0.2, [r["plain_us_per_step"] for r in rows], 0.4, label="plain")
     ax.bar(x + 0.2, [r["recorded_us_per_step"] for r in rows], 0.4, label="recorded (RecordRerun)")
@@ -149,9 +136,7 @@ def _plot(rows, path):
     ax.set_ylabel("wall time per env step [us]")
     ax.set_title("Rerun recording overhead (50 Hz control)")
     ax.legend(loc="upper left", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    fig.savefig(path)
 
 
 if __name__ == "__main__":

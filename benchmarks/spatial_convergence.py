@@ -27,23 +27,19 @@ Observed orders come from successive differences max|x_N - x_2N| (no reference n
 Prints a table and writes ``OUT/spatial_convergence.json`` and ``OUT/spatial_convergence.png``
 (OUT = benchmarks/out unless ``--out``).
 
-Usage: ``python benchmarks/spatial_convergence.py [--quick] [--out DIR]``. ``--quick``:
+Usage: ``python -m benchmarks.spatial_convergence [--quick] [--out DIR]``. ``--quick``:
 N = 5, 10, 20 against 40 (a smoke test, not a measurement).
 """
 from __future__ import annotations
 
-import argparse
-import json
 import math
-import os
-import platform
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
+from benchmarks.common import arg_parser, figure, finish, machine
+
 STARTS = ("paper", "linear", "hanging")
 MASS_MODELS = ("consistent", "lumped")
 
@@ -101,9 +97,7 @@ def observed_orders(Ns, paths) -> list:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--quick", action="store_true", help="fast smoke-test variant")
-    parser.add_argument("--out", default=str(HERE / "out"), help="output directory (default: %(default)s)")
+    parser = arg_parser(__doc__)
     parser.add_argument("--t-final", type=float, default=1.0, help="simulated time [s] (default: %(default)s)")
     parser.add_argument("--ref-N", type=int, default=640, help="elements of the reference (default: %(default)s)")
     parser.add_argument("--h-fraction", type=float, default=0.3,
@@ -116,8 +110,6 @@ def main(argv=None) -> int:
     if ref_N <= max(Ns) or ref_N % max(Ns):
         parser.error(f"--ref-N must be a multiple of {max(Ns)} above it, got {ref_N}")
     sample = 0.01
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     start_time = time.perf_counter()
     from tqdm import tqdm
 
@@ -157,33 +149,22 @@ def main(argv=None) -> int:
                                    for row in table.values()))
     print("(in brackets: the observed order log2(d_N / d_2N), d_N = max|x_N - x_2N|)")
 
-    import numba
-
     payload = {
         "settings": {"Ns": list(Ns), "ref_N": ref_N, "t_final": t_final, "sample": sample,
                      "h_fraction": args.h_fraction, "quick": args.quick},
         "reference_time_error_m": {s: hs[(ref_N, s, "time_error")] for s in STARTS},
         "h_s": {f"{k[1]}/{k[2]}/N={k[0]}": v for k, v in hs.items() if len(k) == 3 and k[2] in MASS_MODELS},
         "table": table,
-        "machine": {"python": platform.python_version(), "numpy": np.__version__, "numba": numba.__version__,
-                    "processor": platform.processor() or platform.machine(), "cpus": os.cpu_count()},
-        "total_wall_s": time.perf_counter() - start_time,
+        "machine": machine(), "total_wall_s": time.perf_counter() - start_time,
     }
-    with open(out / "spatial_convergence.json", "w") as fh:
-        json.dump(payload, fh, indent=2)
-    plot(table, ref_N, t_final, out / "spatial_convergence.png")
-    print(f"\nwrote {out / 'spatial_convergence.json'} and {out / 'spatial_convergence.png'} "
-          f"({payload['total_wall_s']:.0f} s)")
+    finish(args.out, "spatial_convergence", payload,
+           {"spatial_convergence.png": lambda path: plot(table, ref_N, t_final, path)}, start_time)
     return 0
 
 
-def plot(table: dict, ref_N: int, t_final: float, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7.5, 5.0), layout="constrained")
+def plot(table: dict, ref_N: int, t_final: float, path) -> None:
+    fig = figure((7.5, 5.0), dpi=130)
+    ax = fig.subplots()
     colours = {"paper": "tab:red", "linear": "tab:blue", "hanging": "tab:green"}
     styles = {"consistent": "-", "lumped": "--"}
     for key, row in table.items():
@@ -201,8 +182,7 @@ def plot(table: dict, ref_N: int, t_final: float, path: Path) -> None:
     ax.set_title(f"Spatial discretisation error (paper example; reference N = {ref_N}, consistent mass)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    fig.savefig(path)
 
 
 if __name__ == "__main__":

@@ -26,31 +26,26 @@
 Prints tables and writes ``OUT/stability.json`` and ``OUT/stability.png``
 (OUT = benchmarks/out unless ``--out``).
 
-Usage: ``python benchmarks/stability.py [--quick] [--out DIR]``. ``--quick``: fewer bisection
+Usage: ``python -m benchmarks.stability [--quick] [--out DIR]``. ``--quick``: fewer bisection
 steps, a 1e5-step long run and shorter hard cases: a smoke test (< 30 s), not a measurement.
 """
 from __future__ import annotations
 
-import argparse
-import json
 import math
-import os
-import platform
 import sys
 import time
 from dataclasses import asdict, dataclass
-from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
+from benchmarks.common import DEFAULT_OUT, arg_parser, figure, finish, fmt, machine
 
 
 @dataclass
 class Settings:
     quick: bool = False
     """smoke test"""
-    out: str = str(HERE / "out")
+    out: str = str(DEFAULT_OUT)
     """output directory"""
     elements: tuple = (5, 10, 20, 40)
     """N of the bound table"""
@@ -333,10 +328,6 @@ def slack_sweep(cfg: Settings):
 
 
 # -- output --------------------------------------------------------------------------------------
-def fmt(x, spec=".2e"):
-    return "-" if x is None else format(x, spec)
-
-
 def print_tables(cfg, bounds, long, cases, sweep):
     print(f"\nlargest stable h ({cfg.horizon:g}-s trials, energy error < {cfg.energy_tol:g} E_s), paper_example")
     fr = [f"{f:g}" for f in cfg.margin_fracs]
@@ -378,11 +369,7 @@ def print_tables(cfg, bounds, long, cases, sweep):
 
 
 def plot(cfg, bounds, long, traces, sweep, cases, path):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(17, 9), dpi=150, layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = figure((17, 9))
     (a, m, b), (c, d, e) = fig.subplots(2, 3)
     markers = {10.0: "o", 40.0: "s", 160.0: "^"}
     for r in bounds:
@@ -473,13 +460,8 @@ def plt_color(i: int, n: int):
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--quick", action="store_true", help="fast smoke-test variant")
-    parser.add_argument("--out", default=str(HERE / "out"), help="output directory (default: %(default)s)")
-    args = parser.parse_args(argv)
+    args = arg_parser(__doc__).parse_args(argv)
     cfg = Settings.quick_settings(args.out) if args.quick else Settings(out=args.out)
-    out = Path(cfg.out)
-    out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
 
     print("largest stable h (bisection):", flush=True)
@@ -492,18 +474,12 @@ def main(argv=None) -> int:
     sweep, traces = slack_sweep(cfg)
     print_tables(cfg, bounds, long, cases, sweep)
 
-    import numba
-
     payload = {
         "settings": asdict(cfg), "bounds": bounds, "long_run": long, "cases": cases, "slack_sweep": sweep,
-        "machine": {"python": platform.python_version(), "numpy": np.__version__, "numba": numba.__version__,
-                    "processor": platform.processor() or platform.machine(), "cpus": os.cpu_count()},
-        "total_wall_s": time.perf_counter() - start,
+        "machine": machine(), "total_wall_s": time.perf_counter() - start,
     }
-    with open(out / "stability.json", "w") as fh:
-        json.dump(payload, fh, indent=2)
-    plot(cfg, bounds, long, traces, sweep, cases, out / "stability.png")
-    print(f"\nwrote {out / 'stability.json'} and {out / 'stability.png'} ({payload['total_wall_s']:.0f} s)")
+    finish(cfg.out, "stability", payload,
+           {"stability.png": lambda path: plot(cfg, bounds, long, traces, sweep, cases, path)}, start)
     return 0
 
 

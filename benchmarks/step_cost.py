@@ -16,25 +16,22 @@ Prints three tables and writes ``OUT/step_cost.json`` and ``OUT/step_cost.png``
 5. the kernels specialised for a scene (fixed/free pivot, inputs or none, rho_c = 0, a
    composition) against the general kernel, and the cost of diagnostics.
 
-Usage: ``python benchmarks/step_cost.py [--quick] [--out DIR]``. ``--quick`` runs N in {5, 20},
+Usage: ``python -m benchmarks.step_cost [--quick] [--out DIR]``. ``--quick`` runs N in {5, 20},
 fewer steps and repeats, a 5,000-step paper run and start-up to the first step only: a smoke
 test, not a measurement.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import os
-import platform
 import subprocess
 import sys
 import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
+from benchmarks.common import arg_parser, figure, finish, interleaved_wall_times, machine, median_wall, wall_times
 
 # Run in a fresh interpreter: prints the wall-clock times (time.time(), comparable with the
 # parent's) after imports, after the first step and (unless argv[1] == "step") after the first
@@ -69,14 +66,14 @@ def time_steps(scene, steps: int, repeats: int) -> dict:
     import esp_gym
 
     esp_gym.Simulator(scene).step(2)  # make sure everything is loaded
-    per_step = []
-    iters = 0
-    for _ in range(repeats):
-        sim = esp_gym.Simulator(scene)
-        start = time.perf_counter()
-        sim.step(steps)
-        per_step.append((time.perf_counter() - start) / steps * 1e6)
-        iters = sim.newton_iterations
+    sims = []
+
+    def fresh():
+        sims.append(esp_gym.Simulator(scene))
+        return sims[-1]
+
+    per_step = [wall / steps * 1e6 for wall in wall_times(lambda sim: sim.step(steps), repeats, setup=fresh)]
+    iters = sims[-1].newton_iterations
     return {"us_per_step": float(np.median(per_step)), "us_per_step_min": float(min(per_step)),
             "us_per_step_max": float(max(per_step)), "steps": steps, "repeats": repeats,
             "newton_iterations_mean": iters / steps}
@@ -112,6 +109,16 @@ def paper_timing(steps: int, repeats: int) -> dict:
             "recorded_s": wall, "recorded_us_per_step": wall / steps * 1e6}
 
 
+def _alternating(make_sims: dict, steps: int, repeats: int, inputs: dict) -> dict:
+    """``{key: median us/step}`` of ``make_sims[key]().step(steps, **inputs)``, compiled first,
+    timed in turn within each repeat (so every variant sees the same machine state)."""
+    for make in make_sims.values():
+        make().step(2, **inputs)  # compile
+    walls = interleaved_wall_times({key: (make, lambda sim: sim.step(steps, **inputs))
+                                    for key, make in make_sims.items()}, repeats)
+    return {key: float(np.median(w)) / steps * 1e6 for key, w in walls.items()}
+
+
 #: Scenes of the specialisation table: (label, paper_example overrides, step inputs).
 SPECIALISED_CASES = (
     ("fixed pivot, no inputs", {}, {}),
@@ -131,16 +138,9 @@ def specialisation_timing(steps: int, repeats: int, cases=SPECIALISED_CASES) -> 
     rows = []
     for label, overrides, inputs in cases:
         scene = esp_gym.load_scene("paper_example", **overrides)
-        runs = {True: [], False: []}
-        for spec in (True, False):
-            esp_gym.Simulator(scene, specialise=spec).step(2, **inputs)  # compile
-        for _ in range(repeats):
-            for spec in (True, False):
-                sim = esp_gym.Simulator(scene, specialise=spec)
-                start = time.perf_counter()
-                sim.step(steps, **inputs)
-                runs[spec].append((time.perf_counter() - start) / steps * 1e6)
-        general, special = float(np.median(runs[False])), float(np.median(runs[True]))
+        makers = {spec: lambda spec=spec: esp_gym.Simulator(scene, specialise=spec) for spec in (True, False)}
+        runs = _alternating(makers, steps, repeats, inputs)
+        general, special = runs[False], runs[True]
         rows.append({"case": label, "general_us": general, "specialised_us": special, "speedup": general / special})
     return rows
 
@@ -161,16 +161,9 @@ def compensation_timing(steps: int, repeats: int, cases=COMPENSATION_CASES) -> l
     for label, overrides, inputs in cases:
         scenes = {c: esp_gym.load_scene("paper_example", **overrides, **{"solver.compensated": c})
                   for c in (True, False)}
-        runs = {True: [], False: []}
-        for scene in scenes.values():
-            esp_gym.Simulator(scene).step(2, **inputs)  # compile
-        for _ in range(repeats):
-            for c, scene in scenes.items():
-                sim = esp_gym.Simulator(scene)
-                start = time.perf_counter()
-                sim.step(steps, **inputs)
-                runs[c].append((time.perf_counter() - start) / steps * 1e6)
-        kahan, plain = float(np.median(runs[True])), float(np.median(runs[False]))
+        runs = _alternating({c: lambda sc=sc: esp_gym.Simulator(sc) for c, sc in scenes.items()}, steps, repeats,
+                            inputs)
+        kahan, plain = runs[True], runs[False]
         rows.append({"case": label, "compensated_us": kahan, "plain_us": plain, "speedup": kahan / plain})
     return rows
 
@@ -186,21 +179,11 @@ def diagnostics_timing(steps: int, repeats: int) -> dict:
              "every step": lambda sim: sim.run(steps * scene.h, record_every=100, every_step=True)}
     for fn in modes.values():
         fn(esp_gym.Simulator(scene))  # compile
-    out = {}
-    for name, fn in modes.items():
-        walls = []
-        for _ in range(repeats):
-            sim = esp_gym.Simulator(scene)
-            start = time.perf_counter()
-            fn(sim)
-            walls.append((time.perf_counter() - start) / steps * 1e6)
-        out[name] = float(np.median(walls))
-    return out
+    return {name: median_wall(fn, repeats, setup=lambda: esp_gym.Simulator(scene)) / steps * 1e6
+            for name, fn in modes.items()}
 
 
-def plot(results: dict, path: Path) -> None:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+def plot(results: dict, path) -> None:
     from matplotlib.ticker import NullFormatter
 
     rows = results["step_cost"]
@@ -208,8 +191,7 @@ def plot(results: dict, path: Path) -> None:
     us = np.array([r["us_per_step"] for r in rows])
     lo = np.array([r["us_per_step_min"] for r in rows])
     hi = np.array([r["us_per_step_max"] for r in rows])
-    fig = Figure(figsize=(10, 4.2), dpi=150, layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = figure((10, 4.2))
     a, b = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.3, 1]})
     a.errorbar(n, us, yerr=[us - lo, hi - us], fmt="o-", color="tab:blue", capsize=3,
                label="median over repeats (bars: min..max)")
@@ -249,16 +231,11 @@ def plot(results: dict, path: Path) -> None:
     b.set_title("Start-up (N = 20)")
     b.legend(fontsize=8)
     b.grid(True, axis="y", alpha=0.3)
-    path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path)
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--quick", action="store_true", help="fast smoke-test variant")
-    parser.add_argument("--out", default=str(HERE / "out"), help="output directory (default: %(default)s)")
-    args = parser.parse_args(argv)
-    out = Path(args.out)
+    args = arg_parser(__doc__).parse_args(argv)
 
     elements = (5, 20) if args.quick else (5, 10, 20, 40, 80)
     steps, repeats = (2_000, 3) if args.quick else (20_000, 7)
@@ -307,8 +284,6 @@ def main(argv=None) -> int:
     for name, us in diag.items():
         print(f"  {name:28} {us:7.3f}  ({us / diag['off (step)']:.2f}x)")
 
-    import numba
-
     results = {
         "specialised": spec,
         "compensation": comp,
@@ -317,14 +292,9 @@ def main(argv=None) -> int:
         "step_cost": rows,
         "startup": {"cold": cold, "cached": cached},
         "paper_example": paper,
-        "machine": {"python": platform.python_version(), "numpy": np.__version__, "numba": numba.__version__,
-                    "processor": platform.processor() or platform.machine(), "cpus": os.cpu_count()},
+        "machine": machine(),
     }
-    out.mkdir(parents=True, exist_ok=True)
-    with open(out / "step_cost.json", "w") as fh:
-        json.dump(results, fh, indent=2)
-    plot(results, out / "step_cost.png")
-    print(f"\nwrote {out / 'step_cost.json'} and {out / 'step_cost.png'}")
+    finish(args.out, "step_cost", results, {"step_cost.png": lambda path: plot(results, path)})
     return 0
 
 

@@ -1,5 +1,5 @@
 """Work-precision of the LGVI against general-purpose integrators of the same finite-element
-model (``esp_gym/ode.py``), and their long-run energy behaviour.
+model (``esp_gym/verify/ode.py``), and their long-run energy behaviour.
 
 1. Work-precision on the paper example over [0, T] (T = 1 s: the motion is chaotic after
    ~2 s, so pointwise errors are only meaningful early). Error = max over samples every 0.01 s
@@ -33,33 +33,28 @@ model (``esp_gym/ode.py``), and their long-run energy behaviour.
 Prints tables and writes ``OUT/work_precision.json``, ``OUT/work_precision.png`` (error vs wall
 time) and ``OUT/energy_longrun.png`` (OUT = benchmarks/out unless ``--out``).
 
-Usage: ``python benchmarks/work_precision.py [--quick] [--out DIR]``. ``--quick``: a few
+Usage: ``python -m benchmarks.work_precision [--quick] [--out DIR]``. ``--quick``: a few
 points per method, a looser reference, a 5-s long run: a smoke test (< 30 s), not a measurement.
 """
 from __future__ import annotations
 
-import argparse
-import json
-import os
-import platform
 import sys
 import time
 from dataclasses import asdict, dataclass
-from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
+from esp_gym.kernels.layout import STEP_DIAG
 
-#: Error levels [m] at which the methods are ranked.
-LEVELS = (1e-3, 1e-5, 1e-7, 1e-9)
+from benchmarks.common import (DEFAULT_OUT, LEVELS, arg_parser, energy_stats, figure, finish, fmt, load_error,
+                               machine, pareto_time, print_runs, print_time_to_error, timed)
 
 
 @dataclass
 class Settings:
     quick: bool = False
     """smoke test: few points, loose reference, short long run"""
-    out: str = str(HERE / "out")
+    out: str = str(DEFAULT_OUT)
     """output directory"""
     scene: str = "paper_example"
     """scene name (configs/scenes)"""
@@ -111,22 +106,6 @@ class TooSlow(Exception):
     """Raised from inside a solve that passed its time limit."""
 
 
-def timed(fn, repeats: int):
-    """Run ``fn()``; if it took < 0.5 s, run it ``repeats`` times more and take the median.
-    Returns ``(result of the first run, wall time [s])``."""
-    start = time.perf_counter()
-    result = fn()
-    wall = time.perf_counter() - start
-    if wall < 0.5 and repeats > 1:
-        walls = []
-        for _ in range(repeats):
-            start = time.perf_counter()
-            fn()
-            walls.append(time.perf_counter() - start)
-        wall = float(np.median(walls))
-    return result, wall
-
-
 # -- the integrators -----------------------------------------------------------------------------
 def lgvi_samples(scene_name: str, k: int, t_final: float, sample: float, composition: str = "lgvi",
                  compensated: bool = True):
@@ -150,7 +129,7 @@ def lgvi_samples(scene_name: str, k: int, t_final: float, sample: float, composi
 
 def rk4_samples(scene, k: int, t_final: float, sample: float):
     """Compiled RK4 with h = sample/k: function giving (load positions, steps)."""
-    from esp_gym.ode import ElasticStringODE
+    from esp_gym.verify.ode import ElasticStringODE
 
     h = sample / k
     nsteps = int(round(t_final / h))
@@ -168,7 +147,7 @@ def ivp_samples(scene, method: str, tol: float, t_eval: np.ndarray, deadline_s: 
     vectorised right-hand side (their finite-difference Jacobian then costs one call)."""
     from scipy.integrate import solve_ivp
 
-    from esp_gym.ode import ElasticStringODE
+    from esp_gym.verify.ode import ElasticStringODE
 
     implicit = method in ("Radau", "BDF")
 
@@ -190,11 +169,6 @@ def ivp_samples(scene, method: str, tol: float, t_eval: np.ndarray, deadline_s: 
         return ode.attach_position(sol.y.T), ode.nfev  # right-hand sides, Jacobian columns included
 
     return run
-
-
-def load_error(x: np.ndarray, ref: np.ndarray) -> float:
-    """Max over samples of the load position error [m]."""
-    return float(np.linalg.norm(x - ref, axis=1).max())
 
 
 # -- work-precision ----------------------------------------------------------------------------
@@ -283,25 +257,6 @@ def work_precision(cfg: Settings):
     return results, ref_info
 
 
-def pareto_time(rows, level: float):
-    """Wall time [s] to reach error <= level on the method's Pareto front (log-log
-    interpolation between the bracketing measured points); None if never reached."""
-    pts = sorted((r["wall_s"], r["error_m"]) for r in rows if r["status"] == "ok" and r["error_m"] > 0)
-    front = []
-    for t, e in pts:
-        if not front or e < front[-1][1]:
-            front.append((t, e))
-    if not front or front[-1][1] > level:
-        return None
-    if front[0][1] <= level:
-        return front[0][0]
-    for (t0, e0), (t1, e1) in zip(front, front[1:]):
-        if e1 <= level < e0:
-            s = (np.log(level) - np.log(e0)) / (np.log(e1) - np.log(e0))
-            return float(np.exp(np.log(t0) + s * (np.log(t1) - np.log(t0))))
-    return None  # pragma: no cover
-
-
 #: Labels of the LGVI variants. "LGVI frontier" is the Pareto front over the default
 #: (compensated) variants, "LGVI frontier, plain sums" over those run with
 #: solver.compensated = false.
@@ -332,14 +287,16 @@ def ranking(results):
 
 
 # -- long run ------------------------------------------------------------------------------------
+def invariant_columns(inv: np.ndarray) -> tuple:
+    """(energy, pi3, orthogonality) columns of ``ElasticStringODE.invariants`` rows (STEP_DIAG)."""
+    return tuple(inv[:, STEP_DIAG.scalar(name)] for name in ("energy", "pi3", "orthogonality"))
+
+
 def drift_stats(t, E, pi3, orth, wall, label, extra):
-    dE = E - E[0]
+    """:func:`~benchmarks.common.energy_stats` plus the drift of pi3 and of R's orthogonality."""
     dpi = pi3 - pi3[0]
     return {
-        "label": label, "wall_s": wall, **extra,
-        "max_abs_energy_error_J": float(np.abs(dE).max()),
-        "energy_slope_J_per_s": float(np.polyfit(t, dE, 1)[0]),
-        "final_energy_error_J": float(dE[-1]),
+        **energy_stats(t, E, wall, label, extra),
         "max_abs_pi3_error": float(np.abs(dpi).max()),
         "pi3_slope_per_s": float(np.polyfit(t, dpi, 1)[0]),
         "max_orthogonality": float(orth.max()),
@@ -352,7 +309,7 @@ def long_run(cfg: Settings, wp):
     from scipy.integrate import solve_ivp
 
     import esp_gym
-    from esp_gym.ode import ElasticStringODE
+    from esp_gym.verify.ode import ElasticStringODE
 
     T = cfg.longrun
     every_lgvi = int(round(cfg.sample / 1e-4))
@@ -379,8 +336,8 @@ def long_run(cfg: Settings, wp):
     inv = ode.invariants(Y)
     t = np.arange(len(Y)) * cfg.sample
     label = f"RK4 h = {h:.3g} s"
-    series[label] = (t, inv[:, 0], inv[:, 1], inv[:, 2])
-    stats.append(drift_stats(t, inv[:, 0], inv[:, 1], inv[:, 2], wall, label,
+    series[label] = (t, *invariant_columns(inv))
+    stats.append(drift_stats(t, *invariant_columns(inv), wall, label,
                              {"h": h, "steps": int(round(T / h))}))
 
     # DOP853: its cheapest tolerance, and a tight one
@@ -395,34 +352,19 @@ def long_run(cfg: Settings, wp):
         wall = time.perf_counter() - start
         inv = ode.invariants(sol.y.T)
         label = f"DOP853 tol = {tol:g}"
-        series[label] = (sol.t, inv[:, 0], inv[:, 1], inv[:, 2])
-        stats.append(drift_stats(sol.t, inv[:, 0], inv[:, 1], inv[:, 2], wall, label,
+        series[label] = (sol.t, *invariant_columns(inv))
+        stats.append(drift_stats(sol.t, *invariant_columns(inv), wall, label,
                                  {"tol": tol, "nfev": int(sol.nfev), "status": int(sol.status)}))
     return stats, series
 
 
 # -- output --------------------------------------------------------------------------------------
-def fmt(x, spec=".2e"):
-    return "-" if x is None else format(x, spec)
-
-
 def print_tables(cfg, results, rank, stats):
     print(f"\nwork-precision, {cfg.scene}, [0, {cfg.t_final:g}] s; error = max load position error over "
           f"samples every {cfg.sample:g} s")
-    print(f"{'method':30} {'h [s] / tol':>12} {'wall [ms]':>10} {'error [m]':>10} {'steps/nfev':>11}  status")
-    for name, rows in results.items():
-        for r in rows:
-            p = r["param"].get("h", r["param"].get("tol"))
-            wall = None if r["wall_s"] is None else 1e3 * r["wall_s"]
-            print(f"{name:30} {p:12.3e} {fmt(wall, '10.3f'):>10} {fmt(r['error_m']):>10} "
-                  f"{fmt(r['work'], 'd'):>11}  {r['status']}")
+    print_runs(results, 30, param=("h [s] / tol", 12), work=("steps/nfev", 11))
     print("\ntime to reach a load position error [ms] (Pareto front, log-log interpolation)")
-    names = list(results) + list(FRONTIERS)
-    print(f"{'method':30} " + " ".join(f"{'<= ' + format(lv, 'g') + ' m':>12}" for lv in LEVELS))
-    for name in names:
-        print(f"{name:30} " + " ".join(
-            f"{fmt(None if rank[f'{lv:g}'][name] is None else 1e3 * rank[f'{lv:g}'][name], '12.3f'):>12}"
-            for lv in LEVELS))
+    print_time_to_error(rank, list(results) + list(FRONTIERS), 30)
     for lv in LEVELS:
         times = {n: t for n, t in rank[f"{lv:g}"].items() if t is not None}
         others = {n: t for n, t in times.items() if not is_lgvi(n)}
@@ -454,11 +396,7 @@ COLORS = {"LGVI (esp_gym)": "tab:red", "LGVI o4 triple jump": "salmon", "LGVI o4
 
 
 def plot_wp(cfg, results, path):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(8.5, 6), dpi=150, layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = figure((8.5, 6))
     ax = fig.subplots()
     for name, rows in results.items():
         ok = [r for r in rows if r["status"] == "ok"]
@@ -483,11 +421,7 @@ def plot_wp(cfg, results, path):
 
 
 def plot_energy(cfg, series, path):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(10, 10), dpi=150, layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = figure((10, 10))
     a, b, c, d = fig.subplots(4, 1, sharex=True)
     colors = ["tab:red", "tab:blue", "tab:green", "tab:olive"]
     window = max(1, int(round(1.0 / cfg.sample)))  # 1-s windows
@@ -517,9 +451,7 @@ def plot_energy(cfg, series, path):
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--quick", action="store_true", help="fast smoke-test variant")
-    parser.add_argument("--out", default=str(HERE / "out"), help="output directory (default: %(default)s)")
+    parser = arg_parser(__doc__)
     parser.add_argument("--repeats", type=int, default=None, help="timing repeats (default 5, quick 1)")
     parser.add_argument("--time-limit", type=float, default=None, help="seconds per implicit solve (default 60)")
     args = parser.parse_args(argv)
@@ -528,8 +460,6 @@ def main(argv=None) -> int:
         cfg.repeats = args.repeats
     if args.time_limit is not None:
         cfg.time_limit = args.time_limit
-    out = Path(cfg.out)
-    out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
 
     results, ref_info = work_precision(cfg)
@@ -537,23 +467,14 @@ def main(argv=None) -> int:
     stats, series = long_run(cfg, results)
     print_tables(cfg, results, rank, stats)
 
-    import numba
-    import scipy
-
     payload = {
         "settings": asdict(cfg), "reference": ref_info, "work_precision": results,
-        "time_to_error_s": rank, "long_run": stats,
-        "machine": {"python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__,
-                    "numba": numba.__version__, "processor": platform.processor() or platform.machine(),
-                    "cpus": os.cpu_count()},
+        "time_to_error_s": rank, "long_run": stats, "machine": machine("scipy"),
         "total_wall_s": time.perf_counter() - start,
     }
-    with open(out / "work_precision.json", "w") as fh:
-        json.dump(payload, fh, indent=2)
-    plot_wp(cfg, results, out / "work_precision.png")
-    plot_energy(cfg, series, out / "energy_longrun.png")
-    print(f"\nwrote {out / 'work_precision.json'}, {out / 'work_precision.png'}, {out / 'energy_longrun.png'} "
-          f"({payload['total_wall_s']:.0f} s)")
+    finish(cfg.out, "work_precision", payload,
+           {"work_precision.png": lambda path: plot_wp(cfg, results, path),
+            "energy_longrun.png": lambda path: plot_energy(cfg, series, path)}, start)
     return 0
 
 

@@ -13,13 +13,15 @@ __all__ = ["Scene", "SceneError", "Simulator", "SimulationError", "StepChoice", 
 __version__ = "0.1.0"
 
 ENV_ID = "ElasticStringPendulum-v0"
+#: Time limit of an episode of ENV_ID [control steps]: 10 s at the default 20-ms control period.
+MAX_EPISODE_STEPS = 500
 
 if ENV_ID not in registry:
     register(
         id=ENV_ID,
         entry_point="esp_gym.env:ElasticStringPendulumEnv",
         vector_entry_point="esp_gym.vector:ElasticStringPendulumVectorEnv",
-        max_episode_steps=500,
+        max_episode_steps=MAX_EPISODE_STEPS,
     )
 
 

@@ -1,7 +1,7 @@
 """The discrete Lagrangian L_d(g_k, f_k) straight from its integral definition (test helper),
 plus the rotations, scenes and random states the physics tests share.
 
-L_d uses neither esp_gym.reference nor esp_gym.kernels: the string part is the paper's integral
+L_d uses neither esp_gym.verify.reference nor esp_gym.kernels: the string part is the paper's integral
 form of ``L_{d_{k,a}}`` evaluated by Gauss-Legendre quadrature over the natural coordinate
 zeta in [0, 1] (not the closed form (Ldka)), with erratum 1 (kinetic prefactor h/2, not 1/h)
 applied; the closed form's erratum 2 (missing kappa) cannot arise here, since the elastic term
@@ -16,7 +16,7 @@ is integrated from EA directly. The rigid-body part is (Ldkrb) as printed.
 with the strain energy density W(s) = 1/2 EA (s - 1)^2 of the paper's law (``string.law:
 elastic``) or W(s) = 1/2 EA max(s - 1, 0)^2 of the tension-only law (``slack``; C^1, so first
 derivatives of L_d exist everywhere, second ones jump where |r'| = 1). A free pivot (``pivot.kind:
-free``, physics_notes.md "Inputs") adds its point mass M_p at row 0, with the same midpoint
+free``, docs/physics.md "Inputs") adds its point mass M_p at row 0, with the same midpoint
 kinetic and trapezoidal gravity terms as the body's translation in (Ldkrb)::
 
     L_{d_{k,p}} = M_p/(2h) |dr_0|^2 + h/2 M_p g (r_0 + (r_0 + dr_0)).e3
@@ -25,7 +25,7 @@ Arrays: r, dr (N+1, 3) [m] with row 0 the pivot (fixed: dr[0] = 0 and L_{d_{k,p}
 row 0 is a free node like the others), R (3, 3) body -> spatial.
 The rotation increment F_k is passed as ``FmI = F_k - I``: F_k = I + O(h), and a central
 difference of L_d in F would otherwise difference values of ``I - F`` that each carry an
-absolute error eps (physics_notes.md, "Round-off"). L_d is in [J s].
+absolute error eps (docs/physics.md, "Round-off"). L_d is in [J s].
 """
 import numpy as np
 

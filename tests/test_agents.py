@@ -8,12 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
+from agents.common import load_run_config
+from agents.controllers import ZeroPolicy
+from agents.evaluate import SB3Policy, evaluate_policy
 
-from agents.common import load_run_config  # noqa: E402
-from agents.controllers import ZeroPolicy  # noqa: E402
-from agents.evaluate import SB3Policy, evaluate_policy  # noqa: E402
+ROOT = Path(__file__).resolve().parent.parent
 
 SHIPPED = ROOT / "models" / "stabilize_ppo" / "model.zip"
 
@@ -23,10 +22,10 @@ SHIPPED = ROOT / "models" / "stabilize_ppo" / "model.zip"
     ("sac", ["total_timesteps=1200", "n_envs=2", "learning_starts=100", "buffer_size=2000"]),
 ])
 def test_training_smoke_writes_a_loadable_run(tmp_path, algo, budget):
-    cmd = [sys.executable, str(ROOT / "agents" / "train.py"), "--algo", algo, "--set", *budget,
+    cmd = [sys.executable, "-m", "agents.train", "--algo", algo, "--set", *budget,
            "--eval-freq", "512", "--eval-episodes", "1", "--checkpoint-freq", "512", "--reference-episodes", "1",
            "--runs", str(tmp_path), "--run-name", "smoke", "--no-progress"]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=900, cwd=tmp_path)
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=900, cwd=ROOT)
     assert proc.returncode == 0, proc.stderr[-3000:]
     run = tmp_path / "smoke"
     for name in ("model.zip", "vecnormalize.pkl", "config.yaml", "args.json", "command.txt", "monitor.csv",
@@ -53,8 +52,8 @@ def test_baseline_beats_the_zero_action(task):
 
 
 def test_evaluate_cli_prints_one_json_line():
-    proc = subprocess.run([sys.executable, str(ROOT / "agents" / "evaluate.py"), "--policy", "zero",
-                           "--episodes", "2", "--seed", "3"], capture_output=True, text=True, timeout=600)
+    proc = subprocess.run([sys.executable, "-m", "agents.evaluate", "--policy", "zero",
+                           "--episodes", "2", "--seed", "3"], capture_output=True, text=True, timeout=600, cwd=ROOT)
     assert proc.returncode == 0, proc.stderr
     lines = proc.stdout.strip().splitlines()
     assert len(lines) == 1

@@ -90,8 +90,8 @@ def test_snapshot_figure_does_not_autoscale_over_uninitialised_memory(tmp_path, 
 def test_step_cost_quick_runs(tmp_path):
     # --quick takes well under 20 s here (cold compile to the first step is most of it)
     proc = subprocess.run(
-        [sys.executable, str(ROOT / "benchmarks" / "step_cost.py"), "--quick", "--out", str(tmp_path)],
-        capture_output=True, text=True, timeout=300)
+        [sys.executable, "-m", "benchmarks.step_cost", "--quick", "--out", str(tmp_path)],
+        capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert proc.returncode == 0, proc.stderr
     results = json.loads((tmp_path / "step_cost.json").read_text())
     assert [r["N"] for r in results["step_cost"]] == [5, 20]
@@ -104,8 +104,8 @@ def test_spatial_convergence_quick_shows_order_2_on_smooth_data(tmp_path):
     """The finite elements converge at order 2 in N on smooth data (the hanging start), and
     more slowly from the paper's velocity jump at the attachment point (order ~1)."""
     proc = subprocess.run(
-        [sys.executable, str(ROOT / "benchmarks" / "spatial_convergence.py"), "--quick", "--out", str(tmp_path)],
-        capture_output=True, text=True, timeout=300)
+        [sys.executable, "-m", "benchmarks.spatial_convergence", "--quick", "--out", str(tmp_path)],
+        capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert proc.returncode == 0, proc.stderr
     table = json.loads((tmp_path / "spatial_convergence.json").read_text())["table"]
     for mass in ("consistent", "lumped"):
@@ -114,3 +114,17 @@ def test_spatial_convergence_quick_shows_order_2_on_smooth_data(tmp_path):
     jump = [o for o in table["paper/consistent"]["order"] if o is not None]
     assert jump and all(o < 1.5 for o in jump), jump
     assert (tmp_path / "spatial_convergence.png").stat().st_size > 0
+
+
+def test_cold_start_quick_measures_a_cold_and_a_warm_start(tmp_path):
+    """The start-up benchmark's smoke test: a fresh cache compiles, the second process loads
+    what the first one cached, so its first step comes sooner."""
+    proc = subprocess.run(
+        [sys.executable, "-m", "benchmarks.cold_start", "--quick", "--out", str(tmp_path)],
+        capture_output=True, text=True, timeout=600, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    runs = json.loads((tmp_path / "cold_start.json").read_text())["runs"]
+    assert [(r["case"], r["cache"]) for r in runs] == [("simulator", "cold"), ("simulator", "warm")]
+    cold, warm = runs
+    assert 0 < cold["import_s"] <= cold["construct_s"] <= cold["first_step_s"] <= cold["process_s"]
+    assert warm["first_step_s"] < cold["first_step_s"]

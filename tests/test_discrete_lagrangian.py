@@ -4,7 +4,7 @@ Three independent pieces are compared:
 
 * ``discrete_lagrangian.discrete_lagrangian`` -- L_d from the paper's integral definition
   (Gauss-Legendre quadrature, errata applied), tests/discrete_lagrangian.py;
-* ``esp_gym.reference`` -- the paper's derivative formulas (DdrLd), D_r, (DFLd), (AdDFLd), (DRLd);
+* ``esp_gym.verify.reference`` -- the paper's derivative formulas (DdrLd), D_r, (DFLd), (AdDFLd), (DRLd);
 * the numba kernel (``esp_gym.Simulator``), which never forms L_d.
 
 Finite differences are central, ``(L(+d) - L(-d)) / 2d``, with d = 1e-6 u for node
@@ -28,8 +28,8 @@ import numpy as np
 import pytest
 
 import esp_gym
-from esp_gym import reference as ref
-from esp_gym.reference import Constants
+from esp_gym.verify import reference as ref
+from esp_gym.verify.reference import Constants
 
 from discrete_lagrangian import (
     GEOMETRIC_OVERRIDES, discrete_lagrangian, expm, expm_minus_identity, left_perturbed,
@@ -115,7 +115,7 @@ def random_configuration(scene, seed):
 
 
 def formula_and_fd(name, scene, r, R, dr, FmI, L=discrete_lagrangian):
-    """(formula from esp_gym.reference, central difference of L, rounding floor) for one derivative."""
+    """(formula from esp_gym.verify.reference, central difference of L, rounding floor) for one derivative."""
     c = Constants.from_scene(scene)
     n = scene.string.elements
     d = REL_STEP * scene.string.u

@@ -1,4 +1,4 @@
-"""The MuJoCo point-mass chain (esp_gym/mujoco_chain.py) is the same model as our lumped LGVI.
+"""The MuJoCo point-mass chain (esp_gym/verify/mujoco_chain.py) is the same model as our lumped LGVI.
 
 Evidence, from the cheapest to the strongest: the energy at t = 0 agrees to round-off on every
 scene (kinetic, gravity and elastic terms, R0, Omega0, free pivot, slack law); the state
@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 import esp_gym
-from esp_gym.mujoco_chain import MujocoChain, quaternion
+from esp_gym.verify.mujoco_chain import MujocoChain, quaternion
 
 ROOT = Path(__file__).resolve().parent.parent
 T = 0.2  # [s] the motion is smooth and far from chaotic divergence (~2 s) over this horizon
@@ -181,8 +181,8 @@ def test_a_wrong_model_is_far_outside_the_agreement(name, mutate):
 def test_mujoco_chain_benchmark_quick_runs(tmp_path):
     # --quick: a few points per method, a 2-s long run: ~15 s here, most of it compiling
     proc = subprocess.run(
-        [sys.executable, str(ROOT / "benchmarks" / "mujoco_chain.py"), "--quick", "--out", str(tmp_path)],
-        capture_output=True, text=True, timeout=300)
+        [sys.executable, "-m", "benchmarks.mujoco_chain", "--quick", "--out", str(tmp_path)],
+        capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert proc.returncode == 0, proc.stderr
     results = json.loads((tmp_path / "mujoco_chain.json").read_text())
     assert results["reference"]["vs_mujoco_rk4_m"] < 1e-9

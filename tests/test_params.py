@@ -43,7 +43,7 @@ def test_bad_field_is_named(overrides, needle):
 
 def test_h_above_stability_bound_states_the_bound():
     bound = load_scene("paper_example").string.stability_bound
-    assert bound == pytest.approx(7.2169e-4, rel=1e-4)  # physics_notes.md: 7.2e-4 s
+    assert bound == pytest.approx(7.2169e-4, rel=1e-4)  # docs/physics.md: 7.2e-4 s
     with pytest.raises(SceneError, match=r"h = 0\.001 s exceeds the stability bound h_max = 0\.000721688 s"):
         load_scene("paper_example", h=1e-3)
     assert load_scene("paper_example", h=1e-3, allow_unstable_h=True).h == 1e-3

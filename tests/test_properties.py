@@ -1,5 +1,5 @@
 """Property-based tests over random valid scenes, states and inputs (hypothesis), and the
-continuous model of ``esp_gym/ode.py`` against the LGVI.
+continuous model of ``esp_gym/verify/ode.py`` against the LGVI.
 
 The simulator's contract on any valid scene: each call either advances with a finite state,
 R on SO(3) and pi3 moved by exactly its angular impulse (and, with a free pivot, the linear
@@ -14,8 +14,8 @@ from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
 import esp_gym
-from esp_gym.ode import ElasticStringODE
 from esp_gym.params import SceneError, scene_from_dict
+from esp_gym.verify.ode import ElasticStringODE
 
 # -- strategies ----------------------------------------------------------------------------------
 finite = dict(allow_nan=False, allow_infinity=False)
@@ -293,7 +293,7 @@ def test_invalid_scene_raises_scene_error_naming_the_rule(data):
     assert expected in str(info.value), str(info.value)
 
 
-# -- the continuous model (esp_gym/ode.py) -------------------------------------------------------
+# -- the continuous model (esp_gym/verify/ode.py) -------------------------------------------------------
 def _rates(ode, y, f):
     """d/dt (E, pi3) along f as sum_i dX/dy_i f_i, each partial derivative by a central
     difference with a step 1e-5 of the size of its block (positions, velocities, R, Omega).

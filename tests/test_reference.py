@@ -1,5 +1,5 @@
 """The compiled stepper (Schur complement + Cayley Newton) and the plain-NumPy reference
-(dense Newton on all 3N+3 unknowns, esp_gym.reference) produce the same trajectory.
+(dense Newton on all 3N+3 unknowns, esp_gym.verify.reference) produce the same trajectory.
 
 Tolerances (every 50 steps, up to 200 steps):
 
@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 import esp_gym
-from esp_gym.reference import reference_run, reference_step
+from esp_gym.verify.reference import reference_run, reference_step
 
 from discrete_lagrangian import GEOMETRIC_OVERRIDES, random_state
 
@@ -95,8 +95,8 @@ def test_reference_step_keeps_pivot_and_rotation():
 
 
 def test_reference_module_does_not_import_the_kernels():
-    """esp_gym.reference is an independent path: importing it loads no esp_gym.kernels module."""
-    code = ("import sys, esp_gym.reference; "
+    """esp_gym.verify.reference is an independent path: importing it loads no esp_gym.kernels module."""
+    code = ("import sys, esp_gym.verify.reference; "
             "bad = [m for m in sys.modules if m.startswith('esp_gym.kernels') or m == 'numba']; "
             "assert not bad, bad")
     subprocess.run([sys.executable, "-c", code], check=True)

@@ -8,7 +8,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import esp_gym
-from esp_gym.ode import ElasticStringODE
+from esp_gym.verify.ode import ElasticStringODE
 
 HORIZON = 0.3
 SAMPLE = 0.01

@@ -4,7 +4,7 @@ An optional comparison (``pip install esp_gym[bench]``): ``mujoco`` is imported 
 
 With ``string.mass_model: lumped`` our discrete model is a chain of point masses and springs, so
 MuJoCo can integrate exactly the same ordinary differential equation. The Lagrangian (lumped
-version of the paper's finite-element Lagrangian, physics_notes.md "Conventions") is
+version of the paper's finite-element Lagrangian, docs/physics.md "Conventions") is
 
     L = sum_a (m_a/2) |v_a|^2 + (M/2) |v_N|^2 + (1/2) Omega.J Omega + M v_N . R (Omega x rho_c)
         + g sum_a m_a (r_a . e3) + M g (r_N + R rho_c) . e3 - sum_a (kappa/2) (|r_{a+1} - r_a| - u)^2
@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .params import Scene
+from ..params import Scene
 
 #: MuJoCo's names of its integrators (``<option integrator=...>``); all but RK4 are first order.
 #: With no damping, implicit and implicitfast still differ from Euler (semi-implicit) once the

@@ -56,11 +56,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .kernels.diagnostics import DIAG_NAMES, DiagWork, diagnostics as diagnostics_kernel
-from .kernels.lgvi import StateArrays
-from .kernels.ode import ODEWork, ode_rhs, ode_rhs_columns, rk4_run
-from .model import State, build_params, legendre_momenta
-from .params import Scene
+from ..kernels.diagnostics import diagnostics as diagnostics_kernel
+from ..kernels.layout import BALANCE, DIAG, INPUTS, STEP_DIAG, DiagWork, StateArrays
+from ..kernels.ode import ODEWork, ode_rhs, ode_rhs_columns, rk4_run
+from ..state import State, build_params, legendre_momenta
+from ..params import Scene
 
 class ElasticStringODE:
     """The finite-element model of a :class:`~esp_gym.params.Scene` as ``y' = f(t, y)``.
@@ -83,23 +83,24 @@ class ElasticStringODE:
         self.n_free = n + 1 - self.first
         self.size = 6 * self.n_free + 12
         self.r0 = np.array(scene.pivot.position, dtype=np.float64)
-        inputs = np.zeros(9)
-        for i, (name, value) in enumerate((("pivot_force", pivot_force), ("body_torque", body_torque),
-                                           ("spatial_torque", spatial_torque))):
+        inputs = np.zeros(INPUTS.size)
+        for name, value in (("pivot_force", pivot_force), ("body_torque", body_torque),
+                            ("spatial_torque", spatial_torque)):
             if value is not None:
                 arr = np.asarray(value, dtype=np.float64)
                 if arr.shape != (3,) or not np.all(np.isfinite(arr)):
                     raise ValueError(f"{name} must be a finite 3-vector, got {value!r}")
-                inputs[3 * i:3 * i + 3] = arr
-        if not scene.pivot.is_free and np.any(inputs[:3] != 0):
+                inputs[INPUTS[name]] = arr
+        if not scene.pivot.is_free and np.any(inputs[INPUTS["pivot_force"]] != 0):
             raise ValueError("pivot_force needs a free pivot (this scene's pivot.kind is 'fixed')")
         self.inputs = inputs
         z = np.zeros
         self.work = ODEWork(r=z((n + 1, 3)), f=z((n + 1, 3)), X=z((n + 1, 3)))
         # the simulator's state and diagnostics arrays, for _diagnose
         self._diag = (StateArrays(r=z((n + 1, 3)), p=z((n + 1, 3)), R=z((3, 3)), Pi=z(3), rc=z((n + 1, 3)),
-                                  pc=z((n + 1, 3)), Rc=z((3, 3)), Pic=z(3), f=z((n + 1, 3)), acc=z(8), accc=z(8)),
-                      DiagWork(V=z((n + 1, 3)), strain=z(n), omega=z(3), out=z(len(DIAG_NAMES))))
+                                  pc=z((n + 1, 3)), Rc=z((3, 3)), Pic=z(3), f=z((n + 1, 3)), acc=z(BALANCE.size),
+                                  accc=z(BALANCE.size)),
+                      DiagWork(V=z((n + 1, 3)), strain=z(n), omega=z(3), out=z(DIAG.size)))
         self.nfev = 0  #: right-hand side evaluations through :meth:`rhs` / :meth:`rhs_columns`
 
     # -- right-hand side --------------------------------------------------------------------
@@ -188,29 +189,28 @@ class ElasticStringODE:
     # -- invariants -------------------------------------------------------------------------
     def invariants(self, Y: np.ndarray) -> np.ndarray:
         """(energy [J], pi3 [kg m^2/s], ||I - R^T R||_F) of y (size,) or of each row of Y
-        (K, size); shape (3,) or (K, 3). Computed like the simulator's: momenta by
+        (K, size), laid out as :data:`~esp_gym.kernels.layout.STEP_DIAG`; shape (3,) or (K, 3). Computed like the simulator's: momenta by
         ``legendre_momenta``, then the diagnostics kernel (which inverts that transform again
         assuming R^T R = I: off SO(3) the energy is off by ~ its size x ||I - R^T R||)."""
         Y = np.asarray(Y, dtype=np.float64)
         rows = Y.reshape(-1, self.size)
         out = np.empty((rows.shape[0], 3))
-        i = DIAG_NAMES.index
-        cols = [i("energy"), i("pi3"), i("orthogonality")]
+        cols = [DIAG.scalar(name) for name in STEP_DIAG.names]
         for k, y in enumerate(rows):
             out[k] = self._diagnose(self.to_state(y)).out[cols]
         return out[0] if Y.ndim == 1 else out
 
     def energy(self, Y: np.ndarray):
         """Total energy E = T + V [J] of y or of each row of Y."""
-        return self.invariants(Y)[..., 0]
+        return self.invariants(Y)[..., STEP_DIAG.scalar("energy")]
 
     def pi3(self, Y: np.ndarray):
         """Angular momentum about e3 through the origin [kg m^2/s] of y or of each row of Y."""
-        return self.invariants(Y)[..., 1]
+        return self.invariants(Y)[..., STEP_DIAG.scalar("pi3")]
 
     def orthogonality(self, Y: np.ndarray):
         """||I - R^T R||_F of y or of each row of Y."""
-        return self.invariants(Y)[..., 2]
+        return self.invariants(Y)[..., STEP_DIAG.scalar("orthogonality")]
 
     def attach_position(self, Y: np.ndarray) -> np.ndarray:
         """Position of the attachment node (the load) [m], (3,) or (K, 3)."""

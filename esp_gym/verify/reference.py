@@ -10,9 +10,9 @@ The step ``f_k = (dr, F)`` moves ``r_{k+1} = r_k + dr`` and ``R_{k+1} = R_k F``;
 
 The rotation increment is passed as ``E = F - I`` everywhere: ``F = I + O(h)``, and every
 formula below is rewritten in ``E`` by exact algebra (``J_d F - F^T J_d = J_d E - E^T J_d``,
-``F x = x + E x``), so no digit is lost to ``F - I`` cancellation (physics_notes.md, "Round-off").
+``F x = x + E x``), so no digit is lost to ``F - I`` cancellation (docs/physics.md, "Round-off").
 
-Derivatives (errata 1-3 of physics_notes.md fixed; grad V^e_{k,a} = kappa (|x| - u)/|x| x,
+Derivatives (errata 1-3 in docs/physics.md fixed; grad V^e_{k,a} = kappa (|x| - u)/|x| x,
 x = r_{k,a+1} - r_{k,a})::
 
     (DdrLd)  D_{dr_a} L_d = m/(6h) (dr_{a-1} + 4 dr_a + dr_{a+1}) + h/2 m g e3
@@ -43,10 +43,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .params import Scene
+from ..params import Scene
 
 if TYPE_CHECKING:  # esp_gym.model imports the kernels; only its State type is needed here
-    from .model import State
+    from ..state import State
 
 E3 = np.array([0.0, 0.0, 1.0])
 

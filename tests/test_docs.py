@@ -1,0 +1,67 @@
+"""The documentation holds together: every relative link in README.md and docs/*.md points to a
+file that exists, and the README stays a guide (under 200 lines)."""
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+README_MAX_LINES = 200
+
+#: ``[text](target)`` and ``![alt](target)``; the target ends at the first space (a title may
+#: follow) or the closing parenthesis.
+LINK = re.compile(r"!?\[[^\]]*\]\(\s*<?([^)\s>]+)>?(?:\s+[^)]*)?\)")
+#: fenced code blocks and inline code spans: what looks like a link there is code, not a link
+FENCE = re.compile(r"^(```|~~~).*?^\1[^\n]*$", re.S | re.M)
+CODE_SPAN = re.compile(r"`[^`\n]*`")
+EXTERNAL = re.compile(r"^(?:[a-z][a-z0-9+.-]*:|//)", re.I)  # http:, https:, mailto:, ... and //host
+
+
+def relative_links(text: str) -> list:
+    """The relative link targets of a Markdown text, without their ``#anchor``; external links
+    (any URL scheme), pure anchors and links inside code are left out."""
+    text = CODE_SPAN.sub("", FENCE.sub("", text))
+    out = []
+    for target in LINK.findall(text):
+        if EXTERNAL.match(target) or target.startswith("#"):
+            continue
+        out.append(target.split("#", 1)[0])
+    return out
+
+
+def broken_links(text: str, base: Path) -> list:
+    """Relative link targets in ``text`` that do not resolve to an existing file or directory,
+    resolved against ``base`` (the directory of the file holding the links)."""
+    return [t for t in relative_links(text) if not (base / t).exists()]
+
+
+@pytest.mark.parametrize("path", DOCS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_every_relative_link_points_to_an_existing_file(path):
+    assert broken_links(path.read_text(encoding="utf-8"), path.parent) == []
+
+
+def test_the_docs_are_there_and_link_somewhere():
+    """The pages this test walks exist and carry links, so the test above is not vacuous."""
+    names = {p.name for p in DOCS}
+    assert {"README.md", "physics.md", "integrator.md", "environment.md", "performance.md", "benchmarks.md",
+            "recording.md", "agents.md", "testing.md"} <= names
+    assert len(relative_links((ROOT / "README.md").read_text(encoding="utf-8"))) >= 10
+
+
+def test_link_checker_reports_a_broken_link():
+    """Negative control: a made-up target is reported, with its anchor stripped; existing targets,
+    anchors, external links and code are not."""
+    text = ("See [the physics](docs/physics.md#conventions), ![a frame](docs/img/env_frame.png),\n"
+            "[gone](docs/no_such_page.md#somewhere) and ![gone too](img/missing.png \"title\").\n"
+            "[web](https://example.org/x.md) [mail](mailto:a@b.c) [here](#layout)\n"
+            "`[code](not_a_link.md)`\n```\n[fenced](also_not_a_link.md)\n```\n")
+    assert broken_links(text, ROOT) == ["docs/no_such_page.md", "img/missing.png"]
+    # relative to the file holding the link: docs/ pages link to img/..., not docs/img/...
+    assert broken_links("![frame](img/env_frame.png)", ROOT / "docs") == []
+    assert broken_links("![frame](img/env_frame.png)", ROOT) == ["img/env_frame.png"]
+
+
+def test_readme_is_a_guide_under_200_lines():
+    lines = (ROOT / "README.md").read_text(encoding="utf-8").count("\n")
+    assert lines < README_MAX_LINES, f"README.md has {lines} lines; move depth into docs/"
