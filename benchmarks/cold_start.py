@@ -21,33 +21,45 @@ import time
 
 from benchmarks.common import arg_parser, finish, machine
 
-#: Python run in the child process: prints one JSON line of times [s] since its start.
+#: Each case: (imports, construction, first step), Python run in a fresh child process.
 CASES = {
-    "simulator": (
-        "import esp_gym\nt_import = time.perf_counter() - t0\n"
-        "sim = esp_gym.Simulator(esp_gym.load_scene('paper_example'))\nt_made = time.perf_counter() - t0\n"
-        "sim.step(1)\n"),
-    "env": (
-        "import gymnasium as gym, esp_gym\nt_import = time.perf_counter() - t0\n"
-        "env = gym.make('ElasticStringPendulum-v0'); env.reset(seed=0)\nt_made = time.perf_counter() - t0\n"
-        "env.step(env.action_space.sample())\n"),
-    "vector env (8)": (
-        "import gymnasium as gym, esp_gym\nt_import = time.perf_counter() - t0\n"
-        "env = gym.make_vec('ElasticStringPendulum-v0', num_envs=8); env.reset(seed=0)\n"
-        "t_made = time.perf_counter() - t0\n"
-        "env.step(env.action_space.sample())\n"),
+    "simulator": ("import esp_gym",
+                  "sim = esp_gym.Simulator(esp_gym.load_scene('paper_example'))",
+                  "sim.step(1)"),
+    "env": ("import gymnasium as gym, esp_gym",
+            "env = gym.make('ElasticStringPendulum-v0'); env.reset(seed=0)",
+            "env.step(env.action_space.sample())"),
+    "vector env (8)": ("import gymnasium as gym, esp_gym",
+                       "env = gym.make_vec('ElasticStringPendulum-v0', num_envs=8); env.reset(seed=0)",
+                       "env.step(env.action_space.sample())"),
 }
-_HEAD = "import time\nt0 = time.perf_counter()\nimport json\n"
-_TAIL = ("t_step = time.perf_counter() - t0\n"
-         "print(json.dumps({'import_s': t_import, 'construct_s': t_made, 'first_step_s': t_step}))\n")
+
+_CHILD = """import time
+t0 = time.perf_counter()
+import json
+{imports}
+times = {{'import_s': time.perf_counter() - t0}}
+{construct}
+times['construct_s'] = time.perf_counter() - t0
+{step}
+times['first_step_s'] = time.perf_counter() - t0
+{after}
+times['after_s'] = time.perf_counter() - t0 if {has_after} else None
+print(json.dumps(times))
+"""
 
 
-def run_case(code: str, cache_dir: str, timeout: float = 900.0) -> dict:
-    """Run one case in a fresh interpreter with ``NUMBA_CACHE_DIR=cache_dir``; its times [s]."""
+def run_case(case: tuple, cache_dir: str, after: str = "", timeout: float = 900.0) -> dict:
+    """Run ``case`` (imports, construction, first step) in a fresh interpreter with
+    ``NUMBA_CACHE_DIR=cache_dir``, then ``after`` (more code, optional). Returns the seconds from
+    the interpreter's start to the end of each part (``after_s`` None without ``after``) and
+    the process's wall time ``process_s`` as seen by the parent."""
+    imports, construct, step = case
+    code = _CHILD.format(imports=imports, construct=construct, step=step, after=after or "pass",
+                         has_after=bool(after))
     env = {**os.environ, "NUMBA_CACHE_DIR": cache_dir}
     start = time.perf_counter()
-    done = subprocess.run([sys.executable, "-c", _HEAD + code + _TAIL], env=env, capture_output=True, text=True,
-                          timeout=timeout)
+    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=timeout)
     wall = time.perf_counter() - start
     if done.returncode != 0:
         raise RuntimeError(f"the start-up case failed (exit {done.returncode}):\n{done.stderr[-2000:]}")
@@ -70,6 +82,7 @@ def main(argv=None) -> dict:
         with tempfile.TemporaryDirectory(prefix="esp_gym-cold-") as cache:
             for k in range(1 + repeats):
                 t = run_case(code, cache)
+                del t["after_s"]
                 rows.append({"case": name, "cache": "cold" if k == 0 else "warm", **t})
                 print(f"{name:16s} {rows[-1]['cache']:6s} {t['import_s']:11.2f} {t['construct_s']:14.2f} "
                       f"{t['first_step_s']:15.2f} {t['process_s']:12.2f}", flush=True)

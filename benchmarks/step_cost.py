@@ -6,10 +6,11 @@ Prints three tables and writes ``OUT/step_cost.json`` and ``OUT/step_cost.png``
 1. microseconds per step (median over repeats, no recording) for the scene ``paper_example``
    with N in {5, 10, 20, 40, 80}; h = min(1e-4, 0.8 h_max(N)) stays under each N's stability
    bound and is reported;
-2. start-up: wall time from process start to the first completed step (``sim.step(1)``) and to
-   the first recorded run (``sim.run(..., every_step=True)``, which needs the recording and
-   diagnostics kernels too), in a fresh process whose NUMBA_CACHE_DIR is an empty temporary
-   directory (cold: everything compiles) and then again with the same directory (cached);
+2. start-up (a child process run by benchmarks.cold_start): seconds from interpreter start to
+   the first completed step (``sim.step(1)``) and to the first recorded run (``sim.run(...,
+   every_step=True)``, which needs the recording and diagnostics kernels too), in a fresh
+   process whose NUMBA_CACHE_DIR is an empty temporary directory (cold: everything compiles)
+   and then again with the same directory (cached);
 3. the paper's example, 50,000 steps after compilation: plain stepping and a recorded run
    (snapshots every 100 steps plus energy, pi3 and orthogonality after every step);
 4. plain against Kahan-compensated state updates (``solver.compensated``);
@@ -22,34 +23,13 @@ test, not a measurement.
 """
 from __future__ import annotations
 
-import json
-import os
-import subprocess
 import sys
 import tempfile
-import time
 
 import numpy as np
 
+from benchmarks.cold_start import CASES, run_case
 from benchmarks.common import arg_parser, figure, finish, interleaved_wall_times, machine, median_wall, wall_times
-
-# Run in a fresh interpreter: prints the wall-clock times (time.time(), comparable with the
-# parent's) after imports, after the first step and (unless argv[1] == "step") after the first
-# recorded run.
-_STARTUP_CHILD = r"""
-import json, sys, time
-import esp_gym
-t_import = time.time()
-scene = esp_gym.load_scene("paper_example")
-sim = esp_gym.Simulator(scene)
-sim.step(1)
-t_step = time.time()
-t_run = None
-if sys.argv[1] != "step":
-    sim.run(t_final=100 * scene.h, record_every=10, every_step=True)
-    t_run = time.time()
-print(json.dumps({"t_import": t_import, "t_first_step": t_step, "t_first_run": t_run}))
-"""
 
 
 def scene_for(n: int, h_max: float = 1e-4, safety: float = 0.8):
@@ -80,16 +60,12 @@ def time_steps(scene, steps: int, repeats: int) -> dict:
 
 
 def startup(cache_dir: str, first_run: bool = True) -> dict:
-    """Seconds from spawning a Python process to its first step and (if ``first_run``) to its
-    first recorded run, with NUMBA_CACHE_DIR = ``cache_dir``."""
-    env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
-    start = time.time()
-    proc = subprocess.run([sys.executable, "-c", _STARTUP_CHILD, "run" if first_run else "step"],
-                          env=env, capture_output=True, text=True, check=True)
-    child = json.loads(proc.stdout.strip().splitlines()[-1])
-    run = child["t_first_run"]
-    return {"import_s": child["t_import"] - start, "first_step_s": child["t_first_step"] - start,
-            "first_run_s": None if run is None else run - start}
+    """Seconds from a fresh Python process's start to its first step of the paper's example
+    and (if ``first_run``) to the end of its first recorded run, with NUMBA_CACHE_DIR =
+    ``cache_dir`` (benchmarks.cold_start runs the process)."""
+    after = "sim.run(t_final=100 * sim.h, record_every=10, every_step=True)" if first_run else ""
+    t = run_case(CASES["simulator"], cache_dir, after=after)
+    return {"import_s": t["import_s"], "first_step_s": t["first_step_s"], "first_run_s": t["after_s"]}
 
 
 def paper_timing(steps: int, repeats: int) -> dict:

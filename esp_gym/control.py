@@ -24,8 +24,8 @@ from typing import Optional, Union
 import numpy as np
 from gymnasium import spaces
 
-from .kernels.layout import (ACTION, ACTION_PARAMS, ACTION_SIZE, INPUTS, OBSERVATION, REPORT, REWARD,
-                             REWARD_TERMS, TARGET, termination_reason)
+from .kernels.layout import (ACTION, ACTION_PARAMS, ACTION_SIZE, INPUTS, OBSERVATION, R_TERMINATION, REPORT, REWARD,
+                             REWARD_TERMS, TARGET)
 from .kernels.task import actions_finite, env_reset_observe, env_step, env_step_batch
 from .model import Simulator
 from .state import State
@@ -34,7 +34,6 @@ from .tasks import Task, get_task
 
 #: info keys of the reward terms, in REWARD_TERMS order
 INFO_REWARD_KEYS = tuple("reward_" + name for name in REWARD_TERMS)
-_TERMINATION = REPORT.scalar("termination")
 
 
 @dataclass(frozen=True)
@@ -124,7 +123,9 @@ def raw_actions(actions, shape: tuple, name: str = "action") -> np.ndarray:
     return raw
 
 
-def _read_only(a: np.ndarray) -> np.ndarray:
+def read_only(a: np.ndarray) -> np.ndarray:
+    """A read-only view of ``a`` (numba types read-only arrays apart: callers that mix them with
+    these views pass read-only arrays too, so one compiled signature serves both)."""
     view = a.view()
     view.flags.writeable = False
     return view
@@ -173,12 +174,12 @@ class ControlStep:
     def _make_views(self) -> None:
         # plain tuples: numba's dispatcher types them ~2x faster than namedtuples (kernels/task.py)
         self._kernel_tuples = (tuple(self._state), tuple(self._work), tuple(self._params), tuple(self._diag))
-        self.observation = _read_only(self._obs)
-        self.reward_terms = _read_only(self._terms)
-        self.action = _read_only(self._action)
-        self.inputs = _read_only(self._inputs)
-        self.target = _read_only(self._target)
-        self.report = _read_only(self._report)
+        self.observation = read_only(self._obs)
+        self.reward_terms = read_only(self._terms)
+        self.action = read_only(self._action)
+        self.inputs = read_only(self._inputs)
+        self.target = read_only(self._target)
+        self.report = read_only(self._report)
 
     # a pickled view would come back as a copy: pickle the arrays, rebuild the views
     _VIEWS = ("_kernel_tuples", "observation", "reward_terms", "action", "inputs", "target", "report")
@@ -202,8 +203,7 @@ class ControlStep:
             S, D, obs, terms, action, tgt = self._state, self._diag, self._obs, self._terms, self._action, self._target
         else:
             i = int(index)
-            S = type(self._state)(*(a[i] for a in self._state))
-            D = type(self._diag)(*(a[i] for a in self._diag))
+            S, D = self._row(i)
             S.r[...], S.p[...], S.R[...], S.Pi[...] = state.r, state.p, state.R, state.Pi
             for a in (S.rc, S.pc, S.Rc, S.Pic, S.acc, S.accc):
                 a[...] = 0.0
@@ -217,7 +217,7 @@ class ControlStep:
         """One control step. ``actions``: the raw action (ACTION; a batch: (num_envs, ACTION)),
         any float array; clipped to the box in the compiled step. ValueError, with nothing
         changed, if its shape is wrong or an entry is not finite. ``active`` (batch only, bool
-        (num_envs,)): the sub-environments to step (default: all)."""
+        (num_envs,)): the sub-environments to step (default: all); the others are untouched."""
         s, w, p, d = self._kernel_tuples
         setup = self.setup
         if self.num_envs is None:
@@ -227,20 +227,13 @@ class ControlStep:
                 raise ValueError(f"action must be finite, got {raw.tolist()}")
             self.sim.count_steps(self._report)
             return
-        raw = self.checked_actions(actions)
+        raw = raw_actions(actions, (self.num_envs, ACTION.size), "actions")
+        if not actions_finite(raw):
+            raise ValueError("actions must be finite")
         if active is None:
             active = np.ones(self.num_envs, dtype=bool)
         env_step_batch(s, w, d, p, raw, setup.action_params, self._inputs, active, setup.substeps, self._target,
                        setup.task_params, self._action, self._obs, self._terms, self._report)
-
-    def checked_actions(self, actions) -> np.ndarray:
-        """The raw actions of a batch, (num_envs, ACTION) float64, shape and finiteness checked
-        (ValueError naming the argument); for callers that must check before they change
-        anything (the vector envs' autoreset)."""
-        raw = raw_actions(actions, (self.num_envs, ACTION.size), "actions")
-        if not actions_finite(raw):
-            raise ValueError("actions must be finite")
-        return raw
 
     # -- the report, by name ----------------------------------------------------------------------
     def reward(self):
@@ -253,27 +246,14 @@ class ControlStep:
             out += self._terms[:, j]
         return out
 
-    def reward_info(self) -> dict:
-        """``{"reward_<term>": value}`` of the last step (one environment)."""
-        return dict(zip(INFO_REWARD_KEYS, self._terms.tolist()))
-
     @property
     def termination(self):
         """The termination code of the last step (0: none; kernels/layout.py STATUS), an int or
         (num_envs,) int64."""
         if self.num_envs is None:
-            return int(self._report[_TERMINATION])
-        return self._report[:, _TERMINATION]
+            return int(self._report[R_TERMINATION])
+        return self._report[:, R_TERMINATION]
 
-    @staticmethod
-    def termination_reason(code: int) -> str:
-        """``info["termination_reason"]`` of a termination code."""
-        return termination_reason(code)
-
-    def sub_state(self, index: int):
-        """The live StateArrays and DiagWork of sub-environment ``index`` of a batch (views),
-        or of the one environment (``index`` ignored); for recorders."""
-        if self.num_envs is None:
-            return self._state, self._diag
-        i = int(index)
+    def _row(self, i: int):
+        """The live StateArrays and DiagWork of sub-environment ``i`` of a batch (views)."""
         return type(self._state)(*(a[i] for a in self._state)), type(self._diag)(*(a[i] for a in self._diag))

@@ -9,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 
 from .control import INFO_REWARD_KEYS, ControlStep, make_setup
-from .kernels.layout import INPUTS, OBSERVATION, TARGET
+from .kernels.layout import INPUTS, OBSERVATION, TARGET, termination_reason
 from .params import Scene
 from .tasks import sample_episode
 
@@ -148,7 +148,7 @@ class ElasticStringPendulumEnv(gym.Env):
         reward = sum(terms)  # left to right, in REWARD_TERMS order: the documented sum, same bits
         code = control.termination
         if code:
-            info["termination_reason"] = control.termination_reason(code)
+            info["termination_reason"] = termination_reason(code)
         return control.observation.astype(np.float32), reward, code != 0, False, info
 
     def render(self):

@@ -16,8 +16,8 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .kernels.diagnostics import diagnostics as diagnostics_kernel
-from .kernels.layout import (BALANCE, DIAG, DIAG_NAMES, INPUTS, LOOP_REPORT_SIZE, OK, REPORT, STEP_DIAG,
-                             DiagWork, Snapshots, StateArrays, Work, status_message)
+from .kernels.layout import (BALANCE, DIAG, INPUTS, LOOP_REPORT_SIZE, OK, R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS,
+                             R_STEPS, STEP_DIAG, DiagWork, Snapshots, StateArrays, Work, status_message)
 from .kernels.loops import lgvi_advance, lgvi_record, state_size
 from .kernels.specialise import specialised_kernels
 from .params import Scene
@@ -159,9 +159,9 @@ class Simulator:
     def count_steps(self, report: np.ndarray) -> None:
         """Count the steps and Newton iterations of a :data:`~esp_gym.kernels.layout.REPORT`
         of a kernel call on :attr:`buffers` (the step counter, time and Newton totals)."""
-        self._step += int(report[REPORT.scalar("steps")])
-        self.newton_iterations += int(report[REPORT.scalar("newton_total")])
-        self.newton_iterations_max = max(self.newton_iterations_max, int(report[REPORT.scalar("newton_max")]))
+        self._step += int(report[R_STEPS])
+        self.newton_iterations += int(report[R_NEWTON_TOTAL])
+        self.newton_iterations_max = max(self.newton_iterations_max, int(report[R_NEWTON_MAX]))
 
     # -- state ------------------------------------------------------------------------------
     @property
@@ -238,9 +238,9 @@ class Simulator:
 
     def _account(self) -> None:
         self.count_steps(self._stats)
-        status = int(self._stats[REPORT.scalar("status")])
+        status = int(self._stats[R_STATUS])
         if status != OK:
-            raise SimulationError(status, self._step, self.time, int(self._stats[REPORT.scalar("newton_max")]))
+            raise SimulationError(status, self._step, self.time, int(self._stats[R_NEWTON_MAX]))
 
     def step(self, n: int = 1, pivot_force=None, body_torque=None, spatial_torque=None) -> None:
         """Advance ``n`` steps in one compiled call with inputs held constant: ``pivot_force``

@@ -20,8 +20,8 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from . import MAX_EPISODE_STEPS
-from .control import ControlStep, make_setup
-from .kernels.layout import REWARD_TERMS, termination_reason
+from .control import INFO_REWARD_KEYS, ControlStep, make_setup
+from .kernels.layout import termination_reason
 from .tasks import sample_episode
 
 
@@ -81,13 +81,14 @@ class ElasticStringPendulumVectorEnv(VectorEnv):
 
     def step(self, actions):
         control = self.control
-        raw = control.checked_actions(actions)  # before any autoreset: a bad call changes nothing
         resetting = self._autoreset.copy()
+        active = ~resetting
+        # step first (it checks the actions: a bad call raises before anything changes), then
+        # reset the sub-environments whose episodes ended; the step leaves those untouched
+        control.step(actions, active)
         for i in np.flatnonzero(resetting):
             _reset_env(control, i, self._rngs[i])
             self._elapsed[i] = 0
-        active = ~resetting
-        control.step(raw, active)
         rewards = np.where(active, control.reward(), 0.0)
         code = np.where(active, control.termination, 0)
         terminated = code != 0
@@ -95,9 +96,9 @@ class ElasticStringPendulumVectorEnv(VectorEnv):
         truncated = active & (self._elapsed >= self.max_episode_steps) if self.max_episode_steps else np.zeros_like(active)
         self._autoreset = terminated | truncated
         infos: dict = {}
-        for j, name in enumerate(REWARD_TERMS):
-            infos["reward_" + name] = np.where(active, control.reward_terms[:, j], 0.0)
-            infos["_reward_" + name] = active.copy()
+        for j, key in enumerate(INFO_REWARD_KEYS):
+            infos[key] = np.where(active, control.reward_terms[:, j], 0.0)
+            infos["_" + key] = active.copy()
         if terminated.any():
             infos["termination_reason"] = np.array([termination_reason(c) for c in code], dtype=object)
             infos["_termination_reason"] = terminated.copy()
@@ -140,7 +141,7 @@ class ElasticStringPendulumSB3VecEnv(_SB3VecEnv):
         return self.control.observation.astype(np.float32)
 
     def step_async(self, actions: np.ndarray) -> None:
-        self._actions = self.control.checked_actions(actions)
+        self._actions = actions  # checked by the step (step_wait), before anything changes
 
     def step_wait(self):
         control = self.control
@@ -151,8 +152,7 @@ class ElasticStringPendulumSB3VecEnv(_SB3VecEnv):
         truncated = self._elapsed >= self.max_episode_steps if self.max_episode_steps else np.zeros_like(terminated)
         dones = terminated | truncated
         obs = control.observation.astype(np.float32)
-        infos = [{"reward_" + name: float(control.reward_terms[i, j]) for j, name in enumerate(REWARD_TERMS)}
-                 for i in range(self.num_envs)]
+        infos = [dict(zip(INFO_REWARD_KEYS, terms)) for terms in control.reward_terms.tolist()]
         for i in np.flatnonzero(dones):
             infos[i]["terminal_observation"] = obs[i].copy()
             infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])

@@ -59,7 +59,7 @@ class RecordRerun(gym.Wrapper):
             if rec.buffered and self.flush_on_episode_end:
                 rec.flush(wait=True)
             control = self.control
-            self._live = control.sub_state(0)
+            self._live = (control.sim.buffers.state, control.sim.buffers.diag)
             self._episode += 1
             self._step += 1
             rec.start_episode(control.sim)

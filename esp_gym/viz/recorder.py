@@ -17,6 +17,7 @@ import rerun.blueprint as rrb
 
 from ..kernels.layout import (ACTION, DIAG, INPUTS, REPORT, REWARD_TERMS, R_NEWTON_TOTAL, R_STEPS, SB_ENERGY_RESIDUAL,
                               SB_PI3_RESIDUAL, SB_WORK, TARGET, sample_layout)
+from ..control import read_only
 from ..kernels.recording import capture_sample, sample_geometry, trail_points
 from . import arrow, lifecycle, palette
 from .geometry import equivalent_box, prism_triangles, quaternion_xyzw
@@ -135,11 +136,6 @@ def body_shape(body, rho: np.ndarray):
                       quaternions=[rr.Quaternion(xyzw=quaternion_xyzw(Q))], labels=["inertia-equivalent box"])
 
 
-def _read_only(a: np.ndarray) -> np.ndarray:
-    a.flags.writeable = False
-    return a
-
-
 class Recorder:
     """Writes one ``.rrd`` recording of a simulator's samples (see esp_gym/viz/recording.py for
     entities and timelines).
@@ -205,8 +201,8 @@ class Recorder:
         self._buf = np.zeros((self.flush_every, self.layout.size))
         self._n = 0  # rows buffered
         # read-only like the environment's views, so every caller hits one compiled signature
-        self._zeros = _read_only(np.zeros(max(ACTION.size, len(REWARD_TERMS), INPUTS.size)))
-        self._no_target = _read_only(np.full(TARGET.size, math.nan))
+        self._zeros = read_only(np.zeros(max(ACTION.size, len(REWARD_TERMS), INPUTS.size)))
+        self._no_target = read_only(np.full(TARGET.size, math.nan))
         self._trail_hist = np.empty((0, 3))  # the current episode's last load positions
         self._trail_episode = None
         self._return, self._return_episode = 0.0, None
@@ -297,9 +293,9 @@ class Recorder:
         inputs[INPUTS["pivot_force"]] = 0.0 if pivot_force is None else pivot_force
         inputs[INPUTS["body_torque"]] = 0.0 if body_torque is None else body_torque
         state, _, _, diag = sim.buffers
-        self.add_sample(state, diag, report=_read_only(report), step=sim.step_count if step is None else step,
+        self.add_sample(state, diag, report=read_only(report), step=sim.step_count if step is None else step,
                         time=sim.time if time is None else time, stepped=report[R_STEPS] > 0,
-                        inputs=_read_only(inputs))
+                        inputs=read_only(inputs))
 
     def _commit(self) -> None:
         """Count the row just written (last, so an interrupted sample is simply not counted)
