@@ -51,7 +51,7 @@ class Settings:
 
 def _make_vec_env(n_envs: int, task: str, seed: int, env_kwargs: dict,
                   max_episode_steps: int = esp_gym.MAX_EPISODE_STEPS):
-    from esp_gym.vector import ElasticStringPendulumSB3VecEnv
+    from esp_gym.sb3_vector import ElasticStringPendulumSB3VecEnv
 
     venv = ElasticStringPendulumSB3VecEnv(num_envs=n_envs, task=task, max_episode_steps=max_episode_steps, **env_kwargs)
     venv.seed(seed)

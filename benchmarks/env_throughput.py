@@ -18,7 +18,7 @@ import numpy as np
 
 import esp_gym
 from benchmarks.common import arg_parser, figure, finish, machine, wall_times
-from esp_gym.vector import ElasticStringPendulumSB3VecEnv
+from esp_gym.sb3_vector import ElasticStringPendulumSB3VecEnv
 
 
 def _rate(fn, steps: int, repeats: int) -> float:

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import ast
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -155,3 +157,16 @@ def test_packed_layouts_are_read_by_name_outside_their_module():
 @pytest.mark.parametrize("path", [p for p in sources(("esp_gym",))], ids=lambda p: str(p.relative_to(ROOT)))
 def test_source_files_are_short(path):
     assert len(path.read_text().splitlines()) <= MAX_LINES
+
+
+def test_the_environments_do_not_import_torch():
+    """The env and the Gymnasium vector env (what ``gym.make``/``gym.make_vec`` import) load
+    without Stable-Baselines3 and torch: importing them cost 1.4 s of a 2.3 s warm start."""
+    code = ("import sys, esp_gym, esp_gym.env, esp_gym.vector; "
+            "print(sorted(m for m in ('torch', 'stable_baselines3') if m in sys.modules))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True)
+    assert done.stdout.strip() == "[]"
+    # negative control: the SB3 vector env does bring them in
+    code = code.replace("esp_gym.vector;", "esp_gym.sb3_vector;")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True)
+    assert done.stdout.strip() == "['stable_baselines3', 'torch']"

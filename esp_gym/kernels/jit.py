@@ -10,6 +10,17 @@ array taken out of a namedtuple (the state, the scratch, the parameters) was an 
 incref/decref pair in the step loop, about half the time of a step (1.00 -> 0.53 us at N = 20).
 Allocating inside a kernel (``np.empty``, slice assignment, ``.copy()``) then fails to compile
 ("NRT required but not enabled"), which keeps it that way.
+
+Inlining, and what it costs to compile (docs/performance.md, "Start-up"). ``inline="always"``
+splices the callee's numba IR into the caller before typing. numba deep-copies that IR, block by
+block, and every block's copy re-copies the callee's whole variable table, so the cost grows with
+size x blocks and is paid again at every level a big function is inlined through. The LGVI substep
+(126 blocks) cost 3-5 s per level, and the env's step, four levels up, took 18-26 s to compile.
+``forceinline=True`` instead compiles the callee once per signature (cached on disk like any
+kernel) and marks it ``alwaysinline`` for LLVM, which inlines it into every caller: the same
+machine code, bit for bit, at a fraction of the compile time. The substep is compiled that way;
+small helpers keep ``inline="always"``. numba lets the callees of a ``forceinline`` function
+inherit the flag.
 """
 import hashlib
 import os

@@ -78,7 +78,9 @@ def commit_node(r, p, rc, pc, f, fn, X, Y, a, i, impulse, hh, compensated):
     f[a, i] = fn[a, i]
 
 
-@kernel(inline="always")
+# LLVM-inlined, not numba-IR-inlined: compiled once per signature instead of deep-copied
+# into every caller (kernels/jit.py); the cold start of the env's first step halved.
+@kernel(forceinline=True)
 def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
     """Advance the state ``S`` (:class:`StateArrays`) by one LGVI step of length ``h``, in place.
 
