@@ -28,7 +28,8 @@ from .kernels.layout import (ACTION, ACTION_PARAMS, ACTION_SIZE, INPUTS, OBSERVA
                              REWARD_TERMS, TARGET)
 from .kernels.task import actions_finite, env_reset_observe, env_step, env_step_batch
 from .model import Simulator
-from .state import State
+from .options import MAX_SUBSTEPS, check_count, env_options
+from .state import State, check_memory
 from .params import Scene, load_scene, scene_from_dict
 from .tasks import Task, get_task
 
@@ -75,37 +76,41 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
                control_period: float = 0.02, h: Optional[float] = None, safety: float = 0.5,
                force_limit: Optional[float] = None, torque_limit: float = 0.02,
                scene_overrides: Optional[dict] = None) -> EnvSetup:
-    """Resolve the environment's arguments (see :class:`~esp_gym.env.ElasticStringPendulumEnv`)."""
-    if not (control_period > 0 and math.isfinite(control_period)):
-        raise ValueError(f"control_period must be a positive time [s], got {control_period}")
-    if not 0 < safety <= 1:
-        raise ValueError(f"safety must be in (0, 1], got {safety}")
-    overrides = dict(scene_overrides or {})
-    if isinstance(scene, Scene):
-        base = scene.model_dump()
+    """Resolve the environment's arguments (see :class:`~esp_gym.env.ElasticStringPendulumEnv`),
+    validated by :class:`~esp_gym.options.EnvOptions` (ValueError naming each bad one)."""
+    o = env_options(scene=scene, task=task, control_period=control_period, h=h, safety=safety,
+                    force_limit=force_limit, torque_limit=torque_limit, scene_overrides=scene_overrides)
+    control_period, h, safety = o.control_period, o.h, o.safety
+    overrides = dict(o.scene_overrides or {})
+    if isinstance(o.scene, Scene):
+        base = o.scene.model_dump()
         for k, v in overrides.items():
             base[k] = v
-        resolved = scene_from_dict(base, source=repr(scene.name))
+        resolved = scene_from_dict(base, source=repr(o.scene.name))
     else:
-        resolved = load_scene(scene, **overrides)
+        resolved = load_scene(o.scene, **overrides)
     if not resolved.pivot.is_free:
         raise ValueError(f"ElasticStringPendulum-v0 pushes the pivot: scene {resolved.name!r} needs pivot.kind: free")
     bound = resolved.stability_bound
+    wanted = control_period / (safety * bound) if h is None else control_period / h
+    if wanted > MAX_SUBSTEPS:
+        step = (f"safety = {safety} x the stability bound {bound:.3g} s" if h is None else f"h = {h} s")
+        raise ValueError(f"ElasticStringPendulum-v0: control_period = {control_period} s with {step} needs "
+                         f"{wanted:.3g} physics steps per step (at most {MAX_SUBSTEPS:,}): use a larger h or "
+                         f"safety, a shorter control_period, or a softer, longer or coarser string")
     if h is None:
-        substeps = math.ceil(control_period / (safety * bound) - 1e-9)
+        substeps = math.ceil(wanted - 1e-9)
     else:
-        substeps = int(round(control_period / h))
+        substeps = int(round(wanted))
         if substeps < 1 or abs(substeps * h - control_period) > 1e-9 * control_period:
             raise ValueError(f"h = {h} s must divide the control period {control_period} s")
     h_used = control_period / substeps
     resolved = scene_from_dict({**resolved.model_dump(), "h": h_used}, source=repr(resolved.name))
     weight = resolved.gravity * (resolved.body.mass + resolved.pivot.mass
                                  + resolved.string.length * resolved.string.mass_per_length)
-    if force_limit is None:
-        force_limit = 0.6 * weight if weight > 0 else 1.0
-    if not (force_limit > 0 and torque_limit >= 0):
-        raise ValueError("force_limit must be > 0 and torque_limit >= 0")
-    t = get_task(task)
+    force_limit = o.force_limit if o.force_limit is not None else (0.6 * weight if weight > 0 else 1.0)
+    torque_limit = o.torque_limit
+    t = get_task(o.task)
     return EnvSetup(scene=resolved, task=t, task_params=t.params(resolved), control_period=float(control_period),
                     substeps=substeps, hover=np.array([0.0, 0.0, -weight]), force_limit=float(force_limit),
                     torque_limit=float(torque_limit))
@@ -114,8 +119,15 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
 def raw_actions(actions, shape: tuple, name: str = "action") -> np.ndarray:
     """``actions`` as the compiled step takes them: float64, C-contiguous, writeable (copied
     only if needed, so one compiled signature serves every caller), of ``shape`` (ValueError
-    otherwise). Finiteness and clipping are the kernel's (kernels/task.py ``take_action``)."""
-    raw = np.asarray(actions, dtype=np.float64)
+    otherwise) and real (TypeError for complex, bool, object and masked arrays, whose imaginary
+    part or mask would otherwise be dropped). Finiteness and clipping are the kernel's
+    (kernels/task.py ``take_action``)."""
+    if isinstance(actions, np.ma.MaskedArray):
+        raise TypeError(f"{name} must be a plain array, not a masked array (its mask would be dropped)")
+    given = np.asarray(actions)
+    if given.dtype.kind not in "iuf":  # bool, complex, object, strings: not an action
+        raise TypeError(f"{name} must hold real numbers, got dtype {given.dtype}")
+    raw = np.asarray(given, dtype=np.float64)
     if raw.shape != shape:
         raise ValueError(f"{name} must have shape {shape}, got {raw.shape}")
     if not (raw.flags.c_contiguous and raw.flags.writeable):
@@ -148,10 +160,9 @@ class ControlStep:
 
     def __init__(self, setup: EnvSetup, num_envs: Optional[int] = None):
         self.setup = setup
-        self.num_envs = None if num_envs is None else int(num_envs)
-        if self.num_envs is not None and self.num_envs < 1:
-            raise ValueError(f"num_envs must be >= 1, got {num_envs}")
+        self.num_envs = None if num_envs is None else check_count("num_envs", num_envs)
         batch = () if self.num_envs is None else (self.num_envs,)
+        check_memory(setup.scene.string.elements, copies=1 + (self.num_envs or 0))
         #: The simulator stepped in place (one environment), or the template of the batch's arrays.
         self.sim = Simulator(setup.scene)
         state, work, params, diag = self.sim.buffers
@@ -169,6 +180,7 @@ class ControlStep:
         self._obs = z(batch + (OBSERVATION.size,))
         self._terms = z(batch + (REWARD.size,))
         self._report = z(batch + (REPORT.size,), dtype=np.int64)
+        self._was_reset = z(batch, dtype=bool)  # stepping a state that was never set is an error
         self._make_views()
 
     def _make_views(self) -> None:
@@ -210,6 +222,7 @@ class ControlStep:
             obs, terms, action, tgt = self._obs[i], self._terms[i], self._action[i], self._target[i]
         tgt[...] = target
         action[...] = 0.0
+        self._was_reset[() if index is None else int(index)] = True
         return int(env_reset_observe(S, self._params, D, tgt, self.setup.task_params, action, obs, terms))
 
     # -- step -------------------------------------------------------------------------------------
@@ -220,6 +233,9 @@ class ControlStep:
         (num_envs,)): the sub-environments to step (default: all); the others are untouched."""
         s, w, p, d = self._kernel_tuples
         setup = self.setup
+        if not self._was_reset.all():
+            never = "" if self.num_envs is None else f" (sub-environments {np.flatnonzero(~self._was_reset).tolist()})"
+            raise RuntimeError(f"call reset() before step(){never}")
         if self.num_envs is None:
             raw = raw_actions(actions, (ACTION.size,))
             if not env_step(s, w, p, d, raw, setup.action_params, self._inputs, setup.substeps, self._target,

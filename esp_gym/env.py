@@ -59,7 +59,7 @@ class ElasticStringPendulumEnv(gym.Env):
     ## Starting State
     `stabilize`: the pivot within 0.1 m of its target (the origin), the string straight and
     statically stretched at a swing angle up to 30 degrees in a random azimuth, the load hanging
-    along it with random yaw; pivot and attachment velocities uniform in +-0.3 m/s per axis, body
+    along it with random yaw (a centred load, `rho_c = 0`, with its body z axis along it); pivot and attachment velocities uniform in +-0.3 m/s per axis, body
     rates in +-0.5 rad/s. The load target is its rest position below the pivot target.
     `transport`: the system nearly at rest (swing <= 3 degrees, speeds <= 0.05 m/s) at the
     origin; the pivot target is uniform in +-(1, 1, 0.5) m, the load target below it.

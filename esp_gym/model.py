@@ -21,7 +21,7 @@ from .kernels.layout import (BALANCE, DIAG, INPUTS, LOOP_REPORT_SIZE, OK, R_NEWT
 from .kernels.loops import lgvi_advance, lgvi_record, state_size
 from .kernels.specialise import specialised_kernels
 from .params import Scene
-from .state import State, build_params, initial_state, legendre_momenta  # noqa: F401  (re-exported)
+from .state import State, build_params, check_memory, initial_state, legendre_momenta  # noqa: F401  (re-exported)
 
 #: The live arrays of a simulator that the compiled kernels advance: ``state``
 #: (:class:`~esp_gym.kernels.layout.StateArrays`), ``work`` (Work), ``params`` (LGVIParams),
@@ -112,6 +112,11 @@ def _vector_input(name: str, value) -> np.ndarray:
     return arr
 
 
+#: How far from orthogonal a state's attitude may be (``max|R^T R - I|``). The integrator keeps
+#: it near round-off (docs/physics.md, "Round-off"), so this admits any state it produced.
+ROTATION_TOL = 1e-9
+
+
 class Simulator:
     """Steps a :class:`~esp_gym.params.Scene` with the compiled LGVI.
 
@@ -122,6 +127,7 @@ class Simulator:
     """
 
     def __init__(self, scene: Scene, specialise: bool = True):
+        check_memory(scene.string.elements)
         self.scene = scene
         self.params = build_params(scene)
         #: Run kernels compiled for this scene (fixed or free pivot, rho_c = 0 or not) and, per
@@ -172,14 +178,23 @@ class Simulator:
                      (a.rc.copy(), a.pc.copy(), a.Rc.copy(), a.Pic.copy()))
 
     def set_state(self, state: State) -> None:
-        """Replace the state (copied, shape- and finiteness-checked); resets the balances."""
+        """Replace the state (copied, checked like a scene: real, finite, of this scene's shapes,
+        R a rotation to ``ROTATION_TOL``); resets the balances."""
         a = self._arrays
         for name in ("r", "p", "R", "Pi"):
-            new = np.asarray(getattr(state, name), dtype=np.float64)
+            given = np.asarray(getattr(state, name))
+            if given.dtype.kind not in "iuf":
+                raise ValueError(f"state.{name} must hold real numbers, got dtype {given.dtype}")
+            new = given.astype(np.float64, copy=False)
             if new.shape != getattr(a, name).shape:
                 raise ValueError(f"state.{name} has shape {new.shape}, expected {getattr(a, name).shape}")
             if not np.all(np.isfinite(new)):
                 raise ValueError(f"state.{name} is not finite")
+        R = np.asarray(state.R, dtype=np.float64)
+        err = float(np.abs(R.T @ R - np.eye(3)).max())
+        if not (err <= ROTATION_TOL and np.linalg.det(R) > 0):
+            raise ValueError(f"state.R must be a rotation: max|R^T R - I| = {err:.3g} (at most {ROTATION_TOL:g}), "
+                             f"det R = {np.linalg.det(R):.6g}")
         for name in ("r", "p", "R", "Pi"):
             getattr(a, name)[...] = getattr(state, name)
         self._step = int(state.step)

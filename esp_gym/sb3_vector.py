@@ -15,6 +15,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 from . import MAX_EPISODE_STEPS
 from .control import INFO_REWARD_KEYS, ControlStep, make_setup
 from .kernels.layout import termination_reason
+from .options import check_count
 from .vector import reset_sub_env
 
 
@@ -28,9 +29,12 @@ class ElasticStringPendulumSB3VecEnv(VecEnv):
     """
 
     def __init__(self, num_envs: int = 1, max_episode_steps: Optional[int] = MAX_EPISODE_STEPS, **kwargs: Any):
+        num_envs = check_count("num_envs", num_envs)
+        if max_episode_steps is not None:
+            max_episode_steps = check_count("max_episode_steps", max_episode_steps)
         self.setup = make_setup(**kwargs)
-        self.control = ControlStep(self.setup, int(num_envs))
-        super().__init__(int(num_envs), self.setup.observation_space, self.setup.action_space)
+        self.control = ControlStep(self.setup, num_envs)
+        super().__init__(num_envs, self.setup.observation_space, self.setup.action_space)
         self.max_episode_steps = max_episode_steps
         self._rngs = [np.random.default_rng() for _ in range(self.num_envs)]
         self._elapsed = np.zeros(self.num_envs, dtype=np.int64)

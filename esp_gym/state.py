@@ -64,6 +64,56 @@ def mass_matrix(scene: Scene):
     return diag, off, end
 
 
+def attachment_column(diag, off: float, cp, first: int) -> np.ndarray:
+    """``w = M_tot^-1 e_{N+1}``, the attachment node's column of the inverse mass matrix (the
+    Schur complement of kernels/lgvi.py), in O(N) from the Thomas factors ``cp`` of
+    :func:`~esp_gym.kernels.string.tridiag_factor`. Rows before ``first`` (a fixed pivot) are 0.
+
+    The forward sweep of e_{N+1} leaves it unchanged until the last row, so only the back
+    substitution remains: ``w_N = 1/u_N``, ``w_a = -(off w_{a+1}) / u_a``, with the elimination
+    pivots ``u_a = diag_a - off cp_{a-1}``. Evaluated in this order it gives the bits of the
+    dense LU solve it replaces (which cost O(N^3) time and O(N^2) memory: 23 s at N = 8,000,
+    74.5 GiB asked for at N = 100,000); tests/test_simulator.py checks both."""
+    n = diag.shape[0] - 1
+    pivots = np.zeros(n + 1)
+    pivots[first] = diag[first]
+    pivots[first + 1:] = diag[first + 1:] - off * cp[first:n]
+    w = np.zeros(n + 1)
+    w[n] = 1.0 / pivots[n]
+    for a in range(n - 1, first - 1, -1):
+        w[a] = -(off * w[a + 1]) / pivots[a]
+    return w
+
+
+#: Bytes a :class:`~esp_gym.model.Simulator` holds per string node, an upper bound (state, remainders,
+#: forces, scratch, checkpoint, diagnostics, constants; tests/test_simulator.py measures it).
+BYTES_PER_NODE = 8 * 64
+
+
+def check_memory(elements: int, copies: int = 1) -> None:
+    """Raise MemoryError, before anything is allocated, if ``copies`` simulators of a string
+    with ``elements`` elements would not fit in the memory available now."""
+    needed = BYTES_PER_NODE * (int(elements) + 1) * int(copies)
+    available = available_memory()
+    if available is not None and needed > available:
+        many = f"{copies} environments with " if copies > 1 else ""
+        raise MemoryError(f"string.elements = {elements}: {many}a string this long needs about "
+                          f"{needed / 2**30:.1f} GiB, and {available / 2**30:.1f} GiB of memory is available")
+
+
+def available_memory():
+    """Bytes of memory available to a new allocation (Linux ``MemAvailable``), or None where
+    unknown."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
 def build_params(scene: Scene) -> LGVIParams:
     """Scene -> the flat constants of the compiled stepper (see kernels/lgvi.py)."""
     n, m = scene.string.elements, scene.string.m
@@ -75,13 +125,7 @@ def build_params(scene: Scene) -> LGVIParams:
     diag, off, _ = mass_matrix(scene)
     first = 0 if scene.pivot.is_free else 1
     inv, cp = tridiag_factor(diag, off)
-    # w = M_tot^-1 e_{N+1}: the attachment column of the inverse (Schur complement)
-    k = n + 1 - first
-    dense = np.diag(diag[first:]) + off * (np.eye(k, k=1) + np.eye(k, k=-1))
-    e = np.zeros(k)
-    e[-1] = 1.0
-    w = np.zeros(n + 1)
-    w[first:] = np.linalg.solve(dense, e)
+    w = attachment_column(diag, off, cp, first)
     s = inv[n]  # (M_tot^-1)_{N+1,N+1} equals the last Thomas pivot inverse
     Jeff = J + M * M * s * hat(rho) @ hat(rho)
     return LGVIParams(

@@ -114,7 +114,7 @@ def sample_episode(task: Task, scene: Scene, rng: np.random.Generator):
 
     The string starts straight, statically stretched, at a swing angle up to max_swing_deg in a
     random azimuth from the pivot; the body hangs with its centre of mass along the string
-    (random yaw about it); pivot and attachment velocities are uniform in +-max_speed per axis
+    (a centred load, rho_c = 0: its body z axis; random yaw about it); pivot and attachment velocities are uniform in +-max_speed per axis
     (the string's velocity interpolates between them), body rates uniform in +-max_spin.
     stabilize: targets are the origin for the pivot and the rest position below it for the load;
     the pivot starts within 0.1 m of the origin. transport: the pivot starts at the origin and
@@ -129,7 +129,9 @@ def sample_episode(task: Task, scene: Scene, rng: np.random.Generator):
     d = np.array([math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), math.cos(theta)])
     r = start + static_node_depths(scene)[:, None] * d
     rho = np.asarray(scene.body.rho_c, dtype=float)
-    R = _rotation_between(rho / np.linalg.norm(rho), d)
+    norm = float(np.linalg.norm(rho))
+    # the centre of mass along the string; a centred load (rho_c = 0) has its body z axis there
+    R = _rotation_between(rho / norm if norm > 0 else np.array([0.0, 0.0, 1.0]), d)
     R = _axis_rotation(d, rng.uniform(-math.pi, math.pi)) @ R
     v_pivot = rng.uniform(-task.max_speed, task.max_speed, 3)
     v_attach = rng.uniform(-task.max_speed, task.max_speed, 3)

@@ -21,6 +21,7 @@ from gymnasium.vector.utils import batch_space
 from . import MAX_EPISODE_STEPS
 from .control import INFO_REWARD_KEYS, ControlStep, make_setup
 from .kernels.layout import termination_reason
+from .options import check_count
 from .tasks import sample_episode
 
 
@@ -56,8 +57,10 @@ class ElasticStringPendulumVectorEnv(VectorEnv):
     def __init__(self, num_envs: int = 1, max_episode_steps: Optional[int] = MAX_EPISODE_STEPS, render_mode=None, **kwargs: Any):
         if render_mode is not None:
             raise ValueError("the vector environment does not render; use the single environment")
+        self.num_envs = check_count("num_envs", num_envs)
+        if max_episode_steps is not None:
+            max_episode_steps = check_count("max_episode_steps", max_episode_steps)
         self.setup = make_setup(**kwargs)
-        self.num_envs = int(num_envs)
         self.control = ControlStep(self.setup, self.num_envs)
         self.single_observation_space = self.setup.observation_space
         self.single_action_space = self.setup.action_space

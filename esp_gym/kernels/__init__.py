@@ -3,9 +3,11 @@
 numba's on-disk cache (``cache=True``) checks only the modification time of the file that
 defines a function, so a kernel that calls into an edited sibling file would load stale machine
 code. The cache therefore lives in a directory named after a hash of every kernel source file:
-any edit here starts a fresh cache. Its base is ``$NUMBA_CACHE_DIR`` if set, else this package's
-``__pycache__`` (or ``~/.cache/esp_gym`` where that is not writable). ``jit.kernel`` sets it for
-every kernel, including those compiled later (the specialised step kernels of specialise.py).
+any edit here starts a fresh cache. Its base is the first writable one of ``$NUMBA_CACHE_DIR``,
+this package's ``__pycache__``, ``$XDG_CACHE_HOME/esp_gym``, ``~/.cache/esp_gym`` and the
+temporary directory; with none writable the kernels compile without a cache, with a warning
+(``jit.choose_cache_dir``). ``jit.kernel`` sets it for every kernel, including those compiled
+later (the specialised step kernels of specialise.py).
 
 Modules: layout.py (every packed array's named layout and the status table), so3.py, string.py,
 lgvi.py (one step), loops.py (many steps, checkpoints, recorded runs), specialise.py,

@@ -24,6 +24,8 @@ inherit the flag.
 """
 import hashlib
 import os
+import tempfile
+import warnings
 from pathlib import Path
 
 import numba
@@ -36,23 +38,65 @@ _HERE = Path(__file__).resolve().parent
 _DIGEST = hashlib.sha256(b"".join(p.read_bytes() for p in sorted(_HERE.glob("*.py")))).hexdigest()[:16]
 
 
-def _cache_dir() -> str:
-    base = os.environ.get("NUMBA_CACHE_DIR")
-    if not base:
-        base = str(_HERE / "__pycache__")
+def writable_dir(path: str) -> bool:
+    """Whether the directory ``path`` exists or can be made, and a file can be created in it
+    (``os.access`` is not enough: it says yes to root on a read-only mount)."""
+    try:
+        os.makedirs(path, exist_ok=True)
+        fd, probe = tempfile.mkstemp(dir=path, prefix=".esp_gym-probe-")
+        os.close(fd)
+        os.unlink(probe)
+        return True
+    except OSError:
+        return False
+
+
+def cache_candidates(environ=os.environ, package_dir: Path = _HERE) -> list:
+    """Where the kernel cache may live, in order of preference: ``(what, base directory)``."""
+    candidates = []
+    if environ.get("NUMBA_CACHE_DIR"):
+        candidates.append(("NUMBA_CACHE_DIR", environ["NUMBA_CACHE_DIR"]))
+    candidates.append(("the package directory", str(package_dir / "__pycache__")))
+    if environ.get("XDG_CACHE_HOME"):
+        candidates.append(("XDG_CACHE_HOME", os.path.join(environ["XDG_CACHE_HOME"], "esp_gym")))
+    home = environ.get("HOME")
+    if not home:
         try:
-            os.makedirs(base, exist_ok=True)
-        except OSError:
-            base = ""
-        if not base or not os.access(base, os.W_OK):
-            base = str(Path.home() / ".cache" / "esp_gym")
-    return os.path.join(base, f"esp_gym-kernels-{_DIGEST}")
+            home = str(Path.home())
+        except (RuntimeError, KeyError):  # no home directory at all
+            home = None
+    if home:
+        candidates.append(("the home directory", os.path.join(home, ".cache", "esp_gym")))
+    user = str(os.getuid()) if hasattr(os, "getuid") else "user"
+    temp = environ.get("TMPDIR") or tempfile.gettempdir()
+    candidates.append(("the temporary directory", os.path.join(temp, f"esp_gym-cache-{user}")))
+    return candidates
 
 
-#: Where every kernel's compiled code is cached (see esp_gym/kernels/__init__.py).
-CACHE_DIR = _cache_dir()
+def choose_cache_dir(environ=os.environ, package_dir: Path = _HERE) -> tuple:
+    """``(cache directory or None, warning or None)``: the first writable candidate of
+    :func:`cache_candidates`, in a subdirectory named after the kernel sources' hash. None when
+    nothing is writable: the kernels then compile without a cache (every process compiles)."""
+    skipped = []
+    for what, base in cache_candidates(environ, package_dir):
+        path = os.path.join(base, f"esp_gym-kernels-{_DIGEST}")
+        if writable_dir(path):
+            warning = None
+            if skipped and (skipped[0] == "NUMBA_CACHE_DIR" or what == "the temporary directory"):
+                warning = (f"esp_gym: cannot write the kernel cache in {', '.join(skipped)}; using {path} "
+                           f"(set NUMBA_CACHE_DIR or XDG_CACHE_HOME to a writable directory)")
+            return path, warning
+        skipped.append(what)
+    return None, ("esp_gym: no writable directory for the kernel cache (tried " + ", ".join(skipped) +
+                  "); kernels compile in every process. Set NUMBA_CACHE_DIR to a writable directory.")
 
-JIT_OPTIONS = dict(cache=True, nogil=True, fastmath=False, error_model="numpy", boundscheck=False, _nrt=False)
+
+#: Where every kernel's compiled code is cached (see esp_gym/kernels/__init__.py); None: no cache.
+CACHE_DIR, _CACHE_WARNING = choose_cache_dir()
+if _CACHE_WARNING:
+    warnings.warn(_CACHE_WARNING, RuntimeWarning, stacklevel=2)
+
+JIT_OPTIONS = dict(cache=CACHE_DIR is not None, nogil=True, fastmath=False, error_model="numpy", boundscheck=False, _nrt=False)
 
 
 def kernel(fn=None, **extra):
@@ -64,7 +108,7 @@ def kernel(fn=None, **extra):
         # cache=True fixes the cache location when the function is decorated: set ours for
         # that moment, then give numba its setting back.
         previous = numba.config.CACHE_DIR
-        numba.config.CACHE_DIR = CACHE_DIR
+        numba.config.CACHE_DIR = CACHE_DIR or previous
         try:
             return njit(**options)(f)
         finally:

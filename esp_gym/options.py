@@ -1,0 +1,79 @@
+"""The environments' arguments, validated in one place (pydantic): the single env, both vector
+envs and the recording wrapper build their setup from :class:`EnvOptions`, and the batch size
+goes through :func:`check_count`.
+
+Numbers are checked, not coerced: a bool or a string where a number belongs is an error (lax
+validation would turn ``True`` into 1.0 and ``"0.02"`` into 0.02), as are NaN, infinities and a
+fractional count. Every error names the argument.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any, Optional, Union
+
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError
+
+from .params import Scene
+
+#: Physics steps per control step above which the environment refuses to start: past this a
+#: single ``step`` costs tens of milliseconds or more (0.33 us per physics step at N = 20).
+MAX_SUBSTEPS = 100_000
+
+
+def _number_not_text_or_bool(value: Any) -> Any:
+    if isinstance(value, (bool, str, bytes)):
+        raise ValueError(f"must be a number, not {type(value).__name__}")
+    return value
+
+
+Real = Annotated[float, BeforeValidator(_number_not_text_or_bool)]
+Count = Annotated[int, BeforeValidator(_number_not_text_or_bool)]
+
+
+class EnvOptions(BaseModel):
+    """Arguments of ElasticStringPendulum-v0 (see :class:`~esp_gym.env.ElasticStringPendulumEnv`)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, arbitrary_types_allowed=True)
+
+    scene: Union[Scene, Path, str] = "drone_load"
+    task: str = "stabilize"
+    control_period: Real = Field(0.02, gt=0, allow_inf_nan=False, description="seconds per step")
+    h: Optional[Real] = Field(None, gt=0, allow_inf_nan=False, description="physics step [s]")
+    safety: Real = Field(0.5, gt=0, le=1, allow_inf_nan=False)
+    force_limit: Optional[Real] = Field(None, gt=0, allow_inf_nan=False, description="[N] at action 1")
+    torque_limit: Real = Field(0.02, ge=0, allow_inf_nan=False, description="[N m] at action 1")
+    scene_overrides: Optional[dict] = None
+
+
+def validation_message(error: ValidationError, what: str) -> str:
+    """One line per bad argument: ``what: name: problem (got value)``."""
+    lines = []
+    for e in error.errors():
+        name = ".".join(str(p) for p in e["loc"]) or "arguments"
+        got = e.get("input")
+        detail = e["msg"].replace("Value error, ", "")
+        lines.append(f"{what}: {name}: {detail} (got {got!r})" if e["type"] != "extra_forbidden"
+                     else f"{what}: unknown argument {name!r}")
+    return "\n".join(lines)
+
+
+def env_options(**kwargs: Any) -> EnvOptions:
+    """:class:`EnvOptions` from keyword arguments; ValueError naming each bad one."""
+    try:
+        return EnvOptions(**kwargs)
+    except ValidationError as e:
+        raise ValueError(validation_message(e, "ElasticStringPendulum-v0")) from None
+
+
+class _Count(BaseModel):
+    value: Count = Field(ge=1)
+
+
+def check_count(name: str, value: Any) -> int:
+    """``value`` as an int >= 1 (a number of environments, steps, ...): ValueError naming
+    ``name`` for a fraction, a bool, a string or anything below 1."""
+    try:
+        return _Count(value=value).value
+    except ValidationError as e:
+        detail = e.errors()[0]["msg"].replace("Value error, ", "")
+        raise ValueError(f"{name} must be a whole number >= 1: {detail} (got {value!r})") from None

@@ -1,0 +1,86 @@
+"""Where the compiled kernels are cached, and what happens when nowhere is writable."""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from esp_gym.kernels.jit import choose_cache_dir
+
+ROOT = Path(__file__).resolve().parent.parent
+#: Nothing can be created under /proc, not even by root (for whom permission bits do not count).
+UNWRITABLE = "/proc/esp_gym-unwritable"
+
+
+def _environ(**extra):
+    return {"HOME": UNWRITABLE + "/home", "TMPDIR": UNWRITABLE + "/tmp", **extra}
+
+
+def test_an_unwritable_numba_cache_dir_falls_back_with_a_warning(tmp_path):
+    path, warning = choose_cache_dir(_environ(NUMBA_CACHE_DIR=UNWRITABLE), package_dir=tmp_path)
+    assert path.startswith(str(tmp_path / "__pycache__"))
+    assert "NUMBA_CACHE_DIR" in warning
+
+
+def test_the_temporary_directory_is_the_last_resort(tmp_path):
+    path, warning = choose_cache_dir(_environ(TMPDIR=str(tmp_path)), package_dir=Path(UNWRITABLE))
+    assert path.startswith(str(tmp_path)) and "using" in warning
+
+
+def test_with_nothing_writable_the_kernels_run_uncached():
+    path, warning = choose_cache_dir(_environ(XDG_CACHE_HOME=UNWRITABLE), package_dir=Path(UNWRITABLE))
+    assert path is None
+    assert "compile in every process" in warning and "NUMBA_CACHE_DIR" in warning
+
+
+def test_a_writable_package_directory_needs_no_warning(tmp_path):
+    assert choose_cache_dir({}, package_dir=tmp_path)[1] is None
+
+
+def test_a_kernel_runs_when_numba_cache_dir_is_unwritable():
+    """End to end: before the fallback this raised numba's "cannot cache function ... no locator
+    available" at the first compiled call."""
+    code = ("import numpy as np; from esp_gym.kernels.lgvi import kahan_add; "
+            "x = np.zeros(1); c = np.zeros(1); kahan_add(x, c, 0, 0.5); print(x[0])")
+    env = {**os.environ, "NUMBA_CACHE_DIR": UNWRITABLE}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, env=env,
+                          timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == "0.5"
+    assert "cannot write the kernel cache in NUMBA_CACHE_DIR" in done.stderr
+
+
+def _mount_read_only(source: Path, target: Path) -> bool:
+    target.mkdir()
+    for args in (["mount", "--bind", str(source), str(target)], ["mount", "-o", "remount,bind,ro", str(target)]):
+        if subprocess.run(args, capture_output=True).returncode != 0:
+            subprocess.run(["umount", str(target)], capture_output=True)
+            return False
+    return True
+
+
+def test_a_read_only_package_without_a_home_still_runs(tmp_path):
+    """The defect as found: the package on a read-only mount, HOME unwritable, no
+    NUMBA_CACHE_DIR. Before the fallback the first compiled call raised "cannot cache function
+    ... no locator available"; now the cache goes to the temporary directory, with a warning."""
+    source = tmp_path / "source"
+    shutil.copytree(ROOT / "esp_gym", source / "esp_gym", ignore=shutil.ignore_patterns("__pycache__"))
+    mounted = tmp_path / "mounted"
+    if not _mount_read_only(source, mounted):
+        pytest.skip("cannot make a read-only bind mount here (needs root)")
+    try:
+        code = ("import numpy as np; from esp_gym.kernels.lgvi import kahan_add; "
+                "x = np.zeros(1); c = np.zeros(1); kahan_add(x, c, 0, 0.5); print(x[0])")
+        env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "XDG_CACHE_HOME")}
+        env.update(HOME=UNWRITABLE, PYTHONPATH=str(mounted), TMPDIR=str(tmp_path))
+        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd="/", env=env,
+                              timeout=600)
+    finally:
+        subprocess.run(["umount", str(mounted)], capture_output=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == "0.5"
+    assert f"using {tmp_path}" in done.stderr
