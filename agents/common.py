@@ -1,11 +1,11 @@
-"""Shared pieces of the agent scripts: dataclass settings -> argparse, configs, environments,
+"""Shared pieces of the agent scripts: run configs (with ``--set`` overrides), schedules, the
 progress bar, learning curves."""
 from __future__ import annotations
 
-import argparse
-import dataclasses
+import copy
 import inspect
 import json
+import re
 from pathlib import Path
 from typing import Any, Optional
 
@@ -17,22 +17,6 @@ from tqdm.auto import tqdm
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIG_DIR = ROOT / "configs" / "agents"
-
-
-def parse_settings(cls, argv=None, description: str = ""):
-    """Build an argparse parser from a dataclass whose fields carry ``metadata={"help": ...}``."""
-    ap = argparse.ArgumentParser(description=description, formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    for f in dataclasses.fields(cls):
-        name = "--" + f.name.replace("_", "-")
-        help_ = f.metadata.get("help", "")
-        if f.type in ("bool", bool):
-            ap.add_argument(name, action=argparse.BooleanOptionalAction, default=f.default, help=help_)
-        elif f.metadata.get("nargs"):
-            ap.add_argument(name, nargs=f.metadata["nargs"], default=[], metavar="KEY=VALUE", help=help_)
-        else:
-            typ = f.metadata.get("type", str)
-            ap.add_argument(name, type=typ, default=f.default, choices=f.metadata.get("choices"), help=help_)
-    return cls(**vars(ap.parse_args(argv)))
 
 
 class RunConfig(BaseModel):
@@ -47,37 +31,152 @@ class RunConfig(BaseModel):
     algo: dict = {}
 
 
-def load_run_config(algo_name: str, env_id: str, task: str, overrides: list[str]) -> RunConfig:
-    """Hyper-parameters from configs/agents/ALGO.yaml[env_id][task], with KEY=VALUE overrides
-    (values parsed as YAML, dotted keys for nested dicts). Unknown keys raise ValueError naming them."""
+class ConfigError(ValueError):
+    """A bad hyper-parameter, named with its dotted key; ``override`` is the ``--set`` item at
+    fault, or None when the config file itself is."""
+
+    def __init__(self, message: str, override: Optional[str] = None):
+        super().__init__(message)
+        self.override = override
+
+
+class _ValueLoader(yaml.SafeLoader):
+    """YAML as written on a command line: ``3e-4`` is a float (YAML 1.1 wants ``3.0e-4``)."""
+
+
+_ValueLoader.add_implicit_resolver("tag:yaml.org,2002:float",
+                                   re.compile(r"^[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+                                   list("-+0123456789"))
+
+#: Run keys the training script passes itself, so a config may not set them.
+MANAGED_KEYS = {"self", "env", "policy", "seed", "device", "verbose", "_init_setup_model"}
+#: The keys of a dict ``policy_kwargs.net_arch`` (the actor's and the critic's layers).
+NET_ARCH_KEYS = {"ppo": {"pi", "vf"}, "sac": {"pi", "qf"}}
+
+
+def _parameters(func, exclude) -> set:
+    return set(inspect.signature(func).parameters) - set(exclude)
+
+
+def valid_keys(algo_name: str, path: tuple, tree: dict) -> Optional[set]:
+    """The keys a mapping at dotted ``path`` of a run config may hold, or None where this is
+    checked by whoever uses the value (e.g. ``env_kwargs.scene_overrides``, by the scene loader)."""
     from stable_baselines3 import PPO, SAC
 
-    path = CONFIG_DIR / f"{algo_name}.yaml"
-    data = yaml.safe_load(path.read_text())
+    algo = {"ppo": PPO, "sac": SAC}[algo_name]
+    if path == ():
+        return (set(RunConfig.model_fields) - {"algo"}) | _parameters(algo.__init__, MANAGED_KEYS)
+    if path == ("normalize",):
+        from stable_baselines3.common.vec_env import VecNormalize
+
+        return _parameters(VecNormalize.__init__, {"self", "venv", "training", "gamma"})  # gamma: the algorithm's
+    if path == ("policy_kwargs",):
+        policy = algo.policy_aliases.get(tree.get("policy", "MlpPolicy"))
+        if policy is None:
+            return None  # an unknown policy is the algorithm's error
+        return _parameters(policy.__init__, {"self", "observation_space", "action_space", "lr_schedule"})
+    if path == ("policy_kwargs", "net_arch"):
+        return NET_ARCH_KEYS[algo_name]
+    if path == ("env_kwargs",):
+        from esp_gym.control import make_setup
+
+        return _parameters(make_setup, {"task"})  # the task is --task
+    return None
+
+
+def unknown_key(algo_name: str, root: dict, node: Optional[dict] = None, path: tuple = ()) -> Optional[str]:
+    """The first key of the mapping ``node`` at dotted ``path`` of the run config ``root`` (default:
+    the whole config) that is not a valid one, as a message naming it and the valid keys."""
+    node = root if node is None else node
+    if not node:
+        return None
+    valid = valid_keys(algo_name, path, root)
+    for key, value in node.items():
+        if valid is not None and key not in valid:
+            return _unknown(path + (key,), valid)
+        if isinstance(value, dict):
+            found = unknown_key(algo_name, root, value, path + (key,))
+            if found:
+                return found
+    return None
+
+
+def _unknown(path: tuple, valid: set) -> str:
+    where = f" of {'.'.join(path[:-1])}" if len(path) > 1 else ""
+    return f"unknown key {'.'.join(path)!r}; valid keys{where}: {', '.join(sorted(valid))}"
+
+
+def apply_override(algo_name: str, tree: dict, item: str) -> None:
+    """Set ``KEY=VALUE`` in ``tree``: the value parsed as YAML, a dotted key walking into
+    nested mappings (created where absent); each key along the way must be a valid one."""
+    key, sep, text = item.partition("=")
+    parts = key.strip().split(".")
+    if not sep or not all(parts):
+        raise ConfigError(f"{item!r} is not KEY=VALUE (KEY may be dotted: policy_kwargs.net_arch=[64,64])", item)
     try:
-        raw = dict(data[env_id][task])
-    except KeyError:
-        raise ValueError(f"{path} has no entry {env_id}/{task}") from None
-    for item in overrides:
-        if "=" not in item:
-            raise ValueError(f"override {item!r} is not KEY=VALUE")
-        key, value = item.split("=", 1)
-        node = raw
-        parts = key.split(".")
-        for p in parts[:-1]:
-            node = node.setdefault(p, {})
-        node[parts[-1]] = yaml.safe_load(value)
-    cls = {"ppo": PPO, "sac": SAC}[algo_name]
-    accepted = set(inspect.signature(cls.__init__).parameters) - {"self", "env", "policy"}
+        value = yaml.load(text, Loader=_ValueLoader)
+    except yaml.YAMLError as err:
+        problem = getattr(err, "problem", None) or " ".join(str(err).split())
+        raise ConfigError(f"{item!r}: the value is not YAML ({problem})", item) from None
+    node = tree
+    for i, part in enumerate(parts):
+        valid = valid_keys(algo_name, tuple(parts[:i]), tree)
+        if valid is not None and part not in valid:
+            raise ConfigError(_unknown(tuple(parts[:i + 1]), valid) + f" (in {item!r})", item)
+        if i == len(parts) - 1:
+            node[part] = value
+        else:
+            child = node.get(part)
+            if child is None:
+                child = node[part] = {}
+            elif not isinstance(child, dict):
+                raise ConfigError(f"{'.'.join(parts[:i + 1])} is {child!r}, not a mapping, so {key!r} cannot be set "
+                                  f"(in {item!r})", item)
+            node = child
+    if isinstance(value, dict):
+        found = unknown_key(algo_name, tree, value, tuple(parts))
+        if found:
+            raise ConfigError(f"{found} (in {item!r})", item)
+
+
+def _build(algo_name: str, raw: dict) -> "RunConfig":
     top = set(RunConfig.model_fields) - {"algo"}
     algo_kwargs = {k: v for k, v in raw.items() if k not in top}
-    unknown = sorted(set(algo_kwargs) - accepted)
-    if unknown:
-        raise ValueError(f"unknown hyper-parameter(s) {unknown} for {algo_name.upper()} (in {path} or overrides)")
     try:
-        return RunConfig(**{k: v for k, v in raw.items() if k in top}, algo=algo_kwargs)
+        cfg = RunConfig(**{k: v for k, v in raw.items() if k in top}, algo=algo_kwargs)
     except ValidationError as err:
-        raise ValueError(f"invalid config {algo_name}/{env_id}/{task}: {err}") from None
+        problems = "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']} (got {e.get('input')!r})"
+                             for e in err.errors())
+        raise ValueError(problems) from None
+    resolve_schedules(cfg.algo)  # "lin_X" or a number
+    return cfg
+
+
+def load_run_config(algo_name: str, env_id: str, task: str, overrides: list[str]) -> RunConfig:
+    """Hyper-parameters from configs/agents/ALGO.yaml[env_id][task] with ``KEY=VALUE`` overrides
+    applied in order (see :func:`apply_override`). A bad key or value raises :class:`ConfigError`
+    naming it and, for a key, the valid ones."""
+    path = CONFIG_DIR / f"{algo_name}.yaml"
+    data = yaml.load(path.read_text(), Loader=_ValueLoader)
+    try:
+        raw = copy.deepcopy(dict(data[env_id][task]))
+    except (KeyError, TypeError):
+        raise ConfigError(f"{path} has no entry {env_id}/{task}") from None
+    where = f"{path} [{env_id}][{task}]"
+    found = unknown_key(algo_name, raw)
+    if found:
+        raise ConfigError(f"{where}: {found}")
+    try:
+        cfg = _build(algo_name, raw)
+    except ValueError as err:
+        raise ConfigError(f"{where}: {err}") from None
+    for item in overrides:
+        apply_override(algo_name, raw, item)
+        try:
+            cfg = _build(algo_name, raw)
+        except ValueError as err:
+            raise ConfigError(f"{err} (after {item!r})", item) from None
+    return cfg
 
 
 def linear_schedule(start: float):

@@ -8,27 +8,33 @@ with the raw numbers to ``--out`` (JSON).
 """
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
 
+from agents.cli import ArgumentParser
 from agents.controllers import ZeroPolicy
 from agents.evaluate import SB3Policy, evaluate_policy
 from esp_gym.tasks import TASKS
 
 
 def main(argv=None) -> dict:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = ArgumentParser(prog="python -m agents.compare", description=__doc__.split("\n\n")[0])
     ap.add_argument("--model", required=True, help="trained model .zip")
     ap.add_argument("--task", default="stabilize", choices=sorted(TASKS))
     ap.add_argument("--episodes", type=int, default=50)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default=None, help="JSON file for the results")
     a = ap.parse_args(argv)
+    ap.check_minimums(vars(a), episodes=1, seed=0)
+    ap.check_parent_dir("--out", a.out)
+    try:
+        model = SB3Policy(a.model)
+    except ValueError as err:  # ModelFileError, NormalizationFileError
+        ap.error(f"argument --model: {err}")
     rows = {
         "zero action": evaluate_policy(ZeroPolicy(), a.task, a.episodes, a.seed),
         "classical baseline (anti-sway PD)": evaluate_policy(None, a.task, a.episodes, a.seed),
-        f"trained ({Path(a.model).parent.name})": evaluate_policy(SB3Policy(a.model), a.task, a.episodes, a.seed),
+        f"trained ({Path(a.model).parent.name})": evaluate_policy(model, a.task, a.episodes, a.seed),
     }
     print(f"| policy ({a.task}, {a.episodes} episodes, seeds {a.seed}..{a.seed + a.episodes - 1}) "
           "| return (mean ± std) | success rate | final swing [deg] | mean swing [deg] |")

@@ -5,7 +5,9 @@
 prints one JSON line: mean_return, std_return, success_rate, mean_final_swing_deg (the swing
 measure: the load's swing angle at the episode's end, degrees), mean_swing_deg (over all steps),
 episodes, task, policy. Episode i uses seed ``seed + i``. A PATH is an SB3 model (.zip) saved
-by ``python -m agents.train``; its VecNormalize statistics (vecnormalize.pkl beside it) are applied.
+by ``python -m agents.train``; the normalisation statistics beside it (vecnormalize.npz, or a
+legacy vecnormalize.pkl read as data) are applied. Loading a model runs code from its archive:
+evaluate only models you trust (docs/agents.md).
 
 Success: the episode runs to the time limit and ends with the load within 0.1 m of its target
 and swinging less than 5 degrees.
@@ -16,7 +18,6 @@ the same with or without it.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import math
 from pathlib import Path
@@ -26,7 +27,10 @@ import gymnasium as gym
 import numpy as np
 
 import esp_gym
+from agents.artifacts import ModelFileError, load_model, stats_path_for
+from agents.cli import ArgumentParser
 from agents.controllers import ZeroPolicy, baseline
+from agents.normalization import NormalizationFileError, NormStats
 from esp_gym.tasks import TASKS
 
 SUCCESS_DISTANCE = 0.1  #: [m]
@@ -34,49 +38,42 @@ SUCCESS_SWING_DEG = 5.0
 
 
 class SB3Policy:
-    """A saved SB3 model (+ optional VecNormalize observation statistics), deterministic."""
+    """A saved SB3 model, deterministic, with the normalisation statistics that belong to it
+    (agents.artifacts.stats_path_for: ``vecnormalize.npz``, or a legacy ``vecnormalize.pkl`` read
+    as data, beside the model; ``model_vecnormalize_N_steps.*`` beside a checkpoint).
+    Loading the model itself runs code from its archive: load only models you trust."""
 
     def __init__(self, path: str | Path):
-        from stable_baselines3 import PPO, SAC
-
         path = Path(path)
-        if not path.is_file():
-            raise FileNotFoundError(f"no model at {path}")
-        args = path.parent / "args.json"  # written by train.py beside the model
-        algo = json.loads(args.read_text()).get("algo") if args.is_file() else None
-        candidates = [{"ppo": PPO, "sac": SAC}[algo]] if algo in ("ppo", "sac") else [PPO, SAC]
-        self.model = None
-        for cls in candidates:
-            try:
-                self.model = cls.load(path, device="cpu")
-                break
-            except (ValueError, KeyError, RuntimeError, TypeError):  # not this algorithm's file
-                continue
-        if self.model is None:
-            raise ValueError(f"{path} is not a PPO or SAC model")
-        self.obs_rms = None
-        stats = path.parent / "vecnormalize.pkl"
-        if stats.is_file():
-            import pickle
-
-            with open(stats, "rb") as fh:
-                vn = pickle.load(fh)
-            self.obs_rms, self.clip_obs, self.epsilon = vn.obs_rms, vn.clip_obs, vn.epsilon
+        self.model = load_model(path)
+        stats = stats_path_for(path)
+        #: agents.normalization.NormStats, or None when the model has no statistics beside it
+        self.normalization = NormStats.load(stats) if stats else None
+        expected = self.model.observation_space.shape
+        if self.normalization is not None and self.normalization.obs_mean.shape != expected:
+            raise NormalizationFileError(f"{stats}: statistics of observations of shape "
+                                         f"{self.normalization.obs_mean.shape}, the model takes {expected}")
 
     def act(self, obs, setup):
-        obs = np.asarray(obs, dtype=np.float32)
-        if self.obs_rms is not None:
-            obs = np.clip((obs - self.obs_rms.mean) / np.sqrt(self.obs_rms.var + self.epsilon),
-                          -self.clip_obs, self.clip_obs).astype(np.float32)
-        action, _ = self.model.predict(obs, deterministic=True)
+        if self.normalization is not None:
+            obs = self.normalization.normalize_obs(obs)
+        action, _ = self.model.predict(np.asarray(obs, dtype=np.float32), deterministic=True)
         return action
 
 
+#: The policies --policy names (anything else is the path of a model .zip).
+POLICY_NAMES = ("zero", "baseline")
+
+
 def load_policy(spec: str):
+    """``zero``, ``baseline`` (None: resolved per task by :func:`evaluate_policy`) or an
+    :class:`SB3Policy` from a model file; anything else raises ModelFileError naming it."""
     if spec == "zero":
         return ZeroPolicy()
-    if spec.startswith("baseline"):
-        return None  # resolved per task
+    if spec == "baseline":
+        return None
+    if not Path(spec).exists():
+        raise ModelFileError(f"{spec!r} is not one of {', '.join(POLICY_NAMES)} nor an existing model file")
     return SB3Policy(spec)
 
 
@@ -119,18 +116,21 @@ def evaluate_policy(policy, task: str = "stabilize", episodes: int = 50, seed: i
 
 
 def main(argv=None) -> dict:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = ArgumentParser(prog="python -m agents.evaluate", description=__doc__.split("\n\n")[0])
     ap.add_argument("--policy", default="baseline", help="zero, baseline or the path of a model .zip")
     ap.add_argument("--task", default="stabilize", choices=sorted(TASKS))
     ap.add_argument("--episodes", type=int, default=50)
-    ap.add_argument("--seed", type=int, default=0, help="episode i uses seed + i")
+    ap.add_argument("--seed", type=int, default=0, help="episode i uses seed + i (>= 0)")
     ap.add_argument("--record", metavar="FILE.rrd", default=None,
                     help="write a Rerun recording of the first episode to FILE.rrd")
     args = ap.parse_args(argv)
-    if args.episodes < 1:
-        ap.error("--episodes must be >= 1")
-    stats = evaluate_policy(load_policy(args.policy), task=args.task, episodes=args.episodes, seed=args.seed,
-                            record=args.record)
+    ap.check_minimums(vars(args), episodes=1, seed=0)
+    ap.check_parent_dir("--record", args.record)
+    try:
+        policy = load_policy(args.policy)
+    except ValueError as err:  # ModelFileError, NormalizationFileError
+        ap.error(f"argument --policy: {err}")
+    stats = evaluate_policy(policy, task=args.task, episodes=args.episodes, seed=args.seed, record=args.record)
     stats["policy"] = args.policy
     print(json.dumps(stats))
     return stats

@@ -1,15 +1,22 @@
 """Train a Stable-Baselines3 agent (PPO or SAC) on ElasticStringPendulum-v0.
 
     python -m agents.train --algo ppo --task stabilize --seed 0
-    python -m agents.train --algo ppo --task stabilize --set total_timesteps=200000 n_envs=8
-    python -m agents.train --resume runs/RUN/checkpoints/model_100000_steps.zip
+    python -m agents.train --algo ppo --task stabilize --set total_timesteps=200000 n_envs=8 --set 'policy_kwargs.net_arch.pi=[64,64]'
+    python -m agents.train --resume runs/RUN/checkpoints/model_100000_steps.zip --set total_timesteps=2000000
 
-Hyper-parameters come from configs/agents/{ppo,sac}.yaml keyed by env id and task; ``--set``
-overrides them (validated: unknown keys are errors). The batched SB3 VecEnv of esp_gym steps all
-training environments in one compiled call; VecNormalize normalises observations (and rewards
-where the config says so). A run directory ``runs/{env}__{algo}__{task}__{seed}__{time}`` receives
-model.zip, vecnormalize.pkl, config.yaml (resolved), args.json, command.txt, monitor.csv,
-evaluations.npz (EvalCallback), checkpoints/ and learning_curve.png.
+Hyper-parameters come from configs/agents/{ppo,sac}.yaml keyed by env id and task; ``--set
+KEY=VALUE ...`` (repeatable) overrides them in order: values are YAML, dotted keys reach into
+nested settings, unknown keys are errors that list the valid ones. The batched SB3 VecEnv of
+esp_gym steps all training environments in one compiled call; VecNormalize normalises
+observations (and rewards where the config says so). A run directory
+``runs/{env}__{algo}__{task}__{seed}__{time}`` receives model.zip, vecnormalize.npz,
+config.yaml (resolved), args.json, command.txt, status.json, monitor.csv, evaluations.npz
+(EvalCallback), checkpoints/ and learning_curve.png; it is created only once the settings are
+checked and the environments and the model are built (agents/runs.py).
+
+``--resume`` continues a run from one of its checkpoints in its own directory, with its own
+settings (``--set`` may add overrides, e.g. a larger total_timesteps); the monitor log and the
+evaluations continue from the checkpoint.
 """
 from __future__ import annotations
 
@@ -25,28 +32,47 @@ from typing import Optional
 import yaml
 
 import esp_gym
-from agents.common import (ROOT, TqdmCallback, json_default, load_run_config, parse_settings, plot_learning_curve,
-                           resolve_schedules)
+from agents.artifacts import ModelFileError, load_model
+from agents.cli import SettingsError, one_line, option_name, parse_settings, settings_parser
+from agents.common import (CONFIG_DIR, ROOT, ConfigError, RunConfig, TqdmCallback, json_default, load_run_config,
+                           plot_learning_curve, resolve_schedules)
 from agents.controllers import ZeroPolicy
 from agents.evaluate import evaluate_policy
+from agents.normalization import NormStats
+from agents.runs import Resume, RunCheckpoint, RunMonitor, write_status
 from esp_gym.tasks import TASKS
 
 
 @dataclass
 class Settings:
-    algo: str = field(default="ppo", metadata={"help": "algorithm", "choices": ["ppo", "sac"]})
-    task: str = field(default="stabilize", metadata={"help": "task", "choices": sorted(TASKS)})
-    seed: int = field(default=0, metadata={"help": "seed of the agent and of the environments (seed + i)", "type": int})
-    set: list = field(default_factory=list, metadata={"help": "hyper-parameter overrides KEY=VALUE (YAML values)", "nargs": "*"})
-    runs: str = field(default=str(ROOT / "runs"), metadata={"help": "where run directories go"})
-    run_name: Optional[str] = field(default=None, metadata={"help": "run directory name (default: generated)"})
-    eval_freq: int = field(default=50_000, metadata={"help": "environment steps between evaluations", "type": int})
-    eval_episodes: int = field(default=10, metadata={"help": "episodes per evaluation", "type": int})
-    checkpoint_freq: int = field(default=500_000, metadata={"help": "environment steps between checkpoints", "type": int})
-    resume: Optional[str] = field(default=None, metadata={"help": "checkpoint .zip to resume from (its run directory is reused)"})
+    algo: str = field(default="ppo", metadata={"help": "algorithm", "choices": ["ppo", "sac"], "run": True})
+    task: str = field(default="stabilize", metadata={"help": "task", "choices": sorted(TASKS), "run": True})
+    seed: int = field(default=0, metadata={"help": "seed of the agent and of the environments (seed + i)", "type": int,
+                                           "min": 0, "run": True})
+    set: list = field(default_factory=list, metadata={
+        "help": "hyper-parameter overrides KEY=VALUE (YAML values, dotted keys for nested settings; repeatable)",
+        "nargs": "+", "action": "extend"})
+    runs: str = field(default=str(ROOT / "runs"), metadata={"help": "where run directories go", "run": True})
+    run_name: Optional[str] = field(default=None, metadata={"help": "run directory name (default: generated)",
+                                                            "run": True})
+    eval_freq: int = field(default=50_000, metadata={"help": "environment steps between evaluations", "type": int,
+                                                     "min": 1, "run": True})
+    eval_episodes: int = field(default=10, metadata={"help": "episodes per evaluation", "type": int, "min": 1,
+                                                     "run": True})
+    checkpoint_freq: int = field(default=500_000, metadata={"help": "environment steps between checkpoints",
+                                                            "type": int, "min": 1, "run": True})
+    resume: Optional[str] = field(default=None, metadata={
+        "help": "checkpoint RUN/checkpoints/model_N_steps.zip to resume from (in RUN, with RUN's settings)"})
     progress: bool = field(default=True, metadata={"help": "show a progress bar"})
-    threads: int = field(default=1, metadata={"help": "torch threads (the physics uses the other core)", "type": int})
-    reference_episodes: int = field(default=10, metadata={"help": "episodes for the zero/baseline reference returns drawn on the learning curve", "type": int})
+    threads: int = field(default=1, metadata={"help": "torch threads (the physics uses the other core)", "type": int,
+                                              "min": 1})
+    reference_episodes: int = field(default=10, metadata={
+        "help": "episodes for the zero/baseline reference returns drawn on the learning curve", "type": int, "min": 1,
+        "run": True})
+
+
+#: Settings that define a run: a resumed run takes them from its args.json (giving one is an error).
+RUN_SETTINGS = frozenset(f.name for f in dataclasses.fields(Settings) if f.metadata.get("run"))
 
 
 def _make_vec_env(n_envs: int, task: str, seed: int, env_kwargs: dict,
@@ -58,80 +84,199 @@ def _make_vec_env(n_envs: int, task: str, seed: int, env_kwargs: dict,
     return venv
 
 
-def train(s: Settings, argv: Optional[list] = None) -> Path:
-    """Run one training; returns the run directory. ``argv``: the command-line arguments
-    recorded in command.txt (default: this process's)."""
-    import torch
+@dataclass
+class Prepared:
+    """A checked run, its environments and its model, before anything is written."""
+
+    settings: Settings
+    cfg: RunConfig
+    run_dir: Path
+    resume: Optional[Resume]
+    monitor: RunMonitor
+    venv: object
+    eval_env: object
+    model: object
+
+
+def _config(s: Settings) -> RunConfig:
+    try:
+        cfg = load_run_config(s.algo, esp_gym.ENV_ID, s.task, s.set)
+    except ConfigError as err:
+        raise SettingsError("--set" if err.override else None, str(err)) from None
+    from esp_gym.control import make_setup
+
+    try:  # env_kwargs' values, checked here rather than by the first environment
+        make_setup(task=s.task, **cfg.env_kwargs)
+    except (ValueError, TypeError) as err:
+        touched = any(item.split("=", 1)[0].split(".")[0] == "env_kwargs" for item in s.set)
+        raise SettingsError("--set" if touched else None,
+                            f"env_kwargs {cfg.env_kwargs}: {one_line(err)}"
+                            + ("" if touched else f" (from {CONFIG_DIR / (s.algo + '.yaml')})")) from None
+    return cfg
+
+
+def _new_run_dir(s: Settings) -> Path:
+    if s.run_name is not None and (Path(s.run_name).name != s.run_name or s.run_name in ("", ".", "..")):
+        raise SettingsError("--run-name", f"{s.run_name!r} is not a directory name")
+    runs = Path(s.runs)
+    if runs.exists() and not runs.is_dir():
+        raise SettingsError("--runs", f"{runs} is not a directory")
+    name = s.run_name or f"{esp_gym.ENV_ID}__{s.algo}__{s.task}__{s.seed}__{time.strftime('%Y%m%d-%H%M%S')}"
+    run_dir = runs / name
+    if run_dir.exists():
+        raise SettingsError("--run-name" if s.run_name else "--runs", f"{run_dir} already exists")
+    return run_dir
+
+
+def prepare(s: Settings, given: frozenset = frozenset()) -> Prepared:
+    """Check the settings and build the environments and the model; raises SettingsError (one
+    line, naming the argument) for anything wrong, having written nothing. ``given``: the
+    settings the command line set (those of RUN_SETTINGS conflict with ``--resume``)."""
     from stable_baselines3 import PPO, SAC
-    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
-    torch.set_num_threads(max(1, s.threads))
-    env_id = esp_gym.ENV_ID
+    resume = None
     if s.resume:
-        ckpt = Path(s.resume)
-        if not ckpt.is_file():
-            raise SystemExit(f"--resume: no checkpoint at {ckpt}")
-        run_dir = ckpt.parent.parent
-        saved = json.loads((run_dir / "args.json").read_text())
-        # the run's own settings; extra --set overrides (e.g. a larger total_timesteps) apply on top
-        s = dataclasses.replace(s, algo=saved["algo"], task=saved["task"], seed=saved["seed"], set=saved["set"] + s.set)
-    cfg = load_run_config(s.algo, env_id, s.task, s.set)
-    if not s.resume:
-        name = s.run_name or f"{env_id}__{s.algo}__{s.task}__{s.seed}__{time.strftime('%Y%m%d-%H%M%S')}"
-        run_dir = Path(s.runs) / name
-        run_dir.mkdir(parents=True, exist_ok=False)
-        (run_dir / "config.yaml").write_text(yaml.safe_dump(cfg.model_dump(), sort_keys=False))
-        (run_dir / "args.json").write_text(json.dumps(dataclasses.asdict(s), indent=2, default=json_default))
-        args = sys.argv[1:] if argv is None else list(argv)
-        (run_dir / "command.txt").write_text(shlex.join([sys.executable, "-m", "agents.train", *args]) + "\n")
-        n_ref = max(1, s.reference_episodes)
-        refs = {"baseline_return": evaluate_policy(None, s.task, n_ref, seed=10_000, env_kwargs=cfg.env_kwargs)["mean_return"],
-                "zero_return": evaluate_policy(ZeroPolicy(), s.task, n_ref, seed=10_000, env_kwargs=cfg.env_kwargs)["mean_return"]}
-        (run_dir / "references.json").write_text(json.dumps(refs))
-
-    venv = VecMonitor(_make_vec_env(cfg.n_envs, s.task, s.seed, cfg.env_kwargs), str(run_dir / "monitor.csv"))
-    eval_env = VecMonitor(_make_vec_env(min(4, s.eval_episodes), s.task, s.seed + 10_000, cfg.env_kwargs))
-    if cfg.normalize:
-        if s.resume:
-            stats = sorted(ckpt.parent.glob(f"*vecnormalize_{ckpt.stem.split('_')[-2]}_steps.pkl"))
-            if not stats:
-                raise SystemExit(f"--resume: no VecNormalize statistics beside {ckpt}")
-            venv = VecNormalize.load(str(stats[-1]), venv)
-        else:
-            venv = VecNormalize(venv, gamma=cfg.algo.get("gamma", 0.99), **cfg.normalize)
-        eval_env = VecNormalize(eval_env, training=False, norm_reward=False, clip_obs=cfg.normalize.get("clip_obs", 10.0))
-    cls = {"ppo": PPO, "sac": SAC}[s.algo]
-    if s.resume:
-        model = cls.load(s.resume, env=venv, device="cpu")
+        clash = sorted(given & RUN_SETTINGS)
+        if clash:
+            raise SettingsError(option_name(clash[0]), "not allowed with --resume (a resumed run keeps its own "
+                                                       "settings; --set adds overrides)")
+        try:
+            resume = Resume.read(s.resume)
+        except ValueError as err:
+            raise SettingsError("--resume", str(err)) from None
+        saved = {k: v for k, v in resume.saved.items() if k in RUN_SETTINGS}
+        s = dataclasses.replace(s, **saved, set=list(resume.saved["set"]) + list(s.set))
+    cfg = _config(s)
+    if resume:
+        run_dir = resume.run_dir
+        if cfg.total_timesteps <= resume.steps:
+            raise SettingsError("--resume", f"the checkpoint is at step {resume.steps}, the run's total_timesteps is "
+                                            f"{cfg.total_timesteps}: raise it with --set total_timesteps=N")
+        if cfg.normalize and resume.stats is None:
+            raise SettingsError("--resume", f"no normalisation statistics beside {resume.checkpoint} "
+                                            f"(model_vecnormalize_{resume.steps}_steps.npz or .pkl)")
     else:
-        model = cls(cfg.policy, venv, seed=s.seed, device="cpu", verbose=0, **resolve_schedules(cfg.algo))
-    callbacks = CallbackList([
-        EvalCallback(eval_env, n_eval_episodes=s.eval_episodes, eval_freq=max(1, s.eval_freq // cfg.n_envs),
-                     log_path=str(run_dir), best_model_save_path=str(run_dir / "best"), deterministic=True, verbose=0),
-        CheckpointCallback(save_freq=max(1, s.checkpoint_freq // cfg.n_envs), save_path=str(run_dir / "checkpoints"),
-                           name_prefix="model", save_vecnormalize=True),
-        TqdmCallback(cfg.total_timesteps, disable=not s.progress),  # counts from the resumed step
-    ])
-    # a resumed run continues up to the configured total
-    remaining = cfg.total_timesteps - (model.num_timesteps if s.resume else 0)
-    start = time.perf_counter()
-    if remaining > 0:
-        model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=not s.resume)
-    wall = time.perf_counter() - start
-    model.save(run_dir / "model.zip")
+        run_dir = _new_run_dir(s)
+
+    monitor = RunMonitor(_make_vec_env(cfg.n_envs, s.task, s.seed, cfg.env_kwargs))
+    eval_env = VecMonitor(_make_vec_env(min(4, s.eval_episodes), s.task, s.seed + 10_000, cfg.env_kwargs))
+    venv = monitor
+    try:
+        if resume and resume.stats is not None:
+            venv = resume.stats.to_vecnormalize(monitor)
+        elif cfg.normalize and not resume:
+            venv = VecNormalize(monitor, gamma=cfg.algo.get("gamma", 0.99), **cfg.normalize)
+    except (ValueError, TypeError) as err:
+        raise SettingsError("--resume" if resume else "--set", f"normalize: {one_line(err)}") from None
     if isinstance(venv, VecNormalize):
-        venv.save(str(run_dir / "vecnormalize.pkl"))
-    summary = {"wall_time_s": wall, "timesteps": int(model.num_timesteps),
-               "steps_per_s": max(remaining, 0) / wall if wall > 0 else None}
-    (run_dir / "training.json").write_text(json.dumps(summary, indent=2))
-    plot_learning_curve(run_dir, f"{env_id} {s.task}: {s.algo.upper()} (seed {s.seed})")
+        eval_env = VecNormalize(eval_env, training=False, norm_reward=False, clip_obs=venv.clip_obs)
+    if resume:
+        try:
+            model = load_model(resume.checkpoint, env=venv)
+        except ModelFileError as err:
+            raise SettingsError("--resume", str(err)) from None
+    else:
+        cls = {"ppo": PPO, "sac": SAC}[s.algo]
+        try:
+            model = cls(cfg.policy, venv, seed=s.seed, device="cpu", verbose=0, **resolve_schedules(cfg.algo))
+        except (ValueError, TypeError, KeyError, AssertionError) as err:  # SB3 checks its arguments by assert
+            raise SettingsError("--set", f"{s.algo.upper()} rejects the configuration: "
+                                         f"{one_line(f'{type(err).__name__}: {err}')}") from None
+    return Prepared(s, cfg, run_dir, resume, monitor, venv, eval_env, model)
+
+
+def _record_settings(p: Prepared, argv: Optional[list]) -> None:
+    s, run_dir = p.settings, p.run_dir
+    args = sys.argv[1:] if argv is None else list(argv)
+    command = shlex.join([sys.executable, "-m", "agents.train", *args]) + "\n"
+    (run_dir / "config.yaml").write_text(yaml.safe_dump(p.cfg.model_dump(), sort_keys=False))
+    if p.resume:  # the run now includes the resume's overrides; its commands are kept in order
+        (run_dir / "args.json").write_text(json.dumps({**p.resume.saved, "set": s.set}, indent=2,
+                                                      default=json_default))
+        with open(run_dir / "command.txt", "a") as fh:
+            fh.write(command)
+    else:
+        (run_dir / "args.json").write_text(json.dumps(dataclasses.asdict(s), indent=2, default=json_default))
+        (run_dir / "command.txt").write_text(command)
+
+
+def run(p: Prepared, argv: Optional[list] = None) -> Path:
+    """Train a prepared run in its directory; returns the directory. status.json says
+    ``running``, then ``finished`` or ``failed`` (the error is re-raised)."""
+    from stable_baselines3.common.callbacks import CallbackList, EvalCallback
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    s, cfg, run_dir, model = p.settings, p.cfg, p.run_dir, p.model
+    run_dir.mkdir(parents=True, exist_ok=bool(p.resume))
+    try:
+        write_status(run_dir, "running", timesteps=int(model.num_timesteps))
+        _record_settings(p, argv)
+        if not p.resume:
+            n_ref = s.reference_episodes
+            refs = {"baseline_return": evaluate_policy(None, s.task, n_ref, seed=10_000,
+                                                       env_kwargs=cfg.env_kwargs)["mean_return"],
+                    "zero_return": evaluate_policy(ZeroPolicy(), s.task, n_ref, seed=10_000,
+                                                   env_kwargs=cfg.env_kwargs)["mean_return"]}
+            (run_dir / "references.json").write_text(json.dumps(refs))
+        p.monitor.open_log(run_dir / "monitor.csv", p.resume.monitor if p.resume else None)
+        evaluations = EvalCallback(p.eval_env, n_eval_episodes=s.eval_episodes,
+                                   eval_freq=max(1, s.eval_freq // cfg.n_envs), log_path=str(run_dir),
+                                   best_model_save_path=str(run_dir / "best"), deterministic=True, verbose=0)
+        if p.resume and p.resume.evaluations is not None:
+            p.resume.evaluations.continue_in(evaluations, run_dir / "evaluations.npz")
+        callbacks = CallbackList([
+            evaluations,
+            RunCheckpoint(run_dir / "checkpoints", s.checkpoint_freq, p.monitor),
+            TqdmCallback(cfg.total_timesteps, disable=not s.progress),  # counts from the resumed step
+        ])
+        remaining = cfg.total_timesteps - model.num_timesteps  # a resumed run continues up to the total
+        start = time.perf_counter()
+        model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=not p.resume)
+        wall = time.perf_counter() - start
+        model.save(run_dir / "model.zip")
+        if isinstance(p.venv, VecNormalize):
+            NormStats.from_vecnormalize(p.venv).save(run_dir / "vecnormalize.npz")
+        summary = {"wall_time_s": wall, "timesteps": int(model.num_timesteps),
+                   "steps_per_s": remaining / wall if wall > 0 else None}
+        if p.resume:
+            summary["resumed_from"] = p.resume.steps
+        (run_dir / "training.json").write_text(json.dumps(summary, indent=2))
+        plot_learning_curve(run_dir, f"{esp_gym.ENV_ID} {s.task}: {s.algo.upper()} (seed {s.seed})")
+        write_status(run_dir, "finished", timesteps=int(model.num_timesteps))
+    except BaseException as err:  # Ctrl-C too: the directory says why it stopped
+        write_status(run_dir, "failed", timesteps=int(model.num_timesteps), error=one_line(f"{type(err).__name__}: {err}"))
+        raise
     print(json.dumps({"run_dir": str(run_dir), **summary}))
     return run_dir
 
 
+def train(s: Settings, argv: Optional[list] = None, given: frozenset = frozenset()) -> Path:
+    """Run one training; returns the run directory. ``argv``: the command-line arguments
+    recorded in command.txt (default: this process's). Bad settings raise SettingsError."""
+    import torch
+
+    torch.set_num_threads(s.threads)
+    return run(prepare(s, given), argv)
+
+
+def parse_args(argv=None) -> tuple:
+    """``(settings, given, parser)`` from the command line (``given``: the settings it set)."""
+    ap = settings_parser(Settings, prog="python -m agents.train", description=__doc__.split("\n\n")[0])
+    s, given = parse_settings(ap, Settings, argv)
+    return s, given, ap
+
+
 def main(argv=None) -> Path:
-    return train(parse_settings(Settings, argv, description=__doc__.split("\n\n")[0]), argv)
+    import torch
+
+    s, given, ap = parse_args(argv)
+    torch.set_num_threads(s.threads)
+    try:
+        prepared = prepare(s, given)
+    except SettingsError as err:
+        ap.error(str(err))
+    return run(prepared, argv)
 
 
 if __name__ == "__main__":

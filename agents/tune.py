@@ -9,11 +9,11 @@ JSON lines, best first.
 """
 from __future__ import annotations
 
-import argparse
 import itertools
 import json
-from dataclasses import replace
+from dataclasses import fields, replace
 
+from agents.cli import ArgumentParser
 from agents.controllers import baseline
 from agents.evaluate import evaluate_policy
 from esp_gym.tasks import TASKS
@@ -37,12 +37,34 @@ def tune(task: str, episodes: int, grid: dict, top: int = 10) -> list:
 
 
 def main(argv=None) -> list:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = ArgumentParser(prog="python -m agents.tune", description=__doc__.split("\n\n")[0])
     ap.add_argument("--task", default="stabilize", choices=sorted(TASKS))
     ap.add_argument("--episodes", type=int, default=20)
-    ap.add_argument("--grid", type=json.loads, default=COARSE_GRID, help="JSON dict of gain -> values")
+    ap.add_argument("--grid", type=str, default=None,
+                    help=f"JSON object gain -> list of values (default: {json.dumps(COARSE_GRID)})")
     a = ap.parse_args(argv)
-    return tune(a.task, a.episodes, a.grid)
+    ap.check_minimums(vars(a), episodes=1)
+    try:
+        grid = COARSE_GRID if a.grid is None else checked_grid(json.loads(a.grid), a.task)
+    except json.JSONDecodeError as err:
+        ap.error(f"argument --grid: not JSON ({err})")
+    except ValueError as err:
+        ap.error(f"argument --grid: {err}")
+    return tune(a.task, a.episodes, grid)
+
+
+def checked_grid(grid, task: str) -> dict:
+    """``grid`` if it maps gains of the task's baseline to non-empty lists of numbers."""
+    gains = sorted(f.name for f in fields(baseline(task)))
+    if not isinstance(grid, dict) or not grid:
+        raise ValueError(f"expected a JSON object of gain -> list of values, got {grid!r}")
+    for name, values in grid.items():
+        if name not in gains:
+            raise ValueError(f"unknown gain {name!r}; the {task} baseline's gains: {', '.join(gains)}")
+        if not isinstance(values, list) or not values or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+            raise ValueError(f"{name}: expected a non-empty list of numbers, got {values!r}")
+    return grid
 
 
 if __name__ == "__main__":

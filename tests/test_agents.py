@@ -28,11 +28,14 @@ def test_training_smoke_writes_a_loadable_run(tmp_path, algo, budget):
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=900, cwd=ROOT)
     assert proc.returncode == 0, proc.stderr[-3000:]
     run = tmp_path / "smoke"
-    for name in ("model.zip", "vecnormalize.pkl", "config.yaml", "args.json", "command.txt", "monitor.csv",
-                 "evaluations.npz", "learning_curve.png", "references.json", "training.json"):
+    for name in ("model.zip", "vecnormalize.npz", "config.yaml", "args.json", "command.txt", "monitor.csv",
+                 "evaluations.npz", "learning_curve.png", "references.json", "training.json", "status.json"):
         assert (run / name).is_file(), name
+    assert json.loads((run / "status.json").read_text())["status"] == "finished"
     assert list((run / "checkpoints").glob("model_*_steps.zip"))
+    assert not list(run.rglob("*.pkl"))  # normalisation statistics are data (.npz), not pickles
     policy = SB3Policy(run / "model.zip")
+    assert policy.normalization is not None
     stats = evaluate_policy(policy, episodes=1, seed=0)
     assert np.isfinite(stats["mean_return"])
 
@@ -62,11 +65,11 @@ def test_evaluate_cli_prints_one_json_line():
 
 
 def test_shipped_policy_loads_and_stabilizes():
-    """The shipped policy (with its VecNormalize statistics) runs seeded episodes to the time
-    limit and brings the load to rest: far above the zero action's ~165 (the 50-episode
-    comparison with the baseline is agents/compare.py, quoted in the README)."""
+    """The shipped policy (with its VecNormalize statistics, a legacy pickle read as data) runs
+    seeded episodes to the time limit and brings the load to rest: far above the zero action's
+    ~165 (the 50-episode comparison with the baseline is agents/compare.py, quoted in the README)."""
     assert SHIPPED.is_file() and (SHIPPED.parent / "vecnormalize.pkl").is_file()
     policy = SB3Policy(SHIPPED)
-    assert policy.obs_rms is not None
+    assert policy.normalization is not None
     stats = evaluate_policy(policy, episodes=3, seed=777)
     assert stats["mean_return"] > 420 and stats["success_rate"] == 1.0

@@ -1,0 +1,75 @@
+"""The command line of the agent scripts: one-line errors, and dataclass settings -> argparse.
+
+Light on purpose (argparse only): ``agents.evaluate --policy zero`` should not import torch.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+from pathlib import Path
+from typing import Optional
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse whose errors are one line on stderr, ``PROG: error: MESSAGE (see --help)``, with
+    exit code 2 (argparse's own code for usage errors; the usage block is left to ``--help``)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {one_line(message)} (see --help)\n")
+
+    def check_minimums(self, values: dict, **minimums) -> None:
+        """An error for the first ``values[name]`` below ``minimums[name]`` (names of options)."""
+        for name, low in minimums.items():
+            if name in values and values[name] < low:
+                self.error(f"argument {option_name(name)}: must be >= {low}, got {values[name]}")
+
+    def check_parent_dir(self, option: str, path: Optional[str]) -> None:
+        """An error unless the directory a file ``path`` is to be written in exists (None: no file)."""
+        if path and not Path(path).resolve().parent.is_dir():
+            self.error(f"argument {option}: no directory {Path(path).resolve().parent} for {path}")
+
+
+class SettingsError(ValueError):
+    """Bad settings found before anything is written; ``option`` is the argument at fault
+    (``--set``, ``--resume``, ...) or None when the fault lies elsewhere (a config file)."""
+
+    def __init__(self, option: Optional[str], message: str):
+        super().__init__(f"argument {option}: {message}" if option else message)
+        self.option = option
+
+
+def one_line(text) -> str:
+    return " ".join(str(text).split())
+
+
+def option_name(field_name: str) -> str:
+    return "--" + field_name.replace("_", "-")
+
+
+def settings_parser(cls, prog: Optional[str] = None, description: str = "") -> ArgumentParser:
+    """A parser for a dataclass whose fields carry ``metadata={"help": ...}`` (and optionally
+    ``type``, ``choices``, ``nargs``, ``action``, ``min``). Arguments left out are absent from the
+    namespace (:func:`parse_settings` fills in the dataclass defaults and reports which were given)."""
+    ap = ArgumentParser(prog=prog, description=description)
+    for f in dataclasses.fields(cls):
+        meta = f.metadata
+        default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
+        help_ = meta.get("help", "") + ("" if default in (None, []) else f" (default: {default})")
+        if f.type in ("bool", bool):
+            ap.add_argument(option_name(f.name), action=argparse.BooleanOptionalAction, default=argparse.SUPPRESS,
+                            help=help_)
+        elif meta.get("nargs"):
+            ap.add_argument(option_name(f.name), nargs=meta["nargs"], action=meta.get("action", "store"),
+                            default=argparse.SUPPRESS, metavar="KEY=VALUE", help=help_)
+        else:
+            ap.add_argument(option_name(f.name), type=meta.get("type", str), choices=meta.get("choices"),
+                            default=argparse.SUPPRESS, help=help_)
+    return ap
+
+
+def parse_settings(ap: ArgumentParser, cls, argv=None):
+    """``(settings, given)``: the dataclass from the command line and the names of the fields the
+    command line set. Values below a field's ``min`` are errors."""
+    given = vars(ap.parse_args(argv))
+    ap.check_minimums(given, **{f.name: f.metadata["min"] for f in dataclasses.fields(cls) if "min" in f.metadata})
+    return cls(**given), frozenset(given)

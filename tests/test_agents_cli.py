@@ -1,0 +1,261 @@
+"""The agent scripts' arguments and files: ``--set`` (repeatable, dotted keys, YAML values,
+checked keys), errors that are one line naming the argument and write nothing, model files named
+when they cannot be loaded, and normalisation statistics read as data, never unpickled."""
+import pickle
+import re
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from agents.common import load_run_config
+from agents.evaluate import SB3Policy
+
+ROOT = Path(__file__).resolve().parent.parent
+ENV_ID = "ElasticStringPendulum-v0"
+SHIPPED = ROOT / "models" / "stabilize_ppo" / "model.zip"
+#: A budget that keeps a run short should an argument wrongly be accepted (in the same --set, as
+#: the old script kept only the last --set).
+TINY = ["total_timesteps=64", "n_envs=1", "n_steps=64", "batch_size=64", "n_epochs=1"]
+TINY_OPTIONS = ["--reference-episodes", "1", "--eval-episodes", "1", "--no-progress"]
+
+
+def cli(module: str, *args) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", module, *map(str, args)], capture_output=True, text=True,
+                          timeout=900, cwd=ROOT)
+
+
+def assert_usage_error(proc: subprocess.CompletedProcess, *names: str) -> str:
+    """Exit code 2 and a single line on stderr that names each of ``names``."""
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr[-3000:]
+    for name in names:
+        assert name in lines[0], lines[0]
+    return lines[0]
+
+
+def tree(path: Path) -> list:
+    return sorted(str(p.relative_to(path)) for p in path.rglob("*"))
+
+
+# --- item 4: --set ---------------------------------------------------------------------------
+
+def test_repeated_and_multi_valued_set_options_all_apply():
+    from agents.train import parse_args
+
+    s, given, _ = parse_args(["--set", "a=1", "b=2", "--set", "c=3", "--seed", "4"])
+    assert s.set == ["a=1", "b=2", "c=3"]
+    assert given == {"set", "seed"}
+    cfg = load_run_config("ppo", ENV_ID, "stabilize", ["n_envs=2", "n_steps=64", "n_envs=3"])
+    assert (cfg.n_envs, cfg.algo["n_steps"]) == (3, 64)  # in order: the last value of a key wins
+
+
+def test_dotted_keys_reach_nested_settings():
+    cfg = load_run_config("ppo", ENV_ID, "stabilize", [
+        "policy_kwargs.net_arch.pi=[64, 64]", "normalize.clip_obs=5", "env_kwargs.safety=0.4"])
+    assert cfg.algo["policy_kwargs"]["net_arch"] == {"pi": [64, 64], "vf": [128, 128]}
+    assert cfg.algo["policy_kwargs"]["log_std_init"] == -1.0  # the rest of the mapping stays
+    assert cfg.normalize == {"norm_obs": True, "norm_reward": True, "clip_obs": 5}
+    assert cfg.env_kwargs == {"safety": 0.4}
+    # a dotted key into a setting that is null makes it a mapping
+    cfg = load_run_config("ppo", ENV_ID, "stabilize", ["normalize=null", "normalize.norm_reward=false"])
+    assert cfg.normalize == {"norm_reward": False}
+    # the config file itself is not changed by overrides
+    assert load_run_config("ppo", ENV_ID, "stabilize", []).algo["policy_kwargs"]["net_arch"]["pi"] == [128, 128]
+
+
+def test_set_values_are_yaml():
+    cfg = load_run_config("sac", ENV_ID, "stabilize", [
+        "learning_rate=3e-4", "policy_kwargs.net_arch=[64, 64]", "target_entropy=-3", "normalize=null",
+        "policy_kwargs={net_arch: {pi: [32], qf: [64]}}"])
+    assert cfg.algo["learning_rate"] == pytest.approx(3e-4) and isinstance(cfg.algo["learning_rate"], float)
+    assert cfg.algo["policy_kwargs"] == {"net_arch": {"pi": [32], "qf": [64]}}
+    assert cfg.algo["target_entropy"] == -3 and cfg.normalize is None
+    assert load_run_config("ppo", ENV_ID, "stabilize", ["learning_rate=lin_1e-3"]).algo["learning_rate"] == "lin_1e-3"
+
+
+@pytest.mark.parametrize("item, named, listed", [
+    ("learning_rat=0.1", "'learning_rat'", "learning_rate"),
+    ("seed=3", "'seed'", "n_steps"),  # the script sets the seed (--seed)
+    ("policy_kwargs.net_arhc=[8]", "'policy_kwargs.net_arhc'", "net_arch"),
+    ("policy_kwargs.net_arch.pii=[8]", "'policy_kwargs.net_arch.pii'", "pi, vf"),
+    ("policy_kwargs={net_arch: [8], ortho: false}", "'policy_kwargs.ortho'", "ortho_init"),
+    ("normalize.clip_ob=5", "'normalize.clip_ob'", "clip_obs"),
+    ("env_kwargs.safty=0.5", "'env_kwargs.safty'", "safety"),
+])
+def test_unknown_keys_are_named_with_the_valid_ones(item, named, listed):
+    with pytest.raises(ValueError, match=re.escape(named)) as err:
+        load_run_config("ppo", ENV_ID, "stabilize", [item])
+    assert listed in str(err.value) and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("item, message", [
+    ("n_steps.x=1", "n_steps is 256, not a mapping"),
+    ("n_envs", "KEY=VALUE"),
+    ("n_envs=[2", "not YAML"),
+    ("n_envs=0", "n_envs"),
+    ("learning_rate=fast", "learning_rate"),
+])
+def test_bad_overrides_are_value_errors_naming_them(item, message):
+    with pytest.raises(ValueError, match=re.escape(message)):
+        load_run_config("ppo", ENV_ID, "stabilize", [item])
+
+
+# --- one-line errors that write nothing ---------------------------------------------------------
+
+def _fake_run(tmp_path: Path) -> Path:
+    """A run directory (args.json of the shipped model) with a checkpoints/ folder."""
+    run = tmp_path / "runs" / "fake"
+    (run / "checkpoints").mkdir(parents=True)
+    shutil.copy(SHIPPED.parent / "args.json", run / "args.json")
+    return run
+
+
+@pytest.mark.parametrize("case", ["unknown_key_in_an_earlier_set", "nested_unknown_key", "eval_freq_zero",
+                                  "run_exists", "algorithm_rejects", "resume_not_a_checkpoint_name",
+                                  "resume_outside_a_run", "resume_missing", "resume_with_run_setting"])
+def test_train_errors_are_one_line_and_write_nothing(tmp_path, case):
+    run = _fake_run(tmp_path)
+    shutil.copy(SHIPPED, run / "checkpoints" / "model.zip")
+    (tmp_path / "loose").mkdir()
+    shutil.copy(SHIPPED, tmp_path / "loose" / "model_100_steps.zip")
+    shutil.copy(SHIPPED, run / "checkpoints" / "model_100_steps.zip")
+    (tmp_path / "runs" / "taken").mkdir()
+    new = ["--runs", tmp_path / "runs", *TINY_OPTIONS]
+    args, names = {
+        "unknown_key_in_an_earlier_set": (["--set", "bogus=1", "--set", *TINY, *new], ["--set", "'bogus'", "n_steps"]),
+        "nested_unknown_key": (["--set", *TINY, "policy_kwargs.net_arch.pii=[8]", *new], ["--set", "pii", "pi, vf"]),
+        "eval_freq_zero": (["--eval-freq", "0", "--set", *TINY, *new], ["--eval-freq", ">= 1"]),
+        "run_exists": (["--run-name", "taken", "--set", *TINY, *new], ["--run-name", "taken", "exists"]),
+        "algorithm_rejects": (["--set", *TINY, "n_steps=1", *new], ["--set", "PPO", "n_steps"]),
+        "resume_not_a_checkpoint_name": (["--resume", run / "checkpoints" / "model.zip"],
+                                         ["--resume", "model.zip", "model_N_steps.zip"]),
+        "resume_outside_a_run": (["--resume", tmp_path / "loose" / "model_100_steps.zip"],
+                                 ["--resume", "model_100_steps.zip", "checkpoints/"]),
+        "resume_missing": (["--resume", tmp_path / "nothing.zip"], ["--resume", "nothing.zip"]),
+        "resume_with_run_setting": (["--resume", run / "checkpoints" / "model_100_steps.zip", "--seed", "3"],
+                                    ["--seed", "--resume"]),
+    }[case]
+    before = tree(tmp_path)
+    assert_usage_error(cli("agents.train", *args), *names)
+    assert tree(tmp_path) == before
+
+
+def test_evaluate_rejects_policy_names_it_does_not_know():
+    line = assert_usage_error(cli("agents.evaluate", "--policy", "baselineXYZ", "--episodes", "1"),
+                              "--policy", "baselineXYZ")
+    assert "zero" in line and "baseline" in line
+
+
+@pytest.mark.parametrize("module, args, names", [
+    ("agents.evaluate", ["--episodes", "0"], ["--episodes"]),
+    ("agents.evaluate", ["--policy", "zero", "--episodes", "1", "--record", "{missing}/x.rrd"], ["--record", "{missing}"]),
+    ("agents.compare", ["--model", "no_such_model.zip"], ["--model", "no_such_model.zip"]),
+    ("agents.compare", ["--model", SHIPPED, "--episodes", "1", "--out", "{missing}/x.json"], ["--out", "{missing}"]),
+    ("agents.tune", ["--grid", '{"kq": [1]}'], ["--grid", "'kq'", "kp"]),
+    ("agents.tune", ["--grid", '{"kp": [1'], ["--grid", "not JSON"]),
+])
+def test_script_errors_are_one_line(tmp_path, module, args, names):
+    missing = tmp_path / "missing"  # a directory that does not exist
+
+    def fill(text):
+        return str(text).replace("{missing}", str(missing))
+
+    assert_usage_error(cli(module, *map(fill, args)), *map(fill, names))
+    assert not missing.exists()
+
+
+# --- model files --------------------------------------------------------------------------------
+
+def _damaged_models(tmp_path: Path) -> dict:
+    paths = {name: tmp_path / f"{name}.zip" for name in ("empty", "garbage", "empty_archive", "no_data", "truncated")}
+    paths["empty"].write_bytes(b"")
+    paths["garbage"].write_bytes(b"not a zip at all\n")
+    with zipfile.ZipFile(paths["empty_archive"], "w"):
+        pass
+    with zipfile.ZipFile(SHIPPED) as src, zipfile.ZipFile(paths["no_data"], "w") as dst:
+        dst.writestr("policy.pth", src.read("policy.pth"))
+    paths["truncated"].write_bytes(SHIPPED.read_bytes()[:4000])
+    return paths
+
+
+@pytest.mark.parametrize("name", ["empty", "garbage", "empty_archive", "no_data", "truncated"])
+def test_unloadable_model_files_are_errors_naming_the_file(tmp_path, name):
+    path = _damaged_models(tmp_path)[name]
+    with pytest.raises(ValueError, match=re.escape(str(path))):
+        SB3Policy(path)
+
+
+def test_evaluate_names_an_unloadable_model_file(tmp_path):
+    path = _damaged_models(tmp_path)["empty_archive"]
+    assert_usage_error(cli("agents.evaluate", "--policy", path, "--episodes", "1"), "--policy", str(path))
+
+
+# --- normalisation statistics -------------------------------------------------------------------
+
+class _Planted:
+    """Unpickling this creates the file ``path`` (it stands for any code a pickle can run)."""
+
+    def __init__(self, path):
+        self.path = str(path)
+
+    def __reduce__(self):
+        return open, (self.path, "w")
+
+
+def test_a_crafted_statistics_pickle_beside_a_model_is_refused_not_run(tmp_path):
+    model = tmp_path / "model.zip"
+    shutil.copy(SHIPPED, model)
+    planted = tmp_path / "planted"
+    (tmp_path / "vecnormalize.pkl").write_bytes(pickle.dumps(_Planted(planted)))
+    with pytest.raises(ValueError, match="vecnormalize.pkl") as err:
+        SB3Policy(model)
+    assert not planted.exists()
+    assert "open" in str(err.value)  # the global it refused
+
+
+def test_shipped_statistics_read_as_data_equal_the_pickle():
+    from agents.normalization import NormStats
+
+    stats = NormStats.load(SHIPPED.parent / "vecnormalize.pkl")
+    with open(SHIPPED.parent / "vecnormalize.pkl", "rb") as fh:  # the shipped file is trusted
+        vn = pickle.load(fh)
+    np.testing.assert_array_equal(stats.obs_mean, vn.obs_rms.mean)
+    np.testing.assert_array_equal(stats.obs_var, vn.obs_rms.var)
+    assert (stats.obs_count, stats.ret_count) == (vn.obs_rms.count, vn.ret_rms.count)
+    assert (stats.clip_obs, stats.epsilon, stats.norm_obs, stats.norm_reward, stats.gamma) == (
+        vn.clip_obs, vn.epsilon, vn.norm_obs, vn.norm_reward, vn.gamma)
+
+
+def test_statistics_round_trip_through_npz_and_normalise_like_vecnormalize(tmp_path):
+    import gymnasium as gym
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from agents.normalization import NormStats
+
+    rng = np.random.default_rng(0)
+    vn = VecNormalize(DummyVecEnv([lambda: gym.make("Pendulum-v1")]), clip_obs=2.0, gamma=0.95)
+    vn.obs_rms.update(rng.normal(3.0, 2.0, size=(50, 3)))
+    vn.ret_rms.update(rng.normal(size=50))
+    path = NormStats.from_vecnormalize(vn).save(tmp_path / "vecnormalize.npz")
+    stats = NormStats.load(path)
+    again = stats.to_vecnormalize(DummyVecEnv([lambda: gym.make("Pendulum-v1")]))
+    obs = rng.normal(3.0, 4.0, size=(7, 3)).astype(np.float32)
+    np.testing.assert_allclose(stats.normalize_obs(obs), vn.normalize_obs(obs), rtol=1e-6)
+    np.testing.assert_array_equal(again.normalize_obs(obs), vn.normalize_obs(obs))
+    np.testing.assert_array_equal(again.normalize_reward(np.ones(1)), vn.normalize_reward(np.ones(1)))
+    assert (again.gamma, again.clip_obs) == (0.95, 2.0)
+
+
+def test_statistics_files_holding_pickled_objects_are_refused(tmp_path):
+    from agents.normalization import NormStats
+
+    path = tmp_path / "vecnormalize.npz"
+    np.savez(path, obs_mean=np.array([object()], dtype=object))  # an object array is a pickle inside
+    with pytest.raises(ValueError, match=re.escape(str(path))):
+        NormStats.load(path)
