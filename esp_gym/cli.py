@@ -22,12 +22,29 @@ Subcommands:
     inputs and write a Rerun recording (esp_gym/viz/recording.py): the 3-D scene and the
     energy and momentum diagnostics every K physics steps (default: ~50 samples per simulated
     second) and at the end. Open it with ``rerun FILE.rrd``.
+
+Every argument is checked before anything is created on disk or allocated: times must be
+positive and finite, ``--out`` must name a directory (``paper``) or a file (``record``) that can
+be written, and a run may take at most :data:`MAX_STEPS` physics steps and hold or write at most
+:data:`MAX_BYTES` (an estimate from the arguments). A refusal is one line on stderr naming the
+argument, and the exit status says what went wrong (docs/cli.md):
+
+====  ==========================================================================================
+0     done
+1     the simulation failed: a step did not converge, became non-finite or blew up (the physics)
+2     bad arguments: an unknown option, a bad value, an output that cannot be written, or a run
+      larger than the limits
+3     the scene is invalid or its file cannot be read
+4     the outputs could not be written (an OS error while writing, e.g. a full disk)
+====  ==========================================================================================
 """
 from __future__ import annotations
 
 import argparse
 import datetime as _dt
 import json
+import math
+import os
 import platform
 import sys
 import time
@@ -38,6 +55,18 @@ import numpy as np
 
 #: The paper's example: scene name, elements, time step [s], duration [s].
 PAPER = dict(scene="paper_example", N=20, h=1e-4, t_final=5.0)
+
+#: Exit statuses (the module docstring and docs/cli.md explain them).
+EXIT_OK, EXIT_SIMULATION_FAILED, EXIT_USAGE, EXIT_SCENE, EXIT_OUTPUT = 0, 1, 2, 3, 4
+#: Physics steps one command may take (~10 min at the paper example's 0.5 us per step).
+MAX_STEPS = 10**9
+#: Memory a command may hold for its results, and size of what it writes [bytes] (estimates).
+MAX_BYTES = 2 * 2**30
+#: Bytes ``paper`` holds per physics step (every-step series: the kernel's buffer, the
+#: trajectory's copies, the summary's concatenation) and per float of a snapshot (two copies).
+PAPER_BYTES_PER_STEP, PAPER_BYTES_PER_SNAPSHOT_FLOAT = 128, 16
+#: Samples ``record`` buffers before writing them (the Recorder's ``flush_every``).
+RECORD_FLUSH_EVERY = 2000
 
 
 def summarize(traj, scene) -> dict:
@@ -95,14 +124,58 @@ def _time_plain_steps(scene, steps: int, repeats: int = 3):
     return float(np.median(times)), sim.state.r
 
 
+def _gib(n: float) -> str:
+    return f"{n / 2**30:.3g} GiB"
+
+
 def check_paper_args(t_final: float, record_every: int, h: float = PAPER["h"]) -> None:
-    """Raise ValueError unless ``t_final`` [s] is a positive whole number of ``record_every``
-    steps of ``h`` [s]."""
-    steps = int(round(t_final / h))
-    if (record_every < 1 or steps < record_every or steps % record_every
-            or abs(steps * h - t_final) > 1e-9 * max(1.0, abs(t_final))):
-        raise ValueError(f"t_final = {t_final:g} s is {t_final / h:g} steps of h = {h:g} s: "
-                         f"it must be a positive whole number of record_every = {record_every} steps")
+    """Raise ValueError, naming the argument, unless ``t_final`` [s] is a positive whole number
+    of ``record_every`` steps of ``h`` [s] and the run fits :data:`MAX_STEPS` and :data:`MAX_BYTES`."""
+    if not (isinstance(t_final, (int, float)) and math.isfinite(t_final) and t_final > 0):
+        raise ValueError(f"--t-final must be a positive, finite time [s], got {t_final!r}")
+    if isinstance(record_every, bool) or not isinstance(record_every, int) or record_every < 1:
+        raise ValueError(f"--record-every must be a whole number of steps >= 1, got {record_every!r}")
+    wanted = t_final / h
+    if wanted > MAX_STEPS:
+        raise ValueError(f"--t-final {t_final:g} s is {wanted:.3g} steps of h = {h:g} s, more than one command "
+                         f"takes ({MAX_STEPS:,})")
+    steps = int(round(wanted))
+    if steps < record_every or steps % record_every or abs(steps * h - t_final) > 1e-9 * max(1.0, t_final):
+        raise ValueError(f"--t-final {t_final:g} s is {wanted:g} steps of h = {h:g} s: "
+                         f"it must be a positive whole number of --record-every {record_every} steps")
+    snapshot_floats = 4 * (PAPER["N"] + 1) + 48  # nodes, strain, R, omega, velocity, diagnostics, balances
+    need = steps * PAPER_BYTES_PER_STEP + (steps // record_every + 1) * snapshot_floats * PAPER_BYTES_PER_SNAPSHOT_FLOAT
+    if need > MAX_BYTES:
+        raise ValueError(f"--t-final {t_final:g} s with --record-every {record_every} keeps about {_gib(need)} of "
+                         f"series and snapshots (at most {_gib(MAX_BYTES)}): use a shorter --t-final or a "
+                         "larger --record-every")
+
+
+def check_output(out: str, directory: bool) -> Path:
+    """``out`` as a Path, or ValueError naming ``--out``: it must name a directory (``directory``)
+    or a file that can be created or overwritten; whatever of its parents is missing will be
+    created, under an existing, writable directory. Nothing is created here."""
+    if not isinstance(out, str) or not out.strip():
+        raise ValueError(f"--out is empty: name the output {'directory' if directory else 'file'}")
+    path = Path(out)
+    try:  # what is there now; a path the system cannot look at (permissions, a NUL) is refused
+        exists, is_dir = path.exists(), path.is_dir()
+        base = path if directory else path.parent  # the nearest existing directory it goes under
+        while not base.exists():
+            base = base.parent
+    except (OSError, ValueError) as err:
+        raise ValueError(f"--out {out}: cannot look at it ({err})") from None
+    if directory and exists and not is_dir:
+        raise ValueError(f"--out {out}: is a file, not a directory")
+    if not directory and (out.endswith(("/", os.sep)) or is_dir):
+        raise ValueError(f"--out {out}: is a directory; name the file to write")
+    if not directory and exists and not os.access(path, os.W_OK):
+        raise ValueError(f"--out {out}: the file exists and is not writable")
+    if not base.is_dir():
+        raise ValueError(f"--out {out}: {base} is not a directory")
+    if not os.access(base, os.W_OK | os.X_OK):
+        raise ValueError(f"--out {out}: {base} is not writable")
+    return path
 
 
 def run_paper(out: Path, t_final: float = PAPER["t_final"], record_every: int = 100,
@@ -114,7 +187,7 @@ def run_paper(out: Path, t_final: float = PAPER["t_final"], record_every: int = 
 
     scene = load_scene(PAPER["scene"], N=PAPER["N"], h=PAPER["h"])
     check_paper_args(t_final, record_every, scene.h)
-    out = Path(out)
+    out = check_output(str(out), directory=True)
     out.mkdir(parents=True, exist_ok=True)
 
     # Load (or compile) the kernels first so that the timings below are of the simulation only.
@@ -176,69 +249,164 @@ def _print_summary(s: dict, out: Path) -> None:
     print(f"  wrote         {out}/summary.json, trajectory.npz, fig_ns.png, fig_sm.png")
 
 
+def one_line(message) -> str:
+    """A (multi-line) error message as one line: ``head: item; item``."""
+    lines = [line.strip() for line in str(message).splitlines() if line.strip()]
+    if len(lines) > 1 and lines[0].endswith(":"):
+        return f"{lines[0]} {'; '.join(lines[1:])}"
+    return "; ".join(lines)
+
+
+def _fail(command: str, message, status: int) -> int:
+    print(f"esp-gym {command}: {one_line(message)}", file=sys.stderr)
+    return status
+
+
 def _cmd_paper(args, argv) -> int:
     from .model import SimulationError
+    from .params import SceneError
 
-    try:  # only argument errors are reported briefly: anything later keeps its traceback
+    try:
         check_paper_args(args.t_final, args.record_every)
+        check_output(args.out, directory=True)
     except ValueError as err:
-        print(f"esp-gym paper: {err}", file=sys.stderr)
-        return 2
+        return _fail("paper", err, EXIT_USAGE)
     try:
         summary = run_paper(Path(args.out), t_final=args.t_final, record_every=args.record_every,
                             progress=not args.no_progress, argv=argv)
+    except SceneError as err:
+        return _fail("paper", err, EXIT_SCENE)
     except SimulationError as err:
-        print(f"esp-gym paper: {err}", file=sys.stderr)
-        return 1
+        return _fail("paper", err, EXIT_SIMULATION_FAILED)
+    except OSError as err:
+        return _fail("paper", f"could not write the outputs into {args.out}: {err}", EXIT_OUTPUT)
     _print_summary(summary, Path(args.out))
-    return 0
+    return EXIT_OK
+
+
+def check_record_args(scene, t_final: float, record_every: Optional[int]) -> tuple:
+    """``(steps, record_every)`` of a recording of ``scene`` for ``t_final`` [s], or ValueError
+    naming the argument: a whole number of steps, at most :data:`MAX_STEPS`, and the samples'
+    buffer and file within :data:`MAX_BYTES`."""
+    from .kernels.layout import sample_layout
+    from .viz.recording import default_record_every
+
+    h, n = scene.h, scene.string.elements
+    wanted = t_final / h
+    if wanted > MAX_STEPS:
+        raise ValueError(f"--t-final {t_final:g} s is {wanted:.3g} steps of h = {h:g} s (scene {scene.name}), more "
+                         f"than one command takes ({MAX_STEPS:,})")
+    steps = int(round(wanted))
+    if abs(steps * h - t_final) > 1e-9 * max(1.0, t_final):
+        raise ValueError(f"--t-final {t_final:g} s is not a whole number of steps of h = {h:g} s (scene {scene.name})")
+    every = default_record_every(h) if record_every is None else record_every
+    row = 8 * sample_layout(n).size  # one sample [bytes], as buffered; a conservative size on disk
+    buffered, written = RECORD_FLUSH_EVERY * row, (steps // every + 2) * row
+    if buffered > MAX_BYTES:
+        raise ValueError(f"--scene {scene.name}: string.elements = {n} makes a sample {row:,} bytes, and the "
+                         f"recorder's buffer of {RECORD_FLUSH_EVERY} samples {_gib(buffered)} "
+                         f"(at most {_gib(MAX_BYTES)})")
+    if written > MAX_BYTES:
+        raise ValueError(f"--t-final {t_final:g} s with a sample every {every} steps writes about {_gib(written)} "
+                         f"(at most {_gib(MAX_BYTES)}): use a shorter --t-final or a larger --record-every")
+    return steps, every
 
 
 def _cmd_record(args, argv) -> int:
     from .model import SimulationError, Simulator
     from .params import SceneError, load_scene
-    from .viz.recording import record_simulation
+    from .viz import recording
 
     try:
-        sim = Simulator(load_scene(args.scene))
-        summary = record_simulation(sim, args.out, t_final=args.t_final, record_every=args.record_every,
-                                    progress=not args.no_progress)
-    except (SceneError, SimulationError, ValueError, FileNotFoundError) as err:
-        print(f"esp-gym record: {err}", file=sys.stderr)
-        return 1 if isinstance(err, SimulationError) else 2
-    size = Path(args.out).stat().st_size
+        out = check_output(args.out, directory=False)
+    except ValueError as err:
+        return _fail("record", err, EXIT_USAGE)
+    try:
+        scene = load_scene(args.scene)
+    except SceneError as err:
+        return _fail("record", err, EXIT_SCENE)
+    try:
+        _, every = check_record_args(scene, args.t_final, args.record_every)
+        sim = Simulator(scene)
+    except (ValueError, MemoryError) as err:  # MemoryError: the string does not fit this machine
+        return _fail("record", err, EXIT_USAGE)
+    try:
+        summary = recording.record_simulation(sim, out, t_final=args.t_final, record_every=every,
+                                              progress=not args.no_progress, flush_every=RECORD_FLUSH_EVERY)
+    except SimulationError as err:
+        return _fail("record", err, EXIT_SIMULATION_FAILED)
+    except OSError as err:
+        return _fail("record", f"could not write {out}: {err}", EXIT_OUTPUT)
+    size = out.stat().st_size if out.is_file() else 0
     print(f"{summary['scene']}: {summary['steps']} steps, {summary['samples']} samples every "
           f"{summary['record_every']} steps in {summary['wall_time_s']:.2f} s; "
           f"max |E - E0 - W| = {summary['max_abs_energy_balance_residual']:.3e} J, "
           f"max |pi3 - pi3_0 - impulse| = {summary['max_abs_pi3_balance_residual']:.3e} kg m^2/s")
-    print(f"wrote {args.out} ({size / 1e6:.2f} MB); open it with: rerun {args.out}")
-    return 0
+    print(f"wrote {out} ({size / 1e6:.2f} MB); open it with: rerun {out}")
+    return EXIT_OK
+
+
+class UsageError(Exception):
+    """A command line argparse could not parse (raised instead of argparse's exit)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        raise UsageError(f"{self.prog}: {message} (see {self.prog} --help)")
+
+
+def _seconds(text: str) -> float:
+    """An argparse type: a positive, finite time [s]."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a positive, finite time [s], got {text!r}")
+    return value
+
+
+def _steps(text: str) -> int:
+    """An argparse type: a whole number of steps >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {text!r}")
+    return value
+
+
+EPILOG = """exit status: 0 done; 1 the simulation failed (the physics); 2 bad arguments (unknown option,
+bad value, an output that cannot be written, a run past the limits); 3 invalid or unreadable scene;
+4 the outputs could not be written. Limits: %s physics steps and %s of results per command."""
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="esp-gym", description=__doc__.split("\n\n")[0])
+    epilog = EPILOG % (f"{MAX_STEPS:,}", _gib(MAX_BYTES))
+    parser = _Parser(prog="esp-gym", description=__doc__.split("\n\n")[0], epilog=epilog)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    p = sub.add_parser("paper", help="reproduce the paper's numerical example (Figs. NS and SM)",
+    p = sub.add_parser("paper", help="reproduce the paper's numerical example (Figs. NS and SM)", epilog=epilog,
                        description="Run the paper's example (N = 20, h = 1e-4 s, 5 s) and write "
                                    "summary.json, trajectory.npz, fig_ns.png and fig_sm.png.")
     p.add_argument("--out", default="out/paper", help="output directory (default: %(default)s)")
-    p.add_argument("--t-final", type=float, default=PAPER["t_final"],
+    p.add_argument("--t-final", type=_seconds, default=PAPER["t_final"],
                    help="simulated time [s] (default: %(default)s, the paper's); must be a whole "
                         "number of record_every steps")
-    p.add_argument("--record-every", type=int, default=100,
+    p.add_argument("--record-every", type=_steps, default=100,
                    help="steps between snapshots (default: %(default)s)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(handler=_cmd_paper)
-    p = sub.add_parser("record", help="record a free simulation to a Rerun .rrd file",
+    p = sub.add_parser("record", help="record a free simulation to a Rerun .rrd file", epilog=epilog,
                        description="Simulate a scene without inputs and write a Rerun recording: the string "
                                    "coloured by strain, the posed body, the load's trail and the energy and "
                                    "momentum diagnostics.")
     p.add_argument("--scene", default=PAPER["scene"],
                    help="scene name under configs/scenes or a YAML path (default: %(default)s)")
-    p.add_argument("--t-final", type=float, default=PAPER["t_final"],
+    p.add_argument("--t-final", type=_seconds, default=PAPER["t_final"],
                    help="simulated time [s], a whole number of steps (default: %(default)s)")
     p.add_argument("--out", default="out/recording.rrd", help="output .rrd file (default: %(default)s)")
-    p.add_argument("--record-every", type=int, default=None,
+    p.add_argument("--record-every", type=_steps, default=None,
                    help="physics steps between samples (default: ~50 samples per simulated second)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(handler=_cmd_record)
@@ -246,9 +414,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """Entry point of ``esp-gym``; returns the exit status."""
+    """Entry point of ``esp-gym``; returns the exit status (the module docstring lists them)."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except UsageError as err:
+        print(one_line(err), file=sys.stderr)
+        return EXIT_USAGE
+    except SystemExit as done:  # --help
+        return done.code if isinstance(done.code, int) else EXIT_OK
     return args.handler(args, argv)
 
 

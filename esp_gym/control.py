@@ -30,7 +30,7 @@ from .kernels.task import actions_finite, env_reset_observe, env_step, env_step_
 from .model import Simulator
 from .options import MAX_SUBSTEPS, check_count, env_options
 from .state import State, check_memory
-from .params import Scene, load_scene, scene_from_dict
+from .params import Scene, load_scene, override_scene, scene_from_dict
 from .tasks import Task, get_task
 
 #: info keys of the reward terms, in REWARD_TERMS order
@@ -82,13 +82,8 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
                     force_limit=force_limit, torque_limit=torque_limit, scene_overrides=scene_overrides)
     control_period, h, safety = o.control_period, o.h, o.safety
     overrides = dict(o.scene_overrides or {})
-    if isinstance(o.scene, Scene):
-        base = o.scene.model_dump()
-        for k, v in overrides.items():
-            base[k] = v
-        resolved = scene_from_dict(base, source=repr(o.scene.name))
-    else:
-        resolved = load_scene(o.scene, **overrides)
+    # a Scene object takes the same overrides as a file (aliases, dotted paths, merged sections)
+    resolved = override_scene(o.scene, overrides) if isinstance(o.scene, Scene) else load_scene(o.scene, **overrides)
     if not resolved.pivot.is_free:
         raise ValueError(f"ElasticStringPendulum-v0 pushes the pivot: scene {resolved.name!r} needs pivot.kind: free")
     bound = resolved.stability_bound

@@ -1,42 +1,40 @@
-"""Validated, immutable scene parameters (pydantic) and YAML loading.
+"""Validated, immutable scene parameters (pydantic), and loading a scene by name, path or overrides.
 
 A scene is a string, a body, a pivot, gravity, the time step and the initial state. Every
 quantity is SI: lengths [m], masses [kg], EA [N], inertia about the attachment point in the body
 frame [kg m^2], time [s]. Gravity acts along +e3 (the paper's convention).
+
+Numbers are strict (a bool or a string is not a number) and bounded, so that the energy at
+t = 0 and every constant the stepper derives are finite: esp_gym/scene_input.py, docs/scenes.md.
 """
 from __future__ import annotations
 
-import copy
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Annotated, Any, Literal, Optional, Union
 
 import numpy as np
-import yaml
-from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from .compositions import COMPOSITIONS, DEFAULT_FOR_ORDER, Composition
+from .scene_input import (ALIASES, BOUNDS, Count, Flag, Real, SceneError, bounded, is_yaml_path, matrix,  # noqa: F401
+                          merge_overrides, read_scene_file, validation_message, vector)
 
-Vec3 = tuple[float, float, float]
-Mat3 = tuple[Vec3, Vec3, Vec3]
-PosVec3 = tuple[PositiveFloat, PositiveFloat, PositiveFloat]
+Vec3 = vector()
+Mat3 = matrix()
+Point3 = vector("coordinate")
+Velocity3 = vector("speed")
+
+#: Smallest principal inertia about the centre of mass, relative to J's largest (J about the
+#: attachment point): keeps six digits of J_eff = J - (the string's share) in float64.
+MIN_INERTIA_SHARE = 1e-10
+
+#: Sections that an override of another ``kind`` replaces instead of merging into (their kinds
+#: have different fields).
+KINDS = ("body.shape",)
 
 SCENES_DIR = Path(__file__).resolve().parent.parent / "configs" / "scenes"
-
-#: Short names accepted by :func:`load_scene` overrides.
-ALIASES = {
-    "N": "string.elements",
-    "EA": "string.EA",
-    "length": "string.length",
-    "M": "body.mass",
-    "J": "body.inertia",
-    "rho_c": "body.rho_c",
-    "g": "gravity",
-}
-
-
-class SceneError(ValueError):
-    """A scene failed validation; the message names each bad field and the rule it breaks."""
 
 
 class _Frozen(BaseModel):
@@ -46,10 +44,11 @@ class _Frozen(BaseModel):
 class StringParams(_Frozen):
     """Extensible string: unstretched length, mass per unstretched length, axial stiffness."""
 
-    length: float = Field(gt=0, description="unstretched length l [m]")
-    mass_per_length: float = Field(gt=0, description="mass per unstretched length mu [kg/m]")
-    EA: float = Field(gt=0, description="axial stiffness E*A [N]")
-    elements: int = Field(ge=1, description="number of finite elements N")
+    length: Real = bounded("length", description="unstretched length l [m]")
+    mass_per_length: Real = bounded("mass_per_length", description="mass per unstretched length mu [kg/m]")
+    EA: Real = bounded("EA", description="axial stiffness E*A [N]")
+    elements: Count = Field(ge=BOUNDS["elements"][0], le=BOUNDS["elements"][1],
+                            description="number of finite elements N")
     law: Literal["elastic", "slack"] = Field(
         "elastic", description="elastic: the paper's law, resists compression; slack: tension only, "
                                "energy EA/2 max(|r'| - 1, 0)^2 (a real string goes slack)")
@@ -77,14 +76,16 @@ class StringParams(_Frozen):
         """Largest stable h of the explicit string update [s]: 2/omega_max, where the axial mode
         of one free element bounds the chain's: omega_max = sqrt(12 kappa/m) with consistent
         mass, sqrt(4 kappa/m) lumped."""
-        return 2.0 / math.sqrt((12.0 if self.mass_model == "consistent" else 4.0) * self.kappa / self.m)
+        # as 2 sqrt(m / (c kappa)) = 2 sqrt(mu u^2 / (c EA)): no quotient can divide by zero
+        c = 12.0 if self.mass_model == "consistent" else 4.0
+        return 2.0 * math.sqrt(self.mass_per_length * self.u * self.u / (c * self.EA))
 
 
 class Box(_Frozen):
     """Solid box centred on the centre of mass, edges ``size`` along body x, y, z [m]."""
 
     kind: Literal["box"]
-    size: PosVec3
+    size: vector("length")
 
     def inertia_cm(self, mass: float) -> np.ndarray:
         a, b, c = self.size
@@ -95,8 +96,8 @@ class Cylinder(_Frozen):
     """Solid circular cylinder, axis along body z, centred on the centre of mass [m]."""
 
     kind: Literal["cylinder"]
-    radius: PositiveFloat
-    height: PositiveFloat
+    radius: Real = bounded("length")
+    height: Real = bounded("length")
 
     def inertia_cm(self, mass: float) -> np.ndarray:
         r, H = self.radius, self.height
@@ -109,8 +110,8 @@ class EllipticCylinder(_Frozen):
     body z, centred on the centre of mass [m]."""
 
     kind: Literal["elliptic_cylinder"]
-    semi_axes: tuple[PositiveFloat, PositiveFloat]
-    height: PositiveFloat
+    semi_axes: vector("length", 2)
+    height: Real = bounded("length")
 
     def inertia_cm(self, mass: float) -> np.ndarray:
         (a, b), H = self.semi_axes, self.height
@@ -121,7 +122,7 @@ class Sphere(_Frozen):
     """Solid sphere centred on the centre of mass [m]."""
 
     kind: Literal["sphere"]
-    radius: PositiveFloat
+    radius: Real = bounded("length")
 
     def inertia_cm(self, mass: float) -> np.ndarray:
         return 0.4 * mass * self.radius ** 2 * np.eye(3)
@@ -142,9 +143,10 @@ class BodyParams(_Frozen):
     (body frame) given either directly (``inertia``) or by its ``shape`` (then computed by the
     parallel-axis theorem). With both, ``inertia`` is used and ``shape`` only draws the body."""
 
-    mass: float = Field(gt=0, description="body mass M [kg]")
-    inertia: Optional[Mat3] = Field(None, description="inertia J about the attachment point, body frame [kg m^2]")
-    rho_c: Vec3 = Field(description="attachment point -> centre of mass, body frame [m]")
+    mass: Real = bounded("mass", description="body mass M [kg]")
+    inertia: Optional[matrix("inertia")] = Field(
+        None, description="inertia J about the attachment point, body frame [kg m^2]")
+    rho_c: Point3 = Field(description="attachment point -> centre of mass, body frame [m]")
     shape: Optional[Shape] = Field(None, description="geometry centred on the centre of mass")
 
     @field_validator("inertia")
@@ -172,18 +174,27 @@ class BodyParams(_Frozen):
     def _inertia_or_shape(self) -> "BodyParams":
         if self.inertia is None and self.shape is None:
             raise ValueError("body needs an inertia or a shape to compute it from")
-        if self.inertia is not None:
-            # J about the attachment point = J_cm + M (|rho|^2 I - rho rho^T): J_cm must itself be
-            # an inertia, else no body of this mass and offset has J (and J_eff turns indefinite)
-            rho = np.asarray(self.rho_c, dtype=float)
-            shift = self.mass * (rho @ rho * np.eye(3) - np.outer(rho, rho))
-            lam = np.linalg.eigvalsh(0.5 * (self.J + self.J.T) - shift)
-            tol = 1e-12 * max(1.0, float(np.abs(self.J).max()))
-            if lam[0] <= -tol or lam[0] + lam[1] < lam[2] - tol:
-                raise ValueError(
-                    "body.inertia: J - M (|rho_c|^2 I - rho_c rho_c^T), the inertia about the centre of "
-                    f"mass, is not an inertia (eigenvalues {np.array2string(lam, precision=4)}): no body of "
-                    "this mass and offset has this J")
+        # J about the attachment point = J_cm + M (|rho|^2 I - rho rho^T): J_cm must itself be
+        # an inertia, else no body of this mass and offset has J (and J_eff turns indefinite)
+        rho, J = np.asarray(self.rho_c, dtype=float), self.J
+        shift = self.mass * (rho @ rho * np.eye(3) - np.outer(rho, rho))
+        J_cm = 0.5 * (J + J.T) - shift if self.inertia is not None else self.shape.inertia_cm(self.mass)
+        lam = np.linalg.eigvalsh(J_cm)
+        tol = 1e-12 * max(1.0, float(np.abs(J).max()))
+        if self.inertia is not None and (lam[0] <= -tol or lam[0] + lam[1] < lam[2] - tol):
+            raise ValueError(
+                "body.inertia: J - M (|rho_c|^2 I - rho_c rho_c^T), the inertia about the centre of "
+                f"mass, is not an inertia (eigenvalues {np.array2string(lam, precision=4)}): no body of "
+                "this mass and offset has this J")
+        # the stepper subtracts the string's share from J (J_eff, docs/physics.md): a J_cm below
+        # round-off of J would leave J_eff to the rounding errors
+        top = np.linalg.eigvalsh(J)[2]
+        if lam[0] < MIN_INERTIA_SHARE * top:
+            source = "body.inertia" if self.inertia is not None else "body.shape"
+            raise ValueError(
+                f"{source}: the smallest principal inertia about the centre of mass, {lam[0]:.4g} kg m^2, is "
+                f"below {MIN_INERTIA_SHARE:g} of J's largest, {top:.4g} kg m^2 (with body.mass and body.rho_c): a "
+                "body this thin or this far from its attachment point leaves J_eff to round-off")
         return self
 
     @property
@@ -200,9 +211,9 @@ class PivotParams(_Frozen):
     with ``velocity`` [m/s], pushed by the pivot force input."""
 
     kind: Literal["fixed", "free"] = "fixed"
-    position: Vec3 = (0.0, 0.0, 0.0)
-    mass: Optional[float] = Field(None, gt=0, description="point mass of a free pivot [kg]")
-    velocity: Vec3 = (0.0, 0.0, 0.0)
+    position: Point3 = (0.0, 0.0, 0.0)
+    mass: Optional[Real] = bounded("mass", default=None, description="point mass of a free pivot [kg]")
+    velocity: Velocity3 = (0.0, 0.0, 0.0)
 
     @model_validator(mode="after")
     def _mass_iff_free(self) -> "PivotParams":
@@ -223,16 +234,16 @@ class SolverParams(_Frozen):
     (esp_gym/compositions.py), by default Suzuki's 5-stage (order 4) and Kahan-Li's 9- and
     17-stage (orders 6, 8) schemes; ``composition`` names another scheme of that order (``triple_jump``)."""
 
-    newton_tol: float = Field(1e-14, gt=0, le=1e-10)
-    newton_max_iter: int = Field(25, ge=2, le=200)
+    newton_tol: Real = Field(1e-14, gt=0, le=1e-10)
+    newton_max_iter: Count = Field(25, ge=2, le=200)
     order: Literal[2, 4, 6, 8] = 2
-    max_stretch: float = Field(
-        10.0, gt=1.0, description="blow-up guard: a step that stretches an element beyond this many rest "
-                                  "lengths stops with an error (an unstable step grows geometrically; this "
-                                  "catches it while the state is still finite)")
+    max_stretch: Real = Field(
+        10.0, gt=1.0, le=BOUNDS["stretch"][1],
+        description="blow-up guard: a step that stretches an element beyond this many rest lengths stops with "
+                    "an error (an unstable step grows geometrically; this catches it while the state is finite)")
     composition: Optional[Literal[tuple(COMPOSITIONS)]] = Field(
         None, description="composition scheme (default: the order's, see esp_gym/compositions.py)")
-    compensated: bool = Field(
+    compensated: Flag = Field(
         True, description="add the state increments with Kahan's compensation: keeps energy and pi3 "
                           "round-off bounded over 1e7+ steps; false is ~13 % faster per step and "
                           "loses nothing over short horizons (docs/performance.md)")
@@ -269,24 +280,32 @@ class InitialState(_Frozen):
     """
 
     direction: Vec3 = (1.0, 0.0, 0.0)
-    stretch: float = Field(1.0, gt=0)
-    nodes: Optional[list[Vec3]] = None
-    attach_velocity: Vec3 = (0.0, 0.0, 0.0)
-    node_velocities: Optional[list[Vec3]] = None
+    stretch: Real = bounded("stretch", default=1.0)
+    nodes: Optional[list[Point3]] = None
+    attach_velocity: Velocity3 = (0.0, 0.0, 0.0)
+    node_velocities: Optional[list[Velocity3]] = None
     R0: Mat3 = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
-    Omega0: Vec3 = (0.0, 0.0, 0.0)
+    Omega0: vector("angular_speed") = (0.0, 0.0, 0.0)
 
     @field_validator("direction")
     @classmethod
     def _direction_nonzero(cls, d: Vec3) -> Vec3:
-        if np.linalg.norm(d) == 0:
+        if not any(d):
             raise ValueError("direction must be a non-zero vector")
         return d
+
+    def unit_direction(self) -> np.ndarray:
+        """``direction`` normalised (scaled first, so that no square overflows or underflows)."""
+        d = np.array(self.direction, dtype=float)
+        d /= np.abs(d).max()
+        return d / np.linalg.norm(d)
 
     @field_validator("R0")
     @classmethod
     def _rotation(cls, R: Mat3) -> Mat3:
         A = np.array(R, dtype=float)
+        if np.abs(A).max() > 1.0 + 1e-9:
+            raise ValueError(f"R0 must be a rotation (its entries lie in [-1, 1], got {np.abs(A).max():.6g})")
         err = np.linalg.norm(A.T @ A - np.eye(3))
         if err > 1e-12 or np.linalg.det(A) <= 0:
             raise ValueError(f"R0 must be a rotation (||R^T R - I|| = {err:.2g}, det = {np.linalg.det(A):.6g})")
@@ -300,9 +319,9 @@ class Scene(_Frozen):
     string: StringParams
     body: BodyParams
     pivot: PivotParams = PivotParams()
-    gravity: float = Field(9.81, ge=0, description="gravitational acceleration along +e3 [m/s^2]")
-    h: float = Field(gt=0, description="time step [s]")
-    allow_unstable_h: bool = Field(False, description="accept h above the stability bound")
+    gravity: Real = bounded("gravity", default=9.81, description="gravitational acceleration along +e3 [m/s^2]")
+    h: Real = Field(gt=0, description="time step [s]")
+    allow_unstable_h: Flag = Field(False, description="accept h above the stability bound")
     solver: SolverParams = SolverParams()
     initial: InitialState = InitialState()
 
@@ -323,15 +342,22 @@ class Scene(_Frozen):
                 f"(2/omega_max, omega_max = sqrt(12 EA/(mu u^2)) for N = {self.string.elements}{composed}); "
                 "use a smaller h or set allow_unstable_h: true")
         n1 = self.string.elements + 1
-        init = self.initial
+        init, limit = self.initial, self.solver.max_stretch
+        if init.nodes is None and init.stretch >= limit:
+            raise ValueError(f"initial.stretch = {init.stretch:g} must be below solver.max_stretch = {limit:g} "
+                             "(the blow-up guard would stop the first step)")
         if init.nodes is not None:
             if len(init.nodes) != n1:
                 raise ValueError(f"initial.nodes needs N+1 = {n1} rows, got {len(init.nodes)}")
             if not np.allclose(init.nodes[0], self.pivot.position, rtol=0, atol=1e-12):
                 raise ValueError("initial.nodes[0] must be at pivot.position")
-            x = np.diff(np.array(init.nodes, dtype=float), axis=0)
-            if np.any(np.linalg.norm(x, axis=1) == 0):
+            lengths = np.linalg.norm(np.diff(np.array(init.nodes, dtype=float), axis=0), axis=1)
+            if np.any(lengths == 0):
                 raise ValueError("initial.nodes has an element of zero length")
+            if lengths.max() >= limit * self.string.u:
+                raise ValueError(f"initial.nodes has an element {lengths.max() / self.string.u:.4g} rest lengths "
+                                 f"long, not below solver.max_stretch = {limit:g} (the blow-up guard would "
+                                 "stop the first step)")
         if init.node_velocities is not None:
             if len(init.node_velocities) != n1:
                 raise ValueError(f"initial.node_velocities needs N+1 = {n1} rows, got {len(init.node_velocities)}")
@@ -344,8 +370,7 @@ class Scene(_Frozen):
         """Initial node positions (N+1, 3) [m]."""
         if self.initial.nodes is not None:
             return np.array(self.initial.nodes, dtype=float)
-        d = np.array(self.initial.direction, dtype=float)
-        d /= np.linalg.norm(d)
+        d = self.initial.unit_direction()
         s = np.arange(self.string.elements + 1) * (self.string.u * self.initial.stretch)
         return np.asarray(self.pivot.position, dtype=float) + s[:, None] * d
 
@@ -359,24 +384,14 @@ class Scene(_Frozen):
         return v
 
 
-def _format_errors(err: ValidationError, source: str) -> str:
-    lines = [f"invalid scene {source}:"]
-    for e in err.errors():
-        loc = ".".join(str(x) for x in e["loc"])
-        msg = e["msg"].removeprefix("Value error, ")
-        if e["type"] == "extra_forbidden":
-            msg = "unknown key"
-        # scene-level rules (h vs the bound, row counts) name their field in the message
-        lines.append(f"  {loc}: {msg}" if loc else f"  {msg}")
-    return "\n".join(lines)
-
-
-def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
+def scene_from_dict(data: Any, source: str = "<dict>") -> Scene:
     """Validate a plain dict into a :class:`Scene`, raising :class:`SceneError` on bad input."""
     try:
         return Scene.model_validate(data)
     except ValidationError as err:
-        raise SceneError(_format_errors(err, source)) from None
+        raise SceneError(validation_message(err, source)) from None
+    except RecursionError:
+        raise SceneError(f"invalid scene {source}: nested too deeply to be a scene") from None
 
 
 def available_scenes() -> list[str]:
@@ -384,47 +399,37 @@ def available_scenes() -> list[str]:
     return sorted(p.stem for p in SCENES_DIR.glob("*.yaml"))
 
 
-def _set_dotted(data: dict, dotted: str, value: Any) -> None:
-    keys = dotted.split(".")
-    node = data
-    for key in keys[:-1]:
-        child = node.get(key)
-        if child is None:
-            child = node[key] = {}
-        if not isinstance(child, dict):
-            raise SceneError(f"override {dotted!r}: {key!r} is not a section")
-        node = child
-    if isinstance(value, dict) and isinstance(node.get(keys[-1]), dict):
-        merged = dict(node[keys[-1]])
-        for k, v in value.items():
-            _set_dotted(merged, k, v)
-        node[keys[-1]] = merged
-    else:
-        node[keys[-1]] = value
+def override_scene(scene: Scene, overrides: Optional[Mapping[str, Any]] = None) -> Scene:
+    """A new scene: ``scene`` with ``overrides`` applied and validated as :func:`load_scene`
+    applies them to a file (the same merge, aliases and dotted paths:
+    :func:`~esp_gym.scene_input.merge_overrides`)."""
+    if not overrides:
+        return scene
+    data = merge_overrides(scene.model_dump(), overrides, Scene.model_fields, KINDS)
+    return scene_from_dict(data, source=repr(scene.name))
 
 
-def load_scene(name_or_path: str | Path, **overrides: Any) -> Scene:
-    """Load a scene by name (``configs/scenes/NAME.yaml``) or YAML path, with overrides.
+def load_scene(name_or_path: str | Path | Scene, **overrides: Any) -> Scene:
+    """Load a scene by name (``configs/scenes/NAME.yaml``) or YAML path (.yaml or .yml, in any
+    case), with overrides; a :class:`Scene` is taken as it is (then see :func:`override_scene`).
 
     Overrides are validated like the file: top-level fields (``h=2.5e-5``), sections merged
     key by key (``string={"EA": 80}``), dotted paths (``**{"body.mass": 0.2}``) and the aliases
-    N, EA, length, M, J, rho_c, g.
+    N, EA, length, M, J, rho_c, g. Every failure is a :class:`SceneError`: a bad field (named
+    with its rule), or a file that cannot be read or is not a scene (named with the problem).
     """
+    if isinstance(name_or_path, Scene):
+        return override_scene(name_or_path, overrides)
     path = Path(name_or_path)
-    if path.suffix not in (".yaml", ".yml"):
+    if not is_yaml_path(path):
         path = SCENES_DIR / f"{name_or_path}.yaml"
     if not path.is_file():
-        raise SceneError(f"no scene {str(name_or_path)!r}: not a YAML file and not one of {available_scenes()}")
-    with open(path) as fh:
-        data = yaml.safe_load(fh) or {}
-    if not isinstance(data, dict):
-        raise SceneError(f"invalid scene {path}: the file must hold a mapping")
-    data = copy.deepcopy(data)
+        known = available_scenes()
+        if not is_yaml_path(name_or_path):
+            raise SceneError(f"no scene {str(name_or_path)!r}: not a YAML file and not one of {known}")
+        what = "a directory" if path.is_dir() else "no such file"
+        raise SceneError(f"no scene file {str(name_or_path)!r}: {what} (the scenes by name: {known})")
+    data = read_scene_file(path)
     data.setdefault("name", path.stem)
-    for key, value in overrides.items():
-        dotted = ALIASES.get(key, key)
-        if dotted.split(".")[0] not in Scene.model_fields:
-            raise SceneError(f"unknown override {key!r}: use a scene field "
-                             f"{sorted(Scene.model_fields)}, a dotted path or one of {sorted(ALIASES)}")
-        _set_dotted(data, dotted, value)
-    return scene_from_dict(data, source=repr(data.get("name")))
+    data = merge_overrides(data, overrides, Scene.model_fields, KINDS)
+    return scene_from_dict(data, source=f"{data.get('name')!r} ({path})")

@@ -128,3 +128,103 @@ def test_cold_start_quick_measures_a_cold_and_a_warm_start(tmp_path):
     cold, warm = runs
     assert 0 < cold["import_s"] <= cold["construct_s"] <= cold["first_step_s"] <= cold["process_s"]
     assert warm["first_step_s"] < cold["first_step_s"]
+
+
+# -- issue 12, item 9: one clear line and a documented exit status, nothing created before the checks ------
+def _tree(root):
+    return sorted(str(p.relative_to(root)) for p in root.rglob("*"))
+
+
+def _one_line(capsys):
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    return err
+
+
+@pytest.mark.parametrize("argv, named", [
+    (["paper", "--t-final", "inf"], "--t-final"),     # was an OverflowError
+    (["paper", "--t-final", "1e9"], "--t-final"),     # was a 45.8 TiB allocation, after creating --out
+    (["paper", "--t-final", "nan"], "--t-final"),     # was "cannot convert float NaN to integer"
+    (["paper", "--t-final", "-5"], "--t-final"),
+    (["paper", "--t-final", "2000"], "--record-every"),  # 2e7 steps: series past the memory limit
+    (["paper", "--record-every", "0"], "--record-every"),
+    (["paper", "--out", ""], "--out is empty"),
+    (["paper", "--out", "{file}"], "is a file, not a directory"),
+    (["record", "--out", "{tmp}"], "is a directory"),   # was a RuntimeError from rerun after the run
+    (["record", "--out", "{tmp}/sub/"], "is a directory"),
+    (["record", "--out", ""], "--out is empty"),
+    (["record", "--out", "{file}/x.rrd"], "is not a directory"),
+    (["record", "--t-final", "1e300", "--out", "{tmp}/a.rrd"], "--t-final"),
+    (["record", "--t-final", "1e5", "--out", "{tmp}/a.rrd"], "--t-final"),  # 5 GiB of samples
+    (["record", "--t-final", "0.00015", "--out", "{tmp}/a.rrd"], "whole number of steps"),
+    (["record", "--record-every", "x", "--out", "{tmp}/a.rrd"], "--record-every"),
+    (["record", "--no-such-option"], "unrecognized arguments"),
+    ([], "COMMAND"),
+])
+def test_bad_arguments_exit_2_with_one_line_and_create_nothing(tmp_path, capsys, argv, named):
+    from esp_gym.cli import EXIT_USAGE, main
+
+    (tmp_path / "file").write_text("")
+    argv = [a.format(tmp=tmp_path, file=tmp_path / "file") for a in argv]
+    if argv and "--out" not in argv:
+        argv += ["--out", str(tmp_path / "new" / ("x.rrd" if argv[0] == "record" else "dir"))]
+    before = _tree(tmp_path)
+    assert main(argv) == EXIT_USAGE
+    assert named in _one_line(capsys)
+    assert _tree(tmp_path) == before
+
+
+def test_a_read_only_output_directory_is_refused(tmp_path, capsys, monkeypatch):
+    import os
+
+    from esp_gym.cli import EXIT_USAGE, main
+
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    real = os.access
+    # chmod does not stop root, so the check's answer is what is simulated
+    monkeypatch.setattr(os, "access", lambda p, mode, **kw: False if Path(p) == ro else real(p, mode, **kw))
+    for argv in (["record", "--out", str(ro / "x.rrd")], ["paper", "--out", str(ro / "paper")]):
+        assert main(argv) == EXIT_USAGE
+        assert f"{ro} is not writable" in _one_line(capsys)
+    assert _tree(tmp_path) == ["ro"]
+
+
+@pytest.mark.parametrize("content, named", [(b"string: {EA: [1,\n", "YAML error"), (b"\x89PNG\x00", "not utf-8 text"),
+                                            (b"h: 1\nh: 2\n", "duplicate key 'h'"), (b"name: x\n", "string: Field required")])
+def test_a_bad_scene_exits_3_with_one_line_naming_it(tmp_path, capsys, content, named):
+    from esp_gym.cli import EXIT_SCENE, main
+
+    scene = tmp_path / "bad.YAML"
+    scene.write_bytes(content)
+    assert main(["record", "--scene", str(scene), "--out", str(tmp_path / "out" / "x.rrd")]) == EXIT_SCENE
+    err = _one_line(capsys)
+    assert named in err and "bad" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_failed_simulation_exits_1_apart_from_argument_errors(tmp_path, capsys):
+    """The physics failing (here h far above the stability bound) is exit status 1, not 2 or 3."""
+    import yaml
+
+    from esp_gym.cli import EXIT_SIMULATION_FAILED, main
+    from esp_gym.params import load_scene
+
+    data = load_scene("paper_example", N=5).model_dump(mode="json")
+    data.update(h=0.01, allow_unstable_h=True)
+    scene = tmp_path / "unstable.yaml"
+    scene.write_text(yaml.safe_dump(data))
+    argv = ["record", "--scene", str(scene), "--t-final", "10", "--out", str(tmp_path / "x.rrd"), "--no-progress"]
+    assert main(argv) == EXIT_SIMULATION_FAILED
+    assert "failed" in _one_line(capsys)
+
+
+def test_help_documents_the_exit_statuses(capsys):
+    from esp_gym.cli import main
+
+    for argv in (["--help"], ["paper", "--help"], ["record", "--help"]):
+        assert main(argv) == 0
+        out = " ".join(capsys.readouterr().out.split())
+        for text in ("exit status: 0 done", "1 the simulation failed", "2 bad arguments",
+                     "3 invalid or unreadable scene", "4 the outputs could not be written"):
+            assert text in out, (argv, text)
