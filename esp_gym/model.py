@@ -16,8 +16,9 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .kernels.diagnostics import diagnostics as diagnostics_kernel
-from .kernels.layout import (BALANCE, DIAG, INPUTS, LOOP_REPORT_SIZE, OK, R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS,
-                             R_STEPS, STEP_DIAG, DiagWork, Snapshots, StateArrays, Work, status_message)
+from .kernels.layout import (BALANCE, BLOW_UP, DIAG, INPUTS, LOOP_REPORT_SIZE, NEWTON_FAILED, NON_FINITE, OK,
+                             R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS, STEP_DIAG, DiagWork, Snapshots,
+                             StateArrays, Work, status_message)
 from .kernels.loops import lgvi_advance, lgvi_record, state_size
 from .kernels.specialise import specialised_kernels
 from .params import Scene
@@ -40,14 +41,31 @@ class _NoBar:
 class SimulationError(RuntimeError):
     """The stepper could not take a step. The simulator keeps the last good state."""
 
-    def __init__(self, status: int, step: int, time: float, newton_iterations: int):
+    def __init__(self, status: int, step: int, time: float, newton_iterations: int, advice: str = ""):
         self.status = status
         self.step = step
         self.time = time
         super().__init__(
             f"step {step} (t = {time:.6g} s) failed: {status_message(status)} "
             f"(Newton iterations in the failing step: {newton_iterations}); "
-            "the simulator holds the last good state. A smaller h usually helps.")
+            f"the simulator holds the last good state. {advice}".rstrip())
+
+
+def failure_advice(scene: Scene, status: int) -> str:
+    """What to change after a failed step, from the kind of failure and how h compares with the
+    stability bound (a smaller h is the answer only when h is near or past the bound)."""
+    bound = scene.stability_bound
+    ratio = scene.h / bound
+    if status in (BLOW_UP, NON_FINITE) and ratio > 0.7:
+        return (f"h = {scene.h:g} s is {ratio:.2g} x the stability bound {bound:.3g} s: use h <= 0.7 x the bound "
+                f"(esp_gym.choose_h).")
+    if status == NEWTON_FAILED:
+        return "The body turned too far in one step: use a smaller h or a larger solver.newton_max_iter."
+    if status == BLOW_UP:
+        return (f"h is {ratio:.2g} x the stability bound, so the step is stable: the inputs or the initial state "
+                f"stretched an element past solver.max_stretch; use smaller inputs, or raise max_stretch if "
+                f"that stretch is intended.")
+    return "The forces or inputs overflowed: check their magnitudes."
 
 
 @dataclass
@@ -251,25 +269,58 @@ class Simulator:
         self._inputs[INPUTS["spatial_torque"]] = ts
         self._forced = bool(np.any(self._inputs != 0.0))
 
+    #: Long :meth:`step` and :meth:`run` calls are cut into compiled calls of about this many
+    #: seconds [s]; Python handles signals between them, so Ctrl-C stops a long call within
+    #: about this time, with the state and step counter of the calls made.
+    call_seconds = 0.05
+    #: Steps in one compiled call of a long :meth:`step` or :meth:`run` (a first guess; each
+    #: simulator then sets its own from how long its calls take, to take ``call_seconds``).
+    steps_per_call = 1 << 14
+
     def _account(self) -> None:
+        """Count the report of the last kernel call and raise on failure. Counted once: the
+        counts are then zeroed, so a second call (the ``finally`` after a Ctrl-C that came
+        as the kernel returned) adds nothing."""
         self.count_steps(self._stats)
+        self._stats[R_STEPS] = self._stats[R_NEWTON_TOTAL] = 0
         status = int(self._stats[R_STATUS])
         if status != OK:
-            raise SimulationError(status, self._step, self.time, int(self._stats[R_NEWTON_MAX]))
+            raise SimulationError(status, self._step, self.time, int(self._stats[R_NEWTON_MAX]),
+                                  failure_advice(self.scene, status))
+
+    def _timed(self, kernel, args: tuple, steps: int) -> None:
+        """Call ``kernel(*args)``, which takes ``steps`` steps, and count them, also when an
+        exception (Ctrl-C) comes as it returns; then set :attr:`steps_per_call` from its
+        duration (at most 4x the steps, at least 256)."""
+        start = _time.perf_counter()
+        try:
+            kernel(*args)
+        finally:
+            self._account()
+        took = max(_time.perf_counter() - start, 1e-6)
+        self.steps_per_call = int(min(4 * steps, max(256, steps * self.call_seconds / took)))
 
     def step(self, n: int = 1, pivot_force=None, body_torque=None, spatial_torque=None) -> None:
-        """Advance ``n`` steps in one compiled call with inputs held constant: ``pivot_force``
-        (spatial frame, free pivot only) [N], ``body_torque`` (body frame) [N m],
-        ``spatial_torque`` (spatial frame) [N m]; ``None`` means zero. Bad inputs raise
-        ValueError before anything moves. Raises :class:`SimulationError` on failure (the
-        simulator then holds the last good state)."""
+        """Advance ``n`` steps with inputs held constant: ``pivot_force`` (spatial frame, free
+        pivot only) [N], ``body_torque`` (body frame) [N m], ``spatial_torque`` (spatial
+        frame) [N m]; ``None`` means zero. Bad inputs raise ValueError before anything moves.
+        Raises :class:`SimulationError` on failure (the simulator then holds the last good
+        state). A long call is cut into compiled calls of about :attr:`call_seconds` each, so
+        Ctrl-C interrupts it (KeyboardInterrupt; the simulator then holds the state after the
+        calls made, and counts their steps); the results are bit for bit those of one call."""
         n = int(n)
         if n < 0:
             raise ValueError(f"n must be >= 0, got {n}")
         self._set_inputs(pivot_force, body_torque, spatial_torque)
         advance, _ = self._kernels()
-        advance(self._arrays, self._work, self.params, self._inputs, n, self._stats)
-        self._account()
+        while n > self.steps_per_call:  # a long call: in pieces, between which Python handles signals
+            k = self.steps_per_call
+            n -= k
+            self._timed(advance, (self._arrays, self._work, self.params, self._inputs, k, self._stats), k)
+        try:
+            advance(self._arrays, self._work, self.params, self._inputs, n, self._stats)
+        finally:
+            self._account()
 
     def run(self, t_final: float, record_every: int = 100, every_step: bool = False,
             progress: bool = False, pivot_force=None, body_torque=None, spatial_torque=None) -> Trajectory:
@@ -300,25 +351,23 @@ class Simulator:
         step0 = self._step
         iters0 = self.newton_iterations
         start = _time.perf_counter()
-        chunk = max(1, min(K, 2_000_000 // (record_every * max(n, 1)) or 1))
         # a disabled tqdm still costs ~50 us: build one only when asked for
         bar_cm = (tqdm(total=nsteps, unit="step", unit_scale=True, desc=f"{self.scene.name} (N={n}, h={self.h:g})")
                   if progress else contextlib.nullcontext(_NoBar()))
         with bar_cm as bar:
             j = 0
-            while j < K:
-                j1 = min(K, j + chunk)
+            while j < K:  # in calls of ~call_seconds (see step), so Ctrl-C stops a long run
+                j1 = min(K, j + max(1, self.steps_per_call // record_every))
                 rows = slice(j + 1, j1 + 1)
                 part = Snapshots(*(x[rows] for x in snap[:-1]),
                                  step_diag=snap.step_diag[j * record_every:j1 * record_every])
-                record(a, self._work, self.params, self._inputs, record_every, d, part, self._stats)
-                self._account()
+                self._timed(record, (a, self._work, self.params, self._inputs, record_every, d, part, self._stats),
+                            (j1 - j) * record_every)
                 bar.update((j1 - j) * record_every)
                 j = j1
             rest = nsteps - K * record_every
             if rest:
-                advance(a, self._work, self.params, self._inputs, rest, self._stats)
-                self._account()
+                self.step(rest, pivot_force, body_torque, spatial_torque)
                 bar.update(rest)
         wall = _time.perf_counter() - start
         t = (step0 + record_every * np.arange(K + 1)) * self.h

@@ -76,9 +76,8 @@ class StringParams(_Frozen):
         """Largest stable h of the explicit string update [s]: 2/omega_max, where the axial mode
         of one free element bounds the chain's: omega_max = sqrt(12 kappa/m) with consistent
         mass, sqrt(4 kappa/m) lumped."""
-        # as 2 sqrt(m / (c kappa)) = 2 sqrt(mu u^2 / (c EA)): no quotient can divide by zero
-        c = 12.0 if self.mass_model == "consistent" else 4.0
-        return 2.0 * math.sqrt(self.mass_per_length * self.u * self.u / (c * self.EA))
+        # within the bounds of docs/scenes.md no factor here is 0 or overflows
+        return 2.0 / math.sqrt((12.0 if self.mass_model == "consistent" else 4.0) * self.kappa / self.m)
 
 
 class Box(_Frozen):
@@ -295,10 +294,14 @@ class InitialState(_Frozen):
         return d
 
     def unit_direction(self) -> np.ndarray:
-        """``direction`` normalised (scaled first, so that no square overflows or underflows)."""
+        """``direction`` normalised; scaled first only where a square would overflow or
+        underflow, so that ordinary directions keep the bits they always had."""
         d = np.array(self.direction, dtype=float)
-        d /= np.abs(d).max()
-        return d / np.linalg.norm(d)
+        norm = np.linalg.norm(d)
+        if not 1e-150 < norm < 1e150:
+            d /= np.abs(d).max()
+            norm = np.linalg.norm(d)
+        return d / norm
 
     @field_validator("R0")
     @classmethod

@@ -106,3 +106,17 @@ def test_state_save_and_restore_is_bit_exact():
     b.set_state(saved)
     b.step(1000)
     assert _same(a.state, b.state)
+
+
+def test_failure_advice_fits_the_failure():
+    """"A smaller h usually helps" was said of every failure; now h is blamed only where it is
+    near or past the stability bound."""
+    bound = esp_gym.load_scene("paper_example").string.stability_bound
+    unstable = esp_gym.Simulator(esp_gym.load_scene("paper_example", h=2.5 * bound, allow_unstable_h=True))
+    with pytest.raises(SimulationError, match=r"x the stability bound .*use h <= 0.7") as err:
+        unstable.step(100_000)
+    assert err.value.status in (5, 3)
+    pushed = esp_gym.Simulator(esp_gym.load_scene("paper_example_free_pivot"))
+    with pytest.raises(SimulationError) as err:
+        pushed.step(100_000, pivot_force=[1e9, 0.0, 0.0])
+    assert "use h <=" not in str(err.value) and ("inputs" in str(err.value) or "overflowed" in str(err.value))

@@ -7,7 +7,7 @@ archetype, component, component type, taken from Rerun's own descriptors:
 :func:`component_field`). Component columns are lists, one batch per row (:func:`rows`), of
 the component's Arrow type, also taken from Rerun's own conversions (:func:`arrow_type`);
 scalar columns may be plain float64 with nulls where a series has no sample (Rerun wraps each
-value as a one-element list).
+value as a one-element list). :func:`episode_returns` computes the return column.
 """
 from __future__ import annotations
 
@@ -86,3 +86,17 @@ def record_batch(steps: np.ndarray, times: np.ndarray, columns) -> pa.RecordBatc
         fields.append(component_field(path, descriptor, values.type))
         arrays.append(values)
     return pa.RecordBatch.from_arrays(arrays, schema=pa.schema(fields))
+
+
+def episode_returns(rewards: np.ndarray, episode: np.ndarray, stepped: np.ndarray, carry: tuple) -> tuple:
+    """The running sum of the rewards of stepped samples within each episode, carried across
+    record batches: ``carry`` is (episode, return) at the end of the previous batch; returns the
+    column and the new carry."""
+    vals = np.where(stepped, rewards, 0.0)
+    if episode[0] == carry[0]:
+        vals[0] += carry[1]
+    idx = np.arange(len(vals))
+    start = np.maximum.accumulate(np.where(np.r_[True, episode[1:] != episode[:-1]], idx, 0))
+    cs = np.cumsum(vals)
+    out = cs - (cs[start] - vals[start])
+    return out, (episode[-1], float(out[-1]))

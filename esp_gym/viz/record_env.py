@@ -22,7 +22,9 @@ class RecordRerun(gym.Wrapper):
     reset. Episodes follow each other on the ``step`` timeline (one step apart) and ``time``
     is ``step`` times the control period. Samples are buffered and written every
     ``flush_every`` samples, after ``flush_seconds`` of wall time, when an episode ends
-    (``flush_on_episode_end``), on :meth:`close`, at exit and on SIGTERM/SIGINT.
+    (``flush_on_episode_end``), on :meth:`close`, at exit and on SIGTERM/SIGINT. A failed
+    write raises :class:`~esp_gym.viz.lifecycle.RecordingError` from the next ``step`` (or
+    ``reset``, or :meth:`close`) and stops the recording; the file keeps what came before.
 
     There is no every-physics-step option: the environment advances its physics steps inside
     one compiled call (kernels/task.py), so the intermediate states never reach Python;
@@ -82,8 +84,10 @@ class RecordRerun(gym.Wrapper):
                        episode=self._episode, action=control.action, terms=control.reward_terms, **sample)
 
     def close(self):
-        self.recorder.close()
-        super().close()
+        try:
+            self.recorder.close()  # RecordingError if the file could not be completed
+        finally:
+            super().close()
 
 
 # -- free simulations -----------------------------------------------------------------------------

@@ -157,6 +157,7 @@ class Recorder:
     | `trail_spacing` | 0.1 | time between the trail's points (a multiple of the sample period) |
     | `flush_every` | 2000 | samples buffered before they are written |
     | `flush_seconds` | 5.0 | wall time after which buffered samples are written at the next sample |
+    | `write_timeout` | 5.0 | a wait for the file (a flush, :meth:`close`) fails after this long [s] without it growing |
     | `application_id` | "esp_gym" | Rerun application id |
     | `recording_id` | None | Rerun recording id (None: a random one) |
 
@@ -164,15 +165,18 @@ class Recorder:
     :meth:`add_sample` (live kernel arrays, e.g. an environment's); :meth:`start_episode` takes
     the balance origins. Use as a context manager or call :meth:`close`; open recorders are also
     closed at exit and on SIGTERM (lifecycle.py).
+    A failed write (disk full, ...) raises :class:`~esp_gym.viz.lifecycle.RecordingError` from the
+    next sample, flush or :meth:`close`; the recording stops, and the file keeps the first
+    :attr:`samples_written` samples, readable (lifecycle.py, :class:`~esp_gym.viz.lifecycle.RrdFile`).
     """
 
     def __init__(self, path, scene, *, env: bool = False, sample_period: float = 0.02,
                  strain_scale: Optional[float] = None, force_scale: float = 0.05, force_offset=None,
                  torque_scale: float = 10.0, action_scale: Optional[tuple] = None, trail_seconds: float = 1.0,
                  trail_spacing: float = 0.1, flush_every: int = 2000, flush_seconds: float = 5.0,
-                 application_id: str = "esp_gym", recording_id: Optional[str] = None):
-        if flush_every < 1 or not flush_seconds > 0:
-            raise ValueError("flush_every must be >= 1 and flush_seconds > 0")
+                 write_timeout: float = 5.0, application_id: str = "esp_gym", recording_id: Optional[str] = None):
+        if flush_every < 1 or not flush_seconds > 0 or not write_timeout > 0:
+            raise ValueError("flush_every must be >= 1, flush_seconds and write_timeout > 0")
         if not (sample_period > 0 and trail_seconds >= 0 and trail_spacing > 0 and force_scale >= 0
                 and torque_scale >= 0):
             raise ValueError("sample_period and trail_spacing must be > 0; trail_seconds, force_scale and "
@@ -192,7 +196,10 @@ class Recorder:
         self.trail_len = max(1, int(round(trail_seconds / sample_period)) + 1)  # samples spanned
         self.trail_stride = max(1, int(round(trail_spacing / sample_period)))
         self.flush_every, self.flush_seconds = int(flush_every), float(flush_seconds)
+        self.write_timeout = float(write_timeout)
         self.samples = 0  #: samples written or buffered so far
+        self.samples_written = 0  #: samples known to be whole in the file (at its last complete point)
+        self._sent = 0  # samples handed to Rerun
         self.closed = False
 
         self.n_elements = n = scene.string.elements
@@ -205,16 +212,17 @@ class Recorder:
         self._no_target = read_only(np.full(TARGET.size, math.nan))
         self._trail_hist = np.empty((0, 3))  # the current episode's last load positions
         self._trail_episode = None
-        self._return, self._return_episode = 0.0, None
+        self._return = (None, 0.0)  # (episode, return) at the last sample written
         self._last_flush = _time.monotonic()
         self.E0 = self.pi3_0 = 0.0  #: balance origins of the current episode
         self.max_abs_residuals = np.zeros(2)  #: largest |E - E0 - W|, |pi3 - pi3_0 - impulse| in sample()
         self._last_newton = None  # (total iterations, steps) of the simulator at the last sample
 
+        self._file = lifecycle.RrdFile(self.path, self.write_timeout)
         self.rec = rr.RecordingStream(application_id, recording_id=recording_id)
         self.rec.set_log_time_enabled(False)
         self.rec.set_log_tick_enabled(False)
-        self.rec.save(str(self.path), default_blueprint=default_blueprint(self.env))
+        self._file.attach(self.rec, default_blueprint(self.env))
         self._log_static()
         lifecycle.track(self)
 
@@ -260,9 +268,10 @@ class Recorder:
         a step (``stepped``; False after a reset), the ``episode``, the applied ``action``
         (ACTION) and reward ``terms`` (REWARD) with the ``reward``, the ``inputs`` (INPUTS) and
         the episode's ``target`` (TARGET; give it at the episode's reset only). Arrays not given
-        are zeros (the target: none)."""
+        are zeros (the target: none). Raises RecordingError after a failed write."""
         if self.closed:
             return
+        self._check()
         z = self._zeros
         capture_sample(self._buf, self._n, state.r, state.R, diag.out, diag.strain, state.acc,
                        z if action is None else action, z if terms is None else terms, report,
@@ -308,24 +317,55 @@ class Recorder:
     # -- writing ----------------------------------------------------------------------------
     def flush(self, wait: bool = False) -> None:
         """Write the buffered samples (one record batch) and hand them to the file writer
-        (``wait``: until they are written). Signals arriving meanwhile wait for it."""
+        (``wait``: until they are in the file, see ``write_timeout``). Signals arriving
+        meanwhile wait for it. Raises RecordingError after a failed write."""
         if self.closed or lifecycle.flushing():
             return
         with lifecycle.holding_signals():
-            if self._n:
-                self._write(self._n)
-                self._n = 0
-            self.rec.flush(timeout_sec=1e38 if wait else 0.0)
-            self._last_flush = _time.monotonic()
+            self._flush(wait)
+
+    def _flush(self, wait: bool) -> None:
+        self._check()
+        if self._n:
+            self._synced()  # what was sent before is in the file: it ends readable there
+            self._write(self._n)
+            self._sent, self._n = self._sent + self._n, 0
+        if wait:
+            self._synced()
+        else:
+            self.rec.flush(timeout_sec=0.0)
+        self._last_flush = _time.monotonic()
+
+    def _synced(self) -> None:
+        self._file.sync(self.rec)
+        self._check()
+        self.samples_written = self._sent
 
     def close(self) -> None:
-        """Flush and close the file (it gets its footer); idempotent."""
+        """Flush and close the file (it gets its footer); idempotent. Returns once the file
+        is written, or has not grown for ``write_timeout``; raises RecordingError if the file
+        is incomplete."""
         if self.closed:
             return
-        self.flush(wait=True)
-        self.closed = True
-        lifecycle.untrack(self)
-        self.rec.disconnect()
+        with lifecycle.holding_signals():
+            try:
+                self._flush(wait=True)
+            finally:
+                self._shut()
+            self._check()
+
+    def _shut(self) -> None:
+        if not self.closed:
+            self.closed = True
+            lifecycle.untrack(self)
+            if self._file.finish(self.rec):
+                self.samples_written = self._sent
+
+    def _check(self) -> None:
+        """After a failed write: stop recording and raise RecordingError."""
+        if self._file.error is not None:
+            self._shut()
+            self._file.raise_error(f"the file keeps the first {self.samples_written} of {self.samples} samples")
 
     def __enter__(self) -> "Recorder":
         return self
@@ -377,7 +417,7 @@ class Recorder:
                 values = rows(pa.array(b[:, columns].reshape(-1)), np.arange(0, n * k + 1, k, dtype=np.int32), mask)
             cols.append((path, scalar, values))
         if self.env:
-            returns = self._returns(b[:, col("reward")], episode, stepped)
+            returns, self._return = arrow.episode_returns(b[:, col("reward")], episode, stepped, self._return)
             cols.append((RETURN, scalar, pa.array(returns, mask=missing)))
         self.rec.send_record_batch(arrow.record_batch(step, time, cols))
         target = col("target")
@@ -405,16 +445,3 @@ class Recorder:
         keep = keep[ep[keep] == episode[-1]]
         self._trail_hist, self._trail_episode = points[keep], episode[-1]
         return arrow.strips(out[:total], offsets)
-
-    def _returns(self, rewards: np.ndarray, episode: np.ndarray, stepped: np.ndarray) -> np.ndarray:
-        """Running sum of the rewards of stepped samples within each episode (carried across
-        flushes)."""
-        vals = np.where(stepped, rewards, 0.0)
-        if episode[0] == self._return_episode:
-            vals[0] += self._return
-        idx = np.arange(len(vals))
-        start = np.maximum.accumulate(np.where(np.r_[True, episode[1:] != episode[:-1]], idx, 0))
-        cs = np.cumsum(vals)
-        out = cs - (cs[start] - vals[start])
-        self._return, self._return_episode = float(out[-1]), episode[-1]
-        return out

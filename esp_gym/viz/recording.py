@@ -63,12 +63,18 @@ float32 (Rerun's types). Related scalar series share an entity (named series): e
 costs a row id and two time values per sample.
 
 Interruption (lifecycle.py): SIGTERM closes every open recording (the file gets its footer) and
-then ends the process as SIGTERM would have (or calls the previously installed Python handler).
-SIGINT writes the buffers and raises KeyboardInterrupt as usual; ``atexit`` closes the
-recordings. A signal arriving during a flush is handled when it is done. Only SIGKILL (or a
-crash) loses data: the samples buffered since the last flush (at most ``flush_seconds`` of wall
-time, or ``flush_every`` samples); the file is then still readable with
-``RrdReader(path).stream()`` (without its footer ``.store()`` refuses it).
+then ends the process as SIGTERM would have (or calls the previously installed Python handler);
+a second SIGTERM, or 30 s, ends it even if closing hangs. SIGINT writes the buffers and raises
+KeyboardInterrupt as usual; ``atexit`` closes the recordings. A signal arriving during a flush
+is handled when it is done. Only SIGKILL (or a crash) loses data: the samples buffered since the
+last flush (at most ``flush_seconds`` of wall time, or ``flush_every`` samples); the file is then
+still readable with ``RrdReader(path).stream()`` (without its footer ``.store()`` refuses it).
+
+Write errors (lifecycle.py): Rerun writes into a pipe and a thread of ours writes the file,
+checking each write. A failed write (disk full, file-size limit) raises :class:`RecordingError`
+(an ``OSError`` naming the file) from the next sample, flush or ``close()``; the recording stops
+and the file, cut back to the end of its last complete flush, stays readable. A wait for the
+file ends when it has not grown for ``write_timeout`` (a failure, ``errno.ETIMEDOUT``).
 
 Modules: recorder.py (:class:`Recorder`, the entity paths and series), record_env.py
 (:class:`RecordRerun`, :func:`record_simulation`), arrow.py (the record batches), lifecycle.py
@@ -78,14 +84,15 @@ their public face.
 """
 from ..kernels.layout import REWARD_TERMS
 from .geometry import equivalent_box, prism_triangles, quaternion_xyzw
+from .lifecycle import RecordingError
 from .record_env import RecordRerun, default_record_every, record_simulation
 from .recorder import (BODY, BODY_COM, BODY_SHAPE, BODY_TORQUE, LOAD_TRAIL, NEWTON, PIVOT, PIVOT_FORCE, RETURN,
                        SCALARS, STRING, TARGET_LOAD, TARGET_PIVOT, WORLD, Recorder, default_blueprint,
                        default_strain_scale)
 
 __all__ = [
-    "Recorder", "RecordRerun", "record_simulation", "default_record_every", "default_strain_scale",
-    "default_blueprint", "quaternion_xyzw", "prism_triangles", "equivalent_box", "REWARD_TERMS", "SCALARS",
-    "WORLD", "STRING", "BODY", "BODY_SHAPE", "BODY_COM", "BODY_TORQUE", "PIVOT", "PIVOT_FORCE", "LOAD_TRAIL",
-    "TARGET_PIVOT", "TARGET_LOAD", "NEWTON", "RETURN",
+    "Recorder", "RecordRerun", "RecordingError", "record_simulation", "default_record_every",
+    "default_strain_scale", "default_blueprint", "quaternion_xyzw", "prism_triangles", "equivalent_box",
+    "REWARD_TERMS", "SCALARS", "WORLD", "STRING", "BODY", "BODY_SHAPE", "BODY_COM", "BODY_TORQUE", "PIVOT",
+    "PIVOT_FORCE", "LOAD_TRAIL", "TARGET_PIVOT", "TARGET_LOAD", "NEWTON", "RETURN",
 ]
