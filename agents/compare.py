@@ -20,12 +20,9 @@ from esp_gym.tasks import TASKS
 def main(argv=None) -> dict:
     ap = ArgumentParser(prog="python -m agents.compare", description=__doc__.split("\n\n")[0])
     ap.add_argument("--model", required=True, help="trained model .zip")
-    ap.add_argument("--task", default="stabilize", choices=sorted(TASKS))
-    ap.add_argument("--episodes", type=int, default=50)
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_episode_options(TASKS, episodes=50)
     ap.add_argument("--out", default=None, help="JSON file for the results")
     a = ap.parse_args(argv)
-    ap.check_minimums(vars(a), episodes=1, seed=0)
     ap.check_parent_dir("--out", a.out)
     try:
         model = SB3Policy(a.model)

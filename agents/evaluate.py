@@ -118,13 +118,10 @@ def evaluate_policy(policy, task: str = "stabilize", episodes: int = 50, seed: i
 def main(argv=None) -> dict:
     ap = ArgumentParser(prog="python -m agents.evaluate", description=__doc__.split("\n\n")[0])
     ap.add_argument("--policy", default="baseline", help="zero, baseline or the path of a model .zip")
-    ap.add_argument("--task", default="stabilize", choices=sorted(TASKS))
-    ap.add_argument("--episodes", type=int, default=50)
-    ap.add_argument("--seed", type=int, default=0, help="episode i uses seed + i (>= 0)")
+    ap.add_episode_options(TASKS, episodes=50)
     ap.add_argument("--record", metavar="FILE.rrd", default=None,
                     help="write a Rerun recording of the first episode to FILE.rrd")
     args = ap.parse_args(argv)
-    ap.check_minimums(vars(args), episodes=1, seed=0)
     ap.check_parent_dir("--record", args.record)
     try:
         policy = load_policy(args.policy)

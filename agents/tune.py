@@ -38,12 +38,10 @@ def tune(task: str, episodes: int, grid: dict, top: int = 10) -> list:
 
 def main(argv=None) -> list:
     ap = ArgumentParser(prog="python -m agents.tune", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--task", default="stabilize", choices=sorted(TASKS))
-    ap.add_argument("--episodes", type=int, default=20)
+    ap.add_episode_options(TASKS, episodes=20, seed=False)
     ap.add_argument("--grid", type=str, default=None,
                     help=f"JSON object gain -> list of values (default: {json.dumps(COARSE_GRID)})")
     a = ap.parse_args(argv)
-    ap.check_minimums(vars(a), episodes=1)
     try:
         grid = COARSE_GRID if a.grid is None else checked_grid(json.loads(a.grid), a.task)
     except json.JSONDecodeError as err:

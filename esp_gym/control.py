@@ -176,6 +176,7 @@ class ControlStep:
         self._terms = z(batch + (REWARD.size,))
         self._report = z(batch + (REPORT.size,), dtype=np.int64)
         self._was_reset = z(batch, dtype=bool)  # stepping a state that was never set is an error
+        self._ready = False  # all of _was_reset, kept as a bool: step checks it every call
         self._make_views()
 
     def _make_views(self) -> None:
@@ -217,7 +218,9 @@ class ControlStep:
             obs, terms, action, tgt = self._obs[i], self._terms[i], self._action[i], self._target[i]
         tgt[...] = target
         action[...] = 0.0
-        self._was_reset[() if index is None else int(index)] = True
+        if not self._ready:
+            self._was_reset[() if index is None else int(index)] = True
+            self._ready = bool(self._was_reset.all())
         return int(env_reset_observe(S, self._params, D, tgt, self.setup.task_params, action, obs, terms))
 
     # -- step -------------------------------------------------------------------------------------
@@ -228,7 +231,7 @@ class ControlStep:
         (num_envs,)): the sub-environments to step (default: all); the others are untouched."""
         s, w, p, d = self._kernel_tuples
         setup = self.setup
-        if not self._was_reset.all():
+        if not self._ready:
             never = "" if self.num_envs is None else f" (sub-environments {np.flatnonzero(~self._was_reset).tolist()})"
             raise RuntimeError(f"call reset() before step(){never}")
         if self.num_envs is None:

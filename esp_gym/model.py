@@ -21,7 +21,7 @@ from .kernels.layout import (BALANCE, BLOW_UP, DIAG, INPUTS, LOOP_REPORT_SIZE, N
                              StateArrays, Work, status_message)
 from .kernels.loops import lgvi_advance, lgvi_record, state_size
 from .kernels.specialise import specialised_kernels
-from .params import Scene
+from .params import Scene, check_rotation
 from .state import State, build_params, check_memory, initial_state, legendre_momenta  # noqa: F401  (re-exported)
 
 #: The live arrays of a simulator that the compiled kernels advance: ``state``
@@ -130,7 +130,7 @@ def _vector_input(name: str, value) -> np.ndarray:
     return arr
 
 
-#: How far from orthogonal a state's attitude may be (``max|R^T R - I|``). The integrator keeps
+#: How far from orthogonal a state's attitude may be (``||R^T R - I||``, Frobenius). The integrator keeps
 #: it near round-off (docs/physics.md, "Round-off"), so this admits any state it produced.
 ROTATION_TOL = 1e-9
 
@@ -199,6 +199,7 @@ class Simulator:
         """Replace the state (copied, checked like a scene: real, finite, of this scene's shapes,
         R a rotation to ``ROTATION_TOL``); resets the balances."""
         a = self._arrays
+        checked = {}
         for name in ("r", "p", "R", "Pi"):
             given = np.asarray(getattr(state, name))
             if given.dtype.kind not in "iuf":
@@ -208,13 +209,10 @@ class Simulator:
                 raise ValueError(f"state.{name} has shape {new.shape}, expected {getattr(a, name).shape}")
             if not np.all(np.isfinite(new)):
                 raise ValueError(f"state.{name} is not finite")
-        R = np.asarray(state.R, dtype=np.float64)
-        err = float(np.abs(R.T @ R - np.eye(3)).max())
-        if not (err <= ROTATION_TOL and np.linalg.det(R) > 0):
-            raise ValueError(f"state.R must be a rotation: max|R^T R - I| = {err:.3g} (at most {ROTATION_TOL:g}), "
-                             f"det R = {np.linalg.det(R):.6g}")
-        for name in ("r", "p", "R", "Pi"):
-            getattr(a, name)[...] = getattr(state, name)
+            checked[name] = new
+        check_rotation("state.R", checked["R"], ROTATION_TOL)
+        for name, new in checked.items():
+            getattr(a, name)[...] = new
         self._step = int(state.step)
         rem = getattr(state, "remainders", None)
         for i, c in enumerate((a.rc, a.pc, a.Rc, a.Pic)):

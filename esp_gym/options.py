@@ -14,20 +14,16 @@ from typing import Annotated, Any, Optional, Union
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError
 
 from .params import Scene
+from .scene_input import Real, plain_number
 
 #: Physics steps per control step above which the environment refuses to start: past this a
 #: single ``step`` costs tens of milliseconds or more (0.33 us per physics step at N = 20).
 MAX_SUBSTEPS = 100_000
 
 
-def _number_not_text_or_bool(value: Any) -> Any:
-    if isinstance(value, (bool, str, bytes)):
-        raise ValueError(f"must be a number, not {type(value).__name__}")
-    return value
-
-
-Real = Annotated[float, BeforeValidator(_number_not_text_or_bool)]
-Count = Annotated[int, BeforeValidator(_number_not_text_or_bool)]
+#: A count: a whole number (an integral float such as 2.0 counts), never a bool or text. Real
+#: numbers are the scenes' (scene_input.Real).
+Count = Annotated[int, BeforeValidator(plain_number)]
 
 
 class EnvOptions(BaseModel):

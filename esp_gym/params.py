@@ -306,13 +306,20 @@ class InitialState(_Frozen):
     @field_validator("R0")
     @classmethod
     def _rotation(cls, R: Mat3) -> Mat3:
-        A = np.array(R, dtype=float)
-        if np.abs(A).max() > 1.0 + 1e-9:
-            raise ValueError(f"R0 must be a rotation (its entries lie in [-1, 1], got {np.abs(A).max():.6g})")
-        err = np.linalg.norm(A.T @ A - np.eye(3))
-        if err > 1e-12 or np.linalg.det(A) <= 0:
-            raise ValueError(f"R0 must be a rotation (||R^T R - I|| = {err:.2g}, det = {np.linalg.det(A):.6g})")
+        check_rotation("R0", R, 1e-12)
         return R
+
+
+def check_rotation(name: str, R, tol: float) -> None:
+    """ValueError naming ``name`` unless the 3x3 ``R`` is a rotation: entries in [-1, 1],
+    ``||R^T R - I|| <= tol`` (Frobenius) and det R > 0 (for scenes and for states set later)."""
+    A = np.array(R, dtype=float)
+    if np.abs(A).max() > 1.0 + 1e-9:
+        raise ValueError(f"{name} must be a rotation (its entries lie in [-1, 1], got {np.abs(A).max():.6g})")
+    err = np.linalg.norm(A.T @ A - np.eye(3))
+    if not (err <= tol and np.linalg.det(A) > 0):
+        raise ValueError(f"{name} must be a rotation (||R^T R - I|| = {err:.2g}, at most {tol:g}; "
+                         f"det = {np.linalg.det(A):.6g})")
 
 
 class Scene(_Frozen):

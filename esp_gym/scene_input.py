@@ -60,7 +60,7 @@ BOUNDS = {
 }
 
 
-def _number(value: Any) -> Any:
+def plain_number(value: Any) -> Any:
     """A number stays a number (NumPy scalars become Python's); a bool or text is refused, with
     a clearer message than the strict type's."""
     if isinstance(value, (bool, np.bool_, str, bytes)):
@@ -78,9 +78,9 @@ def _sequence(value: Any) -> Any:
 
 
 #: A real number: int or float (NumPy's too), never a bool or a string
-Real = Annotated[float, BeforeValidator(_number), Strict()]
+Real = Annotated[float, BeforeValidator(plain_number), Strict()]
 #: A whole number: int (NumPy's too), never a bool, a float or a string
-Count = Annotated[int, BeforeValidator(_number), Strict()]
+Count = Annotated[int, BeforeValidator(plain_number), Strict()]
 #: true or false (NumPy's too), never 1, "yes" or "true"
 Flag = Annotated[bool, BeforeValidator(lambda v: bool(v) if isinstance(v, np.bool_) else v), Strict()]
 

@@ -97,9 +97,10 @@ def test_set_state_refuses_a_non_rotation():
     sim = esp_gym.Simulator(esp_gym.load_scene("paper_example"))
     st0 = sim.state
     sim.set_state(st0)  # negative control: its own state is accepted
-    for R, why in ((2.0 * st0.R, "rotation"), (-st0.R, "det"), (st0.R + 1e-6, "rotation")):
+    for R, why in ((2.0 * st0.R, "rotation"), (-st0.R, "det"), (st0.R + 1e-6, "rotation"),
+                   (st0.R @ (np.eye(3) + 1e-6 * np.eye(3, k=1)), r"R\^T R - I")):  # sheared by 1e-6
         with pytest.raises(ValueError, match=why):
-            sim.set_state(st0._replace(R=R) if hasattr(st0, "_replace") else type(st0)(st0.r, st0.p, R, st0.Pi, 0))
+            sim.set_state(type(st0)(st0.r, st0.p, R, st0.Pi, 0))
     with pytest.raises(ValueError, match="real"):
         sim.set_state(type(st0)(st0.r.astype(complex), st0.p, st0.R, st0.Pi, 0))
 
