@@ -26,6 +26,7 @@ from gymnasium import spaces
 
 from .kernels.layout import (ACTION, ACTION_PARAMS, ACTION_SIZE, INPUTS, OBSERVATION, R_TERMINATION, REPORT, REWARD,
                              REWARD_TERMS, TARGET)
+from .kernels.string import state_forces
 from .kernels.task import actions_finite, env_reset_observe, env_step, env_step_batch
 from .model import Simulator
 from .options import MAX_SUBSTEPS, check_count, env_options
@@ -215,6 +216,7 @@ class ControlStep:
             S.r[...], S.p[...], S.R[...], S.Pi[...] = state.r, state.p, state.R, state.Pi
             for a in (S.rc, S.pc, S.Rc, S.Pic, S.acc, S.accc):
                 a[...] = 0.0
+            state_forces(S, self._params)
             obs, terms, action, tgt = self._obs[i], self._terms[i], self._action[i], self._target[i]
         tgt[...] = target
         action[...] = 0.0

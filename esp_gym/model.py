@@ -19,8 +19,9 @@ from .kernels.diagnostics import diagnostics as diagnostics_kernel
 from .kernels.layout import (BALANCE, BLOW_UP, DIAG, INPUTS, LOOP_REPORT_SIZE, NEWTON_FAILED, NON_FINITE, OK,
                              R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS, STEP_DIAG, DiagWork, Snapshots,
                              StateArrays, Work, status_message)
-from .kernels.loops import lgvi_advance, lgvi_record, state_size
-from .kernels.specialise import specialised_kernels
+from .kernels.loops import state_size
+from .kernels.specialise import general_kernels, specialised_kernels
+from .kernels.string import state_forces
 from .params import Scene, check_rotation
 from .state import State, build_params, check_memory, initial_state, legendre_momenta  # noqa: F401  (re-exported)
 
@@ -59,6 +60,10 @@ def failure_advice(scene: Scene, status: int) -> str:
     if status in (BLOW_UP, NON_FINITE) and ratio > 0.7:
         return (f"h = {scene.h:g} s is {ratio:.2g} x the stability bound {bound:.3g} s: use h <= 0.7 x the bound "
                 f"(esp_gym.choose_h).")
+    if status == NEWTON_FAILED and scene.solver.string == "implicit":
+        return ("The implicit string's Newton iteration did not converge (it can cycle where elements switch between "
+                "slack and taut, or when the body turns far in one step): use a smaller h, a larger "
+                "solver.newton_max_iter, or solver.string: explicit.")
     if status == NEWTON_FAILED:
         return "The body turned too far in one step: use a smaller h or a larger solver.newton_max_iter."
     if status == BLOW_UP:
@@ -152,6 +157,8 @@ class Simulator:
         #: call, for whether any input is non-zero; ``False`` runs the general kernel (same
         #: results, every term computed: for tests and benchmarks).
         self.specialise = bool(specialise)
+        #: The string's elastic force is implicit (``scene.solver.string``, kernels/implicit.py).
+        self.implicit = scene.solver.string == "implicit"
         self.h = scene.h
         n = scene.string.elements
         st = initial_state(scene)
@@ -162,13 +169,15 @@ class Simulator:
         self._step = 0
         self._work = Work(fn=z((n + 1, 3)), X=z((n + 1, 3)), Y=z((n + 1, 3)),
                           FmI=z((3, 3)), RF=z((3, 3)), Rn=z((3, 3)), jac=z((3, 3)),
-                          backup=z(state_size(self._arrays)))
+                          backup=z(state_size(self._arrays)), fl=z((n + 1, 3)), fr=z((n + 1, 3)), dy=z((n + 1, 3)),
+                          elim=z((n + 1, 3, 3)))
         self._diag = DiagWork(V=z((n + 1, 3)), strain=z(n), omega=z(3), out=z(DIAG.size))
         self._inputs = z(INPUTS.size)
         self._forced = False  #: any input non-zero (picks the forced or the unforced kernels)
         self._coupled = bool(np.any(self.params.rho != 0.0))  # rho_c != 0: rotation coupled
         self._kernel_cache: dict = {}
         self._stats = np.zeros(LOOP_REPORT_SIZE, dtype=np.int64)
+        state_forces(self._arrays, self.params)
         self.newton_iterations = 0  #: total Newton iterations so far
         self.newton_iterations_max = 0  #: most iterations in any one step so far
         self.reset_balances()
@@ -217,6 +226,7 @@ class Simulator:
         rem = getattr(state, "remainders", None)
         for i, c in enumerate((a.rc, a.pc, a.Rc, a.Pic)):
             c[...] = 0.0 if rem is None else rem[i]
+        state_forces(a, self.params)
         self.reset_balances()
 
     def reset_balances(self) -> None:
@@ -242,8 +252,8 @@ class Simulator:
     def _kernels(self):
         """``(advance, record)`` for this scene and the current inputs."""
         if not self.specialise:
-            return lgvi_advance, lgvi_record
-        key = (self.params.first == 0, self._forced, self._coupled, self.params.compensated)
+            return general_kernels(self.implicit)
+        key = (self.params.first == 0, self._forced, self._coupled, self.params.compensated, self.implicit)
         kernels = self._kernel_cache.get(key)
         if kernels is None:
             kernels = self._kernel_cache[key] = specialised_kernels(*key)

@@ -246,9 +246,17 @@ class SolverParams(_Frozen):
         True, description="add the state increments with Kahan's compensation: keeps energy and pi3 "
                           "round-off bounded over 1e7+ steps; false is ~13 % faster per step and "
                           "loses nothing over short horizons (docs/performance.md)")
+    string: Literal["explicit", "implicit"] = Field(
+        "explicit", description="explicit: the paper's scheme, the elastic energy at both ends of the step (h is "
+                                "bounded by the string's highest frequency); implicit: the elastic energy at the "
+                                "step's midpoint, solved by Newton's method (no stability bound: stiff tethers at "
+                                "large h; docs/physics.md, 'The implicit string')")
 
     @model_validator(mode="after")
     def _composition_has_the_order(self) -> "SolverParams":
+        if self.string == "implicit" and (self.order != 2 or self.composition not in (None, "lgvi")):
+            raise ValueError(f"string: implicit is a second-order scheme; it takes order: 2 (got order {self.order}"
+                             + (f", composition {self.composition!r}" if self.composition else "") + ")")
         if self.composition is not None and COMPOSITIONS[self.composition].order != self.order:
             c = COMPOSITIONS[self.composition]
             raise ValueError(f"composition {c.name!r} has order {c.order}, but order is {self.order}; "
@@ -338,7 +346,10 @@ class Scene(_Frozen):
     @property
     def stability_bound(self) -> float:
         """Largest stable h [s]: the string's bound, times the composition's bound factor
-        when one is used."""
+        when one is used; ``inf`` for the implicit string (no stability bound: h is chosen for
+        accuracy, :func:`~esp_gym.stepsize.choose_h`)."""
+        if self.solver.string == "implicit":
+            return math.inf
         return self.string.stability_bound * self.solver.bound_factor
 
     @model_validator(mode="after")

@@ -136,7 +136,7 @@ def build_params(scene: Scene) -> LGVIParams:
         tol=float(scene.solver.newton_tol), max_iter=int(scene.solver.newton_max_iter),
         gammas=scene.solver.scheme.weights(),
         max_len2=float((scene.solver.max_stretch * scene.string.u) ** 2),
-        compensated=bool(scene.solver.compensated),
+        compensated=bool(scene.solver.compensated), mdiag=diag,
     )
 
 

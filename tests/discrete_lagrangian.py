@@ -62,9 +62,28 @@ def string_potential(scene, r) -> float:
     return float(np.sum(WEIGHTS[None, :] * integrand * u))
 
 
+def string_elastic_mean_length(scene, r0, r1) -> float:
+    """The implicit string's elastic term: sum_a int_0^1 W(sbar_a) u dzeta [J] with the element's
+    stretch sbar_a = (|r'_{k,a}| + |r'_{k+1,a}|)/2, the mean of its stretches at both ends of the
+    step (``solver.string: implicit``, docs/physics.md)."""
+    u, EA = scene.string.u, scene.string.EA
+    s0 = np.sqrt(np.sum(((r0[1:] - r0[:-1]) / u) ** 2, axis=1))
+    s1 = np.sqrt(np.sum(((r1[1:] - r1[:-1]) / u) ** 2, axis=1))
+    strain = 0.5 * (s0 + s1) - 1.0
+    if scene.string.law == "slack":
+        strain = np.maximum(strain, 0.0)
+    return float(np.sum(0.5 * EA * strain ** 2 * u))  # W is constant along the element
+
+
 def string_lagrangian(scene, r, dr) -> float:
-    """L_{d_{k,str}} = sum_a L_{d_{k,a}} [J s]: kinetic minus trapezoidal-in-time potential."""
+    """L_{d_{k,str}} = sum_a L_{d_{k,a}} [J s]: kinetic minus trapezoidal-in-time potential;
+    for the implicit string (``solver.string: implicit``) the elastic part is instead
+    -h V_e at the elements' mean stretches (:func:`string_elastic_mean_length`)."""
     h = scene.h
+    if scene.solver.string == "implicit":
+        gravity = scene.model_copy(update={"string": scene.string.model_copy(update={"EA": 0.0})})
+        return (string_kinetic(scene, dr) - 0.5 * h * string_potential(gravity, r)
+                - 0.5 * h * string_potential(gravity, r + dr) - h * string_elastic_mean_length(scene, r, r + dr))
     return (string_kinetic(scene, dr)
             - 0.5 * h * string_potential(scene, r) - 0.5 * h * string_potential(scene, r + dr))
 

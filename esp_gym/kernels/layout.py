@@ -82,9 +82,11 @@ class Layout:
 #: ``max_len2``: the blow-up guard, the squared element length [m^2] no step may exceed;
 #: ``slack``: tension-only string law; ``compensated``: Kahan-compensated state updates (the
 #: general path reads it at run time, the specialised kernels compile it in).
+#: ``mdiag``: the mass matrix's diagonal on the unknown nodes (0 on a fixed pivot), for the
+#: implicit string's residual (kernels/implicit.py).
 LGVIParams = namedtuple(
     "LGVIParams",
-    "h m kappa u g M Mp rho J Jd Jeff inv cp off w first slack tol max_iter gammas max_len2 compensated",
+    "h m kappa u g M Mp rho J Jd Jeff inv cp off w first slack tol max_iter gammas max_len2 compensated mdiag",
 )
 
 #: The state the kernels advance: positions r and momenta p (N+1, 3), R (3, 3), Pi (3,), the
@@ -93,8 +95,12 @@ LGVIParams = namedtuple(
 StateArrays = namedtuple("StateArrays", "r p R Pi rc pc Rc Pic f acc accc")
 
 #: Scratch arrays of one simulator; ``backup`` holds a checkpoint of the state during composed
-#: steps (kernels/loops.py), so a failure can go back to it.
-Work = namedtuple("Work", "fn X Y FmI RF Rn jac backup")
+#: steps (kernels/loops.py), so a failure can go back to it. The implicit string's Newton
+#: (kernels/implicit.py) uses ``fl``, ``fr`` (N+1, 3), the string's forces of the step along
+#: the elements at its start and at its end [N], ``dy``
+#: (N+1, 3), its right-hand sides and corrections [m], and ``elim`` (N+1, 3, 3), the factors of
+#: its block elimination.
+Work = namedtuple("Work", "fn X Y FmI RF Rn jac backup fl fr dy elim")
 
 #: Scratch and outputs of the diagnostics: node velocities V (N+1, 3) [m/s], per-element strain
 #: energy (N,) [J], body angular velocity omega (3,, body frame) [rad/s], and ``out``

@@ -56,17 +56,19 @@ def kahan_add(x, c, i, dx):
 
 
 @kernel(inline="always")
-def commit_node(r, p, rc, pc, f, fn, X, Y, a, i, impulse, hh, compensated):
+def commit_node(r, p, rc, pc, f, fnext, fl, fr, X, Y, a, i, impulse, hh, compensated):
     """Commit coordinate ``i`` of node ``a`` of a step: the position
-    r + dr (X, with dr + remainder in Y) and the momentum p + (h/2 (f + fn) + impulse), both
+    r + dr (X, with dr + remainder in Y) and the momentum p + (h/2 (fl + fr) + impulse), both
     with Kahan's compensation if ``compensated`` (else plain sums, remainders untouched); then
-    f <- fn. ``impulse + 0.0`` is exact, so rows without an external impulse get the same bits
-    as a plain h/2 (f + fn)."""
+    f <- fnext. The explicit string's impulse averages the forces at both ends (fl = f, fr = fnext
+    = f_{k+1}); the implicit one's the tensions of the step along the elements at both ends.
+    ``impulse + 0.0`` is exact, so rows without an external impulse get the same bits as a
+    plain h/2 (fl + fr)."""
     x = X[a, i]
     if compensated:
         rc[a, i] = (r[a, i] - x) + Y[a, i]
     r[a, i] = x
-    dp = hh * (f[a, i] + fn[a, i]) + impulse
+    dp = hh * (fl[a, i] + fr[a, i]) + impulse
     p0 = p[a, i]
     if compensated:
         dp += pc[a, i]
@@ -75,7 +77,51 @@ def commit_node(r, p, rc, pc, f, fn, X, Y, a, i, impulse, hh, compensated):
         p[a, i] = pn
     else:
         p[a, i] = p0 + dp
-    f[a, i] = fn[a, i]
+    f[a, i] = fnext[a, i]
+
+
+@kernel(inline="always")
+def held_inputs(inputs, forced):
+    """The inputs held over a step (INPUTS), or zeros when not ``forced``: pivot force u_p
+    (spatial) [N], body torque tau (body frame) [N m], spatial torque T [N m], as 9 scalars."""
+    up0 = up1 = up2 = tb0 = tb1 = tb2 = ts0 = ts1 = ts2 = 0.0
+    if forced:
+        up0 = inputs[IN_PIVOT_FORCE]
+        up1 = inputs[IN_PIVOT_FORCE + 1]
+        up2 = inputs[IN_PIVOT_FORCE + 2]
+        tb0 = inputs[IN_BODY_TORQUE]
+        tb1 = inputs[IN_BODY_TORQUE + 1]
+        tb2 = inputs[IN_BODY_TORQUE + 2]
+        ts0 = inputs[IN_SPATIAL_TORQUE]
+        ts1 = inputs[IN_SPATIAL_TORQUE + 1]
+        ts2 = inputs[IN_SPATIAL_TORQUE + 2]
+    return up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2
+
+
+@kernel(inline="always")
+def left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled):
+    """The left torque of (2) in the body frame [N m]: ``(l, t)`` with l = tau^- = tau + R_k^T T
+    (the inputs' share) and t = tau_g(R_k) + l, tau_g = M g rho_c x (R_k^T e3)."""
+    Mg = P.M * P.g
+    rho0 = P.rho[0]
+    rho1 = P.rho[1]
+    rho2 = P.rho[2]
+    z0 = R[2, 0]  # R^T e3
+    z1 = R[2, 1]
+    z2 = R[2, 2]
+    l0 = l1 = l2 = t0 = t1 = t2 = 0.0
+    if forced:
+        l0 = tb0 + (R[0, 0] * ts0 + R[1, 0] * ts1 + R[2, 0] * ts2)  # tau^- = tau + R_k^T T
+        l1 = tb1 + (R[0, 1] * ts0 + R[1, 1] * ts1 + R[2, 1] * ts2)
+        l2 = tb2 + (R[0, 2] * ts0 + R[1, 2] * ts1 + R[2, 2] * ts2)
+        t0 = l0
+        t1 = l1
+        t2 = l2
+    if coupled:
+        t0 = Mg * (rho1 * z2 - rho2 * z1) + l0
+        t1 = Mg * (rho2 * z0 - rho0 * z2) + l1
+        t2 = Mg * (rho0 * z1 - rho1 * z0) + l2
+    return l0, l1, l2, t0, t1, t2
 
 
 # LLVM-inlined, not numba-IR-inlined: compiled once per signature instead of deep-copied
@@ -103,14 +149,10 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
     Returns ``(status, newton_iterations)``.
     """
     r = S.r
-    p = S.p
     R = S.R
     Pi = S.Pi
-    f = S.f
     X = W.X
     Y = W.Y
-    fn = W.fn
-    FmI = W.FmI
     hh = 0.5 * h
     n = r.shape[0] - 1
     first = 0 if free else 1
@@ -118,39 +160,13 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
     rho0 = P.rho[0]
     rho1 = P.rho[1]
     rho2 = P.rho[2]
-    up0 = up1 = up2 = tb0 = tb1 = tb2 = ts0 = ts1 = ts2 = 0.0
-    if forced:
-        up0 = inputs[IN_PIVOT_FORCE]
-        up1 = inputs[IN_PIVOT_FORCE + 1]
-        up2 = inputs[IN_PIVOT_FORCE + 2]
-        tb0 = inputs[IN_BODY_TORQUE]
-        tb1 = inputs[IN_BODY_TORQUE + 1]
-        tb2 = inputs[IN_BODY_TORQUE + 2]
-        ts0 = inputs[IN_SPATIAL_TORQUE]
-        ts1 = inputs[IN_SPATIAL_TORQUE + 1]
-        ts2 = inputs[IN_SPATIAL_TORQUE + 2]
+    up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2 = held_inputs(inputs, forced)
     # (1): right-hand side and the string solve with F_k = I
-    string_solve(P.inv, P.cp, first, p, f, hh, up0, up1, up2, free and forced, X)
+    string_solve(P.inv, P.cp, first, S.p, S.f, hh, up0, up1, up2, free and forced, X)
     d0 = h * X[n, 0]
     d1 = h * X[n, 1]
     d2 = h * X[n, 2]
-    # left torque: gravity about the attachment point tau_g(R_k) = M g rho_c x (R_k^T e3) + tau^-
-    Mg = M * P.g
-    z0 = R[2, 0]  # R^T e3
-    z1 = R[2, 1]
-    z2 = R[2, 2]
-    l0 = l1 = l2 = t0 = t1 = t2 = 0.0
-    if forced:
-        l0 = tb0 + (R[0, 0] * ts0 + R[1, 0] * ts1 + R[2, 0] * ts2)  # tau^- = tau + R_k^T T
-        l1 = tb1 + (R[0, 1] * ts0 + R[1, 1] * ts1 + R[2, 1] * ts2)
-        l2 = tb2 + (R[0, 2] * ts0 + R[1, 2] * ts1 + R[2, 2] * ts2)
-        t0 = l0
-        t1 = l1
-        t2 = l2
-    if coupled:
-        t0 = Mg * (rho1 * z2 - rho2 * z1) + l0
-        t1 = Mg * (rho2 * z0 - rho0 * z2) + l1
-        t2 = Mg * (rho0 * z1 - rho1 * z0) + l2
+    l0, l1, l2, t0, t1, t2 = left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
     # (2) after the Schur complement: g = h Pi + h^2/2 tau_k - M rho_c x (R_k^T d)
     e0 = e1 = e2 = 0.0
     if coupled:
@@ -173,6 +189,7 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
         if np.isfinite(c0 + c1 + c2 + d0 + d1 + d2):
             return NEWTON_FAILED, iters
         return NON_FINITE, iters
+    FmI = W.FmI
     cayley_minus_identity(c0, c1, c2, FmI)
     # q = R_k (F_k - I) rho_c; dr = h X - M w q (+ remainder) -> Y; new positions r + Y -> X
     w = P.w
@@ -212,11 +229,55 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
         X[a, 0] = r[a, 0]
         X[a, 1] = r[a, 1]
         X[a, 2] = r[a, 2]
+    if coupled:
+        e0 = e0 - M * w[n] * s0  # R_k^T dr_{N+1} = R_k^T d - M s (F - I) rho_c
+        e1 = e1 - M * w[n] * s1
+        e2 = e2 - M * w[n] * s2
+    status = lgvi_commit(S, W, P, h, c0, c1, c2, e0, e1, e2, l0, l1, l2, t0, t1, t2, tb0, tb1, tb2, ts0, ts1, ts2,
+                         up0, up1, up2, dr00, dr01, dr02, free, forced, coupled, compensated, False)
+    return status, iters
+
+
+@kernel(forceinline=True)
+def lgvi_commit(S, W, P, h, c0, c1, c2, e0, e1, e2, l0, l1, l2, t0, t1, t2, tb0, tb1, tb2, ts0, ts1, ts2,
+                up0, up1, up2, dr00, dr01, dr02, free, forced, coupled, compensated, implicit):
+    """The end of a step, shared by the explicit and the implicit string: the forces at the new
+    positions and the guards on them, R_{k+1}, Pi_{k+1} by (4), the input balances, and the
+    write-back of the state. Returns the status (the state untouched unless OK).
+
+    On entry ``W.X`` holds the new positions, ``W.Y`` the increments dr (+ the remainders
+    S.rc, when ``compensated``), ``W.FmI`` = F_k - I for the Cayley vector c, and
+    e = R_k^T dr_{N+1}; l, t are the left torques (:func:`left_torque`), tb, ts, up the held
+    inputs, dr0 the pivot's displacement (read when ``free and forced``). The string's impulse
+    is h/2 (f_k + f_{k+1}) (explicit) or h/2 (W.fl + W.fr) (``implicit``: the tensions of the
+    step along the elements at both ends), and ``S.f`` becomes f_{k+1} or W.fr.
+    """
+    r = S.r
+    p = S.p
+    R = S.R
+    Pi = S.Pi
+    f = S.f
+    X = W.X
+    Y = W.Y
+    fn = W.fn
+    FmI = W.FmI
+    rc = S.rc
+    hh = 0.5 * h
+    n = r.shape[0] - 1
+    first = 0 if free else 1
+    M = P.M
+    Mg = M * P.g
+    rho0 = P.rho[0]
+    rho1 = P.rho[1]
+    rho2 = P.rho[2]
+    fl = W.fl if implicit else f
+    fr = W.fr if implicit else fn
+    fnext = fr  # what S.f holds after the step (the implicit step's first guess for the next)
     total, longest = nodal_forces(X, P.kappa, P.u, P.m, M, P.Mp, P.g, P.slack, fn)
     if not np.isfinite(total):
-        return NON_FINITE, iters
+        return NON_FINITE
     if longest > P.max_len2:
-        return BLOW_UP, iters
+        return BLOW_UP
     # R_k (F_k - I) + Rc, and R_{k+1} = R_k + that (Kahan)
     RF = W.RF
     Rc = S.Rc
@@ -238,9 +299,6 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
     # round-off does not leak into pi3.
     Mh = M / h
     if coupled:
-        e0 = e0 - M * w[n] * s0  # R_k^T dr_{N+1} = R_k^T d - M s (F - I) rho_c
-        e1 = e1 - M * w[n] * s1
-        e2 = e2 - M * w[n] * s2
         u0 = Pi[0] + hh * t0 - Mh * (rho1 * e2 - rho2 * e1)
         u1 = Pi[1] + hh * t1 - Mh * (rho2 * e0 - rho0 * e2)
         u2 = Pi[2] + hh * t2 - Mh * (rho0 * e1 - rho1 * e0)
@@ -279,7 +337,7 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
         dP1 = hh * (t1 + n1) + dP1
         dP2 = hh * (t2 + n2) + dP2
     if not np.isfinite(dP0 + dP1 + dP2):
-        return NON_FINITE, iters
+        return NON_FINITE
     # -- commit -------------------------------------------------------------------------------
     # balances of the inputs (before r and R move): discrete work u_p . dr_0 + tau_avg . theta
     # (theta the rotation vector of F, tau_avg = (tau^- + tau^+)/2), angular impulse about e3
@@ -303,17 +361,17 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
     pc = S.pc
     start = first
     if free and forced:  # the pivot row: its impulse h/2 (f_k + f_k+1) + h u_p in one compensated sum
-        commit_node(r, p, rc, pc, f, fn, X, Y, 0, 0, h * up0, hh, compensated)
-        commit_node(r, p, rc, pc, f, fn, X, Y, 0, 1, h * up1, hh, compensated)
-        commit_node(r, p, rc, pc, f, fn, X, Y, 0, 2, h * up2, hh, compensated)
+        commit_node(r, p, rc, pc, f, fnext, fl, fr, X, Y, 0, 0, h * up0, hh, compensated)
+        commit_node(r, p, rc, pc, f, fnext, fl, fr, X, Y, 0, 1, h * up1, hh, compensated)
+        commit_node(r, p, rc, pc, f, fnext, fl, fr, X, Y, 0, 2, h * up2, hh, compensated)
         start = 1
     for a in range(start, n + 1):
         for i in range(3):
-            commit_node(r, p, rc, pc, f, fn, X, Y, a, i, 0.0, hh, compensated)
+            commit_node(r, p, rc, pc, f, fnext, fl, fr, X, Y, a, i, 0.0, hh, compensated)
     for a in range(first):
-        f[a, 0] = fn[a, 0]
-        f[a, 1] = fn[a, 1]
-        f[a, 2] = fn[a, 2]
+        f[a, 0] = fnext[a, 0]
+        f[a, 1] = fnext[a, 1]
+        f[a, 2] = fnext[a, 2]
     for i in range(3):
         for j in range(3):
             if compensated:
@@ -327,24 +385,4 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
         Pi[0] += dP0
         Pi[1] += dP1
         Pi[2] += dP2
-    return OK, iters
-
-
-
-@kernel(inline="always")
-def lgvi_step(S, W, P, inputs, free, forced, coupled, compensated):
-    """One step of length ``P.h``: the LGVI itself (one weight ``P.gammas == [1]``) or the
-    symmetric composition of LGVI substeps of lengths ``gamma_i h`` (esp_gym/compositions.py).
-    Flags as in :func:`lgvi_substep`. A failing LGVI step leaves the state untouched; a
-    composed step that fails in a later substep leaves it after the last good substep, and
-    the loops below bring it back (:func:`advance_loop`). Returns ``(status, newton_iterations)``."""
-    gammas = P.gammas
-    total = 0
-    for i in range(gammas.shape[0]):  # one substep site: the substep is inlined once
-        # gamma = 1.0 for the plain LGVI, and 1.0 * h == h exactly
-        status, iters = lgvi_substep(S, W, P, inputs, gammas[i] * P.h, free, forced, coupled, compensated)
-        total += iters
-        if status != OK:
-            return status, total
-    return OK, total
-
+    return OK

@@ -10,8 +10,31 @@ from .jit import kernel
 from .diagnostics import diagnostics
 from .layout import (D_ENERGY, D_ORTHOGONALITY, D_PI3, OK, R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS, SD_ENERGY,
                      SD_ORTHOGONALITY, SD_PI3)
-from .lgvi import lgvi_step
+from .implicit import implicit_substep
+from .lgvi import lgvi_substep
 from .string import nodal_forces
+
+
+@kernel(inline="always")
+def lgvi_step(S, W, P, inputs, free, forced, coupled, compensated, implicit=False):
+    """One step of length ``P.h``: the LGVI itself (one weight ``P.gammas == [1]``) or the
+    symmetric composition of LGVI substeps of lengths ``gamma_i h`` (esp_gym/compositions.py);
+    with ``implicit`` (a compile-time constant) the implicit string's step
+    (kernels/implicit.py; order 2 only). Flags as in :func:`lgvi_substep`. A failing LGVI step
+    leaves the state untouched; a composed step that fails in a later substep leaves it after
+    the last good substep, and the loops below bring it back (:func:`advance_loop`). Returns
+    ``(status, newton_iterations)``."""
+    if implicit:
+        return implicit_substep(S, W, P, inputs, P.h, free, forced, coupled, compensated)
+    gammas = P.gammas
+    total = 0
+    for i in range(gammas.shape[0]):  # one substep site: the substep is inlined once
+        # gamma = 1.0 for the plain LGVI, and 1.0 * h == h exactly
+        status, iters = lgvi_substep(S, W, P, inputs, gammas[i] * P.h, free, forced, coupled, compensated)
+        total += iters
+        if status != OK:
+            return status, total
+    return OK, total
 
 
 @kernel
@@ -94,7 +117,8 @@ def _rewind(S, W, P):
 
 
 @kernel(inline="always")
-def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, forces_ready=False):
+def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, forces_ready=False,
+                 implicit=False):
     """Take up to ``nsteps`` steps with constant ``inputs``; stop at the first failure with
     the last good state. ``stats`` (int64, >= 4): status, steps taken, total Newton iterations,
     max per step.
@@ -105,9 +129,12 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
     steps that had succeeded. The replay is deterministic (same state bits, inputs and code),
     so it ends on exactly the state after the last good step. One call site of the step keeps
     the inlined code single. ``forces_ready``: ``S.f`` already holds the forces at ``S.r`` (as
-    it does after any successful step), so they are not recomputed.
+    it does after any successful step), so they are not recomputed. ``implicit``: the implicit
+    string's step (a compile-time constant, as the flags); its ``S.f`` is part of the state
+    (the last step's midpoint forces, its first guess: kernels/implicit.py) and is never
+    recomputed here.
     """
-    if not forces_ready:
+    if not forces_ready and not implicit:
         nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
     composed = P.gammas.shape[0] > 1
     total = 0
@@ -120,7 +147,7 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
         if composed and failed == OK and k % CHECKPOINT == 0:
             save_state(S, W.backup)
             k0 = k
-        status, iters = lgvi_step(S, W, P, inputs, free, forced, coupled, compensated)
+        status, iters = lgvi_step(S, W, P, inputs, free, forced, coupled, compensated, implicit)
         if failed == OK:
             total += iters
             most = max(most, iters)
@@ -139,7 +166,7 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
 
 
 @kernel(inline="always")
-def record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled, compensated):
+def record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled, compensated, implicit=False):
     """Take ``len(snap.r) * every`` steps, storing a snapshot after every ``every`` steps
     (``D`` is the diagnostics scratch, see kernels/diagnostics.py) and, if ``snap.step_diag``
     has rows, energy, pi3 and orthogonality after every step. The steps are taken by
@@ -149,13 +176,14 @@ def record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled, c
     n = S.r.shape[0] - 1
     per_step = snap.step_diag.shape[0] > 0
     chunk = 1 if per_step else every
-    nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
+    if not implicit:
+        nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
     total = 0
     most = 0
     k = 0
     for j in range(snap.r.shape[0]):
         for _ in range(every // chunk):
-            advance_loop(S, W, P, inputs, chunk, stats, free, forced, coupled, compensated, True)
+            advance_loop(S, W, P, inputs, chunk, stats, free, forced, coupled, compensated, True, implicit)
             total += stats[R_NEWTON_TOTAL]
             most = max(most, stats[R_NEWTON_MAX])
             if stats[R_STATUS] != OK:

@@ -1,35 +1,60 @@
 """Specialised entry points: the loops of kernels/loops.py compiled for one kind of scene, with
 what it does not need compiled out."""
 from .jit import kernel
-from .loops import advance_loop, record_loop
+from .loops import advance_loop, lgvi_advance, lgvi_record, record_loop
 
 
-def _compile_specialised(free: bool, forced: bool, coupled: bool, compensated: bool):
+def _compile_specialised(free: bool, forced: bool, coupled: bool, compensated: bool, implicit: bool):
     """``(advance, record)`` compiled with the flags as constants (closure variables are
     compile-time constants in numba, and its cache keys closures by their values)."""
 
     @kernel
     def advance(S, W, P, inputs, nsteps, stats):
-        advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated)
+        advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, False, implicit)
 
     @kernel
     def record(S, W, P, inputs, every, D, snap, stats):
-        record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled, compensated)
+        record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled, compensated, implicit)
 
     return advance, record
+
+
+def _compile_general_implicit():
+    """The general path of the implicit string: every term in, the pivot and the compensation
+    read from ``P`` (as :func:`~.loops.lgvi_advance` for the explicit one)."""
+
+    @kernel
+    def advance(S, W, P, inputs, nsteps, stats):
+        advance_loop(S, W, P, inputs, nsteps, stats, P.first == 0, True, True, P.compensated, False, True)
+
+    @kernel
+    def record(S, W, P, inputs, every, D, snap, stats):
+        record_loop(S, W, P, inputs, every, D, snap, stats, P.first == 0, True, True, P.compensated, True)
+
+    return advance, record
+
+
+def general_kernels(implicit: bool = False):
+    """``(advance, record)`` of the general path (every term computed) for the explicit string
+    (:func:`~.loops.lgvi_advance`, :func:`~.loops.lgvi_record`) or the implicit one."""
+    if not implicit:
+        return lgvi_advance, lgvi_record
+    if "general" not in _SPECIALISED:
+        _SPECIALISED["general"] = _compile_general_implicit()
+    return _SPECIALISED["general"]
 
 
 _SPECIALISED = {}
 
 
-def specialised_kernels(free: bool, forced: bool, coupled: bool, compensated: bool = True):
+def specialised_kernels(free: bool, forced: bool, coupled: bool, compensated: bool = True, implicit: bool = False):
     """``(advance, record)`` with the signatures of :func:`lgvi_advance`/:func:`lgvi_record`,
     compiled for one kind of scene: ``free`` pivot or fixed, inputs ``forced`` or all zero,
     body ``coupled`` to the string (rho_c != 0) or not, state updates ``compensated`` or plain
-    (as ``P.compensated`` must say). What a flag turns off is not computed at all; the
+    (as ``P.compensated`` must say), the string ``implicit`` or explicit (the scheme, not a term). What a flag turns off is not computed at all; the
     results are those of the general path (tests/test_specialised.py).
     Compiled on first use (and cached on disk); created once per process."""
-    key = (bool(free), bool(forced), bool(coupled), bool(compensated))
+    key = (bool(free), bool(forced), bool(coupled), bool(compensated), bool(implicit))
     if key not in _SPECIALISED:
         _SPECIALISED[key] = _compile_specialised(*key)
     return _SPECIALISED[key]

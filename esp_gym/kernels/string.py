@@ -167,3 +167,10 @@ def tridiag_factor(diag, off):
         cp[a] = off * inv[a]
         prev_cp = cp[a]
     return inv, cp
+
+
+@kernel
+def state_forces(S, P):
+    """``S.f = nodal_forces(S.r)`` for a state just set (a reset): the explicit step recomputes
+    them anyway, the implicit one takes them as its first guess (kernels/implicit.py)."""
+    nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)

@@ -176,7 +176,8 @@ def state_row(S, b):
 @kernel(inline="always")
 def work_row(W, b):
     """Sub-environment ``b`` of a stacked :class:`Work` (views)."""
-    return Work(W.fn[b], W.X[b], W.Y[b], W.FmI[b], W.RF[b], W.Rn[b], W.jac[b], W.backup[b])
+    return Work(W.fn[b], W.X[b], W.Y[b], W.FmI[b], W.RF[b], W.Rn[b], W.jac[b], W.backup[b], W.fl[b], W.fr[b], W.dy[b],
+                W.elim[b])
 
 
 @kernel(inline="always")

@@ -1,0 +1,418 @@
+"""The implicit string: the LGVI with each element's elastic energy at its mean length over the
+step (docs/physics.md, "The implicit string"; a scene option, order 2).
+
+The discrete Lagrangian is the explicit scheme's with the elastic term -h/2 (V_e(r_k) +
+V_e(r_{k+1})) replaced by -h sum_a kappa/2 phi(lbar_a)^2, lbar_a = (|x_k,a| + |x_k+1,a|)/2;
+kinetic, gravity and rigid-body terms and the inputs are unchanged. Its discrete Euler-Lagrange
+equations in the unknowns y = dr (the string's increments) and the Cayley vector c of F_k,
+multiplied by h::
+
+    G_a = (M_tot y)_a + M delta_aN R_k (F(c) - I) rho_c - h^2/2 (f~_k + f_g)_a - h b_a = 0
+    phi = g + g x c + (g . c) c - 2 J c = 0,    g = h Pi_k + h^2/2 tau_k - M rho_c x (R_k^T y_N)
+
+with f~_k the forces of the tensions T_a = kappa phi(lbar_a) along the elements at r_k and b =
+p_k (+ h/2 u_p at a free pivot; phi is (2) in Cayley form, Lee 2008). Then p_{k+1} = p_k + h f_g
++ h/2 (f~_k + f~_{k+1}) (+ h u_p), and R_{k+1}, Pi_{k+1} by (4) as in kernels/lgvi.py.
+
+Newton's method solves them together: the string's block-tridiagonal Jacobian (3x3 blocks)
+bordered by the body's three unknowns, which couple to the attachment node only; block
+elimination from the pivot down, a 3x3 Schur complement there, back substitution: O(N) per
+iteration (pieces in kernels/implicit_terms.py). The slack law's kink makes the residual only
+semismooth: a step that does not reduce the residual (rows in metres) is halved, at most
+``MAX_HALVINGS`` times per step, while the step is not yet in the round-off range.
+"""
+import numpy as np
+
+from .jit import kernel
+from .layout import NEWTON_FAILED, NON_FINITE
+from .lgvi import held_inputs, left_torque, lgvi_commit
+from .implicit_terms import body_coupling, element_terms, inverse3, split_forces
+from .so3 import cayley_minus_identity, solve3
+from .string import string_solve
+
+#: Corrections that stop shrinking below this (relative to the increments) are round-off: the
+#: iteration has converged as far as float64 allows.
+ROUNDOFF_TOL = 1e-12
+#: Halvings of one Newton step the line search may take (per step).
+MAX_HALVINGS = 8
+#: A correction below this (relative to the increments) is in the quadratic, round-off
+#: dominated range, where the residual no longer measures progress: no line search there.
+LINE_SEARCH_FLOOR = 1e-8
+
+
+@kernel(forceinline=True)
+def implicit_newton(S, W, P, h, gk0, gk1, gk2, up0, up1, up2, free, forced, coupled):
+    """Solve the implicit string's equations (module docstring) for the increments y (into
+    ``W.Y``, rows before the first unknown 0) and the Cayley vector c, from the explicit start.
+    ``gk`` = h Pi_k + h^2/2 tau_k [kg m^2], ``up`` the pivot force [N] (read if ``free and forced``).
+    Returns ``(c0, c1, c2, iterations, status)``: status 0, or NEWTON_FAILED / NON_FINITE."""
+    r = S.r
+    p = S.p
+    R = S.R
+    J = P.J
+    Y = W.Y
+    X = W.X
+    dy = W.dy
+    E = W.elim
+    n = r.shape[0] - 1
+    first = 0 if free else 1
+    kappa = P.kappa
+    u = P.u
+    slack = P.slack
+    off = P.off
+    mdiag = P.mdiag
+    M = P.M
+    q4 = 0.25 * h * h
+    h2 = 0.5 * h * h
+    # gravity forces of the nodes (along +e3): (m/2 + Mp) g, m g, ..., (m/2 + M) g
+    g_end0 = (0.5 * P.m + P.Mp) * P.g
+    g_mid = P.m * P.g
+    g_endn = (0.5 * P.m + M) * P.g
+    body_weight = u / (J[0, 0] + J[1, 1] + J[2, 2])  # body residual [kg m^2] -> [m]
+    floor2 = (1e-3 * u) ** 2  # |y| below this counts as 0 in the tolerances [m^2]
+    body_length2 = 4.0 * (J[0, 0] + J[1, 1] + J[2, 2]) / M  # (2 x the body's radius of gyration)^2 [m^2]
+    # start: the string increments with F = I and the forces S.f of the last step's right half
+    # (its tensions along the elements at r_k), h M^-1 (p + h/2 f + ...): the tensions of
+    # consecutive steps differ little even where f(r_k) would carry the stiff modes
+    push = free and forced
+    string_solve(P.inv, P.cp, first, p, S.f, 0.5 * h, up0, up1, up2, push, X)
+    for a in range(first, n + 1):
+        Y[a, 0] = h * X[a, 0]
+        Y[a, 1] = h * X[a, 1]
+        Y[a, 2] = h * X[a, 2]
+    for a in range(first):
+        Y[a, 0] = 0.0
+        Y[a, 1] = 0.0
+        Y[a, 2] = 0.0
+    c0 = c1 = c2 = 0.0
+    dc0 = dc1 = dc2 = 0.0
+    alpha = 1.0
+    merit_prev = np.inf
+    dd_prev = 0.0
+    large_step = True
+    halvings = 0
+    for it in range(1, P.max_iter + 1):
+        # -- the body's equation and its coupling to the attachment node (at this iterate) --
+        (g0, g1, g2, q0, q1, q2, b00, b01, b02, b10, b11, b12, b20, b21, b22,
+         cy00, cy01, cy02, cy10, cy11, cy12, cy20, cy21, cy22) = body_coupling(
+            R, P, Y[n, 0], Y[n, 1], Y[n, 2], c0, c1, c2, gk0, gk1, gk2, coupled)
+        # -- residual and forward elimination, pivot -> attachment node ----------------------
+        # The Jacobian's blocks: A_aa = mdiag I + h^2/4 (k_{a-1} + k_a) and A_{a,a+1} = A_{a+1,a}
+        # = off I - h^2/4 k_a, k_a = kappa' n_k n_{k+1}^T (element a; not symmetric).
+        merit = 0.0
+        tp0 = tp1 = tp2 = 0.0  # the element above node a: T n_k, and k
+        k00 = k01 = k02 = k10 = k11 = k12 = k20 = k21 = k22 = 0.0
+        if not free:
+            T, n0, n1, n2, m0, m1, m2, dT = element_terms(r, Y, 0, kappa, u, slack)
+            tp0 = T * n0
+            tp1 = T * n1
+            tp2 = T * n2
+            k00 = dT * n0 * m0
+            k01 = dT * n0 * m1
+            k02 = dT * n0 * m2
+            k10 = dT * n1 * m0
+            k11 = dT * n1 * m1
+            k12 = dT * n1 * m2
+            k20 = dT * n2 * m0
+            k21 = dT * n2 * m1
+            k22 = dT * n2 * m2
+        e00 = e01 = e02 = e10 = e11 = e12 = e20 = e21 = e22 = 0.0  # E_{a-1}
+        z0 = z1 = z2 = 0.0  # z_{a-1}
+        s00 = s01 = s02 = s10 = s11 = s12 = s20 = s21 = s22 = 0.0
+        r0 = r1 = r2 = 0.0
+        for a in range(first, n + 1):
+            ta0 = ta1 = ta2 = 0.0
+            l00 = l01 = l02 = l10 = l11 = l12 = l20 = l21 = l22 = 0.0
+            if a < n:
+                T, n0, n1, n2, m0, m1, m2, dT = element_terms(r, Y, a, kappa, u, slack)
+                ta0 = T * n0
+                ta1 = T * n1
+                ta2 = T * n2
+                l00 = dT * n0 * m0
+                l01 = dT * n0 * m1
+                l02 = dT * n0 * m2
+                l10 = dT * n1 * m0
+                l11 = dT * n1 * m1
+                l12 = dT * n1 * m2
+                l20 = dT * n2 * m0
+                l21 = dT * n2 * m1
+                l22 = dT * n2 * m2
+            grav = g_mid
+            if a == 0:
+                grav = g_end0
+            elif a == n:
+                grav = g_endn
+            my0 = mdiag[a] * Y[a, 0]
+            my1 = mdiag[a] * Y[a, 1]
+            my2 = mdiag[a] * Y[a, 2]
+            if a > 0:
+                my0 += off * Y[a - 1, 0]
+                my1 += off * Y[a - 1, 1]
+                my2 += off * Y[a - 1, 2]
+            if a < n:
+                my0 += off * Y[a + 1, 0]
+                my1 += off * Y[a + 1, 1]
+                my2 += off * Y[a + 1, 2]
+            # -G_a = h p_a + h^2/2 (f~_a + f_g,a) (+ h^2/2 u_p) - (M_tot y)_a  [- M q at the attachment]
+            r0 = (h * p[a, 0] + h2 * (ta0 - tp0)) - my0
+            r1 = (h * p[a, 1] + h2 * (ta1 - tp1)) - my1
+            r2 = (h * p[a, 2] + h2 * ((ta2 - tp2) + grav)) - my2
+            if push and a == 0:
+                r0 += h2 * up0
+                r1 += h2 * up1
+                r2 += h2 * up2
+            if a == n:
+                r0 -= M * q0
+                r1 -= M * q1
+                r2 -= M * q2
+            inv_m = 1.0 / mdiag[a]
+            merit += (r0 * r0 + r1 * r1 + r2 * r2) * inv_m * inv_m
+            s00 = mdiag[a] + q4 * (k00 + l00)
+            s01 = q4 * (k01 + l01)
+            s02 = q4 * (k02 + l02)
+            s10 = q4 * (k10 + l10)
+            s11 = mdiag[a] + q4 * (k11 + l11)
+            s12 = q4 * (k12 + l12)
+            s20 = q4 * (k20 + l20)
+            s21 = q4 * (k21 + l21)
+            s22 = mdiag[a] + q4 * (k22 + l22)
+            if a > first:
+                # O = A_{a,a-1} = off I - h^2/4 k_{a-1}: S_a = A_aa - O E_{a-1}, rhs_a -= O z_{a-1}
+                o00 = off - q4 * k00
+                o01 = -q4 * k01
+                o02 = -q4 * k02
+                o10 = -q4 * k10
+                o11 = off - q4 * k11
+                o12 = -q4 * k12
+                o20 = -q4 * k20
+                o21 = -q4 * k21
+                o22 = off - q4 * k22
+                s00 -= o00 * e00 + o01 * e10 + o02 * e20
+                s01 -= o00 * e01 + o01 * e11 + o02 * e21
+                s02 -= o00 * e02 + o01 * e12 + o02 * e22
+                s10 -= o10 * e00 + o11 * e10 + o12 * e20
+                s11 -= o10 * e01 + o11 * e11 + o12 * e21
+                s12 -= o10 * e02 + o11 * e12 + o12 * e22
+                s20 -= o20 * e00 + o21 * e10 + o22 * e20
+                s21 -= o20 * e01 + o21 * e11 + o22 * e21
+                s22 -= o20 * e02 + o21 * e12 + o22 * e22
+                r0 -= o00 * z0 + o01 * z1 + o02 * z2
+                r1 -= o10 * z0 + o11 * z1 + o12 * z2
+                r2 -= o20 * z0 + o21 * z1 + o22 * z2
+            if a < n:
+                i00, i01, i02, i10, i11, i12, i20, i21, i22 = inverse3(s00, s01, s02, s10, s11, s12, s20, s21, s22)
+                # E_a = S_a^-1 A_{a,a+1}, A_{a,a+1} = off I - h^2/4 k_a; z_a = S_a^-1 rhs_a
+                o00 = off - q4 * l00
+                o01 = -q4 * l01
+                o02 = -q4 * l02
+                o10 = -q4 * l10
+                o11 = off - q4 * l11
+                o12 = -q4 * l12
+                o20 = -q4 * l20
+                o21 = -q4 * l21
+                o22 = off - q4 * l22
+                e00 = i00 * o00 + i01 * o10 + i02 * o20
+                e01 = i00 * o01 + i01 * o11 + i02 * o21
+                e02 = i00 * o02 + i01 * o12 + i02 * o22
+                e10 = i10 * o00 + i11 * o10 + i12 * o20
+                e11 = i10 * o01 + i11 * o11 + i12 * o21
+                e12 = i10 * o02 + i11 * o12 + i12 * o22
+                e20 = i20 * o00 + i21 * o10 + i22 * o20
+                e21 = i20 * o01 + i21 * o11 + i22 * o21
+                e22 = i20 * o02 + i21 * o12 + i22 * o22
+                E[a, 0, 0] = e00
+                E[a, 0, 1] = e01
+                E[a, 0, 2] = e02
+                E[a, 1, 0] = e10
+                E[a, 1, 1] = e11
+                E[a, 1, 2] = e12
+                E[a, 2, 0] = e20
+                E[a, 2, 1] = e21
+                E[a, 2, 2] = e22
+                z0 = i00 * r0 + i01 * r1 + i02 * r2
+                z1 = i10 * r0 + i11 * r1 + i12 * r2
+                z2 = i20 * r0 + i21 * r1 + i22 * r2
+                dy[a, 0] = z0
+                dy[a, 1] = z1
+                dy[a, 2] = z2
+            tp0 = ta0
+            tp1 = ta1
+            tp2 = ta2
+            k00 = l00
+            k01 = l01
+            k02 = l02
+            k10 = l10
+            k11 = l11
+            k12 = l12
+            k20 = l20
+            k21 = l21
+            k22 = l22
+        # phi = g + g x c + (g . c) c - 2 J c
+        gc = g0 * c0 + g1 * c1 + g2 * c2
+        Jc0 = J[0, 0] * c0 + J[0, 1] * c1 + J[0, 2] * c2
+        Jc1 = J[1, 0] * c0 + J[1, 1] * c1 + J[1, 2] * c2
+        Jc2 = J[2, 0] * c0 + J[2, 1] * c1 + J[2, 2] * c2
+        ph0 = g0 + (g1 * c2 - g2 * c1) + gc * c0 - 2.0 * Jc0
+        ph1 = g1 + (g2 * c0 - g0 * c2) + gc * c1 - 2.0 * Jc1
+        ph2 = g2 + (g0 * c1 - g1 * c0) + gc * c2 - 2.0 * Jc2
+        merit += (ph0 * ph0 + ph1 * ph1 + ph2 * ph2) * body_weight * body_weight
+        if not np.isfinite(merit):
+            return c0, c1, c2, it, NON_FINITE
+        # -- line search: a step that did not reduce the residual is halved -----------------
+        if merit > merit_prev and large_step and halvings < MAX_HALVINGS:
+            halvings += 1
+            alpha *= 0.5
+            for a in range(first, n + 1):
+                Y[a, 0] -= alpha * X[a, 0]
+                Y[a, 1] -= alpha * X[a, 1]
+                Y[a, 2] -= alpha * X[a, 2]
+            c0 -= alpha * dc0
+            c1 -= alpha * dc1
+            c2 -= alpha * dc2
+            continue
+        merit_prev = merit
+        backtracked = halvings > 0
+        halvings = 0
+        # -- the 6x6 system at the attachment node: [S B; C D] [dy_N; dc] = [r; -phi] -------
+        i00, i01, i02, i10, i11, i12, i20, i21, i22 = inverse3(s00, s01, s02, s10, s11, s12, s20, s21, s22)
+        zn0 = i00 * r0 + i01 * r1 + i02 * r2
+        zn1 = i10 * r0 + i11 * r1 + i12 * r2
+        zn2 = i20 * r0 + i21 * r1 + i22 * r2
+        # D = g^ + (g . c) I + c g^T - 2 J
+        jac = W.jac
+        jac[0, 0] = gc + c0 * g0 - 2.0 * J[0, 0]
+        jac[0, 1] = -g2 + c0 * g1 - 2.0 * J[0, 1]
+        jac[0, 2] = g1 + c0 * g2 - 2.0 * J[0, 2]
+        jac[1, 0] = g2 + c1 * g0 - 2.0 * J[1, 0]
+        jac[1, 1] = gc + c1 * g1 - 2.0 * J[1, 1]
+        jac[1, 2] = -g0 + c1 * g2 - 2.0 * J[1, 2]
+        jac[2, 0] = -g1 + c2 * g0 - 2.0 * J[2, 0]
+        jac[2, 1] = g0 + c2 * g1 - 2.0 * J[2, 1]
+        jac[2, 2] = gc + c2 * g2 - 2.0 * J[2, 2]
+        f0 = -ph0
+        f1 = -ph1
+        f2 = -ph2
+        z00 = z01 = z02 = z10 = z11 = z12 = z20 = z21 = z22 = 0.0
+        if coupled:
+            # Z = S^-1 B; D - C Z and -phi - C z_N
+            z00 = i00 * b00 + i01 * b10 + i02 * b20
+            z01 = i00 * b01 + i01 * b11 + i02 * b21
+            z02 = i00 * b02 + i01 * b12 + i02 * b22
+            z10 = i10 * b00 + i11 * b10 + i12 * b20
+            z11 = i10 * b01 + i11 * b11 + i12 * b21
+            z12 = i10 * b02 + i11 * b12 + i12 * b22
+            z20 = i20 * b00 + i21 * b10 + i22 * b20
+            z21 = i20 * b01 + i21 * b11 + i22 * b21
+            z22 = i20 * b02 + i21 * b12 + i22 * b22
+            jac[0, 0] -= cy00 * z00 + cy01 * z10 + cy02 * z20
+            jac[0, 1] -= cy00 * z01 + cy01 * z11 + cy02 * z21
+            jac[0, 2] -= cy00 * z02 + cy01 * z12 + cy02 * z22
+            jac[1, 0] -= cy10 * z00 + cy11 * z10 + cy12 * z20
+            jac[1, 1] -= cy10 * z01 + cy11 * z11 + cy12 * z21
+            jac[1, 2] -= cy10 * z02 + cy11 * z12 + cy12 * z22
+            jac[2, 0] -= cy20 * z00 + cy21 * z10 + cy22 * z20
+            jac[2, 1] -= cy20 * z01 + cy21 * z11 + cy22 * z21
+            jac[2, 2] -= cy20 * z02 + cy21 * z12 + cy22 * z22
+            f0 -= cy00 * zn0 + cy01 * zn1 + cy02 * zn2
+            f1 -= cy10 * zn0 + cy11 * zn1 + cy12 * zn2
+            f2 -= cy20 * zn0 + cy21 * zn1 + cy22 * zn2
+        dc0, dc1, dc2 = solve3(jac, f0, f1, f2)
+        x0 = zn0 - (z00 * dc0 + z01 * dc1 + z02 * dc2)
+        x1 = zn1 - (z10 * dc0 + z11 * dc1 + z12 * dc2)
+        x2 = zn2 - (z20 * dc0 + z21 * dc1 + z22 * dc2)
+        # -- back substitution (the corrections into X), and the update ---------------------
+        X[n, 0] = x0
+        X[n, 1] = x1
+        X[n, 2] = x2
+        dd = x0 * x0 + x1 * x1 + x2 * x2
+        for k in range(n - first):
+            a = n - 1 - k
+            xa0 = dy[a, 0] - (E[a, 0, 0] * x0 + E[a, 0, 1] * x1 + E[a, 0, 2] * x2)
+            xa1 = dy[a, 1] - (E[a, 1, 0] * x0 + E[a, 1, 1] * x1 + E[a, 1, 2] * x2)
+            xa2 = dy[a, 2] - (E[a, 2, 0] * x0 + E[a, 2, 1] * x1 + E[a, 2, 2] * x2)
+            x0 = xa0
+            x1 = xa1
+            x2 = xa2
+            X[a, 0] = x0
+            X[a, 1] = x1
+            X[a, 2] = x2
+            dd += x0 * x0 + x1 * x1 + x2 * x2
+        yy = 0.0
+        alpha = 1.0
+        for a in range(first, n + 1):
+            Y[a, 0] += X[a, 0]
+            Y[a, 1] += X[a, 1]
+            Y[a, 2] += X[a, 2]
+            yy += Y[a, 0] * Y[a, 0] + Y[a, 1] * Y[a, 1] + Y[a, 2] * Y[a, 2]
+        c0 += dc0
+        c1 += dc1
+        c2 += dc2
+        # one norm for both unknowns [m]: a rotation by 2 |c| moves the body's points by about
+        # body_length 2 |c|
+        tol2 = P.tol * P.tol
+        dd += body_length2 * (dc0 * dc0 + dc1 * dc1 + dc2 * dc2)
+        scale = yy + body_length2 * (c0 * c0 + c1 * c1 + c2 * c2) + floor2
+        large_step = dd > LINE_SEARCH_FLOOR * LINE_SEARCH_FLOOR * scale
+        if dd <= tol2 * scale:
+            return c0, c1, c2, it, 0
+        # quadratic convergence: the next correction is about |d|^2 / |d_prev|
+        if it > 1 and not backtracked and dd * dd <= tol2 * scale * dd_prev:
+            return c0, c1, c2, it, 0
+        # round-off: the corrections stopped shrinking, at the level the residual's rounding
+        # allows (about 10-100 eps relative, the sums over nodes and the coupling)
+        if it > 1 and dd >= 0.25 * dd_prev and dd <= ROUNDOFF_TOL * ROUNDOFF_TOL * scale:
+            return c0, c1, c2, it, 0
+        dd_prev = dd
+    if np.isfinite(c0 + c1 + c2):
+        return c0, c1, c2, P.max_iter, NEWTON_FAILED
+    return c0, c1, c2, P.max_iter, NON_FINITE
+
+
+@kernel(forceinline=True)
+def implicit_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
+    """One step of the implicit string, in place; the contract of
+    :func:`~.lgvi.lgvi_substep` (flags, inputs, compensation, ``S.f`` the forces at the state,
+    the state untouched on failure). Returns ``(status, newton_iterations)``."""
+    r = S.r
+    R = S.R
+    Pi = S.Pi
+    X = W.X
+    Y = W.Y
+    hh = 0.5 * h
+    n = r.shape[0] - 1
+    first = 0 if free else 1
+    up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2 = held_inputs(inputs, forced)
+    l0, l1, l2, t0, t1, t2 = left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
+    gk0 = h * (Pi[0] + hh * t0)
+    gk1 = h * (Pi[1] + hh * t1)
+    gk2 = h * (Pi[2] + hh * t2)
+    c0, c1, c2, iters, status = implicit_newton(S, W, P, h, gk0, gk1, gk2, up0, up1, up2, free, forced, coupled)
+    if status != 0:
+        return status, iters
+    # the string's impulse over the step, h/2 (fl + fr): along the elements at both ends
+    split_forces(r, Y, P, W.fl, W.fr)
+    cayley_minus_identity(c0, c1, c2, W.FmI)
+    yn0 = Y[n, 0]
+    yn1 = Y[n, 1]
+    yn2 = Y[n, 2]
+    e0 = R[0, 0] * yn0 + R[1, 0] * yn1 + R[2, 0] * yn2  # R_k^T dr_{N+1}
+    e1 = R[0, 1] * yn0 + R[1, 1] * yn1 + R[2, 1] * yn2
+    e2 = R[0, 2] * yn0 + R[1, 2] * yn1 + R[2, 2] * yn2
+    dr00 = Y[0, 0]
+    dr01 = Y[0, 1]
+    dr02 = Y[0, 2]
+    rc = S.rc
+    for a in range(first, n + 1):
+        for i in range(3):
+            y = Y[a, i]
+            if compensated:
+                y = y + rc[a, i]
+                Y[a, i] = y
+            X[a, i] = r[a, i] + y
+    for a in range(first):
+        X[a, 0] = r[a, 0]
+        X[a, 1] = r[a, 1]
+        X[a, 2] = r[a, 2]
+    status = lgvi_commit(S, W, P, h, c0, c1, c2, e0, e1, e2, l0, l1, l2, t0, t1, t2, tb0, tb1, tb2, ts0, ts1, ts2,
+                         up0, up1, up2, dr00, dr01, dr02, free, forced, coupled, compensated, True)
+    return status, iters

@@ -1,0 +1,164 @@
+"""The pieces of the implicit string's Newton system (kernels/implicit.py, docs/physics.md "The
+implicit string"): an element's tension over the step and its directions, the string's forces of
+the step, the body's coupling blocks, and a 3x3 inverse."""
+import math
+
+from .jit import kernel
+
+
+@kernel(inline="always")
+def element_terms(r, Y, a, kappa, u, slack):
+    """Element ``a`` (nodes a, a+1) over the step r_k -> r_k + Y: its mean length
+    lbar = (|x_k| + |x_k + dx|)/2 and tension T = kappa (lbar - u) [N] (0 when ``slack`` and
+    lbar < u), the unit vectors n_k, n_{k+1} along it at both ends, and dT/dlbar = kappa (0 where
+    slack). Returns ``(T, n_k (3), n_{k+1} (3), kappa')``."""
+    x0 = r[a + 1, 0] - r[a, 0]
+    x1 = r[a + 1, 1] - r[a, 1]
+    x2 = r[a + 1, 2] - r[a, 2]
+    lk = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+    w0 = x0 + (Y[a + 1, 0] - Y[a, 0])
+    w1 = x1 + (Y[a + 1, 1] - Y[a, 1])
+    w2 = x2 + (Y[a + 1, 2] - Y[a, 2])
+    ln = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+    stretch = 0.5 * (lk + ln) - u
+    T = kappa * stretch
+    dT = kappa
+    if slack and stretch < 0.0:
+        T = 0.0
+        dT = 0.0
+    return T, x0 / lk, x1 / lk, x2 / lk, w0 / ln, w1 / ln, w2 / ln, dT
+
+
+@kernel
+def split_forces(r, Y, P, fl, fr):
+    """The string's forces of the step, gravity included [N]: ``fl`` = f_g + sum T n_k (the left
+    half, along the elements at r_k) and ``fr`` = f_g + sum T n_{k+1} (the right half), T the
+    elements' tensions at their mean lengths (:func:`element_terms`). Returns the sum of all
+    entries (non-finite iff any is)."""
+    n = r.shape[0] - 1
+    total = 0.0
+    for i in range(3):
+        for a in range(n + 1):
+            fl[a, i] = 0.0
+            fr[a, i] = 0.0
+    fl[0, 2] = fr[0, 2] = (0.5 * P.m + P.Mp) * P.g
+    for a in range(1, n):
+        fl[a, 2] = fr[a, 2] = P.m * P.g
+    fl[n, 2] = fr[n, 2] = (0.5 * P.m + P.M) * P.g
+    for a in range(n):
+        T, k0, k1, k2, m0, m1, m2, _ = element_terms(r, Y, a, P.kappa, P.u, P.slack)
+        fl[a, 0] += T * k0
+        fl[a, 1] += T * k1
+        fl[a, 2] += T * k2
+        fl[a + 1, 0] -= T * k0
+        fl[a + 1, 1] -= T * k1
+        fl[a + 1, 2] -= T * k2
+        fr[a, 0] += T * m0
+        fr[a, 1] += T * m1
+        fr[a, 2] += T * m2
+        fr[a + 1, 0] -= T * m0
+        fr[a + 1, 1] -= T * m1
+        fr[a + 1, 2] -= T * m2
+        total += T
+    return total
+
+
+@kernel(inline="always")
+def inverse3(a00, a01, a02, a10, a11, a12, a20, a21, a22):
+    """The inverse of a 3x3 matrix by cofactors, row by row (9 scalars)."""
+    c00 = a11 * a22 - a12 * a21
+    c01 = a12 * a20 - a10 * a22
+    c02 = a10 * a21 - a11 * a20
+    d = 1.0 / (a00 * c00 + a01 * c01 + a02 * c02)
+    return (c00 * d, (a02 * a21 - a01 * a22) * d, (a01 * a12 - a02 * a11) * d,
+            c01 * d, (a00 * a22 - a02 * a20) * d, (a02 * a10 - a00 * a12) * d,
+            c02 * d, (a01 * a20 - a00 * a21) * d, (a00 * a11 - a01 * a10) * d)
+
+
+@kernel(inline="always")
+def body_coupling(R, P, yn0, yn1, yn2, c0, c1, c2, gk0, gk1, gk2, coupled):
+    """The body's side of the implicit string's Newton system at an iterate (attachment-node
+    increment y_N, Cayley vector c): g = gk - M rho_c x (R_k^T y_N), q = R_k (F(c) - I) rho_c
+    (the attachment row's coupling term), B = dG_N/dc = M R_k d(F rho_c)/dc and C = dphi/dy_N =
+    -(I - c^ + c c^T) M rho_c^ R_k^T (docs/physics.md, "Newton's method"); B, C, q are 0 unless
+    ``coupled``. Returns ``(g (3), q (3), B (9, row-major), C (9, row-major))``."""
+    M = P.M
+    rho0 = P.rho[0]
+    rho1 = P.rho[1]
+    rho2 = P.rho[2]
+    cc = c0 * c0 + c1 * c1 + c2 * c2
+    g0 = gk0
+    g1 = gk1
+    g2 = gk2
+    q0 = q1 = q2 = 0.0
+    b00 = b01 = b02 = b10 = b11 = b12 = b20 = b21 = b22 = 0.0  # B = dG_N/dc
+    cy00 = cy01 = cy02 = cy10 = cy11 = cy12 = cy20 = cy21 = cy22 = 0.0  # C = dphi/dy_N
+    if coupled:
+        w0 = R[0, 0] * yn0 + R[1, 0] * yn1 + R[2, 0] * yn2  # R^T y_N
+        w1 = R[0, 1] * yn0 + R[1, 1] * yn1 + R[2, 1] * yn2
+        w2 = R[0, 2] * yn0 + R[1, 2] * yn1 + R[2, 2] * yn2
+        g0 = gk0 - M * (rho1 * w2 - rho2 * w1)
+        g1 = gk1 - M * (rho2 * w0 - rho0 * w2)
+        g2 = gk2 - M * (rho0 * w1 - rho1 * w0)
+        # (F - I) rho = s v, v = c x rho + c x (c x rho), s = 2/(1 + |c|^2)
+        sc = 2.0 / (1.0 + cc)
+        cr0 = c1 * rho2 - c2 * rho1
+        cr1 = c2 * rho0 - c0 * rho2
+        cr2 = c0 * rho1 - c1 * rho0
+        v0 = cr0 + (c1 * cr2 - c2 * cr1)
+        v1 = cr1 + (c2 * cr0 - c0 * cr2)
+        v2 = cr2 + (c0 * cr1 - c1 * cr0)
+        q0 = sc * (R[0, 0] * v0 + R[0, 1] * v1 + R[0, 2] * v2)  # q = R (F - I) rho
+        q1 = sc * (R[1, 0] * v0 + R[1, 1] * v1 + R[1, 2] * v2)
+        q2 = sc * (R[2, 0] * v0 + R[2, 1] * v1 + R[2, 2] * v2)
+        # d((F - I) rho)/dc = -s^2 v c^T + s (-rho^ + (c . rho) I + c rho^T - 2 rho c^T)
+        s2 = sc * sc
+        crho = c0 * rho0 + c1 * rho1 + c2 * rho2
+        d00 = -s2 * v0 * c0 + sc * (crho + c0 * rho0 - 2.0 * rho0 * c0)
+        d01 = -s2 * v0 * c1 + sc * (rho2 + c0 * rho1 - 2.0 * rho0 * c1)
+        d02 = -s2 * v0 * c2 + sc * (-rho1 + c0 * rho2 - 2.0 * rho0 * c2)
+        d10 = -s2 * v1 * c0 + sc * (-rho2 + c1 * rho0 - 2.0 * rho1 * c0)
+        d11 = -s2 * v1 * c1 + sc * (crho + c1 * rho1 - 2.0 * rho1 * c1)
+        d12 = -s2 * v1 * c2 + sc * (rho0 + c1 * rho2 - 2.0 * rho1 * c2)
+        d20 = -s2 * v2 * c0 + sc * (rho1 + c2 * rho0 - 2.0 * rho2 * c0)
+        d21 = -s2 * v2 * c1 + sc * (-rho0 + c2 * rho1 - 2.0 * rho2 * c1)
+        d22 = -s2 * v2 * c2 + sc * (crho + c2 * rho2 - 2.0 * rho2 * c2)
+        b00 = M * (R[0, 0] * d00 + R[0, 1] * d10 + R[0, 2] * d20)
+        b01 = M * (R[0, 0] * d01 + R[0, 1] * d11 + R[0, 2] * d21)
+        b02 = M * (R[0, 0] * d02 + R[0, 1] * d12 + R[0, 2] * d22)
+        b10 = M * (R[1, 0] * d00 + R[1, 1] * d10 + R[1, 2] * d20)
+        b11 = M * (R[1, 0] * d01 + R[1, 1] * d11 + R[1, 2] * d21)
+        b12 = M * (R[1, 0] * d02 + R[1, 1] * d12 + R[1, 2] * d22)
+        b20 = M * (R[2, 0] * d00 + R[2, 1] * d10 + R[2, 2] * d20)
+        b21 = M * (R[2, 0] * d01 + R[2, 1] * d11 + R[2, 2] * d21)
+        b22 = M * (R[2, 0] * d02 + R[2, 1] * d12 + R[2, 2] * d22)
+        # C = (I - c^ + c c^T)(-M rho^ R^T): first P = -M rho^ R^T
+        p00 = -M * (rho1 * R[0, 2] - rho2 * R[0, 1])
+        p01 = -M * (rho1 * R[1, 2] - rho2 * R[1, 1])
+        p02 = -M * (rho1 * R[2, 2] - rho2 * R[2, 1])
+        p10 = -M * (rho2 * R[0, 0] - rho0 * R[0, 2])
+        p11 = -M * (rho2 * R[1, 0] - rho0 * R[1, 2])
+        p12 = -M * (rho2 * R[2, 0] - rho0 * R[2, 2])
+        p20 = -M * (rho0 * R[0, 1] - rho1 * R[0, 0])
+        p21 = -M * (rho0 * R[1, 1] - rho1 * R[1, 0])
+        p22 = -M * (rho0 * R[2, 1] - rho1 * R[2, 0])
+        m00 = 1.0 + c0 * c0
+        m01 = c2 + c0 * c1
+        m02 = -c1 + c0 * c2
+        m10 = -c2 + c1 * c0
+        m11 = 1.0 + c1 * c1
+        m12 = c0 + c1 * c2
+        m20 = c1 + c2 * c0
+        m21 = -c0 + c2 * c1
+        m22 = 1.0 + c2 * c2
+        cy00 = m00 * p00 + m01 * p10 + m02 * p20
+        cy01 = m00 * p01 + m01 * p11 + m02 * p21
+        cy02 = m00 * p02 + m01 * p12 + m02 * p22
+        cy10 = m10 * p00 + m11 * p10 + m12 * p20
+        cy11 = m10 * p01 + m11 * p11 + m12 * p21
+        cy12 = m10 * p02 + m11 * p12 + m12 * p22
+        cy20 = m20 * p00 + m21 * p10 + m22 * p20
+        cy21 = m20 * p01 + m21 * p11 + m22 * p21
+        cy22 = m20 * p02 + m21 * p12 + m22 * p22
+    return (g0, g1, g2, q0, q1, q2, b00, b01, b02, b10, b11, b12, b20, b21, b22,
+            cy00, cy01, cy02, cy10, cy11, cy12, cy20, cy21, cy22)
