@@ -243,20 +243,15 @@ class SolverParams(_Frozen):
     composition: Optional[Literal[tuple(COMPOSITIONS)]] = Field(
         None, description="composition scheme (default: the order's, see esp_gym/compositions.py)")
     compensated: Flag = Field(
-        True, description="add the state increments with Kahan's compensation: keeps energy and pi3 "
-                          "round-off bounded over 1e7+ steps; false is ~13 % faster per step and "
-                          "loses nothing over short horizons (docs/performance.md)")
+        True, description="add the state increments with Kahan's compensation (energy and pi3 round-off bounded "
+                          "over 1e7+ steps); false is ~13 % faster, as good over short runs (docs/performance.md)")
     string: Literal["explicit", "implicit"] = Field(
-        "explicit", description="explicit: the paper's scheme, the elastic energy at both ends of the step (h is "
-                                "bounded by the string's highest frequency); implicit: the elastic energy at the "
-                                "step's midpoint, solved by Newton's method (no stability bound: stiff tethers at "
-                                "large h; docs/physics.md, 'The implicit string')")
+        "explicit", description="the string's elastic forces: explicit (the paper's) or implicit (docs/physics.md)")
 
     @model_validator(mode="after")
     def _composition_has_the_order(self) -> "SolverParams":
-        if self.string == "implicit" and (self.order != 2 or self.composition not in (None, "lgvi")):
-            raise ValueError(f"string: implicit is a second-order scheme; it takes order: 2 (got order {self.order}"
-                             + (f", composition {self.composition!r}" if self.composition else "") + ")")
+        if self.string == "implicit" and self.order != 2:  # a second-order scheme
+            raise ValueError(f"string: implicit takes order: 2 (got {self.order})")
         if self.composition is not None and COMPOSITIONS[self.composition].order != self.order:
             c = COMPOSITIONS[self.composition]
             raise ValueError(f"composition {c.name!r} has order {c.order}, but order is {self.order}; "
@@ -346,8 +341,7 @@ class Scene(_Frozen):
     @property
     def stability_bound(self) -> float:
         """Largest stable h [s]: the string's bound, times the composition's bound factor
-        when one is used; ``inf`` for the implicit string (no stability bound: h is chosen for
-        accuracy, :func:`~esp_gym.stepsize.choose_h`)."""
+        when one is used; ``inf`` for the implicit string (docs/physics.md)."""
         if self.solver.string == "implicit":
             return math.inf
         return self.string.stability_bound * self.solver.bound_factor
