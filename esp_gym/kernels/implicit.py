@@ -26,8 +26,8 @@ import numpy as np
 from .jit import kernel
 from .layout import NEWTON_FAILED, NON_FINITE
 from .lgvi import held_inputs, left_torque, lgvi_commit
-from .implicit_terms import body_coupling, element_terms, inverse3, split_forces
-from .so3 import cayley_minus_identity, solve3
+from .implicit_terms import body_coupling, coupling_block, element_block, inverse3, split_forces
+from .so3 import cayley_jacobian, cayley_minus_identity, solve3
 from .string import string_solve
 
 #: Corrections that stop shrinking below this (relative to the increments) are round-off: the
@@ -103,19 +103,7 @@ def implicit_newton(S, W, P, h, gk0, gk1, gk2, up0, up1, up2, free, forced, coup
         tp0 = tp1 = tp2 = 0.0  # the element above node a: T n_k, and k
         k00 = k01 = k02 = k10 = k11 = k12 = k20 = k21 = k22 = 0.0
         if not free:
-            T, n0, n1, n2, m0, m1, m2, dT = element_terms(r, Y, 0, kappa, u, slack)
-            tp0 = T * n0
-            tp1 = T * n1
-            tp2 = T * n2
-            k00 = dT * n0 * m0
-            k01 = dT * n0 * m1
-            k02 = dT * n0 * m2
-            k10 = dT * n1 * m0
-            k11 = dT * n1 * m1
-            k12 = dT * n1 * m2
-            k20 = dT * n2 * m0
-            k21 = dT * n2 * m1
-            k22 = dT * n2 * m2
+            tp0, tp1, tp2, k00, k01, k02, k10, k11, k12, k20, k21, k22 = element_block(r, Y, 0, kappa, u, slack)
         e00 = e01 = e02 = e10 = e11 = e12 = e20 = e21 = e22 = 0.0  # E_{a-1}
         z0 = z1 = z2 = 0.0  # z_{a-1}
         s00 = s01 = s02 = s10 = s11 = s12 = s20 = s21 = s22 = 0.0
@@ -124,19 +112,7 @@ def implicit_newton(S, W, P, h, gk0, gk1, gk2, up0, up1, up2, free, forced, coup
             ta0 = ta1 = ta2 = 0.0
             l00 = l01 = l02 = l10 = l11 = l12 = l20 = l21 = l22 = 0.0
             if a < n:
-                T, n0, n1, n2, m0, m1, m2, dT = element_terms(r, Y, a, kappa, u, slack)
-                ta0 = T * n0
-                ta1 = T * n1
-                ta2 = T * n2
-                l00 = dT * n0 * m0
-                l01 = dT * n0 * m1
-                l02 = dT * n0 * m2
-                l10 = dT * n1 * m0
-                l11 = dT * n1 * m1
-                l12 = dT * n1 * m2
-                l20 = dT * n2 * m0
-                l21 = dT * n2 * m1
-                l22 = dT * n2 * m2
+                ta0, ta1, ta2, l00, l01, l02, l10, l11, l12, l20, l21, l22 = element_block(r, Y, a, kappa, u, slack)
             grav = g_mid
             if a == 0:
                 grav = g_end0
@@ -178,15 +154,8 @@ def implicit_newton(S, W, P, h, gk0, gk1, gk2, up0, up1, up2, free, forced, coup
             s22 = mdiag[a] + q4 * (k22 + l22)
             if a > first:
                 # O = A_{a,a-1} = off I - h^2/4 k_{a-1}: S_a = A_aa - O E_{a-1}, rhs_a -= O z_{a-1}
-                o00 = off - q4 * k00
-                o01 = -q4 * k01
-                o02 = -q4 * k02
-                o10 = -q4 * k10
-                o11 = off - q4 * k11
-                o12 = -q4 * k12
-                o20 = -q4 * k20
-                o21 = -q4 * k21
-                o22 = off - q4 * k22
+                o00, o01, o02, o10, o11, o12, o20, o21, o22 = coupling_block(off, q4, k00, k01, k02, k10, k11, k12,
+                                                                             k20, k21, k22)
                 s00 -= o00 * e00 + o01 * e10 + o02 * e20
                 s01 -= o00 * e01 + o01 * e11 + o02 * e21
                 s02 -= o00 * e02 + o01 * e12 + o02 * e22
@@ -202,15 +171,8 @@ def implicit_newton(S, W, P, h, gk0, gk1, gk2, up0, up1, up2, free, forced, coup
             if a < n:
                 i00, i01, i02, i10, i11, i12, i20, i21, i22 = inverse3(s00, s01, s02, s10, s11, s12, s20, s21, s22)
                 # E_a = S_a^-1 A_{a,a+1}, A_{a,a+1} = off I - h^2/4 k_a; z_a = S_a^-1 rhs_a
-                o00 = off - q4 * l00
-                o01 = -q4 * l01
-                o02 = -q4 * l02
-                o10 = -q4 * l10
-                o11 = off - q4 * l11
-                o12 = -q4 * l12
-                o20 = -q4 * l20
-                o21 = -q4 * l21
-                o22 = off - q4 * l22
+                o00, o01, o02, o10, o11, o12, o20, o21, o22 = coupling_block(off, q4, l00, l01, l02, l10, l11, l12,
+                                                                             l20, l21, l22)
                 e00 = i00 * o00 + i01 * o10 + i02 * o20
                 e01 = i00 * o01 + i01 * o11 + i02 * o21
                 e02 = i00 * o02 + i01 * o12 + i02 * o22
@@ -280,15 +242,7 @@ def implicit_newton(S, W, P, h, gk0, gk1, gk2, up0, up1, up2, free, forced, coup
         zn2 = i20 * r0 + i21 * r1 + i22 * r2
         # D = g^ + (g . c) I + c g^T - 2 J
         jac = W.jac
-        jac[0, 0] = gc + c0 * g0 - 2.0 * J[0, 0]
-        jac[0, 1] = -g2 + c0 * g1 - 2.0 * J[0, 1]
-        jac[0, 2] = g1 + c0 * g2 - 2.0 * J[0, 2]
-        jac[1, 0] = g2 + c1 * g0 - 2.0 * J[1, 0]
-        jac[1, 1] = gc + c1 * g1 - 2.0 * J[1, 1]
-        jac[1, 2] = -g0 + c1 * g2 - 2.0 * J[1, 2]
-        jac[2, 0] = -g1 + c2 * g0 - 2.0 * J[2, 0]
-        jac[2, 1] = g0 + c2 * g1 - 2.0 * J[2, 1]
-        jac[2, 2] = gc + c2 * g2 - 2.0 * J[2, 2]
+        cayley_jacobian(g0, g1, g2, c0, c1, c2, gc, J, jac)
         f0 = -ph0
         f1 = -ph1
         f2 = -ph2

@@ -29,6 +29,22 @@ def element_terms(r, Y, a, kappa, u, slack):
     return T, x0 / lk, x1 / lk, x2 / lk, w0 / ln, w1 / ln, w2 / ln, dT
 
 
+@kernel(inline="always")
+def element_block(r, Y, a, kappa, u, slack):
+    """Element ``a``'s share of the Newton system (:func:`element_terms`): its force on node a,
+    T n_k (3) [N], and k = kappa' n_k n_{k+1}^T (9, row-major) [N/m]."""
+    T, n0, n1, n2, m0, m1, m2, dT = element_terms(r, Y, a, kappa, u, slack)
+    return (T * n0, T * n1, T * n2, dT * n0 * m0, dT * n0 * m1, dT * n0 * m2, dT * n1 * m0, dT * n1 * m1,
+            dT * n1 * m2, dT * n2 * m0, dT * n2 * m1, dT * n2 * m2)
+
+
+@kernel(inline="always")
+def coupling_block(off, q4, k00, k01, k02, k10, k11, k12, k20, k21, k22):
+    """The off-diagonal block off I - q4 k of the string's Jacobian (9, row-major)."""
+    return (off - q4 * k00, -q4 * k01, -q4 * k02, -q4 * k10, off - q4 * k11, -q4 * k12, -q4 * k20, -q4 * k21,
+            off - q4 * k22)
+
+
 @kernel
 def split_forces(r, Y, P, fl, fr):
     """The string's forces of the step, gravity included [N]: ``fl`` = f_g + sum T n_k (the left

@@ -50,6 +50,21 @@ def cayley_minus_identity(f0, f1, f2, out):
     out[2, 1] = c * (f0 + f1 * f2)
 
 
+@kernel(inline="always")
+def cayley_jacobian(g0, g1, g2, f0, f1, f2, gf, J, jac):
+    """Write d phi/df = g^ + (g . f) I + f g^T - 2 J into ``jac`` (3x3), phi(f) = g + g x f +
+    (g . f) f - 2 J f the rigid-body equation in Cayley form; ``gf`` = g . f."""
+    jac[0, 0] = gf + f0 * g0 - 2.0 * J[0, 0]
+    jac[0, 1] = -g2 + f0 * g1 - 2.0 * J[0, 1]
+    jac[0, 2] = g1 + f0 * g2 - 2.0 * J[0, 2]
+    jac[1, 0] = g2 + f1 * g0 - 2.0 * J[1, 0]
+    jac[1, 1] = gf + f1 * g1 - 2.0 * J[1, 1]
+    jac[1, 2] = -g0 + f1 * g2 - 2.0 * J[1, 2]
+    jac[2, 0] = -g1 + f2 * g0 - 2.0 * J[2, 0]
+    jac[2, 1] = g0 + f2 * g1 - 2.0 * J[2, 1]
+    jac[2, 2] = gf + f2 * g2 - 2.0 * J[2, 2]
+
+
 @kernel
 def cayley_newton(g0, g1, g2, J, tol, max_iter, jac):
     """Solve ``(F K - K F^T)^vee = g`` for ``F = cay(f)``, where ``J = tr(K) I - K``.
@@ -78,15 +93,7 @@ def cayley_newton(g0, g1, g2, J, tol, max_iter, jac):
         phi0 = g0 + (g1 * f2 - g2 * f1) + gf * f0 - 2.0 * Jf0
         phi1 = g1 + (g2 * f0 - g0 * f2) + gf * f1 - 2.0 * Jf1
         phi2 = g2 + (g0 * f1 - g1 * f0) + gf * f2 - 2.0 * Jf2
-        jac[0, 0] = gf + f0 * g0 - 2.0 * J[0, 0]
-        jac[0, 1] = -g2 + f0 * g1 - 2.0 * J[0, 1]
-        jac[0, 2] = g1 + f0 * g2 - 2.0 * J[0, 2]
-        jac[1, 0] = g2 + f1 * g0 - 2.0 * J[1, 0]
-        jac[1, 1] = gf + f1 * g1 - 2.0 * J[1, 1]
-        jac[1, 2] = -g0 + f1 * g2 - 2.0 * J[1, 2]
-        jac[2, 0] = -g1 + f2 * g0 - 2.0 * J[2, 0]
-        jac[2, 1] = g0 + f2 * g1 - 2.0 * J[2, 1]
-        jac[2, 2] = gf + f2 * g2 - 2.0 * J[2, 2]
+        cayley_jacobian(g0, g1, g2, f0, f1, f2, gf, J, jac)
         d0, d1, d2 = solve3(jac, -phi0, -phi1, -phi2)
         f0 += d0
         f1 += d1
