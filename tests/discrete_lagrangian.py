@@ -65,7 +65,9 @@ def string_potential(scene, r) -> float:
 def string_elastic_mean_length(scene, r0, r1) -> float:
     """The implicit string's elastic term: sum_a int_0^1 W(sbar_a) u dzeta [J] with the element's
     stretch sbar_a = (|r'_{k,a}| + |r'_{k+1,a}|)/2, the mean of its stretches at both ends of the
-    step (``solver.string: implicit``, docs/physics.md)."""
+    step (``solver.string: implicit``, docs/physics.md). The kernel's on steps where no element
+    switches between slack and taut; one that does takes the energy's secant instead (docs/physics.md,
+    "The slack switch"; tests/test_implicit.py)."""
     u, EA = scene.string.u, scene.string.EA
     s0 = np.sqrt(np.sum(((r0[1:] - r0[:-1]) / u) ** 2, axis=1))
     s1 = np.sqrt(np.sum(((r1[1:] - r1[:-1]) / u) ** 2, axis=1))

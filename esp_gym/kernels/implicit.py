@@ -25,7 +25,7 @@ import numpy as np
 
 from .jit import kernel
 from .layout import NEWTON_FAILED, NON_FINITE
-from .lgvi import held_inputs, left_torque, lgvi_commit
+from .lgvi import explicit_increments, held_inputs, left_torque, lgvi_commit
 from .implicit_terms import body_coupling, coupling_block, element_block, inverse3, split_forces
 from .so3 import cayley_jacobian, cayley_minus_identity, solve3
 from .string import string_solve
@@ -33,6 +33,9 @@ from .string import string_solve
 #: Corrections that stop shrinking below this (relative to the increments) are round-off: the
 #: iteration has converged as far as float64 allows.
 ROUNDOFF_TOL = 1e-12
+#: ... or below this many units in the last place of the positions (the new lengths |r_{a+1} -
+#: r_a| carry that much rounding, which Newton cannot remove; at the slack kink it is all there is).
+ROUNDOFF_ULPS = 64.0
 #: Halvings of one Newton step the line search may take (per step).
 MAX_HALVINGS = 8
 #: A correction below this (relative to the increments) is in the quadratic, round-off
@@ -41,10 +44,11 @@ LINE_SEARCH_FLOOR = 1e-8
 
 
 @kernel(forceinline=True)
-def implicit_newton(S, W, P, h, gk0, gk1, gk2, up0, up1, up2, free, forced, coupled):
+def implicit_newton(S, W, P, h, gk0, gk1, gk2, t0, t1, t2, up0, up1, up2, free, forced, coupled):
     """Solve the implicit string's equations (module docstring) for the increments y (into
     ``W.Y``, rows before the first unknown 0) and the Cayley vector c, from the explicit start.
-    ``gk`` = h Pi_k + h^2/2 tau_k [kg m^2], ``up`` the pivot force [N] (read if ``free and forced``).
+    ``gk`` = h Pi_k + h^2/2 tau_k [kg m^2] with tau_k = ``t`` the left torque [N m], ``up`` the pivot
+    force [N] (read if ``free and forced``).
     Returns ``(c0, c1, c2, iterations, status)``: status 0, or NEWTON_FAILED / NON_FINITE."""
     r = S.r
     p = S.p
@@ -70,21 +74,27 @@ def implicit_newton(S, W, P, h, gk0, gk1, gk2, up0, up1, up2, free, forced, coup
     g_endn = (0.5 * P.m + M) * P.g
     body_weight = u / (J[0, 0] + J[1, 1] + J[2, 2])  # body residual [kg m^2] -> [m]
     floor2 = (1e-3 * u) ** 2  # |y| below this counts as 0 in the tolerances [m^2]
+    reach = u
+    for a in range(n + 1):
+        reach = max(reach, abs(r[a, 0]), abs(r[a, 1]), abs(r[a, 2]))
+    rounding2 = (ROUNDOFF_ULPS * 2.220446049250313e-16 * reach) ** 2  # the positions' rounding [m^2]
     body_length2 = 4.0 * (J[0, 0] + J[1, 1] + J[2, 2]) / M  # (2 x the body's radius of gyration)^2 [m^2]
-    # start: the string increments with F = I and the forces S.f of the last step's right half
-    # (its tensions along the elements at r_k), h M^-1 (p + h/2 f + ...): the tensions of
-    # consecutive steps differ little even where f(r_k) would carry the stiff modes
-    push = free and forced
-    string_solve(P.inv, P.cp, first, p, S.f, 0.5 * h, up0, up1, up2, push, X)
-    for a in range(first, n + 1):
-        Y[a, 0] = h * X[a, 0]
-        Y[a, 1] = h * X[a, 1]
-        Y[a, 2] = h * X[a, 2]
+    # start: one explicit step with the forces S.f of the last step's right half (the tensions
+    # along the elements at r_k): the tensions of consecutive steps differ little even where
+    # f(r_k) would carry the stiff modes, and the body's turn comes with the coupling
+    c0, c1, c2, _, _, _, _, _, _, _, status = explicit_increments(S, W, P, h, up0, up1, up2, t0, t1, t2, free,
+                                                                  forced, coupled)
+    if status != 0:
+        c0 = c1 = c2 = 0.0
+        string_solve(P.inv, P.cp, first, p, S.f, 0.5 * h, up0, up1, up2, free and forced, X)
+        for a in range(first, n + 1):
+            Y[a, 0] = h * X[a, 0]
+            Y[a, 1] = h * X[a, 1]
+            Y[a, 2] = h * X[a, 2]
     for a in range(first):
         Y[a, 0] = 0.0
         Y[a, 1] = 0.0
         Y[a, 2] = 0.0
-    c0 = c1 = c2 = 0.0
     dc0 = dc1 = dc2 = 0.0
     alpha = 1.0
     merit_prev = np.inf
@@ -133,7 +143,7 @@ def implicit_newton(S, W, P, h, gk0, gk1, gk2, up0, up1, up2, free, forced, coup
             r0 = (h * p[a, 0] + h2 * (ta0 - tp0)) - my0
             r1 = (h * p[a, 1] + h2 * (ta1 - tp1)) - my1
             r2 = (h * p[a, 2] + h2 * ((ta2 - tp2) + grav)) - my2
-            if push and a == 0:
+            if free and forced and a == 0:
                 r0 += h2 * up0
                 r1 += h2 * up1
                 r2 += h2 * up2
@@ -313,8 +323,8 @@ def implicit_newton(S, W, P, h, gk0, gk1, gk2, up0, up1, up2, free, forced, coup
         if it > 1 and not backtracked and dd * dd <= tol2 * scale * dd_prev:
             return c0, c1, c2, it, 0
         # round-off: the corrections stopped shrinking, at the level the residual's rounding
-        # allows (about 10-100 eps relative, the sums over nodes and the coupling)
-        if it > 1 and dd >= 0.25 * dd_prev and dd <= ROUNDOFF_TOL * ROUNDOFF_TOL * scale:
+        # allows (about 10-100 eps relative to the increments, or the positions' own rounding)
+        if it > 1 and dd >= 0.25 * dd_prev and dd <= ROUNDOFF_TOL * ROUNDOFF_TOL * scale + rounding2:
             return c0, c1, c2, it, 0
         dd_prev = dd
     if np.isfinite(c0 + c1 + c2):
@@ -340,7 +350,8 @@ def implicit_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
     gk0 = h * (Pi[0] + hh * t0)
     gk1 = h * (Pi[1] + hh * t1)
     gk2 = h * (Pi[2] + hh * t2)
-    c0, c1, c2, iters, status = implicit_newton(S, W, P, h, gk0, gk1, gk2, up0, up1, up2, free, forced, coupled)
+    c0, c1, c2, iters, status = implicit_newton(S, W, P, h, gk0, gk1, gk2, t0, t1, t2, up0, up1, up2, free, forced,
+                                                coupled)
     if status != 0:
         return status, iters
     # the string's impulse over the step, h/2 (fl + fr): along the elements at both ends

@@ -8,10 +8,11 @@ from .jit import kernel
 
 @kernel(inline="always")
 def element_terms(r, Y, a, kappa, u, slack):
-    """Element ``a`` (nodes a, a+1) over the step r_k -> r_k + Y: its mean length
-    lbar = (|x_k| + |x_k + dx|)/2 and tension T = kappa (lbar - u) [N] (0 when ``slack`` and
-    lbar < u), the unit vectors n_k, n_{k+1} along it at both ends, and dT/dlbar = kappa (0 where
-    slack). Returns ``(T, n_k (3), n_{k+1} (3), kappa')``."""
+    """Element ``a`` (nodes a, a+1) over the step r_k -> r_k + Y, stretches s0 = |x_k| - u and
+    s1 = |x_k + dx| - u: its tension T = kappa (s0 + s1)/2 [N] (with ``slack``: 0 where both are
+    negative and the energy's secant where they straddle 0), the unit vectors n_k, n_{k+1} along
+    it at both ends, and 2 dT/ds1 [N/m] (kappa where taut). Returns
+    ``(T, n_k (3), n_{k+1} (3), 2 dT/ds1)``."""
     x0 = r[a + 1, 0] - r[a, 0]
     x1 = r[a + 1, 1] - r[a, 1]
     x2 = r[a + 1, 2] - r[a, 2]
@@ -20,19 +21,32 @@ def element_terms(r, Y, a, kappa, u, slack):
     w1 = x1 + (Y[a + 1, 1] - Y[a, 1])
     w2 = x2 + (Y[a + 1, 2] - Y[a, 2])
     ln = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-    stretch = 0.5 * (lk + ln) - u
-    T = kappa * stretch
+    s0 = lk - u
+    s1 = ln - u
+    T = 0.5 * kappa * (s0 + s1)
     dT = kappa
-    if slack and stretch < 0.0:
-        T = 0.0
-        dT = 0.0
+    if slack:
+        # the secant of the energy kappa/2 max(s, 0)^2 over [s0, s1]: the mean-length tension
+        # where both ends are on one side of the kink, energy-neutral across it (docs/physics.md,
+        # "The slack switch"); continuous with a continuous derivative in s1
+        if s0 <= 0.0 and s1 <= 0.0:
+            T = 0.0
+            dT = 0.0
+        elif s0 < 0.0:
+            d = s1 - s0
+            T = 0.5 * kappa * s1 * s1 / d
+            dT = kappa * s1 * (s1 - 2.0 * s0) / (d * d)
+        elif s1 < 0.0:
+            d = s0 - s1
+            T = 0.5 * kappa * s0 * s0 / d
+            dT = kappa * s0 * s0 / (d * d)
     return T, x0 / lk, x1 / lk, x2 / lk, w0 / ln, w1 / ln, w2 / ln, dT
 
 
 @kernel(inline="always")
 def element_block(r, Y, a, kappa, u, slack):
     """Element ``a``'s share of the Newton system (:func:`element_terms`): its force on node a,
-    T n_k (3) [N], and k = kappa' n_k n_{k+1}^T (9, row-major) [N/m]."""
+    T n_k (3) [N], and k = 2 dT/ds1 n_k n_{k+1}^T (9, row-major) [N/m]."""
     T, n0, n1, n2, m0, m1, m2, dT = element_terms(r, Y, a, kappa, u, slack)
     return (T * n0, T * n1, T * n2, dT * n0 * m0, dT * n0 * m1, dT * n0 * m2, dT * n1 * m0, dT * n1 * m1,
             dT * n1 * m2, dT * n2 * m0, dT * n2 * m1, dT * n2 * m2)

@@ -127,6 +127,88 @@ def left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled):
 # LLVM-inlined, not numba-IR-inlined: compiled once per signature instead of deep-copied
 # into every caller (kernels/jit.py); the cold start of the env's first step halved.
 @kernel(forceinline=True)
+def explicit_increments(S, W, P, h, up0, up1, up2, t0, t1, t2, free, forced, coupled):
+    """(1) and (2) with the string's forces ``S.f`` of the state: the string solve, the Schur
+    complement and Newton on the Cayley vector c of F_k. Writes the increments dr of the
+    unknown nodes into ``W.Y`` (no remainders added; ``W.X`` is scratch) and F_k - I into
+    ``W.FmI``; ``t`` is the left torque (:func:`left_torque`), ``up`` the pivot force. The
+    explicit step, and the implicit string's first guess. Returns ``(c (3), e = R_k^T dr_{N+1}
+    (3), the pivot's displacement (3, when free and forced), iterations, status)``."""
+    r = S.r
+    R = S.R
+    Pi = S.Pi
+    X = W.X
+    Y = W.Y
+    hh = 0.5 * h
+    n = r.shape[0] - 1
+    first = 0 if free else 1
+    M = P.M
+    rho0 = P.rho[0]
+    rho1 = P.rho[1]
+    rho2 = P.rho[2]
+    # (1): right-hand side and the string solve with F_k = I
+    string_solve(P.inv, P.cp, first, S.p, S.f, hh, up0, up1, up2, free and forced, X)
+    d0 = h * X[n, 0]
+    d1 = h * X[n, 1]
+    d2 = h * X[n, 2]
+    # (2) after the Schur complement: g = h Pi + h^2/2 tau_k - M rho_c x (R_k^T d)
+    e0 = e1 = e2 = 0.0
+    if coupled:
+        e0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2  # R^T d
+        e1 = R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2
+        e2 = R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2
+        g0 = h * (Pi[0] + hh * t0) - M * (rho1 * e2 - rho2 * e1)
+        g1 = h * (Pi[1] + hh * t1) - M * (rho2 * e0 - rho0 * e2)
+        g2 = h * (Pi[2] + hh * t2) - M * (rho0 * e1 - rho1 * e0)
+    elif forced:
+        g0 = h * (Pi[0] + hh * t0)
+        g1 = h * (Pi[1] + hh * t1)
+        g2 = h * (Pi[2] + hh * t2)
+    else:
+        g0 = h * Pi[0]
+        g1 = h * Pi[1]
+        g2 = h * Pi[2]
+    c0, c1, c2, iters, converged = cayley_newton(g0, g1, g2, P.Jeff, P.tol, P.max_iter, W.jac)
+    if not converged:
+        if np.isfinite(c0 + c1 + c2 + d0 + d1 + d2):
+            return c0, c1, c2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, iters, NEWTON_FAILED
+        return c0, c1, c2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, iters, NON_FINITE
+    FmI = W.FmI
+    cayley_minus_identity(c0, c1, c2, FmI)
+    # q = R_k (F_k - I) rho_c; dr = h X - M w q -> Y
+    w = P.w
+    s0 = s1 = s2 = q0 = q1 = q2 = 0.0
+    if coupled:
+        s0 = FmI[0, 0] * rho0 + FmI[0, 1] * rho1 + FmI[0, 2] * rho2
+        s1 = FmI[1, 0] * rho0 + FmI[1, 1] * rho1 + FmI[1, 2] * rho2
+        s2 = FmI[2, 0] * rho0 + FmI[2, 1] * rho1 + FmI[2, 2] * rho2
+        q0 = R[0, 0] * s0 + R[0, 1] * s1 + R[0, 2] * s2
+        q1 = R[1, 0] * s0 + R[1, 1] * s1 + R[1, 2] * s2
+        q2 = R[2, 0] * s0 + R[2, 1] * s1 + R[2, 2] * s2
+    dr00 = dr01 = dr02 = 0.0
+    if free and forced:  # pivot displacement, for the work of the pivot force
+        dr00 = h * X[0, 0] - M * w[0] * q0
+        dr01 = h * X[0, 1] - M * w[0] * q1
+        dr02 = h * X[0, 2] - M * w[0] * q2
+    for a in range(first, n + 1):
+        y0 = h * X[a, 0]
+        y1 = h * X[a, 1]
+        y2 = h * X[a, 2]
+        if coupled:
+            y0 = y0 - M * w[a] * q0
+            y1 = y1 - M * w[a] * q1
+            y2 = y2 - M * w[a] * q2
+        Y[a, 0] = y0
+        Y[a, 1] = y1
+        Y[a, 2] = y2
+    if coupled:
+        e0 = e0 - M * w[n] * s0  # R_k^T dr_{N+1} = R_k^T d - M s (F - I) rho_c
+        e1 = e1 - M * w[n] * s1
+        e2 = e2 - M * w[n] * s2
+    return c0, c1, c2, e0, e1, e2, dr00, dr01, dr02, iters, OK
+
+
+@kernel(forceinline=True)
 def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
     """Advance the state ``S`` (:class:`StateArrays`) by one LGVI step of length ``h``, in place.
 
@@ -150,71 +232,22 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
     """
     r = S.r
     R = S.R
-    Pi = S.Pi
     X = W.X
     Y = W.Y
-    hh = 0.5 * h
     n = r.shape[0] - 1
     first = 0 if free else 1
-    M = P.M
-    rho0 = P.rho[0]
-    rho1 = P.rho[1]
-    rho2 = P.rho[2]
     up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2 = held_inputs(inputs, forced)
-    # (1): right-hand side and the string solve with F_k = I
-    string_solve(P.inv, P.cp, first, S.p, S.f, hh, up0, up1, up2, free and forced, X)
-    d0 = h * X[n, 0]
-    d1 = h * X[n, 1]
-    d2 = h * X[n, 2]
     l0, l1, l2, t0, t1, t2 = left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
-    # (2) after the Schur complement: g = h Pi + h^2/2 tau_k - M rho_c x (R_k^T d)
-    e0 = e1 = e2 = 0.0
-    if coupled:
-        e0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2  # R^T d
-        e1 = R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2
-        e2 = R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2
-        g0 = h * (Pi[0] + hh * t0) - M * (rho1 * e2 - rho2 * e1)
-        g1 = h * (Pi[1] + hh * t1) - M * (rho2 * e0 - rho0 * e2)
-        g2 = h * (Pi[2] + hh * t2) - M * (rho0 * e1 - rho1 * e0)
-    elif forced:
-        g0 = h * (Pi[0] + hh * t0)
-        g1 = h * (Pi[1] + hh * t1)
-        g2 = h * (Pi[2] + hh * t2)
-    else:
-        g0 = h * Pi[0]
-        g1 = h * Pi[1]
-        g2 = h * Pi[2]
-    c0, c1, c2, iters, converged = cayley_newton(g0, g1, g2, P.Jeff, P.tol, P.max_iter, W.jac)
-    if not converged:
-        if np.isfinite(c0 + c1 + c2 + d0 + d1 + d2):
-            return NEWTON_FAILED, iters
-        return NON_FINITE, iters
-    FmI = W.FmI
-    cayley_minus_identity(c0, c1, c2, FmI)
-    # q = R_k (F_k - I) rho_c; dr = h X - M w q (+ remainder) -> Y; new positions r + Y -> X
-    w = P.w
+    c0, c1, c2, e0, e1, e2, dr00, dr01, dr02, iters, status = explicit_increments(
+        S, W, P, h, up0, up1, up2, t0, t1, t2, free, forced, coupled)
+    if status != OK:
+        return status, iters
+    # new positions r + Y (+ remainder) -> X
     rc = S.rc
-    s0 = s1 = s2 = q0 = q1 = q2 = 0.0
-    if coupled:
-        s0 = FmI[0, 0] * rho0 + FmI[0, 1] * rho1 + FmI[0, 2] * rho2
-        s1 = FmI[1, 0] * rho0 + FmI[1, 1] * rho1 + FmI[1, 2] * rho2
-        s2 = FmI[2, 0] * rho0 + FmI[2, 1] * rho1 + FmI[2, 2] * rho2
-        q0 = R[0, 0] * s0 + R[0, 1] * s1 + R[0, 2] * s2
-        q1 = R[1, 0] * s0 + R[1, 1] * s1 + R[1, 2] * s2
-        q2 = R[2, 0] * s0 + R[2, 1] * s1 + R[2, 2] * s2
-    dr00 = dr01 = dr02 = 0.0
-    if free and forced:  # pivot displacement, for the work of the pivot force
-        dr00 = h * X[0, 0] - M * w[0] * q0
-        dr01 = h * X[0, 1] - M * w[0] * q1
-        dr02 = h * X[0, 2] - M * w[0] * q2
     for a in range(first, n + 1):
-        y0 = h * X[a, 0]
-        y1 = h * X[a, 1]
-        y2 = h * X[a, 2]
-        if coupled:
-            y0 = y0 - M * w[a] * q0
-            y1 = y1 - M * w[a] * q1
-            y2 = y2 - M * w[a] * q2
+        y0 = Y[a, 0]
+        y1 = Y[a, 1]
+        y2 = Y[a, 2]
         if compensated:
             y0 = y0 + rc[a, 0]
             y1 = y1 + rc[a, 1]
@@ -229,10 +262,6 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
         X[a, 0] = r[a, 0]
         X[a, 1] = r[a, 1]
         X[a, 2] = r[a, 2]
-    if coupled:
-        e0 = e0 - M * w[n] * s0  # R_k^T dr_{N+1} = R_k^T d - M s (F - I) rho_c
-        e1 = e1 - M * w[n] * s1
-        e2 = e2 - M * w[n] * s2
     status = lgvi_commit(S, W, P, h, c0, c1, c2, e0, e1, e2, l0, l1, l2, t0, t1, t2, tb0, tb1, tb2, ts0, ts1, ts2,
                          up0, up1, up2, dr00, dr01, dr02, free, forced, coupled, compensated, False)
     return status, iters
