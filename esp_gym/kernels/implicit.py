@@ -25,9 +25,9 @@ import numpy as np
 
 from .jit import kernel
 from .layout import NEWTON_FAILED, NON_FINITE
-from .lgvi import explicit_increments, held_inputs, left_torque, lgvi_commit
+from .lgvi import explicit_increments, held_inputs, left_torque, lgvi_commit, new_positions
 from .implicit_terms import body_coupling, coupling_block, element_block, inverse3, split_forces
-from .so3 import cayley_jacobian, cayley_minus_identity, solve3
+from .so3 import cayley_jacobian, cayley_minus_identity, cayley_residual, solve3
 from .string import string_solve
 
 #: Corrections that stop shrinking below this (relative to the increments) are round-off: the
@@ -44,11 +44,11 @@ LINE_SEARCH_FLOOR = 1e-8
 
 
 @kernel(forceinline=True)
-def implicit_newton(S, W, P, h, gk0, gk1, gk2, t0, t1, t2, up0, up1, up2, free, forced, coupled):
+def implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled):
     """Solve the implicit string's equations (module docstring) for the increments y (into
     ``W.Y``, rows before the first unknown 0) and the Cayley vector c, from the explicit start.
-    ``gk`` = h Pi_k + h^2/2 tau_k [kg m^2] with tau_k = ``t`` the left torque [N m], ``up`` the pivot
-    force [N] (read if ``free and forced``).
+    ``t`` is the left torque tau_k [N m] (:func:`~.lgvi.left_torque`), ``up`` the pivot force [N]
+    (read if ``free and forced``).
     Returns ``(c0, c1, c2, iterations, status)``: status 0, or NEWTON_FAILED / NON_FINITE."""
     r = S.r
     p = S.p
@@ -67,6 +67,9 @@ def implicit_newton(S, W, P, h, gk0, gk1, gk2, t0, t1, t2, up0, up1, up2, free, 
     mdiag = P.mdiag
     M = P.M
     q4 = 0.25 * h * h
+    gk0 = h * (S.Pi[0] + 0.5 * h * t0)  # h Pi_k + h^2/2 tau_k [kg m^2]
+    gk1 = h * (S.Pi[1] + 0.5 * h * t1)
+    gk2 = h * (S.Pi[2] + 0.5 * h * t2)
     h2 = 0.5 * h * h
     # gravity forces of the nodes (along +e3): (m/2 + Mp) g, m g, ..., (m/2 + M) g
     g_end0 = (0.5 * P.m + P.Mp) * P.g
@@ -219,14 +222,7 @@ def implicit_newton(S, W, P, h, gk0, gk1, gk2, t0, t1, t2, up0, up1, up2, free, 
             k20 = l20
             k21 = l21
             k22 = l22
-        # phi = g + g x c + (g . c) c - 2 J c
-        gc = g0 * c0 + g1 * c1 + g2 * c2
-        Jc0 = J[0, 0] * c0 + J[0, 1] * c1 + J[0, 2] * c2
-        Jc1 = J[1, 0] * c0 + J[1, 1] * c1 + J[1, 2] * c2
-        Jc2 = J[2, 0] * c0 + J[2, 1] * c1 + J[2, 2] * c2
-        ph0 = g0 + (g1 * c2 - g2 * c1) + gc * c0 - 2.0 * Jc0
-        ph1 = g1 + (g2 * c0 - g0 * c2) + gc * c1 - 2.0 * Jc1
-        ph2 = g2 + (g0 * c1 - g1 * c0) + gc * c2 - 2.0 * Jc2
+        ph0, ph1, ph2, gc = cayley_residual(g0, g1, g2, c0, c1, c2, J)
         merit += (ph0 * ph0 + ph1 * ph1 + ph2 * ph2) * body_weight * body_weight
         if not np.isfinite(merit):
             return c0, c1, c2, it, NON_FINITE
@@ -339,19 +335,12 @@ def implicit_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
     the state untouched on failure). Returns ``(status, newton_iterations)``."""
     r = S.r
     R = S.R
-    Pi = S.Pi
-    X = W.X
     Y = W.Y
-    hh = 0.5 * h
     n = r.shape[0] - 1
     first = 0 if free else 1
     up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2 = held_inputs(inputs, forced)
     l0, l1, l2, t0, t1, t2 = left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
-    gk0 = h * (Pi[0] + hh * t0)
-    gk1 = h * (Pi[1] + hh * t1)
-    gk2 = h * (Pi[2] + hh * t2)
-    c0, c1, c2, iters, status = implicit_newton(S, W, P, h, gk0, gk1, gk2, t0, t1, t2, up0, up1, up2, free, forced,
-                                                coupled)
+    c0, c1, c2, iters, status = implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled)
     if status != 0:
         return status, iters
     # the string's impulse over the step, h/2 (fl + fr): along the elements at both ends
@@ -366,18 +355,7 @@ def implicit_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
     dr00 = Y[0, 0]
     dr01 = Y[0, 1]
     dr02 = Y[0, 2]
-    rc = S.rc
-    for a in range(first, n + 1):
-        for i in range(3):
-            y = Y[a, i]
-            if compensated:
-                y = y + rc[a, i]
-                Y[a, i] = y
-            X[a, i] = r[a, i] + y
-    for a in range(first):
-        X[a, 0] = r[a, 0]
-        X[a, 1] = r[a, 1]
-        X[a, 2] = r[a, 2]
+    new_positions(S, W, first, compensated)
     status = lgvi_commit(S, W, P, h, c0, c1, c2, e0, e1, e2, l0, l1, l2, t0, t1, t2, tb0, tb1, tb2, ts0, ts1, ts2,
                          up0, up1, up2, dr00, dr01, dr02, free, forced, coupled, compensated, True)
     return status, iters

@@ -124,6 +124,34 @@ def left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled):
     return l0, l1, l2, t0, t1, t2
 
 
+@kernel(inline="always")
+def new_positions(S, W, first, compensated):
+    """The step's new positions r + dr into ``W.X`` (rows before ``first`` stay at r), from the
+    increments in ``W.Y``, to which the remainders S.rc are added first when ``compensated``."""
+    r = S.r
+    rc = S.rc
+    X = W.X
+    Y = W.Y
+    for a in range(first, r.shape[0]):
+        y0 = Y[a, 0]
+        y1 = Y[a, 1]
+        y2 = Y[a, 2]
+        if compensated:
+            y0 = y0 + rc[a, 0]
+            y1 = y1 + rc[a, 1]
+            y2 = y2 + rc[a, 2]
+            Y[a, 0] = y0
+            Y[a, 1] = y1
+            Y[a, 2] = y2
+        X[a, 0] = r[a, 0] + y0
+        X[a, 1] = r[a, 1] + y1
+        X[a, 2] = r[a, 2] + y2
+    for a in range(first):
+        X[a, 0] = r[a, 0]
+        X[a, 1] = r[a, 1]
+        X[a, 2] = r[a, 2]
+
+
 # LLVM-inlined, not numba-IR-inlined: compiled once per signature instead of deep-copied
 # into every caller (kernels/jit.py); the cold start of the env's first step halved.
 @kernel(forceinline=True)
@@ -230,11 +258,7 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
     On failure the state is left untouched and a non-zero status is returned.
     Returns ``(status, newton_iterations)``.
     """
-    r = S.r
     R = S.R
-    X = W.X
-    Y = W.Y
-    n = r.shape[0] - 1
     first = 0 if free else 1
     up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2 = held_inputs(inputs, forced)
     l0, l1, l2, t0, t1, t2 = left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
@@ -242,26 +266,7 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
         S, W, P, h, up0, up1, up2, t0, t1, t2, free, forced, coupled)
     if status != OK:
         return status, iters
-    # new positions r + Y (+ remainder) -> X
-    rc = S.rc
-    for a in range(first, n + 1):
-        y0 = Y[a, 0]
-        y1 = Y[a, 1]
-        y2 = Y[a, 2]
-        if compensated:
-            y0 = y0 + rc[a, 0]
-            y1 = y1 + rc[a, 1]
-            y2 = y2 + rc[a, 2]
-            Y[a, 0] = y0
-            Y[a, 1] = y1
-            Y[a, 2] = y2
-        X[a, 0] = r[a, 0] + y0
-        X[a, 1] = r[a, 1] + y1
-        X[a, 2] = r[a, 2] + y2
-    for a in range(first):
-        X[a, 0] = r[a, 0]
-        X[a, 1] = r[a, 1]
-        X[a, 2] = r[a, 2]
+    new_positions(S, W, first, compensated)
     status = lgvi_commit(S, W, P, h, c0, c1, c2, e0, e1, e2, l0, l1, l2, t0, t1, t2, tb0, tb1, tb2, ts0, ts1, ts2,
                          up0, up1, up2, dr00, dr01, dr02, free, forced, coupled, compensated, False)
     return status, iters

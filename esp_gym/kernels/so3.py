@@ -65,6 +65,18 @@ def cayley_jacobian(g0, g1, g2, f0, f1, f2, gf, J, jac):
     jac[2, 2] = gf + f2 * g2 - 2.0 * J[2, 2]
 
 
+@kernel(inline="always")
+def cayley_residual(g0, g1, g2, f0, f1, f2, J):
+    """phi(f) = g + g x f + (g . f) f - 2 J f, the residual of ``(F K - K F^T)^vee = g`` for
+    ``F = cay(f)`` (:func:`cayley_newton`). Returns ``(phi (3), g . f)``."""
+    gf = g0 * f0 + g1 * f1 + g2 * f2
+    Jf0 = J[0, 0] * f0 + J[0, 1] * f1 + J[0, 2] * f2
+    Jf1 = J[1, 0] * f0 + J[1, 1] * f1 + J[1, 2] * f2
+    Jf2 = J[2, 0] * f0 + J[2, 1] * f1 + J[2, 2] * f2
+    return (g0 + (g1 * f2 - g2 * f1) + gf * f0 - 2.0 * Jf0, g1 + (g2 * f0 - g0 * f2) + gf * f1 - 2.0 * Jf1,
+            g2 + (g0 * f1 - g1 * f0) + gf * f2 - 2.0 * Jf2, gf)
+
+
 @kernel
 def cayley_newton(g0, g1, g2, J, tol, max_iter, jac):
     """Solve ``(F K - K F^T)^vee = g`` for ``F = cay(f)``, where ``J = tr(K) I - K``.
@@ -86,13 +98,7 @@ def cayley_newton(g0, g1, g2, J, tol, max_iter, jac):
     f2 = 0.0
     dd_prev = 0.0
     for it in range(1, max_iter + 1):
-        gf = g0 * f0 + g1 * f1 + g2 * f2
-        Jf0 = J[0, 0] * f0 + J[0, 1] * f1 + J[0, 2] * f2
-        Jf1 = J[1, 0] * f0 + J[1, 1] * f1 + J[1, 2] * f2
-        Jf2 = J[2, 0] * f0 + J[2, 1] * f1 + J[2, 2] * f2
-        phi0 = g0 + (g1 * f2 - g2 * f1) + gf * f0 - 2.0 * Jf0
-        phi1 = g1 + (g2 * f0 - g0 * f2) + gf * f1 - 2.0 * Jf1
-        phi2 = g2 + (g0 * f1 - g1 * f0) + gf * f2 - 2.0 * Jf2
+        phi0, phi1, phi2, gf = cayley_residual(g0, g1, g2, f0, f1, f2, J)
         cayley_jacobian(g0, g1, g2, f0, f1, f2, gf, J, jac)
         d0, d1, d2 = solve3(jac, -phi0, -phi1, -phi2)
         f0 += d0
