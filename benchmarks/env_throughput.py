@@ -6,10 +6,14 @@ Prints a table and writes ``OUT/env_throughput.json`` and ``OUT/env_throughput.p
 * single: ``gymnasium.make`` (with its wrappers: time limit, order enforcing, env checker) and
   the bare env, zero and random actions, resets included when episodes end;
 * batched: ``gymnasium.make_vec`` (one parallel compiled call per step) and the SB3 VecEnv,
-  for 1 to 64 environments.
+  for 1 to 64 environments;
+* ``--ea-sweep`` (alone): the string's EA from 2e2 to 2e6 N on ``drone_load``
+  (``scene_overrides``), random actions, resets included, with the environment's own scheme and
+  step and with the implicit string asked for (``solver.string: implicit``), the runs of one
+  repeat interleaved; writes ``OUT/env_throughput_ea.json``.
 
 Each figure is the median of ``--repeats`` timed runs after a warm-up (compilation excluded).
-Usage: ``python -m benchmarks.env_throughput [--quick] [--out DIR]``.
+Usage: ``python -m benchmarks.env_throughput [--quick] [--ea-sweep] [--out DIR]``.
 """
 from __future__ import annotations
 
@@ -59,7 +63,10 @@ def batched(make, num_envs, steps, repeats, sb3):
 def main(argv=None) -> dict:
     ap = arg_parser(__doc__, quick="small smoke run, not a measurement")
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--ea-sweep", action="store_true", help="only the sweep over the string's EA")
     args = ap.parse_args(argv)
+    if args.ea_sweep:
+        return ea_sweep(args)
     steps = 2_000 if args.quick else 20_000
     repeats = 1 if args.quick else args.repeats
     counts = [1, 4] if args.quick else [1, 2, 4, 8, 16, 32, 64]
@@ -83,6 +90,46 @@ def main(argv=None) -> dict:
     finish(args.out, "env_throughput", {**res, "machine": machine("gymnasium", "stable_baselines3")},
            {"env_throughput.png": lambda path: _plot(res, counts, path)})
     return res
+
+
+#: The sweep's string stiffnesses [N].
+SWEEP_EA = (2e2, 2e3, 2e4, 2e5, 2e6)
+
+
+def ea_sweep(args) -> dict:
+    """Steps/s against EA: the environment's choice and the implicit string (module docstring)."""
+    steps = 200 if args.quick else 2_000
+    repeats = 1 if args.quick else args.repeats
+    schemes = {"environment's choice": {}, "implicit string": {"solver": {"string": "implicit"}}}
+    makers, rates, chosen = {}, {}, {}
+    for ea in SWEEP_EA:
+        for name, extra in schemes.items():
+            overrides = {"string": {"EA": ea}, **extra}
+            env = gym.make(esp_gym.ENV_ID, scene_overrides=overrides)
+            chosen[(ea, name)] = (env.unwrapped.scene.solver.string, env.unwrapped.setup.substeps)
+            makers[(ea, name)] = (lambda o=overrides: gym.make(esp_gym.ENV_ID, scene_overrides=o))
+            rates[(ea, name)] = []
+    for _ in range(repeats):  # interleaved: each repeat runs every configuration once
+        for key, make in makers.items():
+            rates[key].append(single(make, steps, True, 1))
+    print("EA [N]      scheme (env's choice)  steps   steps/s    | implicit: steps   steps/s")
+    table = []
+    for ea in SWEEP_EA:
+        row = {"EA": ea}
+        for name in schemes:
+            scheme, substeps = chosen[(ea, name)]
+            row[name] = {"scheme": scheme, "substeps": substeps, "steps_per_s": float(np.median(rates[(ea, name)]))}
+        table.append(row)
+        env_row, imp_row = row["environment's choice"], row["implicit string"]
+        print(f"{ea:9.0e}   {env_row['scheme']:21s}  {env_row['substeps']:5d}  {env_row['steps_per_s']:9,.0f}    | "
+              f"          {imp_row['substeps']:5d}  {imp_row['steps_per_s']:9,.0f}")
+    base = table[0]["environment's choice"]["steps_per_s"]
+    for row in table:
+        best = max(row[name]["steps_per_s"] for name in schemes)
+        print(f"  EA {row['EA']:.0e}: best / EA=200 = {best / base:.2f}")
+    finish(args.out, "env_throughput_ea", {"sweep": table, "steps": steps, "repeats": repeats,
+                                           "machine": machine("gymnasium")}, {})
+    return {"sweep": table}
 
 
 def _plot(res: dict, counts: list, path) -> None:

@@ -27,11 +27,13 @@ from gymnasium import spaces
 from .kernels.layout import (ACTION, ACTION_PARAMS, ACTION_SIZE, INPUTS, OBSERVATION, R_TERMINATION, REPORT, REWARD,
                              REWARD_TERMS, TARGET)
 from .kernels.string import state_forces
-from .kernels.task import actions_finite, env_reset_observe, env_step, env_step_batch
+from .kernels.task import (actions_finite, env_reset_observe, env_step, env_step_batch, env_step_batch_implicit,
+                           env_step_implicit)
 from .model import Simulator
 from .options import MAX_SUBSTEPS, check_count, env_options
 from .state import State, check_memory
 from .params import Scene, load_scene, override_scene, scene_from_dict
+from .stepsize import choose_scheme
 from .tasks import Task, get_task
 
 #: info keys of the reward terms, in REWARD_TERMS order
@@ -83,25 +85,42 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
                     force_limit=force_limit, torque_limit=torque_limit, scene_overrides=scene_overrides)
     control_period, h, safety = o.control_period, o.h, o.safety
     overrides = dict(o.scene_overrides or {})
+    base = o.scene if isinstance(o.scene, Scene) else load_scene(o.scene)
+    # the string scheme is the environment's to choose unless the scene or the overrides set it
+    scheme_given = "string" in base.solver.model_fields_set or _sets(overrides, "solver", "string")
+    keep_unstable = overrides.get("allow_unstable_h", base.allow_unstable_h)
+    # the scene's own h is replaced below: it must not fail the bound of a stiffer override
+    overrides["allow_unstable_h"] = True
     # a Scene object takes the same overrides as a file (aliases, dotted paths, merged sections)
     resolved = override_scene(o.scene, overrides) if isinstance(o.scene, Scene) else load_scene(o.scene, **overrides)
     if not resolved.pivot.is_free:
         raise ValueError(f"ElasticStringPendulum-v0 pushes the pivot: scene {resolved.name!r} needs pivot.kind: free")
-    bound = resolved.stability_bound
-    wanted = control_period / (safety * bound) if h is None else control_period / h
+    scheme = resolved.solver.string
+    if h is None:
+        # the implicit string only where asked for: choose_scheme's cost rule would pick it for
+        # stiff strings, but its accuracy under random actions is not established yet
+        # (docs/physics.md, "The environment's choice")
+        choice = choose_scheme(resolved, control_period, safety)
+        scheme = scheme if scheme_given else "explicit"
+        wanted = choice.explicit_substeps if scheme == "explicit" else choice.implicit_substeps
+        what = f"safety = {safety} x the stability bound" if scheme == "explicit" else "the transverse bound"
+    else:
+        wanted = control_period / h
+        what = f"h = {h} s"
     if wanted > MAX_SUBSTEPS:
-        step = (f"safety = {safety} x the stability bound {bound:.3g} s" if h is None else f"h = {h} s")
-        raise ValueError(f"ElasticStringPendulum-v0: control_period = {control_period} s with {step} needs "
+        raise ValueError(f"ElasticStringPendulum-v0: control_period = {control_period} s with {what} needs "
                          f"{wanted:.3g} physics steps per step (at most {MAX_SUBSTEPS:,}): use a larger h or "
                          f"safety, a shorter control_period, or a softer, longer or coarser string")
     if h is None:
-        substeps = math.ceil(wanted - 1e-9)
+        substeps = int(wanted)
     else:
         substeps = int(round(wanted))
         if substeps < 1 or abs(substeps * h - control_period) > 1e-9 * control_period:
             raise ValueError(f"h = {h} s must divide the control period {control_period} s")
     h_used = control_period / substeps
-    resolved = scene_from_dict({**resolved.model_dump(), "h": h_used}, source=repr(resolved.name))
+    resolved = scene_from_dict({**resolved.model_dump(), "h": h_used, "allow_unstable_h": keep_unstable,
+                                "solver": {**resolved.solver.model_dump(), "string": scheme}},
+                               source=repr(resolved.name))
     weight = resolved.gravity * (resolved.body.mass + resolved.pivot.mass
                                  + resolved.string.length * resolved.string.mass_per_length)
     force_limit = o.force_limit if o.force_limit is not None else (0.6 * weight if weight > 0 else 1.0)
@@ -110,6 +129,12 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
     return EnvSetup(scene=resolved, task=t, task_params=t.params(resolved), control_period=float(control_period),
                     substeps=substeps, hover=np.array([0.0, 0.0, -weight]), force_limit=float(force_limit),
                     torque_limit=float(torque_limit))
+
+
+def _sets(overrides: dict, section: str, key: str) -> bool:
+    """Whether scene ``overrides`` (nested sections or dotted paths) set ``section.key``."""
+    inner = overrides.get(section)
+    return f"{section}.{key}" in overrides or (isinstance(inner, dict) and key in inner)
 
 
 def raw_actions(actions, shape: tuple, name: str = "action") -> np.ndarray:
@@ -238,7 +263,8 @@ class ControlStep:
             raise RuntimeError(f"call reset() before step(){never}")
         if self.num_envs is None:
             raw = raw_actions(actions, (ACTION.size,))
-            if not env_step(s, w, p, d, raw, setup.action_params, self._inputs, setup.substeps, self._target,
+            step = env_step_implicit if self.sim.implicit else env_step
+            if not step(s, w, p, d, raw, setup.action_params, self._inputs, setup.substeps, self._target,
                             setup.task_params, self._action, self._obs, self._terms, self._report):
                 raise ValueError(f"action must be finite, got {raw.tolist()}")
             self.sim.count_steps(self._report)
@@ -248,8 +274,9 @@ class ControlStep:
             raise ValueError("actions must be finite")
         if active is None:
             active = np.ones(self.num_envs, dtype=bool)
-        env_step_batch(s, w, d, p, raw, setup.action_params, self._inputs, active, setup.substeps, self._target,
-                       setup.task_params, self._action, self._obs, self._terms, self._report)
+        batch = env_step_batch_implicit if self.sim.implicit else env_step_batch
+        batch(s, w, d, p, raw, setup.action_params, self._inputs, active, setup.substeps, self._target,
+              setup.task_params, self._action, self._obs, self._terms, self._report)
 
     # -- the report, by name ----------------------------------------------------------------------
     def reward(self):

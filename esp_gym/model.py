@@ -170,7 +170,7 @@ class Simulator:
         self._work = Work(fn=z((n + 1, 3)), X=z((n + 1, 3)), Y=z((n + 1, 3)),
                           FmI=z((3, 3)), RF=z((3, 3)), Rn=z((3, 3)), jac=z((3, 3)),
                           backup=z(state_size(self._arrays)), fl=z((n + 1, 3)), fr=z((n + 1, 3)), dy=z((n + 1, 3)),
-                          elim=z((n + 1, 3, 3)))
+                          elim=z((n + 1, 3, 3)), taut=z(n))
         self._diag = DiagWork(V=z((n + 1, 3)), strain=z(n), omega=z(3), out=z(DIAG.size))
         self._inputs = z(INPUTS.size)
         self._forced = False  #: any input non-zero (picks the forced or the unforced kernels)

@@ -116,3 +116,61 @@ def choose_h(scene: Scene, accuracy: Optional[float] = None, horizon: float = 0.
         estimate = pilot_err * (h / pilot_h) ** scene.solver.scheme.order
     return StepChoice(h=h, h_stable=h_stable, h_accurate=h_acc, error_estimate=estimate, limited_by=limited,
                       pilot_h=pilot_h, pilot_error=pilot_err)
+
+
+# -- the environment's choice of string scheme and step (docs/physics.md, "The environment's
+# choice") -------------------------------------------------------------------------------------
+
+#: The implicit string's step costs about this many explicit steps in the environment
+#: (drone_load, N = 8, random actions: about 21 us with 13 Newton iterations per step, cut-backs
+#: included, against 0.62 us; in hover 4.2 us with 3 iterations: docs/physics.md).
+IMPLICIT_COST = 34.0
+#: The tension the implicit step is sized for, in units of the weight below the pivot (random
+#: actions of the environment reach 3.6x on drone_load); steps with more are cut back.
+DESIGN_TENSION = 4.0
+#: The implicit step stays this far under the transverse bound 2/omega_t at that tension.
+TRANSVERSE_SAFETY = 0.9
+
+
+def transverse_bound(scene: Scene, tension: float) -> float:
+    """The implicit string's stability bound [s] at ``tension`` [N]: 2/omega_t with omega_t^2 =
+    12 T/(u m), the highest transverse frequency of a string of elements of rest length u and
+    mass m = mu u under T (its directions are explicit: docs/physics.md)."""
+    s = scene.string
+    u = s.length / s.elements
+    return 2.0 / math.sqrt(12.0 * tension / (u * s.mass_per_length * u))
+
+
+@dataclass(frozen=True)
+class SchemeChoice:
+    """The result of :func:`choose_scheme`."""
+
+    string: str  #: "explicit" or "implicit"
+    substeps: int  #: physics steps per control period
+    explicit_substeps: int  #: what the explicit string would need (safety x its bound)
+    implicit_substeps: int  #: what the implicit string needs (its transverse bound)
+    reason: str  #: one line for logs and errors
+
+
+def choose_scheme(scene: Scene, control_period: float, safety: float) -> SchemeChoice:
+    """The string scheme and the number of steps per control period that cost least, in units of
+    an explicit step: the explicit string needs ``ceil(period / (safety x its bound))`` steps,
+    the implicit one ``ceil(period / h_i)`` with h_i = TRANSVERSE_SAFETY x the transverse bound at
+    DESIGN_TENSION x the weight below the pivot, each IMPLICIT_COST explicit steps."""
+    explicit_scene = scene_from_dict({**scene.model_dump(), "solver": {**scene.solver.model_dump(),
+                                                                       "string": "explicit"},
+                                      "allow_unstable_h": True}, source=repr(scene.name))
+    n_explicit = math.ceil(control_period / (safety * explicit_scene.stability_bound) - 1e-9)
+    below = scene.gravity * (scene.body.mass + scene.string.length * scene.string.mass_per_length)
+    # without weight there is no design tension: one step per period (the cut-backs bound it)
+    h_implicit = (TRANSVERSE_SAFETY * transverse_bound(scene, DESIGN_TENSION * below) if below > 0.0
+                  else control_period)
+    n_implicit = math.ceil(control_period / h_implicit - 1e-9)
+    if scene.solver.order != 2:
+        return SchemeChoice("explicit", n_explicit, n_explicit, n_implicit,
+                            f"explicit: the implicit string is of order 2 only (order {scene.solver.order})")
+    implicit = IMPLICIT_COST * n_implicit < n_explicit
+    reason = (f"{'implicit' if implicit else 'explicit'}: {n_explicit} explicit steps per control period against "
+              f"{n_implicit} implicit ones at {IMPLICIT_COST} each")
+    return SchemeChoice("implicit" if implicit else "explicit", n_implicit if implicit else n_explicit, n_explicit,
+                        n_implicit, reason)

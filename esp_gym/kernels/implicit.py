@@ -26,7 +26,8 @@ import numpy as np
 from .jit import kernel
 from .layout import NEWTON_FAILED, NON_FINITE
 from .lgvi import explicit_increments, held_inputs, left_torque, lgvi_commit, new_positions
-from .implicit_terms import body_coupling, coupling_block, element_block, inverse3, split_forces
+from .implicit_terms import (body_coupling, coupling_block, element_block, hold_taut, inverse3, release_slack,
+                             split_forces)
 from .so3 import cayley_jacobian, cayley_minus_identity, cayley_residual, solve3
 from .string import string_solve
 
@@ -41,6 +42,14 @@ MAX_HALVINGS = 8
 #: A correction below this (relative to the increments) is in the quadratic, round-off
 #: dominated range, where the residual no longer measures progress: no line search there.
 LINE_SEARCH_FLOOR = 1e-8
+#: A step whose Newton iteration fails, or whose tension breaks the transverse bound, is cut in
+#: halves, at most this many times (to h / 64).
+CUTBACKS = 6
+#: The transverse bound: h omega_t <= this, omega_t^2 = 12 T_max / (u m) the string's highest
+#: transverse frequency at the step's largest tension (docs/physics.md; 2 is the limit).
+TRANSVERSE_LIMIT = 1.8
+#: Status of a step that broke the transverse bound (internal: it is cut back, never reported).
+TOO_TENSE = -1
 
 
 @kernel(forceinline=True)
@@ -98,6 +107,10 @@ def implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled
         Y[a, 0] = 0.0
         Y[a, 1] = 0.0
         Y[a, 2] = 0.0
+    # the elements taut at r_k keep the taut branch (the elastic law) until Newton has converged
+    # (docs/physics.md, "The taut-branch start")
+    taut = W.taut
+    hold_taut(r, taut, u, slack)
     dc0 = dc1 = dc2 = 0.0
     alpha = 1.0
     merit_prev = np.inf
@@ -116,7 +129,8 @@ def implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled
         tp0 = tp1 = tp2 = 0.0  # the element above node a: T n_k, and k
         k00 = k01 = k02 = k10 = k11 = k12 = k20 = k21 = k22 = 0.0
         if not free:
-            tp0, tp1, tp2, k00, k01, k02, k10, k11, k12, k20, k21, k22 = element_block(r, Y, 0, kappa, u, slack)
+            tp0, tp1, tp2, k00, k01, k02, k10, k11, k12, k20, k21, k22 = element_block(r, Y, 0, kappa, u,
+                                                                                      slack and taut[0] == 0.0)
         e00 = e01 = e02 = e10 = e11 = e12 = e20 = e21 = e22 = 0.0  # E_{a-1}
         z0 = z1 = z2 = 0.0  # z_{a-1}
         s00 = s01 = s02 = s10 = s11 = s12 = s20 = s21 = s22 = 0.0
@@ -125,7 +139,8 @@ def implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled
             ta0 = ta1 = ta2 = 0.0
             l00 = l01 = l02 = l10 = l11 = l12 = l20 = l21 = l22 = 0.0
             if a < n:
-                ta0, ta1, ta2, l00, l01, l02, l10, l11, l12, l20, l21, l22 = element_block(r, Y, a, kappa, u, slack)
+                ta0, ta1, ta2, l00, l01, l02, l10, l11, l12, l20, l21, l22 = element_block(r, Y, a, kappa, u,
+                                                                                          slack and taut[a] == 0.0)
             grav = g_mid
             if a == 0:
                 grav = g_end0
@@ -313,15 +328,21 @@ def implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled
         dd += body_length2 * (dc0 * dc0 + dc1 * dc1 + dc2 * dc2)
         scale = yy + body_length2 * (c0 * c0 + c1 * c1 + c2 * c2) + floor2
         large_step = dd > LINE_SEARCH_FLOOR * LINE_SEARCH_FLOOR * scale
-        if dd <= tol2 * scale:
-            return c0, c1, c2, it, 0
-        # quadratic convergence: the next correction is about |d|^2 / |d_prev|
-        if it > 1 and not backtracked and dd * dd <= tol2 * scale * dd_prev:
-            return c0, c1, c2, it, 0
-        # round-off: the corrections stopped shrinking, at the level the residual's rounding
-        # allows (about 10-100 eps relative to the increments, or the positions' own rounding)
-        if it > 1 and dd >= 0.25 * dd_prev and dd <= ROUNDOFF_TOL * ROUNDOFF_TOL * scale + rounding2:
-            return c0, c1, c2, it, 0
+        # converged: the correction is below the tolerance, or will be by quadratic convergence
+        # (the next correction is about |d|^2 / |d_prev|), or is round-off: it stopped shrinking
+        # at the level the residual's rounding allows (about 10-100 eps relative to the
+        # increments, or the positions' own rounding)
+        converged = (dd <= tol2 * scale
+                     or (it > 1 and not backtracked and dd * dd <= tol2 * scale * dd_prev)
+                     or (it > 1 and dd >= 0.25 * dd_prev and dd <= ROUNDOFF_TOL * ROUNDOFF_TOL * scale + rounding2))
+        if converged:
+            # an element held to the taut branch that ended slack takes the slack law's
+            # branch from here on: a new equation, so the merit and the rates restart
+            if release_slack(r, Y, taut, u) == 0:
+                return c0, c1, c2, it, 0
+            merit_prev = np.inf
+            large_step = True
+            dd = 0.0
         dd_prev = dd
     if np.isfinite(c0 + c1 + c2):
         return c0, c1, c2, P.max_iter, NEWTON_FAILED
@@ -331,8 +352,35 @@ def implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled
 @kernel(forceinline=True)
 def implicit_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
     """One step of the implicit string, in place; the contract of
-    :func:`~.lgvi.lgvi_substep` (flags, inputs, compensation, ``S.f`` the forces at the state,
-    the state untouched on failure). Returns ``(status, newton_iterations)``."""
+    :func:`~.lgvi.lgvi_substep` (flags, inputs, compensation, ``S.f`` the forces at the state).
+    Where Newton does not converge the step is cut back: the rest of it is taken in steps of
+    half the length, down to h / 2**CUTBACKS (docs/physics.md, "Cutting the step back").
+    A failure past that leaves the state after the last good cut step (the loops rewind it:
+    kernels/loops.py). Returns ``(status, newton_iterations)``."""
+    # time in units of h / 2**CUTBACKS: exact integer bookkeeping of the cut steps
+    left = 1 << CUTBACKS
+    size = left
+    cuts = 0
+    total = 0
+    while left > 0:
+        status, iters = implicit_step_once(S, W, P, inputs, h * (size / (1 << CUTBACKS)), free, forced, coupled,
+                                           compensated, cuts < CUTBACKS)
+        total += iters
+        if (status == NEWTON_FAILED or status == TOO_TENSE) and cuts < CUTBACKS:
+            cuts += 1
+            size >>= 1
+            continue
+        if status != 0:
+            return status, total
+        left -= size
+    return 0, total
+
+
+@kernel(inline="always")
+def implicit_step_once(S, W, P, inputs, h, free, forced, coupled, compensated, bounded):
+    """One step of length ``h`` of the implicit string without cutting back: the state untouched
+    on failure, and (``bounded``) where its largest tension breaks the transverse bound
+    (status ``TOO_TENSE``). Returns ``(status, newton_iterations)``."""
     r = S.r
     R = S.R
     Y = W.Y
@@ -344,7 +392,9 @@ def implicit_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
     if status != 0:
         return status, iters
     # the string's impulse over the step, h/2 (fl + fr): along the elements at both ends
-    split_forces(r, Y, P, W.fl, W.fr)
+    _, tension = split_forces(r, Y, P, W.fl, W.fr)
+    if bounded and 12.0 * tension * h * h > TRANSVERSE_LIMIT * TRANSVERSE_LIMIT * P.u * P.m:
+        return TOO_TENSE, iters
     cayley_minus_identity(c0, c1, c2, W.FmI)
     yn0 = Y[n, 0]
     yn1 = Y[n, 1]

@@ -44,6 +44,38 @@ def element_terms(r, Y, a, kappa, u, slack):
 
 
 @kernel(inline="always")
+def hold_taut(r, taut, u, slack):
+    """Mark (1.0 in ``taut``) the elements taut at r_k (|x_k| >= u) with the ``slack`` law:
+    Newton holds them to the taut branch, tension kappa (s0 + s1)/2 of either sign, until it has
+    converged (:func:`release_slack`)."""
+    for a in range(taut.shape[0]):
+        taut[a] = 0.0
+        if slack:
+            x0 = r[a + 1, 0] - r[a, 0]
+            x1 = r[a + 1, 1] - r[a, 1]
+            x2 = r[a + 1, 2] - r[a, 2]
+            if math.sqrt(x0 * x0 + x1 * x1 + x2 * x2) >= u:
+                taut[a] = 1.0
+
+
+@kernel(inline="always")
+def release_slack(r, Y, taut, u):
+    """Release the elements held taut (:func:`hold_taut`) whose new length |x_k + dx| is below u:
+    their tension from there on is the slack law's. Returns how many were released (0: the held
+    solution is the slack law's, both branches agree where s0, s1 >= 0)."""
+    released = 0
+    for a in range(taut.shape[0]):
+        if taut[a] != 0.0:
+            w0 = (r[a + 1, 0] - r[a, 0]) + (Y[a + 1, 0] - Y[a, 0])
+            w1 = (r[a + 1, 1] - r[a, 1]) + (Y[a + 1, 1] - Y[a, 1])
+            w2 = (r[a + 1, 2] - r[a, 2]) + (Y[a + 1, 2] - Y[a, 2])
+            if math.sqrt(w0 * w0 + w1 * w1 + w2 * w2) < u:
+                taut[a] = 0.0
+                released += 1
+    return released
+
+
+@kernel(inline="always")
 def element_block(r, Y, a, kappa, u, slack):
     """Element ``a``'s share of the Newton system (:func:`element_terms`): its force on node a,
     T n_k (3) [N], and k = 2 dT/ds1 n_k n_{k+1}^T (9, row-major) [N/m]."""
@@ -63,10 +95,11 @@ def coupling_block(off, q4, k00, k01, k02, k10, k11, k12, k20, k21, k22):
 def split_forces(r, Y, P, fl, fr):
     """The string's forces of the step, gravity included [N]: ``fl`` = f_g + sum T n_k (the left
     half, along the elements at r_k) and ``fr`` = f_g + sum T n_{k+1} (the right half), T the
-    elements' tensions at their mean lengths (:func:`element_terms`). Returns the sum of all
-    entries (non-finite iff any is)."""
+    elements' tensions at their mean lengths (:func:`element_terms`). Returns the sum of the
+    tensions (non-finite iff any is) and the largest [N]."""
     n = r.shape[0] - 1
     total = 0.0
+    most = 0.0
     for i in range(3):
         for a in range(n + 1):
             fl[a, i] = 0.0
@@ -90,7 +123,8 @@ def split_forces(r, Y, P, fl, fr):
         fr[a + 1, 1] -= T * m1
         fr[a + 1, 2] -= T * m2
         total += T
-    return total
+        most = max(most, T)
+    return total, most
 
 
 @kernel(inline="always")

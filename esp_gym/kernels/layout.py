@@ -98,9 +98,10 @@ StateArrays = namedtuple("StateArrays", "r p R Pi rc pc Rc Pic f acc accc")
 #: steps (kernels/loops.py), so a failure can go back to it. The implicit string's Newton
 #: (kernels/implicit.py) uses ``fl``, ``fr`` (N+1, 3), the string's forces of the step along
 #: the elements at its start and at its end [N], ``dy``
-#: (N+1, 3), its right-hand sides and corrections [m], and ``elim`` (N+1, 3, 3), the factors of
-#: its block elimination.
-Work = namedtuple("Work", "fn X Y FmI RF Rn jac backup fl fr dy elim")
+#: (N+1, 3), its right-hand sides and corrections [m], ``elim`` (N+1, 3, 3), the factors of
+#: its block elimination, and ``taut`` (N,), 1 for the elements it holds to the taut branch of
+#: the slack law until it has converged (docs/physics.md, "The taut-branch start").
+Work = namedtuple("Work", "fn X Y FmI RF Rn jac backup fl fr dy elim taut")
 
 #: Scratch and outputs of the diagnostics: node velocities V (N+1, 3) [m/s], per-element strain
 #: energy (N,) [J], body angular velocity omega (3,, body frame) [rad/s], and ``out``

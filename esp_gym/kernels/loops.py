@@ -40,7 +40,7 @@ def lgvi_step(S, W, P, inputs, free, forced, coupled, compensated, implicit=Fals
 @kernel
 def state_size(S):
     """Number of floats :func:`save_state` writes."""
-    return 4 * S.r.size + 2 * S.R.size + 2 * S.Pi.size + 2 * S.acc.size
+    return 5 * S.r.size + 2 * S.R.size + 2 * S.Pi.size + 2 * S.acc.size
 
 
 @kernel(inline="always")
@@ -82,12 +82,13 @@ def _move_state(S, buf, to_buf):
     k = _move_vector(S.Pi, buf, k, to_buf)
     k = _move_vector(S.Pic, buf, k, to_buf)
     k = _move_vector(S.acc, buf, k, to_buf)
-    _move_vector(S.accc, buf, k, to_buf)
+    k = _move_vector(S.accc, buf, k, to_buf)
+    _move_rows(S.f, buf, k, to_buf)
 
 
 @kernel
 def save_state(S, buf):
-    """Copy the whole state (with remainders and balances) into ``buf``."""
+    """Copy the whole state (with remainders, balances and the forces ``S.f``) into ``buf``."""
     _move_state(S, buf, True)
 
 
@@ -110,10 +111,10 @@ def _finish(stats, status, steps, total, most):
 
 
 @kernel(inline="always")
-def _rewind(S, W, P):
-    """Back to the last checkpoint, with the forces of its configuration."""
+def _rewind(S, W):
+    """Back to the last checkpoint, with its forces ``S.f`` (for the implicit string they are
+    the last step's, its first guess, so a replay needs the saved ones)."""
     restore_state(S, W.backup)
-    nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
 
 
 @kernel(inline="always")
@@ -123,7 +124,7 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
     the last good state. ``stats`` (int64, >= 4): status, steps taken, total Newton iterations,
     max per step.
 
-    A composed step that fails part-way has moved the state. Instead of copying the state
+    A composed step (or a cut-back implicit one) that fails part-way has moved the state. Instead of copying the state
     before every step (that cost 13 % of a composed step), the state is saved every
     ``CHECKPOINT`` steps; after a failure the loop rewinds to the checkpoint and replays the
     steps that had succeeded. The replay is deterministic (same state bits, inputs and code),
@@ -136,7 +137,9 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
     """
     if not forces_ready and not implicit:
         nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
-    composed = P.gammas.shape[0] > 1
+    # a composed step, and an implicit one that cut itself back (kernels/implicit.py), can
+    # fail part-way
+    composed = P.gammas.shape[0] > 1 or implicit
     total = 0
     most = 0
     failed = OK
@@ -157,7 +160,7 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
                 return
             failed = status
             target = k
-            _rewind(S, W, P)
+            _rewind(S, W)
             k = k0
             continue
         k += 1

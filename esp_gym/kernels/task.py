@@ -132,11 +132,12 @@ def take_action(raw, ap, action, inputs):
 
 
 @kernel(inline="always")
-def env_step_one(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, result):
+def env_step_one(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, result, implicit=False):
     """One control step: ``nsub`` physics steps with constant ``inputs`` (INPUTS), then
-    observation, reward terms and termination code. ``result``: the step's REPORT (int64)."""
+    observation, reward terms and termination code. ``result``: the step's REPORT (int64).
+    ``implicit`` (a compile-time constant): the implicit string's step (kernels/implicit.py)."""
     # the general kernel: an environment always has inputs and, as a rule, an off-centre load
-    advance_loop(S, W, P, inputs, nsub, result, P.first == 0, True, True, P.compensated)
+    advance_loop(S, W, P, inputs, nsub, result, P.first == 0, True, True, P.compensated, False, implicit)
     status = result[R_STATUS]
     diagnostics(S, P, D)
     code = env_observe(S, P, D, target, tp, action, obs, terms)
@@ -160,6 +161,17 @@ def env_step(s, w, p, d, raw, ap, inputs, nsub, target, tp, action, obs, terms, 
 
 
 @kernel
+def env_step_implicit(s, w, p, d, raw, ap, inputs, nsub, target, tp, action, obs, terms, result):
+    """:func:`env_step` with the implicit string (a kernel of its own: only scenes that use it
+    compile it)."""
+    if not take_action(raw, ap, action, inputs):
+        return False
+    env_step_one(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), inputs, nsub, target, tp, action,
+                 obs, terms, result, True)
+    return True
+
+
+@kernel
 def env_reset_observe(S, P, D, target, tp, action, obs, terms):
     """Observation of a freshly set state (no step). Returns the termination code."""
     diagnostics(S, P, D)
@@ -177,7 +189,7 @@ def state_row(S, b):
 def work_row(W, b):
     """Sub-environment ``b`` of a stacked :class:`Work` (views)."""
     return Work(W.fn[b], W.X[b], W.Y[b], W.FmI[b], W.RF[b], W.Rn[b], W.jac[b], W.backup[b], W.fl[b], W.fr[b], W.dy[b],
-                W.elim[b])
+                W.elim[b], W.taut[b])
 
 
 @kernel(inline="always")
@@ -204,3 +216,16 @@ def env_step_batch(s, w, d, p, raw, ap, inputs, active, nsub, target, tp, action
         if active[b] and take_action(raw[b], ap, action[b], inputs[b]):
             env_step_one(state_row(S, b), work_row(W, b), P, diag_row(D, b), inputs[b], nsub, target[b], tp,
                          action[b], obs[b], terms[b], result[b])
+
+
+@kernel(parallel=True)
+def env_step_batch_implicit(s, w, d, p, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, result):
+    """:func:`env_step_batch` with the implicit string."""
+    S = StateArrays(*s)
+    W = Work(*w)
+    D = DiagWork(*d)
+    P = LGVIParams(*p)
+    for b in prange(raw.shape[0]):
+        if active[b] and take_action(raw[b], ap, action[b], inputs[b]):
+            env_step_one(state_row(S, b), work_row(W, b), P, diag_row(D, b), inputs[b], nsub, target[b], tp,
+                         action[b], obs[b], terms[b], result[b], True)
