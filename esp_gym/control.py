@@ -15,7 +15,6 @@ Everything is readable through named, read-only views (``observation``, ``reward
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -86,8 +85,6 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
     control_period, h, safety = o.control_period, o.h, o.safety
     overrides = dict(o.scene_overrides or {})
     base = o.scene if isinstance(o.scene, Scene) else load_scene(o.scene)
-    # the string scheme is the environment's to choose unless the scene or the overrides set it
-    scheme_given = "string" in base.solver.model_fields_set or _sets(overrides, "solver", "string")
     keep_unstable = overrides.get("allow_unstable_h", base.allow_unstable_h)
     # the scene's own h is replaced below: it must not fail the bound of a stiffer override
     overrides["allow_unstable_h"] = True
@@ -97,11 +94,10 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
         raise ValueError(f"ElasticStringPendulum-v0 pushes the pivot: scene {resolved.name!r} needs pivot.kind: free")
     scheme = resolved.solver.string
     if h is None:
-        # the implicit string only where asked for: choose_scheme's cost rule would pick it for
-        # stiff strings, but its accuracy under random actions is not established yet
-        # (docs/physics.md, "The environment's choice")
+        # the scene's scheme (explicit unless asked): choose_scheme's cost rule would pick the
+        # implicit string for stiff strings, but its accuracy under random actions is not
+        # established yet (docs/physics.md, "The environment's choice")
         choice = choose_scheme(resolved, control_period, safety)
-        scheme = scheme if scheme_given else "explicit"
         wanted = choice.explicit_substeps if scheme == "explicit" else choice.implicit_substeps
         what = f"safety = {safety} x the stability bound" if scheme == "explicit" else "the transverse bound"
     else:
@@ -129,12 +125,6 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
     return EnvSetup(scene=resolved, task=t, task_params=t.params(resolved), control_period=float(control_period),
                     substeps=substeps, hover=np.array([0.0, 0.0, -weight]), force_limit=float(force_limit),
                     torque_limit=float(torque_limit))
-
-
-def _sets(overrides: dict, section: str, key: str) -> bool:
-    """Whether scene ``overrides`` (nested sections or dotted paths) set ``section.key``."""
-    inner = overrides.get(section)
-    return f"{section}.{key}" in overrides or (isinstance(inner, dict) and key in inner)
 
 
 def raw_actions(actions, shape: tuple, name: str = "action") -> np.ndarray:

@@ -78,7 +78,7 @@ class ElasticStringPendulumEnv(gym.Env):
     | `scene` | `"drone_load"` | scene name under configs/scenes, YAML path or `Scene`; needs a free pivot |
     | `task` | `"stabilize"` | `"stabilize"` or `"transport"` |
     | `control_period` | 0.02 | seconds per `step` (a whole number of physics steps) |
-    | `h` | None | physics step; None: the largest dividing the control period under `safety` x the stability bound |
+    | `h` | None | physics step; None: the largest dividing the control period under `safety` x the stability bound (with `scene_overrides={"solver": {"string": "implicit"}}`, under 0.9 x the implicit string's transverse bound: docs/physics.md) |
     | `safety` | 0.5 | margin under the stability bound for the automatic h (long runs of the tension-only string under random inputs gain spurious energy above ~0.6: 0.8 J in 10 s at 0.8) |
     | `force_limit` | 0.6 W | [N] per axis at action 1 |
     | `torque_limit` | 0.02 | [N m] per axis at action 1 |

@@ -86,8 +86,9 @@ def attachment_column(diag, off: float, cp, first: int) -> np.ndarray:
 
 
 #: Bytes a :class:`~esp_gym.model.Simulator` holds per string node, an upper bound (state, remainders,
-#: forces, scratch, checkpoint, diagnostics, constants; tests/test_simulator.py measures it).
-BYTES_PER_NODE = 8 * 64
+#: forces, scratch, checkpoint, diagnostics, constants: about 66 floats; tests/test_arguments.py
+#: measures it).
+BYTES_PER_NODE = 8 * 72
 
 
 def check_memory(elements: int, copies: int = 1) -> None:

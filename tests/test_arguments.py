@@ -17,7 +17,7 @@ from esp_gym.env import ElasticStringPendulumEnv
 from esp_gym.kernels.string import tridiag_factor
 from esp_gym.options import MAX_SUBSTEPS
 from esp_gym.sb3_vector import ElasticStringPendulumSB3VecEnv
-from esp_gym.state import attachment_column, check_memory, mass_matrix
+from esp_gym.state import BYTES_PER_NODE, attachment_column, check_memory, mass_matrix
 from esp_gym.vector import ElasticStringPendulumVectorEnv
 
 
@@ -135,7 +135,7 @@ def test_a_long_string_builds_in_linear_time_and_memory():
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
     assert seconds < 5.0
-    assert peak < 512 * 100_001  # state.BYTES_PER_NODE per node
+    assert peak < BYTES_PER_NODE * 100_001
 
 
 def test_a_string_the_machine_cannot_hold_is_refused_before_allocating():
