@@ -10,10 +10,12 @@ Prints a table and writes ``OUT/env_throughput.json`` and ``OUT/env_throughput.p
 * ``--ea-sweep`` (alone): the string's EA from 2e2 to 2e6 N on ``drone_load``
   (``scene_overrides``), random actions, resets included, with the environment's own scheme and
   step and with the implicit string asked for (``solver.string: implicit``), the runs of one
-  repeat interleaved; writes ``OUT/env_throughput_ea.json``.
+  repeat interleaved; writes ``OUT/env_throughput_ea.json``;
+* ``--realism`` (alone): the plain environment against the realism options (``randomize=True``),
+  single and 8 batched, random actions, interleaved; writes ``OUT/env_throughput_realism.json``.
 
 Each figure is the median of ``--repeats`` timed runs after a warm-up (compilation excluded).
-Usage: ``python -m benchmarks.env_throughput [--quick] [--ea-sweep] [--out DIR]``.
+Usage: ``python -m benchmarks.env_throughput [--quick] [--ea-sweep | --realism] [--out DIR]``.
 """
 from __future__ import annotations
 
@@ -64,9 +66,13 @@ def main(argv=None) -> dict:
     ap = arg_parser(__doc__, quick="small smoke run, not a measurement")
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--ea-sweep", action="store_true", help="only the sweep over the string's EA")
+    ap.add_argument("--realism", action="store_true",
+                    help="only the realism options (randomize, ...) against the plain environment")
     args = ap.parse_args(argv)
     if args.ea_sweep:
         return ea_sweep(args)
+    if args.realism:
+        return realism(args)
     steps = 2_000 if args.quick else 20_000
     repeats = 1 if args.quick else args.repeats
     counts = [1, 4] if args.quick else [1, 2, 4, 8, 16, 32, 64]
@@ -130,6 +136,34 @@ def ea_sweep(args) -> dict:
     finish(args.out, "env_throughput_ea", {"sweep": table, "steps": steps, "repeats": repeats,
                                            "machine": machine("gymnasium")}, {})
     return {"sweep": table}
+
+
+#: The options the realism comparison times against the plain environment.
+REALISM = {"plain": {}, "randomize": {"randomize": True}}
+#: Batch size of the realism comparison's batched runs.
+REALISM_BATCH = 8
+
+
+def realism(args) -> dict:
+    """Steps/s of each of REALISM, single (random actions, resets included) and batched
+    (``make_vec``, REALISM_BATCH environments), the runs of one repeat interleaved."""
+    steps = 500 if args.quick else 20_000
+    repeats = 1 if args.quick else args.repeats
+    rates = {(name, kind): [] for name in REALISM for kind in ("single", "batched")}
+    for _ in range(repeats):
+        for name, options in REALISM.items():
+            rates[(name, "single")].append(single(lambda o=options: gym.make(esp_gym.ENV_ID, **o), steps, True, 1))
+            rates[(name, "batched")].append(batched(
+                lambda n, o=options: gym.make_vec(esp_gym.ENV_ID, num_envs=n, **o), REALISM_BATCH, 4 * steps, 1, False))
+    table = {name: {kind: float(np.median(rates[(name, kind)])) for kind in ("single", "batched")} for name in REALISM}
+    print(f"options      single [steps/s]  ratio   batched x{REALISM_BATCH} [steps/s]  ratio")
+    for name, row in table.items():
+        print(f"{name:12s} {row['single']:15,.0f}  {row['single'] / table['plain']['single']:5.2f}   "
+              f"{row['batched']:19,.0f}  {row['batched'] / table['plain']['batched']:5.2f}")
+    finish(args.out, "env_throughput_realism", {"table": table, "options": {k: repr(v) for k, v in REALISM.items()},
+                                                "steps": steps, "repeats": repeats,
+                                                "machine": machine("gymnasium")}, {})
+    return {"table": table}
 
 
 def _plot(res: dict, counts: list, path) -> None:

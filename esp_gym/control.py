@@ -24,33 +24,70 @@ import numpy as np
 from gymnasium import spaces
 
 from .kernels.layout import (ACTION, ACTION_PARAMS, ACTION_SIZE, INPUTS, OBSERVATION, R_TERMINATION, REPORT, REWARD,
-                             REWARD_TERMS, TARGET)
+                             REWARD_TERMS, SCENE_PARAMS, TARGET)
 from .kernels.string import state_forces
 from .kernels.task import (actions_finite, env_reset_observe, env_step, env_step_batch, env_step_batch_implicit,
                            env_step_implicit)
 from .model import Simulator
 from .options import MAX_SUBSTEPS, check_count, env_options
-from .state import State, check_memory
+from .randomize import Randomizer, nominal_values
+from .state import State, build_params, check_memory
 from .params import Scene, load_scene, override_scene, scene_from_dict
-from .stepsize import choose_scheme
-from .tasks import Task, get_task
+from .stepsize import scheme_substeps
+from .kernels.layout import LGVIParams
+from .tasks import Task, get_task, sample_episode
 
 #: info keys of the reward terms, in REWARD_TERMS order
 INFO_REWARD_KEYS = tuple("reward_" + name for name in REWARD_TERMS)
+
+
+def total_weight(scene: Scene) -> float:
+    """The weight of pivot, string and load [N]: the hover force's size."""
+    return scene.gravity * (scene.body.mass + (scene.pivot.mass or 0.0)
+                            + scene.string.length * scene.string.mass_per_length)
+
+
+def action_params(hover: np.ndarray, force_limit: float, torque_limit: float) -> np.ndarray:
+    """The compiled action path's constants (:data:`~esp_gym.kernels.layout.ACTION_PARAMS`):
+    box bounds [-1, 1], hover force, force and torque limits."""
+    ap = np.zeros(ACTION_PARAMS.size)
+    ap[ACTION_PARAMS["low"]] = -1.0
+    ap[ACTION_PARAMS["high"]] = 1.0
+    ap[ACTION_PARAMS["hover_force"]] = hover
+    ap[ACTION_PARAMS["force_limit"]] = force_limit
+    ap[ACTION_PARAMS["torque_limit"]] = torque_limit
+    return ap
+
+
+@dataclass(frozen=True)
+class Episode:
+    """The run-time physics of one episode: its scene's values (SCENE_PARAMS order), the scene
+    with its step, the stepper's constants, physics steps per control step, the task's and the
+    action path's constants (the hover force holds this episode's weight up)."""
+
+    values: np.ndarray
+    scene: Scene
+    params: LGVIParams
+    substeps: int
+    task_params: np.ndarray
+    action_params: np.ndarray
 
 
 @dataclass(frozen=True)
 class EnvSetup:
     """Everything the single and the batched environments share, resolved and validated."""
 
-    scene: Scene
+    scene: Scene  #: the nominal scene (randomised episodes draw around it)
     task: Task
     task_params: np.ndarray
     control_period: float  #: [s]
-    substeps: int  #: physics steps per control step
-    hover: np.ndarray  #: feed-forward pivot force holding the whole system up [N]
+    substeps: int  #: physics steps per control step (of the nominal scene)
+    hover: np.ndarray  #: feed-forward pivot force holding the nominal system up [N]
     force_limit: float  #: pivot force per axis at |action| = 1, added to the hover force [N]
     torque_limit: float  #: body torque per axis at |action| = 1 [N m]
+    safety: float = 0.5  #: margin under the stability bound of each episode's automatic h
+    fixed_h: Optional[float] = None  #: the user's h (every episode), or None: each episode's own
+    randomizer: Optional[Randomizer] = None  #: the per-episode ranges, or None: the nominal scene
 
     @property
     def observation_space(self) -> spaces.Box:
@@ -62,26 +99,39 @@ class EnvSetup:
 
     @cached_property
     def action_params(self) -> np.ndarray:
-        """The compiled action path's constants (:data:`~esp_gym.kernels.layout.ACTION_PARAMS`):
-        box bounds, hover force, force and torque limits."""
-        space = self.action_space
-        ap = np.zeros(ACTION_PARAMS.size)
-        ap[ACTION_PARAMS["low"]] = space.low
-        ap[ACTION_PARAMS["high"]] = space.high
-        ap[ACTION_PARAMS["hover_force"]] = self.hover
-        ap[ACTION_PARAMS["force_limit"]] = self.force_limit
-        ap[ACTION_PARAMS["torque_limit"]] = self.torque_limit
-        return ap
+        """The nominal scene's action constants (:func:`action_params`)."""
+        return action_params(self.hover, self.force_limit, self.torque_limit)
+
+    @cached_property
+    def nominal_episode(self) -> Episode:
+        return Episode(np.array([nominal_values(self.scene)[k] for k in SCENE_PARAMS.names]), self.scene,
+                       build_params(self.scene), self.substeps, self.task_params, self.action_params)
+
+    def draw_episode(self, rng: np.random.Generator) -> Episode:
+        """The next episode's physics: the nominal one, or (``randomizer``) one drawn from
+        ``rng`` with its own h (the largest dividing the control period under the scheme's bound,
+        as for the nominal scene; or ``fixed_h``)."""
+        if self.randomizer is None:
+            return self.nominal_episode
+        values = self.randomizer.draw(rng)
+        drawn = self.randomizer.scene(values)
+        substeps = self.substeps if self.fixed_h is not None else scheme_substeps(drawn, self.control_period,
+                                                                                  self.safety)
+        scene = drawn.model_copy(update={"h": self.control_period / substeps})
+        hover = np.array([0.0, 0.0, -total_weight(scene)])
+        return Episode(values, scene, build_params(scene), substeps, self.task.params(scene),
+                       action_params(hover, self.force_limit, self.torque_limit))
 
 
 def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabilize",
                control_period: float = 0.02, h: Optional[float] = None, safety: float = 0.5,
                force_limit: Optional[float] = None, torque_limit: float = 0.02,
-               scene_overrides: Optional[dict] = None) -> EnvSetup:
+               scene_overrides: Optional[dict] = None, randomize: Union[bool, dict] = False) -> EnvSetup:
     """Resolve the environment's arguments (see :class:`~esp_gym.env.ElasticStringPendulumEnv`),
     validated by :class:`~esp_gym.options.EnvOptions` (ValueError naming each bad one)."""
     o = env_options(scene=scene, task=task, control_period=control_period, h=h, safety=safety,
-                    force_limit=force_limit, torque_limit=torque_limit, scene_overrides=scene_overrides)
+                    force_limit=force_limit, torque_limit=torque_limit, scene_overrides=scene_overrides,
+                    randomize=randomize)
     control_period, h, safety = o.control_period, o.h, o.safety
     overrides = dict(o.scene_overrides or {})
     base = o.scene if isinstance(o.scene, Scene) else load_scene(o.scene)
@@ -92,39 +142,40 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
     resolved = override_scene(o.scene, overrides) if isinstance(o.scene, Scene) else load_scene(o.scene, **overrides)
     if not resolved.pivot.is_free:
         raise ValueError(f"ElasticStringPendulum-v0 pushes the pivot: scene {resolved.name!r} needs pivot.kind: free")
-    scheme = resolved.solver.string
+    randomizer = None if o.randomize is False else Randomizer(resolved, o.randomize)
+    # the scene's scheme (explicit unless asked): choose_scheme's cost rule would pick the implicit
+    # string for stiff strings, but its accuracy under random actions is not established yet
+    # (docs/physics.md, "The environment's choice")
+    explicit = resolved.solver.string == "explicit"
+    bound_name = f"safety = {safety} x the stability bound" if explicit else "the transverse bound"
+    # the stiffest episode (shortest, lightest, stiffest string) needs the most steps
+    stiffest = resolved if randomizer is None else randomizer.scene(randomizer.stiffest())
     if h is None:
-        # the scene's scheme (explicit unless asked): choose_scheme's cost rule would pick the
-        # implicit string for stiff strings, but its accuracy under random actions is not
-        # established yet (docs/physics.md, "The environment's choice")
-        choice = choose_scheme(resolved, control_period, safety)
-        wanted = choice.explicit_substeps if scheme == "explicit" else choice.implicit_substeps
-        what = f"safety = {safety} x the stability bound" if scheme == "explicit" else "the transverse bound"
+        wanted, what = scheme_substeps(stiffest, control_period, safety), bound_name
     else:
-        wanted = control_period / h
-        what = f"h = {h} s"
+        wanted, what = control_period / h, f"h = {h} s"
+        if randomizer is not None and explicit and not keep_unstable and h > stiffest.string.stability_bound:
+            raise ValueError(f"h = {h} s is above the stability bound {stiffest.string.stability_bound:.4g} s of the "
+                             "stiffest string of the randomize ranges (shortest, lightest, largest EA): leave h to "
+                             "the environment or narrow the ranges")
     if wanted > MAX_SUBSTEPS:
         raise ValueError(f"ElasticStringPendulum-v0: control_period = {control_period} s with {what} needs "
                          f"{wanted:.3g} physics steps per step (at most {MAX_SUBSTEPS:,}): use a larger h or "
                          f"safety, a shorter control_period, or a softer, longer or coarser string")
     if h is None:
-        substeps = int(wanted)
+        substeps = scheme_substeps(resolved, control_period, safety)
     else:
         substeps = int(round(wanted))
         if substeps < 1 or abs(substeps * h - control_period) > 1e-9 * control_period:
             raise ValueError(f"h = {h} s must divide the control period {control_period} s")
-    h_used = control_period / substeps
-    resolved = scene_from_dict({**resolved.model_dump(), "h": h_used, "allow_unstable_h": keep_unstable,
-                                "solver": {**resolved.solver.model_dump(), "string": scheme}},
-                               source=repr(resolved.name))
-    weight = resolved.gravity * (resolved.body.mass + resolved.pivot.mass
-                                 + resolved.string.length * resolved.string.mass_per_length)
+    resolved = scene_from_dict({**resolved.model_dump(), "h": control_period / substeps,
+                                "allow_unstable_h": keep_unstable}, source=repr(resolved.name))
+    weight = total_weight(resolved)
     force_limit = o.force_limit if o.force_limit is not None else (0.6 * weight if weight > 0 else 1.0)
-    torque_limit = o.torque_limit
     t = get_task(o.task)
     return EnvSetup(scene=resolved, task=t, task_params=t.params(resolved), control_period=float(control_period),
                     substeps=substeps, hover=np.array([0.0, 0.0, -weight]), force_limit=float(force_limit),
-                    torque_limit=float(torque_limit))
+                    torque_limit=float(o.torque_limit), safety=float(safety), fixed_h=h, randomizer=randomizer)
 
 
 def raw_actions(actions, shape: tuple, name: str = "action") -> np.ndarray:
@@ -163,10 +214,15 @@ class ControlStep:
     call; both run the same compiled :func:`~esp_gym.kernels.task.env_step_one`, so their
     numbers agree bit for bit.
 
+    Each (sub-)environment carries its episode's run-time physics (:class:`Episode`: the
+    stepper's constants, its number of physics steps, the task's and the action path's
+    constants), set by :meth:`reset` with an ``episode`` or drawn by :meth:`start_episode`.
+
     Views (read-only; leading batch axis for a batch; layouts in kernels/layout.py):
     ``observation`` (OBSERVATION), ``reward_terms`` (REWARD), ``action`` (the clipped
     action, ACTION), ``inputs`` (INPUTS: pivot force [N], body torque [N m], spatial torque),
-    ``target`` (TARGET [m]), ``report`` (REPORT, int64).
+    ``target`` (TARGET [m]), ``report`` (REPORT, int64), ``scene_params`` (SCENE_PARAMS of the
+    current episodes).
     """
 
     def __init__(self, setup: EnvSetup, num_envs: Optional[int] = None):
@@ -177,11 +233,16 @@ class ControlStep:
         #: The simulator stepped in place (one environment), or the template of the batch's arrays.
         self.sim = Simulator(setup.scene)
         state, work, params, diag = self.sim.buffers
+        nominal = setup.nominal_episode
         if batch:
             def stack(t):
                 return type(t)(*(np.zeros(batch + a.shape) for a in t))
 
             state, work, diag = stack(state), stack(work), stack(diag)
+            # every constant per sub-environment (scalars become (num_envs,) arrays of their type)
+            params = LGVIParams(*(np.repeat(np.asarray(v)[None], self.num_envs, axis=0) for v in params))
+            #: The scene of each sub-environment's episode.
+            self.scenes = [setup.scene] * self.num_envs
         self._state, self._diag, self._params = state, diag, params
         self._work = work
         z = np.zeros
@@ -191,6 +252,11 @@ class ControlStep:
         self._obs = z(batch + (OBSERVATION.size,))
         self._terms = z(batch + (REWARD.size,))
         self._report = z(batch + (REPORT.size,), dtype=np.int64)
+        # the episode's run-time physics besides the stepper's constants
+        self._substeps = np.full(batch, nominal.substeps, dtype=np.int64)
+        self._task_params = np.tile(nominal.task_params, batch + (1,))
+        self._action_params = np.tile(nominal.action_params, batch + (1,))
+        self._scene_params = np.tile(nominal.values, batch + (1,))
         self._was_reset = z(batch, dtype=bool)  # stepping a state that was never set is an error
         self._ready = False  # all of _was_reset, kept as a bool: step checks it every call
         self._make_views()
@@ -204,9 +270,10 @@ class ControlStep:
         self.inputs = read_only(self._inputs)
         self.target = read_only(self._target)
         self.report = read_only(self._report)
+        self.scene_params = read_only(self._scene_params)
 
     # a pickled view would come back as a copy: pickle the arrays, rebuild the views
-    _VIEWS = ("_kernel_tuples", "observation", "reward_terms", "action", "inputs", "target", "report")
+    _VIEWS = ("_kernel_tuples", "observation", "reward_terms", "action", "inputs", "target", "report", "scene_params")
 
     def __getstate__(self) -> dict:
         return {k: v for k, v in self.__dict__.items() if k not in self._VIEWS}
@@ -215,30 +282,69 @@ class ControlStep:
         self.__dict__.update(state)
         self._make_views()
 
+    @property
+    def scene(self) -> Scene:
+        """The scene of the current episode (one environment)."""
+        if self.num_envs is not None:
+            raise ValueError("a batch has one scene per sub-environment: see ControlStep.scenes")
+        return self.sim.scene
+
     # -- reset ------------------------------------------------------------------------------------
-    def reset(self, state: State, target, index: Optional[int] = None) -> int:
-        """Put ``state`` (balances restarted) and ``target`` (TARGET [m]) in, zero the action
-        and compute the observation and reward terms; ``index``: the sub-environment of a batch.
-        Returns the termination code of the new state."""
+    def start_episode(self, rng: np.random.Generator, index: Optional[int] = None) -> np.ndarray:
+        """Draw the next episode from ``rng`` (its physics when randomised, then its state and
+        targets: esp_gym/tasks.py) and :meth:`reset` to it. Returns its SCENE_PARAMS values."""
+        episode = self.setup.draw_episode(rng)
+        state, target = sample_episode(self.setup.task, episode.scene, rng)
+        self.reset(state, target, index, episode)
+        return episode.values
+
+    def _use_episode(self, episode: Episode, index: Optional[int]) -> None:
+        """Put an episode's run-time physics in (one environment, or sub-environment ``index``)."""
         if self.num_envs is None:
-            if index is not None:
-                raise ValueError("index is for batches (num_envs given)")
+            if episode.scene is not self.sim.scene:
+                self.sim.use_scene(episode.scene, episode.params)
+                self._params = self.sim.params
+                self._make_views()
+            self._substeps[...] = episode.substeps
+        else:
+            for stacked, value in zip(self._params, episode.params):
+                stacked[index] = value
+            self.scenes[index] = episode.scene
+            self._substeps[index] = episode.substeps
+        row = () if index is None else index
+        self._task_params[row] = episode.task_params
+        self._action_params[row] = episode.action_params
+        self._scene_params[row] = episode.values
+
+    def reset(self, state: State, target, index: Optional[int] = None, episode: Optional[Episode] = None) -> int:
+        """Put ``state`` (balances restarted) and ``target`` (TARGET [m]) in, zero the action
+        and compute the observation and reward terms; ``index``: the sub-environment of a batch;
+        ``episode``: its run-time physics (default: unchanged). Returns the termination code of
+        the new state."""
+        if (self.num_envs is None) != (index is None):
+            raise ValueError("index is for batches (num_envs given), and a batch needs it")
+        if episode is not None:
+            self._use_episode(episode, None if index is None else int(index))
+        if self.num_envs is None:
             self.sim.set_state(state)
-            S, D, obs, terms, action, tgt = self._state, self._diag, self._obs, self._terms, self._action, self._target
+            S, D, P = self._state, self._diag, self._params
+            obs, terms, action, tgt, tp = self._obs, self._terms, self._action, self._target, self._task_params
         else:
             i = int(index)
             S, D = self._row(i)
+            P = LGVIParams(*(a[i] if a.ndim > 1 else a[i].item() for a in self._params))
             S.r[...], S.p[...], S.R[...], S.Pi[...] = state.r, state.p, state.R, state.Pi
             for a in (S.rc, S.pc, S.Rc, S.Pic, S.acc, S.accc):
                 a[...] = 0.0
-            state_forces(S, self._params)
-            obs, terms, action, tgt = self._obs[i], self._terms[i], self._action[i], self._target[i]
+            state_forces(S, P)
+            obs, terms, action, tgt, tp = self._obs[i], self._terms[i], self._action[i], self._target[i], \
+                self._task_params[i]
         tgt[...] = target
         action[...] = 0.0
         if not self._ready:
             self._was_reset[() if index is None else int(index)] = True
             self._ready = bool(self._was_reset.all())
-        return int(env_reset_observe(S, self._params, D, tgt, self.setup.task_params, action, obs, terms))
+        return int(env_reset_observe(S, P, D, tgt, tp, action, obs, terms))
 
     # -- step -------------------------------------------------------------------------------------
     def step(self, actions, active: Optional[np.ndarray] = None) -> None:
@@ -247,15 +353,14 @@ class ControlStep:
         changed, if its shape is wrong or an entry is not finite. ``active`` (batch only, bool
         (num_envs,)): the sub-environments to step (default: all); the others are untouched."""
         s, w, p, d = self._kernel_tuples
-        setup = self.setup
         if not self._ready:
             never = "" if self.num_envs is None else f" (sub-environments {np.flatnonzero(~self._was_reset).tolist()})"
             raise RuntimeError(f"call reset() before step(){never}")
         if self.num_envs is None:
             raw = raw_actions(actions, (ACTION.size,))
             step = env_step_implicit if self.sim.implicit else env_step
-            if not step(s, w, p, d, raw, setup.action_params, self._inputs, setup.substeps, self._target,
-                            setup.task_params, self._action, self._obs, self._terms, self._report):
+            if not step(s, w, p, d, raw, self._action_params, self._inputs, int(self._substeps), self._target,
+                        self._task_params, self._action, self._obs, self._terms, self._report):
                 raise ValueError(f"action must be finite, got {raw.tolist()}")
             self.sim.count_steps(self._report)
             return
@@ -265,8 +370,8 @@ class ControlStep:
         if active is None:
             active = np.ones(self.num_envs, dtype=bool)
         batch = env_step_batch_implicit if self.sim.implicit else env_step_batch
-        batch(s, w, d, p, raw, setup.action_params, self._inputs, active, setup.substeps, self._target,
-              setup.task_params, self._action, self._obs, self._terms, self._report)
+        batch(s, w, d, p, raw, self._action_params, self._inputs, active, self._substeps, self._target,
+              self._task_params, self._action, self._obs, self._terms, self._report)
 
     # -- the report, by name ----------------------------------------------------------------------
     def reward(self):

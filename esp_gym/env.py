@@ -10,8 +10,8 @@ import numpy as np
 
 from .control import INFO_REWARD_KEYS, ControlStep, make_setup
 from .kernels.layout import INPUTS, OBSERVATION, TARGET, termination_reason
+from .kernels.layout import SCENE_PARAMS
 from .params import Scene
-from .tasks import sample_episode
 
 
 class ElasticStringPendulumEnv(gym.Env):
@@ -63,6 +63,10 @@ class ElasticStringPendulumEnv(gym.Env):
     rates in +-0.5 rad/s. The load target is its rest position below the pivot target.
     `transport`: the system nearly at rest (swing <= 3 degrees, speeds <= 0.05 m/s) at the
     origin; the pivot target is uniform in +-(1, 1, 0.5) m, the load target below it.
+    With `randomize`, the episode's tether and load are drawn first (then the state above, for
+    that scene), and its physics step is its own. `reset`'s info holds the episode's physical
+    parameters under `"scene_params"` (a flat dict of floats: `string_length`, `EA`, ...;
+    the nominal ones without `randomize`).
     All randomness comes from `np_random` (seed it through `reset(seed=...)`).
 
     ## Episode End
@@ -83,6 +87,7 @@ class ElasticStringPendulumEnv(gym.Env):
     | `force_limit` | 0.6 W | [N] per axis at action 1 |
     | `torque_limit` | 0.02 | [N m] per axis at action 1 |
     | `scene_overrides` | None | dict of scene overrides, validated as in `esp_gym.load_scene` |
+    | `randomize` | False | True: each episode draws the string's length, EA, mass per length, the load's mass, box and attachment offset, and the pivot mass from default ranges around the scene's values; a dict name -> (low, high) sets ranges (esp_gym/randomize.py, docs/environment.md) |
     | `render_mode` | None | `"rgb_array"`: uint8 frames, front and side views |
 
     ## Version History
@@ -94,10 +99,12 @@ class ElasticStringPendulumEnv(gym.Env):
     def __init__(self, scene: Union[str, Path, Scene] = "drone_load", task: str = "stabilize",
                  control_period: float = 0.02, h: Optional[float] = None, safety: float = 0.5,
                  force_limit: Optional[float] = None, torque_limit: float = 0.02,
-                 scene_overrides: Optional[dict] = None, render_mode: Optional[str] = None):
+                 scene_overrides: Optional[dict] = None, render_mode: Optional[str] = None,
+                 randomize: Union[bool, dict] = False):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        self.setup = make_setup(scene, task, control_period, h, safety, force_limit, torque_limit, scene_overrides)
+        self.setup = make_setup(scene, task, control_period, h, safety, force_limit, torque_limit, scene_overrides,
+                                randomize)
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.setup.control_period))}
         self.observation_space = self.setup.observation_space
@@ -113,7 +120,8 @@ class ElasticStringPendulumEnv(gym.Env):
     # -- named accessors (dm_control style) ---------------------------------------------------
     @property
     def scene(self) -> Scene:
-        return self.setup.scene
+        """The current episode's scene (the nominal one unless ``randomize``)."""
+        return self.control.scene
 
     @property
     def target(self) -> np.ndarray:
@@ -136,9 +144,11 @@ class ElasticStringPendulumEnv(gym.Env):
     # -- gymnasium API ------------------------------------------------------------------------
     def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None):
         super().reset(seed=seed)
-        state, target = sample_episode(self.setup.task, self.scene, self.np_random)
-        self.control.reset(state, target)
-        return self.control.observation.astype(np.float32), {}
+        values = self.control.start_episode(self.np_random)
+        if self._renderer is not None and self.setup.randomizer is not None:
+            self._renderer = None  # the load and the string change with the episode
+        return self.control.observation.astype(np.float32), {"scene_params": dict(zip(SCENE_PARAMS.names,
+                                                                                      values.tolist()))}
 
     def step(self, action):
         control = self.control

@@ -18,7 +18,7 @@ from tqdm.auto import tqdm
 from .kernels.diagnostics import diagnostics as diagnostics_kernel
 from .kernels.layout import (BALANCE, BLOW_UP, DIAG, INPUTS, LOOP_REPORT_SIZE, NEWTON_FAILED, NON_FINITE, OK,
                              R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS, STEP_DIAG, DiagWork, Snapshots,
-                             StateArrays, Work, status_message)
+                             LGVIParams, StateArrays, Work, status_message)
 from .kernels.loops import state_size
 from .kernels.specialise import general_kernels, specialised_kernels
 from .kernels.string import state_forces
@@ -181,6 +181,20 @@ class Simulator:
         self.newton_iterations = 0  #: total Newton iterations so far
         self.newton_iterations_max = 0  #: most iterations in any one step so far
         self.reset_balances()
+
+    def use_scene(self, scene: Scene, params: Optional[LGVIParams] = None) -> None:
+        """Run ``scene``, of the same elements, pivot kind and scheme, from here on (a randomised
+        episode's: esp_gym/randomize.py): run-time constants change, no compiled kernel.
+        ``params``: its constants if built. Set a state next (:meth:`set_state`)."""
+        for what in ("string.elements", "pivot.kind", "solver.string"):
+            section, field = what.split(".")
+            a, b = (getattr(getattr(x, section), field) for x in (self.scene, scene))
+            if a != b:
+                raise ValueError(f"use_scene: {what} must stay {a!r}, got {b!r}")
+        self.scene = scene
+        self.params = build_params(scene) if params is None else params
+        self.h = scene.h
+        self._coupled = bool(np.any(self.params.rho != 0.0))
 
     @property
     def buffers(self) -> Buffers:

@@ -39,6 +39,8 @@ class EnvOptions(BaseModel):
     force_limit: Optional[Real] = Field(None, gt=0, allow_inf_nan=False, description="[N] at action 1")
     torque_limit: Real = Field(0.02, ge=0, allow_inf_nan=False, description="[N m] at action 1")
     scene_overrides: Optional[dict] = None
+    #: False, True or name -> (low, high): checked by esp_gym/randomize.py (no coercion here)
+    randomize: Any = False
 
 
 def validation_message(error: ValidationError, what: str) -> str:

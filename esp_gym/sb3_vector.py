@@ -14,7 +14,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
 from . import MAX_EPISODE_STEPS
 from .control import INFO_REWARD_KEYS, ControlStep, make_setup
-from .kernels.layout import termination_reason
+from .kernels.layout import SCENE_PARAMS, termination_reason
 from .options import check_count
 from .vector import reset_sub_env
 
@@ -46,6 +46,7 @@ class ElasticStringPendulumSB3VecEnv(VecEnv):
             if s is not None:
                 self._rngs[i] = gym.utils.seeding.np_random(int(s))[0]
             reset_sub_env(self.control, i, self._rngs[i])
+            self.reset_infos[i] = self._scene_params(i)
         self._reset_seeds()
         self._reset_options()
         self._elapsed[:] = 0
@@ -70,9 +71,14 @@ class ElasticStringPendulumSB3VecEnv(VecEnv):
             if terminated[i]:
                 infos[i]["termination_reason"] = termination_reason(control.termination[i])
             reset_sub_env(control, i, self._rngs[i])
+            self.reset_infos[i] = self._scene_params(i)
             obs[i] = control.observation[i]
             self._elapsed[i] = 0
         return obs, rewards, dones, infos
+
+    def _scene_params(self, i: int) -> dict:
+        """The reset info of sub-environment ``i``: its episode's ``scene_params``."""
+        return {"scene_params": dict(zip(SCENE_PARAMS.names, self.control.scene_params[i].tolist()))}
 
     def close(self) -> None:
         pass

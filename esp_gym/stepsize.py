@@ -152,20 +152,36 @@ class SchemeChoice:
     reason: str  #: one line for logs and errors
 
 
-def choose_scheme(scene: Scene, control_period: float, safety: float) -> SchemeChoice:
-    """The string scheme and the number of steps per control period that cost least, in units of
-    an explicit step: the explicit string needs ``ceil(period / (safety x its bound))`` steps,
-    the implicit one ``ceil(period / h_i)`` with h_i = TRANSVERSE_SAFETY x the transverse bound at
-    DESIGN_TENSION x the weight below the pivot, each IMPLICIT_COST explicit steps."""
-    explicit_scene = scene_from_dict({**scene.model_dump(), "solver": {**scene.solver.model_dump(),
-                                                                       "string": "explicit"},
-                                      "allow_unstable_h": True}, source=repr(scene.name))
-    n_explicit = math.ceil(control_period / (safety * explicit_scene.stability_bound) - 1e-9)
+def explicit_substeps(scene: Scene, control_period: float, safety: float) -> int:
+    """Steps of the explicit string per control period: ``ceil(period / (safety x its bound))``
+    (the scene's composition included, whatever its ``solver.string``)."""
+    bound = scene.string.stability_bound * scene.solver.bound_factor
+    return math.ceil(control_period / (safety * bound) - 1e-9)
+
+
+def implicit_substeps(scene: Scene, control_period: float) -> int:
+    """Steps of the implicit string per control period: ``ceil(period / h_i)``, h_i =
+    TRANSVERSE_SAFETY x the transverse bound at DESIGN_TENSION x the weight below the pivot (one
+    step without weight: the cut-backs bound it)."""
     below = scene.gravity * (scene.body.mass + scene.string.length * scene.string.mass_per_length)
-    # without weight there is no design tension: one step per period (the cut-backs bound it)
     h_implicit = (TRANSVERSE_SAFETY * transverse_bound(scene, DESIGN_TENSION * below) if below > 0.0
                   else control_period)
-    n_implicit = math.ceil(control_period / h_implicit - 1e-9)
+    return math.ceil(control_period / h_implicit - 1e-9)
+
+
+def scheme_substeps(scene: Scene, control_period: float, safety: float) -> int:
+    """Steps per control period of the scene's own scheme (``solver.string``)."""
+    if scene.solver.string == "implicit":
+        return implicit_substeps(scene, control_period)
+    return explicit_substeps(scene, control_period, safety)
+
+
+def choose_scheme(scene: Scene, control_period: float, safety: float) -> SchemeChoice:
+    """The string scheme and the number of steps per control period that cost least, in units of
+    an explicit step: :func:`explicit_substeps` against :func:`implicit_substeps`, each implicit
+    step IMPLICIT_COST explicit ones."""
+    n_explicit = explicit_substeps(scene, control_period, safety)
+    n_implicit = implicit_substeps(scene, control_period)
     if scene.solver.order != 2:
         return SchemeChoice("explicit", n_explicit, n_explicit, n_implicit,
                             f"explicit: the implicit string is of order 2 only (order {scene.solver.order})")

@@ -20,15 +20,21 @@ from gymnasium.vector.utils import batch_space
 
 from . import MAX_EPISODE_STEPS
 from .control import INFO_REWARD_KEYS, ControlStep, make_setup
-from .kernels.layout import termination_reason
+from .kernels.layout import SCENE_PARAMS, termination_reason
 from .options import check_count
-from .tasks import sample_episode
 
 
 def reset_sub_env(control: ControlStep, i: int, rng: np.random.Generator) -> None:
-    """Sample a new episode for sub-environment ``i`` of the batch ``control``."""
-    state, target = sample_episode(control.setup.task, control.setup.scene, rng)
-    control.reset(state, target, index=i)
+    """Start a new episode in sub-environment ``i`` of the batch ``control``."""
+    control.start_episode(rng, index=i)
+
+
+def scene_params_info(control: ControlStep, which: np.ndarray) -> dict:
+    """``info["scene_params"]``: name -> (num_envs,) values of the current episodes, with the
+    ``"_scene_params"`` mask ``which`` (Gymnasium's vector info convention)."""
+    values = control.scene_params
+    return {"scene_params": {name: values[:, j].copy() for j, name in enumerate(SCENE_PARAMS.names)},
+            "_scene_params": which.copy()}
 
 
 def sub_env_seeds(seed, n) -> list:
@@ -81,7 +87,8 @@ class ElasticStringPendulumVectorEnv(VectorEnv):
             reset_sub_env(self.control, i, self._rngs[i])
         self._elapsed[:] = 0
         self._autoreset[:] = False
-        return self.control.observation.astype(np.float32), {}
+        return self.control.observation.astype(np.float32), scene_params_info(self.control,
+                                                                               np.ones(self.num_envs, dtype=bool))
 
     def step(self, actions):
         control = self.control
@@ -103,6 +110,8 @@ class ElasticStringPendulumVectorEnv(VectorEnv):
         for j, key in enumerate(INFO_REWARD_KEYS):
             infos[key] = np.where(active, control.reward_terms[:, j], 0.0)
             infos["_" + key] = active.copy()
+        if resetting.any():
+            infos.update(scene_params_info(control, resetting))
         if terminated.any():
             infos["termination_reason"] = np.array([termination_reason(c) for c in code], dtype=object)
             infos["_termination_reason"] = terminated.copy()

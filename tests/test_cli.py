@@ -100,6 +100,16 @@ def test_step_cost_quick_runs(tmp_path):
     assert (tmp_path / "step_cost.png").stat().st_size > 0
 
 
+def test_env_throughput_realism_quick_runs(tmp_path):
+    proc = subprocess.run(
+        [sys.executable, "-m", "benchmarks.env_throughput", "--realism", "--quick", "--out", str(tmp_path)],
+        capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    table = json.loads((tmp_path / "env_throughput_realism.json").read_text())["table"]
+    assert set(table) == {"plain", "randomize"}
+    assert all(row["single"] > 0 and row["batched"] > 0 for row in table.values())
+
+
 def test_spatial_convergence_quick_shows_order_2_on_smooth_data(tmp_path):
     """The finite elements converge at order 2 in N on smooth data (the hanging start), and
     more slowly from the paper's velocity jump at the attachment point (order ~1)."""

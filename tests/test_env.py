@@ -207,15 +207,25 @@ def test_vector_bad_actions_raise_and_change_nothing(kind):
     assert np.array_equal(step(good), twin(good))
 
 
-def test_vector_env_equals_single_envs_bit_for_bit():
+#: The options the batched envs must reproduce bit for bit: the plain env, and every episode's
+#: physics drawn anew (each sub-environment then runs its own constants and step count).
+VECTOR_OPTIONS = [{}, {"randomize": True}]
+
+
+@pytest.mark.parametrize("options", VECTOR_OPTIONS, ids=["plain", "randomize"])
+def test_vector_env_equals_single_envs_bit_for_bit(options):
     """gymnasium.make_vec uses the batched entry point; with seeds s+i and the same actions each
-    sub-environment reproduces a single env exactly, through next-step autoresets."""
+    sub-environment reproduces a single env exactly, through next-step autoresets (and reports
+    the same scene_params at each reset)."""
     B, T = 4, 60
-    venv = gym.make_vec(ENV_ID, num_envs=B, max_episode_steps=T)
+    venv = gym.make_vec(ENV_ID, num_envs=B, max_episode_steps=T, **options)
     assert type(venv).__name__ == "ElasticStringPendulumVectorEnv"
-    envs = [gym.make(ENV_ID, max_episode_steps=T) for _ in range(B)]
-    vo, _ = venv.reset(seed=10)
-    assert np.array_equal(vo, np.stack([e.reset(seed=10 + i)[0] for i, e in enumerate(envs)]))
+    envs = [gym.make(ENV_ID, max_episode_steps=T, **options) for _ in range(B)]
+    vo, vinfo = venv.reset(seed=10)
+    singles = [e.reset(seed=10 + i) for i, e in enumerate(envs)]
+    assert np.array_equal(vo, np.stack([o for o, _ in singles]))
+    for name, values in vinfo["scene_params"].items():
+        assert values.tolist() == [info["scene_params"][name] for _, info in singles]
     rng = np.random.default_rng(0)
     done = [False] * B
     ended = 0
@@ -224,7 +234,10 @@ def test_vector_env_equals_single_envs_bit_for_bit():
         vo, vr, vte, vtr, vi = venv.step(a)
         for i, e in enumerate(envs):
             if done[i]:
-                o, r, te, tr = e.reset()[0], 0.0, False, False
+                o, info = e.reset()
+                r, te, tr = 0.0, False, False
+                assert vi["_scene_params"][i]
+                assert {k: v[i] for k, v in vi["scene_params"].items()} == info["scene_params"]
             else:
                 o, r, te, tr, _ = e.step(a[i])
             assert np.array_equal(o, vo[i]) and (r, te, tr) == (vr[i], vte[i], vtr[i])
@@ -233,12 +246,15 @@ def test_vector_env_equals_single_envs_bit_for_bit():
     assert ended >= B  # autoreset was exercised
 
 
-def test_sb3_vec_env_equals_single_envs_with_immediate_reset():
+@pytest.mark.parametrize("options", VECTOR_OPTIONS, ids=["plain", "randomize"])
+def test_sb3_vec_env_equals_single_envs_with_immediate_reset(options):
     B, T = 3, 40
-    vec = ElasticStringPendulumSB3VecEnv(num_envs=B, max_episode_steps=T)
+    vec = ElasticStringPendulumSB3VecEnv(num_envs=B, max_episode_steps=T, **options)
     vec.seed(20)
-    envs = [gym.make(ENV_ID, max_episode_steps=T) for _ in range(B)]
-    assert np.array_equal(vec.reset(), np.stack([e.reset(seed=20 + i)[0] for i, e in enumerate(envs)]))
+    envs = [gym.make(ENV_ID, max_episode_steps=T, **options) for _ in range(B)]
+    singles = [e.reset(seed=20 + i) for i, e in enumerate(envs)]
+    assert np.array_equal(vec.reset(), np.stack([o for o, _ in singles]))
+    assert vec.reset_infos == [info for _, info in singles]
     rng = np.random.default_rng(2)
     for _ in range(100):
         a = rng.uniform(-1, 1, (B, 6)).astype(np.float32)
@@ -249,7 +265,8 @@ def test_sb3_vec_env_equals_single_envs_with_immediate_reset():
             if te or tr:
                 assert np.array_equal(infos[i]["terminal_observation"], o)
                 assert infos[i]["TimeLimit.truncated"] == (tr and not te)
-                o, _ = e.reset()
+                o, info = e.reset()
+                assert vec.reset_infos[i] == info
             assert np.array_equal(o, obs[i])
 
 

@@ -234,6 +234,13 @@ TP_MAX_STRETCHED_LENGTH = TASK_PARAMS.scalar("max_stretched_length")
 TP_WORKSPACE_RADIUS = TASK_PARAMS.scalar("workspace_radius")
 TP_STRING_LENGTH = TASK_PARAMS.scalar("string_length")
 
+#: An episode's physical parameters (esp_gym/randomize.py; the env's ``reset`` info
+#: ``"scene_params"``): string rest length [m], axial stiffness [N], mass per length [kg/m], load
+#: mass [kg], load box edges [m], attachment offsets (rho_c x, y, body frame) [m], pivot mass [kg].
+SCENE_PARAMS = Layout(*((name, 1) for name in (
+    "string_length", "EA", "mass_per_length", "load_mass", "load_size_x", "load_size_y", "load_size_z",
+    "attachment_offset_x", "attachment_offset_y", "pivot_mass")))
+
 # -- a recording sample (kernels/recording.py, esp_gym/viz/recorder.py) ---------------------------
 
 #: The fixed head of a recording sample row; then the nodes r (N+1, 3), the per-element strain

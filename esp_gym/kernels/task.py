@@ -198,24 +198,33 @@ def diag_row(D, b):
     return DiagWork(D.V[b], D.strain[b], D.omega[b], D.out[b])
 
 
+@kernel(inline="always")
+def params_row(P, b):
+    """Sub-environment ``b``'s constants from a stacked :class:`LGVIParams` (each scalar field a
+    (B,) array, each array field with a leading batch axis): the types of one environment's."""
+    return LGVIParams(P.h[b], P.m[b], P.kappa[b], P.u[b], P.g[b], P.M[b], P.Mp[b], P.rho[b], P.J[b], P.Jd[b],
+                      P.Jeff[b], P.inv[b], P.cp[b], P.off[b], P.w[b], P.first[b], P.slack[b], P.tol[b],
+                      P.max_iter[b], P.gammas[b], P.max_len2[b], P.compensated[b], P.mdiag[b])
+
+
 @kernel(parallel=True)
 def env_step_batch(s, w, d, p, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, result):
     """:func:`take_action` of ``raw[b]`` and :func:`env_step_one` for every environment b with
     ``active[b]``, in parallel (the raw actions must be finite: :func:`actions_finite`).
 
-    ``s, w, d`` are StateArrays, Work and DiagWork whose arrays carry a leading batch axis, and
-    ``p`` the shared LGVIParams, all as plain tuples (see :func:`env_step`); the other arrays
-    are batched too: raw (B, ACTION), inputs (B, INPUTS), target (B, TARGET), action, obs,
-    terms, result (B, REPORT).
+    ``s, w, d, p`` are StateArrays, Work, DiagWork and LGVIParams whose arrays carry a leading
+    batch axis (:func:`params_row`), as plain tuples (see :func:`env_step`); the other arrays
+    are batched too: raw (B, ACTION), ap (B, ACTION_PARAMS), inputs (B, INPUTS), nsub (B,),
+    target (B, TARGET), tp (B, TASK_PARAMS), action, obs, terms, result (B, REPORT).
     """
     S = StateArrays(*s)
     W = Work(*w)
     D = DiagWork(*d)
     P = LGVIParams(*p)
     for b in prange(raw.shape[0]):
-        if active[b] and take_action(raw[b], ap, action[b], inputs[b]):
-            env_step_one(state_row(S, b), work_row(W, b), P, diag_row(D, b), inputs[b], nsub, target[b], tp,
-                         action[b], obs[b], terms[b], result[b])
+        if active[b] and take_action(raw[b], ap[b], action[b], inputs[b]):
+            env_step_one(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), inputs[b], nsub[b],
+                         target[b], tp[b], action[b], obs[b], terms[b], result[b])
 
 
 @kernel(parallel=True)
@@ -226,6 +235,6 @@ def env_step_batch_implicit(s, w, d, p, raw, ap, inputs, active, nsub, target, t
     D = DiagWork(*d)
     P = LGVIParams(*p)
     for b in prange(raw.shape[0]):
-        if active[b] and take_action(raw[b], ap, action[b], inputs[b]):
-            env_step_one(state_row(S, b), work_row(W, b), P, diag_row(D, b), inputs[b], nsub, target[b], tp,
-                         action[b], obs[b], terms[b], result[b], True)
+        if active[b] and take_action(raw[b], ap[b], action[b], inputs[b]):
+            env_step_one(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), inputs[b], nsub[b],
+                         target[b], tp[b], action[b], obs[b], terms[b], result[b], True)

@@ -1,0 +1,188 @@
+"""Per-episode randomisation of the tether and the load (``randomize=`` of ElasticStringPendulum-v0).
+
+Each episode draws the physical parameters of :data:`~esp_gym.kernels.layout.SCENE_PARAMS` from
+the environment's ``np_random``, in that order, one uniform draw each (so a range that is a
+single value leaves the stream of the others unchanged):
+
+=========================  =====  ===========  ==========================================
+name                        unit   draw         default range (of the nominal scene's value)
+=========================  =====  ===========  ==========================================
+``string_length``           m      uniform      x [0.75, 1.25]
+``EA``                      N      log-uniform  x [0.5, 2]
+``mass_per_length``         kg/m   log-uniform  x [0.5, 2]
+``load_mass``               kg     log-uniform  x [0.5, 2]
+``load_size_x, _y, _z``     m      uniform      x [0.75, 1.25] each (box loads only)
+``attachment_offset_x, _y`` m      uniform      +- a quarter of the box's x, y size
+``pivot_mass``              kg     log-uniform  x [0.5, 2]
+=========================  =====  ===========  ==========================================
+
+The attachment offsets are rho_c's x and y (attachment point -> centre of mass, body frame);
+rho_c's z scales with the box's height, so the attachment stays on the same face. A load given
+by its inertia instead of a shape keeps its geometry: its inertia scales with its mass. N, the
+law, the mass model, the pivot kind and the scheme stay the scene's: an episode changes
+run-time values only, never a compiled kernel's types.
+
+User ranges (``randomize={"EA": (1e3, 1e6), ...}``) are absolute, in the units above, and
+replace the defaults of the names given; a pair (v, v) fixes a value. The extreme scenes of the
+ranges are validated like any scene when the environment is made.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any, Mapping, Optional, Union
+
+import numpy as np
+
+from .kernels.layout import SCENE_PARAMS
+from .params import Box, Scene, scene_from_dict
+
+#: The names drawn on a log scale (scale parameters); the others are uniform.
+LOG_UNIFORM = frozenset({"EA", "mass_per_length", "load_mass", "pivot_mass"})
+#: Names that may take values <= 0.
+SIGNED = frozenset({"attachment_offset_x", "attachment_offset_y"})
+#: Names that need a box-shaped load.
+BOX_ONLY = frozenset({"load_size_x", "load_size_y", "load_size_z", "attachment_offset_x", "attachment_offset_y"})
+
+
+def nominal_values(scene: Scene) -> dict:
+    """The scene's own values of :data:`SCENE_PARAMS` (box-only names: NaN for other loads)."""
+    body = scene.body
+    box = isinstance(body.shape, Box) and body.inertia is None
+    size = body.shape.size if box else (math.nan,) * 3
+    rho = body.rho_c
+    values = dict(string_length=scene.string.length, EA=scene.string.EA,
+                  mass_per_length=scene.string.mass_per_length, load_mass=body.mass,
+                  load_size_x=size[0], load_size_y=size[1], load_size_z=size[2],
+                  attachment_offset_x=rho[0] if box else math.nan, attachment_offset_y=rho[1] if box else math.nan,
+                  pivot_mass=scene.pivot.mass or 0.0)
+    return {name: float(values[name]) for name in SCENE_PARAMS.names}
+
+
+def default_ranges(scene: Scene) -> dict:
+    """The default range of each name for ``scene`` (module docstring); box-only names are
+    left out for other loads."""
+    v = nominal_values(scene)
+    out = {}
+    for name in SCENE_PARAMS.names:
+        if math.isnan(v[name]):
+            continue
+        if name in LOG_UNIFORM:
+            out[name] = (0.5 * v[name], 2.0 * v[name])
+        elif name.startswith("attachment_offset"):
+            half = 0.25 * v["load_size_" + name[-1]]
+            out[name] = (-half, half)
+        else:
+            out[name] = (0.75 * v[name], 1.25 * v[name])
+    return out
+
+
+def _pair(name: str, given: Any) -> tuple:
+    """A user's range: two finite real numbers, low <= high (positive unless signed)."""
+    what = f"randomize: {name}"
+    if isinstance(given, (str, bytes, Mapping)) or not hasattr(given, "__len__") or len(given) != 2:
+        raise ValueError(f"{what} must be a pair (low, high), got {given!r}")
+    out = []
+    for x in given:
+        if isinstance(x, (bool, np.bool_)) or not isinstance(x, (int, float, np.integer, np.floating)):
+            raise ValueError(f"{what} must hold two real numbers, got {given!r}")
+        if not math.isfinite(float(x)):
+            raise ValueError(f"{what} must be finite, got {given!r}")
+        out.append(float(x))
+    low, high = out
+    if low > high:
+        raise ValueError(f"{what}: low {low} > high {high}")
+    if name not in SIGNED and low <= 0.0:
+        raise ValueError(f"{what} must be > 0, got {given!r}")
+    return low, high
+
+
+class Randomizer:
+    """The ranges of one environment and the draw of an episode's scene from them.
+
+    ``spec``: True (the defaults) or a mapping name -> (low, high) overriding them.
+    ValueError naming the bad entry: an unknown name, a malformed range, a box-only name on a
+    load without a box shape, a corner of the ranges that is not a valid scene."""
+
+    def __init__(self, scene: Scene, spec: Union[bool, Mapping[str, Any]] = True):
+        self.nominal = scene
+        ranges = default_ranges(scene)
+        if isinstance(spec, Mapping):
+            for name, given in spec.items():
+                if name not in SCENE_PARAMS:
+                    raise ValueError(f"randomize: unknown parameter {name!r}; choose from {list(SCENE_PARAMS.names)}")
+                if name in BOX_ONLY and name not in ranges:
+                    raise ValueError(f"randomize: {name} needs a box-shaped load given by its shape "
+                                     f"(scene {scene.name!r} has {scene.body.shape!r})")
+                ranges[name] = _pair(name, given)
+        elif spec is not True:
+            raise ValueError(f"randomize must be False, True or a mapping name -> (low, high), got {spec!r}")
+        #: name -> (low, high), SI; names without a range keep the nominal value
+        self.ranges = ranges
+        nominal = nominal_values(scene)
+        self._low = np.array([ranges.get(k, (nominal[k], nominal[k]))[0] for k in SCENE_PARAMS.names])
+        self._high = np.array([ranges.get(k, (nominal[k], nominal[k]))[1] for k in SCENE_PARAMS.names])
+        self._log = np.array([k in LOG_UNIFORM and k in ranges for k in SCENE_PARAMS.names])
+        self._check_corners()
+
+    def stiffest(self) -> np.ndarray:
+        """The values of the episode that needs the smallest step: the shortest, lightest,
+        stiffest string, the heaviest load (the implicit string's transverse bound), the others
+        nominal."""
+        names = SCENE_PARAMS.names
+        values = np.array([nominal_values(self.nominal)[k] for k in names])
+        for k in ("string_length", "mass_per_length"):
+            values[names.index(k)] = self._low[names.index(k)]
+        for k in ("EA", "load_mass"):
+            values[names.index(k)] = self._high[names.index(k)]
+        return values
+
+    def draw(self, rng: np.random.Generator) -> np.ndarray:
+        """One episode's values (SCENE_PARAMS order), one uniform draw per name."""
+        unit = rng.random(SCENE_PARAMS.size)
+        out = np.empty(SCENE_PARAMS.size)
+        for i in range(SCENE_PARAMS.size):
+            lo, hi = self._low[i], self._high[i]
+            if self._log[i]:
+                out[i] = math.exp(math.log(lo) + unit[i] * (math.log(hi) - math.log(lo))) if hi > lo else lo
+            else:
+                out[i] = lo + unit[i] * (hi - lo)
+        return out
+
+    def scene(self, values: np.ndarray, h: Optional[float] = None) -> Scene:
+        """The nominal scene with ``values`` (SCENE_PARAMS order) and step ``h``: copies of its
+        sections, not validated again (the ranges' corners were)."""
+        v = dict(zip(SCENE_PARAMS.names, values.tolist()))
+        base = self.nominal
+        body = base.body
+        update: dict = {"mass": v["load_mass"]}
+        if isinstance(body.shape, Box) and body.inertia is None:
+            old = body.shape.size
+            size = (v["load_size_x"], v["load_size_y"], v["load_size_z"])
+            update["shape"] = body.shape.model_copy(update={"size": size})
+            update["rho_c"] = (v["attachment_offset_x"], v["attachment_offset_y"], body.rho_c[2] * size[2] / old[2])
+        elif body.inertia is not None:  # same geometry, scaled mass: J scales with M
+            ratio = v["load_mass"] / body.mass
+            update["inertia"] = tuple(tuple(ratio * x for x in row) for row in body.inertia)
+        string = base.string.model_copy(update={"length": v["string_length"], "EA": v["EA"],
+                                                "mass_per_length": v["mass_per_length"]})
+        sections = {"string": string, "body": body.model_copy(update=update)}
+        if base.pivot.is_free:
+            sections["pivot"] = base.pivot.model_copy(update={"mass": v["pivot_mass"]})
+        if h is not None:
+            sections["h"] = float(h)
+        return base.model_copy(update=sections)
+
+    def _check_corners(self) -> None:
+        """Validate the extreme scenes: all lows, all highs, and the one with the smallest box
+        and the largest offsets (where the body's inertia is least well conditioned)."""
+        lows, highs = self._low.copy(), self._high.copy()
+        thin = highs.copy()
+        for i, name in enumerate(SCENE_PARAMS.names):
+            if name.startswith("load_size"):
+                thin[i] = lows[i]
+            elif name.startswith("attachment_offset"):
+                thin[i] = lows[i] if abs(lows[i]) > abs(highs[i]) else highs[i]
+        for what, values in (("the lows", lows), ("the highs", highs), ("the smallest box, largest offset", thin)):
+            data = self.scene(values).model_dump()
+            data["allow_unstable_h"] = True  # the environment chooses each episode's h
+            scene_from_dict(data, source=f"at {what} of the randomize ranges")  # ValueError naming the field
