@@ -11,7 +11,8 @@ Prints a table and writes ``OUT/env_throughput.json`` and ``OUT/env_throughput.p
   (``scene_overrides``), random actions, resets included, with the environment's own scheme and
   step and with the implicit string asked for (``solver.string: implicit``), the runs of one
   repeat interleaved; writes ``OUT/env_throughput_ea.json``;
-* ``--realism`` (alone): the plain environment against the realism options (``randomize=True``),
+* ``--realism`` (alone): the plain environment against the realism options (``randomize=True``,
+  then with the ``hook`` observation and sensor noise too),
   single and 8 batched, random actions, interleaved; writes ``OUT/env_throughput_realism.json``.
 
 Each figure is the median of ``--repeats`` timed runs after a warm-up (compilation excluded).
@@ -139,7 +140,8 @@ def ea_sweep(args) -> dict:
 
 
 #: The options the realism comparison times against the plain environment.
-REALISM = {"plain": {}, "randomize": {"randomize": True}}
+REALISM = {"plain": {}, "randomize": {"randomize": True},
+           "randomize, hook, noise": {"randomize": True, "observation": "hook", "sensor_noise": 1.0}}
 #: Batch size of the realism comparison's batched runs.
 REALISM_BATCH = 8
 
@@ -156,9 +158,9 @@ def realism(args) -> dict:
             rates[(name, "batched")].append(batched(
                 lambda n, o=options: gym.make_vec(esp_gym.ENV_ID, num_envs=n, **o), REALISM_BATCH, 4 * steps, 1, False))
     table = {name: {kind: float(np.median(rates[(name, kind)])) for kind in ("single", "batched")} for name in REALISM}
-    print(f"options      single [steps/s]  ratio   batched x{REALISM_BATCH} [steps/s]  ratio")
+    print(f"{'options':24s} single [steps/s]  ratio   batched x{REALISM_BATCH} [steps/s]  ratio")
     for name, row in table.items():
-        print(f"{name:12s} {row['single']:15,.0f}  {row['single'] / table['plain']['single']:5.2f}   "
+        print(f"{name:24s} {row['single']:15,.0f}  {row['single'] / table['plain']['single']:5.2f}   "
               f"{row['batched']:19,.0f}  {row['batched'] / table['plain']['batched']:5.2f}")
     finish(args.out, "env_throughput_realism", {"table": table, "options": {k: repr(v) for k, v in REALISM.items()},
                                                 "steps": steps, "repeats": repeats,

@@ -24,12 +24,13 @@ import numpy as np
 from gymnasium import spaces
 
 from .kernels.layout import (ACTION, ACTION_PARAMS, ACTION_SIZE, INPUTS, OBSERVATION, R_TERMINATION, REPORT, REWARD,
-                             REWARD_TERMS, SCENE_PARAMS, TARGET)
+                             REWARD_TERMS, SCENE_PARAMS, SENSORS, TARGET)
 from .kernels.string import state_forces
 from .kernels.task import (actions_finite, env_reset_observe, env_step, env_step_batch, env_step_batch_implicit,
                            env_step_implicit)
 from .model import Simulator
 from .options import MAX_SUBSTEPS, check_count, env_options
+from .observe import Observer
 from .randomize import Randomizer, nominal_values
 from .state import State, build_params, check_memory
 from .params import Scene, load_scene, override_scene, scene_from_dict
@@ -88,10 +89,17 @@ class EnvSetup:
     safety: float = 0.5  #: margin under the stability bound of each episode's automatic h
     fixed_h: Optional[float] = None  #: the user's h (every episode), or None: each episode's own
     randomizer: Optional[Randomizer] = None  #: the per-episode ranges, or None: the nominal scene
+    observer: Observer = Observer()  #: the observation mode and its sensor noise
+    action_latency: int = 0  #: control steps between an action and its application
+
+    @property
+    def observation_structure(self) -> dict:
+        """Name -> slice of the observation vector of this setup's mode."""
+        return self.observer.layout.structure()
 
     @property
     def observation_space(self) -> spaces.Box:
-        return spaces.Box(-np.inf, np.inf, (OBSERVATION.size,), np.float32)
+        return spaces.Box(-np.inf, np.inf, (self.observer.layout.size,), np.float32)
 
     @property
     def action_space(self) -> spaces.Box:
@@ -126,12 +134,15 @@ class EnvSetup:
 def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabilize",
                control_period: float = 0.02, h: Optional[float] = None, safety: float = 0.5,
                force_limit: Optional[float] = None, torque_limit: float = 0.02,
-               scene_overrides: Optional[dict] = None, randomize: Union[bool, dict] = False) -> EnvSetup:
+               scene_overrides: Optional[dict] = None, randomize: Union[bool, dict] = False,
+               observation: str = "full", sensor_noise: Union[float, dict] = 0.0,
+               action_latency: int = 0) -> EnvSetup:
     """Resolve the environment's arguments (see :class:`~esp_gym.env.ElasticStringPendulumEnv`),
     validated by :class:`~esp_gym.options.EnvOptions` (ValueError naming each bad one)."""
     o = env_options(scene=scene, task=task, control_period=control_period, h=h, safety=safety,
                     force_limit=force_limit, torque_limit=torque_limit, scene_overrides=scene_overrides,
-                    randomize=randomize)
+                    randomize=randomize, observation=observation, sensor_noise=sensor_noise,
+                    action_latency=action_latency)
     control_period, h, safety = o.control_period, o.h, o.safety
     overrides = dict(o.scene_overrides or {})
     base = o.scene if isinstance(o.scene, Scene) else load_scene(o.scene)
@@ -175,7 +186,8 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
     t = get_task(o.task)
     return EnvSetup(scene=resolved, task=t, task_params=t.params(resolved), control_period=float(control_period),
                     substeps=substeps, hover=np.array([0.0, 0.0, -weight]), force_limit=float(force_limit),
-                    torque_limit=float(o.torque_limit), safety=float(safety), fixed_h=h, randomizer=randomizer)
+                    torque_limit=float(o.torque_limit), safety=float(safety), fixed_h=h, randomizer=randomizer,
+                    observer=Observer(o.observation, o.sensor_noise), action_latency=o.action_latency)
 
 
 def raw_actions(actions, shape: tuple, name: str = "action") -> np.ndarray:
@@ -252,6 +264,9 @@ class ControlStep:
         self._obs = z(batch + (OBSERVATION.size,))
         self._terms = z(batch + (REWARD.size,))
         self._report = z(batch + (REPORT.size,), dtype=np.int64)
+        self._sensors = z(batch + (SENSORS.size,))
+        # actions on their way (oldest first): each step applies the oldest and queues the new one
+        self._pending = z(batch + (setup.action_latency, ACTION.size))
         # the episode's run-time physics besides the stepper's constants
         self._substeps = np.full(batch, nominal.substeps, dtype=np.int64)
         self._task_params = np.tile(nominal.task_params, batch + (1,))
@@ -270,10 +285,12 @@ class ControlStep:
         self.inputs = read_only(self._inputs)
         self.target = read_only(self._target)
         self.report = read_only(self._report)
+        self.sensors = read_only(self._sensors)
         self.scene_params = read_only(self._scene_params)
 
     # a pickled view would come back as a copy: pickle the arrays, rebuild the views
-    _VIEWS = ("_kernel_tuples", "observation", "reward_terms", "action", "inputs", "target", "report", "scene_params")
+    _VIEWS = ("_kernel_tuples", "observation", "reward_terms", "action", "inputs", "target", "report", "sensors",
+              "scene_params")
 
     def __getstate__(self) -> dict:
         return {k: v for k, v in self.__dict__.items() if k not in self._VIEWS}
@@ -329,6 +346,7 @@ class ControlStep:
             self.sim.set_state(state)
             S, D, P = self._state, self._diag, self._params
             obs, terms, action, tgt, tp = self._obs, self._terms, self._action, self._target, self._task_params
+            sensors, pending = self._sensors, self._pending
         else:
             i = int(index)
             S, D = self._row(i)
@@ -339,12 +357,14 @@ class ControlStep:
             state_forces(S, P)
             obs, terms, action, tgt, tp = self._obs[i], self._terms[i], self._action[i], self._target[i], \
                 self._task_params[i]
+            sensors, pending = self._sensors[i], self._pending[i]
         tgt[...] = target
         action[...] = 0.0
+        pending[...] = 0.0  # a new episode starts with hover commands in flight
         if not self._ready:
             self._was_reset[() if index is None else int(index)] = True
             self._ready = bool(self._was_reset.all())
-        return int(env_reset_observe(S, P, D, tgt, tp, action, obs, terms))
+        return int(env_reset_observe(S, P, D, tgt, tp, action, obs, terms, sensors))
 
     # -- step -------------------------------------------------------------------------------------
     def step(self, actions, active: Optional[np.ndarray] = None) -> None:
@@ -356,11 +376,16 @@ class ControlStep:
         if not self._ready:
             never = "" if self.num_envs is None else f" (sub-environments {np.flatnonzero(~self._was_reset).tolist()})"
             raise RuntimeError(f"call reset() before step(){never}")
+        latency = self.setup.action_latency
         if self.num_envs is None:
             raw = raw_actions(actions, (ACTION.size,))
+            if latency:
+                if not actions_finite(raw[None]):
+                    raise ValueError(f"action must be finite, got {raw.tolist()}")
+                raw = self._delay(raw, self._pending)
             step = env_step_implicit if self.sim.implicit else env_step
             if not step(s, w, p, d, raw, self._action_params, self._inputs, int(self._substeps), self._target,
-                        self._task_params, self._action, self._obs, self._terms, self._report):
+                        self._task_params, self._action, self._obs, self._terms, self._sensors, self._report):
                 raise ValueError(f"action must be finite, got {raw.tolist()}")
             self.sim.count_steps(self._report)
             return
@@ -369,9 +394,21 @@ class ControlStep:
             raise ValueError("actions must be finite")
         if active is None:
             active = np.ones(self.num_envs, dtype=bool)
+        if latency:
+            raw = raw.copy()
+            for i in np.flatnonzero(active):
+                raw[i] = self._delay(raw[i], self._pending[i])
         batch = env_step_batch_implicit if self.sim.implicit else env_step_batch
         batch(s, w, d, p, raw, self._action_params, self._inputs, active, self._substeps, self._target,
-              self._task_params, self._action, self._obs, self._terms, self._report)
+              self._task_params, self._action, self._obs, self._terms, self._sensors, self._report)
+
+    @staticmethod
+    def _delay(raw: np.ndarray, pending: np.ndarray) -> np.ndarray:
+        """Queue ``raw`` behind the ``pending`` actions (oldest first) and return the oldest."""
+        applied = pending[0].copy()
+        pending[:-1] = pending[1:]
+        pending[-1] = raw
+        return applied
 
     # -- the report, by name ----------------------------------------------------------------------
     def reward(self):

@@ -9,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 
 from .control import INFO_REWARD_KEYS, ControlStep, make_setup
-from .kernels.layout import INPUTS, OBSERVATION, TARGET, termination_reason
+from .kernels.layout import INPUTS, TARGET, termination_reason
 from .kernels.layout import SCENE_PARAMS
 from .params import Scene
 
@@ -47,6 +47,12 @@ class ElasticStringPendulumEnv(gym.Env):
     | 12-17 | `attitude_6d`: first two columns of R (body x and y axes, spatial frame) | - |
     | 18-20 | `angular_velocity`: body angular velocity, body frame | rad/s |
     | 21 | `string_stretch`: stretched length / l - 1 | - |
+
+    `observation="hook"`: `Box(-inf, inf, (12,), float32)`, what the hook measures, no load
+    state: `pivot_position_error` (0-2) [m], `pivot_velocity` (3-5) [m/s], `hook_tension`
+    (6-8): the string's pull on the pivot, the first element's force [N], `load_target_offset`
+    (9-11): load target - pivot position [m]. `sensor_noise` adds Gaussian noise from
+    `np_random` to either mode (esp_gym/observe.py `UNIT_NOISE`, docs/environment.md).
 
     ## Rewards
     `reward = sum of info["reward_<term>"]` with, for x >= 0, `tol(x, s) = 1 / (1 + (x/s)^2)`:
@@ -88,6 +94,9 @@ class ElasticStringPendulumEnv(gym.Env):
     | `torque_limit` | 0.02 | [N m] per axis at action 1 |
     | `scene_overrides` | None | dict of scene overrides, validated as in `esp_gym.load_scene` |
     | `randomize` | False | True: each episode draws the string's length, EA, mass per length, the load's mass, box and attachment offset, and the pivot mass from default ranges around the scene's values; a dict name -> (low, high) sets ranges (esp_gym/randomize.py, docs/environment.md) |
+    | `observation` | `"full"` | `"full"` or `"hook"` (Observation Space) |
+    | `sensor_noise` | 0.0 | s: Gaussian noise of s x UNIT_NOISE per field; or a dict field -> standard deviation |
+    | `action_latency` | 0 | control steps (0-50) between an action and its application (hover before the first) |
     | `render_mode` | None | `"rgb_array"`: uint8 frames, front and side views |
 
     ## Version History
@@ -100,11 +109,12 @@ class ElasticStringPendulumEnv(gym.Env):
                  control_period: float = 0.02, h: Optional[float] = None, safety: float = 0.5,
                  force_limit: Optional[float] = None, torque_limit: float = 0.02,
                  scene_overrides: Optional[dict] = None, render_mode: Optional[str] = None,
-                 randomize: Union[bool, dict] = False):
+                 randomize: Union[bool, dict] = False, observation: str = "full",
+                 sensor_noise: Union[float, dict] = 0.0, action_latency: int = 0):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.setup = make_setup(scene, task, control_period, h, safety, force_limit, torque_limit, scene_overrides,
-                                randomize)
+                                randomize, observation, sensor_noise, action_latency)
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.setup.control_period))}
         self.observation_space = self.setup.observation_space
@@ -113,8 +123,9 @@ class ElasticStringPendulumEnv(gym.Env):
         self.control = ControlStep(self.setup)
         #: The simulator of this environment (its state and diagnostics).
         self.sim = self.control.sim
-        #: Name -> slice of the observation vector (kernels/layout.py OBSERVATION).
-        self.observation_structure = OBSERVATION.structure()
+        #: Name -> slice of the observation vector of this mode (kernels/layout.py OBSERVATION,
+        #: HOOK_OBSERVATION).
+        self.observation_structure = self.setup.observation_structure
         self._renderer = None
 
     # -- named accessors (dm_control style) ---------------------------------------------------
@@ -147,8 +158,10 @@ class ElasticStringPendulumEnv(gym.Env):
         values = self.control.start_episode(self.np_random)
         if self._renderer is not None and self.setup.randomizer is not None:
             self._renderer = None  # the load and the string change with the episode
-        return self.control.observation.astype(np.float32), {"scene_params": dict(zip(SCENE_PARAMS.names,
-                                                                                      values.tolist()))}
+        return self._observe(), {"scene_params": dict(zip(SCENE_PARAMS.names, values.tolist()))}
+
+    def _observe(self) -> np.ndarray:
+        return self.setup.observer.observe(self.control.observation, self.control.sensors, self.np_random)
 
     def step(self, action):
         control = self.control
@@ -159,7 +172,7 @@ class ElasticStringPendulumEnv(gym.Env):
         code = control.termination
         if code:
             info["termination_reason"] = termination_reason(code)
-        return control.observation.astype(np.float32), reward, code != 0, False, info
+        return self._observe(), reward, code != 0, False, info
 
     def render(self):
         if self.render_mode != "rgb_array":

@@ -9,7 +9,7 @@ fractional count. Every error names the argument.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any, Optional, Union
+from typing import Annotated, Any, Literal, Optional, Union
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError
 
@@ -19,6 +19,8 @@ from .scene_input import Real, plain_number
 #: Physics steps per control step above which the environment refuses to start: past this a
 #: single ``step`` costs tens of milliseconds or more (0.33 us per physics step at N = 20).
 MAX_SUBSTEPS = 100_000
+#: The longest action latency [control steps] (a second at the default 50 Hz).
+MAX_LATENCY = 50
 
 
 #: A count: a whole number (an integral float such as 2.0 counts), never a bool or text. Real
@@ -41,6 +43,10 @@ class EnvOptions(BaseModel):
     scene_overrides: Optional[dict] = None
     #: False, True or name -> (low, high): checked by esp_gym/randomize.py (no coercion here)
     randomize: Any = False
+    observation: Literal["full", "hook"] = "full"
+    #: a level or field -> standard deviation: checked by esp_gym/observe.py
+    sensor_noise: Any = 0.0
+    action_latency: Count = Field(0, ge=0, le=MAX_LATENCY, description="control steps")
 
 
 def validation_message(error: ValidationError, what: str) -> str:

@@ -50,7 +50,7 @@ class ElasticStringPendulumSB3VecEnv(VecEnv):
         self._reset_seeds()
         self._reset_options()
         self._elapsed[:] = 0
-        return self.control.observation.astype(np.float32)
+        return self.setup.observer.observe_batch(self.control.observation, self.control.sensors, self._rngs)
 
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = actions  # checked by the step (step_wait), before anything changes
@@ -63,7 +63,8 @@ class ElasticStringPendulumSB3VecEnv(VecEnv):
         self._elapsed += 1
         truncated = self._elapsed >= self.max_episode_steps if self.max_episode_steps else np.zeros_like(terminated)
         dones = terminated | truncated
-        obs = control.observation.astype(np.float32)
+        observer = self.setup.observer
+        obs = observer.observe_batch(control.observation, control.sensors, self._rngs)
         infos = [dict(zip(INFO_REWARD_KEYS, terms)) for terms in control.reward_terms.tolist()]
         for i in np.flatnonzero(dones):
             infos[i]["terminal_observation"] = obs[i].copy()
@@ -72,7 +73,7 @@ class ElasticStringPendulumSB3VecEnv(VecEnv):
                 infos[i]["termination_reason"] = termination_reason(control.termination[i])
             reset_sub_env(control, i, self._rngs[i])
             self.reset_infos[i] = self._scene_params(i)
-            obs[i] = control.observation[i]
+            obs[i] = observer.observe(control.observation[i], control.sensors[i], self._rngs[i])
             self._elapsed[i] = 0
         return obs, rewards, dones, infos
 

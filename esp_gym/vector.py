@@ -87,8 +87,11 @@ class ElasticStringPendulumVectorEnv(VectorEnv):
             reset_sub_env(self.control, i, self._rngs[i])
         self._elapsed[:] = 0
         self._autoreset[:] = False
-        return self.control.observation.astype(np.float32), scene_params_info(self.control,
-                                                                               np.ones(self.num_envs, dtype=bool))
+        return self._observe(), scene_params_info(self.control, np.ones(self.num_envs, dtype=bool))
+
+    def _observe(self) -> np.ndarray:
+        control = self.control
+        return self.setup.observer.observe_batch(control.observation, control.sensors, self._rngs)
 
     def step(self, actions):
         control = self.control
@@ -115,4 +118,4 @@ class ElasticStringPendulumVectorEnv(VectorEnv):
         if terminated.any():
             infos["termination_reason"] = np.array([termination_reason(c) for c in code], dtype=object)
             infos["_termination_reason"] = terminated.copy()
-        return control.observation.astype(np.float32), rewards, terminated, truncated, infos
+        return self._observe(), rewards, terminated, truncated, infos

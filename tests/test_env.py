@@ -209,10 +209,12 @@ def test_vector_bad_actions_raise_and_change_nothing(kind):
 
 #: The options the batched envs must reproduce bit for bit: the plain env, and every episode's
 #: physics drawn anew (each sub-environment then runs its own constants and step count).
-VECTOR_OPTIONS = [{}, {"randomize": True}]
+VECTOR_OPTIONS = [{}, {"randomize": True},
+                  {"randomize": True, "observation": "hook", "sensor_noise": 1.0, "action_latency": 2}]
+VECTOR_IDS = ["plain", "randomize", "hook-noise-latency"]
 
 
-@pytest.mark.parametrize("options", VECTOR_OPTIONS, ids=["plain", "randomize"])
+@pytest.mark.parametrize("options", VECTOR_OPTIONS, ids=VECTOR_IDS)
 def test_vector_env_equals_single_envs_bit_for_bit(options):
     """gymnasium.make_vec uses the batched entry point; with seeds s+i and the same actions each
     sub-environment reproduces a single env exactly, through next-step autoresets (and reports
@@ -246,7 +248,7 @@ def test_vector_env_equals_single_envs_bit_for_bit(options):
     assert ended >= B  # autoreset was exercised
 
 
-@pytest.mark.parametrize("options", VECTOR_OPTIONS, ids=["plain", "randomize"])
+@pytest.mark.parametrize("options", VECTOR_OPTIONS, ids=VECTOR_IDS)
 def test_sb3_vec_env_equals_single_envs_with_immediate_reset(options):
     B, T = 3, 40
     vec = ElasticStringPendulumSB3VecEnv(num_envs=B, max_episode_steps=T, **options)

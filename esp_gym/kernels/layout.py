@@ -203,6 +203,18 @@ O_ANGULAR_VELOCITY = OBSERVATION.start("angular_velocity")
 O_STRETCH = OBSERVATION.scalar("string_stretch")
 OBS_SIZE = OBSERVATION.size
 
+#: What the compiled step measures besides the full observation: the string's pull on the
+#: pivot, the first element's force c x_0 (a load cell at the hook) [N], and the load target
+#: relative to the pivot [m], both spatial frame.
+SENSORS = Layout(("hook_tension", 3), ("load_target_offset", 3))
+SN_HOOK_TENSION = SENSORS.start("hook_tension")
+SN_LOAD_TARGET_OFFSET = SENSORS.start("load_target_offset")
+
+#: The ``hook`` observation: what a drone or a crane hook measures, no load state. Its fields
+#: are taken from OBSERVATION and SENSORS by name (esp_gym/observe.py).
+HOOK_OBSERVATION = Layout(("pivot_position_error", 3), ("pivot_velocity", 3), ("hook_tension", 3),
+                          ("load_target_offset", 3))
+
 #: Reward terms, in the order they are summed (env info keys are "reward_" + name).
 REWARD_TERMS = ("load_position", "load_velocity", "pivot_position", "swing", "spin", "control")
 REWARD = Layout(*((name, 1) for name in REWARD_TERMS))

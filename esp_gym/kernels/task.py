@@ -19,7 +19,7 @@ from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, ACTION_SIZE, AP_FORCE_LIMIT, 
                      AP_TORQUE_LIMIT, D_STRETCHED_LENGTH, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE,
                      O_ANGULAR_VELOCITY, O_ATTITUDE, O_LOAD_ERROR, O_LOAD_VELOCITY, O_PIVOT_ERROR, O_PIVOT_VELOCITY,
                      O_STRETCH, OK, R_STATUS, R_TERMINATION, RW_CONTROL, RW_LOAD_POSITION, RW_LOAD_VELOCITY,
-                     RW_PIVOT_POSITION, RW_SPIN, RW_SWING, T_LOAD, T_PIVOT, TERM_NONE, TERM_OVERSTRETCH,
+                     RW_PIVOT_POSITION, RW_SPIN, RW_SWING, SN_HOOK_TENSION, SN_LOAD_TARGET_OFFSET, T_LOAD, T_PIVOT, TERM_NONE, TERM_OVERSTRETCH,
                      TERM_WORKSPACE, TP_MAX_STRETCHED_LENGTH, TP_SCALE_POSITION, TP_SCALE_SPIN, TP_SCALE_SWING,
                      TP_SCALE_VELOCITY, TP_STRING_LENGTH, TP_W_CONTROL, TP_W_LOAD_POSITION, TP_W_LOAD_VELOCITY,
                      TP_W_PIVOT_POSITION, TP_W_SPIN, TP_W_SWING, TP_WORKSPACE_RADIUS, DiagWork, LGVIParams,
@@ -35,9 +35,29 @@ def _tol(x, scale):
 
 
 @kernel(inline="always")
-def env_observe(S, P, D, target, tp, action, obs, terms):
-    """Observation (OBSERVATION) and reward terms (REWARD) of the current state (``D`` filled
-    by diagnostics). Returns the termination code (TERM_*)."""
+def env_sensors(S, P, target, sensors):
+    """SENSORS of the current state: the first element's force on the pivot, c x_0 with c =
+    kappa (1 - u/|x_0|) (0 where a slack string is compressed; kernels/string.py
+    ``nodal_forces``), and the load target - pivot position."""
+    r = S.r
+    x0 = r[1, 0] - r[0, 0]
+    x1 = r[1, 1] - r[0, 1]
+    x2 = r[1, 2] - r[0, 2]
+    c = P.kappa * (1.0 - P.u / math.sqrt(x0 * x0 + x1 * x1 + x2 * x2))
+    if P.slack and c < 0.0:
+        c = 0.0
+    sensors[SN_HOOK_TENSION] = c * x0
+    sensors[SN_HOOK_TENSION + 1] = c * x1
+    sensors[SN_HOOK_TENSION + 2] = c * x2
+    for i in range(3):
+        sensors[SN_LOAD_TARGET_OFFSET + i] = target[T_LOAD + i] - r[0, i]
+
+
+@kernel(inline="always")
+def env_observe(S, P, D, target, tp, action, obs, terms, sensors):
+    """Observation (OBSERVATION), SENSORS and reward terms (REWARD) of the current state (``D``
+    filled by diagnostics). Returns the termination code (TERM_*)."""
+    env_sensors(S, P, target, sensors)
     r = S.r
     R = S.R
     n = r.shape[0] - 1
@@ -132,7 +152,7 @@ def take_action(raw, ap, action, inputs):
 
 
 @kernel(inline="always")
-def env_step_one(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, result, implicit=False):
+def env_step_one(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, sensors, result, implicit=False):
     """One control step: ``nsub`` physics steps with constant ``inputs`` (INPUTS), then
     observation, reward terms and termination code. ``result``: the step's REPORT (int64).
     ``implicit`` (a compile-time constant): the implicit string's step (kernels/implicit.py)."""
@@ -140,12 +160,12 @@ def env_step_one(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, resul
     advance_loop(S, W, P, inputs, nsub, result, P.first == 0, True, True, P.compensated, False, implicit)
     status = result[R_STATUS]
     diagnostics(S, P, D)
-    code = env_observe(S, P, D, target, tp, action, obs, terms)
+    code = env_observe(S, P, D, target, tp, action, obs, terms, sensors)
     result[R_TERMINATION] = status if status != OK else code
 
 
 @kernel
-def env_step(s, w, p, d, raw, ap, inputs, nsub, target, tp, action, obs, terms, result):
+def env_step(s, w, p, d, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result):
     """:func:`take_action` of the raw action, then :func:`env_step_one`, for one environment
     (one compiled call per control step). Returns False, with nothing changed, if the raw
     action is not finite.
@@ -156,26 +176,26 @@ def env_step(s, w, p, d, raw, ap, inputs, nsub, target, tp, action, obs, terms, 
     if not take_action(raw, ap, action, inputs):
         return False
     env_step_one(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), inputs, nsub, target, tp, action,
-                 obs, terms, result)
+                 obs, terms, sensors, result)
     return True
 
 
 @kernel
-def env_step_implicit(s, w, p, d, raw, ap, inputs, nsub, target, tp, action, obs, terms, result):
+def env_step_implicit(s, w, p, d, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result):
     """:func:`env_step` with the implicit string (a kernel of its own: only scenes that use it
     compile it)."""
     if not take_action(raw, ap, action, inputs):
         return False
     env_step_one(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), inputs, nsub, target, tp, action,
-                 obs, terms, result, True)
+                 obs, terms, sensors, result, True)
     return True
 
 
 @kernel
-def env_reset_observe(S, P, D, target, tp, action, obs, terms):
+def env_reset_observe(S, P, D, target, tp, action, obs, terms, sensors):
     """Observation of a freshly set state (no step). Returns the termination code."""
     diagnostics(S, P, D)
-    return env_observe(S, P, D, target, tp, action, obs, terms)
+    return env_observe(S, P, D, target, tp, action, obs, terms, sensors)
 
 
 @kernel(inline="always")
@@ -208,14 +228,15 @@ def params_row(P, b):
 
 
 @kernel(parallel=True)
-def env_step_batch(s, w, d, p, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, result):
+def env_step_batch(s, w, d, p, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors, result):
     """:func:`take_action` of ``raw[b]`` and :func:`env_step_one` for every environment b with
     ``active[b]``, in parallel (the raw actions must be finite: :func:`actions_finite`).
 
     ``s, w, d, p`` are StateArrays, Work, DiagWork and LGVIParams whose arrays carry a leading
     batch axis (:func:`params_row`), as plain tuples (see :func:`env_step`); the other arrays
     are batched too: raw (B, ACTION), ap (B, ACTION_PARAMS), inputs (B, INPUTS), nsub (B,),
-    target (B, TARGET), tp (B, TASK_PARAMS), action, obs, terms, result (B, REPORT).
+    target (B, TARGET), tp (B, TASK_PARAMS), action, obs, terms, sensors (B, SENSORS), result
+    (B, REPORT).
     """
     S = StateArrays(*s)
     W = Work(*w)
@@ -224,11 +245,12 @@ def env_step_batch(s, w, d, p, raw, ap, inputs, active, nsub, target, tp, action
     for b in prange(raw.shape[0]):
         if active[b] and take_action(raw[b], ap[b], action[b], inputs[b]):
             env_step_one(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), inputs[b], nsub[b],
-                         target[b], tp[b], action[b], obs[b], terms[b], result[b])
+                         target[b], tp[b], action[b], obs[b], terms[b], sensors[b], result[b])
 
 
 @kernel(parallel=True)
-def env_step_batch_implicit(s, w, d, p, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, result):
+def env_step_batch_implicit(s, w, d, p, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors,
+                            result):
     """:func:`env_step_batch` with the implicit string."""
     S = StateArrays(*s)
     W = Work(*w)
@@ -237,4 +259,4 @@ def env_step_batch_implicit(s, w, d, p, raw, ap, inputs, active, nsub, target, t
     for b in prange(raw.shape[0]):
         if active[b] and take_action(raw[b], ap[b], action[b], inputs[b]):
             env_step_one(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), inputs[b], nsub[b],
-                         target[b], tp[b], action[b], obs[b], terms[b], result[b], True)
+                         target[b], tp[b], action[b], obs[b], terms[b], sensors[b], result[b], True)
