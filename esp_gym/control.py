@@ -4,14 +4,16 @@ single environment, the batched environments and the recording wrapper share.
 A :class:`ControlStep` owns the arrays of one environment (or, with ``num_envs``, of a batch:
 every array gains a leading axis) and the compiled calls on them (kernels/task.py):
 
-* :meth:`ControlStep.reset` puts a state and its targets in and computes the observation;
-* :meth:`ControlStep.step` takes a raw action, checks, clips and maps it to inputs, advances
-  ``setup.substeps`` physics steps and fills the report: observation, reward terms, clipped
-  action, inputs, and :data:`~esp_gym.kernels.layout.REPORT` (status, steps, Newton
-  iterations, termination code).
+* :meth:`ControlStep.start_episode` draws an episode (its physics when randomised, its state
+  and targets) and :meth:`ControlStep.reset` puts it in and computes the observation;
+* :meth:`ControlStep.step` takes a raw action (queued behind ``action_latency`` others),
+  checks, clips and maps it to inputs, advances the episode's physics steps and fills the
+  report: observation, sensors, reward terms, clipped action, inputs, and
+  :data:`~esp_gym.kernels.layout.REPORT` (status, steps, Newton iterations, termination code).
 
-Everything is readable through named, read-only views (``observation``, ``reward_terms``,
-``action``, ``inputs``, ``target``, ``report``) laid out in kernels/layout.py.
+Everything is readable through named, read-only views (``observation``, ``sensors``,
+``reward_terms``, ``action``, ``inputs``, ``target``, ``report``, ``scene_params``) laid out in
+kernels/layout.py; the observation a mode returns is esp_gym/observe.py's.
 """
 from __future__ import annotations
 
@@ -24,7 +26,7 @@ import numpy as np
 from gymnasium import spaces
 
 from .kernels.layout import (ACTION, ACTION_PARAMS, ACTION_SIZE, INPUTS, OBSERVATION, R_TERMINATION, REPORT, REWARD,
-                             REWARD_TERMS, SCENE_PARAMS, SENSORS, TARGET)
+                             REWARD_TERMS, SCENE_PARAMS, SENSORS, TARGET, LGVIParams)
 from .kernels.string import state_forces
 from .kernels.task import (actions_finite, env_reset_observe, env_step, env_step_batch, env_step_batch_implicit,
                            env_step_implicit)
@@ -35,7 +37,6 @@ from .randomize import Randomizer, nominal_values
 from .state import State, build_params, check_memory
 from .params import Scene, load_scene, override_scene, scene_from_dict
 from .stepsize import scheme_substeps
-from .kernels.layout import LGVIParams
 from .tasks import Task, get_task, sample_episode
 
 #: info keys of the reward terms, in REWARD_TERMS order
