@@ -165,33 +165,6 @@ def env_step_one(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, senso
 
 
 @kernel
-def env_step(s, w, p, d, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result):
-    """:func:`take_action` of the raw action, then :func:`env_step_one`, for one environment
-    (one compiled call per control step). Returns False, with nothing changed, if the raw
-    action is not finite.
-
-    ``s, w, p, d`` are the fields of StateArrays, Work, LGVIParams and DiagWork as *plain*
-    tuples: numba's dispatcher types a plain tuple about twice as fast as a namedtuple (3 us
-    less per call here), and the namedtuples are rebuilt for free in compiled code."""
-    if not take_action(raw, ap, action, inputs):
-        return False
-    env_step_one(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), inputs, nsub, target, tp, action,
-                 obs, terms, sensors, result)
-    return True
-
-
-@kernel
-def env_step_implicit(s, w, p, d, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result):
-    """:func:`env_step` with the implicit string (a kernel of its own: only scenes that use it
-    compile it)."""
-    if not take_action(raw, ap, action, inputs):
-        return False
-    env_step_one(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), inputs, nsub, target, tp, action,
-                 obs, terms, sensors, result, True)
-    return True
-
-
-@kernel
 def env_reset_observe(S, P, D, target, tp, action, obs, terms, sensors):
     """Observation of a freshly set state (no step). Returns the termination code."""
     diagnostics(S, P, D)
@@ -227,36 +200,51 @@ def params_row(P, b):
                       P.max_iter[b], P.gammas[b], P.max_len2[b], P.compensated[b], P.mdiag[b])
 
 
-@kernel(parallel=True)
-def env_step_batch(s, w, d, p, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors, result):
-    """:func:`take_action` of ``raw[b]`` and :func:`env_step_one` for every environment b with
-    ``active[b]``, in parallel (the raw actions must be finite: :func:`actions_finite`).
+def _entry_points(implicit: bool):
+    """``(step, batch)``, the compiled entry points of one string scheme (``implicit`` is a
+    closure constant, so each scheme compiles only when it is used; numba caches closures by
+    their values, as in kernels/specialise.py).
 
+    ``step(s, w, p, d, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result)``:
+    :func:`take_action` of the raw action, then :func:`env_step_one`, for one environment (one
+    compiled call per control step). Returns False, with nothing changed, if the raw action is
+    not finite. ``s, w, p, d`` are the fields of StateArrays, Work, LGVIParams and DiagWork as
+    *plain* tuples: numba's dispatcher types a plain tuple about twice as fast as a namedtuple
+    (3 us less per call here), and the namedtuples are rebuilt for free in compiled code.
+
+    ``batch(s, w, d, p, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors,
+    result)``: :func:`take_action` of ``raw[b]`` and :func:`env_step_one` for every environment
+    b with ``active[b]``, in parallel (the raw actions must be finite: :func:`actions_finite`).
     ``s, w, d, p`` are StateArrays, Work, DiagWork and LGVIParams whose arrays carry a leading
-    batch axis (:func:`params_row`), as plain tuples (see :func:`env_step`); the other arrays
-    are batched too: raw (B, ACTION), ap (B, ACTION_PARAMS), inputs (B, INPUTS), nsub (B,),
-    target (B, TARGET), tp (B, TASK_PARAMS), action, obs, terms, sensors (B, SENSORS), result
-    (B, REPORT).
+    batch axis (:func:`params_row`), as plain tuples; the other arrays are batched too: raw
+    (B, ACTION), ap (B, ACTION_PARAMS), inputs (B, INPUTS), nsub (B,), target (B, TARGET), tp
+    (B, TASK_PARAMS), action, obs, terms, sensors (B, SENSORS), result (B, REPORT).
     """
-    S = StateArrays(*s)
-    W = Work(*w)
-    D = DiagWork(*d)
-    P = LGVIParams(*p)
-    for b in prange(raw.shape[0]):
-        if active[b] and take_action(raw[b], ap[b], action[b], inputs[b]):
-            env_step_one(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), inputs[b], nsub[b],
-                         target[b], tp[b], action[b], obs[b], terms[b], sensors[b], result[b])
+
+    @kernel
+    def step(s, w, p, d, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result):
+        if not take_action(raw, ap, action, inputs):
+            return False
+        env_step_one(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), inputs, nsub, target, tp, action,
+                     obs, terms, sensors, result, implicit)
+        return True
+
+    @kernel(parallel=True)
+    def batch(s, w, d, p, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors, result):
+        S = StateArrays(*s)
+        W = Work(*w)
+        D = DiagWork(*d)
+        P = LGVIParams(*p)
+        for b in prange(raw.shape[0]):
+            if active[b] and take_action(raw[b], ap[b], action[b], inputs[b]):
+                env_step_one(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), inputs[b],
+                             nsub[b], target[b], tp[b], action[b], obs[b], terms[b], sensors[b], result[b],
+                             implicit)
+
+    return step, batch
 
 
-@kernel(parallel=True)
-def env_step_batch_implicit(s, w, d, p, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors,
-                            result):
-    """:func:`env_step_batch` with the implicit string."""
-    S = StateArrays(*s)
-    W = Work(*w)
-    D = DiagWork(*d)
-    P = LGVIParams(*p)
-    for b in prange(raw.shape[0]):
-        if active[b] and take_action(raw[b], ap[b], action[b], inputs[b]):
-            env_step_one(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), inputs[b], nsub[b],
-                         target[b], tp[b], action[b], obs[b], terms[b], sensors[b], result[b], True)
+#: The explicit string's entry points (see :func:`_entry_points`).
+env_step, env_step_batch = _entry_points(False)
+#: The implicit string's (kernels/implicit.py), compiled only for scenes that use it.
+env_step_implicit, env_step_batch_implicit = _entry_points(True)
