@@ -103,7 +103,7 @@ def _config(s: Settings) -> RunConfig:
         cfg = load_run_config(s.algo, esp_gym.ENV_ID, s.task, s.set)
     except ConfigError as err:
         raise SettingsError("--set" if err.override else None, str(err)) from None
-    from esp_gym.control import make_setup
+    from esp_gym.setup import make_setup
 
     try:  # env_kwargs' values, checked here rather than by the first environment
         make_setup(task=s.task, **cfg.env_kwargs)

@@ -17,178 +17,24 @@ kernels/layout.py; the observation a mode returns is esp_gym/observe.py's.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from functools import cached_property
-from pathlib import Path
-from typing import Optional, Union
+from typing import Optional
 
 import numpy as np
-from gymnasium import spaces
 
-from .kernels.layout import (ACTION, ACTION_PARAMS, ACTION_SIZE, INPUTS, OBSERVATION, R_TERMINATION, REPORT, REWARD,
-                             REWARD_TERMS, SCENE_PARAMS, SENSORS, TARGET, LGVIParams)
+from .kernels.layout import (ACTION, DISTURBANCE, DISTURBANCE_PARAMS, DRAWS, INPUTS, OBSERVATION, R_TERMINATION,
+                             REPORT, REWARD, REWARD_TERMS, SENSORS, TARGET, LGVIParams)
 from .kernels.string import state_forces
-from .kernels.task import (actions_finite, env_reset_observe, env_step, env_step_batch, env_step_batch_implicit,
-                           env_step_implicit)
+from .kernels.task import ENTRY_POINTS, actions_finite, env_reset_observe
 from .model import Simulator
-from .options import MAX_SUBSTEPS, check_count, env_options
-from .observe import Observer
-from .randomize import Randomizer, nominal_values
-from .state import State, build_params, check_memory
-from .params import Scene, load_scene, override_scene, scene_from_dict
-from .stepsize import scheme_substeps
-from .tasks import Task, get_task, sample_episode
+from .options import check_count
+from .setup import Episode, EnvSetup
+from .state import State, check_memory
+from .params import Scene
+from .tasks import sample_episode
+from .wind import BLOCK, Wind
 
 #: info keys of the reward terms, in REWARD_TERMS order
 INFO_REWARD_KEYS = tuple("reward_" + name for name in REWARD_TERMS)
-
-
-def total_weight(scene: Scene) -> float:
-    """The weight of pivot, string and load [N]: the hover force's size."""
-    return scene.gravity * (scene.body.mass + (scene.pivot.mass or 0.0)
-                            + scene.string.length * scene.string.mass_per_length)
-
-
-def action_params(hover: np.ndarray, force_limit: float, torque_limit: float) -> np.ndarray:
-    """The compiled action path's constants (:data:`~esp_gym.kernels.layout.ACTION_PARAMS`):
-    box bounds [-1, 1], hover force, force and torque limits."""
-    ap = np.zeros(ACTION_PARAMS.size)
-    ap[ACTION_PARAMS["low"]] = -1.0
-    ap[ACTION_PARAMS["high"]] = 1.0
-    ap[ACTION_PARAMS["hover_force"]] = hover
-    ap[ACTION_PARAMS["force_limit"]] = force_limit
-    ap[ACTION_PARAMS["torque_limit"]] = torque_limit
-    return ap
-
-
-@dataclass(frozen=True)
-class Episode:
-    """The run-time physics of one episode: its scene's values (SCENE_PARAMS order), the scene
-    with its step, the stepper's constants, physics steps per control step, the task's and the
-    action path's constants (the hover force holds this episode's weight up)."""
-
-    values: np.ndarray
-    scene: Scene
-    params: LGVIParams
-    substeps: int
-    task_params: np.ndarray
-    action_params: np.ndarray
-
-
-@dataclass(frozen=True)
-class EnvSetup:
-    """Everything the single and the batched environments share, resolved and validated."""
-
-    scene: Scene  #: the nominal scene (randomised episodes draw around it)
-    task: Task
-    task_params: np.ndarray
-    control_period: float  #: [s]
-    substeps: int  #: physics steps per control step (of the nominal scene)
-    hover: np.ndarray  #: feed-forward pivot force holding the nominal system up [N]
-    force_limit: float  #: pivot force per axis at |action| = 1, added to the hover force [N]
-    torque_limit: float  #: body torque per axis at |action| = 1 [N m]
-    safety: float = 0.5  #: margin under the stability bound of each episode's automatic h
-    fixed_h: Optional[float] = None  #: the user's h (every episode), or None: each episode's own
-    randomizer: Optional[Randomizer] = None  #: the per-episode ranges, or None: the nominal scene
-    observer: Observer = Observer()  #: the observation mode and its sensor noise
-    action_latency: int = 0  #: control steps between an action and its application
-
-    @property
-    def observation_structure(self) -> dict:
-        """Name -> slice of the observation vector of this setup's mode."""
-        return self.observer.layout.structure()
-
-    @property
-    def observation_space(self) -> spaces.Box:
-        return spaces.Box(-np.inf, np.inf, (self.observer.layout.size,), np.float32)
-
-    @property
-    def action_space(self) -> spaces.Box:
-        return spaces.Box(-1.0, 1.0, (ACTION_SIZE,), np.float32)
-
-    @cached_property
-    def action_params(self) -> np.ndarray:
-        """The nominal scene's action constants (:func:`action_params`)."""
-        return action_params(self.hover, self.force_limit, self.torque_limit)
-
-    @cached_property
-    def nominal_episode(self) -> Episode:
-        return Episode(np.array([nominal_values(self.scene)[k] for k in SCENE_PARAMS.names]), self.scene,
-                       build_params(self.scene), self.substeps, self.task_params, self.action_params)
-
-    def draw_episode(self, rng: np.random.Generator) -> Episode:
-        """The next episode's physics: the nominal one, or (``randomizer``) one drawn from
-        ``rng`` with its own h (the largest dividing the control period under the scheme's bound,
-        as for the nominal scene; or ``fixed_h``)."""
-        if self.randomizer is None:
-            return self.nominal_episode
-        values = self.randomizer.draw(rng)
-        drawn = self.randomizer.scene(values)
-        substeps = self.substeps if self.fixed_h is not None else scheme_substeps(drawn, self.control_period,
-                                                                                  self.safety)
-        scene = drawn.model_copy(update={"h": self.control_period / substeps})
-        hover = np.array([0.0, 0.0, -total_weight(scene)])
-        return Episode(values, scene, build_params(scene), substeps, self.task.params(scene),
-                       action_params(hover, self.force_limit, self.torque_limit))
-
-
-def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabilize",
-               control_period: float = 0.02, h: Optional[float] = None, safety: float = 0.5,
-               force_limit: Optional[float] = None, torque_limit: float = 0.02,
-               scene_overrides: Optional[dict] = None, randomize: Union[bool, dict] = False,
-               observation: str = "full", sensor_noise: Union[float, dict] = 0.0,
-               action_latency: int = 0) -> EnvSetup:
-    """Resolve the environment's arguments (see :class:`~esp_gym.env.ElasticStringPendulumEnv`),
-    validated by :class:`~esp_gym.options.EnvOptions` (ValueError naming each bad one)."""
-    o = env_options(scene=scene, task=task, control_period=control_period, h=h, safety=safety,
-                    force_limit=force_limit, torque_limit=torque_limit, scene_overrides=scene_overrides,
-                    randomize=randomize, observation=observation, sensor_noise=sensor_noise,
-                    action_latency=action_latency)
-    control_period, h, safety = o.control_period, o.h, o.safety
-    overrides = dict(o.scene_overrides or {})
-    base = o.scene if isinstance(o.scene, Scene) else load_scene(o.scene)
-    keep_unstable = overrides.get("allow_unstable_h", base.allow_unstable_h)
-    # the scene's own h is replaced below: it must not fail the bound of a stiffer override
-    overrides["allow_unstable_h"] = True
-    # a Scene object takes the same overrides as a file (aliases, dotted paths, merged sections)
-    resolved = override_scene(o.scene, overrides) if isinstance(o.scene, Scene) else load_scene(o.scene, **overrides)
-    if not resolved.pivot.is_free:
-        raise ValueError(f"ElasticStringPendulum-v0 pushes the pivot: scene {resolved.name!r} needs pivot.kind: free")
-    randomizer = None if o.randomize is False else Randomizer(resolved, o.randomize)
-    # the scene's scheme (explicit unless asked): choose_scheme's cost rule would pick the implicit
-    # string for stiff strings, but its accuracy under random actions is not established yet
-    # (docs/physics.md, "The environment's choice")
-    explicit = resolved.solver.string == "explicit"
-    bound_name = f"safety = {safety} x the stability bound" if explicit else "the transverse bound"
-    # the stiffest episode (shortest, lightest, stiffest string) needs the most steps
-    stiffest = resolved if randomizer is None else randomizer.scene(randomizer.stiffest())
-    if h is None:
-        wanted, what = scheme_substeps(stiffest, control_period, safety), bound_name
-    else:
-        wanted, what = control_period / h, f"h = {h} s"
-        if randomizer is not None and explicit and not keep_unstable and h > stiffest.string.stability_bound:
-            raise ValueError(f"h = {h} s is above the stability bound {stiffest.string.stability_bound:.4g} s of the "
-                             "stiffest string of the randomize ranges (shortest, lightest, largest EA): leave h to "
-                             "the environment or narrow the ranges")
-    if wanted > MAX_SUBSTEPS:
-        raise ValueError(f"ElasticStringPendulum-v0: control_period = {control_period} s with {what} needs "
-                         f"{wanted:.3g} physics steps per step (at most {MAX_SUBSTEPS:,}): use a larger h or "
-                         f"safety, a shorter control_period, or a softer, longer or coarser string")
-    if h is None:
-        substeps = scheme_substeps(resolved, control_period, safety)
-    else:
-        substeps = int(round(wanted))
-        if substeps < 1 or abs(substeps * h - control_period) > 1e-9 * control_period:
-            raise ValueError(f"h = {h} s must divide the control period {control_period} s")
-    resolved = scene_from_dict({**resolved.model_dump(), "h": control_period / substeps,
-                                "allow_unstable_h": keep_unstable}, source=repr(resolved.name))
-    weight = total_weight(resolved)
-    force_limit = o.force_limit if o.force_limit is not None else (0.6 * weight if weight > 0 else 1.0)
-    t = get_task(o.task)
-    return EnvSetup(scene=resolved, task=t, task_params=t.params(resolved), control_period=float(control_period),
-                    substeps=substeps, hover=np.array([0.0, 0.0, -weight]), force_limit=float(force_limit),
-                    torque_limit=float(o.torque_limit), safety=float(safety), fixed_h=h, randomizer=randomizer,
-                    observer=Observer(o.observation, o.sensor_noise), action_latency=o.action_latency)
 
 
 def raw_actions(actions, shape: tuple, name: str = "action") -> np.ndarray:
@@ -272,7 +118,16 @@ class ControlStep:
         self._substeps = np.full(batch, nominal.substeps, dtype=np.int64)
         self._task_params = np.tile(nominal.task_params, batch + (1,))
         self._action_params = np.tile(nominal.action_params, batch + (1,))
-        self._scene_params = np.tile(nominal.values, batch + (1,))
+        self._scene_params = np.zeros(batch + (len(setup.param_names),))
+        self._scene_params[..., :nominal.values.size] = nominal.values
+        # the wind's episode constants, its state, the random draws ahead and the next one's row
+        # (kernels/disturbance.py); stand-ins of the same types in still air
+        self._wind_params = z(batch + (DISTURBANCE_PARAMS.size,))
+        self._disturbance = z(batch + (DISTURBANCE.size,))
+        self._draws = z(batch + (BLOCK if setup.wind is not None else 1, DRAWS.size))
+        self._drawn = z(batch + (1,), dtype=np.int64)
+        self._rngs = [None] * (self.num_envs or 1)  # each (sub-)environment's generator, for more draws
+        self._entry = ENTRY_POINTS[self.sim.implicit, setup.wind is not None]
         self._was_reset = z(batch, dtype=bool)  # stepping a state that was never set is an error
         self._ready = False  # all of _was_reset, kept as a bool: step checks it every call
         self._make_views()
@@ -288,10 +143,11 @@ class ControlStep:
         self.report = read_only(self._report)
         self.sensors = read_only(self._sensors)
         self.scene_params = read_only(self._scene_params)
+        self.disturbance = read_only(self._disturbance)
 
     # a pickled view would come back as a copy: pickle the arrays, rebuild the views
     _VIEWS = ("_kernel_tuples", "observation", "reward_terms", "action", "inputs", "target", "report", "sensors",
-              "scene_params")
+              "scene_params", "disturbance")
 
     def __getstate__(self) -> dict:
         return {k: v for k, v in self.__dict__.items() if k not in self._VIEWS}
@@ -313,8 +169,19 @@ class ControlStep:
         targets: esp_gym/tasks.py) and :meth:`reset` to it. Returns its SCENE_PARAMS values."""
         episode = self.setup.draw_episode(rng)
         state, target = sample_episode(self.setup.task, episode.scene, rng)
+        wind = self.setup.wind
+        if wind is None:
+            self.reset(state, target, index, episode)
+            return episode.values
+        row = () if index is None else int(index)
+        self._rngs[0 if index is None else int(index)] = rng
+        params, start, draws, info = wind.episode(episode.scene, rng)
+        self._wind_params[row], self._disturbance[row], self._draws[row] = params, start, draws
+        self._drawn[row] = 0
         self.reset(state, target, index, episode)
-        return episode.values
+        values = np.concatenate((episode.values, [info[name] for name in self.setup.param_names[episode.values.size:]]))
+        self._scene_params[row] = values
+        return values
 
     def _use_episode(self, episode: Episode, index: Optional[int]) -> None:
         """Put an episode's run-time physics in (one environment, or sub-environment ``index``)."""
@@ -332,7 +199,7 @@ class ControlStep:
         row = () if index is None else index
         self._task_params[row] = episode.task_params
         self._action_params[row] = episode.action_params
-        self._scene_params[row] = episode.values
+        self._scene_params[row][:episode.values.size] = episode.values
 
     def reset(self, state: State, target, index: Optional[int] = None, episode: Optional[Episode] = None) -> int:
         """Put ``state`` (balances restarted) and ``target`` (TARGET [m]) in, zero the action
@@ -384,9 +251,13 @@ class ControlStep:
                 if not actions_finite(raw[None]):
                     raise ValueError(f"action must be finite, got {raw.tolist()}")
                 raw = self._delay(raw, self._pending)
-            step = env_step_implicit if self.sim.implicit else env_step
-            if not step(s, w, p, d, raw, self._action_params, self._inputs, int(self._substeps), self._target,
-                        self._task_params, self._action, self._obs, self._terms, self._sensors, self._report):
+            if self._drawn[0] == BLOCK:
+                self._draws[...] = Wind.draws(self._rngs[0])
+                self._drawn[0] = 0
+            if not self._entry[0](s, w, p, d, raw, self._action_params, self._inputs, int(self._substeps),
+                                  self._target, self._task_params, self._action, self._obs, self._terms,
+                                  self._sensors, self._report, self._wind_params, self._disturbance, self._draws,
+                                  self._drawn):
                 raise ValueError(f"action must be finite, got {raw.tolist()}")
             self.sim.count_steps(self._report)
             return
@@ -399,9 +270,13 @@ class ControlStep:
             raw = raw.copy()
             for i in np.flatnonzero(active):
                 raw[i] = self._delay(raw[i], self._pending[i])
-        batch = env_step_batch_implicit if self.sim.implicit else env_step_batch
-        batch(s, w, d, p, raw, self._action_params, self._inputs, active, self._substeps, self._target,
-              self._task_params, self._action, self._obs, self._terms, self._sensors, self._report)
+        if self.setup.wind is not None:
+            for i in np.flatnonzero(self._drawn[:, 0] == BLOCK):
+                self._draws[i] = Wind.draws(self._rngs[i])
+                self._drawn[i] = 0
+        self._entry[1](s, w, d, p, raw, self._action_params, self._inputs, active, self._substeps, self._target,
+                       self._task_params, self._action, self._obs, self._terms, self._sensors, self._report,
+                       self._wind_params, self._disturbance, self._draws, self._drawn)
 
     @staticmethod
     def _delay(raw: np.ndarray, pending: np.ndarray) -> np.ndarray:

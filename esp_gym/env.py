@@ -8,9 +8,9 @@ from typing import Optional, Union
 import gymnasium as gym
 import numpy as np
 
-from .control import INFO_REWARD_KEYS, ControlStep, make_setup
+from .control import INFO_REWARD_KEYS, ControlStep
+from .setup import make_setup
 from .kernels.layout import INPUTS, TARGET, termination_reason
-from .kernels.layout import SCENE_PARAMS
 from .params import Scene
 
 
@@ -73,6 +73,9 @@ class ElasticStringPendulumEnv(gym.Env):
     that scene), and its physics step is its own. `reset`'s info holds the episode's physical
     parameters under `"scene_params"` (a flat dict of floats: `string_length`, `EA`, ...;
     the nominal ones without `randomize`).
+    With `wind`, the episode's mean wind azimuth (unless given) and first gust are drawn next,
+    and `"scene_params"` also holds `wind_speed` [m/s] and `wind_direction` [rad]; the wind of
+    the current step is `env.unwrapped.control.disturbance` (kernels/layout.py DISTURBANCE).
     All randomness comes from `np_random` (seed it through `reset(seed=...)`).
 
     ## Episode End
@@ -97,6 +100,8 @@ class ElasticStringPendulumEnv(gym.Env):
     | `observation` | `"full"` | `"full"` or `"hook"` (Observation Space) |
     | `sensor_noise` | 0.0 | s: Gaussian noise of s x UNIT_NOISE per field; or a dict field -> standard deviation |
     | `action_latency` | 0 | control steps (0-50) between an action and its application (hover before the first) |
+    | `wind` | 0.0 | mean wind speed [m/s] (gusts of 0.2 x it, direction drawn per episode), or a dict of esp_gym/wind.py `WindOptions` (speed, direction, gust_std, gust_time, drag coefficients, line_diameter, push_rate, push_speed): drag on the line and the load, pushes on the load |
+    | `preset` | None | `"hard"`: randomize, wind 6 m/s with 1.5 m/s gusts and a push every 5 s on average, the hook observation with sensor noise 1 and a latency of 1 step (docs/environment.md) |
     | `render_mode` | None | `"rgb_array"`: uint8 frames, front and side views |
 
     ## Version History
@@ -110,11 +115,12 @@ class ElasticStringPendulumEnv(gym.Env):
                  force_limit: Optional[float] = None, torque_limit: float = 0.02,
                  scene_overrides: Optional[dict] = None, render_mode: Optional[str] = None,
                  randomize: Union[bool, dict] = False, observation: str = "full",
-                 sensor_noise: Union[float, dict] = 0.0, action_latency: int = 0):
+                 sensor_noise: Union[float, dict] = 0.0, action_latency: int = 0, wind: Union[float, dict] = 0.0,
+                 preset: Optional[str] = None):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.setup = make_setup(scene, task, control_period, h, safety, force_limit, torque_limit, scene_overrides,
-                                randomize, observation, sensor_noise, action_latency)
+                                randomize, observation, sensor_noise, action_latency, wind, preset)
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.setup.control_period))}
         self.observation_space = self.setup.observation_space
@@ -158,7 +164,7 @@ class ElasticStringPendulumEnv(gym.Env):
         values = self.control.start_episode(self.np_random)
         if self._renderer is not None and self.setup.randomizer is not None:
             self._renderer = None  # the load and the string change with the episode
-        return self._observe(), {"scene_params": dict(zip(SCENE_PARAMS.names, values.tolist()))}
+        return self._observe(), {"scene_params": dict(zip(self.setup.param_names, values.tolist()))}
 
     def _observe(self) -> np.ndarray:
         return self.setup.observer.observe(self.control.observation, self.control.sensors, self.np_random)

@@ -1,15 +1,13 @@
-"""The Python face of the physics: the Simulator (step/run), its Trajectory and diagnostics.
+"""The Python face of the physics: the Simulator (step/run) and its diagnostics.
 
-The state, its layout and the scene's constants are in esp_gym/state.py.
+The state, its layout and the scene's constants are in esp_gym/state.py; a run's snapshots in
+esp_gym/trajectory.py.
 """
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 from collections import namedtuple
 import time as _time
-from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Optional
 
 import numpy as np
@@ -23,6 +21,7 @@ from .kernels.loops import state_size
 from .kernels.specialise import general_kernels, specialised_kernels
 from .kernels.string import state_forces
 from .params import Scene, check_rotation
+from .trajectory import Trajectory  # noqa: F401  (re-exported)
 from .state import State, build_params, check_memory, initial_state, legendre_momenta  # noqa: F401  (re-exported)
 
 #: The live arrays of a simulator that the compiled kernels advance: ``state``
@@ -73,56 +72,6 @@ def failure_advice(scene: Scene, status: int) -> str:
     return "The forces or inputs overflowed: check their magnitudes."
 
 
-@dataclass
-class Trajectory:
-    """Snapshots of a run every ``record_every`` steps (K of them, t = 0 included).
-
-    Units: t [s]; nodes (K, N+1, 3) [m]; R (K, 3, 3); omega (K, 3) body frame [rad/s];
-    attach_velocity (K, 3) [m/s]; energies and work [J]; pi3 and angular impulse [kg m^2/s];
-    linear momentum and impulses (K, 3) [kg m/s]; strain_energy (K, N) [J]. The balances
-    (work, impulses, residuals) count from the simulator's last balance reset.
-    ``*_every_step`` hold (energy, pi3, orthogonality) after every step when requested.
-    """
-
-    t: np.ndarray
-    nodes: np.ndarray
-    R: np.ndarray
-    omega: np.ndarray
-    attach_velocity: np.ndarray
-    kinetic_string: np.ndarray
-    kinetic_body: np.ndarray
-    kinetic_pivot: np.ndarray
-    potential_gravity: np.ndarray
-    potential_elastic: np.ndarray
-    energy: np.ndarray
-    pi3: np.ndarray
-    orthogonality: np.ndarray
-    stretched_length: np.ndarray
-    strain_energy: np.ndarray
-    linear_momentum: np.ndarray
-    work: np.ndarray
-    angular_impulse_z: np.ndarray
-    energy_balance_residual: np.ndarray
-    pi3_balance_residual: np.ndarray
-    gravity_impulse: np.ndarray
-    pivot_impulse: np.ndarray
-    t_every_step: Optional[np.ndarray] = None
-    energy_every_step: Optional[np.ndarray] = None
-    pi3_every_step: Optional[np.ndarray] = None
-    orthogonality_every_step: Optional[np.ndarray] = None
-    steps: int = 0
-    newton_iterations: int = 0
-    wall_time_s: float = 0.0
-    extra: dict = field(default_factory=dict)
-
-    def arrays(self) -> dict:
-        """The array fields (those that are set), e.g. for ``np.savez``."""
-        return {k: v for k, v in dataclasses.asdict(self).items() if isinstance(v, np.ndarray)}
-
-    def save(self, path: str | Path) -> None:
-        np.savez_compressed(path, **self.arrays())
-
-
 def _vector_input(name: str, value) -> np.ndarray:
     """An input 3-vector [SI], checked: shape (3,), finite."""
     if value is None:
@@ -170,7 +119,7 @@ class Simulator:
         self._work = Work(fn=z((n + 1, 3)), X=z((n + 1, 3)), Y=z((n + 1, 3)),
                           FmI=z((3, 3)), RF=z((3, 3)), Rn=z((3, 3)), jac=z((3, 3)),
                           backup=z(state_size(self._arrays)), fl=z((n + 1, 3)), fr=z((n + 1, 3)), dy=z((n + 1, 3)),
-                          elim=z((n + 1, 3, 3)), taut=z(n))
+                          elim=z((n + 1, 3, 3)), taut=z(n), ext=z((n + 2, 3)))
         self._diag = DiagWork(V=z((n + 1, 3)), strain=z(n), omega=z(3), out=z(DIAG.size))
         self._inputs = z(INPUTS.size)
         self._forced = False  #: any input non-zero (picks the forced or the unforced kernels)
@@ -425,8 +374,9 @@ class Simulator:
         last :meth:`reset_balances`: work, energy_balance_residual (E - E0 - W),
         angular_impulse_z, pi3_balance_residual (pi3 - pi3_0 - angular impulse).
         Vectors (3,): attach_position, attach_velocity, pivot_position, omega (body frame),
-        linear_momentum, gravity_impulse, pivot_impulse, momentum_balance_residual
-        (P - P0 - impulses; with a fixed pivot it is the pivot's reaction impulse);
+        linear_momentum, gravity_impulse, pivot_impulse, external_impulse (wind and pushes: an
+        environment's), momentum_balance_residual (P - P0 - impulses; with a fixed pivot it is
+        the pivot's reaction impulse);
         strain_energy (N,) per element.
         """
         self._update_diag()
@@ -444,7 +394,8 @@ class Simulator:
         out["linear_momentum"] = d.out[DIAG["linear_momentum"]].copy()
         out["gravity_impulse"] = a.acc[BALANCE["gravity_impulse"]].copy()
         out["pivot_impulse"] = a.acc[BALANCE["pivot_impulse"]].copy()
+        out["external_impulse"] = a.acc[BALANCE["external_impulse"]].copy()
         out["momentum_balance_residual"] = (out["linear_momentum"] - self._P0 - out["gravity_impulse"]
-                                            - out["pivot_impulse"])
+                                            - out["pivot_impulse"] - out["external_impulse"])
         out["strain_energy"] = d.strain.copy()
         return out

@@ -47,6 +47,9 @@ class EnvOptions(BaseModel):
     #: a level or field -> standard deviation: checked by esp_gym/observe.py
     sensor_noise: Any = 0.0
     action_latency: Count = Field(0, ge=0, le=MAX_LATENCY, description="control steps")
+    #: a speed or a mapping: checked by esp_gym/wind.py
+    wind: Any = 0.0
+    preset: Optional[Literal["hard"]] = None
 
 
 def validation_message(error: ValidationError, what: str) -> str:

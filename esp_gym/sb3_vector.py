@@ -13,8 +13,9 @@ import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
 from . import MAX_EPISODE_STEPS
-from .control import INFO_REWARD_KEYS, ControlStep, make_setup
-from .kernels.layout import SCENE_PARAMS, termination_reason
+from .control import INFO_REWARD_KEYS, ControlStep
+from .setup import make_setup
+from .kernels.layout import termination_reason
 from .options import check_count
 from .vector import reset_sub_env
 
@@ -79,7 +80,7 @@ class ElasticStringPendulumSB3VecEnv(VecEnv):
 
     def _scene_params(self, i: int) -> dict:
         """The reset info of sub-environment ``i``: its episode's ``scene_params``."""
-        return {"scene_params": dict(zip(SCENE_PARAMS.names, self.control.scene_params[i].tolist()))}
+        return {"scene_params": dict(zip(self.setup.param_names, self.control.scene_params[i].tolist()))}
 
     def close(self) -> None:
         pass

@@ -19,8 +19,9 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from . import MAX_EPISODE_STEPS
-from .control import INFO_REWARD_KEYS, ControlStep, make_setup
-from .kernels.layout import SCENE_PARAMS, termination_reason
+from .control import INFO_REWARD_KEYS, ControlStep
+from .setup import make_setup
+from .kernels.layout import termination_reason
 from .options import check_count
 
 
@@ -33,7 +34,7 @@ def scene_params_info(control: ControlStep, which: np.ndarray) -> dict:
     """``info["scene_params"]``: name -> (num_envs,) values of the current episodes, with the
     ``"_scene_params"`` mask ``which`` (Gymnasium's vector info convention)."""
     values = control.scene_params
-    return {"scene_params": {name: values[:, j].copy() for j, name in enumerate(SCENE_PARAMS.names)},
+    return {"scene_params": {name: values[:, j].copy() for j, name in enumerate(control.setup.param_names)},
             "_scene_params": which.copy()}
 
 

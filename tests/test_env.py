@@ -210,8 +210,9 @@ def test_vector_bad_actions_raise_and_change_nothing(kind):
 #: The options the batched envs must reproduce bit for bit: the plain env, and every episode's
 #: physics drawn anew (each sub-environment then runs its own constants and step count).
 VECTOR_OPTIONS = [{}, {"randomize": True},
-                  {"randomize": True, "observation": "hook", "sensor_noise": 1.0, "action_latency": 2}]
-VECTOR_IDS = ["plain", "randomize", "hook-noise-latency"]
+                  {"randomize": True, "observation": "hook", "sensor_noise": 1.0, "action_latency": 2},
+                  {"preset": "hard"}]
+VECTOR_IDS = ["plain", "randomize", "hook-noise-latency", "hard"]
 
 
 @pytest.mark.parametrize("options", VECTOR_OPTIONS, ids=VECTOR_IDS)

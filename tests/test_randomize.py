@@ -12,7 +12,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import esp_gym  # noqa: F401  (registers the env)
 from esp_gym import load_scene
-from esp_gym.control import total_weight
+from esp_gym.setup import total_weight
 from esp_gym.env import ElasticStringPendulumEnv
 from esp_gym.kernels.layout import INPUTS, SCENE_PARAMS
 from esp_gym.model import Simulator

@@ -101,7 +101,9 @@ StateArrays = namedtuple("StateArrays", "r p R Pi rc pc Rc Pic f acc accc")
 #: (N+1, 3), its right-hand sides and corrections [m], ``elim`` (N+1, 3, 3), the factors of
 #: its block elimination, and ``taut`` (N,), 1 for the elements it holds to the taut branch of
 #: the slack law until it has converged (docs/physics.md, "The taut-branch start").
-Work = namedtuple("Work", "fn X Y FmI RF Rn jac backup fl fr dy elim taut")
+#: ``ext`` (N+2, 3): the external forces held over a control step (kernels/disturbance.py), on
+#: the nodes (rows 0..N) and on the load's centre of mass (row N+1) [N], spatial frame.
+Work = namedtuple("Work", "fn X Y FmI RF Rn jac backup fl fr dy elim taut ext")
 
 #: Scratch and outputs of the diagnostics: node velocities V (N+1, 3) [m/s], per-element strain
 #: energy (N,) [J], body angular velocity omega (3,, body frame) [rad/s], and ``out``
@@ -133,12 +135,15 @@ D_LINEAR_MOMENTUM = DIAG.start("linear_momentum")
 DIAG_NAMES = DIAG.scalar_names()
 
 #: Input balances accumulated by the step since the last reset: input work [J], angular
-#: impulse about e3 [kg m^2/s], gravity impulse and pivot-force impulse (3 each) [kg m/s].
-BALANCE = Layout(("work", 1), ("angular_impulse_z", 1), ("gravity_impulse", 3), ("pivot_impulse", 3))
+#: impulse about e3 [kg m^2/s], gravity impulse, pivot-force impulse and the impulse of the
+#: external forces (wind and pushes, kernels/disturbance.py) (3 each) [kg m/s].
+BALANCE = Layout(("work", 1), ("angular_impulse_z", 1), ("gravity_impulse", 3), ("pivot_impulse", 3),
+                 ("external_impulse", 3))
 B_WORK = BALANCE.scalar("work")
 B_ANGULAR_IMPULSE_Z = BALANCE.scalar("angular_impulse_z")
 B_GRAVITY_IMPULSE = BALANCE.start("gravity_impulse")
 B_PIVOT_IMPULSE = BALANCE.start("pivot_impulse")
+B_EXTERNAL_IMPULSE = BALANCE.start("external_impulse")
 
 #: Energy, pi3 and orthogonality after every step of a recorded run.
 STEP_DIAG = Layout(("energy", 1), ("pi3", 1), ("orthogonality", 1))
@@ -252,6 +257,44 @@ TP_STRING_LENGTH = TASK_PARAMS.scalar("string_length")
 SCENE_PARAMS = Layout(*((name, 1) for name in (
     "string_length", "EA", "mass_per_length", "load_mass", "load_size_x", "load_size_y", "load_size_z",
     "attachment_offset_x", "attachment_offset_y", "pivot_mass")))
+
+#: An episode's wind and pushes (esp_gym/wind.py; kernels/disturbance.py): the mean wind [m/s]
+#: (spatial), the gusts' decay a = exp(-T/tau) per control step T and innovation sigma sqrt(1 -
+#: a^2) [m/s] per axis; the line's drag per length and speed^2, rho_air C_d d / 2 [kg/m^2];
+#: the load's drag area law c(n) = faces . |n| + side sqrt(a^2 n_y^2 + b^2 n_x^2) + round
+#: (n the unit relative wind, body frame), each coefficient x rho_air C_d / 2 [kg/m] but the
+#: semi-axes (a, b) [m]; the chance of a push per control step and its mean force [N].
+DISTURBANCE_PARAMS = Layout(("mean_wind", 3), ("gust_decay", 1), ("gust_innovation", 3), ("line_drag", 1),
+                            ("load_faces", 3), ("load_side", 1), ("load_semi_axes", 2), ("load_round", 1),
+                            ("push_chance", 1), ("push_force", 1))
+DP_MEAN_WIND = DISTURBANCE_PARAMS.start("mean_wind")
+DP_GUST_DECAY = DISTURBANCE_PARAMS.scalar("gust_decay")
+DP_GUST_INNOVATION = DISTURBANCE_PARAMS.start("gust_innovation")
+DP_LINE_DRAG = DISTURBANCE_PARAMS.scalar("line_drag")
+DP_LOAD_FACES = DISTURBANCE_PARAMS.start("load_faces")
+DP_LOAD_SIDE = DISTURBANCE_PARAMS.scalar("load_side")
+DP_LOAD_SEMI_AXES = DISTURBANCE_PARAMS.start("load_semi_axes")
+DP_LOAD_ROUND = DISTURBANCE_PARAMS.scalar("load_round")
+DP_PUSH_CHANCE = DISTURBANCE_PARAMS.scalar("push_chance")
+DP_PUSH_FORCE = DISTURBANCE_PARAMS.scalar("push_force")
+
+#: The wind and the external forces of the current control step, spatial frame: the gust and
+#: the wind (mean + gust) [m/s], the drag on the load and the push on it, and the line's drag
+#: summed over its nodes [N].
+DISTURBANCE = Layout(("gust", 3), ("wind", 3), ("load_drag", 3), ("push", 3), ("line_drag", 3))
+DS_GUST = DISTURBANCE.start("gust")
+DS_WIND = DISTURBANCE.start("wind")
+DS_LOAD_DRAG = DISTURBANCE.start("load_drag")
+DS_PUSH = DISTURBANCE.start("push")
+DS_LINE_DRAG = DISTURBANCE.start("line_drag")
+
+#: The random numbers of one control step's disturbance, drawn ahead from np_random: standard
+#: normal gust innovations, and uniforms on [0, 1) for a push's occurrence, azimuth and size.
+DRAWS = Layout(("gust", 3), ("push_chance", 1), ("push_azimuth", 1), ("push_scale", 1))
+DR_GUST = DRAWS.start("gust")
+DR_PUSH_CHANCE = DRAWS.scalar("push_chance")
+DR_PUSH_AZIMUTH = DRAWS.scalar("push_azimuth")
+DR_PUSH_SCALE = DRAWS.scalar("push_scale")
 
 # -- a recording sample (kernels/recording.py, esp_gym/viz/recorder.py) ---------------------------
 

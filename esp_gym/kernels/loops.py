@@ -10,6 +10,7 @@ from .jit import kernel
 from .diagnostics import diagnostics
 from .layout import (D_ENERGY, D_ORTHOGONALITY, D_PI3, OK, R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS, SD_ENERGY,
                      SD_ORTHOGONALITY, SD_PI3)
+from .disturbance import kick
 from .implicit import implicit_substep
 from .lgvi import lgvi_substep
 from .string import nodal_forces
@@ -119,7 +120,7 @@ def _rewind(S, W):
 
 @kernel(inline="always")
 def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, forces_ready=False,
-                 implicit=False):
+                 implicit=False, disturbed=False):
     """Take up to ``nsteps`` steps with constant ``inputs``; stop at the first failure with
     the last good state. ``stats`` (int64, >= 4): status, steps taken, total Newton iterations,
     max per step.
@@ -133,8 +134,14 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
     it does after any successful step), so they are not recomputed. ``implicit``: the implicit
     string's step (a compile-time constant, as the flags); its ``S.f`` is part of the state
     (the last step's midpoint forces, its first guess: kernels/implicit.py) and is never
-    recomputed here.
+    recomputed here. ``disturbed`` (a compile-time constant): the held external forces ``W.ext``
+    act too, as kicks of h/2 on both sides of every step (kernels/disturbance.py), the kicks
+    between two steps merged into one; after a failure the pending half kick is taken back.
     """
+    first = 0 if free else 1
+    hh = 0.5 * P.h
+    if disturbed and nsteps > 0:
+        kick(S, P, W.ext, hh, first)
     if not forces_ready and not implicit:
         nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
     # a composed step, and an implicit one that cut itself back (kernels/implicit.py), can
@@ -156,6 +163,8 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
             most = max(most, iters)
         if status != OK:
             if failed != OK or not composed:  # (a replayed step cannot fail: it did not before)
+                if disturbed:
+                    kick(S, P, W.ext, -hh, first)
                 _finish(stats, status, k, total, most)
                 return
             failed = status
@@ -164,6 +173,10 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
             k = k0
             continue
         k += 1
+        if disturbed:
+            kick(S, P, W.ext, P.h if k < target else hh, first)
+    if disturbed and failed != OK and target == k0:  # rewound to a checkpoint, no step to replay
+        kick(S, P, W.ext, -hh, first)
     _finish(stats, failed, target, total, most)
 
 

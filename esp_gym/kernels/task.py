@@ -15,8 +15,10 @@ from numba import prange
 
 from .jit import kernel
 from .diagnostics import diagnostics
+from .disturbance import disturb, external_potential
+from .lgvi import kahan_add
 from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, ACTION_SIZE, AP_FORCE_LIMIT, AP_HIGH, AP_HOVER, AP_LOW,
-                     AP_TORQUE_LIMIT, D_STRETCHED_LENGTH, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE,
+                     AP_TORQUE_LIMIT, B_WORK, D_STRETCHED_LENGTH, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE,
                      O_ANGULAR_VELOCITY, O_ATTITUDE, O_LOAD_ERROR, O_LOAD_VELOCITY, O_PIVOT_ERROR, O_PIVOT_VELOCITY,
                      O_STRETCH, OK, R_STATUS, R_TERMINATION, RW_CONTROL, RW_LOAD_POSITION, RW_LOAD_VELOCITY,
                      RW_PIVOT_POSITION, RW_SPIN, RW_SWING, SN_HOOK_TENSION, SN_LOAD_TARGET_OFFSET, T_LOAD, T_PIVOT, TERM_NONE, TERM_OVERSTRETCH,
@@ -152,12 +154,26 @@ def take_action(raw, ap, action, inputs):
 
 
 @kernel(inline="always")
-def env_step_one(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, sensors, result, implicit=False):
+def env_step_one(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, sensors, result, dp, ds, draws, drawn,
+                 implicit=False, disturbed=False):
     """One control step: ``nsub`` physics steps with constant ``inputs`` (INPUTS), then
     observation, reward terms and termination code. ``result``: the step's REPORT (int64).
-    ``implicit`` (a compile-time constant): the implicit string's step (kernels/implicit.py)."""
+    ``implicit`` (a compile-time constant): the implicit string's step (kernels/implicit.py).
+    ``disturbed`` (a compile-time constant): wind and pushes (kernels/disturbance.py) from the
+    episode's DISTURBANCE_PARAMS ``dp``, the DISTURBANCE state ``ds`` and the next row
+    ``drawn[0]`` of the random ``draws`` (rows of DRAWS; ``drawn[0]`` is then advanced); their
+    work over the step joins the balances."""
+    free = P.first == 0
+    first = 0 if free else 1
+    phi = 0.0
+    if disturbed:
+        disturb(S, P, D, dp, ds, draws[drawn[0]], W.ext)
+        drawn[0] += 1
+        phi = external_potential(S, P, W.ext, first)
     # the general kernel: an environment always has inputs and, as a rule, an off-centre load
-    advance_loop(S, W, P, inputs, nsub, result, P.first == 0, True, True, P.compensated, False, implicit)
+    advance_loop(S, W, P, inputs, nsub, result, free, True, True, P.compensated, False, implicit, disturbed)
+    if disturbed:
+        kahan_add(S.acc, S.accc, B_WORK, external_potential(S, P, W.ext, first) - phi)
     status = result[R_STATUS]
     diagnostics(S, P, D)
     code = env_observe(S, P, D, target, tp, action, obs, terms, sensors)
@@ -182,7 +198,7 @@ def state_row(S, b):
 def work_row(W, b):
     """Sub-environment ``b`` of a stacked :class:`Work` (views)."""
     return Work(W.fn[b], W.X[b], W.Y[b], W.FmI[b], W.RF[b], W.Rn[b], W.jac[b], W.backup[b], W.fl[b], W.fr[b], W.dy[b],
-                W.elim[b], W.taut[b])
+                W.elim[b], W.taut[b], W.ext[b])
 
 
 @kernel(inline="always")
@@ -200,37 +216,42 @@ def params_row(P, b):
                       P.max_iter[b], P.gammas[b], P.max_len2[b], P.compensated[b], P.mdiag[b])
 
 
-def _entry_points(implicit: bool):
-    """``(step, batch)``, the compiled entry points of one string scheme (``implicit`` is a
-    closure constant, so each scheme compiles only when it is used; numba caches closures by
-    their values, as in kernels/specialise.py).
+def _entry_points(implicit: bool, disturbed: bool):
+    """``(step, batch)``, the compiled entry points of one string scheme, with or without wind and
+    pushes (``implicit`` and ``disturbed`` are closure constants, so each variant compiles only
+    when it is used; numba caches closures by their values, as in kernels/specialise.py).
 
-    ``step(s, w, p, d, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result)``:
-    :func:`take_action` of the raw action, then :func:`env_step_one`, for one environment (one
-    compiled call per control step). Returns False, with nothing changed, if the raw action is
-    not finite. ``s, w, p, d`` are the fields of StateArrays, Work, LGVIParams and DiagWork as
-    *plain* tuples: numba's dispatcher types a plain tuple about twice as fast as a namedtuple
-    (3 us less per call here), and the namedtuples are rebuilt for free in compiled code.
+    ``step(s, w, p, d, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result,
+    dp, ds, draws, drawn)``: :func:`take_action` of the raw action, then :func:`env_step_one`,
+    for one environment (one compiled call per control step). Returns False, with nothing
+    changed, if the raw action is not finite. ``s, w, p, d`` are the fields of StateArrays,
+    Work, LGVIParams and DiagWork as *plain* tuples: numba's dispatcher types a plain tuple
+    about twice as fast as a namedtuple (3 us less per call here), and the namedtuples are
+    rebuilt for free in compiled code. ``dp, ds, draws, drawn`` (read only when ``disturbed``):
+    DISTURBANCE_PARAMS, DISTURBANCE, (K, DRAWS) random draws and the index (1,) int64 of the
+    next one, which the caller keeps below K.
 
     ``batch(s, w, d, p, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors,
-    result)``: :func:`take_action` of ``raw[b]`` and :func:`env_step_one` for every environment
-    b with ``active[b]``, in parallel (the raw actions must be finite: :func:`actions_finite`).
-    ``s, w, d, p`` are StateArrays, Work, DiagWork and LGVIParams whose arrays carry a leading
-    batch axis (:func:`params_row`), as plain tuples; the other arrays are batched too: raw
-    (B, ACTION), ap (B, ACTION_PARAMS), inputs (B, INPUTS), nsub (B,), target (B, TARGET), tp
-    (B, TASK_PARAMS), action, obs, terms, sensors (B, SENSORS), result (B, REPORT).
+    result, dp, ds, draws, drawn)``: :func:`take_action` of ``raw[b]`` and :func:`env_step_one`
+    for every environment b with ``active[b]``, in parallel (the raw actions must be finite:
+    :func:`actions_finite`). ``s, w, d, p`` are StateArrays, Work, DiagWork and LGVIParams
+    whose arrays carry a leading batch axis (:func:`params_row`), as plain tuples; the other
+    arrays are batched too: raw (B, ACTION), ap (B, ACTION_PARAMS), inputs (B, INPUTS), nsub
+    (B,), target (B, TARGET), tp (B, TASK_PARAMS), action, obs, terms, sensors (B, SENSORS),
+    result (B, REPORT), dp, ds, draws (B, K, DRAWS), drawn (B, 1).
     """
 
     @kernel
-    def step(s, w, p, d, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result):
+    def step(s, w, p, d, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result, dp, ds, draws, drawn):
         if not take_action(raw, ap, action, inputs):
             return False
         env_step_one(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), inputs, nsub, target, tp, action,
-                     obs, terms, sensors, result, implicit)
+                     obs, terms, sensors, result, dp, ds, draws, drawn, implicit, disturbed)
         return True
 
     @kernel(parallel=True)
-    def batch(s, w, d, p, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors, result):
+    def batch(s, w, d, p, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors, result, dp, ds,
+              draws, drawn):
         S = StateArrays(*s)
         W = Work(*w)
         D = DiagWork(*d)
@@ -238,13 +259,13 @@ def _entry_points(implicit: bool):
         for b in prange(raw.shape[0]):
             if active[b] and take_action(raw[b], ap[b], action[b], inputs[b]):
                 env_step_one(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), inputs[b],
-                             nsub[b], target[b], tp[b], action[b], obs[b], terms[b], sensors[b], result[b],
-                             implicit)
+                             nsub[b], target[b], tp[b], action[b], obs[b], terms[b], sensors[b], result[b], dp[b],
+                             ds[b], draws[b], drawn[b], implicit, disturbed)
 
     return step, batch
 
 
-#: The explicit string's entry points (see :func:`_entry_points`).
-env_step, env_step_batch = _entry_points(False)
-#: The implicit string's (kernels/implicit.py), compiled only for scenes that use it.
-env_step_implicit, env_step_batch_implicit = _entry_points(True)
+#: The entry points by (implicit string, wind and pushes) (see :func:`_entry_points`); the
+#: implicit string's and the disturbed ones compile only for environments that use them.
+ENTRY_POINTS = {(implicit, disturbed): _entry_points(implicit, disturbed)
+                for implicit in (False, True) for disturbed in (False, True)}

@@ -1,0 +1,193 @@
+"""Wind and pushes: external forces held over a control step, entering through the discrete
+Lagrange-d'Alembert principle (docs/physics.md, "Wind and pushes").
+
+At the start of a control step :func:`disturb` advances the gusts (an Ornstein-Uhlenbeck process
+sampled exactly at the control period T: g <- a g + sigma sqrt(1 - a^2) xi, a = exp(-T/tau))
+and computes, from the state's velocities (the diagnostics' ``D.V``, ``D.omega``), the forces
+held until the next control step (``W.ext``, spatial frame [N]):
+
+* on the line, per element e (nodes e, e+1; x_e = r_e+1 - r_e, tangent t_e): the cross-flow
+  drag F_e = (rho C_d d / 2) |x_e| |v_n| v_n, v_n = v_rel - (v_rel . t_e) t_e the relative wind
+  normal to the element (v_rel = wind - the mean of the two nodes' velocities), half to each node;
+* on the load's centre of mass: the quadratic drag (rho C_d / 2) c(n) |v_rel| v_rel with c(n) the
+  load's projected area across the relative wind's direction n (body frame; exact for the box,
+  cylinders and the sphere: DISTURBANCE_PARAMS), plus a push when one falls in this step.
+
+A force F held over a step of length h, applied at a point x(q), is the discrete force
+f^- = f^+ = (h/2) (dx/dq)^T F: for a node a momentum kick, for the load's centre x = r_N + R rho_c
+a kick of node N and of Pi by rho_c x (R^T F). The forced step therefore splits exactly into
+kick(h/2) - unforced step - kick(h/2) (:func:`kick`; the kicks of consecutive steps merge). The
+work of the held forces over the control step is Phi(end) - Phi(start), Phi = sum F_a . r_a +
+F_L . (r_N + R rho_c) (:func:`external_potential`), exact for held forces.
+"""
+import math
+
+from .jit import kernel
+from .layout import (B_ANGULAR_IMPULSE_Z, B_EXTERNAL_IMPULSE, DP_GUST_DECAY, DP_GUST_INNOVATION, DP_LINE_DRAG,
+                     DP_LOAD_FACES, DP_LOAD_ROUND, DP_LOAD_SEMI_AXES, DP_LOAD_SIDE, DP_MEAN_WIND, DP_PUSH_CHANCE,
+                     DP_PUSH_FORCE, DR_GUST, DR_PUSH_AZIMUTH, DR_PUSH_CHANCE, DR_PUSH_SCALE, DS_GUST, DS_LINE_DRAG,
+                     DS_LOAD_DRAG, DS_PUSH, DS_WIND)
+from .lgvi import kahan_add
+
+
+@kernel(inline="always")
+def load_area(dp, n0, n1, n2):
+    """The load's drag area x rho C_d / 2 across the unit direction n (body frame) [kg/m]."""
+    a = dp[DP_LOAD_SEMI_AXES]
+    b = dp[DP_LOAD_SEMI_AXES + 1]
+    return (dp[DP_LOAD_FACES] * abs(n0) + dp[DP_LOAD_FACES + 1] * abs(n1) + dp[DP_LOAD_FACES + 2] * abs(n2)
+            + dp[DP_LOAD_SIDE] * math.sqrt(a * a * n1 * n1 + b * b * n0 * n0) + dp[DP_LOAD_ROUND])
+
+
+# a called function, not inlined: inlined into the batch's prange loop (numba 0.68), its writes
+# after the element loop were lost (the last node's and the load's rows stayed 0)
+@kernel
+def disturb(S, P, D, dp, ds, draw, ext):
+    """One control step's gusts and held forces (module docstring): ``dp`` the episode's
+    DISTURBANCE_PARAMS, ``ds`` the DISTURBANCE state (gust in, everything out), ``draw`` this
+    step's DRAWS, ``ext`` (N+2, 3) the held forces out [N]. ``D`` holds the diagnostics of the
+    current state (its node velocities V and body rate omega)."""
+    a = dp[DP_GUST_DECAY]
+    for i in range(3):
+        g = a * ds[DS_GUST + i] + dp[DP_GUST_INNOVATION + i] * draw[DR_GUST + i]
+        ds[DS_GUST + i] = g
+        ds[DS_WIND + i] = dp[DP_MEAN_WIND + i] + g
+    w0 = ds[DS_WIND]
+    w1 = ds[DS_WIND + 1]
+    w2 = ds[DS_WIND + 2]
+    r = S.r
+    V = D.V
+    n = r.shape[0] - 1
+    k = dp[DP_LINE_DRAG]
+    s0 = s1 = s2 = 0.0
+    h0 = h1 = h2 = 0.0  # the previous element's half
+    for e in range(n):
+        x0 = r[e + 1, 0] - r[e, 0]
+        x1 = r[e + 1, 1] - r[e, 1]
+        x2 = r[e + 1, 2] - r[e, 2]
+        length = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+        v0 = w0 - 0.5 * (V[e, 0] + V[e + 1, 0])
+        v1 = w1 - 0.5 * (V[e, 1] + V[e + 1, 1])
+        v2 = w2 - 0.5 * (V[e, 2] + V[e + 1, 2])
+        if length > 0.0:
+            along = (v0 * x0 + v1 * x1 + v2 * x2) / (length * length)
+            v0 -= along * x0
+            v1 -= along * x1
+            v2 -= along * x2
+        c = 0.5 * k * length * math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)  # half to each node
+        f0 = c * v0
+        f1 = c * v1
+        f2 = c * v2
+        ext[e, 0] = h0 + f0
+        ext[e, 1] = h1 + f1
+        ext[e, 2] = h2 + f2
+        h0 = f0
+        h1 = f1
+        h2 = f2
+        s0 += 2.0 * f0
+        s1 += 2.0 * f1
+        s2 += 2.0 * f2
+    ext[n, 0] = h0
+    ext[n, 1] = h1
+    ext[n, 2] = h2
+    ds[DS_LINE_DRAG] = s0
+    ds[DS_LINE_DRAG + 1] = s1
+    ds[DS_LINE_DRAG + 2] = s2
+    # the load's centre of mass moves at V_N + R (omega x rho_c)
+    R = S.R
+    rho = P.rho
+    om = D.omega
+    c0 = om[1] * rho[2] - om[2] * rho[1]
+    c1 = om[2] * rho[0] - om[0] * rho[2]
+    c2 = om[0] * rho[1] - om[1] * rho[0]
+    v0 = w0 - (V[n, 0] + R[0, 0] * c0 + R[0, 1] * c1 + R[0, 2] * c2)
+    v1 = w1 - (V[n, 1] + R[1, 0] * c0 + R[1, 1] * c1 + R[1, 2] * c2)
+    v2 = w2 - (V[n, 2] + R[2, 0] * c0 + R[2, 1] * c1 + R[2, 2] * c2)
+    speed = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    f0 = f1 = f2 = 0.0
+    if speed > 0.0:
+        b0 = (R[0, 0] * v0 + R[1, 0] * v1 + R[2, 0] * v2) / speed  # R^T v_rel / |v_rel|
+        b1 = (R[0, 1] * v0 + R[1, 1] * v1 + R[2, 1] * v2) / speed
+        b2 = (R[0, 2] * v0 + R[1, 2] * v1 + R[2, 2] * v2) / speed
+        c = load_area(dp, b0, b1, b2) * speed
+        f0 = c * v0
+        f1 = c * v1
+        f2 = c * v2
+    ds[DS_LOAD_DRAG] = f0
+    ds[DS_LOAD_DRAG + 1] = f1
+    ds[DS_LOAD_DRAG + 2] = f2
+    q0 = q1 = 0.0
+    if draw[DR_PUSH_CHANCE] < dp[DP_PUSH_CHANCE]:  # a horizontal push of 0.5-1.5 x the mean force
+        size = dp[DP_PUSH_FORCE] * (0.5 + draw[DR_PUSH_SCALE])
+        azimuth = 2.0 * math.pi * draw[DR_PUSH_AZIMUTH]
+        q0 = size * math.cos(azimuth)
+        q1 = size * math.sin(azimuth)
+    ds[DS_PUSH] = q0
+    ds[DS_PUSH + 1] = q1
+    ds[DS_PUSH + 2] = 0.0
+    ext[n + 1, 0] = f0 + q0
+    ext[n + 1, 1] = f1 + q1
+    ext[n + 1, 2] = f2
+
+
+@kernel(inline="always")
+def load_point(S, P, i):
+    """Coordinate ``i`` of the load's centre of mass r_N + R rho_c [m]."""
+    n = S.r.shape[0] - 1
+    R = S.R
+    rho = P.rho
+    return S.r[n, i] + (R[i, 0] * rho[0] + R[i, 1] * rho[1] + R[i, 2] * rho[2])
+
+
+@kernel(inline="always")
+def external_potential(S, P, ext, first):
+    """Phi = sum_{a >= first} F_a . r_a + F_L . (r_N + R rho_c) [J] of the held forces ``ext``."""
+    r = S.r
+    n = r.shape[0] - 1
+    phi = 0.0
+    for a in range(first, n + 1):
+        phi += ext[a, 0] * r[a, 0] + ext[a, 1] * r[a, 1] + ext[a, 2] * r[a, 2]
+    for i in range(3):
+        phi += ext[n + 1, i] * load_point(S, P, i)
+    return phi
+
+
+@kernel  # called, not inlined: see disturb
+def kick(S, P, ext, c, first):
+    """The held forces' half of a step, scaled: p_a += c F_a (nodes a >= first), p_N += c F_L,
+    Pi += c rho_c x (R^T F_L) (c = h/2 for one side of one step [s]); their impulse c sum F and
+    angular impulse about e3, c e3 . sum x x F, join the balances."""
+    r = S.r
+    p = S.p
+    n = r.shape[0] - 1
+    t0 = t1 = t2 = ang = 0.0
+    for a in range(first, n + 1):
+        e0 = ext[a, 0]
+        e1 = ext[a, 1]
+        e2 = ext[a, 2]
+        p[a, 0] += c * e0
+        p[a, 1] += c * e1
+        p[a, 2] += c * e2
+        ang += r[a, 0] * e1 - r[a, 1] * e0
+        t0 += e0
+        t1 += e1
+        t2 += e2
+    F0 = ext[n + 1, 0]
+    F1 = ext[n + 1, 1]
+    F2 = ext[n + 1, 2]
+    p[n, 0] += c * F0
+    p[n, 1] += c * F1
+    p[n, 2] += c * F2
+    R = S.R
+    rho = P.rho
+    b0 = R[0, 0] * F0 + R[1, 0] * F1 + R[2, 0] * F2  # R^T F_L
+    b1 = R[0, 1] * F0 + R[1, 1] * F1 + R[2, 1] * F2
+    b2 = R[0, 2] * F0 + R[1, 2] * F1 + R[2, 2] * F2
+    S.Pi[0] += c * (rho[1] * b2 - rho[2] * b1)
+    S.Pi[1] += c * (rho[2] * b0 - rho[0] * b2)
+    S.Pi[2] += c * (rho[0] * b1 - rho[1] * b0)
+    ang += load_point(S, P, 0) * F1 - load_point(S, P, 1) * F0
+    kahan_add(S.acc, S.accc, B_EXTERNAL_IMPULSE, c * (t0 + F0))
+    kahan_add(S.acc, S.accc, B_EXTERNAL_IMPULSE + 1, c * (t1 + F1))
+    kahan_add(S.acc, S.accc, B_EXTERNAL_IMPULSE + 2, c * (t2 + F2))
+    kahan_add(S.acc, S.accc, B_ANGULAR_IMPULSE_Z, c * ang)

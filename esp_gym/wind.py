@@ -1,0 +1,149 @@
+"""Wind and pushes of ElasticStringPendulum-v0 (``wind=``): the options, each episode's
+DISTURBANCE_PARAMS, and the random numbers the compiled step reads (kernels/disturbance.py;
+docs/environment.md, "Wind and pushes"; docs/physics.md for how the forces enter).
+
+``wind`` is 0.0 (still air, no pushes: the plain kernels), a mean wind speed [m/s] (gusts of
+0.2 x that, no pushes), or a mapping of :class:`WindOptions` fields. The mean wind is
+horizontal, from the azimuth ``direction`` or from one drawn per episode; gusts are an
+Ornstein-Uhlenbeck process per axis (the Dryden model's first-order form), started from its
+stationary law; pushes are Poisson events, each a horizontal force on the load held for one
+control step, of a random azimuth and a size that changes the load's velocity by 0.5-1.5 x
+``push_speed``.
+
+Every random number comes from the environment's ``np_random``, after the episode's state: the
+mean wind's azimuth (if drawn), the initial gust, then :data:`BLOCK` control steps of DRAWS at a
+time (another block when those are used up), so seeded episodes repeat bit for bit.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any, Mapping, Optional, Union
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from .kernels.layout import DISTURBANCE, DISTURBANCE_PARAMS, DRAWS
+from .options import validation_message
+from .params import Box, Cylinder, EllipticCylinder, Scene, Sphere
+from .scene_input import Real
+
+#: Control steps of random draws taken from np_random at a time.
+BLOCK = 256
+#: The reset info's wind entries (besides SCENE_PARAMS): the mean wind's speed [m/s] and azimuth
+#: [rad] from +x towards +y.
+WIND_INFO = ("wind_speed", "wind_direction")
+#: Density of the line's material when its diameter is derived from its mass per length [kg/m^3]
+#: (nylon, polyester and rubber are 1100-1400).
+LINE_DENSITY = 1150.0
+#: Gusts' standard deviation per axis as a share of the mean speed when only a speed is given
+#: (a turbulence intensity; 0.1-0.2 near the ground).
+TURBULENCE_INTENSITY = 0.2
+
+
+class WindOptions(BaseModel):
+    """The fields of a ``wind`` mapping (SI units)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    speed: Real = Field(0.0, ge=0, allow_inf_nan=False, description="mean horizontal wind [m/s]")
+    direction: Optional[Real] = Field(None, allow_inf_nan=False,
+                                      description="azimuth the wind blows towards [rad]; None: drawn per episode")
+    gust_std: Optional[Real] = Field(None, ge=0, allow_inf_nan=False,
+                                     description="gusts' standard deviation per axis [m/s]; None: 0.2 x speed")
+    gust_time: Real = Field(1.0, gt=0, allow_inf_nan=False, description="gusts' correlation time [s]")
+    air_density: Real = Field(1.225, gt=0, allow_inf_nan=False, description="[kg/m^3]")
+    load_drag_coefficient: Real = Field(1.05, ge=0, allow_inf_nan=False, description="C_d of the load")
+    line_drag_coefficient: Real = Field(1.2, ge=0, allow_inf_nan=False, description="C_d of the line in cross-flow")
+    line_diameter: Optional[Real] = Field(None, gt=0, allow_inf_nan=False,
+                                          description="[m]; None: from the mass per length at 1150 kg/m^3")
+    push_rate: Real = Field(0.0, ge=0, allow_inf_nan=False, description="pushes per second (Poisson)")
+    push_speed: Real = Field(0.5, ge=0, allow_inf_nan=False, description="a push's mean velocity change [m/s]")
+
+    @property
+    def gusts(self) -> float:
+        return TURBULENCE_INTENSITY * self.speed if self.gust_std is None else self.gust_std
+
+    @property
+    def active(self) -> bool:
+        return self.speed > 0 or self.gusts > 0 or (self.push_rate > 0 and self.push_speed > 0)
+
+
+def wind_options(value: Union[float, Mapping[str, Any], None]) -> Optional[WindOptions]:
+    """The options of ``wind=`` (None: no wind and no pushes); ValueError naming a bad one."""
+    if value is None:
+        return None
+    try:
+        if isinstance(value, Mapping):
+            options = WindOptions(**value)
+        elif isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+            raise ValueError(f"wind must be a speed [m/s] or a mapping of {list(WindOptions.model_fields)}, "
+                             f"got {value!r}")
+        else:
+            options = WindOptions(speed=value)
+    except ValidationError as e:
+        raise ValueError(validation_message(e, "wind")) from None
+    return options if options.active else None
+
+
+def drag_areas(scene: Scene) -> dict:
+    """The load's projected-area law across a unit direction n (body frame) [m^2, m]:
+    ``faces . |n| + side sqrt(a^2 n_y^2 + b^2 n_x^2) + round`` (DISTURBANCE_PARAMS), exact for
+    each shape (a convex body's projected area is half its surface's integral of |n . dA|)."""
+    shape = scene.body.shape
+    faces, side, axes, round_ = np.zeros(3), 0.0, (0.0, 0.0), 0.0
+    if isinstance(shape, Box):
+        x, y, z = shape.size
+        faces[:] = (y * z, x * z, x * y)
+    elif isinstance(shape, (Cylinder, EllipticCylinder)):
+        a, b = (shape.radius, shape.radius) if isinstance(shape, Cylinder) else shape.semi_axes
+        faces[2], side, axes = math.pi * a * b, 2.0 * shape.height, (a, b)
+    elif isinstance(shape, Sphere):
+        round_ = math.pi * shape.radius ** 2
+    else:
+        raise ValueError(f"wind needs the load's shape for its drag area; scene {scene.name!r} gives only its "
+                         f"inertia (set body.shape)")
+    return {"faces": faces, "side": side, "semi_axes": axes, "round": round_}
+
+
+class Wind:
+    """The wind and pushes of an environment: ``options`` (:class:`WindOptions`) and the control
+    period [s]."""
+
+    def __init__(self, options: WindOptions, control_period: float):
+        self.options = options
+        self.control_period = float(control_period)
+
+    def episode(self, scene: Scene, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
+        """One episode's (DISTURBANCE_PARAMS, initial DISTURBANCE state, the first block of
+        DRAWS, the reset info's wind entries) for ``scene``, drawn from ``rng``."""
+        o = self.options
+        azimuth = o.direction if o.direction is not None else 2.0 * math.pi * rng.random()
+        dp = np.zeros(DISTURBANCE_PARAMS.size)
+        dp[DISTURBANCE_PARAMS["mean_wind"]] = (o.speed * math.cos(azimuth), o.speed * math.sin(azimuth), 0.0)
+        decay = math.exp(-self.control_period / o.gust_time)
+        dp[DISTURBANCE_PARAMS["gust_decay"]] = decay
+        dp[DISTURBANCE_PARAMS["gust_innovation"]] = o.gusts * math.sqrt(1.0 - decay * decay)
+        string = scene.string
+        diameter = o.line_diameter or math.sqrt(4.0 * string.mass_per_length / (math.pi * LINE_DENSITY))
+        half_rho = 0.5 * o.air_density
+        dp[DISTURBANCE_PARAMS["line_drag"]] = half_rho * o.line_drag_coefficient * diameter
+        areas = drag_areas(scene)
+        k = half_rho * o.load_drag_coefficient
+        dp[DISTURBANCE_PARAMS["load_faces"]] = k * areas["faces"]
+        dp[DISTURBANCE_PARAMS["load_side"]] = k * areas["side"]
+        dp[DISTURBANCE_PARAMS["load_semi_axes"]] = areas["semi_axes"]
+        dp[DISTURBANCE_PARAMS["load_round"]] = k * areas["round"]
+        dp[DISTURBANCE_PARAMS["push_chance"]] = -math.expm1(-o.push_rate * self.control_period)
+        dp[DISTURBANCE_PARAMS["push_force"]] = scene.body.mass * o.push_speed / self.control_period
+        ds = np.zeros(DISTURBANCE.size)
+        ds[DISTURBANCE["gust"]] = o.gusts * rng.standard_normal(3)  # the stationary law
+        ds[DISTURBANCE["wind"]] = dp[DISTURBANCE_PARAMS["mean_wind"]] + ds[DISTURBANCE["gust"]]
+        return dp, ds, self.draws(rng), {"wind_speed": float(o.speed), "wind_direction": float(azimuth)}
+
+    @staticmethod
+    def draws(rng: np.random.Generator) -> np.ndarray:
+        """:data:`BLOCK` control steps of DRAWS from ``rng``: gust normals, then the uniforms."""
+        out = np.empty((BLOCK, DRAWS.size))
+        out[:, DRAWS["gust"]] = rng.standard_normal((BLOCK, 3))
+        out[:, DRAWS.scalar("push_chance"):] = rng.random((BLOCK, 3))
+        return out
