@@ -12,7 +12,8 @@ Prints a table and writes ``OUT/env_throughput.json`` and ``OUT/env_throughput.p
   step and with the implicit string asked for (``solver.string: implicit``), the runs of one
   repeat interleaved; writes ``OUT/env_throughput_ea.json``;
 * ``--realism`` (alone): the plain environment against the realism options (``randomize=True``,
-  then with the ``hook`` observation and sensor noise too),
+  then with the ``hook`` observation and sensor noise too, then randomisation, the hard preset's
+  wind and pushes and the ``hook`` observation (the issue's bar), then ``preset="hard"``),
   single and 8 batched, random actions, interleaved; writes ``OUT/env_throughput_realism.json``.
 
 Each figure is the median of ``--repeats`` timed runs after a warm-up (compilation excluded).
@@ -26,6 +27,7 @@ import numpy as np
 import esp_gym
 from benchmarks.common import arg_parser, figure, finish, machine, wall_times
 from esp_gym.sb3_vector import ElasticStringPendulumSB3VecEnv
+from esp_gym.setup import PRESETS
 
 
 def _rate(fn, steps: int, repeats: int) -> float:
@@ -141,7 +143,9 @@ def ea_sweep(args) -> dict:
 
 #: The options the realism comparison times against the plain environment.
 REALISM = {"plain": {}, "randomize": {"randomize": True},
-           "randomize, hook, noise": {"randomize": True, "observation": "hook", "sensor_noise": 1.0}}
+           "randomize, hook, noise": {"randomize": True, "observation": "hook", "sensor_noise": 1.0},
+           "randomize, wind, hook": {"randomize": True, "observation": "hook", "wind": PRESETS["hard"]["wind"]},
+           "preset hard": {"preset": "hard"}}
 #: Batch size of the realism comparison's batched runs.
 REALISM_BATCH = 8
 

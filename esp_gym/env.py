@@ -41,9 +41,9 @@ class ElasticStringPendulumEnv(gym.Env):
     | index | observation | unit |
     |---|---|---|
     | 0-2 | `pivot_position_error`: pivot position - pivot target | m |
-    | 3-5 | `pivot_velocity` | m/s |
+    | 3-5 | `pivot_velocity` (less the target's velocity: 0 but in `track`) | m/s |
     | 6-8 | `load_position_error`: load centre of mass - load target | m |
-    | 9-11 | `load_velocity`: load centre-of-mass velocity | m/s |
+    | 9-11 | `load_velocity`: load centre-of-mass velocity (less the target's) | m/s |
     | 12-17 | `attitude_6d`: first two columns of R (body x and y axes, spatial frame) | - |
     | 18-20 | `angular_velocity`: body angular velocity, body frame | rad/s |
     | 21 | `string_stretch`: stretched length / l - 1 | - |
@@ -58,9 +58,11 @@ class ElasticStringPendulumEnv(gym.Env):
     `reward = sum of info["reward_<term>"]` with, for x >= 0, `tol(x, s) = 1 / (1 + (x/s)^2)`:
     `load_position = w_lp tol(|load error|, 0.2 m)`, `load_velocity = w_lv tol(|v_load|, 0.5 m/s)`,
     `pivot_position = w_pp tol(|pivot error|, 0.2 m)`, `swing = w_sw tol(swing angle, 0.2 rad)`,
-    `spin = w_sp tol(|Omega|, 1 rad/s)`, `control = -w_c |a|^2 / 6`.
-    Weights (stabilize / transport): w_lp 0.35/0.45, w_lv 0.2/0.1, w_pp 0.2/0.2, w_sw 0.15/0.2,
-    w_sp 0.1/0.05, w_c 0.1/0.1; each step's reward lies in [-0.1, 1].
+    `spin = w_sp tol(|Omega|, 1 rad/s)`, `control = -w_c |a|^2 / 6`; in `track` v_load is
+    relative to the reference's velocity.
+    Weights (stabilize / transport / track): w_lp 0.35/0.45/0.5, w_lv 0.2/0.1/0.15,
+    w_pp 0.2/0.2/0.15, w_sw 0.15/0.2/0.15, w_sp 0.1/0.05/0.05, w_c 0.1/0.1/0.1; each step's
+    reward lies in [-0.1, 1].
 
     ## Starting State
     `stabilize`: the pivot within 0.1 m of its target (the origin), the string straight and
@@ -69,6 +71,11 @@ class ElasticStringPendulumEnv(gym.Env):
     rates in +-0.5 rad/s. The load target is its rest position below the pivot target.
     `transport`: the system nearly at rest (swing <= 3 degrees, speeds <= 0.05 m/s) at the
     origin; the pivot target is uniform in +-(1, 1, 0.5) m, the load target below it.
+    `track`: the targets move along a reference drawn per episode: a circle of radius a or a
+    figure-eight (x = a sin(theta), y = a/2 sin(2 theta)), equally likely, a uniform in
+    [0.3, 1] m, period uniform in [4, 10] s, either sense, random start angle and orientation
+    about z, centred on the origin; the load target hangs below the pivot's at the rest depth.
+    The system starts nearly at rest (as `transport`) with the pivot at the reference's start.
     With `randomize`, the episode's tether and load are drawn first (then the state above, for
     that scene), and its physics step is its own. `reset`'s info holds the episode's physical
     parameters under `"scene_params"` (a flat dict of floats: `string_length`, `EA`, ...;
@@ -89,7 +96,7 @@ class ElasticStringPendulumEnv(gym.Env):
     | argument | default | meaning |
     |---|---|---|
     | `scene` | `"drone_load"` | scene name under configs/scenes, YAML path or `Scene`; needs a free pivot |
-    | `task` | `"stabilize"` | `"stabilize"` or `"transport"` |
+    | `task` | `"stabilize"` | `"stabilize"`, `"transport"` or `"track"` |
     | `control_period` | 0.02 | seconds per `step` (a whole number of physics steps) |
     | `h` | None | physics step; None: the largest dividing the control period under `safety` x the stability bound (with `scene_overrides={"solver": {"string": "implicit"}}`, under 0.9 x the implicit string's transverse bound: docs/physics.md) |
     | `safety` | 0.5 | margin under the stability bound for the automatic h (long runs of the tension-only string under random inputs gain spurious energy above ~0.6: 0.8 J in 10 s at 0.8) |
@@ -142,8 +149,9 @@ class ElasticStringPendulumEnv(gym.Env):
 
     @property
     def target(self) -> np.ndarray:
-        """(pivot target, load target) [m], spatial frame."""
-        return self.control.target.copy()
+        """(pivot target, load target) [m], spatial frame, now (``track``'s move)."""
+        t = self.control.target
+        return np.concatenate((t[TARGET["pivot"]], t[TARGET["load"]]))
 
     def pivot_position(self) -> np.ndarray:
         return self.sim.state.r[0]

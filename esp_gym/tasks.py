@@ -11,7 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kernels.layout import TASK_PARAM_NAMES
+from .kernels.layout import TARGET, TASK_PARAM_NAMES
+from .kernels.reference import reference_at
 from .state import State, hat, legendre_momenta
 from .params import Scene
 
@@ -65,7 +66,32 @@ TASKS = {
     # carry a load hanging at rest to a random target with little swing
     "transport": Task("transport", max_swing_deg=3.0, max_speed=0.05, max_spin=0.1, target_box=(1.0, 1.0, 0.5),
                       w_load_position=0.45, w_load_velocity=0.1, w_swing=0.2, w_spin=0.05),
+    # the load follows a moving reference (a circle or a figure-eight) from rest
+    "track": Task("track", max_swing_deg=3.0, max_speed=0.05, max_spin=0.1, w_load_position=0.5,
+                  w_load_velocity=0.15, w_pivot_position=0.15, w_swing=0.15, w_spin=0.05),
 }
+
+#: The ``track`` task's reference family (kernels/reference.py): each episode draws a circle or a
+#: figure-eight (equally likely) of size ``a`` [m] and period [s] uniform in these ranges, either
+#: sense, a uniform start angle and a uniform orientation about e3, centred on the origin.
+TRACK_SIZE = (0.3, 1.0)
+TRACK_PERIOD = (4.0, 10.0)
+
+
+def track_reference(rng: np.random.Generator, depth: float) -> np.ndarray:
+    """A ``track`` episode's TARGET at t = 0 (the load ``depth`` [m] below the pivot's target)."""
+    t = np.zeros(TARGET.size)
+    a = rng.uniform(*TRACK_SIZE)
+    eight = rng.random() < 0.5
+    t[TARGET["amplitude"]] = (a, 0.5 * a) if eight else (a, a)
+    t[TARGET["harmonic"]] = 2.0 if eight else 1.0
+    t[TARGET["phase"]] = (0.0, 0.0) if eight else (0.5 * math.pi, 0.0)
+    t[TARGET["rate"]] = 2.0 * math.pi / rng.uniform(*TRACK_PERIOD) * (1.0 if rng.random() < 0.5 else -1.0)
+    t[TARGET["start"]] = rng.uniform(0.0, 2.0 * math.pi)
+    t[TARGET["orientation"]] = rng.uniform(0.0, 2.0 * math.pi)
+    t[TARGET["depth"]] = depth
+    reference_at(t, 0.0)
+    return t
 
 
 def get_task(name: str) -> Task:
@@ -110,7 +136,7 @@ def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
 
 
 def sample_episode(task: Task, scene: Scene, rng: np.random.Generator):
-    """Initial state and targets of one episode: ``(State, target (6,))``.
+    """Initial state and targets of one episode: ``(State, target (TARGET))``.
 
     The string starts straight, statically stretched, at a swing angle up to max_swing_deg in a
     random azimuth from the pivot; the body hangs with its centre of mass along the string
@@ -118,12 +144,20 @@ def sample_episode(task: Task, scene: Scene, rng: np.random.Generator):
     (the string's velocity interpolates between them), body rates uniform in +-max_spin.
     stabilize: targets are the origin for the pivot and the rest position below it for the load;
     the pivot starts within 0.1 m of the origin. transport: the pivot starts at the origin and
-    its target is uniform in +-target_box.
+    its target is uniform in +-target_box. track: the reference is drawn first
+    (:func:`track_reference`) and the pivot starts at its start, the system nearly at rest.
     """
     origin = np.zeros(3)
     box = np.asarray(task.target_box, dtype=float)
     pivot_target = rng.uniform(-box, box) if np.any(box) else origin.copy()
     start = rng.uniform(-0.1, 0.1, 3) if task.name == "stabilize" else origin.copy()
+    target = np.zeros(TARGET.size)
+    if task.name == "track":  # the pivot starts where the reference does
+        target = track_reference(rng, hanging_depth(scene))
+        start = target[TARGET["pivot"]].copy()
+    else:
+        target[TARGET["pivot"]] = pivot_target
+        target[TARGET["load"]] = pivot_target + hanging_depth(scene) * np.array([0.0, 0.0, 1.0])
     theta = math.radians(task.max_swing_deg) * rng.uniform(0.0, 1.0)
     phi = rng.uniform(0.0, 2.0 * math.pi)
     d = np.array([math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), math.cos(theta)])
@@ -139,5 +173,4 @@ def sample_episode(task: Task, scene: Scene, rng: np.random.Generator):
     v = v_pivot + frac * (v_attach - v_pivot)
     Omega = rng.uniform(-task.max_spin, task.max_spin, 3)
     p, Pi = legendre_momenta(scene, r, v, R, Omega)
-    target = np.concatenate([pivot_target, pivot_target + hanging_depth(scene) * np.array([0.0, 0.0, 1.0])])
     return State(np.ascontiguousarray(r), p, np.ascontiguousarray(R), Pi, 0), target

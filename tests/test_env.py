@@ -211,8 +211,8 @@ def test_vector_bad_actions_raise_and_change_nothing(kind):
 #: physics drawn anew (each sub-environment then runs its own constants and step count).
 VECTOR_OPTIONS = [{}, {"randomize": True},
                   {"randomize": True, "observation": "hook", "sensor_noise": 1.0, "action_latency": 2},
-                  {"preset": "hard"}]
-VECTOR_IDS = ["plain", "randomize", "hook-noise-latency", "hard"]
+                  {"preset": "hard"}, {"task": "track", "randomize": True}]
+VECTOR_IDS = ["plain", "randomize", "hook-noise-latency", "hard", "track"]
 
 
 @pytest.mark.parametrize("options", VECTOR_OPTIONS, ids=VECTOR_IDS)

@@ -42,11 +42,12 @@ def load_area(dp, n0, n1, n2):
 # a called function, not inlined: inlined into the batch's prange loop (numba 0.68), its writes
 # after the element loop were lost (the last node's and the load's rows stayed 0)
 @kernel
-def disturb(S, P, D, dp, ds, draw, ext):
-    """One control step's gusts and held forces (module docstring): ``dp`` the episode's
+def disturb(r, R, V, om, rho, dp, ds, draw, ext):
+    """One control step's gusts and held forces (module docstring) at the state's positions r,
+    attitude R and attachment offset rho (rho_c) with its velocities from the diagnostics: node
+    velocities V [m/s], body rate om (Omega, body frame) [rad/s]. ``dp`` the episode's
     DISTURBANCE_PARAMS, ``ds`` the DISTURBANCE state (gust in, everything out), ``draw`` this
-    step's DRAWS, ``ext`` (N+2, 3) the held forces out [N]. ``D`` holds the diagnostics of the
-    current state (its node velocities V and body rate omega)."""
+    step's DRAWS, ``ext`` (N+2, 3) the held forces out [N]."""
     a = dp[DP_GUST_DECAY]
     for i in range(3):
         g = a * ds[DS_GUST + i] + dp[DP_GUST_INNOVATION + i] * draw[DR_GUST + i]
@@ -55,8 +56,6 @@ def disturb(S, P, D, dp, ds, draw, ext):
     w0 = ds[DS_WIND]
     w1 = ds[DS_WIND + 1]
     w2 = ds[DS_WIND + 2]
-    r = S.r
-    V = D.V
     n = r.shape[0] - 1
     k = dp[DP_LINE_DRAG]
     s0 = s1 = s2 = 0.0
@@ -94,9 +93,6 @@ def disturb(S, P, D, dp, ds, draw, ext):
     ds[DS_LINE_DRAG + 1] = s1
     ds[DS_LINE_DRAG + 2] = s2
     # the load's centre of mass moves at V_N + R (omega x rho_c)
-    R = S.R
-    rho = P.rho
-    om = D.omega
     c0 = om[1] * rho[2] - om[2] * rho[1]
     c1 = om[2] * rho[0] - om[0] * rho[2]
     c2 = om[0] * rho[1] - om[1] * rho[0]
@@ -131,12 +127,10 @@ def disturb(S, P, D, dp, ds, draw, ext):
 
 
 @kernel(inline="always")
-def load_point(S, P, i):
+def load_point(r, R, rho, i):
     """Coordinate ``i`` of the load's centre of mass r_N + R rho_c [m]."""
-    n = S.r.shape[0] - 1
-    R = S.R
-    rho = P.rho
-    return S.r[n, i] + (R[i, 0] * rho[0] + R[i, 1] * rho[1] + R[i, 2] * rho[2])
+    n = r.shape[0] - 1
+    return r[n, i] + (R[i, 0] * rho[0] + R[i, 1] * rho[1] + R[i, 2] * rho[2])
 
 
 @kernel(inline="always")
@@ -148,17 +142,17 @@ def external_potential(S, P, ext, first):
     for a in range(first, n + 1):
         phi += ext[a, 0] * r[a, 0] + ext[a, 1] * r[a, 1] + ext[a, 2] * r[a, 2]
     for i in range(3):
-        phi += ext[n + 1, i] * load_point(S, P, i)
+        phi += ext[n + 1, i] * load_point(r, S.R, P.rho, i)
     return phi
 
 
-@kernel  # called, not inlined: see disturb
-def kick(S, P, ext, c, first):
+# called, not inlined (see disturb), with the arrays it needs only: a namedtuple argument of a
+# call is copied field by field, which cost more than the kick itself
+@kernel
+def kick(r, p, R, Pi, acc, accc, rho, ext, c, first):
     """The held forces' half of a step, scaled: p_a += c F_a (nodes a >= first), p_N += c F_L,
     Pi += c rho_c x (R^T F_L) (c = h/2 for one side of one step [s]); their impulse c sum F and
-    angular impulse about e3, c e3 . sum x x F, join the balances."""
-    r = S.r
-    p = S.p
+    angular impulse about e3, c e3 . sum x x F, join the balances ``acc`` (remainders ``accc``)."""
     n = r.shape[0] - 1
     t0 = t1 = t2 = ang = 0.0
     for a in range(first, n + 1):
@@ -178,16 +172,14 @@ def kick(S, P, ext, c, first):
     p[n, 0] += c * F0
     p[n, 1] += c * F1
     p[n, 2] += c * F2
-    R = S.R
-    rho = P.rho
     b0 = R[0, 0] * F0 + R[1, 0] * F1 + R[2, 0] * F2  # R^T F_L
     b1 = R[0, 1] * F0 + R[1, 1] * F1 + R[2, 1] * F2
     b2 = R[0, 2] * F0 + R[1, 2] * F1 + R[2, 2] * F2
-    S.Pi[0] += c * (rho[1] * b2 - rho[2] * b1)
-    S.Pi[1] += c * (rho[2] * b0 - rho[0] * b2)
-    S.Pi[2] += c * (rho[0] * b1 - rho[1] * b0)
-    ang += load_point(S, P, 0) * F1 - load_point(S, P, 1) * F0
-    kahan_add(S.acc, S.accc, B_EXTERNAL_IMPULSE, c * (t0 + F0))
-    kahan_add(S.acc, S.accc, B_EXTERNAL_IMPULSE + 1, c * (t1 + F1))
-    kahan_add(S.acc, S.accc, B_EXTERNAL_IMPULSE + 2, c * (t2 + F2))
-    kahan_add(S.acc, S.accc, B_ANGULAR_IMPULSE_Z, c * ang)
+    Pi[0] += c * (rho[1] * b2 - rho[2] * b1)
+    Pi[1] += c * (rho[2] * b0 - rho[0] * b2)
+    Pi[2] += c * (rho[0] * b1 - rho[1] * b0)
+    ang += load_point(r, R, rho, 0) * F1 - load_point(r, R, rho, 1) * F0
+    kahan_add(acc, accc, B_EXTERNAL_IMPULSE, c * (t0 + F0))
+    kahan_add(acc, accc, B_EXTERNAL_IMPULSE + 1, c * (t1 + F1))
+    kahan_add(acc, accc, B_EXTERNAL_IMPULSE + 2, c * (t2 + F2))
+    kahan_add(acc, accc, B_ANGULAR_IMPULSE_Z, c * ang)

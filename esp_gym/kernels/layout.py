@@ -188,13 +188,29 @@ AP_HOVER = ACTION_PARAMS.start("hover_force")
 AP_FORCE_LIMIT = ACTION_PARAMS.scalar("force_limit")
 AP_TORQUE_LIMIT = ACTION_PARAMS.scalar("torque_limit")
 
-#: The episode's targets [m], spatial frame.
-TARGET = Layout(("pivot", 3), ("load", 3))
+#: The episode's targets, spatial frame: the pivot's and the load's [m], their velocity [m/s]
+#: (0 but in ``track``), and the moving reference that ``track`` follows (kernels/reference.py):
+#: its clock [s], the curve's centre [m], the load's depth below the pivot target [m], the
+#: curve's amplitudes [m], harmonic, phases [rad], start angle [rad], rate omega [rad/s] (0: a
+#: fixed target) and orientation about e3 [rad].
+TARGET = Layout(("pivot", 3), ("load", 3), ("velocity", 3), ("clock", 1), ("centre", 3), ("depth", 1),
+                ("amplitude", 2), ("harmonic", 1), ("phase", 2), ("start", 1), ("rate", 1), ("orientation", 1))
 T_PIVOT = TARGET.start("pivot")
 T_LOAD = TARGET.start("load")
+T_VELOCITY = TARGET.start("velocity")
+T_CLOCK = TARGET.scalar("clock")
+T_CENTRE = TARGET.start("centre")
+T_DEPTH = TARGET.scalar("depth")
+T_AMPLITUDE = TARGET.start("amplitude")
+T_HARMONIC = TARGET.scalar("harmonic")
+T_PHASE = TARGET.start("phase")
+T_START = TARGET.scalar("start")
+T_RATE = TARGET.scalar("rate")
+T_ORIENTATION = TARGET.scalar("orientation")
 
 #: The observation (spatial frame unless stated): pivot position - target [m], pivot velocity
-#: [m/s], load centre of mass - target [m], its velocity [m/s], the first two columns of R
+#: [m/s], load centre of mass - target [m], its velocity [m/s] (both velocities less the
+#: target's, which is 0 but in ``track``), the first two columns of R
 #: (body x and y axes), the body angular velocity (body frame) [rad/s], and the string stretch
 #: (stretched length / l - 1).
 OBSERVATION = Layout(("pivot_position_error", 3), ("pivot_velocity", 3), ("load_position_error", 3),

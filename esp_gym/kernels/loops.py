@@ -141,7 +141,7 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
     first = 0 if free else 1
     hh = 0.5 * P.h
     if disturbed and nsteps > 0:
-        kick(S, P, W.ext, hh, first)
+        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, hh, first)
     if not forces_ready and not implicit:
         nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
     # a composed step, and an implicit one that cut itself back (kernels/implicit.py), can
@@ -164,7 +164,7 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
         if status != OK:
             if failed != OK or not composed:  # (a replayed step cannot fail: it did not before)
                 if disturbed:
-                    kick(S, P, W.ext, -hh, first)
+                    kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, -hh, first)
                 _finish(stats, status, k, total, most)
                 return
             failed = status
@@ -174,9 +174,9 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
             continue
         k += 1
         if disturbed:
-            kick(S, P, W.ext, P.h if k < target else hh, first)
+            kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, P.h if k < target else hh, first)
     if disturbed and failed != OK and target == k0:  # rewound to a checkpoint, no step to replay
-        kick(S, P, W.ext, -hh, first)
+        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, -hh, first)
     _finish(stats, failed, target, total, most)
 
 

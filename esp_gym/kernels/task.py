@@ -20,13 +20,14 @@ from .lgvi import kahan_add
 from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, ACTION_SIZE, AP_FORCE_LIMIT, AP_HIGH, AP_HOVER, AP_LOW,
                      AP_TORQUE_LIMIT, B_WORK, D_STRETCHED_LENGTH, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE,
                      O_ANGULAR_VELOCITY, O_ATTITUDE, O_LOAD_ERROR, O_LOAD_VELOCITY, O_PIVOT_ERROR, O_PIVOT_VELOCITY,
-                     O_STRETCH, OK, R_STATUS, R_TERMINATION, RW_CONTROL, RW_LOAD_POSITION, RW_LOAD_VELOCITY,
-                     RW_PIVOT_POSITION, RW_SPIN, RW_SWING, SN_HOOK_TENSION, SN_LOAD_TARGET_OFFSET, T_LOAD, T_PIVOT, TERM_NONE, TERM_OVERSTRETCH,
+                     O_STRETCH, OK, R_STATUS, R_STEPS, R_TERMINATION, RW_CONTROL, RW_LOAD_POSITION, RW_LOAD_VELOCITY,
+                     RW_PIVOT_POSITION, RW_SPIN, RW_SWING, SN_HOOK_TENSION, SN_LOAD_TARGET_OFFSET, T_LOAD, T_PIVOT, T_VELOCITY, TERM_NONE, TERM_OVERSTRETCH,
                      TERM_WORKSPACE, TP_MAX_STRETCHED_LENGTH, TP_SCALE_POSITION, TP_SCALE_SPIN, TP_SCALE_SWING,
                      TP_SCALE_VELOCITY, TP_STRING_LENGTH, TP_W_CONTROL, TP_W_LOAD_POSITION, TP_W_LOAD_VELOCITY,
                      TP_W_PIVOT_POSITION, TP_W_SPIN, TP_W_SWING, TP_WORKSPACE_RADIUS, DiagWork, LGVIParams,
                      StateArrays, Work)
 from .loops import advance_loop
+from .reference import advance_reference
 
 
 @kernel
@@ -76,10 +77,11 @@ def env_observe(S, P, D, target, tp, action, obs, terms, sensors):
     for i in range(3):
         ci = r[n, i] + (R[i, 0] * rho[0] + R[i, 1] * rho[1] + R[i, 2] * rho[2])
         vi = V[n, i] + (R[i, 0] * x0 + R[i, 1] * x1 + R[i, 2] * x2)
+        vi -= target[T_VELOCITY + i]  # relative to the moving reference (x - 0.0 == x)
         ei = r[0, i] - target[T_PIVOT + i]
         li = ci - target[T_LOAD + i]
         obs[O_PIVOT_ERROR + i] = ei
-        obs[O_PIVOT_VELOCITY + i] = V[0, i]
+        obs[O_PIVOT_VELOCITY + i] = V[0, i] - target[T_VELOCITY + i]
         obs[O_LOAD_ERROR + i] = li
         obs[O_LOAD_VELOCITY + i] = vi
         obs[O_ATTITUDE + i] = R[i, 0]
@@ -167,13 +169,14 @@ def env_step_one(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, senso
     first = 0 if free else 1
     phi = 0.0
     if disturbed:
-        disturb(S, P, D, dp, ds, draws[drawn[0]], W.ext)
+        disturb(S.r, S.R, D.V, D.omega, P.rho, dp, ds, draws[drawn[0]], W.ext)
         drawn[0] += 1
         phi = external_potential(S, P, W.ext, first)
     # the general kernel: an environment always has inputs and, as a rule, an off-centre load
     advance_loop(S, W, P, inputs, nsub, result, free, True, True, P.compensated, False, implicit, disturbed)
     if disturbed:
         kahan_add(S.acc, S.accc, B_WORK, external_potential(S, P, W.ext, first) - phi)
+    advance_reference(target, result[R_STEPS] * P.h)
     status = result[R_STATUS]
     diagnostics(S, P, D)
     code = env_observe(S, P, D, target, tp, action, obs, terms, sensors)

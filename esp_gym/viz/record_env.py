@@ -10,6 +10,7 @@ from typing import Optional
 import gymnasium as gym
 
 from ..control import ControlStep
+from ..kernels.layout import TARGET
 from .recorder import Recorder
 
 
@@ -19,7 +20,7 @@ class RecordRerun(gym.Wrapper):
     Every ``reset`` and every ``step`` adds one sample: the state and its diagnostics, and for
     steps the applied (clipped) action, the reward and its terms (``info["reward_*"]``) and
     the mean Newton iterations per physics step; each episode's targets are logged at its
-    reset. Episodes follow each other on the ``step`` timeline (one step apart) and ``time``
+    reset (and at every step while they move: ``track``). Episodes follow each other on the ``step`` timeline (one step apart) and ``time``
     is ``step`` times the control period. Samples are buffered and written every
     ``flush_every`` samples, after ``flush_seconds`` of wall time, when an episode ends
     (``flush_on_episode_end``), on :meth:`close`, at exit and on SIGTERM/SIGINT. A failed
@@ -72,7 +73,9 @@ class RecordRerun(gym.Wrapper):
         obs, reward, terminated, truncated, info = self.env.step(action)
         if self._live is not None and not self.recorder.closed:
             self._step += 1
-            self._add(stepped=True, reward=reward, inputs=self.control.inputs)
+            moving = self.control.target[TARGET.scalar("rate")] != 0.0  # track: log the moving targets
+            self._add(stepped=True, reward=reward, inputs=self.control.inputs,
+                      **({"target": self.control.target} if moving else {}))
             if self.flush_on_episode_end and (terminated or truncated):
                 self.recorder.flush(wait=True)  # on disk when the episode ends
         return obs, reward, terminated, truncated, info

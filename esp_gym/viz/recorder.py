@@ -267,7 +267,7 @@ class Recorder:
         step ``report`` (REPORT), ``step`` and ``time`` [s] on the timelines, whether it follows
         a step (``stepped``; False after a reset), the ``episode``, the applied ``action``
         (ACTION) and reward ``terms`` (REWARD) with the ``reward``, the ``inputs`` (INPUTS) and
-        the episode's ``target`` (TARGET; give it at the episode's reset only). Arrays not given
+        the episode's ``target`` (TARGET; at the episode's reset, and while it moves). Arrays not given
         are zeros (the target: none). Raises RecordingError after a failed write."""
         if self.closed:
             return
