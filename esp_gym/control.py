@@ -12,8 +12,9 @@ every array gains a leading axis) and the compiled calls on them (kernels/task.p
   :data:`~esp_gym.kernels.layout.REPORT` (status, steps, Newton iterations, termination code).
 
 Everything is readable through named, read-only views (``observation``, ``sensors``,
-``reward_terms``, ``action``, ``inputs``, ``target``, ``report``, ``scene_params``) laid out in
-kernels/layout.py; the observation a mode returns is esp_gym/observe.py's.
+``reward_terms``, ``action``, ``inputs``, ``target``, ``report``, ``scene_params``,
+``disturbance``) laid out in kernels/layout.py; the observation a mode returns is
+esp_gym/observe.py's; the environments' shared, resolved arguments are esp_gym/setup.py's.
 """
 from __future__ import annotations
 
@@ -81,7 +82,8 @@ class ControlStep:
     ``observation`` (OBSERVATION), ``reward_terms`` (REWARD), ``action`` (the clipped
     action, ACTION), ``inputs`` (INPUTS: pivot force [N], body torque [N m], spatial torque),
     ``target`` (TARGET [m]), ``report`` (REPORT, int64), ``scene_params`` (SCENE_PARAMS of the
-    current episodes).
+    current episodes, then the wind's WIND_INFO), ``disturbance`` (DISTURBANCE: the wind and the
+    external forces of the last step; zeros in still air).
     """
 
     def __init__(self, setup: EnvSetup, num_envs: Optional[int] = None):
