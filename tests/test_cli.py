@@ -106,7 +106,7 @@ def test_env_throughput_realism_quick_runs(tmp_path):
         capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert proc.returncode == 0, proc.stderr
     table = json.loads((tmp_path / "env_throughput_realism.json").read_text())["table"]
-    assert set(table) == {"plain", "randomize", "randomize, hook, noise"}
+    assert set(table) == {"plain", "randomize", "randomize, hook, noise", "randomize, wind, hook", "preset hard"}
     assert all(row["single"] > 0 and row["batched"] > 0 for row in table.values())
 
 

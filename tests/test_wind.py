@@ -12,7 +12,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import esp_gym  # noqa: F401  (registers the env)
 from esp_gym.kernels.disturbance import load_area
-from esp_gym.kernels.layout import DISTURBANCE, DISTURBANCE_PARAMS
+from esp_gym.kernels.layout import DISTURBANCE, DISTURBANCE_PARAMS, OBSERVATION, TARGET
 from esp_gym.params import scene_from_dict
 from esp_gym.setup import PRESETS
 from esp_gym.state import State
@@ -21,6 +21,8 @@ from esp_gym.wind import BLOCK, LINE_DENSITY, Wind, WindOptions, drag_areas
 
 ENV_ID = "ElasticStringPendulum-v0"
 GUSTY = {"speed": 6.0, "gust_std": 1.5, "push_rate": 5.0}
+#: The pivot's position error and velocity: the same slices in the full and the hook observation.
+ERROR, VELOCITY = OBSERVATION["pivot_position_error"], OBSERVATION["pivot_velocity"]
 
 
 def _balances(nsub, steps=100):
@@ -66,7 +68,7 @@ def _still_env(speed=5.0, direction=0.0, **wind):
     n, length = scene.string.elements, scene.string.length
     r = np.zeros((n + 1, 3))
     r[:, 2] = np.linspace(0.0, length, n + 1)
-    env.control.reset(State(r, np.zeros((n + 1, 3)), np.eye(3), np.zeros(3)), np.zeros(6))
+    env.control.reset(State(r, np.zeros((n + 1, 3)), np.eye(3), np.zeros(3)), np.zeros(TARGET.size))
     return env
 
 
@@ -136,7 +138,7 @@ def _episode(env, seed, steps):
     noise = np.random.default_rng(2).uniform(-0.1, 0.1, (steps, 6))
     for k in range(steps):
         a = noise[k].copy()
-        a[:3] -= np.clip(1.0 * obs[0:3] + 0.9 * obs[3:6], -0.8, 0.8)
+        a[:3] -= np.clip(1.0 * obs[ERROR] + 0.9 * obs[VELOCITY], -0.8, 0.8)
         obs, r, te, tr, _ = env.step(a)
         out.append(np.append(obs, r))
         if te:
@@ -163,7 +165,7 @@ def test_batched_env_equals_single_envs_past_a_block_of_draws():
     noise = np.random.default_rng(3).uniform(-0.1, 0.1, (steps, B, 6))
     for k in range(steps):
         a = noise[k].copy()
-        a[:, :3] -= np.clip(obs[:, 0:3] + 0.9 * obs[:, 3:6], -0.8, 0.8)  # a PD law: no episode ends
+        a[:, :3] -= np.clip(obs[:, ERROR] + 0.9 * obs[:, VELOCITY], -0.8, 0.8)  # a PD law: no episode ends
         obs, _, terminated, *_ = venv.step(a)
         single = np.stack([e.step(a[i])[0] for i, e in enumerate(envs)])
         assert np.array_equal(obs, single) and not terminated.any()
