@@ -22,7 +22,10 @@ WIND = {"speed": 6.0, "gust_std": 1.5, "push_rate": 5.0}
 
 
 def balances(substeps: int, steps: int, seed: int = 3) -> dict:
-    """The balances of one episode with ``substeps`` physics steps per 20 ms control step."""
+    """The balances of one episode with ``substeps`` physics steps per 20 ms control step: the
+    worst |E - E0 - W| over it [J], and at its end W [J], the largest momentum balance residual
+    [kg m/s], |pi3 balance residual| [kg m^2/s] and the external impulse [kg m/s]
+    (tests/test_wind.py asserts on them)."""
     env = gym.make("ElasticStringPendulum-v0", h=0.02 / substeps, wind=WIND).unwrapped
     env.reset(seed=seed)
     actions = 0.3 * np.random.default_rng(0).uniform(-1, 1, (steps, 6))

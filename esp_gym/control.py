@@ -129,7 +129,8 @@ class ControlStep:
         self._draws = z(batch + (BLOCK if setup.wind is not None else 1, DRAWS.size))
         self._drawn = z(batch + (1,), dtype=np.int64)
         self._rngs = [None] * (self.num_envs or 1)  # each (sub-)environment's generator, for more draws
-        self._entry = ENTRY_POINTS[self.sim.implicit, setup.wind is not None]
+        self._windy = setup.wind is not None
+        self._entry = ENTRY_POINTS[self.sim.implicit, self._windy]
         self._was_reset = z(batch, dtype=bool)  # stepping a state that was never set is an error
         self._ready = False  # all of _was_reset, kept as a bool: step checks it every call
         self._make_views()
@@ -253,7 +254,7 @@ class ControlStep:
                 if not actions_finite(raw[None]):
                     raise ValueError(f"action must be finite, got {raw.tolist()}")
                 raw = self._delay(raw, self._pending)
-            if self._drawn[0] == BLOCK:
+            if self._windy and self._drawn[0] == BLOCK:
                 self._draws[...] = Wind.draws(self._rngs[0])
                 self._drawn[0] = 0
             if not self._entry[0](s, w, p, d, raw, self._action_params, self._inputs, int(self._substeps),
@@ -272,7 +273,7 @@ class ControlStep:
             raw = raw.copy()
             for i in np.flatnonzero(active):
                 raw[i] = self._delay(raw[i], self._pending[i])
-        if self.setup.wind is not None:
+        if self._windy:
             for i in np.flatnonzero(self._drawn[:, 0] == BLOCK):
                 self._draws[i] = Wind.draws(self._rngs[i])
                 self._drawn[i] = 0
