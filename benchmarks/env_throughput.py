@@ -14,7 +14,8 @@ Prints a table and writes ``OUT/env_throughput.json`` and ``OUT/env_throughput.p
 * ``--realism`` (alone): the plain environment against the realism options (``randomize=True``,
   then with the ``hook`` observation and sensor noise too, then randomisation, the hard preset's
   wind and pushes and the ``hook`` observation (the issue's bar), then ``preset="hard"``),
-  single and 8 batched, random actions, interleaved; writes ``OUT/env_throughput_realism.json``.
+  single and 8 batched, random actions, interleaved, and the median time of a reset (drawing and
+  starting an episode); writes ``OUT/env_throughput_realism.json``.
 
 Each figure is the median of ``--repeats`` timed runs after a warm-up (compilation excluded).
 Usage: ``python -m benchmarks.env_throughput [--quick] [--ea-sweep | --realism] [--out DIR]``.
@@ -162,14 +163,23 @@ def realism(args) -> dict:
             rates[(name, "batched")].append(batched(
                 lambda n, o=options: gym.make_vec(esp_gym.ENV_ID, num_envs=n, **o), REALISM_BATCH, 4 * steps, 1, False))
     table = {name: {kind: float(np.median(rates[(name, kind)])) for kind in ("single", "batched")} for name in REALISM}
-    print(f"{'options':24s} single [steps/s]  ratio   batched x{REALISM_BATCH} [steps/s]  ratio")
+    for name, options in REALISM.items():
+        table[name]["reset_us"] = reset_time(options, 20 if args.quick else 300)
+    print(f"{'options':24s} single [steps/s]  ratio   batched x{REALISM_BATCH} [steps/s]  ratio   reset [us]")
     for name, row in table.items():
         print(f"{name:24s} {row['single']:15,.0f}  {row['single'] / table['plain']['single']:5.2f}   "
-              f"{row['batched']:19,.0f}  {row['batched'] / table['plain']['batched']:5.2f}")
+              f"{row['batched']:19,.0f}  {row['batched'] / table['plain']['batched']:5.2f}   {row['reset_us']:9.0f}")
     finish(args.out, "env_throughput_realism", {"table": table, "options": {k: repr(v) for k, v in REALISM.items()},
                                                 "steps": steps, "repeats": repeats,
                                                 "machine": machine("gymnasium")}, {})
     return {"table": table}
+
+
+def reset_time(options: dict, count: int) -> float:
+    """Median wall time of drawing and starting one episode (``ControlStep.start_episode``) [us]."""
+    control = gym.make(esp_gym.ENV_ID, **options).unwrapped.control
+    rng = np.random.default_rng(0)
+    return 1e6 * float(np.median(wall_times(lambda: control.start_episode(rng), count)))
 
 
 def _plot(res: dict, counts: list, path) -> None:

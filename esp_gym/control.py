@@ -192,7 +192,8 @@ class ControlStep:
             if episode.scene is not self.sim.scene:
                 self.sim.use_scene(episode.scene, episode.params)
                 self._params = self.sim.params
-                self._make_views()
+                state, work, _, diag = self._kernel_tuples  # only the constants changed
+                self._kernel_tuples = (state, work, tuple(self._params), diag)
             self._substeps[...] = episode.substeps
         else:
             for stacked, value in zip(self._params, episode.params):

@@ -13,7 +13,7 @@ import numpy as np
 
 from .kernels.layout import TARGET, TASK_PARAM_NAMES
 from .kernels.reference import reference_at
-from .state import State, hat, legendre_momenta
+from .state import State, cross3, hat, legendre_momenta
 from .params import Scene
 
 
@@ -119,7 +119,7 @@ def hanging_depth(scene: Scene) -> float:
 
 def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """The smallest rotation taking unit vector a to unit vector b (Rodrigues)."""
-    v = np.cross(a, b)
+    v = cross3(a, b)
     c = float(a @ b)
     if c < -1.0 + 1e-12:  # opposite: rotate by pi about any axis perpendicular to a
         axis = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])

@@ -17,7 +17,7 @@ time (another block when those are used up), so seeded episodes repeat bit for b
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping, Optional, Union
+from typing import Any, Mapping, NamedTuple, Optional, Union
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
@@ -26,6 +26,12 @@ from .kernels.layout import DISTURBANCE, DISTURBANCE_PARAMS, DRAWS
 from .options import validation_message
 from .params import Box, Cylinder, EllipticCylinder, Scene, Sphere
 from .scene_input import Real
+
+# the fields a reset writes, resolved once (a reset is on the hot path of short episodes)
+_DP_MEAN_WIND, _DP_LINE_DRAG, _DP_LOAD_FACES, _DP_LOAD_SIDE, _DP_LOAD_SEMI_AXES, _DP_LOAD_ROUND, _DP_PUSH_FORCE = (
+    DISTURBANCE_PARAMS[name] for name in ("mean_wind", "line_drag", "load_faces", "load_side", "load_semi_axes",
+                                          "load_round", "push_force"))
+_DS_GUST, _DS_WIND = DISTURBANCE["gust"], DISTURBANCE["wind"]
 
 #: Control steps of random draws taken from np_random at a time.
 BLOCK = 256
@@ -85,10 +91,20 @@ def wind_options(value: Union[float, Mapping[str, Any], None]) -> Optional[WindO
     return options if options.active else None
 
 
-def drag_areas(scene: Scene) -> dict:
+class DragAreas(NamedTuple):
+    """The load's projected-area law (:func:`drag_areas`)."""
+
+    faces: np.ndarray  # (3,) [m^2]
+    side: float  # [m]
+    semi_axes: tuple  # (a, b) [m]
+    round: float  # [m^2]
+
+
+def drag_areas(scene: Scene) -> DragAreas:
     """The load's projected-area law across a unit direction n (body frame) [m^2, m]:
     ``faces . |n| + side sqrt(a^2 n_y^2 + b^2 n_x^2) + round`` (DISTURBANCE_PARAMS), exact for
-    each shape (a convex body's projected area is half its surface's integral of |n . dA|)."""
+    each shape (a convex body's projected area is half its surface's integral of |n . dA|).
+    """
     shape = scene.body.shape
     faces, side, axes, round_ = np.zeros(3), 0.0, (0.0, 0.0), 0.0
     if isinstance(shape, Box):
@@ -102,7 +118,7 @@ def drag_areas(scene: Scene) -> dict:
     else:
         raise ValueError(f"wind needs the load's shape for its drag area; scene {scene.name!r} gives only its "
                          f"inertia (set body.shape)")
-    return {"faces": faces, "side": side, "semi_axes": axes, "round": round_}
+    return DragAreas(faces, side, axes, round_)
 
 
 class Wind:
@@ -112,32 +128,37 @@ class Wind:
     def __init__(self, options: WindOptions, control_period: float):
         self.options = options
         self.control_period = float(control_period)
+        # the episode's constants that depend on the options alone (a reset fills in the rest)
+        o = options
+        template = np.zeros(DISTURBANCE_PARAMS.size)
+        decay = math.exp(-self.control_period / o.gust_time)
+        template[DISTURBANCE_PARAMS["gust_decay"]] = decay
+        template[DISTURBANCE_PARAMS["gust_innovation"]] = o.gusts * math.sqrt(1.0 - decay * decay)
+        template[DISTURBANCE_PARAMS["push_chance"]] = -math.expm1(-o.push_rate * self.control_period)
+        self._template = template
+        self._half_rho = 0.5 * o.air_density
 
     def episode(self, scene: Scene, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
         """One episode's (DISTURBANCE_PARAMS, initial DISTURBANCE state, the first block of
         DRAWS, the reset info's wind entries) for ``scene``, drawn from ``rng``."""
         o = self.options
         azimuth = o.direction if o.direction is not None else 2.0 * math.pi * rng.random()
-        dp = np.zeros(DISTURBANCE_PARAMS.size)
-        dp[DISTURBANCE_PARAMS["mean_wind"]] = (o.speed * math.cos(azimuth), o.speed * math.sin(azimuth), 0.0)
-        decay = math.exp(-self.control_period / o.gust_time)
-        dp[DISTURBANCE_PARAMS["gust_decay"]] = decay
-        dp[DISTURBANCE_PARAMS["gust_innovation"]] = o.gusts * math.sqrt(1.0 - decay * decay)
-        string = scene.string
-        diameter = o.line_diameter or math.sqrt(4.0 * string.mass_per_length / (math.pi * LINE_DENSITY))
-        half_rho = 0.5 * o.air_density
-        dp[DISTURBANCE_PARAMS["line_drag"]] = half_rho * o.line_drag_coefficient * diameter
-        areas = drag_areas(scene)
-        k = half_rho * o.load_drag_coefficient
-        dp[DISTURBANCE_PARAMS["load_faces"]] = k * areas["faces"]
-        dp[DISTURBANCE_PARAMS["load_side"]] = k * areas["side"]
-        dp[DISTURBANCE_PARAMS["load_semi_axes"]] = areas["semi_axes"]
-        dp[DISTURBANCE_PARAMS["load_round"]] = k * areas["round"]
-        dp[DISTURBANCE_PARAMS["push_chance"]] = -math.expm1(-o.push_rate * self.control_period)
-        dp[DISTURBANCE_PARAMS["push_force"]] = scene.body.mass * o.push_speed / self.control_period
+        dp = self._template.copy()
+        mean = (o.speed * math.cos(azimuth), o.speed * math.sin(azimuth), 0.0)
+        dp[_DP_MEAN_WIND] = mean
+        diameter = o.line_diameter or math.sqrt(4.0 * scene.string.mass_per_length / (math.pi * LINE_DENSITY))
+        dp[_DP_LINE_DRAG] = self._half_rho * o.line_drag_coefficient * diameter
+        faces, side, semi_axes, round_ = drag_areas(scene)
+        k = self._half_rho * o.load_drag_coefficient
+        dp[_DP_LOAD_FACES] = k * faces
+        dp[_DP_LOAD_SIDE] = k * side
+        dp[_DP_LOAD_SEMI_AXES] = semi_axes
+        dp[_DP_LOAD_ROUND] = k * round_
+        dp[_DP_PUSH_FORCE] = scene.body.mass * o.push_speed / self.control_period
         ds = np.zeros(DISTURBANCE.size)
-        ds[DISTURBANCE["gust"]] = o.gusts * rng.standard_normal(3)  # the stationary law
-        ds[DISTURBANCE["wind"]] = dp[DISTURBANCE_PARAMS["mean_wind"]] + ds[DISTURBANCE["gust"]]
+        gust = o.gusts * rng.standard_normal(3)  # the stationary law
+        ds[_DS_GUST] = gust
+        ds[_DS_WIND] = dp[_DP_MEAN_WIND] + gust
         return dp, ds, self.draws(rng), {"wind_speed": float(o.speed), "wind_direction": float(azimuth)}
 
     @staticmethod

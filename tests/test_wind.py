@@ -94,9 +94,9 @@ def test_load_drag_area_is_the_projected_area(shape):
                              "pivot": {"kind": "free", "mass": 1.0}, "h": 5e-4})
     dp = np.zeros(DISTURBANCE_PARAMS.size)
     areas = drag_areas(scene)
-    dp[DISTURBANCE_PARAMS["load_faces"]] = areas["faces"]
-    dp[DISTURBANCE_PARAMS["load_side"]] = areas["side"]
-    dp[DISTURBANCE_PARAMS["load_semi_axes"]] = areas["semi_axes"]
+    dp[DISTURBANCE_PARAMS["load_faces"]] = areas.faces
+    dp[DISTURBANCE_PARAMS["load_side"]] = areas.side
+    dp[DISTURBANCE_PARAMS["load_semi_axes"]] = areas.semi_axes
     for n in np.random.default_rng(1).normal(size=(20, 3)):
         n /= np.linalg.norm(n)
         assert load_area(dp, *n) == pytest.approx(_projected_area(scene.body.shape, n), rel=1e-4)
