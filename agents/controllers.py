@@ -20,7 +20,8 @@ kd 2, k_sway 0, k_spin 0.02: 472.5), then refined with 20 episodes (kp in {3, 4,
 kp_z 16: 470.2). Under this reward the anti-sway term does not pay: the pivot excursions it
 needs cost more pivot-position reward than the faster swing decay earns, so k_sway is 0 for
 `stabilize` (the knob stays for other rewards). `transport` uses the same law with softer
-position gains (large initial errors would saturate the force) and k_sway = 2.
+position gains (large initial errors would saturate the force) and k_sway = 2; `track` the
+stabilize gains on its reference-relative observation.
 """
 from __future__ import annotations
 
@@ -66,6 +67,11 @@ class AntiSwayPD:
 BASELINES = {
     "stabilize": AntiSwayPD(),
     "transport": AntiSwayPD(kp=1.0, kd=2.0, kp_z=2.0, kd_z=3.0, k_sway=2.0),
+    # the observation's errors and velocities are relative to the moving reference, so the
+    # stabilize law tracks it (no feed-forward): mean return 270.8 +- 84.3 against the zero
+    # action's 199.6 +- 26.2 over 10 episodes (seeds 1000+), the best of the stabilize and
+    # transport gains with k_sway in {0, 1, 2}
+    "track": AntiSwayPD(),
 }
 
 

@@ -47,11 +47,13 @@ def test_unknown_hyper_parameter_is_named():
         load_run_config("ppo", "ElasticStringPendulum-v0", "stabilize", ["n_envs"])
 
 
-@pytest.mark.parametrize("task", ["stabilize", "transport"])
-def test_baseline_beats_the_zero_action(task):
-    base = evaluate_policy(None, task=task, episodes=4, seed=123)
-    zero = evaluate_policy(ZeroPolicy(), task=task, episodes=4, seed=123)
-    assert base["mean_return"] > zero["mean_return"] + 50
+# margins: about half the gain measured on these seeds (track: +43 over 8 episodes, the PD law
+# without feed-forward; stabilize +327 and transport +223 over 4)
+@pytest.mark.parametrize("task, episodes, margin", [("stabilize", 4, 50), ("transport", 4, 50), ("track", 8, 20)])
+def test_baseline_beats_the_zero_action(task, episodes, margin):
+    base = evaluate_policy(None, task=task, episodes=episodes, seed=123)
+    zero = evaluate_policy(ZeroPolicy(), task=task, episodes=episodes, seed=123)
+    assert base["mean_return"] > zero["mean_return"] + margin
 
 
 def test_evaluate_cli_prints_one_json_line():
@@ -73,3 +75,18 @@ def test_shipped_policy_loads_and_stabilizes():
     assert policy.normalization is not None
     stats = evaluate_policy(policy, episodes=3, seed=777)
     assert stats["mean_return"] > 420 and stats["success_rate"] == 1.0
+
+
+def test_task_figures_rollout_is_the_evaluated_episode(tmp_path):
+    """The figure's episode is the one agents.evaluate scores (same seed, same return), and the
+    script writes one figure per task."""
+    from agents import task_figures
+    from agents.controllers import baseline
+
+    run = task_figures.rollout("stabilize", baseline("stabilize"), seed=7, steps=10_000)
+    assert run["return"] == evaluate_policy(None, task="stabilize", episodes=1, seed=7)["mean_return"]
+    assert run["pivot"].shape == run["load_target"].shape == (len(run["time"]), 3)
+    results = task_figures.main(["--out", str(tmp_path), "--steps", "5"])
+    assert sorted(results) == ["stabilize", "track", "transport"]
+    for task in results:
+        assert (tmp_path / f"task_{task}.png").stat().st_size > 10_000

@@ -43,13 +43,15 @@ _RC = {"font.size": 10, "axes.titlesize": 10.5, "axes.labelsize": 10, "legend.fo
        "xtick.labelsize": 9, "ytick.labelsize": 9}
 
 
-def _new_figure(figsize) -> Figure:
+def new_figure(figsize) -> Figure:
+    """A bare figure on an Agg canvas (no pyplot, the user's backend untouched)."""
     fig = Figure(figsize=figsize, dpi=150)
     FigureCanvasAgg(fig)
     return fig
 
 
-def _save(fig: Figure, path) -> Path:
+def save_figure(fig: Figure, path) -> Path:
+    """Write ``fig`` to ``path`` (parent directories made) at 150 dpi on white; returns the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=150, facecolor="white")
@@ -112,7 +114,7 @@ def plot_fig_ns(traj, path, scene=None, title: Optional[str] = None) -> Path:
     unstretched length to (f) and the scene name to the title.
     """
     with matplotlib.rc_context(_RC):
-        fig = _new_figure((11, 10.5))
+        fig = new_figure((11, 10.5))
         axes = fig.subplots(3, 2, sharex=True)
         fig.set_layout_engine("constrained")
         t = traj.t
@@ -195,7 +197,7 @@ def plot_fig_ns(traj, path, scene=None, title: Optional[str] = None) -> Path:
             name = f"{scene.name}, N = {scene.string.elements}, h = {scene.h:g} s" if scene is not None else ""
             title = f"Numerical simulation of a 3D elastic string pendulum{' (' + name + ')' if name else ''}"
         fig.suptitle(title, fontsize=12)
-        return _save(fig, path)
+        return save_figure(fig, path)
 
 
 def cylinder_faces(R: np.ndarray, r_attach: np.ndarray, rho_c: Sequence[float],
@@ -264,7 +266,7 @@ def plot_fig_sm(traj, scene, path, panels: int = 4, snapshots_per_panel: int = 1
     with matplotlib.rc_context(_RC):
         ncols = 2 if panels > 1 else 1
         nrows = int(np.ceil(panels / ncols))
-        fig = _new_figure((11, 4.0 * nrows + 0.4))
+        fig = new_figure((11, 4.0 * nrows + 0.4))
         # 3-D axes draw in a square; the projected box is wider than tall, so the rows may overlap
         fig.subplots_adjust(left=0.0, right=0.86, bottom=-0.02, top=1.0, wspace=0.06, hspace=-0.16)
         for i in range(panels):
@@ -313,4 +315,4 @@ def plot_fig_sm(traj, scene, path, panels: int = 4, snapshots_per_panel: int = 1
             title = (f"Snapshots of a 3D elastic string pendulum maneuver ({scene.name}, "
                      f"N = {scene.string.elements}); bodies darken with time")
         fig.suptitle(title, fontsize=12, y=0.995)
-        return _save(fig, path)
+        return save_figure(fig, path)

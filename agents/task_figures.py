@@ -1,0 +1,120 @@
+"""One figure per task of ElasticStringPendulum-v0: a seeded episode under a controller, seen from
+above and over time (docs/environment.md, "The tasks").
+
+    python -m agents.task_figures --out docs/img [--seed 3] [--steps 500] [--policy baseline]
+
+writes ``task_{stabilize,transport,track}.png``: left, the top view (x, y) of the pivot's and the
+load's paths with the targets (``track``: the reference the load follows); right, over time, the
+load's distance to its target [m] and the swing angle of the string [deg]. The controller is the
+task's classical baseline (agents/controllers.py) unless ``--policy zero``; each panel notes the
+return. Prints one line per task: return, final distance and final swing.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+import esp_gym
+from agents.cli import ArgumentParser
+from agents.controllers import ZeroPolicy, baseline
+from esp_gym.tasks import TASKS
+
+#: What the top view's markers and lines stand for, and their colours.
+COLOURS = {"pivot": "tab:blue", "load": "tab:red", "target": "black"}
+
+
+def rollout(task: str, policy, seed: int, steps: int, env_kwargs=None) -> dict:
+    """One seeded episode of ``task`` (at most ``steps`` control steps) under ``policy``: the
+    pivot's and the load's positions, the pivot and load targets (all spatial [m], (T+1, 3)),
+    time [s], swing angle [rad] and the return."""
+    env = gym.make(esp_gym.ENV_ID, task=task, **(env_kwargs or {}))
+    u = env.unwrapped
+    obs, _ = env.reset(seed=seed)
+    pivot, load, targets, swing = [u.pivot_position().copy()], [u.load_position().copy()], [u.target], \
+        [u.swing_angle()]
+    total, done, k = 0.0, False, 0
+    while not done and k < steps:
+        obs, reward, terminated, truncated, _ = env.step(policy.act(obs, u.setup))
+        total += reward
+        done = terminated or truncated
+        k += 1
+        pivot.append(u.pivot_position().copy())
+        load.append(u.load_position().copy())
+        targets.append(u.target)
+        swing.append(u.swing_angle())
+    targets = np.array(targets)
+    return {"time": u.setup.control_period * np.arange(k + 1), "pivot": np.array(pivot), "load": np.array(load),
+            "pivot_target": targets[:, :3], "load_target": targets[:, 3:], "swing": np.array(swing),
+            "return": total}
+
+
+def plot_task(run: dict, task: str, path, title: str) -> Path:
+    """The figure of one rollout (module docstring)."""
+    from esp_gym.viz.figures import new_figure, save_figure
+
+    fig = new_figure((10, 4))
+    grid = fig.add_gridspec(2, 2, width_ratios=(1, 1.4))
+    top = fig.add_subplot(grid[:, 0])
+    distance_ax, swing_ax = fig.add_subplot(grid[0, 1]), fig.add_subplot(grid[1, 1])
+    xy = slice(0, 2)  # the horizontal components of a spatial vector
+    if task == "track":
+        ref = run["load_target"][:, xy]
+        top.plot(*ref.T, color=COLOURS["target"], lw=1, ls="--", label="reference (load)")
+    else:
+        top.plot(*run["pivot_target"][0, xy], "s", mfc="none", color=COLOURS["pivot"], ms=9, label="pivot target")
+        top.plot(*run["load_target"][0, xy], "x", color=COLOURS["load"], ms=9, label="load target")
+    for name in ("pivot", "load"):
+        path_xy = run[name][:, xy]
+        top.plot(*path_xy.T, color=COLOURS[name], lw=1.2, label=name)
+        top.plot(*path_xy[0], "o", color=COLOURS[name], ms=4)
+    top.set_aspect("equal", adjustable="datalim")
+    top.set_xlabel("x [m]")
+    top.set_ylabel("y [m]")
+    top.set_title("seen from above (dots: start)")
+    top.legend(loc="best")
+    top.grid(True, alpha=0.3)
+    t = run["time"]
+    distance_ax.plot(t, np.linalg.norm(run["load"] - run["load_target"], axis=1), color=COLOURS["load"])
+    distance_ax.set_ylabel("load to target [m]")
+    distance_ax.set_title(f"return {run['return']:.1f} over {len(t) - 1} steps")
+    swing_ax.plot(t, np.degrees(run["swing"]), color="tab:green")
+    swing_ax.set_ylabel("swing [deg]")
+    swing_ax.set_xlabel("time [s]")
+    for ax in (distance_ax, swing_ax):
+        ax.grid(True, alpha=0.3)
+        ax.set_ylim(bottom=0.0)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def main(argv=None) -> dict:
+    ap = ArgumentParser(prog="python -m agents.task_figures", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", default="docs/img", help="directory of the figures")
+    ap.add_argument("--seed", type=int, default=3, help="the episode's seed (>= 0)")
+    ap.add_argument("--steps", type=int, default=500, help="control steps at most (>= 1)")
+    ap.add_argument("--policy", choices=("baseline", "zero"), default="baseline")
+    ap.minimums = {"seed": 0, "steps": 1}
+    a = ap.parse_args(argv)
+    out = Path(a.out)
+    if not out.is_dir():
+        ap.error(f"argument --out: no directory {out}")
+    results = {}
+    for task in sorted(TASKS):
+        policy = ZeroPolicy() if a.policy == "zero" else baseline(task)
+        run = rollout(task, policy, a.seed, a.steps)
+        name = "zero action" if a.policy == "zero" else "classical baseline"
+        path = plot_task(run, task, out / f"task_{task}.png", f"task={task!r}, {name}, seed {a.seed}")
+        final = float(np.linalg.norm(run["load"][-1] - run["load_target"][-1]))
+        results[task] = {"return": run["return"], "final_distance_m": final,
+                         "final_swing_deg": math.degrees(run["swing"][-1]), "figure": str(path)}
+        print(f"{task:10s} return {run['return']:7.1f}  final distance {final:.3f} m  "
+              f"final swing {results[task]['final_swing_deg']:.2f} deg  -> {path}")
+    return results
+
+
+if __name__ == "__main__":
+    main()
