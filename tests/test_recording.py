@@ -18,6 +18,7 @@ import pytest
 from rerun.chunk import RrdReader
 
 import esp_gym
+from esp_gym.kernels.layout import DISTURBANCE, SENSORS
 from esp_gym.viz import recording as R
 from esp_gym.viz.recording import RecordRerun
 
@@ -26,13 +27,15 @@ PARTS = ("kinetic_string", "kinetic_body", "kinetic_pivot", "potential_gravity",
 WORLD_ENTITIES = {R.STRING, R.BODY, R.BODY_SHAPE, R.BODY_COM, R.BODY_TORQUE, R.PIVOT, R.PIVOT_FORCE, R.LOAD_TRAIL}
 DIAG_ENTITIES = {"/diag/energy/total", "/diag/energy/parts", "/diag/energy_residual", "/diag/pi3",
                  "/diag/pi3_residual", "/diag/orthogonality", "/diag/stretched_length", "/diag/newton_iterations"}
-RL_ENTITIES = {"/rl/reward/total", "/rl/reward/terms", "/rl/return", "/rl/action", R.TARGET_PIVOT, R.TARGET_LOAD}
+RL_ENTITIES = {"/rl/reward/total", "/rl/reward/terms", "/rl/return", "/rl/action", R.TARGET_PIVOT, R.TARGET_LOAD,
+               R.ENV_WIND, R.ENV_HOOK_TENSION, R.ENV_PUSH, R.ENV_DRAG, R.WIND, R.PUSH, R.HOOK_TENSION}
 
 
 def read(path, entity):
-    """The temporal rows of ``entity``, sorted by step: {column: list}, ``time`` in ns. Uses
-    ``stream()``, which also reads a file without its footer."""
-    rows = {}
+    """The temporal rows of ``entity``, sorted by step: {column: list}, ``time`` in ns, None where
+    a row's chunk has no such column (an env's torque arrow: origins at resets, vectors at every
+    sample). Uses ``stream()``, which also reads a file without its footer."""
+    rows, count = {}, 0
     for chunk in RrdReader(path).stream():
         if chunk.entity_path != entity or chunk.is_static:
             continue
@@ -41,7 +44,10 @@ def read(path, entity):
             col = batch.column(name)
             if name == "time":
                 col = col.cast(pa.int64())
-            rows.setdefault(name, []).extend(col.to_pylist())
+            rows.setdefault(name, [None] * count).extend(col.to_pylist())
+        count += batch.num_rows
+        for col in rows.values():
+            col.extend([None] * (count - len(col)))
     order = np.argsort(rows["step"], kind="stable")
     return {k: [v[i] for i in order] for k, v in rows.items()}
 
@@ -142,6 +148,13 @@ def test_env_recording_holds_the_simulator_diagnostics(tmp_path):
     assert len(trail[-1][0]) == 5  # 20 steps: the samples 20, 15, 10, 5, 0 (every 0.1 s)
     steps, pivot_target = values(path, R.TARGET_PIVOT, "Points3D:positions")
     assert list(steps) == [0] and np.array_equal(f32(pivot_target[0]), f32(u.target[:3]))
+
+    # still air: the wind, push and drag series are zeros; the hook still pulls
+    for entity, width in [(R.ENV_WIND, 3), (R.ENV_PUSH, 2), (R.ENV_DRAG, 6)]:
+        steps, vals = values(path, entity)
+        assert list(steps) == list(range(n)) and np.array_equal(vals, np.zeros((n, width))), entity
+    _, tension = values(path, R.ENV_HOOK_TENSION)
+    assert tension[-1] == u.control.sensors[SENSORS["hook_tension"]].tolist() and np.linalg.norm(tension[-1]) > 0
 
 
 @pytest.mark.filterwarnings("ignore:RRD file has no footer")
@@ -268,3 +281,82 @@ def test_equivalent_box_and_quaternion():
         x, y, z, w = R.quaternion_xyzw(A)
         K = np.array([[0, -z, y], [z, 0, -x], [-y, x, 0]])
         assert np.allclose(np.eye(3) + 2 * w * K + 2 * K @ K, A, atol=1e-12)
+
+
+def windy_rollout(env, seeds):
+    """One episode per seed with zero actions, recorded; per sample (each reset and step): the
+    control step's sensors and disturbance (copies), and each episode's body."""
+    control = env.unwrapped.control
+    sensors, disturbance, bodies = [], [], []
+    for seed in seeds:
+        env.reset(seed=seed)
+        bodies.append(env.unwrapped.scene.body)
+        done = False
+        while True:
+            sensors.append(control.sensors.copy())
+            disturbance.append(control.disturbance.copy())
+            if done:
+                break
+            _, _, terminated, truncated, _ = env.step(np.zeros(6))
+            done = terminated or truncated
+    env.close()
+    return np.array(sensors), np.array(disturbance), bodies
+
+
+def test_env_recording_holds_the_wind_the_hook_tension_and_each_episodes_body(tmp_path):
+    path = tmp_path / "hard.rrd"
+    env = RecordRerun(gym.make(ENV_ID, preset="hard", max_episode_steps=6), path, flush_every=4)
+    sensors, disturbance, bodies = windy_rollout(env, (0, 1))
+    n = len(sensors)
+    assert n == 14  # reset 0, steps 1-6, reset 7, steps 8-13
+    assert RL_ENTITIES <= entities(path)
+
+    # the series: float64, bit for bit the control step's sensors and disturbance
+    steps, tension = values(path, R.ENV_HOOK_TENSION)
+    assert list(steps) == list(range(n))
+    assert tension == sensors[:, SENSORS["hook_tension"]].tolist()
+    _, wind = values(path, R.ENV_WIND)
+    assert wind == disturbance[:, DISTURBANCE["wind"]].tolist()
+    assert np.all(np.linalg.norm(wind, axis=1) > 1.0)  # 6 m/s: a non-trivial comparison
+    _, drag = values(path, R.ENV_DRAG)
+    parts = [disturbance[:, DISTURBANCE[name]] for name in ("load_drag", "line_drag")]
+    assert drag == np.hstack(parts).tolist()
+
+    # the arrows: float32 of the scaled vectors, the wind's from the load's centre of mass
+    f32 = lambda x: np.asarray(x, dtype=np.float32)  # noqa: E731
+    arrows = read(path, R.HOOK_TENSION)
+    assert np.array_equal(f32(arrows["Arrows3D:vectors"])[:, 0], f32(sensors[:, SENSORS["hook_tension"]] * 0.05))
+    assert np.array_equal(f32(arrows["Arrows3D:origins"]), f32(read(path, R.PIVOT)["Points3D:positions"]))
+    arrows = read(path, R.WIND)
+    assert np.array_equal(f32(arrows["Arrows3D:vectors"])[:, 0], f32(disturbance[:, DISTURBANCE["wind"]] * 0.05))
+    st = env.unwrapped.sim.state  # the last state, of the second episode: its own rho_c
+    load = st.r[-1] + st.R @ np.asarray(bodies[1].rho_c)
+    assert np.allclose(arrows["Arrows3D:origins"][-1][0], load, atol=1e-6)
+
+    # each episode's body at its reset, on both timelines: the second's box, not the first's
+    shape = read(path, R.BODY_SHAPE)
+    assert shape["step"] == [0, 7] and shape["time"] == [0, round(7 * 0.02 * 1e9)]
+    halves = f32([h[0] for h in shape["Boxes3D:half_sizes"]])
+    assert np.array_equal(halves, f32([0.5 * np.asarray(b.shape.size) for b in bodies]))
+    assert not np.allclose(halves[0], halves[1], rtol=1e-3)  # randomised: the episodes' boxes differ
+    assert np.array_equal(f32(shape["Boxes3D:centers"][1][0]), f32(bodies[1].rho_c))
+    steps, com = values(path, R.BODY_COM, "Points3D:positions")
+    assert list(steps) == [0, 7] and np.array_equal(f32(com), f32([b.rho_c for b in bodies]))
+    steps, origin = values(path, R.BODY_TORQUE, "Arrows3D:origins")
+    assert list(steps) == [0, 7] and np.array_equal(f32(origin), f32([b.rho_c for b in bodies]))
+    static = {c.entity_path for c in RrdReader(path).stream() if c.is_static}
+    assert not ({R.BODY_SHAPE, R.BODY_COM} & static)  # a static body would hide the episodes' own
+
+
+def test_env_recording_holds_the_pushes(tmp_path):
+    path = tmp_path / "pushed.rrd"
+    wind = {"speed": 6.0, "gust_std": 1.5, "push_rate": 1e3, "push_speed": 0.5}  # a push every step
+    env = RecordRerun(gym.make(ENV_ID, randomize=True, wind=wind, max_episode_steps=5), path, force_scale=0.02)
+    _, disturbance, _ = windy_rollout(env, (3,))
+    push = disturbance[:, DISTURBANCE["push"]]
+    assert np.linalg.norm(push[1:], axis=1).min() > 0 and np.all(push[:, 2] == 0)  # horizontal
+    steps, series = values(path, R.ENV_PUSH)
+    assert list(steps) == list(range(len(push))) and series == push[:, :2].tolist()
+    vectors = read(path, R.PUSH)["Arrows3D:vectors"]
+    f32 = lambda x: np.asarray(x, dtype=np.float32)  # noqa: E731
+    assert np.array_equal(f32(vectors)[:, 0], f32(push * 0.02))

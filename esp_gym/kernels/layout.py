@@ -319,10 +319,14 @@ DR_PUSH_SCALE = DRAWS.scalar("push_scale")
 #: 1 for a sample after a step, 0 after a reset; ``newton`` the mean Newton iterations per
 #: physics step; ``inputs`` pivot force [N] (spatial) and body torque [N m] (body frame);
 #: ``balances`` work, E - E0 - W, angular impulse, pi3 - pi3_0 - impulse; ``target`` NaN but at
-#: an episode's reset; ``R`` row-major.
+#: an episode's reset; ``R`` row-major; ``sensors`` (:data:`SENSORS`: hook tension [N], load
+#: target offset [m]) and ``disturbance`` (:data:`DISTURBANCE`: gust and wind [m/s], load drag,
+#: push, line drag [N]), spatial frame, zeros for free simulations; ``rho`` the episode's
+#: attachment -> centre of mass offset rho_c (body frame) [m].
 SAMPLE_HEAD = Layout(("step", 1), ("time", 1), ("episode", 1), ("stepped", 1), ("newton", 1), ("reward", 1),
                      ("action", ACTION_SIZE), ("terms", len(REWARD_TERMS)), ("inputs", 6), ("balances", 4),
-                     ("target", TARGET.size), ("R", 9))
+                     ("target", TARGET.size), ("R", 9), ("sensors", SENSORS.size),
+                     ("disturbance", DISTURBANCE.size), ("rho", 3))
 S_STEP = SAMPLE_HEAD.scalar("step")
 S_TIME = SAMPLE_HEAD.scalar("time")
 S_EPISODE = SAMPLE_HEAD.scalar("episode")
@@ -335,6 +339,9 @@ S_INPUTS = SAMPLE_HEAD.start("inputs")
 S_BALANCES = SAMPLE_HEAD.start("balances")
 S_TARGET = SAMPLE_HEAD.start("target")
 S_ROT = SAMPLE_HEAD.start("R")
+S_SENSORS = SAMPLE_HEAD.start("sensors")
+S_DISTURBANCE = SAMPLE_HEAD.start("disturbance")
+S_RHO = SAMPLE_HEAD.start("rho")
 S_NODES = SAMPLE_HEAD.size
 #: Offsets inside the ``balances`` field.
 SB_WORK, SB_ENERGY_RESIDUAL, SB_ANGULAR_IMPULSE, SB_PI3_RESIDUAL = range(4)

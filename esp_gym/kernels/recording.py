@@ -12,26 +12,29 @@ import math
 
 from .jit import kernel
 from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, B_ANGULAR_IMPULSE_Z, B_WORK, D_ENERGY, D_PI3, IN_BODY_TORQUE,
-                     IN_PIVOT_FORCE, R_NEWTON_TOTAL, R_STEPS, S_ACTION, S_BALANCES, S_EPISODE, S_INPUTS, S_NEWTON,
-                     S_NODES, S_REWARD, S_ROT, S_STEP, S_STEPPED, S_TARGET, S_TERMS, S_TIME, SAMPLE_HEAD,
-                     SB_ANGULAR_IMPULSE, SB_ENERGY_RESIDUAL, SB_PI3_RESIDUAL, SB_WORK)
+                     IN_PIVOT_FORCE, R_NEWTON_TOTAL, R_STEPS, S_ACTION, S_BALANCES, S_DISTURBANCE, S_EPISODE,
+                     S_INPUTS, S_NEWTON, S_NODES, S_REWARD, S_RHO, S_ROT, S_SENSORS, S_STEP, S_STEPPED, S_TARGET,
+                     S_TERMS, S_TIME, SAMPLE_HEAD, SB_ANGULAR_IMPULSE, SB_ENERGY_RESIDUAL, SB_PI3_RESIDUAL, SB_WORK)
 
 _HEAD_SIZES = dict(SAMPLE_HEAD.fields)
-#: Entries of the head's action, reward-terms and target fields.
+#: Entries of the head's action, reward-terms, target, sensors and disturbance fields.
 N_ACTION = _HEAD_SIZES["action"]
 N_TERMS = _HEAD_SIZES["terms"]
 N_TARGET = _HEAD_SIZES["target"]
+N_SENSORS = _HEAD_SIZES["sensors"]
+N_DISTURBANCE = _HEAD_SIZES["disturbance"]
 
 
 @kernel
-def capture_sample(buf, i, r, R, out, strain, acc, action, terms, report, inputs, target, E0, pi30, step, t,
-                   episode, stepped, reward):
+def capture_sample(buf, i, r, R, out, strain, acc, action, terms, report, inputs, target, sensors, disturbance, rho,
+                   E0, pi30, step, t, episode, stepped, reward):
     """Write one sample into row ``i`` of ``buf`` from live arrays: nodes ``r``, ``R``, the
     diagnostics ``out`` (DIAG) and ``strain`` energies (current), the balances ``acc``
     (BALANCE), the applied ``action`` (ACTION) and reward ``terms`` (REWARD), the step
     ``report`` (REPORT: the Newton column is newton_total / steps, NaN without steps), the
-    ``inputs`` (INPUTS: pivot force, body torque) and ``target`` (TARGET; NaN when not an
-    episode's reset). The balance residuals are computed as in ``Simulator.diagnostics``
+    ``inputs`` (INPUTS: pivot force, body torque), ``target`` (TARGET; NaN when not an
+    episode's reset), the ``sensors`` (SENSORS), the ``disturbance`` (DISTURBANCE) and the
+    episode's ``rho`` (rho_c, body frame [m]). The balance residuals are computed as in ``Simulator.diagnostics``
     (same operations, same order, so the same bits)."""
     row = buf[i]
     row[S_STEP] = step
@@ -53,6 +56,12 @@ def capture_sample(buf, i, r, R, out, strain, acc, action, terms, report, inputs
     row[S_BALANCES + SB_PI3_RESIDUAL] = out[D_PI3] - pi30 - acc[B_ANGULAR_IMPULSE_Z]
     for k in range(N_TARGET):
         row[S_TARGET + k] = target[k]
+    for k in range(N_SENSORS):
+        row[S_SENSORS + k] = sensors[k]
+    for k in range(N_DISTURBANCE):
+        row[S_DISTURBANCE + k] = disturbance[k]
+    for c in range(3):
+        row[S_RHO + c] = rho[c]
     for a in range(3):
         for c in range(3):
             row[S_ROT + 3 * a + c] = R[a, c]
@@ -69,15 +78,15 @@ def capture_sample(buf, i, r, R, out, strain, acc, action, terms, report, inputs
 
 @kernel
 def sample_geometry(buf, n, inv_strain_scale, lut, inputs_from_action, force_offset, force_limit, torque_limit,
-                    force_scale, torque_scale, rho, pts, colors, translation, mat, pivot, force_vec, torque_vec,
-                    load):
+                    force_scale, torque_scale, pts, colors, translation, mat, pivot, force_vec, torque_vec, load):
     """The 3-D columns of the first ``n`` rows of ``buf`` (float32 unless stated): element end
     points ``pts`` (n, N, 2, 3); strain colours (n N,) uint32 from ``lut`` at sqrt(E / scale)
     clipped to [0, 1] (NaN -> 0); the attachment point ``translation`` and R column-major
     ``mat`` (n, 9) (Rerun's layout); the pivot; the arrows ``force_scale`` x (pivot force -
     force_offset) and ``torque_scale`` x body torque, with the inputs taken from the action
     (force_offset + force_limit a_force, torque_limit a_torque) or from the input columns; and
-    the load's centre of mass r_N + R rho_c (n, 3) float64."""
+    the load's centre of mass r_N + R rho_c (n, 3) float64, with the row's own rho_c (each
+    episode's)."""
     N = pts.shape[1]
     strain0 = S_NODES + 3 * (N + 1)
     for i in range(n):
@@ -95,7 +104,7 @@ def sample_geometry(buf, n, inv_strain_scale, lut, inputs_from_action, force_off
             acc = row[S_NODES + 3 * N + c]
             for k in range(3):
                 mat[i, 3 * c + k] = row[S_ROT + 3 * k + c]
-                acc += row[S_ROT + 3 * c + k] * rho[k]
+                acc += row[S_ROT + 3 * c + k] * row[S_RHO + k]
             load[i, c] = acc
             if inputs_from_action:
                 force = force_offset[c] + force_limit * row[S_ACTION + A_PIVOT_FORCE + c]

@@ -25,6 +25,9 @@ TARGET = (214, 30, 50)
 FORCE = (190, 40, 170)      #: the pivot-force arrow
 TORQUE = (40, 150, 190)     #: the body-torque arrow (recordings)
 TRAIL = (90, 120, 200)      #: the load's trail (recordings)
+WIND = (110, 170, 210)      #: the wind arrow (env recordings)
+PUSH = (230, 120, 20)       #: the push arrow (env recordings)
+HOOK_TENSION = (60, 140, 60)  #: the hook-tension arrow (env recordings)
 
 # -- time series (recordings) ---------------------------------------------------------------------
 #: The first eight colours of matplotlib's tab10 cycle.

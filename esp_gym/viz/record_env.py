@@ -8,8 +8,9 @@ from pathlib import Path
 from typing import Optional
 
 import gymnasium as gym
+import numpy as np
 
-from ..control import ControlStep
+from ..control import ControlStep, read_only
 from ..kernels.layout import TARGET
 from .recorder import Recorder
 
@@ -19,13 +20,16 @@ class RecordRerun(gym.Wrapper):
 
     Every ``reset`` and every ``step`` adds one sample: the state and its diagnostics, and for
     steps the applied (clipped) action, the reward and its terms (``info["reward_*"]``) and
-    the mean Newton iterations per physics step; each episode's targets are logged at its
-    reset (and at every step while they move: ``track``). Episodes follow each other on the ``step`` timeline (one step apart) and ``time``
-    is ``step`` times the control period. Samples are buffered and written every
-    ``flush_every`` samples, after ``flush_seconds`` of wall time, when an episode ends
-    (``flush_on_episode_end``), on :meth:`close`, at exit and on SIGTERM/SIGINT. A failed
-    write raises :class:`~esp_gym.viz.lifecycle.RecordingError` from the next ``step`` (or
-    ``reset``, or :meth:`close`) and stops the recording; the file keeps what came before.
+    the mean Newton iterations per physics step, and for both the hook tension, the wind, the
+    drag and the push (``control.sensors``, ``control.disturbance``); each episode's targets
+    are logged at its reset (and at every step while they move: ``track``), and so is its body
+    (its shape and rho_c, randomised with ``randomize``: :meth:`Recorder.log_body`). Episodes
+    follow each other on the ``step`` timeline (one step apart) and ``time`` is ``step`` times
+    the control period. Samples are buffered and written every ``flush_every`` samples, after
+    ``flush_seconds`` of wall time, when an episode ends (``flush_on_episode_end``), on
+    :meth:`close`, at exit and on SIGTERM/SIGINT. A failed write raises
+    :class:`~esp_gym.viz.lifecycle.RecordingError` from the next ``step`` (or ``reset``, or
+    :meth:`close`) and stops the recording; the file keeps what came before.
 
     There is no every-physics-step option: the environment advances its physics steps inside
     one compiled call (kernels/task.py), so the intermediate states never reach Python;
@@ -34,10 +38,11 @@ class RecordRerun(gym.Wrapper):
     The sample is copied by one compiled call (:meth:`Recorder.add_sample`) from the env's
     live arrays, read through its :class:`~esp_gym.control.ControlStep` (``env.unwrapped.control``):
     the simulator's state and diagnostics (which the step leaves current), the clipped action,
-    the reward terms, the inputs and the step report (the same numbers as the clipped action
-    and ``info["reward_*"]``, which the tests check). ``recorder_kwargs`` go to
-    :class:`Recorder` (``flush_every``, ``flush_seconds``, ``trail_seconds``, ``strain_scale``,
-    ``force_scale``, ``torque_scale``, ...).
+    the reward terms, the inputs, the sensors, the disturbance and the step report (the same
+    numbers as the clipped action, ``info["reward_*"]`` and the control step's sensors and
+    disturbance, which the tests check). ``recorder_kwargs`` go to :class:`Recorder`
+    (``flush_every``, ``flush_seconds``, ``trail_seconds``, ``strain_scale``, ``force_scale``,
+    ``wind_scale``, ``torque_scale``, ...).
     """
 
     def __init__(self, env: gym.Env, path, *, flush_on_episode_end: bool = False, **recorder_kwargs):
@@ -52,6 +57,7 @@ class RecordRerun(gym.Wrapper):
                                  force_offset=setup.hover, action_scale=(setup.force_limit, setup.torque_limit),
                                  **recorder_kwargs)
         self._live = None  # the simulator's live (StateArrays, DiagWork), from the first reset on
+        self._rho = None  # the episode's rho_c (body frame [m]), read-only float64 (one compiled signature)
         self._episode = -1
         self._step = -1  # step index of the last sample
 
@@ -65,7 +71,10 @@ class RecordRerun(gym.Wrapper):
             self._live = (control.sim.buffers.state, control.sim.buffers.diag)
             self._episode += 1
             self._step += 1
+            body = control.scene.body  # the episode's (randomised) load
+            self._rho = read_only(np.array(body.rho_c, dtype=float))
             rec.start_episode(control.sim)
+            rec.log_body(body, self._rho, self._step, self._step * rec.sample_period)
             self._add(stepped=False, reward=float("nan"), target=control.target)
         return obs, info
 
@@ -84,7 +93,8 @@ class RecordRerun(gym.Wrapper):
         control, rec = self.control, self.recorder
         state, diag = self._live
         rec.add_sample(state, diag, report=control.report, step=self._step, time=self._step * rec.sample_period,
-                       episode=self._episode, action=control.action, terms=control.reward_terms, **sample)
+                       episode=self._episode, action=control.action, terms=control.reward_terms,
+                       sensors=control.sensors, disturbance=control.disturbance, rho=self._rho, **sample)
 
     def close(self):
         try:

@@ -1,6 +1,6 @@
-"""The Rerun recorder: what a recording holds (entity paths, scalar series, blueprint, static
-geometry) and :class:`Recorder`, which buffers samples as rows (kernels/recording.py) and writes
-them as record batches (arrow.py). Entities, timelines and interruption are described in
+"""The Rerun recorder: :class:`Recorder` buffers samples as rows (kernels/recording.py) and
+writes them as record batches (arrow.py). What a recording holds (entity paths, scalar series,
+blueprint, body shape) is entities.py's; entities, timelines and interruption are described in
 esp_gym/viz/recording.py.
 """
 from __future__ import annotations
@@ -8,132 +8,20 @@ from __future__ import annotations
 import math
 import time as _time
 from pathlib import Path
-from typing import NamedTuple, Optional
+from typing import Optional
 
 import numpy as np
 import pyarrow as pa
 import rerun as rr
-import rerun.blueprint as rrb
 
-from ..kernels.layout import (ACTION, DIAG, INPUTS, REPORT, REWARD_TERMS, R_NEWTON_TOTAL, R_STEPS, SB_ENERGY_RESIDUAL,
-                              SB_PI3_RESIDUAL, SB_WORK, TARGET, sample_layout)
+from ..kernels.layout import (ACTION, DISTURBANCE, INPUTS, REPORT, REWARD_TERMS, R_NEWTON_TOTAL, R_STEPS, SENSORS,
+                              TARGET, sample_layout)
 from ..control import read_only
 from ..kernels.recording import capture_sample, sample_geometry, trail_points
 from . import arrow, lifecycle, palette
-from .geometry import equivalent_box, prism_triangles, quaternion_xyzw
-
-# -- entity paths ---------------------------------------------------------------------------------
-
-WORLD = "/world"
-STRING = "/world/string"
-BODY = "/world/body"
-BODY_SHAPE = "/world/body/shape"
-BODY_COM = "/world/body/center_of_mass"
-BODY_TORQUE = "/world/body/torque"
-PIVOT = "/world/pivot"
-PIVOT_FORCE = "/world/pivot_force"
-LOAD_TRAIL = "/world/load_trail"
-TARGET_PIVOT = "/world/targets/pivot"
-TARGET_LOAD = "/world/targets/load"
-NEWTON = "/diag/newton_iterations"
-RETURN = "/rl/return"
-
-ENERGY_PARTS = ("kinetic_string", "kinetic_body", "kinetic_pivot", "potential_gravity", "potential_elastic")
-ACTION_NAMES = ("force_x", "force_y", "force_z", "torque_x", "torque_y", "torque_z")
-
-
-class Series(NamedTuple):
-    """Named scalar series sharing one entity: the names, their sources (a field of
-    :func:`~esp_gym.kernels.layout.sample_layout` and an offset in it), colours, whether only
-    samples after a step have values (not resets), whether only env rollouts have them."""
-
-    names: tuple
-    sources: tuple
-    colors: list
-    stepped_only: bool = False
-    env_only: bool = False
-
-
-def _diag(*names) -> tuple:
-    return tuple(("diag", DIAG.scalar(name)) for name in names)
-
-
-def _field(field: str, offsets=(0,)) -> tuple:
-    return tuple((field, k) for k in offsets)
-
-
-TAB10, BLACK = palette.TAB10, palette.BLACK
-#: The scalar series by entity. Related series share an entity (one Scalars batch per sample,
-#: a named line each): every entity costs a row id and two time values per sample; grouping
-#: the energy parts, reward terms and actions (27 -> 11 scalar entities) cut an env recording
-#: from 1.1 to 0.8 kB per step, and Rerun's encoding work with it.
-SCALARS = {
-    "/diag/energy/total": Series(("total",), _diag("energy"), [BLACK]),
-    "/diag/energy/parts": Series(ENERGY_PARTS + ("work",), _diag(*ENERGY_PARTS) + _field("balances", [SB_WORK]),
-                                 TAB10[:6]),
-    "/diag/energy_residual": Series(("E - E0 - W",), _field("balances", [SB_ENERGY_RESIDUAL]), [TAB10[3]]),
-    "/diag/pi3": Series(("pi3",), _diag("pi3"), [TAB10[0]]),
-    "/diag/pi3_residual": Series(("pi3 - pi3_0 - angular impulse",), _field("balances", [SB_PI3_RESIDUAL]),
-                                 [TAB10[3]]),
-    "/diag/orthogonality": Series(("||I - R^T R||_F",), _diag("orthogonality"), [TAB10[7]]),
-    "/diag/stretched_length": Series(("stretched length",), _diag("stretched_length"), [TAB10[2]]),
-    NEWTON: Series(("Newton iterations / step",), _field("newton"), [TAB10[7]], True),
-    "/rl/reward/total": Series(("reward",), _field("reward"), [BLACK], True, True),
-    "/rl/reward/terms": Series(REWARD_TERMS, _field("terms", range(len(REWARD_TERMS))), TAB10[:6], True, True),
-    "/rl/action": Series(ACTION_NAMES, _field("action", range(ACTION.size)), TAB10[:6], True, True),
-}
-
-
-def default_blueprint(env: bool) -> rrb.Blueprint:
-    """The 3-D view beside the diagnostics (and, for env rollouts, reward and action) panels."""
-    ts = rrb.TimeSeriesView
-    panels = [
-        ts(origin="/diag/energy", name="energy [J]"),
-        rrb.Tabs(ts(origin="/diag/energy_residual", name="E - E0 - W [J]"),
-                 ts(origin="/diag/pi3_residual", name="pi3 - pi3_0 - impulse [kg m2/s]"),
-                 ts(origin="/diag/pi3", name="pi3 [kg m2/s]")),
-        rrb.Tabs(ts(origin="/diag/stretched_length", name="stretched length [m]"),
-                 ts(origin="/diag/orthogonality", name="||I - R^T R||"),
-                 ts(origin=NEWTON, name="Newton iterations / step")),
-    ]
-    if env:
-        panels.append(rrb.Tabs(ts(origin="/rl/reward", name="reward"), ts(origin="/rl/action", name="action"),
-                               ts(origin=RETURN, name="return")))
-    return rrb.Blueprint(
-        rrb.Horizontal(rrb.Spatial3DView(origin=WORLD, name="3-D"), rrb.Vertical(*panels), column_shares=[3, 2]),
-        collapse_panels=True)
-
-
-def default_strain_scale(scene) -> float:
-    """Strain-energy scale [J] of the string colours: 2.5x the static tension at the top,
-    T0 = g (M + mu l), in one element: (2.5 T0)^2 u / (2 EA); the hanging string sits at 40 %
-    of the colour ramp (as the rgb_array renderer's default for drone_load)."""
-    st = scene.string
-    T0 = scene.gravity * (scene.body.mass + st.mass_per_length * st.length)
-    e = (2.5 * T0) ** 2 * st.u / (2.0 * st.EA)
-    return float(e) if e > 0 else 1.0
-
-
-def body_shape(body, rho: np.ndarray):
-    """The Rerun archetype of the body's shape centred on ``rho`` (body frame): box, sphere, a
-    mesh for the cylinders; without a shape the box of the same mass and inertia about the
-    centre of mass (a small sphere if there is none)."""
-    shape, color = body.shape, [palette.BODY]
-    kind = getattr(shape, "kind", None)
-    if kind == "box":
-        return rr.Boxes3D(centers=[rho], half_sizes=[0.5 * np.asarray(shape.size)], colors=color, fill_mode="solid")
-    if kind == "sphere":
-        return rr.Ellipsoids3D(centers=[rho], half_sizes=[[shape.radius] * 3], colors=color, fill_mode="solid")
-    if kind in ("cylinder", "elliptic_cylinder"):
-        a, b = (shape.radius, shape.radius) if kind == "cylinder" else shape.semi_axes
-        v, t, nrm = prism_triangles(a, b, shape.height)
-        return rr.Mesh3D(vertex_positions=v + rho, triangle_indices=t, vertex_normals=nrm, albedo_factor=palette.BODY)
-    eq = equivalent_box(body.mass, body.J, rho)
-    if eq is None:
-        return rr.Ellipsoids3D(centers=[rho], half_sizes=[[0.03] * 3], colors=color, fill_mode="solid")
-    half, Q = eq
-    return rr.Boxes3D(centers=[rho], half_sizes=[half], colors=color, fill_mode="solid",
-                      quaternions=[rr.Quaternion(xyzw=quaternion_xyzw(Q))], labels=["inertia-equivalent box"])
+from .entities import (BLACK, BODY, BODY_COM, BODY_SHAPE, BODY_TORQUE, HOOK_TENSION, LOAD_TRAIL, PIVOT,
+                       PIVOT_FORCE, PUSH, RETURN, SCALARS, STRING, TARGET_LOAD, TARGET_PIVOT, WIND, WORLD, body_shape,
+                       default_blueprint, default_strain_scale)
 
 
 class Recorder:
@@ -149,7 +37,8 @@ class Recorder:
     | `env` | False | also the reward, action and return series (env rollouts) |
     | `sample_period` | 0.02 | time between samples: ``time = step * sample_period`` for env rollouts; sets the trail length |
     | `strain_scale` | scene | string colours saturate at this element strain energy [J] (:func:`default_strain_scale`) |
-    | `force_scale` | 0.05 | pivot-force arrow length per newton [m/N] |
+    | `force_scale` | 0.05 | pivot-force arrow length per newton [m/N]; env: also the push and hook tension |
+    | `wind_scale` | 0.05 | env: wind arrow length per m/s [m/(m/s)] |
     | `force_offset` | 0 | subtracted from the pivot force before drawing (env: the hover force) |
     | `torque_scale` | 10 | body-torque arrow length per N m [m/(N m)] |
     | `action_scale` | None | env: (force_limit, torque_limit); inputs = (force_offset + force_limit a[:3], torque_limit a[3:]) |
@@ -163,24 +52,26 @@ class Recorder:
 
     Samples: :meth:`sample` (a free simulation's :class:`~esp_gym.model.Simulator`) or
     :meth:`add_sample` (live kernel arrays, e.g. an environment's); :meth:`start_episode` takes
-    the balance origins. Use as a context manager or call :meth:`close`; open recorders are also
-    closed at exit and on SIGTERM (lifecycle.py).
+    the balance origins; env recordings draw each episode's body with :meth:`log_body` (free
+    simulations: the scene's, static). Use as a context manager or call :meth:`close`; open
+    recorders are also closed at exit and on SIGTERM (lifecycle.py).
     A failed write (disk full, ...) raises :class:`~esp_gym.viz.lifecycle.RecordingError` from the
     next sample, flush or :meth:`close`; the recording stops, and the file keeps the first
     :attr:`samples_written` samples, readable (lifecycle.py, :class:`~esp_gym.viz.lifecycle.RrdFile`).
     """
 
     def __init__(self, path, scene, *, env: bool = False, sample_period: float = 0.02,
-                 strain_scale: Optional[float] = None, force_scale: float = 0.05, force_offset=None,
-                 torque_scale: float = 10.0, action_scale: Optional[tuple] = None, trail_seconds: float = 1.0,
-                 trail_spacing: float = 0.1, flush_every: int = 2000, flush_seconds: float = 5.0,
-                 write_timeout: float = 5.0, application_id: str = "esp_gym", recording_id: Optional[str] = None):
+                 strain_scale: Optional[float] = None, force_scale: float = 0.05, wind_scale: float = 0.05,
+                 force_offset=None, torque_scale: float = 10.0, action_scale: Optional[tuple] = None,
+                 trail_seconds: float = 1.0, trail_spacing: float = 0.1, flush_every: int = 2000,
+                 flush_seconds: float = 5.0, write_timeout: float = 5.0, application_id: str = "esp_gym",
+                 recording_id: Optional[str] = None):
         if flush_every < 1 or not flush_seconds > 0 or not write_timeout > 0:
             raise ValueError("flush_every must be >= 1, flush_seconds and write_timeout > 0")
         if not (sample_period > 0 and trail_seconds >= 0 and trail_spacing > 0 and force_scale >= 0
-                and torque_scale >= 0):
-            raise ValueError("sample_period and trail_spacing must be > 0; trail_seconds, force_scale and "
-                             "torque_scale >= 0")
+                and wind_scale >= 0 and torque_scale >= 0):
+            raise ValueError("sample_period and trail_spacing must be > 0; trail_seconds, force_scale, wind_scale "
+                             "and torque_scale >= 0")
         if env and action_scale is None:
             raise ValueError("env recordings need action_scale = (force_limit [N], torque_limit [N m])")
         self.path = Path(path)
@@ -190,9 +81,11 @@ class Recorder:
         self.sample_period = float(sample_period)
         self.strain_scale = float(strain_scale) if strain_scale else default_strain_scale(scene)
         self.force_scale, self.torque_scale = float(force_scale), float(torque_scale)
+        self.wind_scale = float(wind_scale)
         self.force_offset = np.zeros(3) if force_offset is None else np.asarray(force_offset, dtype=float)
         self.action_scale = action_scale
-        self.rho = np.asarray(scene.body.rho_c, dtype=float)
+        #: the scene's rho_c (body frame [m]): the samples' default (read-only, see ``_zeros``)
+        self.rho = read_only(np.array(scene.body.rho_c, dtype=float))
         self.trail_len = max(1, int(round(trail_seconds / sample_period)) + 1)  # samples spanned
         self.trail_stride = max(1, int(round(trail_spacing / sample_period)))
         self.flush_every, self.flush_seconds = int(flush_every), float(flush_seconds)
@@ -208,7 +101,8 @@ class Recorder:
         self._buf = np.zeros((self.flush_every, self.layout.size))
         self._n = 0  # rows buffered
         # read-only like the environment's views, so every caller hits one compiled signature
-        self._zeros = read_only(np.zeros(max(ACTION.size, len(REWARD_TERMS), INPUTS.size)))
+        self._zeros = read_only(np.zeros(max(ACTION.size, len(REWARD_TERMS), INPUTS.size, SENSORS.size,
+                                             DISTURBANCE.size)))
         self._no_target = read_only(np.full(TARGET.size, math.nan))
         self._trail_hist = np.empty((0, 3))  # the current episode's last load positions
         self._trail_episode = None
@@ -232,13 +126,21 @@ class Recorder:
         log(STRING, rr.LineStrips3D.from_fields(radii=0.004), static=True)
         log(PIVOT, rr.Points3D.from_fields(radii=0.025, colors=[palette.PIVOT], labels=["pivot"]), static=True)
         log(PIVOT_FORCE, rr.Arrows3D.from_fields(radii=0.006, colors=[palette.FORCE]), static=True)
-        log(BODY_TORQUE, rr.Arrows3D.from_fields(origins=[rho], radii=0.005, colors=[palette.TORQUE]), static=True)
         log(LOAD_TRAIL, rr.LineStrips3D.from_fields(radii=0.002, colors=[palette.TRAIL]), static=True)
-        log(BODY_COM, rr.Points3D([rho], radii=0.008, colors=[BLACK]), static=True)
         if self.env:
+            # each episode's body (randomised sizes and rho_c) is logged at its reset (log_body): a
+            # static shape, centre of mass or torque origin would hide it (static data wins in Rerun)
+            log(BODY_TORQUE, rr.Arrows3D.from_fields(radii=0.005, colors=[palette.TORQUE]), static=True)
             for path, label in ((TARGET_PIVOT, "pivot target"), (TARGET_LOAD, "load target")):
                 log(path, rr.Points3D.from_fields(radii=0.03, colors=[palette.TARGET], labels=[label]), static=True)
-        log(BODY_SHAPE, body_shape(self.scene.body, rho), static=True)
+            for path, radius, color in ((WIND, 0.006, palette.WIND), (PUSH, 0.008, palette.PUSH),
+                                        (HOOK_TENSION, 0.006, palette.HOOK_TENSION)):
+                log(path, rr.Arrows3D.from_fields(radii=radius, colors=[color]), static=True)
+        else:
+            log(BODY_TORQUE, rr.Arrows3D.from_fields(origins=[rho], radii=0.005, colors=[palette.TORQUE]),
+                static=True)
+            log(BODY_COM, _com(rho), static=True)
+            log(BODY_SHAPE, body_shape(self.scene.body, rho), static=True)
         for path, series in SCALARS.items():
             if self.env or not series.env_only:
                 log(path, rr.SeriesLines(names=list(series.names), colors=series.colors), static=True)
@@ -260,15 +162,41 @@ class Recorder:
         self.pi3_0 = d["pi3"] - d["angular_impulse_z"] - d["pi3_balance_residual"]
         self._last_newton = (sim.newton_iterations, sim.step_count)
 
+    def log_body(self, body, rho, step: int, time: float) -> None:
+        """Env recordings: draw the body of the episode reset at ``step``, ``time`` [s] (its
+        reset sample's): its shape centred on ``rho`` (its rho_c, body frame [m]), its centre of
+        mass and the torque arrow's origin there, until the next call. Logged now, on the step
+        and time timelines set for these calls only (the buffered samples carry their own).
+        Raises RecordingError after a failed write."""
+        if not self.env:
+            raise ValueError("log_body is for env recordings: a free simulation draws its scene's body, static")
+        if self.closed:
+            return
+        self._check()
+        rho = np.asarray(rho, dtype=float)
+        rec = self.rec
+        rec.set_time("step", sequence=int(step))
+        rec.set_time("time", duration=np.timedelta64(int(np.rint(time * 1e9)), "ns"))  # as arrow.record_batch
+        try:
+            rec.log(BODY_SHAPE, body_shape(body, rho))
+            rec.log(BODY_COM, _com(rho))
+            rec.log(BODY_TORQUE, rr.Arrows3D.from_fields(origins=[rho]))
+        finally:
+            rec.reset_time()  # no later log on this thread inherits these times
+
     def add_sample(self, state, diag, *, report, step, time, stepped: bool, episode: int = 0, action=None,
-                   terms=None, reward: float = math.nan, inputs=None, target=None) -> None:
+                   terms=None, reward: float = math.nan, inputs=None, target=None, sensors=None, disturbance=None,
+                   rho=None) -> None:
         """Record one sample from live kernel arrays: ``state``
         (:class:`~esp_gym.kernels.layout.StateArrays`) and ``diag`` (DiagWork, current), the
         step ``report`` (REPORT), ``step`` and ``time`` [s] on the timelines, whether it follows
         a step (``stepped``; False after a reset), the ``episode``, the applied ``action``
-        (ACTION) and reward ``terms`` (REWARD) with the ``reward``, the ``inputs`` (INPUTS) and
-        the episode's ``target`` (TARGET; at the episode's reset, and while it moves). Arrays not given
-        are zeros (the target: none). Raises RecordingError after a failed write."""
+        (ACTION) and reward ``terms`` (REWARD) with the ``reward``, the ``inputs`` (INPUTS), the
+        episode's ``target`` (TARGET; at the episode's reset, and while it moves), the
+        ``sensors`` (SENSORS), the ``disturbance`` (DISTURBANCE) and the episode's ``rho``
+        (rho_c, body frame [m]). Arrays not given are zeros (the target: none; rho: the scene's);
+        pass read-only float64 arrays (one compiled signature). Raises RecordingError after a
+        failed write."""
         if self.closed:
             return
         self._check()
@@ -276,8 +204,9 @@ class Recorder:
         capture_sample(self._buf, self._n, state.r, state.R, diag.out, diag.strain, state.acc,
                        z if action is None else action, z if terms is None else terms, report,
                        z if inputs is None else inputs, self._no_target if target is None else target,
-                       self.E0, self.pi3_0, float(step), float(time), float(episode), 1.0 if stepped else 0.0,
-                       float(reward))
+                       z if sensors is None else sensors, z if disturbance is None else disturbance,
+                       self.rho if rho is None else rho, self.E0, self.pi3_0, float(step), float(time),
+                       float(episode), 1.0 if stepped else 0.0, float(reward))
         self._commit()
 
     def sample(self, sim, *, pivot_force=None, body_torque=None, step: Optional[int] = None,
@@ -387,8 +316,8 @@ class Recorder:
         pivot, force_vec, torque_vec, load = f32(n, 3), f32(n, 3), f32(n, 3), np.empty((n, 3))
         force_limit, torque_limit = self.action_scale if self.env else (0.0, 0.0)
         sample_geometry(self._buf, n, 1.0 / self.strain_scale, palette.STRAIN_RGBA, self.env, self.force_offset,
-                        float(force_limit), float(torque_limit), self.force_scale, self.torque_scale, self.rho, pts,
-                        colors, translation, mat, pivot, force_vec, torque_vec, load)
+                        float(force_limit), float(torque_limit), self.force_scale, self.torque_scale, pts, colors,
+                        translation, mat, pivot, force_vec, torque_vec, load)
         rows, vec3 = arrow.rows, arrow.vec3
         cols = [
             (STRING, rr.LineStrips3D.descriptor_strips(),
@@ -403,6 +332,8 @@ class Recorder:
             (BODY_TORQUE, rr.Arrows3D.descriptor_vectors(), rows(vec3(torque_vec, "vector"), each)),
             (LOAD_TRAIL, rr.LineStrips3D.descriptor_strips(), rows(self._trail(load, episode), each)),
         ]
+        if self.env:
+            cols += self._disturbance_arrows(b, pivot, load, each)
         scalar = rr.Scalars.descriptor_scalars()
         missing = ~stepped  # reset samples have no step: no Newton count, reward or action
         for path, series in SCALARS.items():
@@ -429,6 +360,27 @@ class Recorder:
                                        (TARGET_LOAD, target + TARGET.start("load")))]
             self.rec.send_record_batch(arrow.record_batch(step[reset], time[reset], targets))
 
+    def _disturbance_arrows(self, b: np.ndarray, pivot: np.ndarray, load: np.ndarray, each: np.ndarray) -> list:
+        """The columns of the env's arrows for the rows ``b``: ``wind_scale`` x wind and
+        ``force_scale`` x push from the load's centre of mass, ``force_scale`` x hook tension
+        from the pivot (spatial frame; float32 of the float64 products)."""
+        def part(field, layout, name):  # the rows' entries ``name`` of ``layout``, held in ``field``
+            base, entries = self.layout.start(field), layout[name]
+            return b[:, base + entries.start:base + entries.stop]
+
+        rows, vec3, at = arrow.rows, arrow.vec3, rr.Arrows3D.descriptor_origins()
+        load_at = rows(vec3(load, "position"), each)
+        vec = rr.Arrows3D.descriptor_vectors()
+        return [
+            (WIND, at, load_at),
+            (WIND, vec, rows(vec3(part("disturbance", DISTURBANCE, "wind") * self.wind_scale, "vector"), each)),
+            (PUSH, at, load_at),
+            (PUSH, vec, rows(vec3(part("disturbance", DISTURBANCE, "push") * self.force_scale, "vector"), each)),
+            (HOOK_TENSION, at, rows(vec3(pivot, "position"), each)),
+            (HOOK_TENSION, vec,
+             rows(vec3(part("sensors", SENSORS, "hook_tension") * self.force_scale, "vector"), each)),
+        ]
+
     def _trail(self, load: np.ndarray, episode: np.ndarray) -> pa.Array:
         """Per sample, one strip through the load's positions over the last ``trail_seconds``
         of the same episode, every ``trail_stride`` samples back from the current one (the
@@ -445,3 +397,8 @@ class Recorder:
         keep = keep[ep[keep] == episode[-1]]
         self._trail_hist, self._trail_episode = points[keep], episode[-1]
         return arrow.strips(out[:total], offsets)
+
+
+def _com(rho: np.ndarray):
+    """The body's centre-of-mass point at ``rho`` (body frame [m])."""
+    return rr.Points3D([rho], radii=0.008, colors=[BLACK])

@@ -20,17 +20,24 @@ Entities (SI units; spatial frame unless stated; gravity along +z, the 3-D view 
                                 ramp at ``sqrt(E / strain_scale)``
 ``/world/body``                 Transform3D, translation = attachment node, mat3x3 = R (body to
                                 spatial): everything below is drawn in the body frame
-``/world/body/shape``           static: the body's shape centred on rho_c (box, sphere, a mesh for
-                                the cylinders; without a shape the box of the same mass and inertia
-                                about the centre of mass)
-``/world/body/center_of_mass``  static: a point at rho_c
-``/world/body/torque``          arrow from the centre of mass (static origin): ``torque_scale`` x
-                                body torque [m per N m]
+``/world/body/shape``           the body's shape centred on rho_c (box, sphere, a mesh for the
+                                cylinders; without a shape the box of the same mass and inertia
+                                about the centre of mass): static for free simulations; for env
+                                rollouts each episode's (randomised sizes, rho_c), at its reset
+``/world/body/center_of_mass``  a point at rho_c (static, or each episode's at its reset)
+``/world/body/torque``          arrow from the centre of mass (origin as the point above):
+                                ``torque_scale`` x body torque [m per N m]
 ``/world/pivot``                node 0
 ``/world/pivot_force``          arrow from the pivot: ``force_scale`` x (pivot force -
                                 ``force_offset``) [m per N] (env rollouts: minus the hover force)
 ``/world/load_trail``           the load's centre of mass over the last ``trail_seconds``
 ``/world/targets/{pivot,load}`` env rollouts: the episode's targets, at its reset
+``/world/wind``                 env rollouts: arrow from the load's centre of mass, ``wind_scale``
+                                x wind (mean + gust) [m per m/s]
+``/world/push``                 env rollouts: arrow from the load's centre of mass, ``force_scale``
+                                x the push on the load [m per N]
+``/world/hook_tension``         env rollouts: arrow from the pivot, ``force_scale`` x the hook
+                                tension (the string's pull on the pivot) [m per N]
 ``/diag/energy/total``          E [J]
 ``/diag/energy/parts``          kinetic_string, kinetic_body, kinetic_pivot, potential_gravity,
                                 potential_elastic and the input work W [J] (named series)
@@ -44,11 +51,17 @@ Entities (SI units; spatial frame unless stated; gravity along +z, the 3-D view 
 ``/rl/reward/terms``            ... and its terms (``info["reward_*"]``, named series)
 ``/rl/return``                  the episode's return so far
 ``/rl/action``                  the applied (clipped) action, force_x .. torque_z (named series)
+``/env/wind``                   env rollouts: the wind (mean + gust) wind_x, _y, _z [m/s]
+``/env/hook_tension``           env rollouts: the hook tension hook_tension_x, _y, _z [N]
+``/env/push``                   env rollouts: the push on the load push_x, _y [N] (horizontal)
+``/env/drag``                   env rollouts: the drag on the load load_drag_x, _y, _z and on the
+                                line (summed over its nodes) line_drag_x, _y, _z [N]
 ==============================  =====================================================================
 
 A sample holds the state after a step (or a reset, or the start of a free simulation) and its
 diagnostics; for env rollouts also what that ``env.step`` returned and applied (reward, terms,
-action). Reset samples have no Newton, reward or action values (nulls: no data at that row).
+action) and the sensors and disturbance of that step (at a reset: of the episode's start; in still
+air zeros). Reset samples have no Newton, reward or action values (nulls: no data at that row).
 
 Bulk logging: each sample is copied into a preallocated row (``kernels.layout.sample_layout``)
 by one compiled call (~1 us, ``kernels.recording.capture_sample``); the rows are written
@@ -76,23 +89,25 @@ checking each write. A failed write (disk full, file-size limit) raises :class:`
 and the file, cut back to the end of its last complete flush, stays readable. A wait for the
 file ends when it has not grown for ``write_timeout`` (a failure, ``errno.ETIMEDOUT``).
 
-Modules: recorder.py (:class:`Recorder`, the entity paths and series), record_env.py
-(:class:`RecordRerun`, :func:`record_simulation`), arrow.py (the record batches), lifecycle.py
-(exit and signals), geometry.py and palette.py (shared with the rgb_array renderer),
-esp_gym/kernels/recording.py (the compiled sample, geometry and trail kernels). This module is
-their public face.
+Modules: entities.py (the entity paths and series, the blueprint, the body's shape), recorder.py
+(:class:`Recorder`), record_env.py (:class:`RecordRerun`, :func:`record_simulation`), arrow.py
+(the record batches), lifecycle.py (exit and signals), geometry.py and palette.py (shared with
+the rgb_array renderer), esp_gym/kernels/recording.py (the compiled sample, geometry and trail
+kernels). This module is their public face.
 """
 from ..kernels.layout import REWARD_TERMS
 from .geometry import equivalent_box, prism_triangles, quaternion_xyzw
 from .lifecycle import RecordingError
+from .entities import (BODY, BODY_COM, BODY_SHAPE, BODY_TORQUE, ENV_DRAG, ENV_HOOK_TENSION, ENV_PUSH, ENV_WIND,
+                       HOOK_TENSION, LOAD_TRAIL, NEWTON, PIVOT, PIVOT_FORCE, PUSH, RETURN, SCALARS, STRING,
+                       TARGET_LOAD, TARGET_PIVOT, WIND, WORLD, default_blueprint, default_strain_scale)
 from .record_env import RecordRerun, default_record_every, record_simulation
-from .recorder import (BODY, BODY_COM, BODY_SHAPE, BODY_TORQUE, LOAD_TRAIL, NEWTON, PIVOT, PIVOT_FORCE, RETURN,
-                       SCALARS, STRING, TARGET_LOAD, TARGET_PIVOT, WORLD, Recorder, default_blueprint,
-                       default_strain_scale)
+from .recorder import Recorder
 
 __all__ = [
     "Recorder", "RecordRerun", "RecordingError", "record_simulation", "default_record_every",
     "default_strain_scale", "default_blueprint", "quaternion_xyzw", "prism_triangles", "equivalent_box",
     "REWARD_TERMS", "SCALARS", "WORLD", "STRING", "BODY", "BODY_SHAPE", "BODY_COM", "BODY_TORQUE", "PIVOT",
-    "PIVOT_FORCE", "LOAD_TRAIL", "TARGET_PIVOT", "TARGET_LOAD", "NEWTON", "RETURN",
+    "PIVOT_FORCE", "LOAD_TRAIL", "TARGET_PIVOT", "TARGET_LOAD", "NEWTON", "RETURN", "WIND", "PUSH", "HOOK_TENSION",
+    "ENV_WIND", "ENV_HOOK_TENSION", "ENV_PUSH", "ENV_DRAG",
 ]
