@@ -93,6 +93,8 @@ def evaluate_policy(policy, task: str = "stabilize", episodes: int = 50, seed: i
             env = RecordRerun(env, record)
         u = env.unwrapped
         obs, _ = env.reset(seed=seed + i)
+        if hasattr(policy, "reset"):  # a controller that reads the episode (e.g. its reference)
+            policy.reset(u)
         total, swing_sum, steps = 0.0, 0.0, 0
         terminated = truncated = False
         while not (terminated or truncated):

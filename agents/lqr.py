@@ -1,0 +1,254 @@
+"""LQR on the linearisation of the environment's own control step about the hanging equilibrium.
+
+The model is the compiled control step itself (esp_gym/control.py: one action held over the
+episode's physics steps), differentiated by central finite differences, so it is exact to
+O(delta^2) for any scene, randomised or not, and includes the string's stretch, the body's
+rocking about its attachment point and the discrete-time zero-order hold.
+
+Reduced state z (REDUCED, spatial frame, relative to the targets and the reference's velocity):
+pivot position error and velocity, load (centre of mass) position error and velocity, the
+horizontal components of the body's hanging axis b = R rho_c/|rho_c| (R e3 for a centred load)
+and of its spatial angular velocity w = R Omega. The string's internal vibrations are not in z:
+a reduced state is *lifted* to a full one with the string straight from the pivot to the
+attachment point, its nodes at their static stretch ratios and their velocities interpolated
+(:func:`lift`), as the tasks start their episodes. The spin about the vertical is left to a
+rate damper on the body torque (agents/controllers.py's ``k_spin``).
+
+Cost: the local quadratic expansion of the reward. Each term w / (1 + (x/s)^2) is
+w - (w/s^2) x^2 + O(x^4), so maximising the reward near the target is minimising
+sum (w/s^2) x^2 + (w_c/6) |a|^2 per control step, with x the load's position error and velocity,
+the pivot's position error, the swing angle (|load - pivot|_h / depth) and the spin's
+horizontal part. The gains are the discrete algebraic Riccati equation's (scipy), on the action
+(not the force), so K acts on the normalised action the environment takes.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from esp_gym.control import ControlStep
+from esp_gym.kernels.layout import ACTION, OBSERVATION, TARGET, Layout
+from esp_gym.state import State, cross3, legendre_momenta
+from esp_gym.tasks import TASKS, hanging_depth, static_node_depths
+
+#: The reduced state of the LQR (module docstring): 16 entries.
+REDUCED = Layout(("pivot_error", 3), ("pivot_velocity", 3), ("load_error", 3), ("load_velocity", 3),
+                 ("axis_h", 2), ("rate_h", 2))
+HORIZONTAL = slice(0, 2)  # the x, y components of a spatial vector
+
+
+def hanging_axis(rho_c) -> np.ndarray:
+    """The body-frame unit vector that hangs straight down at rest: rho_c/|rho_c| (e3 if 0)."""
+    rho = np.asarray(rho_c, dtype=float)
+    norm = float(np.linalg.norm(rho))
+    return rho / norm if norm > 0 else np.array([0.0, 0.0, 1.0])
+
+
+def rotation_to(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The smallest rotation taking unit vector a to unit vector b (a != -b)."""
+    v = cross3(a, b)
+    c = float(a @ b)
+    vx = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    return np.eye(3) + vx + vx @ vx / (1.0 + c)
+
+
+def reduced_state(obs: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """z (REDUCED) from full observations (OBSERVATION, (..., 22)); ``axis`` the body's hanging
+    axis (:func:`hanging_axis`)."""
+    obs = np.asarray(obs, dtype=np.float64)
+    att = obs[..., OBSERVATION["attitude_6d"]]
+    c0, c1 = att[..., 0:3], att[..., 3:6]  # R's first two columns (kernels/task.py env_observe)
+    c2 = np.cross(c0, c1)
+    R = np.stack((c0, c1, c2), axis=-1)
+    z = np.empty(obs.shape[:-1] + (REDUCED.size,))
+    for name in ("pivot_error", "pivot_velocity", "load_error", "load_velocity"):
+        source = {"pivot_error": "pivot_position_error", "load_error": "load_position_error"}.get(name, name)
+        z[..., REDUCED[name]] = obs[..., OBSERVATION[source]]
+    z[..., REDUCED["axis_h"]] = (R @ axis)[..., HORIZONTAL]
+    z[..., REDUCED["rate_h"]] = (R @ obs[..., OBSERVATION["angular_velocity"], None])[..., HORIZONTAL, 0]
+    return z
+
+
+def lift(z: np.ndarray, scene) -> State:
+    """A full state with reduced state ``z`` about the equilibrium hanging below the origin
+    (module docstring): the string straight from the pivot to the attachment point, nodes at the
+    static stretch ratios, velocities interpolated, no spin about the vertical, momenta by the
+    Legendre transform."""
+    axis = hanging_axis(scene.body.rho_c)
+    rho = np.asarray(scene.body.rho_c, dtype=float)
+    e3 = np.array([0.0, 0.0, 1.0])
+    b = np.zeros(3)
+    b[HORIZONTAL] = z[REDUCED["axis_h"]]
+    b[2] = math.sqrt(max(0.0, 1.0 - b[0] ** 2 - b[1] ** 2))
+    R = rotation_to(e3, b) @ rotation_to(axis, e3)
+    w = np.zeros(3)
+    w[HORIZONTAL] = z[REDUCED["rate_h"]]
+    pivot = z[REDUCED["pivot_error"]]
+    load = hanging_depth(scene) * e3 + z[REDUCED["load_error"]]
+    attach = load - R @ rho
+    depths = static_node_depths(scene)
+    share = (depths / depths[-1])[:, None]
+    r = pivot + share * (attach - pivot)
+    v_attach = z[REDUCED["load_velocity"]] - cross3(w, R @ rho)
+    v = z[REDUCED["pivot_velocity"]] + share * (v_attach - z[REDUCED["pivot_velocity"]])
+    p, Pi = legendre_momenta(scene, r, v, R, R.T @ w)
+    return State(np.ascontiguousarray(r), p, np.ascontiguousarray(R), Pi, 0)
+
+
+def linearize(setup, episode=None, z_step: float = 1e-5, a_step: float = 1e-4):
+    """``(A (16, 16), B (16, 3))``: central differences of one control step of ``setup`` (an
+    :class:`~esp_gym.setup.EnvSetup`; ``episode``: its physics, default the nominal one) in z
+    and in the pivot-force part of the action, about the hanging equilibrium and action 0."""
+    episode = setup.nominal_episode if episode is None else episode
+    control = ControlStep(setup)
+    axis = hanging_axis(episode.scene.body.rho_c)
+    target = np.zeros(TARGET.size)
+    target[TARGET["load"]] = (0.0, 0.0, hanging_depth(episode.scene))
+
+    def step(z, force):
+        control.reset(lift(z, episode.scene), target, episode=episode)
+        action = np.zeros(ACTION.size)
+        action[ACTION["pivot_force"]] = force
+        control.step(action)
+        return reduced_state(control.observation, axis)
+
+    z0, u0 = np.zeros(REDUCED.size), np.zeros(3)
+    A = np.empty((REDUCED.size, REDUCED.size))
+    B = np.empty((REDUCED.size, 3))
+    for j in range(REDUCED.size):
+        dz = np.zeros(REDUCED.size)
+        dz[j] = z_step
+        A[:, j] = (step(z0 + dz, u0) - step(z0 - dz, u0)) / (2 * z_step)
+    for j in range(3):
+        du = np.zeros(3)
+        du[j] = a_step
+        B[:, j] = (step(z0, u0 + du) - step(z0, u0 - du)) / (2 * a_step)
+    return A, B
+
+
+def reward_weights(task, depth: float):
+    """``(Q (16, 16), R (3, 3))``: the reward's local quadratic cost (module docstring) on z and
+    on the pivot-force action; ``depth`` the load's hanging depth [m] (the swing's lever)."""
+    Q = np.zeros((REDUCED.size, REDUCED.size))
+    idx = {name: np.arange(REDUCED.size)[REDUCED[name]] for name in REDUCED.names}
+    position = 1.0 / task.scale_position ** 2
+    Q[idx["load_error"], idx["load_error"]] += task.w_load_position * position
+    Q[idx["load_velocity"], idx["load_velocity"]] += task.w_load_velocity / task.scale_velocity ** 2
+    Q[idx["pivot_error"], idx["pivot_error"]] += task.w_pivot_position * position
+    # swing^2 ~ |load_h - pivot_h|^2 / depth^2
+    swing = task.w_swing / (task.scale_swing * depth) ** 2
+    for k in range(2):
+        i, j = idx["load_error"][k], idx["pivot_error"][k]
+        Q[i, i] += swing
+        Q[j, j] += swing
+        Q[i, j] -= swing
+        Q[j, i] -= swing
+    Q[idx["rate_h"], idx["rate_h"]] += task.w_spin / task.scale_spin ** 2
+    R = (task.w_control / ACTION.size) * np.eye(3)
+    return Q, R
+
+
+def lqr_gain(A, B, Q, R) -> np.ndarray:
+    """K of the discrete LQR: a = -K z minimises sum z'Qz + a'Ra under z+ = Az + Ba."""
+    P = scipy.linalg.solve_discrete_are(A, B, Q, R)
+    return np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
+
+
+@dataclass
+class LQR:
+    """The LQR law of one scene and task: pivot-force action -K z (clipped to the box), body
+    torque -k_spin Omega (body frame, as the PD baseline). Build with :meth:`design`."""
+
+    K: np.ndarray  #: (3, 16) gains on z, action units
+    axis: np.ndarray  #: the body's hanging axis (body frame)
+    A: np.ndarray
+    B: np.ndarray
+    k_spin: float = 0.02  #: [N m s]
+
+    @classmethod
+    def design(cls, setup, episode=None, control_weight: float = 1.0, **kw) -> "LQR":
+        """Linearise ``setup``'s control step (``episode``: default nominal) and solve the LQR
+        with the reward's cost, its control term times ``control_weight``."""
+        episode = setup.nominal_episode if episode is None else episode
+        A, B = linearize(setup, episode, **kw)
+        Q, R = reward_weights(setup.task, hanging_depth(episode.scene))
+        return cls(lqr_gain(A, B, Q, control_weight * R), hanging_axis(episode.scene.body.rho_c), A, B)
+
+    def closed_loop_radius(self) -> float:
+        """Spectral radius of A - B K (< 1: the linear closed loop is stable)."""
+        return float(np.max(np.abs(np.linalg.eigvals(self.A - self.B @ self.K))))
+
+    def act(self, obs: np.ndarray, setup) -> np.ndarray:
+        obs = np.asarray(obs, dtype=np.float64)
+        z = reduced_state(obs, self.axis)
+        action = np.zeros(obs.shape[:-1] + (ACTION.size,))
+        action[..., ACTION["pivot_force"]] = -(z @ self.K.T)
+        if setup.torque_limit > 0:
+            action[..., ACTION["body_torque"]] = -self.k_spin * obs[..., OBSERVATION["angular_velocity"]] / setup.torque_limit
+        return np.clip(action, -1.0, 1.0)
+
+
+def reference_states(target: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """z of the moving reference (``track``; TARGET ``target``) at ``times`` [s], (T, 16): the
+    pivot and the load on the curve (the load's rest offset below it is the equilibrium's, so 0
+    here), both at the curve's velocity, the body hanging straight."""
+    from esp_gym.kernels.reference import reference_at
+
+    out = np.zeros((len(times), REDUCED.size))
+    scratch = np.array(target, dtype=np.float64)
+    for k, t in enumerate(times):
+        reference_at(scratch, float(t))
+        for name in ("pivot_error", "load_error"):
+            out[k, REDUCED[name]] = scratch[TARGET["pivot"]] - scratch[TARGET["centre"]]
+        for name in ("pivot_velocity", "load_velocity"):
+            out[k, REDUCED[name]] = scratch[TARGET["velocity"]]
+    return out
+
+
+class LQRTracker(LQR):
+    """:class:`LQR` plus the optimal feed-forward of a known reference (``track``): for the error
+    e = z - z_ref, e+ = A e + B a + d_k with d_k = A z_ref(t_k) - z_ref(t_k+1), the affine LQR
+    gives a = -K e - G^-1 B' sum_j (A - BK)'^j P d_k+j, G = R + B'PB (docs/agents.md); the sum is
+    cut after ``preview`` control steps. The reference is read from the environment's TARGET
+    (:meth:`reset`), as a tracking controller is given the curve it tracks; the observation
+    already holds e."""
+
+    def __init__(self, base: LQR, P: np.ndarray, R: np.ndarray, period: float, preview: int = 150):
+        super().__init__(base.K, base.axis, base.A, base.B, base.k_spin)
+        closed = (self.A - self.B @ self.K).T
+        powers = [P]
+        for _ in range(preview - 1):
+            powers.append(closed @ powers[-1])
+        self._gain = -np.linalg.solve(R + self.B.T @ P @ self.B, self.B.T)  # -G^-1 B'
+        self._powers = np.array(powers)  # (A_cl')^j P
+        self.period = float(period)
+        self._target = None
+
+    @classmethod
+    def design(cls, setup, episode=None, control_weight: float = 1.0, preview: int = 150, **kw) -> "LQRTracker":
+        episode = setup.nominal_episode if episode is None else episode
+        A, B = linearize(setup, episode, **kw)
+        Q, R = reward_weights(setup.task, hanging_depth(episode.scene))
+        R = control_weight * R
+        P = scipy.linalg.solve_discrete_are(A, B, Q, R)
+        base = LQR(np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A), hanging_axis(episode.scene.body.rho_c), A, B)
+        return cls(base, P, R, setup.control_period, preview)
+
+    def reset(self, env) -> None:
+        """Follow the reference of ``env``'s current episode (its live TARGET view)."""
+        self._target = env.control.target
+
+    def act(self, obs: np.ndarray, setup) -> np.ndarray:
+        action = super().act(obs, setup)
+        target = self._target
+        if target is None or target[TARGET.scalar("rate")] == 0.0:
+            return action
+        now = float(target[TARGET.scalar("clock")])
+        ref = reference_states(target, now + self.period * np.arange(len(self._powers) + 1))
+        d = ref[:-1] @ self.A.T - ref[1:]
+        feed = self._gain @ np.einsum("jab,jb->a", self._powers, d)
+        action[..., ACTION["pivot_force"]] = np.clip(action[..., ACTION["pivot_force"]] + feed, -1.0, 1.0)
+        return action
