@@ -32,7 +32,7 @@ import scipy.linalg
 from esp_gym.control import ControlStep
 from esp_gym.kernels.layout import ACTION, OBSERVATION, TARGET, Layout
 from esp_gym.state import State, cross3, legendre_momenta
-from esp_gym.tasks import TASKS, hanging_depth, static_node_depths
+from esp_gym.tasks import hanging_axis, hanging_depth, rotation_between, static_node_depths
 
 #: The reduced state of the LQR (module docstring): 16 entries.
 REDUCED = Layout(("pivot_error", 3), ("pivot_velocity", 3), ("load_error", 3), ("load_velocity", 3),
@@ -40,29 +40,14 @@ REDUCED = Layout(("pivot_error", 3), ("pivot_velocity", 3), ("load_error", 3), (
 HORIZONTAL = slice(0, 2)  # the x, y components of a spatial vector
 
 
-def hanging_axis(rho_c) -> np.ndarray:
-    """The body-frame unit vector that hangs straight down at rest: rho_c/|rho_c| (e3 if 0)."""
-    rho = np.asarray(rho_c, dtype=float)
-    norm = float(np.linalg.norm(rho))
-    return rho / norm if norm > 0 else np.array([0.0, 0.0, 1.0])
-
-
-def rotation_to(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The smallest rotation taking unit vector a to unit vector b (a != -b)."""
-    v = cross3(a, b)
-    c = float(a @ b)
-    vx = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-    return np.eye(3) + vx + vx @ vx / (1.0 + c)
-
-
 def reduced_state(obs: np.ndarray, axis: np.ndarray) -> np.ndarray:
     """z (REDUCED) from full observations (OBSERVATION, (..., 22)); ``axis`` the body's hanging
     axis (:func:`hanging_axis`)."""
     obs = np.asarray(obs, dtype=np.float64)
     att = obs[..., OBSERVATION["attitude_6d"]]
-    c0, c1 = att[..., 0:3], att[..., 3:6]  # R's first two columns (kernels/task.py env_observe)
-    c2 = np.cross(c0, c1)
-    R = np.stack((c0, c1, c2), axis=-1)
+    columns = att.reshape(att.shape[:-1] + (2, 3))  # R's first two columns (kernels/task.py env_observe)
+    first, second = columns[..., 0, :], columns[..., 1, :]
+    R = np.stack((first, second, np.cross(first, second)), axis=-1)
     z = np.empty(obs.shape[:-1] + (REDUCED.size,))
     for name in ("pivot_error", "pivot_velocity", "load_error", "load_velocity"):
         source = {"pivot_error": "pivot_position_error", "load_error": "load_position_error"}.get(name, name)
@@ -83,7 +68,7 @@ def lift(z: np.ndarray, scene) -> State:
     b = np.zeros(3)
     b[HORIZONTAL] = z[REDUCED["axis_h"]]
     b[2] = math.sqrt(max(0.0, 1.0 - b[0] ** 2 - b[1] ** 2))
-    R = rotation_to(e3, b) @ rotation_to(axis, e3)
+    R = rotation_between(e3, b) @ rotation_between(axis, e3)
     w = np.zeros(3)
     w[HORIZONTAL] = z[REDUCED["rate_h"]]
     pivot = z[REDUCED["pivot_error"]]

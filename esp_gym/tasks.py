@@ -117,7 +117,15 @@ def hanging_depth(scene: Scene) -> float:
     return float(static_node_depths(scene)[-1] + np.linalg.norm(scene.body.rho_c))
 
 
-def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def hanging_axis(rho_c) -> np.ndarray:
+    """The body-frame unit vector that hangs straight down at rest: rho_c/|rho_c|, or the body
+    z axis for a centred load (rho_c = 0)."""
+    rho = np.asarray(rho_c, dtype=float)
+    norm = float(np.linalg.norm(rho))
+    return rho / norm if norm > 0 else np.array([0.0, 0.0, 1.0])
+
+
+def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """The smallest rotation taking unit vector a to unit vector b (Rodrigues)."""
     v = cross3(a, b)
     c = float(a @ b)
@@ -162,10 +170,8 @@ def sample_episode(task: Task, scene: Scene, rng: np.random.Generator):
     phi = rng.uniform(0.0, 2.0 * math.pi)
     d = np.array([math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), math.cos(theta)])
     r = start + static_node_depths(scene)[:, None] * d
-    rho = np.asarray(scene.body.rho_c, dtype=float)
-    norm = float(np.linalg.norm(rho))
     # the centre of mass along the string; a centred load (rho_c = 0) has its body z axis there
-    R = _rotation_between(rho / norm if norm > 0 else np.array([0.0, 0.0, 1.0]), d)
+    R = rotation_between(hanging_axis(scene.body.rho_c), d)
     R = _axis_rotation(d, rng.uniform(-math.pi, math.pi)) @ R
     v_pivot = rng.uniform(-task.max_speed, task.max_speed, 3)
     v_attach = rng.uniform(-task.max_speed, task.max_speed, 3)

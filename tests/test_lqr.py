@@ -7,10 +7,10 @@ import pytest
 import esp_gym
 from agents.controllers import ZeroPolicy
 from agents.evaluate import evaluate_policy
-from agents.lqr import LQR, REDUCED, LQRTracker, hanging_axis, lift, linearize, reduced_state
+from agents.lqr import LQR, REDUCED, LQRTracker, lift, linearize, reduced_state
 from esp_gym.control import ControlStep
 from esp_gym.kernels.layout import TARGET
-from esp_gym.tasks import hanging_depth
+from esp_gym.tasks import hanging_axis, hanging_depth
 
 
 def _setup(task="stabilize", **kw):
