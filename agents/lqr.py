@@ -49,8 +49,8 @@ def reduced_state(obs: np.ndarray, axis: np.ndarray) -> np.ndarray:
     first, second = columns[..., 0, :], columns[..., 1, :]
     R = np.stack((first, second, np.cross(first, second)), axis=-1)
     z = np.empty(obs.shape[:-1] + (REDUCED.size,))
-    for name in ("pivot_error", "pivot_velocity", "load_error", "load_velocity"):
-        source = {"pivot_error": "pivot_position_error", "load_error": "load_position_error"}.get(name, name)
+    for name, source in (("pivot_error", "pivot_position_error"), ("pivot_velocity", "pivot_velocity"),
+                         ("load_error", "load_position_error"), ("load_velocity", "load_velocity")):
         z[..., REDUCED[name]] = obs[..., OBSERVATION[source]]
     z[..., REDUCED["axis_h"]] = (R @ axis)[..., HORIZONTAL]
     z[..., REDUCED["rate_h"]] = (R @ obs[..., OBSERVATION["angular_velocity"], None])[..., HORIZONTAL, 0]
@@ -136,10 +136,11 @@ def reward_weights(task, depth: float):
     return Q, R
 
 
-def lqr_gain(A, B, Q, R) -> np.ndarray:
-    """K of the discrete LQR: a = -K z minimises sum z'Qz + a'Ra under z+ = Az + Ba."""
+def lqr_solution(A, B, Q, R) -> tuple:
+    """``(K, P)`` of the discrete LQR: a = -K z minimises sum z'Qz + a'Ra under z+ = Az + Ba;
+    P is the Riccati solution (the cost-to-go z'Pz)."""
     P = scipy.linalg.solve_discrete_are(A, B, Q, R)
-    return np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
+    return np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A), P
 
 
 @dataclass
@@ -149,8 +150,10 @@ class LQR:
 
     K: np.ndarray  #: (3, 16) gains on z, action units
     axis: np.ndarray  #: the body's hanging axis (body frame)
-    A: np.ndarray
-    B: np.ndarray
+    A: np.ndarray  #: (16, 16) the linearised control step
+    B: np.ndarray  #: (16, 3) its pivot-force action columns
+    P: np.ndarray  #: (16, 16) the Riccati solution
+    R: np.ndarray  #: (3, 3) the control cost (with its weight)
     k_spin: float = 0.02  #: [N m s]
 
     @classmethod
@@ -160,7 +163,9 @@ class LQR:
         episode = setup.nominal_episode if episode is None else episode
         A, B = linearize(setup, episode, **kw)
         Q, R = reward_weights(setup.task, hanging_depth(episode.scene))
-        return cls(lqr_gain(A, B, Q, control_weight * R), hanging_axis(episode.scene.body.rho_c), A, B)
+        R = control_weight * R
+        K, P = lqr_solution(A, B, Q, R)
+        return cls(K, hanging_axis(episode.scene.body.rho_c), A, B, P, R)
 
     def closed_loop_radius(self) -> float:
         """Spectral radius of A - B K (< 1: the linear closed loop is stable)."""
@@ -201,26 +206,20 @@ class LQRTracker(LQR):
     (:meth:`reset`), as a tracking controller is given the curve it tracks; the observation
     already holds e."""
 
-    def __init__(self, base: LQR, P: np.ndarray, R: np.ndarray, period: float, preview: int = 150):
-        super().__init__(base.K, base.axis, base.A, base.B, base.k_spin)
+    def __init__(self, base: LQR, period: float, preview: int = 150):
+        super().__init__(base.K, base.axis, base.A, base.B, base.P, base.R, base.k_spin)
         closed = (self.A - self.B @ self.K).T
-        powers = [P]
+        powers = [self.P]
         for _ in range(preview - 1):
             powers.append(closed @ powers[-1])
-        self._gain = -np.linalg.solve(R + self.B.T @ P @ self.B, self.B.T)  # -G^-1 B'
+        self._gain = -np.linalg.solve(self.R + self.B.T @ self.P @ self.B, self.B.T)  # -G^-1 B'
         self._powers = np.array(powers)  # (A_cl')^j P
         self.period = float(period)
         self._target = None
 
     @classmethod
     def design(cls, setup, episode=None, control_weight: float = 1.0, preview: int = 150, **kw) -> "LQRTracker":
-        episode = setup.nominal_episode if episode is None else episode
-        A, B = linearize(setup, episode, **kw)
-        Q, R = reward_weights(setup.task, hanging_depth(episode.scene))
-        R = control_weight * R
-        P = scipy.linalg.solve_discrete_are(A, B, Q, R)
-        base = LQR(np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A), hanging_axis(episode.scene.body.rho_c), A, B)
-        return cls(base, P, R, setup.control_period, preview)
+        return cls(LQR.design(setup, episode, control_weight, **kw), setup.control_period, preview)
 
     def reset(self, env) -> None:
         """Follow the reference of ``env``'s current episode (its live TARGET view)."""
