@@ -17,16 +17,23 @@ class ArgumentParser(argparse.ArgumentParser):
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {one_line(message)} (see --help)\n")
 
-    def add_episode_options(self, tasks, episodes: int, seed: bool = True) -> None:
+    def add_episode_options(self, tasks, episodes: int, seed: bool = True, preset: bool = False,
+                            default_seed: int = 0) -> None:
         """``--task`` (one of ``tasks``), ``--episodes`` (>= 1, default ``episodes``) and, with
-        ``seed``, ``--seed`` (>= 0; episode i uses seed + i): the options every script that
-        runs episodes shares. Their minimums are checked by :meth:`parse_args`."""
+        ``seed``, ``--seed`` (>= 0; episode i uses seed + i), with ``preset`` ``--preset`` (an
+        environment preset, esp_gym/setup.py PRESETS): the options every script that runs
+        episodes shares. Their minimums are checked by :meth:`parse_args`."""
         self.add_argument("--task", default="stabilize", choices=sorted(tasks))
         self.add_argument("--episodes", type=int, default=episodes)
         self.minimums = {**getattr(self, "minimums", {}), "episodes": 1}
         if seed:
-            self.add_argument("--seed", type=int, default=0, help="episode i uses seed + i (>= 0)")
+            self.add_argument("--seed", type=int, default=default_seed, help="episode i uses seed + i (>= 0)")
             self.minimums["seed"] = 0
+        if preset:
+            from esp_gym.setup import PRESETS
+
+            self.add_argument("--preset", default=None, choices=sorted(PRESETS),
+                              help="environment preset (default: the nominal task)")
 
     def parse_args(self, args=None, namespace=None):
         parsed = super().parse_args(args, namespace)

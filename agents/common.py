@@ -28,6 +28,9 @@ class RunConfig(BaseModel):
     normalize: Optional[dict] = None
     env_kwargs: dict = {}
     policy: str = "MlpPolicy"
+    #: observations per input: the policy sees the last ``frame_stack`` (normalised) ones
+    #: (SB3 VecFrameStack), the memory an observation without the load's state needs
+    frame_stack: int = Field(default=1, ge=1)
     algo: dict = {}
 
 

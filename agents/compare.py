@@ -1,47 +1,127 @@
-"""The comparison table of docs/agents.md: zero action, classical baseline and a trained policy on the same seeded
-episodes.
+"""Zero action, every classical baseline and the shipped policy of a task on the same held-out
+seeded episodes, with the paired difference policy - best baseline and its bootstrap CI.
 
-    python -m agents.compare --model models/stabilize_ppo/model.zip --task stabilize --episodes 50
+    python -m agents.compare --task transport --preset hard --episodes 100 --json
 
-Prints a Markdown table (mean +- std of the return, success rate, swing measures) and writes it
-with the raw numbers to ``--out`` (JSON).
+Policies: ``zero``, the baselines of agents/controllers.py ``baselines`` for the task and the
+preset's observation, and the shipped policy ``models/{task}[_{preset}]_ppo/model.zip`` (or
+``--model``). Each runs episodes seed + i (default seed 100000: none of them is a training or
+an evaluation-during-training seed). Per policy: mean and standard deviation of the return,
+success rate, final and mean swing, settling time and peak hook tension (agents/evaluate.py
+EpisodeResult). The best baseline is the one of highest mean return; the paired differences
+(policy - best baseline, episode by episode) get a 95 % bootstrap confidence interval (BCa,
+scipy.stats.bootstrap). Prints a Markdown table, or with ``--json`` one JSON object;
+``--out DIR`` writes both (compare_{task}[_{preset}].md/.json).
 """
 from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Optional
+
+import numpy as np
 
 from agents.cli import ArgumentParser
-from agents.controllers import ZeroPolicy
-from agents.evaluate import SB3Policy, evaluate_policy
+from agents.common import ROOT
+from agents.controllers import ZeroPolicy, baselines
+from agents.evaluate import SB3Policy, run_episodes, summarize
 from esp_gym.tasks import TASKS
+
+MODELS = ROOT / "models"
+HELD_OUT_SEED = 100_000
+NOT_BASELINES = ("zero", "policy")
+
+
+def shipped_model(task: str, preset: Optional[str] = None) -> Path:
+    """Where the policy shipped for ``task`` (and ``preset``) lives."""
+    return MODELS / (f"{task}_{preset}_ppo" if preset else f"{task}_ppo") / "model.zip"
+
+
+def paired_ci(differences, confidence: float = 0.95, resamples: int = 10_000, seed: int = 0) -> tuple:
+    """``(low, high)``: the BCa bootstrap confidence interval of the mean of paired differences."""
+    from scipy.stats import bootstrap
+
+    d = np.asarray(differences, dtype=float)
+    if d.size < 2:
+        raise ValueError(f"a bootstrap interval needs at least 2 paired differences, got {d.size}")
+    if np.ptp(d) == 0.0:  # every resample has the same mean
+        return float(d[0]), float(d[0])
+    res = bootstrap((d,), np.mean, confidence_level=confidence, n_resamples=resamples, method="BCa",
+                    random_state=np.random.default_rng(seed))
+    return float(res.confidence_interval.low), float(res.confidence_interval.high)
+
+
+def compare(task: str, preset: Optional[str] = None, episodes: int = 100, seed: int = HELD_OUT_SEED,
+            model: Optional[str] = None, progress: bool = True) -> dict:
+    """Evaluate zero, the baselines and the policy (``model``, default :func:`shipped_model`;
+    left out when there is none) and return the comparison (module docstring)."""
+    from tqdm import tqdm
+
+    env_kwargs = {"preset": preset} if preset else {}
+    policies = {"zero": ZeroPolicy(), **baselines(task, env_kwargs)}
+    path = Path(model) if model else shipped_model(task, preset)
+    if model or path.is_file():
+        policies["policy"] = SB3Policy(path)
+    results = {}
+    for name, policy in tqdm(policies.items(), desc=f"compare {task} {preset or 'nominal'}", disable=not progress):
+        results[name] = run_episodes(policy, task, episodes, seed, env_kwargs=env_kwargs)
+    table = {}
+    for name, rows in results.items():
+        table[name] = {k: v for k, v in summarize(rows, task).items() if k not in ("task", "episodes")}
+    best = max((n for n in table if n not in NOT_BASELINES), key=lambda n: table[n]["mean_return"])
+    out = {"task": task, "preset": preset, "episodes": episodes, "seed": seed,
+           "model": str(path) if "policy" in policies else None, "policies": table, "best_baseline": best,
+           "paired_diff_mean": None, "paired_ci95": None}
+    if "policy" in results:
+        diff = np.array([p.ret - b.ret for p, b in zip(results["policy"], results[best])])
+        out["paired_diff_mean"] = float(diff.mean())
+        out["paired_ci95"] = list(paired_ci(diff))
+    return out
+
+
+def markdown(c: dict) -> str:
+    """The comparison as a Markdown table and a line for the paired difference."""
+    lines = [f"{c['task']} ({c['preset'] or 'nominal'}), {c['episodes']} episodes, seeds {c['seed']}.."
+             f"{c['seed'] + c['episodes'] - 1}", "",
+             "| policy | return (mean ± std) | success | final swing [deg] | mean swing [deg] | settling [s] "
+             "| peak tension [N] |", "|---|---|---|---|---|---|---|"]
+    for name, s in c["policies"].items():
+        mark = " (best baseline)" if name == c["best_baseline"] else ""
+        lines.append(f"| {name}{mark} | {s['mean_return']:.1f} ± {s['std_return']:.1f} | "
+                     f"{100 * s['success_rate']:.0f} % | {s['mean_final_swing_deg']:.2f} | {s['mean_swing_deg']:.2f} "
+                     f"| {s['mean_settling_time_s']:.2f} | {s['mean_peak_tension_N']:.2f} |")
+    if c["paired_ci95"] is not None:
+        low, high = c["paired_ci95"]
+        lines += ["", f"policy - {c['best_baseline']}: {c['paired_diff_mean']:+.1f} "
+                      f"(95 % bootstrap CI [{low:+.1f}, {high:+.1f}])"]
+    return "\n".join(lines)
 
 
 def main(argv=None) -> dict:
     ap = ArgumentParser(prog="python -m agents.compare", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--model", required=True, help="trained model .zip")
-    ap.add_episode_options(TASKS, episodes=50)
-    ap.add_argument("--out", default=None, help="JSON file for the results")
+    ap.add_episode_options(TASKS, episodes=100, preset=True, default_seed=HELD_OUT_SEED)
+    ap.add_argument("--model", default=None, help="model .zip (default: the shipped one for the task and preset)")
+    ap.add_argument("--json", action="store_true", help="print one JSON object instead of the Markdown table")
+    ap.add_argument("--out", default=None, metavar="DIR", help="also write compare_TASK[_PRESET].md and .json here")
+    ap.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
     a = ap.parse_args(argv)
-    ap.check_parent_dir("--out", a.out)
+    if a.out is not None and Path(a.out).exists() and not Path(a.out).is_dir():
+        ap.error(f"argument --out: {a.out} is not a directory")
+    if a.model is not None and not Path(a.model).is_file():
+        ap.error(f"argument --model: {a.model} is not a file")
     try:
-        model = SB3Policy(a.model)
+        c = compare(a.task, a.preset, a.episodes, a.seed, a.model, a.progress)
     except ValueError as err:  # ModelFileError, NormalizationFileError
         ap.error(f"argument --model: {err}")
-    rows = {
-        "zero action": evaluate_policy(ZeroPolicy(), a.task, a.episodes, a.seed),
-        "classical baseline (anti-sway PD)": evaluate_policy(None, a.task, a.episodes, a.seed),
-        f"trained ({Path(a.model).parent.name})": evaluate_policy(model, a.task, a.episodes, a.seed),
-    }
-    print(f"| policy ({a.task}, {a.episodes} episodes, seeds {a.seed}..{a.seed + a.episodes - 1}) "
-          "| return (mean ± std) | success rate | final swing [deg] | mean swing [deg] |")
-    print("|---|---|---|---|---|")
-    for name, s in rows.items():
-        print(f"| {name} | {s['mean_return']:.1f} ± {s['std_return']:.1f} | {100 * s['success_rate']:.0f} % "
-              f"| {s['mean_final_swing_deg']:.2f} | {s['mean_swing_deg']:.2f} |")
+    text = json.dumps(c, indent=None if a.json else 2)
+    print(text if a.json else markdown(c))
     if a.out:
-        Path(a.out).write_text(json.dumps(rows, indent=2))
-    return rows
+        out = Path(a.out)
+        out.mkdir(parents=True, exist_ok=True)
+        stem = f"compare_{a.task}" + (f"_{a.preset}" if a.preset else "")
+        (out / f"{stem}.md").write_text(markdown(c) + "\n")
+        (out / f"{stem}.json").write_text(json.dumps(c, indent=2) + "\n")
+    return c
 
 
 if __name__ == "__main__":

@@ -4,7 +4,7 @@
 
 prints one JSON line: mean_return, std_return, success_rate, mean_final_swing_deg (the swing
 measure: the load's swing angle at the episode's end, degrees), mean_swing_deg (over all steps),
-episodes, task, policy. Episode i uses seed ``seed + i``. A PATH is an SB3 model (.zip) saved
+mean_settling_time_s, mean_peak_tension_N (see EpisodeResult), episodes, task, policy. Episode i uses seed ``seed + i``. A PATH is an SB3 model (.zip) saved
 by ``python -m agents.train``; the normalisation statistics beside it (vecnormalize.npz, or a
 legacy vecnormalize.pkl read as data) are applied. Loading a model runs code from its archive:
 evaluate only models you trust (docs/agents.md).
@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
@@ -31,6 +32,7 @@ from agents.artifacts import ModelFileError, load_model, stats_path_for
 from agents.cli import ArgumentParser
 from agents.controllers import ZeroPolicy, baseline
 from agents.normalization import NormalizationFileError, NormStats
+from esp_gym.kernels.layout import SENSORS
 from esp_gym.tasks import TASKS
 
 SUCCESS_DISTANCE = 0.1  #: [m]
@@ -50,14 +52,32 @@ class SB3Policy:
         #: agents.normalization.NormStats, or None when the model has no statistics beside it
         self.normalization = NormStats.load(stats) if stats else None
         expected = self.model.observation_space.shape
-        if self.normalization is not None and self.normalization.obs_mean.shape != expected:
-            raise NormalizationFileError(f"{stats}: statistics of observations of shape "
-                                         f"{self.normalization.obs_mean.shape}, the model takes {expected}")
+        self.input_size = expected[-1]
+        if self.normalization is not None:
+            size = self.normalization.obs_mean.shape
+            if len(size) != 1 or len(expected) != 1 or expected[0] % size[0]:
+                raise NormalizationFileError(f"{stats}: statistics of observations of shape {size}, the model "
+                                             f"takes {expected} (a stack of whole observations)")
+        self._stack = None
+
+    def reset(self, env=None) -> None:
+        """Start an episode: a frame-stacked model's earlier observations are zeros again."""
+        self._stack = None
 
     def act(self, obs, setup):
         if self.normalization is not None:
             obs = self.normalization.normalize_obs(obs)
-        action, _ = self.model.predict(np.asarray(obs, dtype=np.float32), deterministic=True)
+        obs = np.asarray(obs, dtype=np.float32)
+        n = obs.shape[-1]
+        if n != self.input_size:  # trained on the last k observations (RunConfig.frame_stack)
+            if self.input_size % n:
+                raise ValueError(f"the model takes {self.input_size} inputs, not a stack of observations of size {n}")
+            if self._stack is None or self._stack.shape[:-1] != obs.shape[:-1]:
+                self._stack = np.zeros(obs.shape[:-1] + (self.input_size,), dtype=np.float32)
+            self._stack[..., :-n] = self._stack[..., n:]  # as SB3 VecFrameStack: oldest first, zeros at the start
+            self._stack[..., -n:] = obs
+            obs = self._stack
+        action, _ = self.model.predict(obs, deterministic=True)
         return action
 
 
@@ -77,13 +97,31 @@ def load_policy(spec: str):
     return SB3Policy(spec)
 
 
-def evaluate_policy(policy, task: str = "stabilize", episodes: int = 50, seed: int = 0,
-                    record: Optional[str] = None, env_kwargs: Optional[dict] = None) -> dict:
-    """Run ``episodes`` seeded episodes (seed + i) and return the statistics; ``record``: a
-    ``.rrd`` path for a Rerun recording of the first episode."""
+@dataclass(frozen=True)
+class EpisodeResult:
+    """One evaluated episode: return, success, final and mean swing [deg], settling time [s]
+    (from when the load stays within SUCCESS_DISTANCE of its target swinging less than
+    SUCCESS_SWING_DEG to the end; the episode's length if it never does, the time limit if it
+    ends early) and the peak of the
+    string's pull on the pivot [N] (the true hook tension, noiseless)."""
+
+    seed: int
+    ret: float
+    success: bool
+    final_swing_deg: float
+    mean_swing_deg: float
+    settling_time_s: float
+    peak_tension_N: float
+
+
+def run_episodes(policy, task: str = "stabilize", episodes: int = 50, seed: int = 0,
+                 record: Optional[str] = None, env_kwargs: Optional[dict] = None) -> list:
+    """Run ``episodes`` seeded episodes (seed + i) of ``policy`` (None: the task's PD baseline)
+    and return their :class:`EpisodeResult`; ``record``: a ``.rrd`` path for a Rerun recording
+    of the first episode. A policy with ``reset(env)`` is reset after each env reset."""
     if policy is None:
         policy = baseline(task)
-    returns, finals, swings, successes = [], [], [], []
+    out = []
     for i in range(episodes):
         env = gym.make(esp_gym.ENV_ID, task=task, **(env_kwargs or {}))
         recording = bool(record) and i == 0
@@ -95,26 +133,48 @@ def evaluate_policy(policy, task: str = "stabilize", episodes: int = 50, seed: i
         obs, _ = env.reset(seed=seed + i)
         if hasattr(policy, "reset"):  # a controller that reads the episode (e.g. its reference)
             policy.reset(u)
-        total, swing_sum, steps = 0.0, 0.0, 0
+        total, swing_sum, steps, settled_at, peak = 0.0, 0.0, 0, 0, 0.0
         terminated = truncated = False
         while not (terminated or truncated):
             obs, r, terminated, truncated, info = env.step(policy.act(obs, u.setup))
             total += r
-            swing_sum += u.swing_angle()
+            swing = u.swing_angle()
+            swing_sum += swing
             steps += 1
+            peak = max(peak, float(np.linalg.norm(u.control.sensors[SENSORS["hook_tension"]])))
+            near = (np.linalg.norm(u.load_position() - u.target[3:]) < SUCCESS_DISTANCE
+                    and math.degrees(swing) < SUCCESS_SWING_DEG)
+            if not near:
+                settled_at = steps
         final_swing = math.degrees(u.swing_angle())
         dist = float(np.linalg.norm(u.load_position() - u.target[3:]))
-        returns.append(total)
-        finals.append(final_swing)
-        swings.append(math.degrees(swing_sum / steps))
-        successes.append(bool(truncated and not terminated and dist < SUCCESS_DISTANCE and final_swing < SUCCESS_SWING_DEG))
+        success = bool(truncated and not terminated and dist < SUCCESS_DISTANCE and final_swing < SUCCESS_SWING_DEG)
+        if terminated:  # ended early (workspace, overstretch): it never settled
+            settled_at = max(steps, env.spec.max_episode_steps or steps)
+        out.append(EpisodeResult(seed + i, total, success, final_swing, math.degrees(swing_sum / steps),
+                                 settled_at * u.setup.control_period, peak))
         if recording:
             env.close()
+    return out
+
+
+def summarize(results: list, task: str) -> dict:
+    """Means (and the return's standard deviation) over episodes of :func:`run_episodes`."""
+    def mean(name):
+        return float(np.mean([getattr(r, name) for r in results]))
+
     return {
-        "mean_return": float(np.mean(returns)), "std_return": float(np.std(returns)),
-        "success_rate": float(np.mean(successes)), "mean_final_swing_deg": float(np.mean(finals)),
-        "mean_swing_deg": float(np.mean(swings)), "episodes": episodes, "task": task,
+        "mean_return": mean("ret"), "std_return": float(np.std([r.ret for r in results])),
+        "success_rate": mean("success"), "mean_final_swing_deg": mean("final_swing_deg"),
+        "mean_swing_deg": mean("mean_swing_deg"), "mean_settling_time_s": mean("settling_time_s"),
+        "mean_peak_tension_N": mean("peak_tension_N"), "episodes": len(results), "task": task,
     }
+
+
+def evaluate_policy(policy, task: str = "stabilize", episodes: int = 50, seed: int = 0,
+                    record: Optional[str] = None, env_kwargs: Optional[dict] = None) -> dict:
+    """:func:`run_episodes`, summarised (:func:`summarize`)."""
+    return summarize(run_episodes(policy, task, episodes, seed, record, env_kwargs), task)
 
 
 def main(argv=None) -> dict:

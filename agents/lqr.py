@@ -23,6 +23,7 @@ horizontal part. The gains are the discrete algebraic Riccati equation's (scipy)
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -31,6 +32,7 @@ import scipy.linalg
 
 from esp_gym.control import ControlStep
 from esp_gym.kernels.layout import ACTION, OBSERVATION, TARGET, Layout
+from esp_gym.observe import Observer
 from esp_gym.state import State, cross3, legendre_momenta
 from esp_gym.tasks import hanging_axis, hanging_depth, rotation_between, static_node_depths
 
@@ -83,15 +85,28 @@ def lift(z: np.ndarray, scene) -> State:
     return State(np.ascontiguousarray(r), p, np.ascontiguousarray(R), Pi, 0)
 
 
+def plain_setup(setup):
+    """``setup`` without randomisation, wind, action latency and sensor noise: the control step
+    the model is differentiated from."""
+    return dataclasses.replace(setup, randomizer=None, wind=None, action_latency=0, observer=Observer())
+
+
+def equilibrium_target(scene) -> np.ndarray:
+    """TARGET of the equilibrium the model is linearised about: the pivot at the origin, the
+    load hanging at rest below it."""
+    target = np.zeros(TARGET.size)
+    target[TARGET["load"]] = (0.0, 0.0, hanging_depth(scene))
+    return target
+
+
 def linearize(setup, episode=None, z_step: float = 1e-5, a_step: float = 1e-4):
     """``(A (16, 16), B (16, 3))``: central differences of one control step of ``setup`` (an
     :class:`~esp_gym.setup.EnvSetup`; ``episode``: its physics, default the nominal one) in z
     and in the pivot-force part of the action, about the hanging equilibrium and action 0."""
     episode = setup.nominal_episode if episode is None else episode
-    control = ControlStep(setup)
+    control = ControlStep(plain_setup(setup))
     axis = hanging_axis(episode.scene.body.rho_c)
-    target = np.zeros(TARGET.size)
-    target[TARGET["load"]] = (0.0, 0.0, hanging_depth(episode.scene))
+    target = equilibrium_target(episode.scene)
 
     def step(z, force):
         control.reset(lift(z, episode.scene), target, episode=episode)
@@ -173,9 +188,13 @@ class LQR:
 
     def act(self, obs: np.ndarray, setup) -> np.ndarray:
         obs = np.asarray(obs, dtype=np.float64)
-        z = reduced_state(obs, self.axis)
+        return self.action(-(reduced_state(obs, self.axis) @ self.K.T), obs, setup)
+
+    def action(self, force: np.ndarray, obs: np.ndarray, setup) -> np.ndarray:
+        """The action of pivot-force command ``force`` (action units, before clipping) and the
+        spin damper on the observation ``obs``, clipped to the box."""
         action = np.zeros(obs.shape[:-1] + (ACTION.size,))
-        action[..., ACTION["pivot_force"]] = -(z @ self.K.T)
+        action[..., ACTION["pivot_force"]] = force
         if setup.torque_limit > 0:
             action[..., ACTION["body_torque"]] = -self.k_spin * obs[..., OBSERVATION["angular_velocity"]] / setup.torque_limit
         return np.clip(action, -1.0, 1.0)
@@ -198,6 +217,24 @@ def reference_states(target: np.ndarray, times: np.ndarray) -> np.ndarray:
     return out
 
 
+def preview_terms(A, B, K, P, R, preview: int) -> tuple:
+    """``(-G^-1 B', [(A - BK)'^j P for j < preview])`` with G = R + B'PB: the affine LQR's
+    feed-forward is the first applied to sum_j (second)_j d_k+j for the known drifts d."""
+    closed = (A - B @ K).T
+    powers = [P]
+    for _ in range(preview - 1):
+        powers.append(closed @ powers[-1])
+    return -np.linalg.solve(R + B.T @ P @ B, B.T), np.array(powers)
+
+
+def reference_drift(target: np.ndarray, A: np.ndarray, period: float, count: int) -> np.ndarray:
+    """d_k = A z_ref(t_k) - z_ref(t_k+1) for the next ``count`` control steps of the reference
+    in TARGET ``target`` (its clock now), (count, 16): the error's drift e+ = A e + B a + d_k."""
+    now = float(target[TARGET.scalar("clock")])
+    ref = reference_states(target, now + period * np.arange(count + 1))
+    return ref[:-1] @ A.T - ref[1:]
+
+
 class LQRTracker(LQR):
     """:class:`LQR` plus the optimal feed-forward of a known reference (``track``): for the error
     e = z - z_ref, e+ = A e + B a + d_k with d_k = A z_ref(t_k) - z_ref(t_k+1), the affine LQR
@@ -208,12 +245,7 @@ class LQRTracker(LQR):
 
     def __init__(self, base: LQR, period: float, preview: int = 150):
         super().__init__(base.K, base.axis, base.A, base.B, base.P, base.R, base.k_spin)
-        closed = (self.A - self.B @ self.K).T
-        powers = [self.P]
-        for _ in range(preview - 1):
-            powers.append(closed @ powers[-1])
-        self._gain = -np.linalg.solve(self.R + self.B.T @ self.P @ self.B, self.B.T)  # -G^-1 B'
-        self._powers = np.array(powers)  # (A_cl')^j P
+        self._gain, self._powers = preview_terms(self.A, self.B, self.K, self.P, self.R, preview)
         self.period = float(period)
         self._target = None
 
@@ -226,13 +258,34 @@ class LQRTracker(LQR):
         self._target = env.control.target
 
     def act(self, obs: np.ndarray, setup) -> np.ndarray:
-        action = super().act(obs, setup)
+        obs = np.asarray(obs, dtype=np.float64)
+        force = -(reduced_state(obs, self.axis) @ self.K.T)
         target = self._target
-        if target is None or target[TARGET.scalar("rate")] == 0.0:
-            return action
-        now = float(target[TARGET.scalar("clock")])
-        ref = reference_states(target, now + self.period * np.arange(len(self._powers) + 1))
-        d = ref[:-1] @ self.A.T - ref[1:]
-        feed = self._gain @ np.einsum("jab,jb->a", self._powers, d)
-        action[..., ACTION["pivot_force"]] = np.clip(action[..., ACTION["pivot_force"]] + feed, -1.0, 1.0)
-        return action
+        if target is not None and target[TARGET.scalar("rate")] != 0.0:
+            force = force + self._gain @ np.einsum("jab,jb->a", self._powers,
+                                                   reference_drift(target, self.A, self.period, len(self._powers)))
+        return self.action(force, obs, setup)
+
+
+class EpisodeLQR:
+    """A model-based law designed for each episode's own scene by ``design(setup, episode)``
+    (e.g. :meth:`LQR.design`): with ``randomize`` and the full observation the drawn parameters
+    are known to the designer (:meth:`reset` reads ``env.scene``; 15-60 ms a design). Without
+    randomisation one design serves every episode."""
+
+    def __init__(self, design):
+        self.design = design
+        self._scene = None
+        self._law = None
+
+    def reset(self, env) -> None:
+        if env.scene is not self._scene:
+            self._law = self.design(env.setup, env.setup.episode_for(env.scene))
+            self._scene = env.scene
+        if hasattr(self._law, "reset"):
+            self._law.reset(env)
+
+    def act(self, obs: np.ndarray, setup) -> np.ndarray:
+        if self._law is None:
+            raise RuntimeError("EpisodeLQR.act before reset(env): the design needs the episode's scene")
+        return self._law.act(obs, setup)

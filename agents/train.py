@@ -133,7 +133,7 @@ def prepare(s: Settings, given: frozenset = frozenset()) -> Prepared:
     line, naming the argument) for anything wrong, having written nothing. ``given``: the
     settings the command line set (those of RUN_SETTINGS conflict with ``--resume``)."""
     from stable_baselines3 import PPO, SAC
-    from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
+    from stable_baselines3.common.vec_env import VecFrameStack, VecMonitor, VecNormalize
 
     resume = None
     if s.resume:
@@ -171,6 +171,8 @@ def prepare(s: Settings, given: frozenset = frozenset()) -> Prepared:
         raise SettingsError("--resume" if resume else "--set", f"normalize: {one_line(err)}") from None
     if isinstance(venv, VecNormalize):
         eval_env = VecNormalize(eval_env, training=False, norm_reward=False, clip_obs=venv.clip_obs)
+    if cfg.frame_stack > 1:  # stacks the normalised observations (SB3Policy does the same)
+        venv, eval_env = VecFrameStack(venv, cfg.frame_stack), VecFrameStack(eval_env, cfg.frame_stack)
     if resume:
         try:
             model = load_model(resume.checkpoint, env=venv)
@@ -205,7 +207,7 @@ def run(p: Prepared, argv: Optional[list] = None) -> Path:
     """Train a prepared run in its directory; returns the directory. status.json says
     ``running``, then ``finished`` or ``failed`` (the error is re-raised)."""
     from stable_baselines3.common.callbacks import CallbackList, EvalCallback
-    from stable_baselines3.common.vec_env import VecNormalize
+    from stable_baselines3.common.vec_env import unwrap_vec_normalize
 
     s, cfg, run_dir, model = p.settings, p.cfg, p.run_dir, p.model
     run_dir.mkdir(parents=True, exist_ok=bool(p.resume))
@@ -235,8 +237,9 @@ def run(p: Prepared, argv: Optional[list] = None) -> Path:
         model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=not p.resume)
         wall = time.perf_counter() - start
         model.save(run_dir / "model.zip")
-        if isinstance(p.venv, VecNormalize):
-            NormStats.from_vecnormalize(p.venv).save(run_dir / "vecnormalize.npz")
+        normalizer = unwrap_vec_normalize(p.venv)
+        if normalizer is not None:
+            NormStats.from_vecnormalize(normalizer).save(run_dir / "vecnormalize.npz")
         summary = {"wall_time_s": wall, "timesteps": int(model.num_timesteps),
                    "steps_per_s": remaining / wall if wall > 0 else None}
         if p.resume:

@@ -59,11 +59,16 @@ class Observer:
         self.noisy = bool(np.any(std > 0.0))
         self.plain = mode == "full" and not self.noisy
 
+    def measure(self, obs: np.ndarray, sensors: np.ndarray) -> np.ndarray:
+        """The mode's fields of the step's OBSERVATION and SENSORS (..., size), noiseless, float64:
+        what a model-based controller differentiates (agents/lqg.py)."""
+        return np.concatenate((obs, sensors), axis=-1)[..., self._index]
+
     def observe(self, obs: np.ndarray, sensors: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """One environment's observation (float32), noise drawn from ``rng``."""
         if self.plain:
             return obs.astype(np.float32)
-        out = np.concatenate((obs, sensors))[self._index]
+        out = self.measure(obs, sensors)
         if self.noisy:
             out = out + self.noise_std * rng.standard_normal(self.layout.size)
         return out.astype(np.float32)
@@ -73,7 +78,7 @@ class Observer:
         all) from their own generators, in row order."""
         if self.plain:
             return obs.astype(np.float32)
-        out = np.concatenate((obs, sensors), axis=1)[:, self._index]
+        out = self.measure(obs, sensors)
         if self.noisy:
             for i in (range(out.shape[0]) if rows is None else rows):
                 out[i] += self.noise_std * rngs[i].standard_normal(self.layout.size)

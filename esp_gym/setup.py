@@ -5,6 +5,7 @@ the action path, and each episode's run-time physics (:class:`Episode`, drawn by
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -108,6 +109,18 @@ class EnvSetup:
         return Episode(np.array([nominal_values(self.scene)[k] for k in SCENE_PARAMS.names]), self.scene,
                        build_params(self.scene), self.substeps, self.task_params, self.action_params)
 
+    def episode_for(self, scene: Scene) -> Episode:
+        """The run-time physics of an episode of ``scene`` (its own h, which divides the control
+        period; the hover force holds its weight up): e.g. the current one, ``env.scene``."""
+        substeps = int(round(self.control_period / scene.h))
+        if substeps < 1 or abs(substeps * scene.h - self.control_period) > 1e-9 * self.control_period:
+            raise ValueError(f"scene {scene.name!r}: h = {scene.h} s does not divide the control period "
+                             f"{self.control_period} s")
+        values = np.array([nominal_values(scene)[k] for k in SCENE_PARAMS.names])
+        hover = np.array([0.0, 0.0, -total_weight(scene)])
+        return Episode(values, scene, build_params(scene), substeps, self.task.params(scene),
+                       action_params(hover, self.force_limit, self.torque_limit))
+
     def draw_episode(self, rng: np.random.Generator) -> Episode:
         """The next episode's physics: the nominal one, or (``randomizer``) one drawn from
         ``rng`` with its own h (the largest dividing the control period under the scheme's bound,
@@ -118,10 +131,8 @@ class EnvSetup:
         drawn = self.randomizer.scene(values)
         substeps = self.substeps if self.fixed_h is not None else scheme_substeps(drawn, self.control_period,
                                                                                   self.safety)
-        scene = drawn.model_copy(update={"h": self.control_period / substeps})
-        hover = np.array([0.0, 0.0, -total_weight(scene)])
-        return Episode(values, scene, build_params(scene), substeps, self.task.params(scene),
-                       action_params(hover, self.force_limit, self.torque_limit))
+        episode = self.episode_for(drawn.model_copy(update={"h": self.control_period / substeps}))
+        return dataclasses.replace(episode, values=values)
 
 
 def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabilize",
