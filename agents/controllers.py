@@ -108,9 +108,10 @@ def baselines(task: str, env_kwargs: Optional[dict] = None) -> dict:
     with the full observation ``pd``, ``lqr`` (each episode's own design: agents/lqr.py
     EpisodeLQR; ``track``: with the reference's preview) and for ``transport`` ``lqr_zv`` (the
     ZV-shaped path, agents/shaping.py); with the hook observation ``pd`` (pivot terms only) and
-    ``lqg`` (the nominal design with a Kalman filter: the hook does not reveal the episode's
-    parameters, agents/lqg.py). Stateful ones are reset per episode by evaluate_policy."""
-    from agents.lqg import HookLQG
+    ``lqg`` (a Kalman filter and LQR designed for the nominal scene but for the load's mass,
+    scheduled on the hook tension: the hook does not reveal the episode's other parameters,
+    agents/lqg.py). Stateful ones are reset per episode by evaluate_policy."""
+    from agents.lqg import ScheduledLQG
     from agents.lqr import EpisodeLQR, LQR, LQRTracker
     from agents.shaping import ShapedLQR
     from esp_gym.setup import make_setup
@@ -118,7 +119,7 @@ def baselines(task: str, env_kwargs: Optional[dict] = None) -> dict:
     setup = make_setup(task=task, **(env_kwargs or {}))
     out = {"pd": baseline(task)}
     if setup.observer.mode == "hook":
-        out["lqg"] = HookLQG.design(setup, **LQG_TUNING)
+        out["lqg"] = ScheduledLQG(setup, **LQG_TUNING)
         return out
     weight = LQR_WEIGHT[task]
     design = LQRTracker.design if task == "track" else LQR.design

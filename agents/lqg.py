@@ -34,17 +34,19 @@ from agents.lqr import (LQR, REDUCED, equilibrium_target, lift, lqr_solution, pl
 from esp_gym.control import ControlStep
 from esp_gym.kernels.layout import ACTION, TARGET
 from esp_gym.observe import UNIT_NOISE
+from esp_gym.params import override_scene
 from esp_gym.tasks import hanging_depth
 
 #: Entries of z that the process noise drives (velocities: forces act on them).
 DRIVEN = ("pivot_velocity", "load_velocity", "rate_h")
 
 
-def measurement_model(setup, z_step: float = 1e-5) -> tuple:
+def measurement_model(setup, episode=None, z_step: float = 1e-5) -> tuple:
     """``(C (m, 16), y0 (m,))``: central differences in z of ``setup``'s observation (its
-    mode's fields, noiseless) about the nominal equilibrium, and its value there."""
+    mode's fields, noiseless) about the equilibrium of ``episode`` (default: the nominal one),
+    and its value there."""
     plain = plain_setup(setup)
-    episode = plain.nominal_episode
+    episode = plain.nominal_episode if episode is None else episode
     control = ControlStep(plain)
     target = equilibrium_target(episode.scene)
 
@@ -108,26 +110,28 @@ class HookLQG:
 
     @classmethod
     def design(cls, setup, control_weight: float = 100.0, state_noise: float = 1e-4, force_noise: float = 1e-3,
-               model_error: float = 1.0, preview: int = 150) -> "HookLQG":
+               model_error: float = 1.0, preview: int = 150, episode=None) -> "HookLQG":
         """The LQR of the delayed nominal system with the reward's cost (control term times
         ``control_weight``), and the steady-state Kalman filter with process noise
         ``state_noise`` [(m/s)^2 per step] on the velocities and ``force_noise`` [N^2 per step]
         on the load force, and the environment's sensor noise plus ``model_error`` times each
         field's UNIT_NOISE (what the model leaves out: the string's own vibrations pull on the
-        hook; without it a noiseless observation makes the filter follow them)."""
-        base = LQR.design(plain_setup(setup), control_weight=control_weight)
+        hook; without it a noiseless observation makes the filter follow them). ``episode``:
+        the physics designed for (default: the nominal scene's)."""
+        episode = setup.nominal_episode if episode is None else episode
+        base = LQR.design(plain_setup(setup), episode, control_weight=control_weight)
         latency = setup.action_latency
         Ax, Bx = delayed_system(base.A, base.B, latency)
         nx = Ax.shape[0]
         Q = np.zeros((nx, nx))
-        Q[:REDUCED.size, :REDUCED.size] = reward_weights(setup.task, hanging_depth(setup.scene))[0]
+        Q[:REDUCED.size, :REDUCED.size] = reward_weights(setup.task, hanging_depth(episode.scene))[0]
         K, P = lqr_solution(Ax, Bx, Q, base.R)
         gain, _ = preview_terms(Ax, Bx, K, P, base.R, 1)
         Ex = np.zeros((nx, 3))
-        Ex[:REDUCED.size] = load_force_input(setup.scene, setup.control_period)
+        Ex[:REDUCED.size] = load_force_input(episode.scene, setup.control_period)
         closed = (Ax - Bx @ K).T
         K_force = -gain @ np.linalg.solve(np.eye(nx) - closed, P @ Ex)
-        C, y0 = measurement_model(setup)
+        C, y0 = measurement_model(setup, episode)
         ne = nx + 3
         A_est = np.zeros((ne, ne))
         A_est[:nx, :nx] = Ax
@@ -189,3 +193,39 @@ class HookLQG:
         action = np.zeros(ACTION.size)
         action[ACTION["pivot_force"]] = force
         return action
+
+
+class ScheduledLQG:
+    """:class:`HookLQG` designs for load masses ``mass_factors`` times the nominal one (the other
+    parameters nominal); each episode uses the design whose resting hook tension is nearest the
+    first one measured (the load cell weighs the load: its mass is the randomised parameter that
+    costs a fixed design the most, docs/agents.md)."""
+
+    def __init__(self, setup, mass_factors=(0.5, 0.71, 1.0, 1.41, 2.0), **design):
+        self.laws = []
+        self.rest_tension = []
+        field = setup.observer.layout["hook_tension"]
+        for factor in mass_factors:
+            scene = override_scene(setup.scene, {"body.mass": factor * setup.scene.body.mass})  # validated
+            law = HookLQG.design(setup, episode=setup.episode_for(scene), **design)
+            self.laws.append(law)
+            self.rest_tension.append(float(np.linalg.norm(law.y0[field])))
+        self._field = field
+        self._law = None
+        self._env = None
+
+    @property
+    def current(self):
+        """The design in use this episode (None before its first observation)."""
+        return self._law
+
+    def reset(self, env) -> None:
+        self._law, self._env = None, env
+
+    def act(self, obs: np.ndarray, setup) -> np.ndarray:
+        if self._law is None:  # weigh the load with the first observation
+            tension = float(np.linalg.norm(np.asarray(obs, dtype=np.float64)[..., self._field]))
+            self._law = self.laws[int(np.argmin(np.abs(np.array(self.rest_tension) - tension)))]
+            if self._env is not None:
+                self._law.reset(self._env)
+        return self._law.act(obs, setup)

@@ -144,3 +144,60 @@ class ShapedLQR(LQR):
         self._step += 1
         force = -self.K @ (z - ref[0]) + self._gain @ np.einsum("jab,jb->a", self._powers, drift)
         return self.action(force, obs, setup)
+
+
+def frequency_spread(setup, draws: int = 100, seed: int = 0) -> np.ndarray:
+    """The pendulum frequency [rad/s] of ``draws`` episodes drawn by ``setup``'s randomiser
+    (each linearised on its own scene)."""
+    from agents.lqr import linearize
+
+    rng = np.random.default_rng(seed)
+    return np.array([pendulum_mode(linearize(setup, setup.draw_episode(rng))[0], setup.control_period)[0]
+                     for _ in range(draws)])
+
+
+def main(argv=None) -> dict:
+    """Print the nominal mode and its spread under the default randomisation; plot V(w) of the
+    shapers against the spread (docs/img/shaping.png)."""
+    from pathlib import Path
+
+    from agents.cli import ArgumentParser
+    from agents.lqr import linearize
+    from esp_gym.setup import make_setup
+    from esp_gym.viz.figures import new_figure, save_figure
+
+    ap = ArgumentParser(prog="python -m agents.shaping", description=main.__doc__.split(";")[0])
+    ap.add_argument("--draws", type=int, default=100, help="randomised episodes for the spread")
+    ap.add_argument("--out", default="docs/img", help="directory for shaping.png")
+    a = ap.parse_args(argv)
+    ap.check_minimums(vars(a), draws=2)
+    setup = make_setup(task="transport", randomize=True)
+    omega, zeta = pendulum_mode(linearize(setup)[0], setup.control_period)
+    spread = frequency_spread(setup, a.draws)
+    ratio = np.linspace(0.5, 1.5, 401)
+    fig = new_figure((6.4, 3.8))
+    ax = fig.subplots()
+    for kind in SHAPERS[1:]:
+        shaper = Shaper.design(kind, omega, zeta)
+        ax.plot(ratio, [shaper.residual(r * omega, zeta) for r in ratio], label=kind.upper())
+    counts = ax.twinx()  # the spread on its own axis: episodes per bin
+    counts.hist(spread / omega, bins=20, alpha=0.3, color="0.4", label=f"randomised episodes ({a.draws})")
+    counts.set_ylabel("episodes")
+    counts.legend(loc="upper center", fontsize=8)
+    ax.set_xlabel("pendulum frequency / design frequency")
+    ax.set_ylabel("residual swing / unshaped")
+    ax.set_title(f"transport shapers, design w = {omega:.3f} rad/s")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    save_figure(fig, Path(a.out) / "shaping.png")
+    q = np.percentile(spread, [0, 5, 50, 95, 100])
+    result = {"omega": omega, "zeta": zeta, "spread_percentiles_0_5_50_95_100": q.tolist(),
+              "zv_worst_in_5_95": max(Shaper.design("zv", omega).residual(w) for w in q[1:4]),
+              "zvd_worst_in_5_95": max(Shaper.design("zvd", omega).residual(w) for w in q[1:4])}
+    print(result)
+    return result
+
+
+if __name__ == "__main__":
+    main()
