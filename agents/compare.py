@@ -107,6 +107,7 @@ def main(argv=None) -> dict:
     a = ap.parse_args(argv)
     if a.out is not None and Path(a.out).exists() and not Path(a.out).is_dir():
         ap.error(f"argument --out: {a.out} is not a directory")
+    ap.check_parent_dir("--out", a.out)
     if a.model is not None and not Path(a.model).is_file():
         ap.error(f"argument --model: {a.model} is not a file")
     try:
@@ -117,7 +118,7 @@ def main(argv=None) -> dict:
     print(text if a.json else markdown(c))
     if a.out:
         out = Path(a.out)
-        out.mkdir(parents=True, exist_ok=True)
+        out.mkdir(exist_ok=True)
         stem = f"compare_{a.task}" + (f"_{a.preset}" if a.preset else "")
         (out / f"{stem}.md").write_text(markdown(c) + "\n")
         (out / f"{stem}.json").write_text(json.dumps(c, indent=2) + "\n")

@@ -104,8 +104,9 @@ def main(argv=None) -> dict:
     out = Path(a.out)
     if out.exists() and not out.is_dir():
         ap.error(f"argument --out: {out} is not a directory")
+    ap.check_parent_dir("--out", a.out)
     result = robustness(a.task, a.episodes, a.seed, a.model, a.progress)
-    out.mkdir(parents=True, exist_ok=True)
+    out.mkdir(exist_ok=True)
     (out / f"robustness_{a.task}.json").write_text(json.dumps(result, indent=2) + "\n")
     plot(a.task, result, out / f"robustness_{a.task}.png")
     print(json.dumps(result))
