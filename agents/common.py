@@ -7,7 +7,7 @@ import inspect
 import json
 import re
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any, Literal, Optional
 
 import numpy as np
 import yaml
@@ -31,6 +31,8 @@ class RunConfig(BaseModel):
     #: observations per input: the policy sees the last ``frame_stack`` (normalised) ones
     #: (SB3 VecFrameStack), the memory an observation without the load's state needs
     frame_stack: int = Field(default=1, ge=1)
+    #: a baseline the policy's action is added to (agents/residual.py), or None
+    residual: Optional[Literal["pd"]] = None
     algo: dict = {}
 
 

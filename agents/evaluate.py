@@ -32,6 +32,7 @@ from agents.artifacts import ModelFileError, load_model, stats_path_for
 from agents.cli import ArgumentParser
 from agents.controllers import ZeroPolicy, baseline
 from agents.normalization import NormalizationFileError, NormStats
+from agents.residual import residual_for
 from esp_gym.kernels.layout import SENSORS
 from esp_gym.tasks import TASKS
 
@@ -59,12 +60,15 @@ class SB3Policy:
                 raise NormalizationFileError(f"{stats}: statistics of observations of shape {size}, the model "
                                              f"takes {expected} (a stack of whole observations)")
         self._stack = None
+        #: the baseline the network's action is added to (agents/residual.py), or None
+        self.residual = residual_for(path)
 
     def reset(self, env=None) -> None:
         """Start an episode: a frame-stacked model's earlier observations are zeros again."""
         self._stack = None
 
     def act(self, obs, setup):
+        raw = obs
         if self.normalization is not None:
             obs = self.normalization.normalize_obs(obs)
         obs = np.asarray(obs, dtype=np.float32)
@@ -78,6 +82,8 @@ class SB3Policy:
             self._stack[..., -n:] = obs
             obs = self._stack
         action, _ = self.model.predict(obs, deterministic=True)
+        if self.residual is not None:
+            action = np.clip(action + self.residual.act(raw, setup), -1.0, 1.0)
         return action
 
 

@@ -39,6 +39,7 @@ from agents.common import (CONFIG_DIR, ROOT, ConfigError, RunConfig, TqdmCallbac
 from agents.controllers import ZeroPolicy
 from agents.evaluate import evaluate_policy
 from agents.normalization import NormStats
+from agents.residual import write_residual
 from agents.runs import Resume, RunCheckpoint, RunMonitor, write_status
 from esp_gym.tasks import TASKS
 
@@ -75,13 +76,14 @@ class Settings:
 RUN_SETTINGS = frozenset(f.name for f in dataclasses.fields(Settings) if f.metadata.get("run"))
 
 
-def _make_vec_env(n_envs: int, task: str, seed: int, env_kwargs: dict,
+def _make_vec_env(n_envs: int, task: str, seed: int, env_kwargs: dict, residual: Optional[str] = None,
                   max_episode_steps: int = esp_gym.MAX_EPISODE_STEPS):
+    from agents.residual import ResidualVecEnv, base_policy
     from esp_gym.sb3_vector import ElasticStringPendulumSB3VecEnv
 
     venv = ElasticStringPendulumSB3VecEnv(num_envs=n_envs, task=task, max_episode_steps=max_episode_steps, **env_kwargs)
     venv.seed(seed)
-    return venv
+    return venv if residual is None else ResidualVecEnv(venv, base_policy(residual, task), venv.setup)
 
 
 @dataclass
@@ -159,8 +161,9 @@ def prepare(s: Settings, given: frozenset = frozenset()) -> Prepared:
     else:
         run_dir = _new_run_dir(s)
 
-    monitor = RunMonitor(_make_vec_env(cfg.n_envs, s.task, s.seed, cfg.env_kwargs))
-    eval_env = VecMonitor(_make_vec_env(min(4, s.eval_episodes), s.task, s.seed + 10_000, cfg.env_kwargs))
+    monitor = RunMonitor(_make_vec_env(cfg.n_envs, s.task, s.seed, cfg.env_kwargs, cfg.residual))
+    eval_env = VecMonitor(_make_vec_env(min(4, s.eval_episodes), s.task, s.seed + 10_000, cfg.env_kwargs,
+                                        cfg.residual))
     venv = monitor
     try:
         if resume and resume.stats is not None:
@@ -193,6 +196,8 @@ def _record_settings(p: Prepared, argv: Optional[list]) -> None:
     args = sys.argv[1:] if argv is None else list(argv)
     command = shlex.join([sys.executable, "-m", "agents.train", *args]) + "\n"
     (run_dir / "config.yaml").write_text(yaml.safe_dump(p.cfg.model_dump(), sort_keys=False))
+    if p.cfg.residual:  # what SB3Policy adds back when it acts
+        write_residual(run_dir, p.cfg.residual, s.task)
     if p.resume:  # the run now includes the resume's overrides; its commands are kept in order
         (run_dir / "args.json").write_text(json.dumps({**p.resume.saved, "set": s.set}, indent=2,
                                                       default=json_default))

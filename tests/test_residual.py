@@ -1,0 +1,48 @@
+"""Residual policies (agents/residual.py): training steps the environment with the baseline's
+action plus the network's, and the evaluated policy adds the same baseline back."""
+import numpy as np
+
+from agents.controllers import baseline
+from agents.residual import ResidualVecEnv, residual_for
+from esp_gym.sb3_vector import ElasticStringPendulumSB3VecEnv
+
+
+def vec_env():
+    venv = ElasticStringPendulumSB3VecEnv(num_envs=3, task="transport", observation="hook", sensor_noise=1.0)
+    venv.seed(11)
+    return venv
+
+
+def test_residual_env_steps_with_the_baseline_added():
+    pd = baseline("transport")
+    wrapped, plain = ResidualVecEnv(vec_env(), pd, vec_env().setup), vec_env()
+    obs_w, obs_p = wrapped.reset(), plain.reset()
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        a = rng.uniform(-0.3, 0.3, (3, 6)).astype(np.float32)
+        total = np.clip(a + pd.act(obs_p, plain.setup), -1.0, 1.0).astype(np.float32)
+        obs_w, r_w, _, _ = wrapped.step(a)
+        obs_p, r_p, _, _ = plain.step(total)
+        assert np.array_equal(obs_w, obs_p) and np.array_equal(r_w, r_p)
+    # negative control: without the base the same actions give other states
+    other = vec_env()
+    other.reset()
+    assert not np.array_equal(other.step(a)[0], obs_w)
+
+
+def test_trained_residual_policy_adds_its_base(tmp_path):
+    from agents.evaluate import SB3Policy
+    from agents.train import Settings, train
+
+    run = train(Settings(task="transport", runs=str(tmp_path), run_name="res", progress=False, eval_freq=10_000,
+                         reference_episodes=1, set=["total_timesteps=256", "n_envs=2", "n_steps=128",
+                                                    "batch_size=128", "n_epochs=1", "residual=pd",
+                                                    "env_kwargs={observation: hook}"]))
+    assert residual_for(run / "model.zip") is baseline("transport")
+    policy = SB3Policy(run / "model.zip")
+    venv = vec_env()
+    obs = venv.reset()[0]
+    net, _ = policy.model.predict(policy.normalization.normalize_obs(obs).astype(np.float32), deterministic=True)
+    expected = np.clip(net + baseline("transport").act(obs, venv.setup), -1.0, 1.0)
+    assert np.allclose(policy.act(obs, venv.setup), expected, rtol=0, atol=1e-7)
+    assert not np.allclose(expected, np.clip(net, -1, 1))  # the base does act
