@@ -94,3 +94,29 @@ def test_frame_stacked_policy_sees_what_training_showed(tmp_path):
         assert np.allclose(got, want, rtol=0, atol=1e-6)
     assert np.all(seen[0][:24] == 0.0)  # two zero frames before the first observation
     assert not np.allclose(seen[1][12:24], 0.0)  # then the first observation moves up
+
+
+def test_robustness_sweeps_write_the_plot(tmp_path, monkeypatch):
+    """One value per sweep, one episode (tiny budget): the JSON has every swept quantity with a
+    (mean, standard error) per policy and value, and the figure is written."""
+    from agents import robustness
+
+    short = {name: ((values[2],), trained, label) for name, (values, trained, label) in robustness.SWEEPS.items()}
+    monkeypatch.setattr(robustness, "SWEEPS", short)
+    result = robustness.main(["--task", "stabilize", "--episodes", "1", "--out", str(tmp_path), "--no-progress"])
+    assert set(result) == set(short)
+    for rows in result.values():
+        assert {"pd", "lqg"} <= set(rows)
+        assert all(len(rows[p]) == 1 and np.isfinite(rows[p][0][0]) for p in rows if p != "values")
+    assert (tmp_path / "robustness_stabilize.png").stat().st_size > 10_000
+    assert json.loads((tmp_path / "robustness_stabilize.json").read_text())["EA"]["values"] == [1.0]
+
+
+def test_sweep_options_change_one_thing():
+    from agents.robustness import sweep_options
+    from esp_gym.setup import PRESETS
+
+    assert sweep_options("wind_speed", 9.0)["wind"]["speed"] == 9.0
+    assert PRESETS["hard"]["wind"]["speed"] == 6.0  # the preset itself is untouched
+    low, high = sweep_options("load_mass", 4.0)["randomize"]["load_mass"]
+    assert low == high > 0

@@ -72,3 +72,12 @@ def test_bad_shaper_is_named():
         Shaper.design("ei", OMEGA)
     with pytest.raises(ValueError, match="omega"):
         Shaper.design("zv", -1.0)
+
+
+def test_shaping_script_reports_the_spread(tmp_path):
+    from agents.shaping import main
+
+    result = main(["--draws", "3", "--out", str(tmp_path)])
+    low, _, median, _, high = result["spread_percentiles_0_5_50_95_100"]
+    assert 0.5 * result["omega"] < low <= median <= high < 1.5 * result["omega"]
+    assert (tmp_path / "shaping.png").stat().st_size > 10_000
