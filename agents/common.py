@@ -6,6 +6,7 @@ import copy
 import inspect
 import json
 import re
+import time
 from pathlib import Path
 from typing import Any, Literal, Optional
 
@@ -220,6 +221,23 @@ class TqdmCallback(BaseCallback):
 
     def _on_training_end(self) -> None:
         self.bar.close()
+
+
+class TimeLimitCallback(BaseCallback):
+    """Stops training once ``seconds`` of wall time have passed since it started (checked after
+    every environment step; the run then saves its model as at the end)."""
+
+    def __init__(self, seconds: float):
+        super().__init__()
+        self.seconds = float(seconds)
+        self.stopped = False
+
+    def _on_training_start(self) -> None:
+        self.start = time.perf_counter()
+
+    def _on_step(self) -> bool:
+        self.stopped = time.perf_counter() - self.start >= self.seconds
+        return not self.stopped
 
 
 def plot_learning_curve(run_dir: Path, title: str) -> Optional[Path]:

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import shlex
 import sys
 import time
@@ -34,8 +35,8 @@ import yaml
 import esp_gym
 from agents.artifacts import ModelFileError, load_model
 from agents.cli import SettingsError, one_line, option_name, parse_settings, settings_parser
-from agents.common import (CONFIG_DIR, ROOT, ConfigError, RunConfig, TqdmCallback, json_default, load_run_config,
-                           plot_learning_curve, resolve_schedules)
+from agents.common import (CONFIG_DIR, ROOT, ConfigError, RunConfig, TimeLimitCallback, TqdmCallback, json_default,
+                           load_run_config, plot_learning_curve, resolve_schedules)
 from agents.controllers import ZeroPolicy
 from agents.evaluate import evaluate_policy
 from agents.normalization import NormStats
@@ -64,6 +65,8 @@ class Settings:
                                                             "type": int, "min": 1, "run": True})
     resume: Optional[str] = field(default=None, metadata={
         "help": "checkpoint RUN/checkpoints/model_N_steps.zip to resume from (in RUN, with RUN's settings)"})
+    time_limit: Optional[float] = field(default=None, metadata={
+        "help": "minutes of training after which the run stops and saves (default: none)", "type": float})
     progress: bool = field(default=True, metadata={"help": "show a progress bar"})
     threads: int = field(default=1, metadata={"help": "torch threads (the physics uses the other core)", "type": int,
                                               "min": 1})
@@ -137,6 +140,8 @@ def prepare(s: Settings, given: frozenset = frozenset()) -> Prepared:
     from stable_baselines3 import PPO, SAC
     from stable_baselines3.common.vec_env import VecFrameStack, VecMonitor, VecNormalize
 
+    if s.time_limit is not None and not (math.isfinite(s.time_limit) and s.time_limit > 0):
+        raise SettingsError("--time-limit", f"must be a positive number of minutes, got {s.time_limit}")
     resume = None
     if s.resume:
         clash = sorted(given & RUN_SETTINGS)
@@ -232,12 +237,14 @@ def run(p: Prepared, argv: Optional[list] = None) -> Path:
                                    best_model_save_path=str(run_dir / "best"), deterministic=True, verbose=0)
         if p.resume and p.resume.evaluations is not None:
             p.resume.evaluations.continue_in(evaluations, run_dir / "evaluations.npz")
+        limit = TimeLimitCallback(60.0 * s.time_limit) if s.time_limit is not None else None
         callbacks = CallbackList([
             evaluations,
             RunCheckpoint(run_dir / "checkpoints", s.checkpoint_freq, p.monitor),
             TqdmCallback(cfg.total_timesteps, disable=not s.progress),  # counts from the resumed step
-        ])
-        remaining = cfg.total_timesteps - model.num_timesteps  # a resumed run continues up to the total
+        ] + ([limit] if limit else []))
+        first = model.num_timesteps
+        remaining = cfg.total_timesteps - first  # a resumed run continues up to the total
         start = time.perf_counter()
         model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=not p.resume)
         wall = time.perf_counter() - start
@@ -246,9 +253,11 @@ def run(p: Prepared, argv: Optional[list] = None) -> Path:
         if normalizer is not None:
             NormStats.from_vecnormalize(normalizer).save(run_dir / "vecnormalize.npz")
         summary = {"wall_time_s": wall, "timesteps": int(model.num_timesteps),
-                   "steps_per_s": remaining / wall if wall > 0 else None}
+                   "steps_per_s": (model.num_timesteps - first) / wall if wall > 0 else None}
         if p.resume:
             summary["resumed_from"] = p.resume.steps
+        if limit:
+            summary["time_limit_min"], summary["stopped_by_time_limit"] = s.time_limit, limit.stopped
         (run_dir / "training.json").write_text(json.dumps(summary, indent=2))
         plot_learning_curve(run_dir, f"{esp_gym.ENV_ID} {s.task}: {s.algo.upper()} (seed {s.seed})")
         write_status(run_dir, "finished", timesteps=int(model.num_timesteps))

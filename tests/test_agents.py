@@ -90,3 +90,32 @@ def test_task_figures_rollout_is_the_evaluated_episode(tmp_path):
     assert sorted(results) == ["stabilize", "track", "transport"]
     for task in results:
         assert (tmp_path / f"task_{task}.png").stat().st_size > 10_000
+
+
+SHIPPED_POLICIES = sorted(p.parent for p in (ROOT / "models").glob("*_ppo/model.zip"))
+
+
+@pytest.mark.parametrize("run", SHIPPED_POLICIES, ids=[p.name for p in SHIPPED_POLICIES])
+def test_shipped_policies_beat_the_zero_action(run):
+    """Every policy under models/ (named TASK[_PRESET]_ppo) loads with its statistics and beats
+    the zero action by a wide margin on 3 seeds of its own configuration."""
+    task, _, rest = run.name.partition("_")
+    preset = rest[:-len("_ppo")] or None
+    env_kwargs = {"preset": preset} if preset else {}
+    policy = SB3Policy(run / "model.zip")
+    assert policy.normalization is not None
+    trained = evaluate_policy(policy, task, 3, 4242, env_kwargs=env_kwargs)
+    zero = evaluate_policy(ZeroPolicy(), task, 3, 4242, env_kwargs=env_kwargs)
+    assert trained["mean_return"] > zero["mean_return"] + 50, (trained["mean_return"], zero["mean_return"])
+
+
+def test_time_limit_stops_training_and_saves(tmp_path):
+    from agents.train import Settings, train
+
+    run = train(Settings(runs=str(tmp_path), run_name="limited", progress=False, time_limit=0.02,
+                         reference_episodes=1, set=["total_timesteps=10000000", "n_envs=2", "n_steps=64",
+                                                    "batch_size=64", "n_epochs=1"]))
+    summary = json.loads((run / "training.json").read_text())
+    assert summary["stopped_by_time_limit"] and summary["timesteps"] < 10_000_000
+    assert (run / "model.zip").is_file()
+    assert json.loads((run / "status.json").read_text())["status"] == "finished"
