@@ -1,10 +1,11 @@
 """Deterministic evaluation of a policy on seeded episodes of ElasticStringPendulum-v0.
 
-    python -m agents.evaluate --policy {zero,baseline,PATH} --task stabilize --episodes 50 --seed 0
+    python -m agents.evaluate --policy {zero,baseline,pd,lqr,lqr_zv,lqg,PATH} --task stabilize [--preset hard] --episodes 50 --seed 0
 
 prints one JSON line: mean_return, std_return, success_rate, mean_final_swing_deg (the swing
 measure: the load's swing angle at the episode's end, degrees), mean_swing_deg (over all steps),
-mean_settling_time_s, mean_peak_tension_N (see EpisodeResult), episodes, task, policy. Episode i uses seed ``seed + i``. A PATH is an SB3 model (.zip) saved
+mean_settling_time_s, mean_peak_tension_N (see EpisodeResult), episodes, task, preset, policy.
+Episode i uses seed ``seed + i``. A PATH is an SB3 model (.zip) saved
 by ``python -m agents.train``; the normalisation statistics beside it (vecnormalize.npz, or a
 legacy vecnormalize.pkl read as data) are applied. Loading a model runs code from its archive:
 evaluate only models you trust (docs/agents.md).
@@ -87,19 +88,28 @@ class SB3Policy:
         return action
 
 
-#: The policies --policy names (anything else is the path of a model .zip).
+#: The policies --policy names besides the baselines of agents.controllers.baselines (anything
+#: else is the path of a model .zip).
 POLICY_NAMES = ("zero", "baseline")
 
 
-def load_policy(spec: str):
-    """``zero``, ``baseline`` (None: resolved per task by :func:`evaluate_policy`) or an
-    :class:`SB3Policy` from a model file; anything else raises ModelFileError naming it."""
+def load_policy(spec: str, task: str = "stabilize", env_kwargs: Optional[dict] = None):
+    """``zero``, ``baseline`` (None: the task's PD law, resolved by :func:`evaluate_policy`), a
+    baseline's name for ``task`` and the options ``env_kwargs`` (``pd``, ``lqr``, ``lqr_zv``,
+    ``lqg``: agents.controllers.baselines) or an :class:`SB3Policy` from a model file; anything
+    else raises ModelFileError naming the choices."""
     if spec == "zero":
         return ZeroPolicy()
     if spec == "baseline":
         return None
     if not Path(spec).exists():
-        raise ModelFileError(f"{spec!r} is not one of {', '.join(POLICY_NAMES)} nor an existing model file")
+        from agents.controllers import baselines
+
+        known = baselines(task, env_kwargs)
+        if spec in known:
+            return known[spec]
+        raise ModelFileError(f"{spec!r} is not one of {', '.join(POLICY_NAMES + tuple(known))} (for task {task!r}) "
+                             f"nor an existing model file")
     return SB3Policy(spec)
 
 
@@ -185,17 +195,22 @@ def evaluate_policy(policy, task: str = "stabilize", episodes: int = 50, seed: i
 
 def main(argv=None) -> dict:
     ap = ArgumentParser(prog="python -m agents.evaluate", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--policy", default="baseline", help="zero, baseline or the path of a model .zip")
-    ap.add_episode_options(TASKS, episodes=50)
+    ap.add_argument("--policy", default="baseline",
+                    help="zero, baseline (the PD law), a baseline's name (pd, lqr, lqr_zv, lqg: as the observation "
+                         "allows) or the path of a model .zip")
+    ap.add_episode_options(TASKS, episodes=50, preset=True)
     ap.add_argument("--record", metavar="FILE.rrd", default=None,
                     help="write a Rerun recording of the first episode to FILE.rrd")
     args = ap.parse_args(argv)
     ap.check_parent_dir("--record", args.record)
+    env_kwargs = {"preset": args.preset} if args.preset else {}
     try:
-        policy = load_policy(args.policy)
+        policy = load_policy(args.policy, args.task, env_kwargs)
     except ValueError as err:  # ModelFileError, NormalizationFileError
         ap.error(f"argument --policy: {err}")
-    stats = evaluate_policy(policy, task=args.task, episodes=args.episodes, seed=args.seed, record=args.record)
+    stats = evaluate_policy(policy, task=args.task, episodes=args.episodes, seed=args.seed, record=args.record,
+                            env_kwargs=env_kwargs)
+    stats["preset"] = args.preset
     stats["policy"] = args.policy
     print(json.dumps(stats))
     return stats
