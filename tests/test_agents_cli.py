@@ -155,6 +155,7 @@ def test_evaluate_rejects_policy_names_it_does_not_know():
 @pytest.mark.parametrize("module, args, names", [
     ("agents.evaluate", ["--episodes", "0"], ["--episodes"]),
     ("agents.evaluate", ["--policy", "zero", "--episodes", "1", "--record", "{missing}/x.rrd"], ["--record", "{missing}"]),
+    ("agents.evaluate", ["--policy", "lqr", "--preset", "hard", "--episodes", "1"], ["--policy", "'lqr'", "lqg"]),
     ("agents.compare", ["--model", "no_such_model.zip"], ["--model", "no_such_model.zip"]),
     ("agents.compare", ["--model", SHIPPED, "--episodes", "1", "--out", "{missing}/x.json"], ["--out", "{missing}"]),
     ("agents.tune", ["--grid", '{"kq": [1]}'], ["--grid", "'kq'", "kp"]),
