@@ -46,6 +46,18 @@ class ArgumentParser(argparse.ArgumentParser):
             if name in values and values[name] < low:
                 self.error(f"argument {option_name(name)}: must be >= {low}, got {values[name]}")
 
+    def check_out_dir(self, option: str, path: Optional[str]) -> None:
+        """An error unless ``path`` (None: no output) is a directory or can be made in an
+        existing one."""
+        if path and Path(path).exists() and not Path(path).is_dir():
+            self.error(f"argument {option}: {path} is not a directory")
+        self.check_parent_dir(option, path)
+
+    def check_file(self, option: str, path: Optional[str]) -> None:
+        """An error unless ``path`` (None: not given) is an existing file."""
+        if path is not None and not Path(path).is_file():
+            self.error(f"argument {option}: {path} is not a file")
+
     def check_parent_dir(self, option: str, path: Optional[str]) -> None:
         """An error unless the directory a file ``path`` is to be written in exists (None: no file)."""
         if path and not Path(path).resolve().parent.is_dir():

@@ -105,17 +105,13 @@ def main(argv=None) -> dict:
     ap.add_argument("--out", default=None, metavar="DIR", help="also write compare_TASK[_PRESET].md and .json here")
     ap.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
     a = ap.parse_args(argv)
-    if a.out is not None and Path(a.out).exists() and not Path(a.out).is_dir():
-        ap.error(f"argument --out: {a.out} is not a directory")
-    ap.check_parent_dir("--out", a.out)
-    if a.model is not None and not Path(a.model).is_file():
-        ap.error(f"argument --model: {a.model} is not a file")
+    ap.check_out_dir("--out", a.out)
+    ap.check_file("--model", a.model)
     try:
         c = compare(a.task, a.preset, a.episodes, a.seed, a.model, a.progress)
     except ValueError as err:  # ModelFileError, NormalizationFileError
         ap.error(f"argument --model: {err}")
-    text = json.dumps(c, indent=None if a.json else 2)
-    print(text if a.json else markdown(c))
+    print(json.dumps(c) if a.json else markdown(c))
     if a.out:
         out = Path(a.out)
         out.mkdir(exist_ok=True)

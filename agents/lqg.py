@@ -29,8 +29,8 @@ import dataclasses
 import numpy as np
 import scipy.linalg
 
-from agents.lqr import (LQR, REDUCED, equilibrium_target, lift, lqr_solution, plain_setup, preview_terms,
-                        reference_drift, reward_weights)
+from agents.lqr import (LQR, REDUCED, equilibrium_target, lift, lqr_solution, plain_setup, preview_feedforward,
+                        preview_terms, reference_drift, reward_weights)
 from esp_gym.control import ControlStep
 from esp_gym.kernels.layout import ACTION, TARGET
 from esp_gym.observe import UNIT_NOISE
@@ -182,10 +182,9 @@ class HookLQG:
         force = -self.K @ estimate[:nx] - self.K_force @ estimate[nx:]
         drift = self._drift()
         if drift is not None:
-            gain, powers = self.preview
             padded = np.zeros((len(drift), nx))
             padded[:, :REDUCED.size] = drift
-            force = force + gain @ np.einsum("jab,jb->a", powers, padded)
+            force = force + preview_feedforward(self.preview, padded)
         force = np.clip(force, -1.0, 1.0)
         self._predicted = self.A_est @ estimate + self.B_est @ force
         if drift is not None:

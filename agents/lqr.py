@@ -227,6 +227,13 @@ def preview_terms(A, B, K, P, R, preview: int) -> tuple:
     return -np.linalg.solve(R + B.T @ P @ B, B.T), np.array(powers)
 
 
+def preview_feedforward(terms: tuple, drifts: np.ndarray) -> np.ndarray:
+    """The affine LQR's feed-forward -G^-1 B' sum_j (A - BK)'^j P d_k+j for the drifts
+    ``drifts`` (one per preview step) and ``terms`` = :func:`preview_terms`."""
+    gain, powers = terms
+    return gain @ np.einsum("jab,jb->a", powers, drifts)
+
+
 def reference_drift(target: np.ndarray, A: np.ndarray, period: float, count: int) -> np.ndarray:
     """d_k = A z_ref(t_k) - z_ref(t_k+1) for the next ``count`` control steps of the reference
     in TARGET ``target`` (its clock now), (count, 16): the error's drift e+ = A e + B a + d_k."""
@@ -245,7 +252,7 @@ class LQRTracker(LQR):
 
     def __init__(self, base: LQR, period: float, preview: int = 150):
         super().__init__(base.K, base.axis, base.A, base.B, base.P, base.R, base.k_spin)
-        self._gain, self._powers = preview_terms(self.A, self.B, self.K, self.P, self.R, preview)
+        self._preview = preview_terms(self.A, self.B, self.K, self.P, self.R, preview)
         self.period = float(period)
         self._target = None
 
@@ -262,8 +269,8 @@ class LQRTracker(LQR):
         force = -(reduced_state(obs, self.axis) @ self.K.T)
         target = self._target
         if target is not None and target[TARGET.scalar("rate")] != 0.0:
-            force = force + self._gain @ np.einsum("jab,jb->a", self._powers,
-                                                   reference_drift(target, self.A, self.period, len(self._powers)))
+            drifts = reference_drift(target, self.A, self.period, len(self._preview[1]))
+            force = force + preview_feedforward(self._preview, drifts)
         return self.action(force, obs, setup)
 
 
@@ -279,7 +286,7 @@ class EpisodeLQR:
         self._law = None
 
     def reset(self, env) -> None:
-        if env.scene is not self._scene:
+        if env.scene != self._scene:  # equal scenes (a new env of the same task) share a design
             self._law = self.design(env.setup, env.setup.episode_for(env.scene))
             self._scene = env.scene
         if hasattr(self._law, "reset"):

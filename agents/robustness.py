@@ -21,8 +21,7 @@ from agents.cli import ArgumentParser
 from agents.compare import HELD_OUT_SEED, shipped_model
 from agents.controllers import baselines
 from agents.evaluate import SB3Policy, run_episodes
-from esp_gym.params import load_scene
-from esp_gym.setup import PRESETS
+from esp_gym.setup import PRESETS, make_setup
 from esp_gym.tasks import TASKS
 
 #: The swept quantity -> (values, training range, axis label); EA and load mass as factors.
@@ -39,7 +38,7 @@ def sweep_options(name: str, value: float) -> dict:
     if name == "wind_speed":
         options["wind"]["speed"] = float(value)
         return options
-    scene = load_scene("drone_load")
+    scene = make_setup().scene  # the environment's default scene, which the preset keeps
     nominal = {"EA": scene.string.EA, "load_mass": scene.body.mass}[name]
     options["randomize"] = {name: (value * nominal, value * nominal)}
     return options
@@ -50,6 +49,7 @@ def robustness(task: str, episodes: int, seed: int = HELD_OUT_SEED, model=None, 
     from tqdm import tqdm
 
     path = Path(model) if model else shipped_model(task, "hard")
+    trained = SB3Policy(path) if path.is_file() else None  # reset per episode by run_episodes
     out = {}
     total = sum(len(values) for values, _, _ in SWEEPS.values())
     bar = tqdm(total=total, desc=f"robustness {task}", disable=not progress)
@@ -58,8 +58,8 @@ def robustness(task: str, episodes: int, seed: int = HELD_OUT_SEED, model=None, 
         for value in values:
             options = sweep_options(name, value)
             policies = dict(baselines(task, options))
-            if path.is_file():
-                policies["policy"] = SB3Policy(path)
+            if trained is not None:
+                policies["policy"] = trained
             for label, policy in policies.items():
                 returns = [r.ret for r in run_episodes(policy, task, episodes, seed, env_kwargs=options)]
                 rows.setdefault(label, []).append((float(np.mean(returns)),
@@ -99,12 +99,9 @@ def main(argv=None) -> dict:
     ap.add_argument("--out", default="docs/img", help="directory for robustness_TASK.png and .json")
     ap.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
     a = ap.parse_args(argv)
-    if a.model is not None and not Path(a.model).is_file():
-        ap.error(f"argument --model: {a.model} is not a file")
+    ap.check_file("--model", a.model)
+    ap.check_out_dir("--out", a.out)
     out = Path(a.out)
-    if out.exists() and not out.is_dir():
-        ap.error(f"argument --out: {out} is not a directory")
-    ap.check_parent_dir("--out", a.out)
     result = robustness(a.task, a.episodes, a.seed, a.model, a.progress)
     out.mkdir(exist_ok=True)
     (out / f"robustness_{a.task}.json").write_text(json.dumps(result, indent=2) + "\n")

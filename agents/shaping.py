@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from agents.lqr import LQR, REDUCED, preview_terms, reduced_state
+from agents.lqr import LQR, REDUCED, preview_feedforward, preview_terms, reduced_state
 
 #: Shaper names -> builders.
 SHAPERS = ("none", "zv", "zvd")
@@ -103,7 +103,7 @@ class ShapedLQR(LQR):
 
     def __init__(self, base: LQR, period: float, shaper: Shaper, move_time: float, preview: int = 150):
         super().__init__(base.K, base.axis, base.A, base.B, base.P, base.R, base.k_spin)
-        self._gain, self._powers = preview_terms(self.A, self.B, self.K, self.P, self.R, preview)
+        self._preview = preview_terms(self.A, self.B, self.K, self.P, self.R, preview)
         self.period = float(period)
         self.shaper = shaper
         self.move_time = float(move_time)
@@ -139,10 +139,10 @@ class ShapedLQR(LQR):
         z = reduced_state(obs, self.axis)
         if self._start is None:
             self._start = z[REDUCED["pivot_error"]].copy()
-        ref = self.path(self.period * (self._step + np.arange(len(self._powers) + 1)))
+        ref = self.path(self.period * (self._step + np.arange(len(self._preview[1]) + 1)))
         drift = ref[:-1] @ self.A.T - ref[1:]
         self._step += 1
-        force = -self.K @ (z - ref[0]) + self._gain @ np.einsum("jab,jb->a", self._powers, drift)
+        force = -self.K @ (z - ref[0]) + preview_feedforward(self._preview, drift)
         return self.action(force, obs, setup)
 
 
