@@ -16,7 +16,10 @@ from typing import Optional
 #: Checkpoints are ``RUN/checkpoints/model_N_steps.zip`` (N: environment steps).
 CHECKPOINT = re.compile(r"model_(\d+)_steps\.zip")
 #: The policy class's module in an SB3 archive's ``data`` -> the algorithm that trained it.
-POLICY_MODULES = {"stable_baselines3.common.policies": "ppo", "stable_baselines3.sac.policies": "sac"}
+#: The modules a model's policy class may come from, and the algorithm it belongs to (this
+#: project's own: the asymmetric actor-critic of agents/privileged.py, trained with PPO).
+POLICY_MODULES = {"stable_baselines3.common.policies": "ppo", "stable_baselines3.sac.policies": "sac",
+                  "agents.privileged": "ppo"}
 
 
 class ModelFileError(ValueError):

@@ -8,7 +8,7 @@ import json
 import re
 import time
 from pathlib import Path
-from typing import Any, Literal, Optional
+from typing import Any, Callable, Literal, Optional
 
 import numpy as np
 import yaml
@@ -33,7 +33,10 @@ class RunConfig(BaseModel):
     #: (SB3 VecFrameStack), the memory an observation without the load's state needs
     frame_stack: int = Field(default=1, ge=1)
     #: a baseline the policy's action is added to (agents/residual.py), or None
-    residual: Optional[Literal["pd"]] = None
+    residual: Optional[Literal["pd", "lqg"]] = None
+    #: PPO only: the critic also sees the simulator's state and the episode's parameters
+    #: (agents/privileged.py), the actor the observation alone
+    privileged_critic: bool = False
     algo: dict = {}
 
 
@@ -46,11 +49,11 @@ class ConfigError(ValueError):
         self.override = override
 
 
-class _ValueLoader(yaml.SafeLoader):
+class ValueLoader(yaml.SafeLoader):
     """YAML as written on a command line: ``3e-4`` is a float (YAML 1.1 wants ``3.0e-4``)."""
 
 
-_ValueLoader.add_implicit_resolver("tag:yaml.org,2002:float",
+ValueLoader.add_implicit_resolver("tag:yaml.org,2002:float",
                                    re.compile(r"^[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
                                    list("-+0123456789"))
 
@@ -90,18 +93,28 @@ def valid_keys(algo_name: str, path: tuple, tree: dict) -> Optional[set]:
     return None
 
 
-def unknown_key(algo_name: str, root: dict, node: Optional[dict] = None, path: tuple = ()) -> Optional[str]:
-    """The first key of the mapping ``node`` at dotted ``path`` of the run config ``root`` (default:
-    the whole config) that is not a valid one, as a message naming it and the valid keys."""
+#: The keys a mapping may hold: ``rule(path, root)`` for the mapping at dotted ``path`` of the
+#: config ``root``, or None where whoever reads the value checks it.
+KeyRule = Callable[[tuple, dict], Optional[set]]
+
+
+def sb3_keys(algo_name: str) -> KeyRule:
+    """The key rule of an SB3 run config (:func:`valid_keys`)."""
+    return lambda path, root: valid_keys(algo_name, path, root)
+
+
+def first_unknown_key(rule: KeyRule, root: dict, node: Optional[dict] = None, path: tuple = ()) -> Optional[str]:
+    """The first key of the mapping ``node`` at dotted ``path`` of the config ``root`` (default: the
+    whole config) that ``rule`` does not allow, as a message naming it and the valid keys."""
     node = root if node is None else node
     if not node:
         return None
-    valid = valid_keys(algo_name, path, root)
+    valid = rule(path, root)
     for key, value in node.items():
         if valid is not None and key not in valid:
             return _unknown(path + (key,), valid)
         if isinstance(value, dict):
-            found = unknown_key(algo_name, root, value, path + (key,))
+            found = first_unknown_key(rule, root, value, path + (key,))
             if found:
                 return found
     return None
@@ -112,21 +125,22 @@ def _unknown(path: tuple, valid: set) -> str:
     return f"unknown key {'.'.join(path)!r}; valid keys{where}: {', '.join(sorted(valid))}"
 
 
-def apply_override(algo_name: str, tree: dict, item: str) -> None:
+def apply_override(rule: KeyRule, tree: dict, item: str, example: str = "policy_kwargs.net_arch=[64,64]") -> None:
     """Set ``KEY=VALUE`` in ``tree``: the value parsed as YAML, a dotted key walking into
-    nested mappings (created where absent); each key along the way must be a valid one."""
+    nested mappings (created where absent); each key along the way must be one ``rule`` allows.
+    ``example``: a dotted item for the message about a malformed one."""
     key, sep, text = item.partition("=")
     parts = key.strip().split(".")
     if not sep or not all(parts):
-        raise ConfigError(f"{item!r} is not KEY=VALUE (KEY may be dotted: policy_kwargs.net_arch=[64,64])", item)
+        raise ConfigError(f"{item!r} is not KEY=VALUE (KEY may be dotted: {example})", item)
     try:
-        value = yaml.load(text, Loader=_ValueLoader)
+        value = yaml.load(text, Loader=ValueLoader)
     except yaml.YAMLError as err:
         problem = getattr(err, "problem", None) or " ".join(str(err).split())
         raise ConfigError(f"{item!r}: the value is not YAML ({problem})", item) from None
     node = tree
     for i, part in enumerate(parts):
-        valid = valid_keys(algo_name, tuple(parts[:i]), tree)
+        valid = rule(tuple(parts[:i]), tree)
         if valid is not None and part not in valid:
             raise ConfigError(_unknown(tuple(parts[:i + 1]), valid) + f" (in {item!r})", item)
         if i == len(parts) - 1:
@@ -140,7 +154,7 @@ def apply_override(algo_name: str, tree: dict, item: str) -> None:
                                   f"(in {item!r})", item)
             node = child
     if isinstance(value, dict):
-        found = unknown_key(algo_name, tree, value, tuple(parts))
+        found = first_unknown_key(rule, tree, value, tuple(parts))
         if found:
             raise ConfigError(f"{found} (in {item!r})", item)
 
@@ -163,13 +177,13 @@ def load_run_config(algo_name: str, env_id: str, task: str, overrides: list[str]
     applied in order (see :func:`apply_override`). A bad key or value raises :class:`ConfigError`
     naming it and, for a key, the valid ones."""
     path = CONFIG_DIR / f"{algo_name}.yaml"
-    data = yaml.load(path.read_text(), Loader=_ValueLoader)
+    data = yaml.load(path.read_text(), Loader=ValueLoader)
     try:
         raw = copy.deepcopy(dict(data[env_id][task]))
     except (KeyError, TypeError):
         raise ConfigError(f"{path} has no entry {env_id}/{task}") from None
     where = f"{path} [{env_id}][{task}]"
-    found = unknown_key(algo_name, raw)
+    found = first_unknown_key(sb3_keys(algo_name), raw)
     if found:
         raise ConfigError(f"{where}: {found}")
     try:
@@ -177,7 +191,7 @@ def load_run_config(algo_name: str, env_id: str, task: str, overrides: list[str]
     except ValueError as err:
         raise ConfigError(f"{where}: {err}") from None
     for item in overrides:
-        apply_override(algo_name, raw, item)
+        apply_override(sb3_keys(algo_name), raw, item)
         try:
             cfg = _build(algo_name, raw)
         except ValueError as err:

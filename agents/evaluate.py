@@ -33,7 +33,7 @@ from agents.artifacts import ModelFileError, load_model, stats_path_for
 from agents.cli import ArgumentParser
 from agents.controllers import ZeroPolicy, baseline
 from agents.normalization import NormalizationFileError, NormStats
-from agents.residual import residual_for
+from agents.residual import base_features, residual_for
 from esp_gym.kernels.layout import SENSORS
 from esp_gym.tasks import TASKS
 
@@ -65,11 +65,21 @@ class SB3Policy:
         self.residual = residual_for(path)
 
     def reset(self, env=None) -> None:
-        """Start an episode: a frame-stacked model's earlier observations are zeros again."""
+        """Start an episode: a frame-stacked model's earlier observations are zeros again, a
+        stateful base (agents/residual.py) starts a new estimate."""
         self._stack = None
+        if self.residual is not None and hasattr(self.residual, "reset"):
+            self.residual.reset(env)
 
     def act(self, obs, setup):
         raw = obs
+        if self.residual is not None:  # a stateful base filters the observation; the network sees its estimate
+            base = self.residual.act(raw, setup)
+            obs = np.concatenate([np.asarray(obs, dtype=np.float64), base_features(self.residual, np.shape(obs)[:-1])],
+                                 axis=-1)
+        hidden = getattr(self.model.policy, "frame_size", 0) - getattr(self.model.policy, "actor_size", 0)
+        if hidden:  # the critic's privileged entries (agents/privileged.py): the actor never reads them
+            obs = np.concatenate([np.asarray(obs, dtype=np.float64), np.zeros(np.shape(obs)[:-1] + (hidden,))], axis=-1)
         if self.normalization is not None:
             obs = self.normalization.normalize_obs(obs)
         obs = np.asarray(obs, dtype=np.float32)
@@ -84,7 +94,9 @@ class SB3Policy:
             obs = self._stack
         action, _ = self.model.predict(obs, deterministic=True)
         if self.residual is not None:
-            action = np.clip(action + self.residual.act(raw, setup), -1.0, 1.0)
+            action = np.clip(action + base, -1.0, 1.0)
+            if hasattr(self.residual, "applied"):
+                self.residual.applied(action)
         return action
 
 

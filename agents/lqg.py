@@ -24,6 +24,7 @@ added too. The body torque is 0 (the hook observation has no gyro).
 """
 from __future__ import annotations
 
+import copy
 import dataclasses
 
 import numpy as np
@@ -106,7 +107,7 @@ class HookLQG:
     y0: np.ndarray  #: (m,) the observation at the equilibrium
     A: np.ndarray  #: (16, 16) the linearised control step (for the reference's drift)
     period: float  #: [s]
-    preview: tuple = ()  #: (-G^-1 B_x', powers) of the delayed system, for ``track``
+    preview: tuple = ()  #: preview_terms of the delayed system, for ``track``
 
     @classmethod
     def design(cls, setup, control_weight: float = 100.0, state_noise: float = 1e-4, force_noise: float = 1e-3,
@@ -156,14 +157,25 @@ class HookLQG:
         return cls(K, K_force, L, A_est, B_est, C_est, y0, base.A, setup.control_period, terms)
 
     def __post_init__(self):
-        self._target = None
-        self._predicted = np.zeros(self.A_est.shape[0])
+        self.start(None)
 
     def reset(self, env) -> None:
         """Start an episode of ``env`` (the estimate at the equilibrium; ``track``: follow its
         reference through its live TARGET view)."""
-        self._target = env.control.target
+        self.start(env.control.target)
+
+    def start(self, target) -> None:
+        """Start an episode whose TARGET is the live view ``target`` (one environment's row)."""
+        self._target = target
         self._predicted = np.zeros(self.A_est.shape[0])
+        self._estimate = self._predicted
+        self._drift0 = None
+
+    @property
+    def estimate(self) -> np.ndarray:
+        """The filtered [z; q; f] after the last observation (z: REDUCED, q: the pending actions,
+        f: the load force [N])."""
+        return self._estimate
 
     def _drift(self) -> np.ndarray:
         """The reference's drifts d_k of the next preview steps (16 each), or None."""
@@ -181,17 +193,24 @@ class HookLQG:
         nx = self.K.shape[1]
         force = -self.K @ estimate[:nx] - self.K_force @ estimate[nx:]
         drift = self._drift()
-        if drift is not None:
-            padded = np.zeros((len(drift), nx))
-            padded[:, :REDUCED.size] = drift
-            force = force + preview_feedforward(self.preview, padded)
+        if drift is not None:  # the reference moves z only: the pending actions' drift is 0
+            force = force + preview_feedforward(self.preview, drift)
         force = np.clip(force, -1.0, 1.0)
-        self._predicted = self.A_est @ estimate + self.B_est @ force
-        if drift is not None:
-            self._predicted[:REDUCED.size] += drift[0]
+        self._estimate, self._drift0 = estimate, None if drift is None else drift[0]
+        self._predict(force)
         action = np.zeros(ACTION.size)
         action[ACTION["pivot_force"]] = force
         return action
+
+    def applied(self, action: np.ndarray) -> None:
+        """The action that was applied instead of the last one :meth:`act` gave (a residual
+        policy adds to it): the filter's prediction takes its pivot force."""
+        self._predict(np.asarray(action, dtype=np.float64)[ACTION["pivot_force"]])
+
+    def _predict(self, force: np.ndarray) -> None:
+        self._predicted = self.A_est @ self._estimate + self.B_est @ force
+        if self._drift0 is not None:
+            self._predicted[:REDUCED.size] += self._drift0
 
 
 class ScheduledLQG:
@@ -210,21 +229,41 @@ class ScheduledLQG:
             self.laws.append(law)
             self.rest_tension.append(float(np.linalg.norm(law.y0[field])))
         self._field = field
-        self._law = None
-        self._env = None
+        self.start(None)
 
     @property
     def current(self):
         """The design in use this episode (None before its first observation)."""
         return self._law
 
+    def clone(self) -> "ScheduledLQG":
+        """The same designs with an estimate of their own (one per environment of a batch)."""
+        twin = copy.copy(self)
+        twin.laws = [copy.copy(law) for law in self.laws]
+        twin.start(None)
+        return twin
+
     def reset(self, env) -> None:
-        self._law, self._env = None, env
+        self.start(env.control.target)
+
+    def start(self, target) -> None:
+        """Start an episode whose TARGET is the live view ``target`` (None: no reference)."""
+        self._law, self._target = None, target
+
+    @property
+    def estimate(self) -> np.ndarray:
+        """The current design's filtered [z; q; f] (zeros before the episode's first observation)."""
+        if self._law is None:
+            return np.zeros(self.laws[0].A_est.shape[0])
+        return self._law.estimate
 
     def act(self, obs: np.ndarray, setup) -> np.ndarray:
         if self._law is None:  # weigh the load with the first observation
             tension = float(np.linalg.norm(np.asarray(obs, dtype=np.float64)[..., self._field]))
             self._law = self.laws[int(np.argmin(np.abs(np.array(self.rest_tension) - tension)))]
-            if self._env is not None:
-                self._law.reset(self._env)
+            self._law.start(self._target)
         return self._law.act(obs, setup)
+
+    def applied(self, action: np.ndarray) -> None:
+        """See :meth:`HookLQG.applied`."""
+        self._law.applied(action)

@@ -204,34 +204,38 @@ def reference_states(target: np.ndarray, times: np.ndarray) -> np.ndarray:
     """z of the moving reference (``track``; TARGET ``target``) at ``times`` [s], (T, 16): the
     pivot and the load on the curve (the load's rest offset below it is the equilibrium's, so 0
     here), both at the curve's velocity, the body hanging straight."""
-    from esp_gym.kernels.reference import reference_at
+    from esp_gym.kernels.reference import reference_path
 
+    times = np.asarray(times, dtype=np.float64)
+    offset, velocity = np.empty((len(times), 3)), np.empty((len(times), 3))
+    reference_path(np.array(target, dtype=np.float64), times, offset, velocity)
     out = np.zeros((len(times), REDUCED.size))
-    scratch = np.array(target, dtype=np.float64)
-    for k, t in enumerate(times):
-        reference_at(scratch, float(t))
-        for name in ("pivot_error", "load_error"):
-            out[k, REDUCED[name]] = scratch[TARGET["pivot"]] - scratch[TARGET["centre"]]
-        for name in ("pivot_velocity", "load_velocity"):
-            out[k, REDUCED[name]] = scratch[TARGET["velocity"]]
+    for name in ("pivot_error", "load_error"):
+        out[:, REDUCED[name]] = offset
+    for name in ("pivot_velocity", "load_velocity"):
+        out[:, REDUCED[name]] = velocity
     return out
 
 
 def preview_terms(A, B, K, P, R, preview: int) -> tuple:
-    """``(-G^-1 B', [(A - BK)'^j P for j < preview])`` with G = R + B'PB: the affine LQR's
-    feed-forward is the first applied to sum_j (second)_j d_k+j for the known drifts d."""
+    """``(-G^-1 B', [-G^-1 B' (A - BK)'^j P for j < preview])`` with G = R + B'PB: the affine
+    LQR's feed-forward is sum_j (second)_j d_k+j for the known drifts d."""
     closed = (A - B @ K).T
-    powers = [P]
+    gain = -np.linalg.solve(R + B.T @ P @ B, B.T)
+    weights = [gain @ P]
+    power = P
     for _ in range(preview - 1):
-        powers.append(closed @ powers[-1])
-    return -np.linalg.solve(R + B.T @ P @ B, B.T), np.array(powers)
+        power = closed @ power
+        weights.append(gain @ power)
+    return gain, np.array(weights)
 
 
 def preview_feedforward(terms: tuple, drifts: np.ndarray) -> np.ndarray:
     """The affine LQR's feed-forward -G^-1 B' sum_j (A - BK)'^j P d_k+j for the drifts
-    ``drifts`` (one per preview step) and ``terms`` = :func:`preview_terms`."""
-    gain, powers = terms
-    return gain @ np.einsum("jab,jb->a", powers, drifts)
+    ``drifts`` (one per preview step; they may give only the leading entries of the state, the
+    rest being 0) and ``terms`` = :func:`preview_terms`."""
+    _, weights = terms
+    return np.einsum("jan,jn->a", weights[:, :, :drifts.shape[1]], drifts)
 
 
 def reference_drift(target: np.ndarray, A: np.ndarray, period: float, count: int) -> np.ndarray:

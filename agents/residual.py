@@ -1,8 +1,13 @@
 """Residual policies: the trained network's action is added to a classical baseline's, and the
 sum clipped to the box, so learning starts from the baseline and refines it (residual policy
-learning). A run with ``residual: pd`` in its config trains through :class:`ResidualVecEnv`
-and writes ``residual.json`` beside its model; agents.evaluate.SB3Policy reads it back and
-adds the same baseline when it acts.
+learning). A run with ``residual: pd`` or ``residual: lqg`` in its config trains through
+:class:`ResidualVecEnv` and writes ``residual.json`` beside its model; agents.evaluate.SB3Policy
+reads it back and adds the same baseline when it acts.
+
+``pd`` is stateless and acts on the raw observation. ``lqg`` (hook observation) is a Kalman
+filter per environment: it is told the action actually applied (base plus network), and the
+network also sees its estimate [z; q; f] (agents/lqg.py), appended to the observation, so the
+policy starts from the filter's state rather than from raw hook readings.
 """
 from __future__ import annotations
 
@@ -10,47 +15,128 @@ import json
 from pathlib import Path
 from typing import Optional
 
+import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
-#: The baselines a residual may start from (stateless, batched: they act on the raw observation).
-BASES = ("pd",)
+#: The baselines a residual may start from.
+BASES = ("pd", "lqg")
 RESIDUAL_FILE = "residual.json"
 
 
-def base_policy(name: str, task: str):
-    """The baseline ``name`` of ``task``."""
-    from agents.controllers import baseline
+def base_policy(name: str, task: str, env_kwargs: Optional[dict] = None):
+    """The baseline ``name`` of ``task`` under the environment options ``env_kwargs`` (one
+    environment's; :class:`BatchedBase` runs it over a batch)."""
+    from agents.controllers import baseline, baselines
 
     if name not in BASES:
         raise ValueError(f"residual must be one of {BASES}, got {name!r}")
-    return baseline(task)
+    if name == "pd":
+        return baseline(task)
+    known = baselines(task, env_kwargs)
+    if name not in known:
+        raise ValueError(f"residual {name!r} needs the hook observation (env_kwargs observation: hook or "
+                         f"preset: hard); with {env_kwargs or {}} the baselines are {sorted(known)}")
+    return known[name]
+
+
+def base_features(base, batch: tuple = ()) -> np.ndarray:
+    """What the network sees of a base beside the observation: a stateful base's estimate, shape
+    batch + (k,), or an empty (..., 0) array for a stateless one."""
+    estimate = getattr(base, "estimate", None)
+    return np.zeros(batch + (0,)) if estimate is None else np.asarray(estimate, dtype=np.float64)
+
+
+class BatchedBase:
+    """A baseline over a batch of environments: a stateless one acts on the whole batch at once,
+    a stateful one (with ``clone``, ``start``, ``applied``, ``estimate``) as one copy each."""
+
+    def __init__(self, base, num_envs: int):
+        self.stateful = hasattr(base, "clone")
+        self.base = base
+        self.copies = [base.clone() for _ in range(num_envs)] if self.stateful else []
+        self.num_envs = num_envs
+
+    @property
+    def feature_size(self) -> int:
+        return base_features(self.copies[0]).shape[-1] if self.stateful else 0
+
+    def start(self, i: int, target) -> None:
+        if self.stateful:
+            self.copies[i].start(target)
+
+    def act(self, obs: np.ndarray, setup) -> np.ndarray:
+        if not self.stateful:
+            return self.base.act(obs, setup)
+        return np.stack([law.act(o, setup) for law, o in zip(self.copies, obs)])
+
+    def act_one(self, i: int, obs: np.ndarray, setup) -> np.ndarray:
+        return self.copies[i].act(obs, setup) if self.stateful else self.base.act(obs, setup)
+
+    def applied(self, actions: np.ndarray) -> None:
+        for law, a in zip(self.copies, actions):
+            law.applied(a)
+
+    def features(self, i: Optional[int] = None) -> np.ndarray:
+        if i is not None:
+            return base_features(self.copies[i]) if self.stateful else np.zeros(0)
+        if not self.stateful:
+            return np.zeros((self.num_envs, 0))
+        return np.stack([base_features(law) for law in self.copies])
 
 
 class ResidualVecEnv(VecEnvWrapper):
     """Steps ``venv`` with clip(action + base(observation)): the base acts on the observation the
-    policy was given (raw, before any normalisation), ``setup`` the environments' EnvSetup."""
+    policy was given (raw, before any normalisation), ``setup`` the environments' EnvSetup. A
+    stateful base's estimate is appended to each observation (and to the terminal ones)."""
 
     def __init__(self, venv, base, setup):
-        super().__init__(venv)
+        self.batch = BatchedBase(base, venv.num_envs)
+        extra = self.batch.feature_size
+        space = venv.observation_space
+        if extra:
+            space = gym.spaces.Box(-np.inf, np.inf, (space.shape[0] + extra,), dtype=space.dtype)
+        super().__init__(venv, observation_space=space)
         self.base, self.setup = base, setup
-        self._obs = None
+        self._base_action = None
+
+    def _targets(self):
+        control = getattr(self.venv, "control", None)  # the batched esp_gym VecEnv: each env's TARGET row
+        return [None] * self.num_envs if control is None else list(control.target)
+
+    def _with_features(self, obs: np.ndarray) -> np.ndarray:
+        return np.concatenate([obs, self.batch.features()], axis=-1).astype(obs.dtype) if self.batch.stateful \
+            else obs
 
     def reset(self):
-        self._obs = self.venv.reset()
-        return self._obs
+        obs = self.venv.reset()
+        for i, target in enumerate(self._targets()):
+            self.batch.start(i, target)
+        self._base_action = self.batch.act(obs, self.setup)
+        return self._with_features(obs)
 
     def step_async(self, actions: np.ndarray) -> None:
-        self.venv.step_async(np.clip(actions + self.base.act(self._obs, self.setup), -1.0, 1.0).astype(np.float32))
+        total = np.clip(actions + self._base_action, -1.0, 1.0).astype(np.float32)
+        if self.batch.stateful:
+            self.batch.applied(total)
+        self.venv.step_async(total)
 
     def step_wait(self):
         obs, rewards, dones, infos = self.venv.step_wait()
-        self._obs = obs  # after an automatic reset: the next episode's first observation
-        return obs, rewards, dones, infos
+        targets = self._targets()
+        for i in np.flatnonzero(dones):
+            if self.batch.stateful and "terminal_observation" in infos[i]:  # the ended episode's filter, then a new one
+                last = infos[i]["terminal_observation"]
+                self.batch.act_one(i, last, self.setup)
+                infos[i]["terminal_observation"] = np.concatenate([last, self.batch.features(i)]).astype(last.dtype)
+            self.batch.start(i, targets[i])
+        self._base_action = self.batch.act(obs, self.setup)  # after a reset: the next episode's first observation
+        return self._with_features(obs), rewards, dones, infos
 
 
-def write_residual(run_dir: Path, name: str, task: str) -> None:
-    (Path(run_dir) / RESIDUAL_FILE).write_text(json.dumps({"base": name, "task": task}) + "\n")
+def write_residual(run_dir: Path, name: str, task: str, env_kwargs: Optional[dict] = None) -> None:
+    spec = {"base": name, "task": task, "env_kwargs": env_kwargs or {}}
+    (Path(run_dir) / RESIDUAL_FILE).write_text(json.dumps(spec) + "\n")
 
 
 def residual_for(model: Path) -> Optional[object]:
@@ -61,5 +147,5 @@ def residual_for(model: Path) -> Optional[object]:
         path = directory / RESIDUAL_FILE
         if path.is_file():
             spec = json.loads(path.read_text())
-            return base_policy(spec["base"], spec["task"])
+            return base_policy(spec["base"], spec["task"], spec.get("env_kwargs"))
     return None

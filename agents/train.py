@@ -80,13 +80,24 @@ RUN_SETTINGS = frozenset(f.name for f in dataclasses.fields(Settings) if f.metad
 
 
 def _make_vec_env(n_envs: int, task: str, seed: int, env_kwargs: dict, residual: Optional[str] = None,
-                  max_episode_steps: int = esp_gym.MAX_EPISODE_STEPS):
+                  privileged: bool = False, max_episode_steps: int = esp_gym.MAX_EPISODE_STEPS):
+    from agents.privileged import PrivilegedVecEnv
     from agents.residual import ResidualVecEnv, base_policy
     from esp_gym.sb3_vector import ElasticStringPendulumSB3VecEnv
 
-    venv = ElasticStringPendulumSB3VecEnv(num_envs=n_envs, task=task, max_episode_steps=max_episode_steps, **env_kwargs)
-    venv.seed(seed)
-    return venv if residual is None else ResidualVecEnv(venv, base_policy(residual, task), venv.setup)
+    env = ElasticStringPendulumSB3VecEnv(num_envs=n_envs, task=task, max_episode_steps=max_episode_steps, **env_kwargs)
+    env.seed(seed)
+    venv = env if residual is None else ResidualVecEnv(env, base_policy(residual, task, env_kwargs), env.setup)
+    return PrivilegedVecEnv(venv, env.control) if privileged else venv
+
+
+def privileged_size_of(venv) -> int:
+    """The privileged entries at the end of ``venv``'s observations (agents/privileged.py)."""
+    from agents.privileged import PrivilegedVecEnv, privileged_size
+
+    while not isinstance(venv, PrivilegedVecEnv):
+        venv = venv.venv
+    return privileged_size(venv.control)
 
 
 @dataclass
@@ -166,9 +177,12 @@ def prepare(s: Settings, given: frozenset = frozenset()) -> Prepared:
     else:
         run_dir = _new_run_dir(s)
 
-    monitor = RunMonitor(_make_vec_env(cfg.n_envs, s.task, s.seed, cfg.env_kwargs, cfg.residual))
+    if cfg.privileged_critic and s.algo != "ppo":
+        raise SettingsError("--set", f"privileged_critic needs an actor-critic with a state value (ppo), not {s.algo}")
+    monitor = RunMonitor(_make_vec_env(cfg.n_envs, s.task, s.seed, cfg.env_kwargs, cfg.residual,
+                                       cfg.privileged_critic))
     eval_env = VecMonitor(_make_vec_env(min(4, s.eval_episodes), s.task, s.seed + 10_000, cfg.env_kwargs,
-                                        cfg.residual))
+                                        cfg.residual, cfg.privileged_critic))
     venv = monitor
     try:
         if resume and resume.stats is not None:
@@ -188,12 +202,34 @@ def prepare(s: Settings, given: frozenset = frozenset()) -> Prepared:
             raise SettingsError("--resume", str(err)) from None
     else:
         cls = {"ppo": PPO, "sac": SAC}[s.algo]
+        policy, algo = cfg.policy, resolve_schedules(cfg.algo)
+        if cfg.privileged_critic:  # the actor reads the observation part of each stacked frame
+            from agents.privileged import AsymmetricPolicy
+
+            frame = monitor.observation_space.shape[0]
+            policy = AsymmetricPolicy
+            algo["policy_kwargs"] = {**algo.get("policy_kwargs", {}), "frame_size": frame,
+                                     "actor_size": frame - privileged_size_of(monitor)}
         try:
-            model = cls(cfg.policy, venv, seed=s.seed, device="cpu", verbose=0, **resolve_schedules(cfg.algo))
+            model = cls(policy, venv, seed=s.seed, device="cpu", verbose=0, **algo)
         except (ValueError, TypeError, KeyError, AssertionError) as err:  # SB3 checks its arguments by assert
             raise SettingsError("--set", f"{s.algo.upper()} rejects the configuration: "
                                          f"{one_line(f'{type(err).__name__}: {err}')}") from None
+    if cfg.residual and not resume:
+        start_at_base(model)
     return Prepared(s, cfg, run_dir, resume, monitor, venv, eval_env, model)
+
+
+def start_at_base(model) -> None:
+    """Zero the layer that outputs the action's mean, so that a residual policy's first
+    deterministic action is its base's exactly (SB3's small initial gain still moves it, and the
+    return is sensitive to that)."""
+    import torch
+
+    layer = model.policy.action_net if hasattr(model.policy, "action_net") else model.policy.actor.mu
+    with torch.no_grad():
+        layer.weight.zero_()
+        layer.bias.zero_()
 
 
 def _record_settings(p: Prepared, argv: Optional[list]) -> None:
@@ -202,7 +238,7 @@ def _record_settings(p: Prepared, argv: Optional[list]) -> None:
     command = shlex.join([sys.executable, "-m", "agents.train", *args]) + "\n"
     (run_dir / "config.yaml").write_text(yaml.safe_dump(p.cfg.model_dump(), sort_keys=False))
     if p.cfg.residual:  # what SB3Policy adds back when it acts
-        write_residual(run_dir, p.cfg.residual, s.task)
+        write_residual(run_dir, p.cfg.residual, s.task, p.cfg.env_kwargs)
     if p.resume:  # the run now includes the resume's overrides; its commands are kept in order
         (run_dir / "args.json").write_text(json.dumps({**p.resume.saved, "set": s.set}, indent=2,
                                                       default=json_default))

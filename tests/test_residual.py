@@ -46,3 +46,36 @@ def test_trained_residual_policy_adds_its_base(tmp_path):
     expected = np.clip(net + baseline("transport").act(obs, venv.setup), -1.0, 1.0)
     assert np.allclose(policy.act(obs, venv.setup), expected, rtol=0, atol=1e-7)
     assert not np.allclose(expected, np.clip(net, -1, 1))  # the base does act
+
+
+def test_lqg_residual_env_with_a_zero_network_is_the_lqg():
+    """ResidualVecEnv over the scheduled LQG (one filter per environment, told the applied
+    action) and a zero network action reproduces the LQG's own episodes on the same seeds (the
+    batched and single environments are the same bit for bit); the observation carries the
+    filter's estimate, and so do terminal observations."""
+    from agents.evaluate import run_episodes
+    from agents.residual import base_policy
+
+    kwargs = {"preset": "hard"}
+    venv = ElasticStringPendulumSB3VecEnv(num_envs=2, task="track", max_episode_steps=60, **kwargs)
+    venv.seed(500)
+    wrapped = ResidualVecEnv(venv, base_policy("lqg", "track", kwargs), venv.setup)
+    obs = wrapped.reset()
+    estimate = wrapped.batch.copies[0].estimate
+    assert obs.shape == (2, venv.observation_space.shape[0] + estimate.size)
+    assert np.array_equal(obs[0, -estimate.size:], estimate.astype(np.float32))
+    returns = np.zeros(2)
+    for _ in range(60):
+        obs, rewards, dones, infos = wrapped.step(np.zeros((2, 6), np.float32))
+        returns += rewards
+    assert dones.all() and all(info["terminal_observation"].shape == obs.shape[1:] for info in infos)
+    single = [e.ret for e in run_episodes(base_policy("lqg", "track", kwargs), "track", 2, seed=500,
+                                          env_kwargs={**kwargs, "max_episode_steps": 60})]
+    assert np.allclose(returns, single, rtol=1e-5, atol=0)  # float32 rewards summed
+    # negative control: a small constant residual changes the episodes
+    venv.seed(500)
+    wrapped.reset()
+    nudged = np.zeros(2)
+    for _ in range(60):
+        nudged += wrapped.step(np.full((2, 6), 0.05, np.float32))[1]
+    assert not np.allclose(nudged, single, rtol=1e-3, atol=0)

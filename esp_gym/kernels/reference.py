@@ -52,3 +52,15 @@ def advance_reference(target, dt):
     """Move a moving reference (omega != 0) on by ``dt`` [s]; a fixed target stays as it is."""
     if target[T_RATE] != 0.0:
         reference_at(target, target[T_CLOCK] + dt)
+
+
+@kernel
+def reference_path(scratch, times, offset, velocity):
+    """The reference at each of ``times`` [s]: the pivot target's offset from the centre [m] into
+    ``offset`` and its velocity [m/s] into ``velocity`` (both (len(times), 3), spatial frame);
+    ``scratch``, a copy of the TARGET, is moved along (the kernels do not allocate)."""
+    for k in range(times.shape[0]):
+        reference_at(scratch, times[k])
+        for i in range(3):
+            offset[k, i] = scratch[T_PIVOT + i] - scratch[T_CENTRE + i]
+            velocity[k, i] = scratch[T_VELOCITY + i]
