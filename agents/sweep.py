@@ -1,0 +1,242 @@
+"""Sweep agents.train runs with Ray Tune: hyper-parameters x seeds x environment options, on this
+machine or a Ray cluster, gathered into one table and plot, resumable after an interruption.
+
+    python -m agents.sweep --task stabilize --space '{"learning_rate": [1e-4, 3e-4], "seed": [0, 1, 2]}'
+    python -m agents.sweep --task transport --space '{"env_kwargs.randomize": [false, true], "seed": [0, 1]}' \\
+        --set total_timesteps=500000 --address 10.0.0.1:6379 --out sweeps/randomize
+    python -m agents.sweep --resume sweeps/randomize
+
+``--space`` maps keys to lists of values (JSON or YAML): every combination is a trial (Tune's
+grid search). A key is a ``--set`` key of agents.train (``learning_rate``, ``n_steps``,
+``policy_kwargs.net_arch``, ``env_kwargs.randomize`` for the randomisation ranges, ...) or
+``seed``; every key and value is checked, with ``--set``'s base overrides, before anything starts.
+Each trial is one CPU and a normal agents.train run directory, ``OUT/runs/TRIAL``, plus
+``evaluation.json``: agents/evaluate.py's metrics of its final model on ``--episodes`` episodes
+(seeds 10000+). ``OUT/results.{csv,md}`` hold one row per trial and ``OUT/results.png`` their
+learning curves and final returns; ``OUT/tune/`` is Tune's experiment.
+
+``--resume OUT`` continues an interrupted sweep with its own settings (``OUT/sweep.json``): Tune
+reruns the trials that had not finished, and a trial whose run directory holds a checkpoint
+resumes agents.train from its last one.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import shutil
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional
+
+import yaml
+
+import esp_gym
+from agents.artifacts import checkpoint_steps
+from agents.cli import SettingsError, one_line, option_name, parse_settings, settings_parser
+from agents.common import ROOT, ConfigError, load_run_config
+from agents.sweep_results import gather
+from agents.ray_cluster import AddressError, check_address, connect, shutdown, token_auth
+from esp_gym.tasks import TASKS
+
+#: Seeds of each trial's final evaluation (episode i: seed + i), as agents.train's references.
+EVAL_SEED = 10_000
+METRICS = ("mean_return", "std_return", "success_rate", "mean_final_swing_deg", "mean_swing_deg")
+
+
+@dataclass
+class Settings:
+    space: Optional[str] = field(default=None, metadata={
+        "help": "the grid: a JSON/YAML mapping of --set keys (or seed) to lists of values", "run": True})
+    algo: str = field(default="ppo", metadata={"help": "algorithm", "choices": ["ppo", "sac"], "run": True})
+    task: str = field(default="stabilize", metadata={"help": "task", "choices": sorted(TASKS), "run": True})
+    set: list = field(default_factory=list, metadata={
+        "help": "overrides every trial shares, as agents.train's --set (repeatable)", "nargs": "+", "action": "extend",
+        "run": True})
+    out: Optional[str] = field(default=None, metadata={
+        "help": "the sweep's directory (default: sweeps/{env}__{algo}__{task}__{time}); on a cluster of several "
+                "machines, a path every node sees", "run": True})
+    address: Optional[str] = field(default=None, metadata={
+        "help": "a Ray cluster's head HOST:PORT or 'auto' (default: start Ray on this machine)"})
+    episodes: int = field(default=10, metadata={"help": f"episodes of each trial's final evaluation (seeds "
+                                                        f"{EVAL_SEED}+)", "type": int, "min": 1, "run": True})
+    eval_freq: int = field(default=50_000, metadata={"help": "agents.train --eval-freq", "type": int, "min": 1,
+                                                     "run": True})
+    eval_episodes: int = field(default=10, metadata={"help": "agents.train --eval-episodes", "type": int, "min": 1,
+                                                     "run": True})
+    checkpoint_freq: int = field(default=500_000, metadata={"help": "agents.train --checkpoint-freq", "type": int,
+                                                            "min": 1, "run": True})
+    reference_episodes: int = field(default=10, metadata={"help": "agents.train --reference-episodes", "type": int,
+                                                          "min": 1, "run": True})
+    resume: Optional[str] = field(default=None, metadata={"help": "an interrupted sweep's directory to continue"})
+
+
+#: Settings that define a sweep: a resumed sweep takes them from its sweep.json.
+SWEEP_SETTINGS = frozenset(f.name for f in dataclasses.fields(Settings) if f.metadata.get("run"))
+
+
+def parse_space(text: Optional[str]) -> dict:
+    """``--space``'s mapping of keys to non-empty lists (ValueError naming the fault)."""
+    if text is None:
+        raise ValueError("required: a mapping of --set keys (or seed) to lists of values, e.g. "
+                         "'{\"learning_rate\": [1e-4, 3e-4], \"seed\": [0, 1]}'")
+    try:
+        space = json.loads(text)  # JSON first: YAML 1.1 reads 1e-4 as a string
+    except json.JSONDecodeError:
+        try:
+            space = yaml.safe_load(text)
+        except yaml.YAMLError as err:
+            raise ValueError(f"not JSON or YAML ({one_line(getattr(err, 'problem', None) or err)})") from None
+    if not isinstance(space, dict) or not space:
+        raise ValueError(f"expected a mapping of keys to lists of values, got {space!r}")
+    for key, values in space.items():
+        if not isinstance(values, list) or not values:
+            raise ValueError(f"{key}: expected a non-empty list of values, got {values!r}")
+    return space
+
+
+def check_space(space: dict, s: Settings) -> None:
+    """Every key and value of ``space`` as agents.train would take it (with the base ``--set``);
+    ConfigError/ValueError naming the key."""
+    from esp_gym.setup import make_setup
+
+    for key, values in space.items():
+        for value in values:
+            if key == "seed":
+                if not isinstance(value, int) or isinstance(value, bool) or value < 0:
+                    raise ValueError(f"seed: {value!r} is not an integer >= 0")
+                continue
+            try:
+                cfg = load_run_config(s.algo, esp_gym.ENV_ID, s.task, list(s.set) + [override(key, value)])
+                make_setup(task=s.task, **cfg.env_kwargs)
+            except ConfigError as err:
+                raise ValueError(f"key {key!r}: {err}") from None
+            except (ValueError, TypeError) as err:
+                raise ValueError(f"key {key!r} = {value!r}: {one_line(err)}") from None
+
+
+def override(key: str, value) -> str:
+    """A ``--set`` item for ``key`` and ``value`` (flow-style YAML)."""
+    return f"{key}={yaml.safe_dump(value, default_flow_style=True, width=10**6).strip().removesuffix('...').strip()}"
+
+
+@dataclass(frozen=True)
+class Spec:
+    """What every trial of a sweep shares (sweep.json)."""
+
+    settings: dict
+    space: dict
+    out: str
+
+
+def run_trial(config: dict, spec: Spec) -> dict:
+    """One Tune trial (in a Ray worker): agents.train in ``OUT/runs/TRIAL`` (resumed from its last
+    checkpoint if an interrupted sweep left one), then the final evaluation; reports its metrics."""
+    import ray
+    from ray import tune
+
+    from agents import train
+    from agents.evaluate import SB3Policy, evaluate_policy
+
+    s = Settings(**spec.settings)
+    seed = int(config.get("seed", 0))
+    overrides = list(s.set) + [override(k, v) for k, v in config.items() if k != "seed"]
+    runs = Path(spec.out) / "runs"
+    run_dir = runs / tune.get_context().get_trial_name()
+    status = json.loads((run_dir / "status.json").read_text())["status"] if (run_dir / "status.json").is_file() else None
+    if status != "finished":
+        last = max((p for p in (run_dir / "checkpoints").glob("model_*_steps.zip") if checkpoint_steps(p)),
+                   key=checkpoint_steps, default=None)
+        if last is not None:
+            args = ["--resume", str(last), "--no-progress"]
+        else:
+            shutil.rmtree(run_dir, ignore_errors=True)  # started, no checkpoint yet: start again
+            args = ["--algo", s.algo, "--task", s.task, "--seed", str(seed), "--runs", str(runs),
+                    "--run-name", run_dir.name, "--eval-freq", str(s.eval_freq), "--eval-episodes",
+                    str(s.eval_episodes), "--checkpoint-freq", str(s.checkpoint_freq), "--reference-episodes",
+                    str(s.reference_episodes), "--no-progress", "--set", *overrides]
+        settings, given, _ = train.parse_args(args)
+        train.train(settings, argv=args, given=given)
+    cfg = load_run_config(s.algo, esp_gym.ENV_ID, s.task, overrides)
+    stats = evaluate_policy(SB3Policy(run_dir / "model.zip"), s.task, s.episodes, seed=EVAL_SEED,
+                            env_kwargs=cfg.env_kwargs)
+    (run_dir / "evaluation.json").write_text(json.dumps({**stats, "seed": EVAL_SEED}, indent=2))
+    done = json.loads((run_dir / "training.json").read_text())
+    return {**{k: stats[k] for k in METRICS}, "timesteps": done["timesteps"], "wall_time_s": done["wall_time_s"],
+            "node_id": ray.get_runtime_context().get_node_id(), "run_dir": str(run_dir)}
+
+
+def _new_out(s: Settings) -> Path:
+    out = Path(s.out) if s.out else ROOT / "sweeps" / f"{esp_gym.ENV_ID}__{s.algo}__{s.task}__{time.strftime('%Y%m%d-%H%M%S')}"
+    if out.exists():
+        raise SettingsError("--out", f"{out} already exists (--resume {out} continues a sweep)")
+    if not out.resolve().parent.is_dir():
+        raise SettingsError("--out", f"no directory {out.resolve().parent} for {out}")
+    return out
+
+
+def prepare(s: Settings, given: frozenset) -> tuple:
+    """``(spec, resuming)`` of checked settings; SettingsError before anything is written."""
+    try:
+        check_address(s.address)
+    except AddressError as err:
+        raise SettingsError("--address", str(err)) from None
+    if s.resume:
+        clash = sorted(given & SWEEP_SETTINGS)
+        if clash:
+            raise SettingsError(option_name(clash[0]), "not allowed with --resume (a resumed sweep keeps its settings)")
+        saved = Path(s.resume) / "sweep.json"
+        if not saved.is_file() or not (Path(s.resume) / "tune").is_dir():
+            raise SettingsError("--resume", f"{s.resume} is not a sweep's directory (no sweep.json and tune/)")
+        return Spec(**json.loads(saved.read_text())), True
+    try:
+        space = parse_space(s.space)
+        check_space(space, s)
+    except ValueError as err:
+        raise SettingsError("--space", str(err)) from None
+    try:
+        load_run_config(s.algo, esp_gym.ENV_ID, s.task, list(s.set))
+    except ConfigError as err:
+        raise SettingsError("--set", str(err)) from None
+    out = _new_out(s)
+    return Spec({k: v for k, v in dataclasses.asdict(s).items() if k in SWEEP_SETTINGS}, space,
+                str(out.resolve())), False
+
+
+def sweep(spec: Spec, resuming: bool, address: Optional[str]):
+    """Run (or continue) the sweep on Ray Tune and gather its results; returns Tune's ResultGrid."""
+    from ray import tune
+
+    out = Path(spec.out)
+    connect(address)
+    trainable = tune.with_resources(tune.with_parameters(run_trial, spec=spec), {"cpu": 1})
+    if resuming:
+        tuner = tune.Tuner.restore(str(out / "tune"), trainable=trainable, resume_unfinished=True,
+                                   resume_errored=True)
+    else:
+        out.mkdir(parents=True)
+        (out / "sweep.json").write_text(json.dumps(dataclasses.asdict(spec), indent=2))
+        tuner = tune.Tuner(trainable, param_space={k: tune.grid_search(v) for k, v in spec.space.items()},
+                           tune_config=tune.TuneConfig(metric="mean_return", mode="max"),
+                           run_config=tune.RunConfig(name="tune", storage_path=str(out), verbose=1))
+    results = tuner.fit()
+    gather(results, spec)
+    return results
+
+
+def main(argv=None):
+    ap = settings_parser(Settings, prog="python -m agents.sweep", description=__doc__.split("\n\n")[0])
+    s, given = parse_settings(ap, Settings, argv)
+    token_auth(s.address)  # before anything imports ray
+    try:
+        spec, resuming = prepare(s, given)
+    except SettingsError as err:
+        ap.error(str(err))
+    try:
+        return sweep(spec, resuming, s.address)
+    finally:
+        shutdown()
+
+
+if __name__ == "__main__":
+    main()

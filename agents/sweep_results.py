@@ -1,0 +1,102 @@
+"""A sweep's results in one table and one plot (agents/sweep.py): ``results.csv`` (one row per
+trial: its grid point, agents/evaluate.py's metrics of its final model, steps, wall time, node,
+run directory), ``results.md`` (the configurations, seeds pooled: mean ± standard deviation over
+seeds of each trial's mean return, best first; then every trial) and ``results.png`` (each
+trial's evaluations during training, coloured by configuration, and the final returns)."""
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+
+COLUMNS = ("mean_return", "std_return", "success_rate", "mean_final_swing_deg", "timesteps", "wall_time_s",
+           "node_id", "run_dir")
+
+
+def trial_rows(results, space: dict) -> list:
+    """One dict per trial of Tune's ResultGrid: the grid point, then :data:`COLUMNS` (``error``
+    for a trial that failed)."""
+    rows = []
+    for r in results:
+        metrics = r.metrics or {}
+        row = {k: (r.config or {}).get(k) for k in space}
+        row.update({k: metrics.get(k) for k in COLUMNS})
+        row["error"] = None if r.error is None else " ".join(str(r.error).split())[:300]
+        rows.append(row)
+    return rows
+
+
+def configuration(row: dict, space: dict) -> str:
+    """A trial's configuration: its grid point without the seed."""
+    return ", ".join(f"{k}={json.dumps(row[k])}" for k in space if k != "seed") or "(one configuration)"
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.1f}" if abs(v) >= 10 else f"{v:.3g}"
+    return "" if v is None else str(v)
+
+
+def markdown(rows: list, space: dict) -> str:
+    groups: dict = {}
+    for row in rows:
+        if row["mean_return"] is not None:
+            groups.setdefault(configuration(row, space), []).append(row)
+    lines = ["| configuration | trials | mean return (mean ± sd over seeds) | success rate |", "|---|---|---|---|"]
+    for name, members in sorted(groups.items(), key=lambda kv: -np.mean([m["mean_return"] for m in kv[1]])):
+        ret = [m["mean_return"] for m in members]
+        lines.append(f"| {name} | {len(members)} | {np.mean(ret):.1f} ± {np.std(ret):.1f} | "
+                     f"{np.mean([m['success_rate'] for m in members]):.2f} |")
+    keys = list(space) + ["mean_return", "success_rate", "timesteps", "wall_time_s", "error"]
+    lines += ["", "| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
+    for row in sorted(rows, key=lambda r: -(r["mean_return"] if r["mean_return"] is not None else -np.inf)):
+        lines.append("| " + " | ".join(_fmt(row[k]) for k in keys) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def plot(rows: list, space: dict, title: str, path: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = sorted({configuration(r, space) for r in rows})
+    colours = {n: plt.cm.tab10(i % 10) for i, n in enumerate(names)}
+    fig, (curves, finals) = plt.subplots(1, 2, figsize=(12, 4.5), layout="constrained")
+    for row in rows:
+        ev = Path(row["run_dir"] or "") / "evaluations.npz"
+        if row["run_dir"] and ev.is_file():
+            with np.load(ev) as d:
+                curves.plot(d["timesteps"], d["results"].mean(axis=1), "o-", ms=2, lw=1,
+                            color=colours[configuration(row, space)])
+    curves.set(xlabel="environment steps", ylabel="evaluation return (mean)", title="evaluations during training")
+    for i, name in enumerate(names):
+        ret = [r["mean_return"] for r in rows if configuration(r, space) == name and r["mean_return"] is not None]
+        finals.scatter([i] * len(ret), ret, color=colours[name], zorder=3)
+        if ret:
+            finals.errorbar([i + 0.15], [np.mean(ret)], yerr=[np.std(ret)], fmt="s", color="k", ms=4)
+    finals.set_xticks(range(len(names)), names, rotation=20, ha="right", fontsize=7)
+    finals.set(ylabel="final evaluation return", title="final models (dots: seeds; square: mean ± sd)")
+    for ax in (curves, finals):
+        ax.grid(True, alpha=0.3)
+    fig.suptitle(title)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def gather(results, spec) -> list:
+    """Write OUT/results.csv, results.md and results.png for Tune's ResultGrid of the sweep ``spec``."""
+    out, space = Path(spec.out), spec.space
+    rows = trial_rows(results, space)
+    with open(out / "results.csv", "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(space) + list(COLUMNS) + ["error"])
+        writer.writeheader()
+        writer.writerows({k: (json.dumps(v) if isinstance(v, (list, dict)) else v) for k, v in r.items()}
+                         for r in rows)
+    (out / "results.md").write_text(markdown(rows, space))
+    s = spec.settings
+    plot(rows, space, f"sweep: {s['algo'].upper()} on {s['task']} ({len(rows)} trials)", out / "results.png")
+    return rows

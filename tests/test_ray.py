@@ -1,0 +1,157 @@
+"""RLlib training and Tune sweeps on a real two-node Ray cluster on this machine (loopback): a head
+and a worker node, one CPU each, with their own temporary directories. The env runners and the
+trials must run on both nodes, the runs must leave checkpoints and results, an interrupted sweep
+must resume its trials from their checkpoints, and the cluster's processes must all be gone
+afterwards (stopped by process id, failures included). Bad input is one line naming the argument.
+"""
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import psutil
+import pytest
+
+from agents.ray_cluster import LocalCluster, free_port
+from agents.sweep import parse_space
+
+ROOT = Path(__file__).resolve().parent.parent
+#: An RLlib run of a few seconds: 2 runners x 4 environments, 512 steps per iteration.
+RLLIB_TINY = ["num_env_runners=2", "num_envs_per_env_runner=4", "train_batch_size_per_learner=512",
+              "minibatch_size=256", "num_epochs=1"]
+#: agents.train runs of a few seconds, checkpointed every 128 steps.
+SB3_TINY = ["n_envs=2", "n_steps=64", "batch_size=64", "n_epochs=1", "policy_kwargs.net_arch=[16]"]
+SB3_OPTIONS = ["--episodes", "1", "--eval-freq", "128", "--eval-episodes", "1", "--reference-episodes", "1",
+               "--checkpoint-freq", "128"]
+
+
+def run(module, *args, env=None, timeout=300) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", module, *map(str, args)], capture_output=True, text=True, cwd=ROOT,
+                          timeout=timeout, env={**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
+                                                **(env or {})})
+
+
+def sampling_nodes(training: dict) -> set:
+    """The nodes whose env runners sampled environment steps (training.json of agents.rllib_train)."""
+    return {r["node_id"] for r in training["env_runners"] if r["env_steps"] > 0}
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """A head and a worker node; afterwards, no process of theirs is left."""
+    with LocalCluster(nodes=2, cpus=1) as c:
+        started = [p.pid for p in c.processes()]
+        yield c
+    alive = [pid for pid in started if psutil.pid_exists(pid) and psutil.Process(pid).status() != psutil.STATUS_ZOMBIE]
+    assert alive == [], f"processes of the cluster still running: {alive}"
+
+
+def test_rllib_ppo_samples_on_both_nodes_and_checkpoints(cluster, tmp_path):
+    proc = run("agents.rllib_train", "--task", "stabilize", "--iterations", "2", "--address", cluster.address,
+               "--runs", tmp_path, "--run-name", "r", "--checkpoint-every", "1", "--eval-episodes", "1",
+               "--reference-episodes", "1", "--no-progress", "--set", *RLLIB_TINY, env=cluster.env)
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    run_dir = tmp_path / "r"
+    assert json.loads((run_dir / "status.json").read_text())["status"] == "finished"
+    training = json.loads((run_dir / "training.json").read_text())
+    nodes = {n["node_id"] for n in training["nodes"]}
+    assert len(nodes) == 2
+    # both nodes sampled: one runner each (one CPU per node), and together at least what was trained on
+    assert sampling_nodes(training) == nodes
+    assert sum(r["env_steps"] for r in training["env_runners"]) >= training["timesteps"] >= 2 * 512
+    with open(run_dir / "progress.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [int(r["iteration"]) for r in rows] == [1, 2]
+    assert int(rows[1]["env_steps"]) > int(rows[0]["env_steps"]) >= 512
+    for ckpt in (run_dir / "checkpoints" / "iteration_1", run_dir / "checkpoint"):
+        assert (ckpt / "rllib_checkpoint.json").is_file(), ckpt
+    evaluation = json.loads((run_dir / "evaluation.json").read_text())
+    assert evaluation["episodes"] == 1 and 0 <= evaluation["mean_return"] <= 500  # the reward is in [0, 1] per step
+    for name in ("config.yaml", "args.json", "command.txt", "references.json", "learning_curve.png"):
+        assert (run_dir / name).is_file(), name
+    # negative control: a runner that sampled nothing does not count its node
+    assert sampling_nodes({"env_runners": [{"node_id": "a", "env_steps": 5}, {"node_id": "b", "env_steps": 0}]}) == {"a"}
+
+
+def _wait_for(predicate, timeout: float, what: str) -> None:
+    end = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > end:
+            raise TimeoutError(f"waited {timeout} s for {what}")
+        time.sleep(0.2)
+
+
+def test_tune_sweep_runs_on_both_nodes_and_resumes_after_interruption(cluster, tmp_path):
+    out = tmp_path / "sweep"
+    args = ["--task", "stabilize", "--space", '{"seed": [0, 1]}', "--out", out, "--address", cluster.address,
+            *SB3_OPTIONS, "--set", *SB3_TINY, "total_timesteps=6000"]
+    env = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", **cluster.env}
+    first = subprocess.Popen([sys.executable, "-m", "agents.sweep", *map(str, args)], cwd=ROOT, env=env,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:  # interrupt the sweep once every trial has a checkpoint (Ctrl-C: Tune saves its state and stops)
+        _wait_for(lambda: len(list(out.glob("runs/*/checkpoints/model_*_steps.zip"))) >= 2 or first.poll() is not None,
+                  240, "both trials to checkpoint")
+        first.send_signal(signal.SIGINT)
+        first.communicate(timeout=120)
+    finally:
+        if first.poll() is None:
+            first.kill()
+    runs = sorted((out / "runs").iterdir())
+    assert len(runs) == 2
+    interrupted = [r for r in runs if json.loads((r / "status.json").read_text())["status"] != "finished"]
+    assert interrupted, "the sweep finished before the interruption: nothing to resume"
+
+    resumed = run("agents.sweep", "--resume", out, "--address", cluster.address, env=cluster.env)
+    assert resumed.returncode == 0, resumed.stderr[-4000:]
+    with open(out / "results.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert sorted(int(r["seed"]) for r in rows) == [0, 1]
+    for row in rows:
+        run_dir = Path(row["run_dir"])
+        assert json.loads((run_dir / "status.json").read_text())["status"] == "finished"
+        assert int(row["timesteps"]) >= 6000 and 0 <= float(row["mean_return"]) <= 500
+        assert (run_dir / "model.zip").is_file() and (run_dir / "evaluation.json").is_file()
+    for run_dir in interrupted:  # resumed from a checkpoint: a second command, not a fresh run
+        assert len((run_dir / "command.txt").read_text().splitlines()) == 2
+        assert "--resume" in (run_dir / "command.txt").read_text().splitlines()[1]
+    assert len({r["node_id"] for r in rows}) == 2  # the two one-CPU trials ran at once, one on each node
+    for name in ("results.md", "results.png"):
+        assert (out / name).is_file()
+
+
+@pytest.mark.parametrize("module, args, names", [
+    ("agents.rllib_train", ["--address", "127.0.0.1:{port}"], ["--address", "127.0.0.1:{port}"]),
+    ("agents.rllib_train", ["--address", "nohostport"], ["--address", "HOST:PORT"]),
+    ("agents.rllib_train", ["--task", "balance"], ["--task", "balance"]),
+    ("agents.rllib_train", ["--set", "env_kwargs.wnd=3"], ["--set", "'env_kwargs.wnd'", "wind"]),
+    ("agents.rllib_train", ["--set", "lr_rate=3"], ["--set", "'lr_rate'", "lr"]),
+    ("agents.rllib_train", ["--set", "env_kwargs.observation=eyes"], ["--set", "observation"]),
+    ("agents.sweep", ["--space", '{"learning_rat": [1e-4]}'], ["--space", "'learning_rat'", "learning_rate"]),
+    ("agents.sweep", ["--space", '{"env_kwargs.randomize": [{"EA": [2, 1]}]}'], ["--space", "env_kwargs.randomize"]),
+    ("agents.sweep", ["--space", '{"seed": [-1]}'], ["--space", "seed"]),
+    ("agents.sweep", ["--space", '{"n_steps": 64}'], ["--space", "n_steps", "list"]),
+    ("agents.sweep", ["--space", '{"seed": [0]}', "--address", "127.0.0.1:{port}"], ["--address"]),
+])
+def test_bad_input_is_one_line_naming_the_argument_and_writes_nothing(tmp_path, module, args, names):
+    port = str(free_port())  # nothing listens there
+    fill = [a.replace("{port}", port) for a in args]
+    out = ["--runs", tmp_path / "runs"] if module == "agents.rllib_train" else ["--out", tmp_path / "sweep"]
+    proc = run(module, *fill, *out, timeout=120)
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr[-3000:]
+    for name in names:
+        assert name.replace("{port}", port) in lines[0], lines[0]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_sweep_space_is_a_mapping_of_lists():
+    assert parse_space('{"learning_rate": [1e-4, 3e-4], "seed": [0]}') == {"learning_rate": [1e-4, 3e-4], "seed": [0]}
+    assert parse_space("{env_kwargs.randomize: [false, true]}") == {"env_kwargs.randomize": [False, True]}
+    for bad in ("[1, 2]", "{}", '{"seed": []}', "{a: [1}"):
+        with pytest.raises(ValueError):
+            parse_space(bad)
