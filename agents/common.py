@@ -275,7 +275,7 @@ def plot_learning_curve(run_dir: Path, title: str) -> Optional[Path]:
         d = np.load(ev)
         mean, std = d["results"].mean(1), d["results"].std(1)
         ax.errorbar(d["timesteps"], mean, yerr=std, fmt="o-", color="tab:red", ms=3, label="deterministic evaluation")
-    for name, style in (("baseline_return", "--"), ("zero_return", ":")):
+    for name, style in (("baseline_return", "--"), ("residual_base_return", "-."), ("zero_return", ":")):
         ref = run_dir / "references.json"
         if ref.is_file():
             val = json.loads(ref.read_text()).get(name)

@@ -40,7 +40,7 @@ from agents.common import (CONFIG_DIR, ROOT, ConfigError, RunConfig, TimeLimitCa
 from agents.controllers import ZeroPolicy
 from agents.evaluate import evaluate_policy
 from agents.normalization import NormStats
-from agents.residual import write_residual
+from agents.residual import base_policy, write_residual
 from agents.runs import Resume, RunCheckpoint, RunMonitor, write_status
 from esp_gym.tasks import TASKS
 
@@ -266,6 +266,9 @@ def run(p: Prepared, argv: Optional[list] = None) -> Path:
                                                        env_kwargs=cfg.env_kwargs)["mean_return"],
                     "zero_return": evaluate_policy(ZeroPolicy(), s.task, n_ref, seed=10_000,
                                                    env_kwargs=cfg.env_kwargs)["mean_return"]}
+            if cfg.residual:  # what the residual policy starts from
+                refs["residual_base_return"] = evaluate_policy(base_policy(cfg.residual, s.task, cfg.env_kwargs), s.task,
+                                                               n_ref, seed=10_000, env_kwargs=cfg.env_kwargs)["mean_return"]
             (run_dir / "references.json").write_text(json.dumps(refs))
         p.monitor.open_log(run_dir / "monitor.csv", p.resume.monitor if p.resume else None)
         evaluations = EvalCallback(p.eval_env, n_eval_episodes=s.eval_episodes,
