@@ -39,7 +39,7 @@ from agents.controllers import ZeroPolicy
 from agents.evaluate import evaluate_policy
 from agents.ray_cluster import AddressError, check_address, cluster_nodes, connect, shutdown, token_auth
 from agents.rllib_common import CONFIG_FILE, RLlibPolicy, RLlibRunConfig, load_rllib_config, ppo_config, runner_steps
-from agents.runs import write_status
+from agents.runs import write_status, write_stopped
 from esp_gym.tasks import TASKS
 
 ALGO = "rllib_ppo"
@@ -177,7 +177,7 @@ def _record_settings(s: Settings, cfg: RLlibRunConfig, run_dir: Path, argv: Opti
 
 def run(s: Settings, cfg: RLlibRunConfig, run_dir: Path, algo, argv: Optional[list] = None) -> Path:
     """Train a built algorithm for ``s.iterations`` in ``run_dir``; status.json says ``running``,
-    then ``finished`` or ``failed`` (the error is re-raised)."""
+    then ``finished``, ``interrupted`` or ``failed`` (the error is re-raised)."""
     from tqdm.auto import tqdm
 
     run_dir.mkdir(parents=True)
@@ -213,7 +213,7 @@ def run(s: Settings, cfg: RLlibRunConfig, run_dir: Path, algo, argv: Optional[li
         plot_curve(run_dir, f"{esp_gym.ENV_ID} {s.task}: RLlib PPO (seed {s.seed})")
         write_status(run_dir, "finished", iterations=s.iterations, timesteps=steps)
     except BaseException as err:  # Ctrl-C too: the directory says why it stopped
-        write_status(run_dir, "failed", timesteps=steps, error=one_line(f"{type(err).__name__}: {err}"))
+        write_stopped(run_dir, err, timesteps=steps)
         raise
     print(json.dumps({"run_dir": str(run_dir), "timesteps": steps, "wall_time_s": wall,
                       "mean_return": stats["mean_return"]}))

@@ -25,6 +25,7 @@ from stable_baselines3.common.monitor import ResultsWriter
 from stable_baselines3.common.vec_env import VecMonitor
 
 import esp_gym
+from agents.cli import one_line
 from agents.artifacts import checkpoint_files, checkpoint_steps, stats_path_for
 from agents.normalization import NormalizationFileError, NormStats
 
@@ -32,9 +33,17 @@ EVALUATION_KEYS = ("timesteps", "results", "ep_lengths", "successes")
 
 
 def write_status(run_dir: Path, status: str, **details) -> None:
-    """``status.json``: ``running``, ``finished`` or ``failed`` (with ``error``), and ``timesteps``."""
+    """``status.json``: ``running``, ``finished``, ``interrupted`` or ``failed`` (both with ``error``), and
+    ``timesteps``."""
     (run_dir / "status.json").write_text(json.dumps({"status": status, **details,
                                                      "time": time.strftime("%Y-%m-%dT%H:%M:%S")}, indent=2) + "\n")
+
+
+def write_stopped(run_dir: Path, err: BaseException, **details) -> None:
+    """status.json of a run that ``err`` ended: ``interrupted`` for Ctrl-C or a caller's SystemExit
+    (a sweep stopping its trial), ``failed`` for anything else; the error in one line."""
+    status = "interrupted" if isinstance(err, (KeyboardInterrupt, SystemExit)) else "failed"
+    write_status(run_dir, status, **details, error=one_line(f"{type(err).__name__}: {err}"))
 
 
 class RunMonitor(VecMonitor):

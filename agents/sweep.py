@@ -13,7 +13,10 @@ grid search). A key is a ``--set`` key of agents.train (``learning_rate``, ``n_s
 Each trial is one CPU and a normal agents.train run directory, ``OUT/runs/TRIAL``, plus
 ``evaluation.json``: agents/evaluate.py's metrics of its final model on ``--episodes`` episodes
 (seeds 10000+). ``OUT/results.{csv,md}`` hold one row per trial and ``OUT/results.png`` their
-learning curves and final returns; ``OUT/tune/`` is Tune's experiment.
+learning curves and final returns; ``OUT/tune/`` is Tune's experiment. While it trains, a trial
+reports to Tune every ``--eval-freq`` steps (``mean_return``: its recent training episodes, a
+stochastic policy; the last report is the evaluation), which is also where Tune can stop it: Ctrl-C
+stops a sweep within one report interval and leaves its trials ``interrupted``.
 
 ``--resume OUT`` continues an interrupted sweep with its own settings (``OUT/sweep.json``): Tune
 reruns the trials that had not finished, and a trial whose run directory holds a checkpoint
@@ -29,6 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
+import numpy as np
 import yaml
 
 import esp_gym
@@ -129,6 +133,28 @@ class Spec:
     out: str
 
 
+def progress_reporter(every: int):
+    """An SB3 callback that reports to Tune every ``every`` steps: the step count and the mean return
+    of the recent training episodes. A report is where Tune stops a trial (it raises SystemExit in
+    the trial's thread), so a stopped sweep does not wait for its trials to end."""
+    from ray import tune
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class TuneProgress(BaseCallback):
+        def _on_training_start(self) -> None:
+            self.next_report = (self.num_timesteps // every + 1) * every
+
+        def _on_step(self) -> bool:
+            if self.num_timesteps >= self.next_report:
+                self.next_report += every * ((self.num_timesteps - self.next_report) // every + 1)
+                episodes = [info["r"] for info in self.model.ep_info_buffer]
+                tune.report({"timesteps": int(self.num_timesteps),
+                             "mean_return": float(np.mean(episodes)) if episodes else float("nan")})
+            return True
+
+    return TuneProgress()
+
+
 def run_trial(config: dict, spec: Spec) -> dict:
     """One Tune trial (in a Ray worker): agents.train in ``OUT/runs/TRIAL`` (resumed from its last
     checkpoint if an interrupted sweep left one), then the final evaluation; reports its metrics."""
@@ -156,7 +182,7 @@ def run_trial(config: dict, spec: Spec) -> dict:
                     str(s.eval_episodes), "--checkpoint-freq", str(s.checkpoint_freq), "--reference-episodes",
                     str(s.reference_episodes), "--no-progress", "--set", *overrides]
         settings, given, _ = train.parse_args(args)
-        train.train(settings, argv=args, given=given)
+        train.train(settings, argv=args, given=given, callbacks=[progress_reporter(s.eval_freq)])
     cfg = load_run_config(s.algo, esp_gym.ENV_ID, s.task, overrides)
     stats = evaluate_policy(SB3Policy(run_dir / "model.zip"), s.task, s.episodes, seed=EVAL_SEED,
                             env_kwargs=cfg.env_kwargs)

@@ -17,13 +17,17 @@ COLUMNS = ("mean_return", "std_return", "success_rate", "mean_final_swing_deg", 
 
 def trial_rows(results, space: dict) -> list:
     """One dict per trial of Tune's ResultGrid: the grid point, then :data:`COLUMNS` (``error``
-    for a trial that failed)."""
+    for a trial that failed or did not finish). Only a trial's final report (its evaluation, which
+    names its run directory) fills the columns: a progress report of a stopped trial gives its
+    steps alone."""
     rows = []
     for r in results:
         metrics = r.metrics or {}
+        final = "run_dir" in metrics
         row = {k: (r.config or {}).get(k) for k in space}
-        row.update({k: metrics.get(k) for k in COLUMNS})
-        row["error"] = None if r.error is None else " ".join(str(r.error).split())[:300]
+        row.update({k: metrics.get(k) if final or k == "timesteps" else None for k in COLUMNS})
+        error = r.error if r.error is not None or final else "did not finish (the sweep was stopped)"
+        row["error"] = None if error is None else " ".join(str(error).split())[:300]
         rows.append(row)
     return rows
 

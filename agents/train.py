@@ -28,7 +28,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Optional
+from typing import Optional, Sequence
 
 import yaml
 
@@ -41,7 +41,7 @@ from agents.controllers import ZeroPolicy
 from agents.evaluate import evaluate_policy
 from agents.normalization import NormStats
 from agents.residual import base_policy, write_residual
-from agents.runs import Resume, RunCheckpoint, RunMonitor, write_status
+from agents.runs import Resume, RunCheckpoint, RunMonitor, write_status, write_stopped
 from esp_gym.tasks import TASKS
 
 
@@ -249,9 +249,10 @@ def _record_settings(p: Prepared, argv: Optional[list]) -> None:
         (run_dir / "command.txt").write_text(command)
 
 
-def run(p: Prepared, argv: Optional[list] = None) -> Path:
+def run(p: Prepared, argv: Optional[list] = None, callbacks: Sequence = ()) -> Path:
     """Train a prepared run in its directory; returns the directory. status.json says
-    ``running``, then ``finished`` or ``failed`` (the error is re-raised)."""
+    ``running``, then ``finished``, ``interrupted`` (Ctrl-C, or the caller stopped it by raising
+    SystemExit) or ``failed`` (the error is re-raised either way). ``callbacks``: more SB3 callbacks."""
     from stable_baselines3.common.callbacks import CallbackList, EvalCallback
     from stable_baselines3.common.vec_env import unwrap_vec_normalize
 
@@ -281,7 +282,7 @@ def run(p: Prepared, argv: Optional[list] = None) -> Path:
             evaluations,
             RunCheckpoint(run_dir / "checkpoints", s.checkpoint_freq, p.monitor),
             TqdmCallback(cfg.total_timesteps, disable=not s.progress),  # counts from the resumed step
-        ] + ([limit] if limit else []))
+        ] + ([limit] if limit else []) + list(callbacks))
         first = model.num_timesteps
         remaining = cfg.total_timesteps - first  # a resumed run continues up to the total
         start = time.perf_counter()
@@ -301,19 +302,20 @@ def run(p: Prepared, argv: Optional[list] = None) -> Path:
         plot_learning_curve(run_dir, f"{esp_gym.ENV_ID} {s.task}: {s.algo.upper()} (seed {s.seed})")
         write_status(run_dir, "finished", timesteps=int(model.num_timesteps))
     except BaseException as err:  # Ctrl-C too: the directory says why it stopped
-        write_status(run_dir, "failed", timesteps=int(model.num_timesteps), error=one_line(f"{type(err).__name__}: {err}"))
+        write_stopped(run_dir, err, timesteps=int(model.num_timesteps))
         raise
     print(json.dumps({"run_dir": str(run_dir), **summary}))
     return run_dir
 
 
-def train(s: Settings, argv: Optional[list] = None, given: frozenset = frozenset()) -> Path:
+def train(s: Settings, argv: Optional[list] = None, given: frozenset = frozenset(), callbacks: Sequence = ()) -> Path:
     """Run one training; returns the run directory. ``argv``: the command-line arguments
-    recorded in command.txt (default: this process's). Bad settings raise SettingsError."""
+    recorded in command.txt (default: this process's); ``callbacks``: more SB3 callbacks. Bad
+    settings raise SettingsError."""
     import torch
 
     torch.set_num_threads(s.threads)
-    return run(prepare(s, given), argv)
+    return run(prepare(s, given), argv, callbacks)
 
 
 def parse_args(argv=None) -> tuple:

@@ -102,8 +102,14 @@ def test_tune_sweep_runs_on_both_nodes_and_resumes_after_interruption(cluster, t
             first.kill()
     runs = sorted((out / "runs").iterdir())
     assert len(runs) == 2
-    interrupted = [r for r in runs if json.loads((r / "status.json").read_text())["status"] != "finished"]
+    statuses = {r: json.loads((r / "status.json").read_text())["status"] for r in runs}
+    assert set(statuses.values()) <= {"interrupted", "finished"}, statuses
+    # Tune stops a trial at its next progress report (every 128 steps), not at its end
+    interrupted = [r for r in runs if statuses[r] == "interrupted"]
     assert interrupted, "the sweep finished before the interruption: nothing to resume"
+    with open(out / "results.csv") as fh:  # a stopped trial's row: no evaluation, says why
+        stopped_rows = [r for r in csv.DictReader(fh) if r["mean_return"] == ""]
+    assert len(stopped_rows) == len(interrupted) and all("did not finish" in r["error"] for r in stopped_rows)
 
     resumed = run("agents.sweep", "--resume", out, "--address", cluster.address, env=cluster.env)
     assert resumed.returncode == 0, resumed.stderr[-4000:]
