@@ -22,6 +22,8 @@ from .kernels.specialise import general_kernels, specialised_kernels
 from .kernels.string import state_forces
 from .params import Scene, check_rotation
 from .trajectory import Trajectory  # noqa: F401  (re-exported)
+from .kernels.winch import winch_advance, winch_forces
+from .winch import Winch
 from .state import State, build_params, check_memory, initial_state, legendre_momenta  # noqa: F401  (re-exported)
 
 #: The live arrays of a simulator that the compiled kernels advance: ``state``
@@ -109,6 +111,8 @@ class Simulator:
         #: The string's elastic force is implicit (``scene.solver.string``, kernels/implicit.py).
         self.implicit = scene.solver.string == "implicit"
         self.h = scene.h
+        #: The winch at the pivot (esp_gym/winch.py): :meth:`step`'s ``reel_speed``.
+        self.winch = Winch(scene, self.params.max_len2)
         n = scene.string.elements
         st = initial_state(scene)
         z = np.zeros
@@ -144,6 +148,7 @@ class Simulator:
         self.params = build_params(scene) if params is None else params
         self.h = scene.h
         self._coupled = bool(np.any(self.params.rho != 0.0))
+        self.winch.use_scene(scene, self.params.max_len2)
 
     @property
     def buffers(self) -> Buffers:
@@ -165,11 +170,11 @@ class Simulator:
         """A copy of the current discrete state (with its summation remainders)."""
         a = self._arrays
         return State(a.r.copy(), a.p.copy(), a.R.copy(), a.Pi.copy(), self._step,
-                     (a.rc.copy(), a.pc.copy(), a.Rc.copy(), a.Pic.copy()))
+                     (a.rc.copy(), a.pc.copy(), a.Rc.copy(), a.Pic.copy()), (self.winch.length, self.winch.reel_speed))
 
     def set_state(self, state: State) -> None:
         """Replace the state (copied, checked like a scene: real, finite, of this scene's shapes,
-        R a rotation to ``ROTATION_TOL``); resets the balances."""
+        R a rotation to ``ROTATION_TOL``, its winch's length in range); resets the balances."""
         a = self._arrays
         checked = {}
         for name in ("r", "p", "R", "Pi"):
@@ -183,13 +188,21 @@ class Simulator:
                 raise ValueError(f"state.{name} is not finite")
             checked[name] = new
         check_rotation("state.R", checked["R"], ROTATION_TOL)
+        winch = getattr(state, "winch", None)
+        if winch is None:
+            self.winch.reset()
+        else:
+            self.winch.set(*winch)
         for name, new in checked.items():
             getattr(a, name)[...] = new
         self._step = int(state.step)
         rem = getattr(state, "remainders", None)
         for i, c in enumerate((a.rc, a.pc, a.Rc, a.Pic)):
             c[...] = 0.0 if rem is None else rem[i]
-        state_forces(a, self.params)
+        if self.winch.idle:
+            state_forces(a, self.params)
+        else:
+            winch_forces(a, self.params, self.winch.arrays)
         self.reset_balances()
 
     def reset_balances(self) -> None:
@@ -271,18 +284,26 @@ class Simulator:
         took = max(_time.perf_counter() - start, 1e-6)
         self.steps_per_call = int(min(4 * steps, max(256, steps * self.call_seconds / took)))
 
-    def step(self, n: int = 1, pivot_force=None, body_torque=None, spatial_torque=None) -> None:
+    def step(self, n: int = 1, pivot_force=None, body_torque=None, spatial_torque=None, reel_speed=None) -> None:
         """Advance ``n`` steps with inputs held constant: ``pivot_force`` (spatial frame, free
         pivot only) [N], ``body_torque`` (body frame) [N m], ``spatial_torque`` (spatial
         frame) [N m]; ``None`` means zero. Bad inputs raise ValueError before anything moves.
         Raises :class:`SimulationError` on failure (the simulator then holds the last good
         state). A long call is cut into compiled calls of about :attr:`call_seconds` each, so
         Ctrl-C interrupts it (KeyboardInterrupt; the simulator then holds the state after the
-        calls made, and counts their steps); the results are bit for bit those of one call."""
+        calls made, and counts their steps); the results are bit for bit those of one call.
+        ``reel_speed`` [m/s]: the winch reels the string out (> 0) or in at this speed, within
+        ``scene.winch`` (docs/physics.md, "The winch"); ``None`` is 0."""
         n = int(n)
         if n < 0:
             raise ValueError(f"n must be >= 0, got {n}")
+        speed = 0.0 if reel_speed is None else self.winch.check_speed(reel_speed)
+        reeling = speed != 0.0 or not self.winch.idle  # an idle winch runs the fixed-length kernels
+        if reeling:
+            self.winch.check_scene(self.scene, self.h)
         self._set_inputs(pivot_force, body_torque, spatial_torque)
+        if reeling:
+            return self._reel(n, speed)
         advance, _ = self._kernels()
         while n > self.steps_per_call:  # a long call: in pieces, between which Python handles signals
             k = self.steps_per_call
@@ -293,12 +314,24 @@ class Simulator:
         finally:
             self._account()
 
+    def _reel(self, n: int, speed: float) -> None:
+        """:meth:`step` with the winch (kernels/winch.py), in calls of about :attr:`call_seconds`."""
+        a, w = self._arrays, self.winch.arrays
+        while n > 0:
+            k = min(n, self.steps_per_call)
+            n -= k
+            self._timed(winch_advance, (a, self._work, self.params, w, self._diag, self._inputs, speed, k,
+                                        self._stats), k)
+
     def run(self, t_final: float, record_every: int = 100, every_step: bool = False,
             progress: bool = False, pivot_force=None, body_torque=None, spatial_torque=None) -> Trajectory:
         """Advance by ``t_final`` seconds (a whole number of steps) with constant inputs (as in
         :meth:`step`), recording every ``record_every`` steps (and energy, pi3, orthogonality
         after every step if ``every_step``). Returns a :class:`Trajectory` whose first snapshot
-        is the current state."""
+        is the current state. The length stays as it is: a winch that has moved reels with
+        :meth:`step` only."""
+        if not self.winch.idle:
+            raise ValueError("run() keeps the scene's string length; the winch has moved it: use step(reel_speed=...)")
         nsteps = int(round(t_final / self.h))
         if nsteps < 0 or abs(nsteps * self.h - t_final) > 1e-9 * max(1.0, abs(t_final)):
             raise ValueError(f"t_final = {t_final} s is not a whole number of steps h = {self.h} s")
@@ -363,8 +396,13 @@ class Simulator:
         return traj
 
     # -- diagnostics ------------------------------------------------------------------------
-    def _update_diag(self) -> None:
-        diagnostics_kernel(self._arrays, self.params, self._diag)
+    def _update_diag(self) -> float:
+        """Diagnostics of the state into the scratch; returns the energy (with the winch moving,
+        the Hamiltonian of docs/physics.md, "The winch")."""
+        if self.winch.idle:
+            diagnostics_kernel(self._arrays, self.params, self._diag)
+            return float(self._diag.out[DIAG.scalar("energy")])
+        return self.winch.energy(self.buffers)
 
     def diagnostics(self) -> dict:
         """Diagnostics of the current state from the discrete momenta (SI units).
@@ -372,7 +410,9 @@ class Simulator:
         Scalars: time, energy, kinetic_string, kinetic_body, kinetic_pivot, potential_gravity,
         potential_elastic, pi3, orthogonality, stretched_length; the input balances since the
         last :meth:`reset_balances`: work, energy_balance_residual (E - E0 - W),
-        angular_impulse_z, pi3_balance_residual (pi3 - pi3_0 - angular impulse).
+        angular_impulse_z, pi3_balance_residual (pi3 - pi3_0 - angular impulse); the winch's
+        unstretched_length [m], reel_speed [m/s] and winch_work [J], which joins the energy
+        balance (E - E0 - W - W_winch; E is the Hamiltonian while the winch reels).
         Vectors (3,): attach_position, attach_velocity, pivot_position, omega (body frame),
         linear_momentum, gravity_impulse, pivot_impulse, external_impulse (wind and pushes: an
         environment's), momentum_balance_residual (P - P0 - impulses; with a fixed pivot it is
@@ -384,7 +424,9 @@ class Simulator:
         out = {"time": self.time}
         out.update({name: float(d.out[DIAG.scalar(name)]) for name in DIAG.names if name != "linear_momentum"})
         out["work"] = float(a.acc[BALANCE.scalar("work")])
-        out["energy_balance_residual"] = out["energy"] - self._E0 - out["work"]
+        out["unstretched_length"], out["reel_speed"] = self.winch.length, self.winch.reel_speed
+        out["winch_work"] = float(a.acc[BALANCE.scalar("winch_work")])
+        out["energy_balance_residual"] = out["energy"] - self._E0 - out["work"] - out["winch_work"]
         out["angular_impulse_z"] = float(a.acc[BALANCE.scalar("angular_impulse_z")])
         out["pi3_balance_residual"] = out["pi3"] - self._pi3_0 - out["angular_impulse_z"]
         out["attach_position"] = a.r[-1].copy()

@@ -12,14 +12,15 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Annotated, Any, Literal, Optional, Union
+from typing import Any, Literal, Optional
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import Field, ValidationError, field_validator, model_validator
 
 from .compositions import COMPOSITIONS, DEFAULT_FOR_ORDER, Composition
-from .scene_input import (ALIASES, BOUNDS, Count, Flag, Real, SceneError, bounded, is_yaml_path, matrix,  # noqa: F401
-                          merge_overrides, read_scene_file, validation_message, vector)
+from .scene_input import (ALIASES, BOUNDS, Count, Flag, Frozen as _Frozen, Real, SceneError, bounded,  # noqa: F401
+                          is_yaml_path, matrix, merge_overrides, read_scene_file, validation_message, vector)
+from .shapes import Box, Cylinder, EllipticCylinder, Shape, Sphere, inertia_about_attachment  # noqa: F401
 
 Vec3 = vector()
 Mat3 = matrix()
@@ -35,10 +36,6 @@ MIN_INERTIA_SHARE = 1e-10
 KINDS = ("body.shape",)
 
 SCENES_DIR = Path(__file__).resolve().parent.parent / "configs" / "scenes"
-
-
-class _Frozen(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
 
 class StringParams(_Frozen):
@@ -78,63 +75,6 @@ class StringParams(_Frozen):
         mass, sqrt(4 kappa/m) lumped."""
         # within the bounds of docs/scenes.md no factor here is 0 or overflows
         return 2.0 / math.sqrt((12.0 if self.mass_model == "consistent" else 4.0) * self.kappa / self.m)
-
-
-class Box(_Frozen):
-    """Solid box centred on the centre of mass, edges ``size`` along body x, y, z [m]."""
-
-    kind: Literal["box"]
-    size: vector("length")
-
-    def inertia_cm(self, mass: float) -> np.ndarray:
-        a, b, c = self.size
-        return mass / 12.0 * np.diag([b * b + c * c, a * a + c * c, a * a + b * b])
-
-
-class Cylinder(_Frozen):
-    """Solid circular cylinder, axis along body z, centred on the centre of mass [m]."""
-
-    kind: Literal["cylinder"]
-    radius: Real = bounded("length")
-    height: Real = bounded("length")
-
-    def inertia_cm(self, mass: float) -> np.ndarray:
-        r, H = self.radius, self.height
-        side = mass * (r * r / 4.0 + H * H / 12.0)
-        return np.diag([side, side, mass * r * r / 2.0])
-
-
-class EllipticCylinder(_Frozen):
-    """Solid elliptic cylinder (the paper's load): semi-axes along body x and y, height along
-    body z, centred on the centre of mass [m]."""
-
-    kind: Literal["elliptic_cylinder"]
-    semi_axes: vector("length", 2)
-    height: Real = bounded("length")
-
-    def inertia_cm(self, mass: float) -> np.ndarray:
-        (a, b), H = self.semi_axes, self.height
-        return mass * np.diag([b * b / 4.0 + H * H / 12.0, a * a / 4.0 + H * H / 12.0, (a * a + b * b) / 4.0])
-
-
-class Sphere(_Frozen):
-    """Solid sphere centred on the centre of mass [m]."""
-
-    kind: Literal["sphere"]
-    radius: Real = bounded("length")
-
-    def inertia_cm(self, mass: float) -> np.ndarray:
-        return 0.4 * mass * self.radius ** 2 * np.eye(3)
-
-
-Shape = Annotated[Union[Box, Cylinder, EllipticCylinder, Sphere], Field(discriminator="kind")]
-
-
-def inertia_about_attachment(mass: float, inertia_cm: np.ndarray, rho_c) -> np.ndarray:
-    """Parallel-axis theorem: J = J_cm + M (|rho_c|^2 I - rho_c rho_c^T) [kg m^2], the inertia
-    about the attachment point, rho_c the attachment -> centre-of-mass vector (body frame)."""
-    rho = np.asarray(rho_c, dtype=float)
-    return inertia_cm + mass * (rho @ rho * np.eye(3) - np.outer(rho, rho))
 
 
 class BodyParams(_Frozen):
@@ -225,6 +165,16 @@ class PivotParams(_Frozen):
     @property
     def is_free(self) -> bool:
         return self.kind == "free"
+
+
+class WinchParams(_Frozen):
+    """A winch at the pivot that reels the string out and in (``Simulator.step``'s ``reel_speed``;
+    docs/physics.md, "The winch"): the unstretched length stays within [min_length, max_length]
+    (unset: half and twice ``string.length``) and the reel speed within ``max_speed``."""
+
+    min_length: Optional[Real] = bounded("length", default=None, description="shortest unstretched length [m]")
+    max_length: Optional[Real] = bounded("length", default=None, description="longest unstretched length [m]")
+    max_speed: Real = Field(1.0, gt=0.0, le=BOUNDS["speed"][1], description="largest reel speed |dl/dt| [m/s]")
 
 
 class SolverParams(_Frozen):
@@ -337,6 +287,7 @@ class Scene(_Frozen):
     allow_unstable_h: Flag = Field(False, description="accept h above the stability bound")
     solver: SolverParams = SolverParams()
     initial: InitialState = InitialState()
+    winch: WinchParams = WinchParams()
 
     @property
     def stability_bound(self) -> float:
@@ -345,6 +296,13 @@ class Scene(_Frozen):
         if self.solver.string == "implicit":
             return math.inf
         return self.string.stability_bound * self.solver.bound_factor
+
+    @property
+    def winch_range(self) -> tuple:
+        """``(shortest, longest)`` unstretched length the winch reaches [m]."""
+        w, length = self.winch, self.string.length
+        return (0.5 * length if w.min_length is None else w.min_length,
+                2.0 * length if w.max_length is None else w.max_length)
 
     @model_validator(mode="after")
     def _consistent(self) -> "Scene":
@@ -356,6 +314,10 @@ class Scene(_Frozen):
                 f"h = {self.h:.6g} s exceeds the stability bound h_max = {bound:.6g} s "
                 f"(2/omega_max, omega_max = sqrt(12 EA/(mu u^2)) for N = {self.string.elements}{composed}); "
                 "use a smaller h or set allow_unstable_h: true")
+        shortest, longest = self.winch_range
+        if not shortest <= self.string.length <= longest:
+            raise ValueError(f"string.length = {self.string.length:g} m must lie in the winch's range "
+                             f"[winch.min_length, winch.max_length] = [{shortest:g}, {longest:g}] m")
         n1 = self.string.elements + 1
         init, limit = self.initial, self.solver.max_stretch
         if init.nodes is None and init.stretch >= limit:

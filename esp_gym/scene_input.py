@@ -25,7 +25,7 @@ from typing import Annotated, Any
 
 import numpy as np
 import yaml
-from pydantic import BeforeValidator, Field, Strict, ValidationError
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, Strict, ValidationError
 
 #: Largest scene file read [bytes]: a scene with explicit node rows for 100,000 elements is ~6 MB.
 MAX_SCENE_BYTES = 16 * 2**20
@@ -83,6 +83,12 @@ Real = Annotated[float, BeforeValidator(plain_number), Strict()]
 Count = Annotated[int, BeforeValidator(plain_number), Strict()]
 #: true or false (NumPy's too), never 1, "yes" or "true"
 Flag = Annotated[bool, BeforeValidator(lambda v: bool(v) if isinstance(v, np.bool_) else v), Strict()]
+
+
+class Frozen(BaseModel):
+    """A scene section: immutable, no unknown keys, no inf or NaN."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
 
 def bounded(kind: str, **field: Any) -> Any:

@@ -23,6 +23,8 @@ class State:
 
     ``remainders`` holds the compensated-summation remainders of (r, p, R, Pi): restoring them
     makes save/restore bit-exact; ``None`` (e.g. after editing the momenta) restarts them at 0.
+    ``winch``: the unstretched length [m] and the reel speed the momenta were made with [m/s]
+    (esp_gym/winch.py); ``None`` is the scene's length at rest.
     """
 
     r: np.ndarray
@@ -31,10 +33,11 @@ class State:
     Pi: np.ndarray
     step: int = 0
     remainders: Optional[tuple] = None
+    winch: Optional[tuple] = None
 
     def copy(self) -> "State":
         rem = None if self.remainders is None else tuple(a.copy() for a in self.remainders)
-        return State(self.r.copy(), self.p.copy(), self.R.copy(), self.Pi.copy(), self.step, rem)
+        return State(self.r.copy(), self.p.copy(), self.R.copy(), self.Pi.copy(), self.step, rem, self.winch)
 
 
 def hat(v) -> np.ndarray:
@@ -86,9 +89,9 @@ def attachment_column(diag, off: float, cp, first: int) -> np.ndarray:
 
 
 #: Bytes a :class:`~esp_gym.model.Simulator` holds per string node, an upper bound (state, remainders,
-#: forces, scratch, checkpoint, diagnostics, constants: about 66 floats; tests/test_arguments.py
-#: measures it).
-BYTES_PER_NODE = 8 * 72
+#: forces, scratch, checkpoint, diagnostics, constants: about 66 floats, and 14 more once the winch
+#: has reeled; tests/test_arguments.py measures it).
+BYTES_PER_NODE = 8 * 86
 
 
 def check_memory(elements: int, copies: int = 1) -> None:

@@ -123,6 +123,58 @@ def discrete_lagrangian(scene, r, R, dr, FmI) -> float:
             + pivot_lagrangian(scene, r[0], dr[0]))
 
 
+def winch_string_lagrangian(scene, r, dr, l0, l1, convective=True) -> float:
+    """The string's L_d over a step in which a winch takes the unstretched length from l0 to l1
+    [J s] (docs/physics.md, "The winch"), from the material's kinetic energy: the nodes sit at
+    fixed fractions of l, so the material at element e, natural coordinate zeta, moves at
+
+        v = ((1 - zeta) dr_e + zeta dr_{e+1}) / h + lambda (k - zeta) x_e,   lambda = l'/l, k = N - e,
+
+    and the mass per length mu, the rest length u = l/N and EA/u follow l(t) = l0 + t (l1 - l0)/h.
+    The kinetic energy's velocity-dependent part (quadratic and linear in dr) is integrated exactly
+    over the step, by Gauss-Legendre in time and zeta along the straight-line motion; the part
+    free of dr (|lambda (k - zeta) x_e|^2) and the potential by the trapezoid rule in time.
+    ``convective=False`` drops lambda's terms (a negative control: the material does not flow).
+    With ``mass_model: lumped`` every zeta-integral is the trapezoid rule (as the lumped mass is)."""
+    h, mu, EA, g, n = scene.h, scene.string.mass_per_length, scene.string.EA, scene.gravity, scene.string.elements
+    speed = (l1 - l0) / h if convective else 0.0
+    lumped = scene.string.mass_model == "lumped"
+    nodes, weights = (np.array([0.0, 1.0]), np.array([0.5, 0.5])) if lumped else (ZETA, WEIGHTS)
+    k = (n - np.arange(n))[:, None, None]
+    z = nodes[None, :, None]
+    shape = (1.0 - z) * dr[:-1, None, :] + z * dr[1:, None, :]  # (N, zeta, 3)
+
+    def drift(l, x):  # lambda (k - zeta) x_e: the material's velocity along the nodes' frame
+        return speed / l * (k - z) * x[:, None, :]
+
+    total = 0.0
+    for tau, w_tau in zip(ZETA, WEIGHTS):
+        l = l0 + tau * (l1 - l0)
+        x = (r + tau * dr)[1:] - (r + tau * dr)[:-1]
+        v, c = shape / h, drift(l, x)
+        moving = np.sum(v * v, axis=2) + 2.0 * np.sum(v * c, axis=2)
+        total += h * w_tau * 0.5 * mu * (l / n) * float(np.sum(weights[None, :] * moving))
+    for l, q in ((l0, r), (l1, r + dr)):
+        x, u = q[1:] - q[:-1], l / n
+        c = drift(l, x)
+        t0 = 0.5 * mu * u * float(np.sum(weights[None, :] * np.sum(c * c, axis=2)))
+        strain = np.linalg.norm(x, axis=1) / u - 1.0
+        if scene.string.law == "slack":
+            strain = np.maximum(strain, 0.0)
+        potential = float(np.sum(0.5 * EA * strain ** 2 * u) - mu * g * u * np.sum(0.5 * (q[:-1, 2] + q[1:, 2])))
+        total += 0.5 * h * (t0 - potential)
+    return total
+
+
+def winch_lagrangian(l0, l1, convective=True):
+    """L_d(scene, r, R, dr, FmI) of a step reeling from l0 to l1 [m]: :func:`winch_string_lagrangian`
+    plus the body's and a free pivot's terms, which the winch does not change."""
+    def L(scene, r, R, dr, FmI):
+        return (winch_string_lagrangian(scene, r, dr, l0, l1, convective)
+                + rigid_body_lagrangian(scene, r[-1], R, dr[-1], FmI) + pivot_lagrangian(scene, r[0], dr[0]))
+    return L
+
+
 # -- rotations -----------------------------------------------------------------------------------
 def hat(v) -> np.ndarray:
     """``hat(v) @ y == v x y``."""

@@ -105,6 +105,14 @@ StateArrays = namedtuple("StateArrays", "r p R Pi rc pc Rc Pic f acc accc")
 #: the nodes (rows 0..N) and on the load's centre of mass (row N+1) [N], spatial frame.
 Work = namedtuple("Work", "fn X Y FmI RF Rn jac backup fl fr dy elim taut ext")
 
+#: The winch's arrays (kernels/winch.py): ``state`` (:data:`WINCH`), per element the weights
+#: ``coef`` (N, 3) of its convective kinetic energy (alpha, beta, gamma: docs/physics.md, "The
+#: winch"), the Thomas factors of the step's matrix (``lower``, ``upper``, ``inv``, ``cp``, and
+#: its attachment column ``w``, (N+1,)) with ``jeff`` (3, 3), the shifted momenta ``pshift``
+#: (N+1, 3) and the mass matrix at the current length for the diagnostics (``dinv``, ``dcp``,
+#: ``dw``, ``djeff``), and a checkpoint of ``state`` (``backup``).
+WinchArrays = namedtuple("WinchArrays", "state coef lower upper inv cp w jeff pshift dinv dcp dw djeff backup")
+
 #: Scratch and outputs of the diagnostics: node velocities V (N+1, 3) [m/s], per-element strain
 #: energy (N,) [J], body angular velocity omega (3,, body frame) [rad/s], and ``out``
 #: (:data:`DIAG`).
@@ -136,14 +144,34 @@ DIAG_NAMES = DIAG.scalar_names()
 
 #: Input balances accumulated by the step since the last reset: input work [J], angular
 #: impulse about e3 [kg m^2/s], gravity impulse, pivot-force impulse and the impulse of the
-#: external forces (wind and pushes, kernels/disturbance.py) (3 each) [kg m/s].
+#: external forces (wind and pushes, kernels/disturbance.py) (3 each) [kg m/s], and the
+#: winch's work [J] (kernels/winch.py).
 BALANCE = Layout(("work", 1), ("angular_impulse_z", 1), ("gravity_impulse", 3), ("pivot_impulse", 3),
-                 ("external_impulse", 3))
+                 ("external_impulse", 3), ("winch_work", 1))
 B_WORK = BALANCE.scalar("work")
 B_ANGULAR_IMPULSE_Z = BALANCE.scalar("angular_impulse_z")
 B_GRAVITY_IMPULSE = BALANCE.start("gravity_impulse")
 B_PIVOT_IMPULSE = BALANCE.start("pivot_impulse")
 B_EXTERNAL_IMPULSE = BALANCE.start("external_impulse")
+B_WINCH_WORK = BALANCE.scalar("winch_work")
+
+#: The winch (kernels/winch.py): the unstretched length l [m] and the reel speed dl/dt [m/s]
+#: of the state (the speed its momenta were made with), dH/dl at the state [J/m] (NaN: not yet
+#: known), the string's constants mass per length [kg/m], EA [N], solver.max_stretch, the
+#: consistent or lumped mass model's shares of an element's mass on its end nodes' diagonal
+#: and off the diagonal, and the winch's range [m].
+WINCH = Layout(("length", 1), ("reel_speed", 1), ("dH_dl", 1), ("mass_per_length", 1), ("EA", 1),
+               ("max_stretch", 1), ("end_share", 1), ("off_share", 1), ("min_length", 1), ("max_length", 1))
+WN_LENGTH = WINCH.scalar("length")
+WN_SPEED = WINCH.scalar("reel_speed")
+WN_DH_DL = WINCH.scalar("dH_dl")
+WN_MASS_PER_LENGTH = WINCH.scalar("mass_per_length")
+WN_EA = WINCH.scalar("EA")
+WN_MAX_STRETCH = WINCH.scalar("max_stretch")
+WN_END_SHARE = WINCH.scalar("end_share")
+WN_OFF_SHARE = WINCH.scalar("off_share")
+WN_MIN_LENGTH = WINCH.scalar("min_length")
+WN_MAX_LENGTH = WINCH.scalar("max_length")
 
 #: Energy, pi3 and orthogonality after every step of a recorded run.
 STEP_DIAG = Layout(("energy", 1), ("pi3", 1), ("orthogonality", 1))

@@ -162,6 +162,19 @@ def explicit_increments(S, W, P, h, up0, up1, up2, t0, t1, t2, free, forced, cou
     ``W.FmI``; ``t`` is the left torque (:func:`left_torque`), ``up`` the pivot force. The
     explicit step, and the implicit string's first guess. Returns ``(c (3), e = R_k^T dr_{N+1}
     (3), the pivot's displacement (3, when free and forced), iterations, status)``."""
+    first = 0 if free else 1
+    # (1): right-hand side and the string solve with F_k = I
+    string_solve(P.inv, P.cp, first, S.p, S.f, 0.5 * h, up0, up1, up2, free and forced, W.X)
+    return rigid_increments(S, W, P, h, P.Jeff, P.w, t0, t1, t2, free, forced, coupled)
+
+
+@kernel(forceinline=True)
+def rigid_increments(S, W, P, h, Jeff, w, t0, t1, t2, free, forced, coupled):
+    """The rest of :func:`explicit_increments` once ``W.X`` holds the string solve with F_k = I
+    (X = M^-1 B): the Schur complement (``w`` = M^-1 e_{N+1}, ``Jeff`` = J + M^2 w_{N+1}
+    rho_c^ rho_c^), Newton on the Cayley vector of F_k and the increments dr into ``W.Y``. Shared
+    with the winch's step (kernels/winch.py), whose M is the step's own. Returns as
+    :func:`explicit_increments`."""
     r = S.r
     R = S.R
     Pi = S.Pi
@@ -174,8 +187,6 @@ def explicit_increments(S, W, P, h, up0, up1, up2, t0, t1, t2, free, forced, cou
     rho0 = P.rho[0]
     rho1 = P.rho[1]
     rho2 = P.rho[2]
-    # (1): right-hand side and the string solve with F_k = I
-    string_solve(P.inv, P.cp, first, S.p, S.f, hh, up0, up1, up2, free and forced, X)
     d0 = h * X[n, 0]
     d1 = h * X[n, 1]
     d2 = h * X[n, 2]
@@ -196,7 +207,7 @@ def explicit_increments(S, W, P, h, up0, up1, up2, t0, t1, t2, free, forced, cou
         g0 = h * Pi[0]
         g1 = h * Pi[1]
         g2 = h * Pi[2]
-    c0, c1, c2, iters, converged = cayley_newton(g0, g1, g2, P.Jeff, P.tol, P.max_iter, W.jac)
+    c0, c1, c2, iters, converged = cayley_newton(g0, g1, g2, Jeff, P.tol, P.max_iter, W.jac)
     if not converged:
         if np.isfinite(c0 + c1 + c2 + d0 + d1 + d2):
             return c0, c1, c2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, iters, NEWTON_FAILED
@@ -204,7 +215,6 @@ def explicit_increments(S, W, P, h, up0, up1, up2, t0, t1, t2, free, forced, cou
     FmI = W.FmI
     cayley_minus_identity(c0, c1, c2, FmI)
     # q = R_k (F_k - I) rho_c; dr = h X - M w q -> Y
-    w = P.w
     s0 = s1 = s2 = q0 = q1 = q2 = 0.0
     if coupled:
         s0 = FmI[0, 0] * rho0 + FmI[0, 1] * rho1 + FmI[0, 2] * rho2

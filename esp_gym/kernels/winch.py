@@ -1,0 +1,370 @@
+"""The winch: the LGVI step while the string's unstretched length l(t) changes at the reel speed
+v = dl/dt (docs/physics.md, "The winch").
+
+The nodes stay at fixed fractions a/N of the unstretched length (a uniform re-parametrisation),
+so material flows through every node. Per element e (nodes e, e+1; k = N - e elements from e to
+the load, inclusive), with c = mu v / N and theta = mu v^2 / (N l), the string's kinetic energy
+gains a term linear and a term free of the node velocities:
+
+    T1_e = c x_e . (alpha_e rdot_e + beta_e rdot_{e+1}),      T0_e = theta gamma_e |x_e|^2 / 2,
+
+and its mass, rest length and stiffness follow l: m = mu l / N, u = l / N, kappa = EA / u. With
+C = D^T G (D the element differences, G[e, e] = alpha_e, G[e, e+1] = beta_e), the step from
+(r_k, p_k) with l_k -> l_{k+1} = l_k + h v solves (per coordinate, tridiagonal, not symmetric)
+
+    (Mbar - (h c / 2)(C - C^T)) dr + M e_N R_k (F_k - I) rho_c = h (p_k + h/2 f~_k - c C^T r_k)   (1w)
+    p_{k+1} = p_k + h/2 (f~_k + f~_{k+1}) + c C dr                                                (3w)
+
+with Mbar the mass matrix at the mean length and f~ = f + grad T0 the forces at each end's length.
+The body's equations (2), (4) are unchanged; the Schur complement takes this step's matrix.
+With v = 0 this is the fixed-length step at length l.
+
+The energy reported while reeling is the Hamiltonian H = T2 - T0 + V of this time-dependent
+Lagrangian (T2 the usual kinetic energy of the nodes' motion), with p = M(l) rdot + c C^T r; the
+winch's work is the integral of dH/dt = (dH/dl) v along the steps (the trapezoid rule) plus H's jump
+at fixed (q, p) where the reel speed changes.
+"""
+import numpy as np
+
+from .diagnostics import diagnostics
+from .jit import kernel
+from .layout import (B_GRAVITY_IMPULSE, B_WINCH_WORK, D_ENERGY, D_KINETIC_STRING, D_LINEAR_MOMENTUM, D_PI3, OK,
+                     R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS, WN_DH_DL, WN_EA, WN_END_SHARE,
+                     WN_LENGTH, WN_MASS_PER_LENGTH, WN_MAX_LENGTH, WN_MAX_STRETCH, WN_MIN_LENGTH, WN_OFF_SHARE,
+                     WN_SPEED, LGVIParams, StateArrays, Work)
+from .lgvi import held_inputs, kahan_add, left_torque, lgvi_commit, new_positions, rigid_increments
+from .loops import restore_state, save_state
+from .string import nodal_forces
+
+
+def convective_weights(elements: int, consistent: bool) -> np.ndarray:
+    """``(N, 3)``: per element alpha, beta, gamma of T1 and T0 (docs/physics.md, "The winch"):
+    the integrals over the element (zeta in [0, 1]) of (1 - zeta)(k - zeta), zeta (k - zeta) and
+    (k - zeta)^2, k = N - e; exact for the consistent mass, the trapezoid rule for the lumped one
+    (as its kinetic energy is)."""
+    k = elements - np.arange(elements, dtype=np.float64)
+    if consistent:
+        return np.column_stack([k / 2 - 1 / 6, k / 2 - 1 / 3, k * k - k + 1 / 3])
+    return np.column_stack([k / 2, (k - 1) / 2, (k * k + (k - 1) ** 2) / 2])
+
+
+@kernel(inline="always")
+def add_convective_forces(r, coef, theta, out, first):
+    """``out += grad T0`` on rows ``first..N`` (T0 = theta/2 sum gamma_e |x_e|^2): the convective
+    kinetic energy pulls each element's nodes apart [N]."""
+    n = r.shape[0] - 1
+    for e in range(n):
+        k = theta * coef[e, 2]
+        for i in range(3):
+            g = k * (r[e + 1, i] - r[e, i])
+            if e >= first:
+                out[e, i] -= g
+            out[e + 1, i] += g
+
+
+@kernel(inline="always")
+def convective_energy(r, coef, theta):
+    """T0 = theta/2 sum_e gamma_e |x_e|^2 [J]."""
+    total = 0.0
+    for e in range(r.shape[0] - 1):
+        x0 = r[e + 1, 0] - r[e, 0]
+        x1 = r[e + 1, 1] - r[e, 1]
+        x2 = r[e + 1, 2] - r[e, 2]
+        total += coef[e, 2] * (x0 * x0 + x1 * x1 + x2 * x2)
+    return 0.5 * theta * total
+
+
+@kernel(inline="always")
+def convective_momentum(r, coef, a, i):
+    """(C^T r)_a along coordinate i: alpha_a x_a + beta_{a-1} x_{a-1} [m]."""
+    n = r.shape[0] - 1
+    s = 0.0
+    if a < n:
+        s += coef[a, 0] * (r[a + 1, i] - r[a, i])
+    if a > 0:
+        s += coef[a - 1, 1] * (r[a, i] - r[a - 1, i])
+    return s
+
+
+@kernel(inline="always")
+def convective_impulse(dr, coef, a, i):
+    """(C dr)_a along coordinate i: alpha_{a-1} dr_{a-1} + (beta_{a-1} - alpha_a) dr_a - beta_a dr_{a+1}."""
+    n = dr.shape[0] - 1
+    s = 0.0
+    if a > 0:
+        s += coef[a - 1, 0] * dr[a - 1, i] + coef[a - 1, 1] * dr[a, i]
+    if a < n:
+        s -= coef[a, 0] * dr[a, i] + coef[a, 1] * dr[a + 1, i]
+    return s
+
+
+@kernel(inline="always")
+def factor_tridiagonal(P, WA, m, skew, first, n, inv, cp, w, jeff, lower, upper):
+    """Thomas factors of the mass matrix at element mass ``m`` plus the skew part ``skew`` (C - C^T)
+    (the step's matrix of (1w); ``skew = 0``: the symmetric mass matrix at that length), on rows
+    ``first..N``; its attachment column ``w`` = A^-1 e_N and ``jeff`` = J + M^2 w_N rho^ rho^."""
+    st = WA.state
+    coef = WA.coef
+    end = st[WN_END_SHARE] * m
+    off = st[WN_OFF_SHARE] * m
+    prev = 0.0
+    for a in range(first, n + 1):
+        d = 2.0 * end
+        if a == n:
+            d = end + P.M
+        if a == 0:
+            d = end + P.Mp
+        lo = 0.0
+        if a > first:
+            lo = off - skew * (coef[a - 1, 0] + coef[a - 1, 1])
+        up = off  # row N: kernels/string.py's symmetric sweeps read cp_N = off inv_N
+        if a < n:
+            up = off + skew * (coef[a, 0] + coef[a, 1])
+        lower[a] = lo
+        upper[a] = up
+        inv[a] = 1.0 / (d - lo * prev)
+        cp[a] = up * inv[a]
+        prev = cp[a]
+    w[n] = inv[n]
+    for k in range(n - first):
+        a = n - 1 - k
+        w[a] = -cp[a] * w[a + 1]
+    s = inv[n]
+    rho = P.rho
+    rr = rho[0] * rho[0] + rho[1] * rho[1] + rho[2] * rho[2]
+    for i in range(3):
+        for j in range(3):
+            jeff[i, j] = P.J[i, j] + P.M * P.M * s * (rho[i] * rho[j] - (rr if i == j else 0.0))
+
+
+@kernel(inline="always")
+def length_params(P, WA, length, m_mean, first, n, diagnostic):
+    """The constants at unstretched length ``length`` (LGVIParams: m, kappa, u, the guard) with
+    the Thomas factors of the mass matrix at element mass ``m_mean``: the symmetric one (into the
+    ``d*`` arrays, ``diagnostic``) or the step's (:func:`factor_tridiagonal` is called by the
+    step itself; here its arrays are only referenced)."""
+    st = WA.state
+    u = length / n
+    m = st[WN_MASS_PER_LENGTH] * u
+    if diagnostic:
+        factor_tridiagonal(P, WA, m_mean, 0.0, first, n, WA.dinv, WA.dcp, WA.dw, WA.djeff, WA.lower, WA.upper)
+        inv, cp, w, jeff = WA.dinv, WA.dcp, WA.dw, WA.djeff
+    else:
+        inv, cp, w, jeff = WA.inv, WA.cp, WA.w, WA.jeff
+    guard = st[WN_MAX_STRETCH] * u
+    return LGVIParams(P.h, m, st[WN_EA] / u, u, P.g, P.M, P.Mp, P.rho, P.J, P.Jd, jeff, inv, cp,
+                      st[WN_OFF_SHARE] * m, w, P.first, P.slack, P.tol, P.max_iter, P.gammas, guard * guard,
+                      P.compensated, P.mdiag)
+
+
+@kernel(inline="always")
+def step_solve(S, W, WA, h, c, hh, up0, up1, up2, push_pivot, first, n):
+    """X = A^-1 B of (1w), B = p + h/2 f~ - c C^T r (+ h/2 u_p on a pushed free pivot), with the
+    step's factors (WA.lower, WA.inv, WA.cp) and f~ in ``W.fl``; three columns at once."""
+    X = W.X
+    lower = WA.lower
+    inv = WA.inv
+    cp = WA.cp
+    y0 = y1 = y2 = 0.0
+    for a in range(first, n + 1):
+        b0 = S.p[a, 0] + hh * W.fl[a, 0] - c * convective_momentum(S.r, WA.coef, a, 0)
+        b1 = S.p[a, 1] + hh * W.fl[a, 1] - c * convective_momentum(S.r, WA.coef, a, 1)
+        b2 = S.p[a, 2] + hh * W.fl[a, 2] - c * convective_momentum(S.r, WA.coef, a, 2)
+        if push_pivot and a == 0:
+            b0 += hh * up0
+            b1 += hh * up1
+            b2 += hh * up2
+        y0 = (b0 - lower[a] * y0) * inv[a]
+        y1 = (b1 - lower[a] * y1) * inv[a]
+        y2 = (b2 - lower[a] * y2) * inv[a]
+        X[a, 0] = y0
+        X[a, 1] = y1
+        X[a, 2] = y2
+    for k in range(n - first):
+        a = n - 1 - k
+        y0 = X[a, 0] - cp[a] * y0
+        y1 = X[a, 1] - cp[a] * y1
+        y2 = X[a, 2] - cp[a] * y2
+        X[a, 0] = y0
+        X[a, 1] = y1
+        X[a, 2] = y2
+
+
+@kernel(forceinline=True)
+def winch_substep(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, compensated):
+    """One LGVI step of length ``h`` while the unstretched length goes ``l0 -> l1`` (the reel
+    speed v = (l1 - l0) / h), in place; as :func:`~.lgvi.lgvi_substep` otherwise (``S.f`` holds
+    the nodal forces at length l0 on entry and at l1 on success; a failure leaves the state
+    untouched). Returns ``(status, newton_iterations)``."""
+    n = S.r.shape[0] - 1
+    first = 0 if free else 1
+    st = WA.state
+    mu = st[WN_MASS_PER_LENGTH]
+    v = (l1 - l0) / h
+    c = mu * v / n
+    hh = 0.5 * h
+    m_mean = mu * (0.5 * (l0 + l1)) / n
+    fl = W.fl
+    for a in range(n + 1):  # f~_k = f + grad T0 at (r_k, l0)
+        for i in range(3):
+            fl[a, i] = S.f[a, i]
+    if v != 0.0:
+        add_convective_forces(S.r, WA.coef, mu * v * v / (n * l0), fl, first)
+    factor_tridiagonal(P, WA, m_mean, 0.5 * h * c, first, n, WA.inv, WA.cp, WA.w, WA.jeff, WA.lower, WA.upper)
+    up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2 = held_inputs(inputs, forced)
+    l_0, l_1, l_2, t0, t1, t2 = left_torque(S.R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
+    step_solve(S, W, WA, h, c, hh, up0, up1, up2, free and forced, first, n)
+    c0, c1, c2, e0, e1, e2, dr00, dr01, dr02, iters, status = rigid_increments(
+        S, W, P, h, WA.jeff, WA.w, t0, t1, t2, free, forced, coupled)
+    if status != OK:
+        return status, iters
+    new_positions(S, W, first, compensated)
+    # the impulse h/2 (f~_k + f~_{k+1}) + c C dr, with f_{k+1} (nodal forces at l1) added by the
+    # commit: fl <- f~_k + grad T0 at (r_{k+1}, l1) + (2/h) c C dr
+    if v != 0.0:
+        add_convective_forces(W.X, WA.coef, mu * v * v / (n * l1), fl, first)
+        q = 2.0 * c / h
+        for a in range(first, n + 1):
+            for i in range(3):
+                fl[a, i] += q * convective_impulse(W.Y, WA.coef, a, i)
+    P1 = length_params(P, WA, l1, m_mean, first, n, False)
+    W1 = Work(W.fn, W.X, W.Y, W.FmI, W.RF, W.Rn, W.jac, W.backup, fl, W.fn, W.dy, W.elim, W.taut, W.ext)
+    status = lgvi_commit(S, W1, P1, h, c0, c1, c2, e0, e1, e2, l_0, l_1, l_2, t0, t1, t2, tb0, tb1, tb2, ts0, ts1,
+                         ts2, up0, up1, up2, dr00, dr01, dr02, free, forced, coupled, compensated, True)
+    if status == OK:  # the commit counted the weight at l1; the step's is at the mean length
+        kahan_add(S.acc, S.accc, B_GRAVITY_IMPULSE + 2, h * P.g * n * (m_mean - P1.m))
+    return status, iters
+
+
+@kernel
+def winch_forces(S, P, WA):
+    """``S.f`` = the nodal forces at the winch's length (a state just set)."""
+    n = S.r.shape[0] - 1
+    Pl = length_params(P, WA, WA.state[WN_LENGTH], 0.0, P.first, n, False)
+    nodal_forces(S.r, Pl.kappa, Pl.u, Pl.m, Pl.M, Pl.Mp, Pl.g, Pl.slack, S.f)
+
+
+@kernel
+def winch_energy(S, P, WA, D, length, v):
+    """The diagnostics ``D`` of the state at unstretched length ``length`` and reel speed ``v``,
+    its energy the Hamiltonian H = T2 - T0 + V; returns ``(H, dH/dl)`` [J, J/m] (docs/physics.md,
+    "The winch")."""
+    r = S.r
+    n = r.shape[0] - 1
+    first = P.first
+    st = WA.state
+    mu = st[WN_MASS_PER_LENGTH]
+    m = mu * length / n
+    Pl = length_params(P, WA, length, m, first, n, True)
+    c = mu * v / n
+    ps = WA.pshift
+    for a in range(n + 1):
+        for i in range(3):
+            ps[a, i] = S.p[a, i] - (c * convective_momentum(r, WA.coef, a, i) if a >= first else 0.0)
+    S2 = StateArrays(r, ps, S.R, S.Pi, S.rc, S.pc, S.Rc, S.Pic, S.f, S.acc, S.accc)
+    diagnostics(S2, Pl, D)
+    # pi3 and the linear momentum from the momenta themselves
+    out = D.out
+    pi3 = S.R[2, 0] * S.Pi[0] + S.R[2, 1] * S.Pi[1] + S.R[2, 2] * S.Pi[2]
+    P0 = P1 = P2 = 0.0
+    for a in range(n + 1):
+        pi3 += r[a, 0] * S.p[a, 1] - r[a, 1] * S.p[a, 0]
+        P0 += S.p[a, 0]
+        P1 += S.p[a, 1]
+        P2 += S.p[a, 2]
+    out[D_PI3] = pi3
+    out[D_LINEAR_MOMENTUM] = P0
+    out[D_LINEAR_MOMENTUM + 1] = P1
+    out[D_LINEAR_MOMENTUM + 2] = P2
+    t0 = convective_energy(r, WA.coef, mu * v * v / (n * length))
+    out[D_ENERGY] -= t0
+    # dH/dl at fixed (q, p, v) = -dL/dl at fixed (q, qdot, v): the string's kinetic energy and
+    # weight scale with l, T0 with 1/l, and V_e = sum EA/(2u) (|x| - u)^2 with u = l / N
+    vz = 0.0
+    de = 0.0
+    u = length / n
+    for e in range(n):
+        vz += r[e, 2] + r[e + 1, 2]
+        x0 = r[e + 1, 0] - r[e, 0]
+        x1 = r[e + 1, 1] - r[e, 1]
+        x2 = r[e + 1, 2] - r[e, 2]
+        eps = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2) / u - 1.0
+        if not (P.slack and eps < 0.0):
+            de += eps + 0.5 * eps * eps
+    weight = -P.g * 0.5 * m * vz
+    dH = (-out[D_KINETIC_STRING] + t0 + weight) / length - st[WN_EA] / n * de
+    return out[D_ENERGY], dH
+
+
+@kernel
+def winch_advance(S, W, P, WA, D, inputs, speed, nsteps, stats):
+    """Take up to ``nsteps`` steps reeling at ``speed`` [m/s] (held; each step's speed is cut so
+    the length stays in the winch's range, and is 0 at an end), with constant ``inputs``; stop at
+    the first failure with the last good state. ``stats`` as :func:`~.loops.advance_loop`'s. The
+    winch's work joins ``S.acc`` (B_WINCH_WORK). Every term is computed (the general path)."""
+    free = P.first == 0
+    compensated = P.compensated
+    st = WA.state
+    gammas = P.gammas
+    composed = gammas.shape[0] > 1
+    h = P.h
+    total = 0
+    most = 0
+    for k in range(nsteps):
+        length = st[WN_LENGTH]
+        v = speed
+        end = length + h * v
+        if end >= st[WN_MAX_LENGTH]:
+            end = st[WN_MAX_LENGTH]
+            v = (end - length) / h
+        elif end <= st[WN_MIN_LENGTH]:
+            end = st[WN_MIN_LENGTH]
+            v = (end - length) / h
+        if v != st[WN_SPEED]:  # H jumps at fixed (q, p) when the reel speed changes
+            H_old, _ = winch_energy(S, P, WA, D, length, st[WN_SPEED])
+            H_new, dH = winch_energy(S, P, WA, D, length, v)
+            kahan_add(S.acc, S.accc, B_WINCH_WORK, H_new - H_old)
+            st[WN_SPEED] = v
+            st[WN_DH_DL] = dH
+        if v != 0.0 and np.isnan(st[WN_DH_DL]):
+            _, dH = winch_energy(S, P, WA, D, length, v)
+            st[WN_DH_DL] = dH
+        if composed:
+            save_state(S, W.backup)
+            for i in range(st.shape[0]):
+                WA.backup[i] = st[i]
+        iters = 0
+        status = OK
+        reached = 0.0
+        for i in range(gammas.shape[0]):
+            hi = gammas[i] * h
+            la = length + reached * h * v
+            reached += gammas[i]
+            lb = end if i == gammas.shape[0] - 1 else length + reached * h * v
+            status, it = winch_substep(S, W, P, WA, inputs, hi, la, lb, free, True, True, compensated)
+            iters += it
+            if status != OK:
+                break
+            if v != 0.0:
+                _, dH = winch_energy(S, P, WA, D, lb, v)
+                kahan_add(S.acc, S.accc, B_WINCH_WORK, 0.5 * hi * v * (st[WN_DH_DL] + dH))
+                st[WN_DH_DL] = dH
+            st[WN_LENGTH] = lb
+        total += iters
+        most = max(most, iters)
+        if status != OK:
+            if composed:
+                restore_state(S, W.backup)
+                for i in range(st.shape[0]):
+                    st[i] = WA.backup[i]
+            stats[R_STATUS] = status
+            stats[R_STEPS] = k
+            stats[R_NEWTON_TOTAL] = total
+            stats[R_NEWTON_MAX] = most
+            return
+        if v == 0.0:
+            st[WN_DH_DL] = np.nan
+    stats[R_STATUS] = OK
+    stats[R_STEPS] = nsteps
+    stats[R_NEWTON_TOTAL] = total
+    stats[R_NEWTON_MAX] = most

@@ -1,0 +1,121 @@
+"""The winch's Python face: its arrays, its checks and its share of a Simulator's diagnostics
+(the step is kernels/winch.py; the model docs/physics.md, "The winch").
+
+A :class:`~esp_gym.model.Simulator` holds one :class:`Winch`. While the length is the scene's and
+the reel speed is 0 the winch is idle and the simulator runs the fixed-length kernels, bit for bit
+as without a winch; once it has moved, every step is the winch's (with v = 0 it is the
+fixed-length step at the new length).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .kernels.layout import WINCH, WinchArrays
+from .kernels.winch import convective_weights, winch_energy
+from .params import Scene
+
+
+class Winch:
+    """The winch of a simulator of ``scene``: the unstretched length [m], the reel speed of the
+    state [m/s] and the compiled step's arrays (:class:`~esp_gym.kernels.layout.WinchArrays`)."""
+
+    def __init__(self, scene: Scene, max_len2: float):
+        self._state = np.zeros(WINCH.size)
+        self._arrays = None
+        self.use_scene(scene, max_len2)
+
+    @property
+    def arrays(self) -> WinchArrays:
+        """The compiled step's arrays, made on first use (about 14 floats per node; a simulator
+        that never reels does not hold them)."""
+        if self._arrays is None:
+            n, z = self.elements, np.zeros
+            self._arrays = WinchArrays(
+                state=self._state, coef=convective_weights(n, self.consistent), lower=z(n + 1), upper=z(n + 1),
+                inv=z(n + 1), cp=z(n + 1), w=z(n + 1), jeff=z((3, 3)), pshift=z((n + 1, 3)), dinv=z(n + 1),
+                dcp=z(n + 1), dw=z(n + 1), djeff=z((3, 3)), backup=z(WINCH.size))
+        return self._arrays
+
+    def use_scene(self, scene: Scene, max_len2: float) -> None:
+        """Take ``scene``'s string and winch (a new episode's); the length goes back to the
+        scene's and the reel stops."""
+        st, s = self._state, scene.string
+        self._arrays = None  # the weights follow the mass model
+        self.elements, self.consistent = s.elements, s.mass_model == "consistent"
+        self.scene_length = float(s.length)
+        self.max_speed = float(scene.winch.max_speed)
+        st[WINCH.scalar("mass_per_length")] = s.mass_per_length
+        st[WINCH.scalar("EA")] = s.EA
+        st[WINCH.scalar("max_stretch")] = math.sqrt(max_len2) / s.u
+        st[WINCH.scalar("end_share")] = 1.0 / 3.0 if self.consistent else 0.5
+        st[WINCH.scalar("off_share")] = 1.0 / 6.0 if self.consistent else 0.0
+        st[WINCH["min_length"]], st[WINCH["max_length"]] = scene.winch_range
+        self.min_length, self.max_length = scene.winch_range
+        self.stability_scale = self.min_length / self.scene_length  # the bound scales with the element length
+        self.reset()
+
+    def reset(self) -> None:
+        """The scene's length, the reel at rest."""
+        self.set(self.scene_length, 0.0)
+
+    def set(self, length: float, reel_speed: float) -> None:
+        """Set the length [m] and the state's reel speed [m/s] (checked)."""
+        length = self._number("length", length)
+        if not self.min_length <= length <= self.max_length:
+            raise ValueError(f"length = {length:g} m lies outside the winch's range "
+                             f"[{self.min_length:g}, {self.max_length:g}] m")
+        st = self._state
+        st[WINCH.scalar("length")] = length
+        st[WINCH.scalar("reel_speed")] = self.check_speed(reel_speed)
+        st[WINCH.scalar("dH_dl")] = np.nan  # not known for a new state
+
+    @staticmethod
+    def _number(name: str, value) -> float:
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+            raise ValueError(f"{name} must be a real number [SI], got {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise ValueError(f"{name} must be finite, got {value}")
+        return value
+
+    def check_speed(self, reel_speed) -> float:
+        """``reel_speed`` [m/s] as a float: ValueError naming it unless it is a finite real of
+        magnitude at most ``winch.max_speed``."""
+        v = self._number("reel_speed", reel_speed)
+        if abs(v) > self.max_speed:
+            raise ValueError(f"reel_speed = {v:g} m/s exceeds winch.max_speed = {self.max_speed:g} m/s")
+        return v
+
+    def check_scene(self, scene: Scene, h: float) -> None:
+        """ValueError unless ``scene`` can reel at step ``h``: the explicit string, and h stable at
+        the winch's shortest length (the bound scales with the element length)."""
+        if scene.solver.string != "explicit":
+            raise ValueError("reel_speed: the winch runs with the explicit string (solver.string: explicit) so far")
+        bound = scene.stability_bound * self.stability_scale
+        if h > bound and not scene.allow_unstable_h:
+            raise ValueError(f"reel_speed: h = {h:g} s exceeds the stability bound {bound:.4g} s at the winch's "
+                             f"shortest length winch.min_length = {self.min_length:g} m; raise winch.min_length "
+                             "or take a smaller h")
+
+    @property
+    def length(self) -> float:
+        """The unstretched length [m]."""
+        return float(self._state[WINCH.scalar("length")])
+
+    @property
+    def reel_speed(self) -> float:
+        """The reel speed of the state [m/s] (its momenta were made with it)."""
+        return float(self._state[WINCH.scalar("reel_speed")])
+
+    @property
+    def idle(self) -> bool:
+        """At the scene's length and at rest: the fixed-length kernels run."""
+        return self.length == self.scene_length and self.reel_speed == 0.0
+
+    def energy(self, buffers) -> float:
+        """Fill the simulator's diagnostics scratch for its state; returns the energy, the
+        Hamiltonian H = T2 - T0 + V of the reeling string (docs/physics.md, "The winch")."""
+        H, _ = winch_energy(buffers.state, buffers.params, self.arrays, buffers.diag, self.length, self.reel_speed)
+        return float(H)
