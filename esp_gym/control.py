@@ -22,8 +22,8 @@ from typing import Optional
 
 import numpy as np
 
-from .kernels.layout import (ACTION, DISTURBANCE, DISTURBANCE_PARAMS, DRAWS, INPUTS, OBSERVATION, R_TERMINATION,
-                             REPORT, REWARD, REWARD_TERMS, SENSORS, TARGET, LGVIParams)
+from .kernels.layout import (DISTURBANCE, DISTURBANCE_PARAMS, DRAWS, INPUTS, OBSERVATION, R_TERMINATION, REPORT, REWARD,
+                             REWARD_TERMS, SENSORS, TARGET, WINCH_OBSERVATION, LGVIParams)
 from .kernels.string import state_forces
 from .kernels.task import ENTRY_POINTS, actions_finite, env_reset_observe
 from .model import Simulator
@@ -33,6 +33,7 @@ from .state import State, check_memory
 from .params import Scene
 from .tasks import sample_episode
 from .wind import BLOCK, Wind
+from .winch import winch_state
 
 #: info keys of the reward terms, in REWARD_TERMS order
 INFO_REWARD_KEYS = tuple("reward_" + name for name in REWARD_TERMS)
@@ -94,28 +95,31 @@ class ControlStep:
         #: The simulator stepped in place (one environment), or the template of the batch's arrays.
         self.sim = Simulator(setup.scene)
         state, work, params, diag = self.sim.buffers
+        winch = self.sim.winch.arrays  # the winch's (read only with winch=True)
         nominal = setup.nominal_episode
         if batch:
             def stack(t):
                 return type(t)(*(np.zeros(batch + a.shape) for a in t))
 
-            state, work, diag = stack(state), stack(work), stack(diag)
+            state, work, diag, winch = stack(state), stack(work), stack(diag), stack(winch)
+            winch.coef[...] = self.sim.winch.arrays.coef
             # every constant per sub-environment (scalars become (num_envs,) arrays of their type)
             params = LGVIParams(*(np.repeat(np.asarray(v)[None], self.num_envs, axis=0) for v in params))
             #: The scene of each sub-environment's episode.
             self.scenes = [setup.scene] * self.num_envs
         self._state, self._diag, self._params = state, diag, params
         self._work = work
+        self._winch = winch
         z = np.zeros
         self._inputs = z(batch + (INPUTS.size,))
         self._target = z(batch + (TARGET.size,))
-        self._action = z(batch + (ACTION.size,))
-        self._obs = z(batch + (OBSERVATION.size,))
+        self._action = z(batch + (setup.action_size,))
+        self._obs = z(batch + ((WINCH_OBSERVATION if setup.winch else OBSERVATION).size,))
         self._terms = z(batch + (REWARD.size,))
         self._report = z(batch + (REPORT.size,), dtype=np.int64)
         self._sensors = z(batch + (SENSORS.size,))
         # actions on their way (oldest first): each step applies the oldest and queues the new one
-        self._pending = z(batch + (setup.action_latency, ACTION.size))
+        self._pending = z(batch + (setup.action_latency, setup.action_size))
         # the episode's run-time physics besides the stepper's constants
         self._substeps = np.full(batch, nominal.substeps, dtype=np.int64)
         self._task_params = np.tile(nominal.task_params, batch + (1,))
@@ -130,14 +134,15 @@ class ControlStep:
         self._drawn = z(batch + (1,), dtype=np.int64)
         self._rngs = [None] * (self.num_envs or 1)  # each (sub-)environment's generator, for more draws
         self._windy = setup.wind is not None
-        self._entry = ENTRY_POINTS[self.sim.implicit, self._windy]
+        self._entry = ENTRY_POINTS[self.sim.implicit, self._windy, setup.winch]
         self._was_reset = z(batch, dtype=bool)  # stepping a state that was never set is an error
         self._ready = False  # all of _was_reset, kept as a bool: step checks it every call
         self._make_views()
 
     def _make_views(self) -> None:
         # plain tuples: numba's dispatcher types them ~2x faster than namedtuples (kernels/task.py)
-        self._kernel_tuples = (tuple(self._state), tuple(self._work), tuple(self._params), tuple(self._diag))
+        self._kernel_tuples = (tuple(self._state), tuple(self._work), tuple(self._params), tuple(self._diag),
+                               tuple(self._winch))
         self.observation = read_only(self._obs)
         self.reward_terms = read_only(self._terms)
         self.action = read_only(self._action)
@@ -192,8 +197,8 @@ class ControlStep:
             if episode.scene is not self.sim.scene:
                 self.sim.use_scene(episode.scene, episode.params)
                 self._params = self.sim.params
-                state, work, _, diag = self._kernel_tuples  # only the constants changed
-                self._kernel_tuples = (state, work, tuple(self._params), diag)
+                state, work, _, diag, winch = self._kernel_tuples  # only the constants changed
+                self._kernel_tuples = (state, work, tuple(self._params), diag, winch)
             self._substeps[...] = episode.substeps
         else:
             for stacked, value in zip(self._params, episode.params):
@@ -227,6 +232,7 @@ class ControlStep:
             for a in (S.rc, S.pc, S.Rc, S.Pic, S.acc, S.accc):
                 a[...] = 0.0
             state_forces(S, P)
+            self._winch.state[i] = winch_state(self.scenes[i], P.max_len2)
             obs, terms, action, tgt, tp = self._obs[i], self._terms[i], self._action[i], self._target[i], \
                 self._task_params[i]
             sensors, pending = self._sensors[i], self._pending[i]
@@ -236,7 +242,8 @@ class ControlStep:
         if not self._ready:
             self._was_reset[() if index is None else int(index)] = True
             self._ready = bool(self._was_reset.all())
-        return int(env_reset_observe(S, P, D, tgt, tp, action, obs, terms, sensors))
+        WA = self.sim.winch.arrays if index is None else type(self._winch)(*(a[int(index)] for a in self._winch))
+        return int(env_reset_observe(S, P, D, WA, tgt, tp, action, obs, terms, sensors, self.setup.winch))
 
     # -- step -------------------------------------------------------------------------------------
     def step(self, actions, active: Optional[np.ndarray] = None) -> None:
@@ -244,13 +251,13 @@ class ControlStep:
         any float array; clipped to the box in the compiled step. ValueError, with nothing
         changed, if its shape is wrong or an entry is not finite. ``active`` (batch only, bool
         (num_envs,)): the sub-environments to step (default: all); the others are untouched."""
-        s, w, p, d = self._kernel_tuples
+        s, w, p, d, wa = self._kernel_tuples
         if not self._ready:
             never = "" if self.num_envs is None else f" (sub-environments {np.flatnonzero(~self._was_reset).tolist()})"
             raise RuntimeError(f"call reset() before step(){never}")
         latency = self.setup.action_latency
         if self.num_envs is None:
-            raw = raw_actions(actions, (ACTION.size,))
+            raw = raw_actions(actions, (self.setup.action_size,))
             if latency:
                 if not actions_finite(raw[None]):
                     raise ValueError(f"action must be finite, got {raw.tolist()}")
@@ -258,14 +265,14 @@ class ControlStep:
             if self._windy and self._drawn[0] == BLOCK:
                 self._draws[...] = Wind.draws(self._rngs[0])
                 self._drawn[0] = 0
-            if not self._entry[0](s, w, p, d, raw, self._action_params, self._inputs, int(self._substeps),
+            if not self._entry[0](s, w, p, d, wa, raw, self._action_params, self._inputs, int(self._substeps),
                                   self._target, self._task_params, self._action, self._obs, self._terms,
                                   self._sensors, self._report, self._wind_params, self._disturbance, self._draws,
                                   self._drawn):
                 raise ValueError(f"action must be finite, got {raw.tolist()}")
             self.sim.count_steps(self._report)
             return
-        raw = raw_actions(actions, (self.num_envs, ACTION.size), "actions")
+        raw = raw_actions(actions, (self.num_envs, self.setup.action_size), "actions")
         if not actions_finite(raw):
             raise ValueError("actions must be finite")
         if active is None:
@@ -278,7 +285,7 @@ class ControlStep:
             for i in np.flatnonzero(self._drawn[:, 0] == BLOCK):
                 self._draws[i] = Wind.draws(self._rngs[i])
                 self._drawn[i] = 0
-        self._entry[1](s, w, d, p, raw, self._action_params, self._inputs, active, self._substeps, self._target,
+        self._entry[1](s, w, d, p, wa, raw, self._action_params, self._inputs, active, self._substeps, self._target,
                        self._task_params, self._action, self._obs, self._terms, self._sensors, self._report,
                        self._wind_params, self._disturbance, self._draws, self._drawn)
 

@@ -32,7 +32,9 @@ class ElasticStringPendulumEnv(gym.Env):
     | 0-2 | pivot force x, y, z, added to the hover force `(0, 0, -W)` (W the total weight) | `force_limit` [N] (default 0.6 W) |
     | 3-5 | body torque, body frame | `torque_limit` [N m] (default 0.02) |
 
-    A zero action holds the whole system up.
+    A zero action holds the whole system up. With `winch=True` the action is `Box(-1, 1, (7,))`:
+    index 6 is the reel speed, x `scene.winch.max_speed` [m/s] (default 1), > 0 pays the string
+    out (docs/physics.md, "The winch").
 
     ## Observation Space
     `Box(-inf, inf, (22,), float32)`, spatial frame unless stated; `env.observation_structure`
@@ -52,7 +54,9 @@ class ElasticStringPendulumEnv(gym.Env):
     state: `pivot_position_error` (0-2) [m], `pivot_velocity` (3-5) [m/s], `hook_tension`
     (6-8): the string's pull on the pivot, the first element's force [N], `load_target_offset`
     (9-11): load target - pivot position [m]. `sensor_noise` adds Gaussian noise from
-    `np_random` to either mode (esp_gym/observe.py `UNIT_NOISE`, docs/environment.md).
+    `np_random` to either mode (esp_gym/observe.py `UNIT_NOISE`, docs/environment.md). With
+    `winch=True` either mode ends with `unstretched_length`, the string's current length [m]
+    (`string_stretch` is then relative to it).
 
     ## Rewards
     `reward = sum of info["reward_<term>"]` with, for x >= 0, `tol(x, s) = 1 / (1 + (x/s)^2)`:
@@ -60,9 +64,10 @@ class ElasticStringPendulumEnv(gym.Env):
     `pivot_position = w_pp tol(|pivot error|, 0.2 m)`, `swing = w_sw tol(swing angle, 0.2 rad)`,
     `spin = w_sp tol(|Omega|, 1 rad/s)`, `control = -w_c |a|^2 / 6`; in `track` v_load is
     relative to the reference's velocity.
-    Weights (stabilize / transport / track): w_lp 0.35/0.45/0.5, w_lv 0.2/0.1/0.15,
-    w_pp 0.2/0.2/0.15, w_sw 0.15/0.2/0.15, w_sp 0.1/0.05/0.05, w_c 0.1/0.1/0.1; each step's
-    reward lies in [-0.1, 1].
+    Weights (stabilize / transport / track / lift and lower): w_lp 0.35/0.45/0.5/0.45,
+    w_lv 0.2/0.1/0.15/0.1, w_pp 0.2/0.2/0.15/0.2, w_sw 0.15/0.2/0.15/0.2, w_sp 0.1/0.05/0.05/0.05,
+    w_c 0.1 (the control term averages over the 7 actions with a winch); each step's reward lies
+    in [-0.1, 1].
 
     ## Starting State
     `stabilize`: the pivot within 0.1 m of its target (the origin), the string straight and
@@ -76,6 +81,10 @@ class ElasticStringPendulumEnv(gym.Env):
     [0.3, 1] m, period uniform in [4, 10] s, either sense, random start angle and orientation
     about z, centred on the origin; the load target hangs below the pivot's at the rest depth.
     The system starts nearly at rest (as `transport`) with the pivot at the reference's start.
+    `lift` and `lower` (need `winch=True`): the system nearly at rest at the origin; the load's
+    target is the rest position of a string 25-45 % shorter (`lift`, the pivot target the origin)
+    or 25-60 % longer (`lower`, the pivot target uniform in +-(1, 1, 0.5) m), within the winch's
+    range.
     With `randomize`, the episode's tether and load are drawn first (then the state above, for
     that scene), and its physics step is its own. `reset`'s info holds the episode's physical
     parameters under `"scene_params"` (a flat dict of floats: `string_length`, `EA`, ...;
@@ -88,7 +97,7 @@ class ElasticStringPendulumEnv(gym.Env):
     ## Episode End
     Terminated (with `info["termination_reason"]`): `physics_failure: ...` (Newton's method
     did not converge or the state became non-finite; the state is the last good one),
-    `string_overstretched` (stretched length > 1.5 l), `left_workspace` (pivot or load more than
+    `string_overstretched` (stretched length > 1.5 l, l the current length), `left_workspace` (pivot or load more than
     4 m from its target). Truncated: only by the time limit (`max_episode_steps`, 500 steps =
     10 s at the default 50 Hz).
 
@@ -96,7 +105,7 @@ class ElasticStringPendulumEnv(gym.Env):
     | argument | default | meaning |
     |---|---|---|
     | `scene` | `"drone_load"` | scene name under configs/scenes, YAML path or `Scene`; needs a free pivot |
-    | `task` | `"stabilize"` | `"stabilize"`, `"transport"` or `"track"` |
+    | `task` | `"stabilize"` | `"stabilize"`, `"transport"`, `"track"`; with `winch=True` also `"lift"`, `"lower"` |
     | `control_period` | 0.02 | seconds per `step` (a whole number of physics steps) |
     | `h` | None | physics step; None: the largest dividing the control period under `safety` x the stability bound (with `scene_overrides={"solver": {"string": "implicit"}}`, under 0.9 x the implicit string's transverse bound: docs/physics.md) |
     | `safety` | 0.5 | margin under the stability bound for the automatic h (long runs of the tension-only string under random inputs gain spurious energy above ~0.6: 0.8 J in 10 s at 0.8) |
@@ -109,6 +118,7 @@ class ElasticStringPendulumEnv(gym.Env):
     | `action_latency` | 0 | control steps (0-50) between an action and its application (hover before the first) |
     | `wind` | 0.0 | mean wind speed [m/s] (gusts of 0.2 x it, direction drawn per episode), or a dict of esp_gym/wind.py `WindOptions` (speed, direction, gust_std, gust_time, drag coefficients, line_diameter, push_rate, push_speed): drag on the line and the load, pushes on the load |
     | `preset` | None | `"hard"`: randomize, wind 6 m/s with 1.5 m/s gusts and a push every 5 s on average, the hook observation with sensor noise 1 and a latency of 1 step (docs/environment.md) |
+    | `winch` | False | True: a winch at the pivot, its reel speed the 7th action, the length the last observation; h is chosen for the shortest string it reaches (`scene.winch`) |
     | `render_mode` | None | `"rgb_array"`: uint8 frames, front and side views |
 
     ## Version History
@@ -123,11 +133,11 @@ class ElasticStringPendulumEnv(gym.Env):
                  scene_overrides: Optional[dict] = None, render_mode: Optional[str] = None,
                  randomize: Union[bool, dict] = False, observation: str = "full",
                  sensor_noise: Union[float, dict] = 0.0, action_latency: int = 0, wind: Union[float, dict] = 0.0,
-                 preset: Optional[str] = None):
+                 preset: Optional[str] = None, winch: bool = False):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.setup = make_setup(scene, task, control_period, h, safety, force_limit, torque_limit, scene_overrides,
-                                randomize, observation, sensor_noise, action_latency, wind, preset)
+                                randomize, observation, sensor_noise, action_latency, wind, preset, winch)
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.setup.control_period))}
         self.observation_space = self.setup.observation_space

@@ -170,7 +170,8 @@ class Simulator:
         """A copy of the current discrete state (with its summation remainders)."""
         a = self._arrays
         return State(a.r.copy(), a.p.copy(), a.R.copy(), a.Pi.copy(), self._step,
-                     (a.rc.copy(), a.pc.copy(), a.Rc.copy(), a.Pic.copy()), (self.winch.length, self.winch.reel_speed))
+                     (a.rc.copy(), a.pc.copy(), a.Rc.copy(), a.Pic.copy()),
+                     None if self.winch.idle else (self.winch.length, self.winch.reel_speed))
 
     def set_state(self, state: State) -> None:
         """Replace the state (copied, checked like a scene: real, finite, of this scene's shapes,

@@ -5,7 +5,8 @@
   velocity, the string's pull on it (a load cell; SENSORS ``hook_tension``) and the load target
   relative to it, no load state.
 
-Both are gathered by name from the step's OBSERVATION and SENSORS vectors. ``sensor_noise`` adds
+Both are gathered by name from the step's OBSERVATION and SENSORS vectors; with a winch
+(``winch=True``) each ends with the unstretched length (WINCH_OBSERVATION). ``sensor_noise`` adds
 Gaussian noise drawn from the environment's ``np_random`` after every reset and step: a float s
 gives each field s times its :data:`UNIT_NOISE` standard deviation, a mapping field -> standard
 deviation (in the field's unit) sets fields of its own (the others noiseless).
@@ -17,7 +18,7 @@ from typing import Any, Mapping, Union
 
 import numpy as np
 
-from .kernels.layout import HOOK_OBSERVATION, OBSERVATION, SENSORS, Layout
+from .kernels.layout import HOOK_OBSERVATION, OBSERVATION, SENSORS, WINCH_OBSERVATION, Layout
 
 #: The observation layout of each mode.
 MODES = {"full": OBSERVATION, "hook": HOOK_OBSERVATION}
@@ -27,22 +28,26 @@ MODES = {"full": OBSERVATION, "hook": HOOK_OBSERVATION}
 UNIT_NOISE = {
     "pivot_position_error": 0.01, "pivot_velocity": 0.05, "load_position_error": 0.01, "load_velocity": 0.05,
     "attitude_6d": 0.01, "angular_velocity": 0.05, "string_stretch": 1e-3, "hook_tension": 0.1,
-    "load_target_offset": 0.01,
+    "load_target_offset": 0.01, "unstretched_length": 0.005,
 }
 
-#: The step's measured vector: OBSERVATION then SENSORS.
-MEASURED = Layout(*OBSERVATION.fields, *SENSORS.fields)
+#: The step's measured vector: OBSERVATION then SENSORS; with a winch, WINCH_OBSERVATION then SENSORS.
+MEASURED = {False: Layout(*OBSERVATION.fields, *SENSORS.fields), True: Layout(*WINCH_OBSERVATION.fields, *SENSORS.fields)}
+#: The winch's field of an observation (esp_gym/winch.py).
+WINCH_FIELD = ("unstretched_length", 1)
 
 
 class Observer:
     """Turns the step's OBSERVATION and SENSORS into the mode's float32 observation."""
 
-    def __init__(self, mode: str = "full", sensor_noise: Union[float, Mapping[str, Any]] = 0.0):
+    def __init__(self, mode: str = "full", sensor_noise: Union[float, Mapping[str, Any]] = 0.0, winch: bool = False):
         if mode not in MODES:
             raise ValueError(f"observation must be one of {sorted(MODES)}, got {mode!r}")
         self.mode = mode
-        self.layout = MODES[mode]
-        self._index = np.concatenate([np.arange(MEASURED.size)[MEASURED[name]] for name in self.layout.names])
+        self.winch = bool(winch)
+        self.layout = Layout(*MODES[mode].fields, WINCH_FIELD) if winch else MODES[mode]
+        measured = MEASURED[self.winch]
+        self._index = np.concatenate([np.arange(measured.size)[measured[name]] for name in self.layout.names])
         std = np.zeros(self.layout.size)
         if isinstance(sensor_noise, Mapping):
             for name, value in sensor_noise.items():

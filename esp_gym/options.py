@@ -14,7 +14,7 @@ from typing import Annotated, Any, Literal, Optional, Union
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError
 
 from .params import Scene
-from .scene_input import Real, plain_number
+from .scene_input import Flag, Real, plain_number
 
 #: Physics steps per control step above which the environment refuses to start: past this a
 #: single ``step`` costs tens of milliseconds or more (0.33 us per physics step at N = 20).
@@ -50,6 +50,7 @@ class EnvOptions(BaseModel):
     #: a speed or a mapping: checked by esp_gym/wind.py
     wind: Any = 0.0
     preset: Optional[Literal["hard"]] = None
+    winch: Flag = False
 
 
 def validation_message(error: ValidationError, what: str) -> str:

@@ -14,7 +14,7 @@ from typing import Optional, Union
 import numpy as np
 from gymnasium import spaces
 
-from .kernels.layout import ACTION_PARAMS, ACTION_SIZE, SCENE_PARAMS, LGVIParams
+from .kernels.layout import ACTION_PARAMS, ACTION_SIZE, SCENE_PARAMS, WINCH_ACTION, LGVIParams
 from .observe import Observer
 from .options import MAX_SUBSTEPS, EnvOptions, env_options
 from .params import Scene, load_scene, override_scene, scene_from_dict
@@ -36,16 +36,23 @@ def total_weight(scene: Scene) -> float:
                             + scene.string.length * scene.string.mass_per_length)
 
 
-def action_params(hover: np.ndarray, force_limit: float, torque_limit: float) -> np.ndarray:
+def action_params(hover: np.ndarray, force_limit: float, torque_limit: float, max_reel_speed: float) -> np.ndarray:
     """The compiled action path's constants (:data:`~esp_gym.kernels.layout.ACTION_PARAMS`):
-    box bounds [-1, 1], hover force, force and torque limits."""
+    box bounds [-1, 1], hover force, force and torque limits, the winch's largest reel speed."""
     ap = np.zeros(ACTION_PARAMS.size)
     ap[ACTION_PARAMS["low"]] = -1.0
     ap[ACTION_PARAMS["high"]] = 1.0
     ap[ACTION_PARAMS["hover_force"]] = hover
     ap[ACTION_PARAMS["force_limit"]] = force_limit
     ap[ACTION_PARAMS["torque_limit"]] = torque_limit
+    ap[ACTION_PARAMS["max_reel_speed"]] = max_reel_speed
     return ap
+
+
+def shortest(scene: Scene) -> Scene:
+    """``scene`` with the shortest string its winch reaches: the one whose explicit step bound is
+    smallest (the bound scales with the element length)."""
+    return override_scene(scene, {"string": {"length": scene.winch_range[0]}, "allow_unstable_h": True})
 
 
 @dataclass(frozen=True)
@@ -80,6 +87,7 @@ class EnvSetup:
     observer: Observer = Observer()  #: the observation mode and its sensor noise
     action_latency: int = 0  #: control steps between an action and its application
     wind: Optional[Wind] = None  #: the wind and pushes (esp_gym/wind.py), or None: still air
+    winch: bool = False  #: the winch's reel speed is the 7th action (kernels/winch.py)
 
     @property
     def param_names(self) -> tuple:
@@ -96,13 +104,18 @@ class EnvSetup:
         return spaces.Box(-np.inf, np.inf, (self.observer.layout.size,), np.float32)
 
     @property
+    def action_size(self) -> int:
+        """ACTION's size, or WINCH_ACTION's with the winch."""
+        return WINCH_ACTION.size if self.winch else ACTION_SIZE
+
+    @property
     def action_space(self) -> spaces.Box:
-        return spaces.Box(-1.0, 1.0, (ACTION_SIZE,), np.float32)
+        return spaces.Box(-1.0, 1.0, (self.action_size,), np.float32)
 
     @cached_property
     def action_params(self) -> np.ndarray:
         """The nominal scene's action constants (:func:`action_params`)."""
-        return action_params(self.hover, self.force_limit, self.torque_limit)
+        return action_params(self.hover, self.force_limit, self.torque_limit, self.scene.winch.max_speed)
 
     @cached_property
     def nominal_episode(self) -> Episode:
@@ -119,7 +132,7 @@ class EnvSetup:
         values = np.array([nominal_values(scene)[k] for k in SCENE_PARAMS.names])
         hover = np.array([0.0, 0.0, -total_weight(scene)])
         return Episode(values, scene, build_params(scene), substeps, self.task.params(scene),
-                       action_params(hover, self.force_limit, self.torque_limit))
+                       action_params(hover, self.force_limit, self.torque_limit, scene.winch.max_speed))
 
     def draw_episode(self, rng: np.random.Generator) -> Episode:
         """The next episode's physics: the nominal one, or (``randomizer``) one drawn from
@@ -129,7 +142,8 @@ class EnvSetup:
             return self.nominal_episode
         values = self.randomizer.draw(rng)
         drawn = self.randomizer.scene(values)
-        substeps = self.substeps if self.fixed_h is not None else scheme_substeps(drawn, self.control_period,
+        steps_for = shortest(drawn) if self.winch else drawn
+        substeps = self.substeps if self.fixed_h is not None else scheme_substeps(steps_for, self.control_period,
                                                                                   self.safety)
         episode = self.episode_for(drawn.model_copy(update={"h": self.control_period / substeps}))
         return dataclasses.replace(episode, values=values)
@@ -140,13 +154,14 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
                force_limit: Optional[float] = None, torque_limit: float = 0.02,
                scene_overrides: Optional[dict] = None, randomize: Union[bool, dict] = False,
                observation: str = "full", sensor_noise: Union[float, dict] = 0.0,
-               action_latency: int = 0, wind: Union[float, dict] = 0.0, preset: Optional[str] = None) -> EnvSetup:
+               action_latency: int = 0, wind: Union[float, dict] = 0.0, preset: Optional[str] = None,
+               winch: bool = False) -> EnvSetup:
     """Resolve the environment's arguments (see :class:`~esp_gym.env.ElasticStringPendulumEnv`),
     validated by :class:`~esp_gym.options.EnvOptions` (ValueError naming each bad one)."""
     o = env_options(scene=scene, task=task, control_period=control_period, h=h, safety=safety,
                     force_limit=force_limit, torque_limit=torque_limit, scene_overrides=scene_overrides,
                     randomize=randomize, observation=observation, sensor_noise=sensor_noise,
-                    action_latency=action_latency, wind=wind, preset=preset)
+                    action_latency=action_latency, wind=wind, preset=preset, winch=winch)
     if o.preset is not None:
         given = [name for name in PRESETS[o.preset] if getattr(o, name) != EnvOptions.model_fields[name].default]
         if given:
@@ -163,6 +178,12 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
     resolved = override_scene(o.scene, overrides) if isinstance(o.scene, Scene) else load_scene(o.scene, **overrides)
     if not resolved.pivot.is_free:
         raise ValueError(f"ElasticStringPendulum-v0 pushes the pivot: scene {resolved.name!r} needs pivot.kind: free")
+    t = get_task(o.task)
+    if t.needs_winch and not o.winch:
+        raise ValueError(f"ElasticStringPendulum-v0: task={o.task!r} reels the string: pass winch=True")
+    if o.winch and resolved.solver.string != "explicit":
+        raise ValueError("ElasticStringPendulum-v0: winch=True runs with the explicit string (solver.string: "
+                         "explicit) so far")
     randomizer = None if o.randomize is False else Randomizer(resolved, o.randomize)
     # the scene's scheme (explicit unless asked): choose_scheme's cost rule would pick the implicit
     # string for stiff strings, but its accuracy under random actions is not established yet
@@ -171,20 +192,23 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
     bound_name = f"safety = {safety} x the stability bound" if explicit else "the transverse bound"
     # the stiffest episode (shortest, lightest, stiffest string) needs the most steps
     stiffest = resolved if randomizer is None else randomizer.scene(randomizer.stiffest())
+    if o.winch:  # and the shortest string the winch reaches
+        stiffest = shortest(stiffest)
     if h is None:
         wanted, what = scheme_substeps(stiffest, control_period, safety), bound_name
     else:
         wanted, what = control_period / h, f"h = {h} s"
-        if randomizer is not None and explicit and not keep_unstable and h > stiffest.string.stability_bound:
+        if (randomizer is not None or o.winch) and explicit and not keep_unstable \
+                and h > stiffest.string.stability_bound:
             raise ValueError(f"h = {h} s is above the stability bound {stiffest.string.stability_bound:.4g} s of the "
-                             "stiffest string of the randomize ranges (shortest, lightest, largest EA): leave h to "
-                             "the environment or narrow the ranges")
+                             "stiffest string of the randomize ranges (shortest, lightest, largest EA) and the winch's "
+                             "shortest: leave h to the environment, narrow the ranges or raise winch.min_length")
     if wanted > MAX_SUBSTEPS:
         raise ValueError(f"ElasticStringPendulum-v0: control_period = {control_period} s with {what} needs "
                          f"{wanted:.3g} physics steps per step (at most {MAX_SUBSTEPS:,}): use a larger h or "
                          f"safety, a shorter control_period, or a softer, longer or coarser string")
     if h is None:
-        substeps = scheme_substeps(resolved, control_period, safety)
+        substeps = scheme_substeps(shortest(resolved) if o.winch else resolved, control_period, safety)
     else:
         substeps = int(round(wanted))
         if substeps < 1 or abs(substeps * h - control_period) > 1e-9 * control_period:
@@ -193,12 +217,11 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
                                 "allow_unstable_h": keep_unstable}, source=repr(resolved.name))
     weight = total_weight(resolved)
     force_limit = o.force_limit if o.force_limit is not None else (0.6 * weight if weight > 0 else 1.0)
-    t = get_task(o.task)
     wind_given = wind_options(o.wind)
     if wind_given is not None:
         drag_areas(resolved)  # the load needs a shape (a randomised episode keeps its kind)
     return EnvSetup(scene=resolved, task=t, task_params=t.params(resolved), control_period=float(control_period),
                     substeps=substeps, hover=np.array([0.0, 0.0, -weight]), force_limit=float(force_limit),
                     torque_limit=float(o.torque_limit), safety=float(safety), fixed_h=h, randomizer=randomizer,
-                    observer=Observer(o.observation, o.sensor_noise), action_latency=o.action_latency,
-                    wind=None if wind_given is None else Wind(wind_given, control_period))
+                    observer=Observer(o.observation, o.sensor_noise, o.winch), action_latency=o.action_latency,
+                    wind=None if wind_given is None else Wind(wind_given, control_period), winch=o.winch)

@@ -24,7 +24,8 @@ class State:
     ``remainders`` holds the compensated-summation remainders of (r, p, R, Pi): restoring them
     makes save/restore bit-exact; ``None`` (e.g. after editing the momenta) restarts them at 0.
     ``winch``: the unstretched length [m] and the reel speed the momenta were made with [m/s]
-    (esp_gym/winch.py); ``None`` is the scene's length at rest.
+    (esp_gym/winch.py); ``None`` is the scene's length at rest (a winch that never moved: such a
+    state fits any scene, as before there were winches).
     """
 
     r: np.ndarray

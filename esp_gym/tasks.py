@@ -43,6 +43,13 @@ class Task:
     target_box: tuple = (0.0, 0.0, 0.0)  #: transport: pivot target uniform in +-box [m]
     max_stretch: float = 1.5  #: terminate when the stretched length exceeds this times l
     workspace_radius: float = 4.0  #: terminate when pivot or load is this far from its target [m]
+    #: lift, lower: the load's target hangs from a string this many times l longer, uniform in the
+    #: range (negative: shorter); the winch (``winch=True``) must reel it there
+    reel_range: tuple = (0.0, 0.0)
+
+    @property
+    def needs_winch(self) -> bool:
+        return self.reel_range != (0.0, 0.0)
 
     def params(self, scene: Scene) -> np.ndarray:
         """The compiled kernel's task parameter vector (TASK_PARAM_NAMES)."""
@@ -69,6 +76,14 @@ TASKS = {
     # the load follows a moving reference (a circle or a figure-eight) from rest
     "track": Task("track", max_swing_deg=3.0, max_speed=0.05, max_spin=0.1, w_load_position=0.5,
                   w_load_velocity=0.15, w_pivot_position=0.15, w_swing=0.15, w_spin=0.05),
+    # hoist a load hanging at rest to a target 25-45 % of the string's length higher, the pivot
+    # held where it is, with little swing (winch=True)
+    "lift": Task("lift", max_swing_deg=3.0, max_speed=0.05, max_spin=0.1, w_load_position=0.45,
+                 w_load_velocity=0.1, w_swing=0.2, w_spin=0.05, reel_range=(-0.45, -0.25)),
+    # lower a load to a point 25-60 % of the string's length deeper, below a pivot that moves to
+    # a random target (winch=True)
+    "lower": Task("lower", max_swing_deg=3.0, max_speed=0.05, max_spin=0.1, target_box=(1.0, 1.0, 0.5),
+                  w_load_position=0.45, w_load_velocity=0.1, w_swing=0.2, w_spin=0.05, reel_range=(0.25, 0.6)),
 }
 
 #: The ``track`` task's reference family (kernels/reference.py): each episode draws a circle or a
@@ -100,21 +115,24 @@ def get_task(name: str) -> Task:
     return TASKS[name]
 
 
-def static_node_depths(scene: Scene) -> np.ndarray:
-    """Depth below the pivot [m] of each node of the string hanging at rest (N+1,).
+def static_node_depths(scene: Scene, length=None) -> np.ndarray:
+    """Depth below the pivot [m] of each node of the string hanging at rest (N+1,), of the
+    scene's unstretched length or ``length`` [m] (a winch's).
 
     Tension at unstretched arclength s is g (M + mu (l - s)); integrating the strain T/EA gives
     z(s) = s + g (M s + mu (l s - s^2/2)) / EA, exact at the nodes of linear elements.
     """
     st = scene.string
-    s = np.linspace(0.0, st.length, st.elements + 1)
+    l = st.length if length is None else float(length)
+    s = np.linspace(0.0, l, st.elements + 1)
     M, mu, g = scene.body.mass, st.mass_per_length, scene.gravity
-    return s + g * (M * s + mu * (st.length * s - 0.5 * s * s)) / st.EA
+    return s + g * (M * s + mu * (l * s - 0.5 * s * s)) / st.EA
 
 
-def hanging_depth(scene: Scene) -> float:
-    """Depth of the load's centre of mass below the pivot at rest [m]."""
-    return float(static_node_depths(scene)[-1] + np.linalg.norm(scene.body.rho_c))
+def hanging_depth(scene: Scene, length=None) -> float:
+    """Depth of the load's centre of mass below the pivot at rest [m] (``length``: as
+    :func:`static_node_depths`)."""
+    return float(static_node_depths(scene, length)[-1] + np.linalg.norm(scene.body.rho_c))
 
 
 def hanging_axis(rho_c) -> np.ndarray:
@@ -152,7 +170,9 @@ def sample_episode(task: Task, scene: Scene, rng: np.random.Generator):
     (the string's velocity interpolates between them), body rates uniform in +-max_spin.
     stabilize: targets are the origin for the pivot and the rest position below it for the load;
     the pivot starts within 0.1 m of the origin. transport: the pivot starts at the origin and
-    its target is uniform in +-target_box. track: the reference is drawn first
+    its target is uniform in +-target_box. lift, lower: as transport (lift's pivot target is the
+    origin), the load's target at the rest position of a string of a length drawn from
+    ``reel_range`` (within the winch's range). track: the reference is drawn first
     (:func:`track_reference`) and the pivot starts at its start, the system nearly at rest.
     """
     origin = np.zeros(3)
@@ -164,8 +184,12 @@ def sample_episode(task: Task, scene: Scene, rng: np.random.Generator):
         target = track_reference(rng, hanging_depth(scene))
         start = target[TARGET["pivot"]].copy()
     else:
+        length = scene.string.length
+        if task.needs_winch:  # within the winch's range
+            shortest, longest = scene.winch_range
+            length = min(max(length * (1.0 + rng.uniform(*task.reel_range)), shortest), longest)
         target[TARGET["pivot"]] = pivot_target
-        target[TARGET["load"]] = pivot_target + hanging_depth(scene) * np.array([0.0, 0.0, 1.0])
+        target[TARGET["load"]] = pivot_target + hanging_depth(scene, length) * np.array([0.0, 0.0, 1.0])
     theta = math.radians(task.max_swing_deg) * rng.uniform(0.0, 1.0)
     phi = rng.uniform(0.0, 2.0 * math.pi)
     d = np.array([math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi), math.cos(theta)])

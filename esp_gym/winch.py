@@ -17,6 +17,23 @@ from .kernels.winch import convective_weights, winch_energy
 from .params import Scene
 
 
+def winch_state(scene: Scene, max_len2: float) -> np.ndarray:
+    """The :data:`~esp_gym.kernels.layout.WINCH` vector of ``scene`` (``max_len2``: its blow-up
+    guard, LGVIParams.max_len2): its length, the reel at rest, its string's constants and the
+    winch's range."""
+    s, st = scene.string, np.zeros(WINCH.size)
+    consistent = s.mass_model == "consistent"
+    st[WINCH["length"]] = s.length
+    st[WINCH["dH_dl"]] = np.nan
+    st[WINCH["mass_per_length"]] = s.mass_per_length
+    st[WINCH["EA"]] = s.EA
+    st[WINCH["max_stretch"]] = math.sqrt(max_len2) / s.u
+    st[WINCH["end_share"]] = 1.0 / 3.0 if consistent else 0.5
+    st[WINCH["off_share"]] = 1.0 / 6.0 if consistent else 0.0
+    st[WINCH["min_length"]], st[WINCH["max_length"]] = scene.winch_range
+    return st
+
+
 class Winch:
     """The winch of a simulator of ``scene``: the unstretched length [m], the reel speed of the
     state [m/s] and the compiled step's arrays (:class:`~esp_gym.kernels.layout.WinchArrays`)."""
@@ -41,17 +58,13 @@ class Winch:
     def use_scene(self, scene: Scene, max_len2: float) -> None:
         """Take ``scene``'s string and winch (a new episode's); the length goes back to the
         scene's and the reel stops."""
-        st, s = self._state, scene.string
-        self._arrays = None  # the weights follow the mass model
+        s = scene.string
         self.elements, self.consistent = s.elements, s.mass_model == "consistent"
+        self._state[...] = winch_state(scene, max_len2)
+        if self._arrays is not None:  # in place: the environment's compiled step holds them
+            self._arrays.coef[...] = convective_weights(self.elements, self.consistent)
         self.scene_length = float(s.length)
         self.max_speed = float(scene.winch.max_speed)
-        st[WINCH.scalar("mass_per_length")] = s.mass_per_length
-        st[WINCH.scalar("EA")] = s.EA
-        st[WINCH.scalar("max_stretch")] = math.sqrt(max_len2) / s.u
-        st[WINCH.scalar("end_share")] = 1.0 / 3.0 if self.consistent else 0.5
-        st[WINCH.scalar("off_share")] = 1.0 / 6.0 if self.consistent else 0.0
-        st[WINCH["min_length"]], st[WINCH["max_length"]] = scene.winch_range
         self.min_length, self.max_length = scene.winch_range
         self.stability_scale = self.min_length / self.scene_length  # the bound scales with the element length
         self.reset()

@@ -211,8 +211,9 @@ def test_vector_bad_actions_raise_and_change_nothing(kind):
 #: physics drawn anew (each sub-environment then runs its own constants and step count).
 VECTOR_OPTIONS = [{}, {"randomize": True},
                   {"randomize": True, "observation": "hook", "sensor_noise": 1.0, "action_latency": 2},
-                  {"preset": "hard"}, {"task": "track", "randomize": True}]
-VECTOR_IDS = ["plain", "randomize", "hook-noise-latency", "hard", "track"]
+                  {"preset": "hard"}, {"task": "track", "randomize": True},
+                  {"task": "lower", "winch": True, "randomize": True}, {"task": "lift", "winch": True, "preset": "hard"}]
+VECTOR_IDS = ["plain", "randomize", "hook-noise-latency", "hard", "track", "winch-lower", "winch-lift-hard"]
 
 
 @pytest.mark.parametrize("options", VECTOR_OPTIONS, ids=VECTOR_IDS)
@@ -233,7 +234,7 @@ def test_vector_env_equals_single_envs_bit_for_bit(options):
     done = [False] * B
     ended = 0
     for _ in range(150):
-        a = rng.uniform(-1.2, 1.2, (B, 6)).astype(np.float32)
+        a = rng.uniform(-1.2, 1.2, (B,) + venv.single_action_space.shape).astype(np.float32)
         vo, vr, vte, vtr, vi = venv.step(a)
         for i, e in enumerate(envs):
             if done[i]:
@@ -260,7 +261,7 @@ def test_sb3_vec_env_equals_single_envs_with_immediate_reset(options):
     assert vec.reset_infos == [info for _, info in singles]
     rng = np.random.default_rng(2)
     for _ in range(100):
-        a = rng.uniform(-1, 1, (B, 6)).astype(np.float32)
+        a = rng.uniform(-1, 1, (B,) + vec.action_space.shape).astype(np.float32)
         obs, rew, dones, infos = vec.step(a)
         for i, e in enumerate(envs):
             o, r, te, tr, _ = e.step(a[i])

@@ -206,15 +206,22 @@ A_PIVOT_FORCE = ACTION.start("pivot_force")
 A_BODY_TORQUE = ACTION.start("body_torque")
 ACTION_SIZE = ACTION.size
 
-#: The constants of the action path: the box bounds (ACTION.size each), the hover force [N],
-#: force_limit [N] and torque_limit [N m].
+#: The action of an environment with a winch (``winch=True``): ACTION, then the reel speed
+#: (x max_reel_speed [m/s]; > 0 reels out).
+WINCH_ACTION = Layout(*ACTION.fields, ("reel_speed", 1))
+A_REEL_SPEED = WINCH_ACTION.scalar("reel_speed")
+
+#: The constants of the action path: the box bounds (ACTION.size each; the reel speed's box is
+#: [-1, 1]), the hover force [N], force_limit [N], torque_limit [N m] and the winch's largest reel
+#: speed [m/s].
 ACTION_PARAMS = Layout(("low", ACTION_SIZE), ("high", ACTION_SIZE), ("hover_force", 3), ("force_limit", 1),
-                       ("torque_limit", 1))
+                       ("torque_limit", 1), ("max_reel_speed", 1))
 AP_LOW = ACTION_PARAMS.start("low")
 AP_HIGH = ACTION_PARAMS.start("high")
 AP_HOVER = ACTION_PARAMS.start("hover_force")
 AP_FORCE_LIMIT = ACTION_PARAMS.scalar("force_limit")
 AP_TORQUE_LIMIT = ACTION_PARAMS.scalar("torque_limit")
+AP_MAX_REEL_SPEED = ACTION_PARAMS.scalar("max_reel_speed")
 
 #: The episode's targets, spatial frame: the pivot's and the load's [m], their velocity [m/s]
 #: (0 but in ``track``), and the moving reference that ``track`` follows (kernels/reference.py):
@@ -240,7 +247,7 @@ T_ORIENTATION = TARGET.scalar("orientation")
 #: [m/s], load centre of mass - target [m], its velocity [m/s] (both velocities less the
 #: target's, which is 0 but in ``track``), the first two columns of R
 #: (body x and y axes), the body angular velocity (body frame) [rad/s], and the string stretch
-#: (stretched length / l - 1).
+#: (stretched length / l - 1, l the current unstretched length).
 OBSERVATION = Layout(("pivot_position_error", 3), ("pivot_velocity", 3), ("load_position_error", 3),
                      ("load_velocity", 3), ("attitude_6d", 6), ("angular_velocity", 3), ("string_stretch", 1))
 O_PIVOT_ERROR = OBSERVATION.start("pivot_position_error")
@@ -251,6 +258,9 @@ O_ATTITUDE = OBSERVATION.start("attitude_6d")
 O_ANGULAR_VELOCITY = OBSERVATION.start("angular_velocity")
 O_STRETCH = OBSERVATION.scalar("string_stretch")
 OBS_SIZE = OBSERVATION.size
+#: The observation of an environment with a winch: OBSERVATION, then the unstretched length [m].
+WINCH_OBSERVATION = Layout(*OBSERVATION.fields, ("unstretched_length", 1))
+O_LENGTH = WINCH_OBSERVATION.scalar("unstretched_length")
 
 #: What the compiled step measures besides the full observation: the string's pull on the
 #: pivot, the first element's force c x_0 (a load cell at the hook) [N], and the load target

@@ -17,8 +17,9 @@ from .jit import kernel
 from .diagnostics import diagnostics
 from .disturbance import disturb, external_potential
 from .lgvi import kahan_add
-from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, ACTION_SIZE, AP_FORCE_LIMIT, AP_HIGH, AP_HOVER, AP_LOW,
-                     AP_TORQUE_LIMIT, B_WORK, D_STRETCHED_LENGTH, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE,
+from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, A_REEL_SPEED, ACTION_SIZE, AP_FORCE_LIMIT, AP_HIGH, AP_HOVER,
+                     AP_LOW, AP_MAX_REEL_SPEED, AP_TORQUE_LIMIT, O_LENGTH, WN_LENGTH, WN_MASS_PER_LENGTH, WN_SPEED,
+                     WinchArrays, B_WORK, D_STRETCHED_LENGTH, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE,
                      O_ANGULAR_VELOCITY, O_ATTITUDE, O_LOAD_ERROR, O_LOAD_VELOCITY, O_PIVOT_ERROR, O_PIVOT_VELOCITY,
                      O_STRETCH, OK, R_STATUS, R_STEPS, R_TERMINATION, RW_CONTROL, RW_LOAD_POSITION, RW_LOAD_VELOCITY,
                      RW_PIVOT_POSITION, RW_SPIN, RW_SWING, SN_HOOK_TENSION, SN_LOAD_TARGET_OFFSET, T_LOAD, T_PIVOT, T_VELOCITY, TERM_NONE, TERM_OVERSTRETCH,
@@ -28,6 +29,7 @@ from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, ACTION_SIZE, AP_FORCE_LIMIT, 
                      StateArrays, Work)
 from .loops import advance_loop
 from .reference import advance_reference
+from .winch import length_params, winch_energy, winch_loop
 
 
 @kernel
@@ -57,9 +59,10 @@ def env_sensors(S, P, target, sensors):
 
 
 @kernel(inline="always")
-def env_observe(S, P, D, target, tp, action, obs, terms, sensors):
+def env_observe(S, P, D, target, tp, action, obs, terms, sensors, length):
     """Observation (OBSERVATION), SENSORS and reward terms (REWARD) of the current state (``D``
-    filled by diagnostics). Returns the termination code (TERM_*)."""
+    filled by diagnostics) at the unstretched ``length`` [m] (the scene's; a winch's current one,
+    whose constants ``P`` then holds). Returns the termination code (TERM_*)."""
     env_sensors(S, P, target, sensors)
     r = S.r
     R = S.R
@@ -90,8 +93,8 @@ def env_observe(S, P, D, target, tp, action, obs, terms, sensors):
         ep += ei * ei
         el += li * li
         vl += vi * vi
-    length = D.out[D_STRETCHED_LENGTH]
-    obs[O_STRETCH] = length / tp[TP_STRING_LENGTH] - 1.0
+    stretched = D.out[D_STRETCHED_LENGTH]
+    obs[O_STRETCH] = stretched / length - 1.0
     # swing: angle of (load - pivot) from the downward vertical e3
     dx = (r[n, 0] - r[0, 0]) + (R[0, 0] * rho[0] + R[0, 1] * rho[1] + R[0, 2] * rho[2])  # load - pivot
     dy = (r[n, 1] - r[0, 1]) + (R[1, 0] * rho[0] + R[1, 1] * rho[1] + R[1, 2] * rho[2])
@@ -107,7 +110,7 @@ def env_observe(S, P, D, target, tp, action, obs, terms, sensors):
     terms[RW_SWING] = tp[TP_W_SWING] * _tol(swing, tp[TP_SCALE_SWING])
     terms[RW_SPIN] = tp[TP_W_SPIN] * _tol(spin, tp[TP_SCALE_SPIN])
     terms[RW_CONTROL] = -tp[TP_W_CONTROL] * a2 / action.shape[0]
-    if not (length <= tp[TP_MAX_STRETCHED_LENGTH]):
+    if not (stretched <= tp[TP_MAX_STRETCHED_LENGTH] * (length / tp[TP_STRING_LENGTH])):
         return TERM_OVERSTRETCH
     radius = tp[TP_WORKSPACE_RADIUS]
     if not (ep <= radius * radius and el <= radius * radius):
@@ -139,11 +142,14 @@ def actions_finite(raw):
 
 @kernel(inline="always")
 def take_action(raw, ap, action, inputs):
-    """Check, clip and map a raw action (ACTION): False, touching nothing, if any entry is not
-    finite; else ``action`` = raw clipped to [low, high] (as np.clip) and ``inputs`` from it."""
-    for i in range(ACTION_SIZE):
+    """Check, clip and map a raw action (ACTION, or WINCH_ACTION: ``action``'s size says): False,
+    touching nothing, if any entry is not finite; else ``action`` = raw clipped to [low, high] (as
+    np.clip; the reel speed's box is [-1, 1]) and ``inputs`` from it. Returns the reel speed
+    [m/s] (0 without a winch) as a float, or -inf for an action that is not finite."""
+    size = action.shape[0]
+    for i in range(size):
         if not np.isfinite(raw[i]):
-            return False
+            return -np.inf
     for i in range(ACTION_SIZE):
         a = raw[i]
         if a < ap[AP_LOW + i]:
@@ -152,14 +158,19 @@ def take_action(raw, ap, action, inputs):
             a = ap[AP_HIGH + i]
         action[i] = a
     action_inputs(action, ap, inputs)
-    return True
+    if size == ACTION_SIZE:
+        return 0.0
+    action[A_REEL_SPEED] = min(max(raw[A_REEL_SPEED], -1.0), 1.0)
+    return ap[AP_MAX_REEL_SPEED] * action[A_REEL_SPEED]
 
 
 @kernel(inline="always")
-def env_step_one(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, sensors, result, dp, ds, draws, drawn,
-                 implicit=False, disturbed=False):
+def env_step_one(S, W, P, D, WA, inputs, reel, nsub, target, tp, action, obs, terms, sensors, result, dp, ds, draws,
+                 drawn, implicit=False, disturbed=False, winched=False):
     """One control step: ``nsub`` physics steps with constant ``inputs`` (INPUTS), then
     observation, reward terms and termination code. ``result``: the step's REPORT (int64).
+    ``winched`` (a compile-time constant): the winch reels at ``reel`` [m/s] (kernels/winch.py,
+    its arrays ``WA``), and the observation ends with the unstretched length.
     ``implicit`` (a compile-time constant): the implicit string's step (kernels/implicit.py).
     ``disturbed`` (a compile-time constant): wind and pushes (kernels/disturbance.py) from the
     episode's DISTURBANCE_PARAMS ``dp``, the DISTURBANCE state ``ds`` and the next row
@@ -173,21 +184,36 @@ def env_step_one(S, W, P, D, inputs, nsub, target, tp, action, obs, terms, senso
         drawn[0] += 1
         phi = external_potential(S, P, W.ext, first)
     # the general kernel: an environment always has inputs and, as a rule, an off-centre load
-    advance_loop(S, W, P, inputs, nsub, result, free, True, True, P.compensated, False, implicit, disturbed)
+    if winched:
+        winch_loop(S, W, P, WA, D, inputs, reel, nsub, result, disturbed)
+    else:
+        advance_loop(S, W, P, inputs, nsub, result, free, True, True, P.compensated, False, implicit, disturbed)
     if disturbed:
         kahan_add(S.acc, S.accc, B_WORK, external_potential(S, P, W.ext, first) - phi)
     advance_reference(target, result[R_STEPS] * P.h)
     status = result[R_STATUS]
-    diagnostics(S, P, D)
-    code = env_observe(S, P, D, target, tp, action, obs, terms, sensors)
+    if winched:
+        length = WA.state[WN_LENGTH]
+        winch_energy(S, P, WA, D, length, WA.state[WN_SPEED])
+        n = S.r.shape[0] - 1
+        Pl = length_params(P, WA, length, WA.state[WN_MASS_PER_LENGTH] * length / n, first, n, False)
+        code = env_observe(S, Pl, D, target, tp, action, obs, terms, sensors, length)
+        obs[O_LENGTH] = length
+    else:
+        diagnostics(S, P, D)
+        code = env_observe(S, P, D, target, tp, action, obs, terms, sensors, tp[TP_STRING_LENGTH])
     result[R_TERMINATION] = status if status != OK else code
 
 
 @kernel
-def env_reset_observe(S, P, D, target, tp, action, obs, terms, sensors):
-    """Observation of a freshly set state (no step). Returns the termination code."""
+def env_reset_observe(S, P, D, WA, target, tp, action, obs, terms, sensors, winched):
+    """Observation of a freshly set state (no step; a winch at the scene's length and at rest).
+    Returns the termination code."""
     diagnostics(S, P, D)
-    return env_observe(S, P, D, target, tp, action, obs, terms, sensors)
+    code = env_observe(S, P, D, target, tp, action, obs, terms, sensors, tp[TP_STRING_LENGTH])
+    if winched:
+        obs[O_LENGTH] = WA.state[WN_LENGTH]
+    return code
 
 
 @kernel(inline="always")
@@ -211,6 +237,13 @@ def diag_row(D, b):
 
 
 @kernel(inline="always")
+def winch_row(WA, b):
+    """Sub-environment ``b`` of a stacked :class:`WinchArrays` (views)."""
+    return WinchArrays(WA.state[b], WA.coef[b], WA.lower[b], WA.upper[b], WA.inv[b], WA.cp[b], WA.w[b], WA.jeff[b],
+                       WA.pshift[b], WA.dinv[b], WA.dcp[b], WA.dw[b], WA.djeff[b], WA.backup[b])
+
+
+@kernel(inline="always")
 def params_row(P, b):
     """Sub-environment ``b``'s constants from a stacked :class:`LGVIParams` (each scalar field a
     (B,) array, each array field with a leading batch axis): the types of one environment's."""
@@ -219,56 +252,62 @@ def params_row(P, b):
                       P.max_iter[b], P.gammas[b], P.max_len2[b], P.compensated[b], P.mdiag[b])
 
 
-def _entry_points(implicit: bool, disturbed: bool):
+def _entry_points(implicit: bool, disturbed: bool, winched: bool):
     """``(step, batch)``, the compiled entry points of one string scheme, with or without wind and
     pushes (``implicit`` and ``disturbed`` are closure constants, so each variant compiles only
     when it is used; numba caches closures by their values, as in kernels/specialise.py).
 
-    ``step(s, w, p, d, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result,
+    ``step(s, w, p, d, wa, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result,
     dp, ds, draws, drawn)``: :func:`take_action` of the raw action, then :func:`env_step_one`,
     for one environment (one compiled call per control step). Returns False, with nothing
-    changed, if the raw action is not finite. ``s, w, p, d`` are the fields of StateArrays,
-    Work, LGVIParams and DiagWork as *plain* tuples: numba's dispatcher types a plain tuple
+    changed, if the raw action is not finite. ``s, w, p, d, wa`` are the fields of StateArrays,
+    Work, LGVIParams, DiagWork and WinchArrays (read only when ``winched``) as *plain* tuples: numba's dispatcher types a plain tuple
     about twice as fast as a namedtuple (3 us less per call here), and the namedtuples are
     rebuilt for free in compiled code. ``dp, ds, draws, drawn`` (read only when ``disturbed``):
     DISTURBANCE_PARAMS, DISTURBANCE, (K, DRAWS) random draws and the index (1,) int64 of the
     next one, which the caller keeps below K.
 
-    ``batch(s, w, d, p, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors,
+    ``batch(s, w, d, p, wa, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors,
     result, dp, ds, draws, drawn)``: :func:`take_action` of ``raw[b]`` and :func:`env_step_one`
     for every environment b with ``active[b]``, in parallel (the raw actions must be finite:
-    :func:`actions_finite`). ``s, w, d, p`` are StateArrays, Work, DiagWork and LGVIParams
-    whose arrays carry a leading batch axis (:func:`params_row`), as plain tuples; the other
+    :func:`actions_finite`). ``s, w, d, p, wa`` are StateArrays, Work, DiagWork, LGVIParams and
+    WinchArrays whose arrays carry a leading batch axis (:func:`params_row`), as plain tuples; the other
     arrays are batched too: raw (B, ACTION), ap (B, ACTION_PARAMS), inputs (B, INPUTS), nsub
     (B,), target (B, TARGET), tp (B, TASK_PARAMS), action, obs, terms, sensors (B, SENSORS),
     result (B, REPORT), dp, ds, draws (B, K, DRAWS), drawn (B, 1).
     """
 
     @kernel
-    def step(s, w, p, d, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result, dp, ds, draws, drawn):
-        if not take_action(raw, ap, action, inputs):
+    def step(s, w, p, d, wa, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result, dp, ds, draws,
+             drawn):
+        reel = take_action(raw, ap, action, inputs)
+        if reel == -np.inf:
             return False
-        env_step_one(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), inputs, nsub, target, tp, action,
-                     obs, terms, sensors, result, dp, ds, draws, drawn, implicit, disturbed)
+        env_step_one(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), inputs, reel, nsub,
+                     target, tp, action, obs, terms, sensors, result, dp, ds, draws, drawn, implicit, disturbed,
+                     winched)
         return True
 
     @kernel(parallel=True)
-    def batch(s, w, d, p, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors, result, dp, ds,
+    def batch(s, w, d, p, wa, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors, result, dp, ds,
               draws, drawn):
         S = StateArrays(*s)
         W = Work(*w)
         D = DiagWork(*d)
         P = LGVIParams(*p)
+        WA = WinchArrays(*wa)
         for b in prange(raw.shape[0]):
-            if active[b] and take_action(raw[b], ap[b], action[b], inputs[b]):
-                env_step_one(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), inputs[b],
-                             nsub[b], target[b], tp[b], action[b], obs[b], terms[b], sensors[b], result[b], dp[b],
-                             ds[b], draws[b], drawn[b], implicit, disturbed)
+            if active[b]:
+                reel = take_action(raw[b], ap[b], action[b], inputs[b])
+                if reel != -np.inf:
+                    env_step_one(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), winch_row(WA, b),
+                                 inputs[b], reel, nsub[b], target[b], tp[b], action[b], obs[b], terms[b], sensors[b],
+                                 result[b], dp[b], ds[b], draws[b], drawn[b], implicit, disturbed, winched)
 
     return step, batch
 
 
-#: The entry points by (implicit string, wind and pushes) (see :func:`_entry_points`); the
-#: implicit string's and the disturbed ones compile only for environments that use them.
-ENTRY_POINTS = {(implicit, disturbed): _entry_points(implicit, disturbed)
-                for implicit in (False, True) for disturbed in (False, True)}
+#: The entry points by (implicit string, wind and pushes, winch) (see :func:`_entry_points`); each
+#: compiles only for environments that use it.
+ENTRY_POINTS = {(implicit, disturbed, winched): _entry_points(implicit, disturbed, winched)
+                for implicit in (False, True) for disturbed in (False, True) for winched in (False, True)}

@@ -27,6 +27,7 @@ at fixed (q, p) where the reel speed changes.
 import numpy as np
 
 from .diagnostics import diagnostics
+from .disturbance import kick
 from .jit import kernel
 from .layout import (B_GRAVITY_IMPULSE, B_WINCH_WORK, D_ENERGY, D_KINETIC_STRING, D_LINEAR_MOMENTUM, D_PI3, OK,
                      R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS, WN_DH_DL, WN_EA, WN_END_SHARE,
@@ -296,13 +297,16 @@ def winch_energy(S, P, WA, D, length, v):
     return out[D_ENERGY], dH
 
 
-@kernel
-def winch_advance(S, W, P, WA, D, inputs, speed, nsteps, stats):
+@kernel(inline="always")
+def winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed):
     """Take up to ``nsteps`` steps reeling at ``speed`` [m/s] (held; each step's speed is cut so
     the length stays in the winch's range, and is 0 at an end), with constant ``inputs``; stop at
     the first failure with the last good state. ``stats`` as :func:`~.loops.advance_loop`'s. The
-    winch's work joins ``S.acc`` (B_WINCH_WORK). Every term is computed (the general path)."""
+    winch's work joins ``S.acc`` (B_WINCH_WORK). Every term is computed (the general path).
+    ``disturbed`` (a compile-time constant): the held external forces ``W.ext`` kick as in
+    :func:`~.loops.advance_loop` (h/2 before the first step and after the last, h between)."""
     free = P.first == 0
+    first = 0 if free else 1
     compensated = P.compensated
     st = WA.state
     gammas = P.gammas
@@ -310,6 +314,8 @@ def winch_advance(S, W, P, WA, D, inputs, speed, nsteps, stats):
     h = P.h
     total = 0
     most = 0
+    if disturbed and nsteps > 0:
+        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, 0.5 * h, first)
     for k in range(nsteps):
         length = st[WN_LENGTH]
         v = speed
@@ -357,6 +363,8 @@ def winch_advance(S, W, P, WA, D, inputs, speed, nsteps, stats):
                 restore_state(S, W.backup)
                 for i in range(st.shape[0]):
                     st[i] = WA.backup[i]
+            if disturbed:  # take the pending half kick back
+                kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, -0.5 * h, first)
             stats[R_STATUS] = status
             stats[R_STEPS] = k
             stats[R_NEWTON_TOTAL] = total
@@ -364,7 +372,15 @@ def winch_advance(S, W, P, WA, D, inputs, speed, nsteps, stats):
             return
         if v == 0.0:
             st[WN_DH_DL] = np.nan
+        if disturbed:
+            kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, h if k + 1 < nsteps else 0.5 * h, first)
     stats[R_STATUS] = OK
     stats[R_STEPS] = nsteps
     stats[R_NEWTON_TOTAL] = total
     stats[R_NEWTON_MAX] = most
+
+
+@kernel
+def winch_advance(S, W, P, WA, D, inputs, speed, nsteps, stats):
+    """:func:`winch_loop` without external forces: ``Simulator.step``'s winch."""
+    winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, False)

@@ -1,0 +1,90 @@
+"""ElasticStringPendulum-v0 with a winch (``winch=True``): the 7th action reels, the observation
+ends with the length, the tasks lift and lower, and the balances of the compiled step."""
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import esp_gym  # noqa: F401  (registers the environment)
+from esp_gym.kernels.layout import WINCH_OBSERVATION
+
+ENV_ID = "ElasticStringPendulum-v0"
+
+
+def reel(a: float) -> np.ndarray:
+    """The action that holds the system up and reels at ``a`` (x max_speed)."""
+    action = np.zeros(7)
+    action[6] = a
+    return action
+
+
+@pytest.mark.parametrize("task", ["lift", "lower", "stabilize"])
+def test_the_winch_adds_an_action_and_an_observation(task):
+    env = gym.make(ENV_ID, winch=True, task=task)
+    assert env.action_space == gym.spaces.Box(-1, 1, (7,), np.float32)
+    assert env.observation_space.shape == (WINCH_OBSERVATION.size,)
+    assert env.unwrapped.observation_structure["unstretched_length"] == slice(22, 23)
+    obs, _ = env.reset(seed=1)
+    length = env.unwrapped.scene.string.length
+    assert obs[-1] == np.float32(length)
+    check_env(env.unwrapped, skip_render_check=True)
+    hook = gym.make(ENV_ID, winch=True, task=task, observation="hook")
+    assert hook.observation_space.shape == (13,) and hook.unwrapped.observation_structure["unstretched_length"] == slice(12, 13)
+
+
+def test_the_reel_action_sets_the_speed_and_the_winch_stops_at_its_range():
+    """Reel out at full speed (1 m/s x 20 ms per step): 2 cm per step until twice the length, then
+    the winch stops there; the energy balance of the compiled step closes (E - E0 - W - W_winch,
+    the inputs' and the winch's work, measured 2e-4 of the winch's work at the environment's h)."""
+    env = gym.make(ENV_ID, winch=True, task="lower")
+    env.reset(seed=2)
+    sim = env.unwrapped.sim
+    l0 = sim.winch.length
+    obs, *_ = env.step(reel(1.0))
+    assert obs[-1] == pytest.approx(l0 + 0.02, abs=1e-6)
+    for _ in range(150):
+        obs, r, term, trunc, info = env.step(reel(1.0))
+        assert not term, info
+    d = sim.diagnostics()
+    assert d["unstretched_length"] == 2.0 * l0 and obs[-1] == np.float32(2.0 * l0)
+    assert abs(d["energy_balance_residual"]) < 1e-3 * abs(d["winch_work"])
+    obs, *_ = env.step(reel(-0.5))
+    assert obs[-1] == pytest.approx(2.0 * l0 - 0.01, abs=1e-6)
+
+
+def test_lift_and_lower_put_the_target_where_a_string_of_another_length_hangs():
+    for task, (low, high) in (("lift", (0.55, 0.75)), ("lower", (1.25, 1.6))):
+        env = gym.make(ENV_ID, winch=True, task=task)
+        depths = []
+        for seed in range(20):
+            env.reset(seed=seed)
+            pivot, load = env.unwrapped.target[:3], env.unwrapped.target[3:]
+            depths.append(load[2] - pivot[2])
+            if task == "lift":
+                assert np.array_equal(pivot, np.zeros(3))
+        scene = env.unwrapped.scene
+        from esp_gym.tasks import hanging_depth
+        assert hanging_depth(scene, low * scene.string.length) <= min(depths)
+        assert max(depths) <= hanging_depth(scene, high * scene.string.length)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(task="lift"), "winch=True"), (dict(task="lower"), "winch=True"),
+    (dict(winch=1), "winch"), (dict(winch=True, scene_overrides={"solver": {"string": "implicit"}}), "explicit string"),
+    (dict(winch=True, h=1e-3), "winch.s shortest"),
+])
+def test_bad_winch_arguments_are_named(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        gym.make(ENV_ID, **kwargs)
+
+
+def test_a_bad_reel_action_raises_and_changes_nothing():
+    env = gym.make(ENV_ID, winch=True, task="lift")
+    env.reset(seed=3)
+    env.step(reel(-0.5))
+    before = env.unwrapped.sim.state
+    for bad in (reel(np.nan), reel(np.inf), np.zeros(6)):
+        with pytest.raises(ValueError):
+            env.step(bad)
+    after = env.unwrapped.sim.state
+    assert np.array_equal(before.r, after.r) and before.winch == after.winch
