@@ -11,6 +11,10 @@ feedback, and rate damping of the load's spin.
   a_z = -kp_z e_pivot,z - kd_z v_pivot,z. The force is the total mass times a (the hover force
   is already added by the environment).
 * Body: tau = -k_spin Omega (body frame), damping the spin of the load.
+* Winch (``lift``, ``lower``: :class:`Hoist`): the same law on the pivot, and the reel speed
+  v = -k_length e_depth, e_depth the load's depth below its target's (reel in when it hangs
+  too deep), saturated at the winch's largest speed. The pivot's anti-sway feedback damps the
+  swing that hoisting and the pivot's moves excite.
 
 Gains were chosen by grid search on the mean return of seeded `stabilize` episodes (seeds
 1000+): first coarse (`python -m agents.tune --task stabilize --episodes 10`: kp in {1, 2, 4, 8},
@@ -30,7 +34,7 @@ from typing import Optional
 
 import numpy as np
 
-from esp_gym.kernels.layout import ACTION
+from esp_gym.kernels.layout import ACTION, WINCH_ACTION
 
 
 @dataclass(frozen=True)
@@ -78,11 +82,46 @@ BASELINES = {
 }
 
 
+@dataclass(frozen=True)
+class Hoist:
+    """A winch's baseline: :class:`AntiSwayPD` on the pivot and a proportional reel law on the
+    load's depth error, v = -k_length e_depth [m/s] (k_length [1/s]). The full observation gives
+    e_depth as the load's position error along z; the hook observation estimates the load's depth
+    as the string's length plus the nominal hanging depth's excess over it (its static stretch
+    and the attachment offset)."""
+
+    pd: AntiSwayPD = AntiSwayPD()
+    k_length: float = 1.0
+
+    def act(self, obs: np.ndarray, setup) -> np.ndarray:
+        """Action in [-1, 1]^7 (WINCH_ACTION) for one observation or a batch."""
+        from esp_gym.tasks import hanging_depth
+
+        obs = np.asarray(obs, dtype=np.float64)
+        layout = setup.observer.layout
+        if "load_position_error" in layout:
+            e_depth = obs[..., layout["load_position_error"]][..., 2]
+        else:  # the hook: depth ~ length + (nominal hanging depth - nominal length)
+            excess = hanging_depth(setup.scene) - setup.scene.string.length
+            e_depth = obs[..., layout["unstretched_length"]][..., 0] + excess - obs[..., layout["load_target_offset"]][..., 2]
+        action = np.empty(obs.shape[:-1] + (WINCH_ACTION.size,))
+        action[..., :ACTION.size] = self.pd.act(obs, setup)
+        action[..., WINCH_ACTION["reel_speed"]] = (-self.k_length / setup.scene.winch.max_speed * e_depth)[..., None]
+        return np.clip(action, -1.0, 1.0)
+
+
 class ZeroPolicy:
-    """The zero action: hover, no torque."""
+    """The zero action: hover, no torque (and the reel at rest)."""
 
     def act(self, obs, setup):
-        return np.zeros(np.shape(obs)[:-1] + (ACTION.size,))
+        return np.zeros(np.shape(obs)[:-1] + (setup.action_size,))
+
+
+#: The winch's tasks: mean return over 10 episodes (seeds 1000+) on a grid of k_length in {0.5, 1,
+#: 2, 4} 1/s x the stabilize or transport pivot gains: lift 488.9 at 2 (490.0 at 4, but the
+#: transport gains fail there: 318.9), lower 413.8 at 1, stabilize gains both (zero action:
+#: 285.0, 197.0); agents/tune.py does not reach the winch's gain yet.
+BASELINES.update(lift=Hoist(BASELINES["stabilize"], 2.0), lower=Hoist(BASELINES["stabilize"], 1.0))
 
 
 #: The model-based designs' tuning (docs/agents.md: grids on 10 episodes, seeds 1000+). LQR:
@@ -96,11 +135,12 @@ SHAPING = {"shaper": "zv", "move_time": 0.1}
 LQG_TUNING = {"control_weight": 100.0, "state_noise": 1e-3, "force_noise": 1e-4, "model_error": 3.0}
 
 
-def baseline(task: str) -> AntiSwayPD:
-    """The PD law of ``task`` (the simplest reference)."""
+def baseline(task: str, winch: bool = False):
+    """The PD law of ``task`` (the simplest reference); with a winch, :class:`Hoist` around it."""
     if task not in BASELINES:
         raise ValueError(f"no baseline for task {task!r}; known: {sorted(BASELINES)}")
-    return BASELINES[task]
+    law = BASELINES[task]
+    return Hoist(law) if winch and not isinstance(law, Hoist) else law
 
 
 def baselines(task: str, env_kwargs: Optional[dict] = None) -> dict:
@@ -117,7 +157,9 @@ def baselines(task: str, env_kwargs: Optional[dict] = None) -> dict:
     from esp_gym.setup import make_setup
 
     setup = make_setup(task=task, **(env_kwargs or {}))
-    out = {"pd": baseline(task)}
+    out = {"pd": baseline(task, setup.winch)}
+    if setup.winch:  # the model-based designs are for a fixed length
+        return out
     if setup.observer.mode == "hook":
         out["lqg"] = ScheduledLQG(setup, **LQG_TUNING)
         return out

@@ -35,6 +35,7 @@ from agents.controllers import ZeroPolicy, baseline
 from agents.normalization import NormalizationFileError, NormStats
 from agents.residual import base_features, residual_for
 from esp_gym.kernels.layout import SENSORS
+from esp_gym.setup import make_setup
 from esp_gym.tasks import TASKS
 
 SUCCESS_DISTANCE = 0.1  #: [m]
@@ -148,7 +149,7 @@ def run_episodes(policy, task: str = "stabilize", episodes: int = 50, seed: int 
     and return their :class:`EpisodeResult`; ``record``: a ``.rrd`` path for a Rerun recording
     of the first episode. A policy with ``reset(env)`` is reset after each env reset."""
     if policy is None:
-        policy = baseline(task)
+        policy = baseline(task, make_setup(task=task, **(env_kwargs or {})).winch)
     out = []
     for i in range(episodes):
         env = gym.make(esp_gym.ENV_ID, task=task, **(env_kwargs or {}))

@@ -27,12 +27,12 @@ RESIDUAL_FILE = "residual.json"
 def base_policy(name: str, task: str, env_kwargs: Optional[dict] = None):
     """The baseline ``name`` of ``task`` under the environment options ``env_kwargs`` (one
     environment's; :class:`BatchedBase` runs it over a batch)."""
-    from agents.controllers import baseline, baselines
+    from agents.controllers import baselines
 
     if name not in BASES:
         raise ValueError(f"residual must be one of {BASES}, got {name!r}")
     if name == "pd":
-        return baseline(task)
+        return baselines(task, env_kwargs)["pd"]  # the winch's Hoist where the task reels
     known = baselines(task, env_kwargs)
     if name not in known:
         raise ValueError(f"residual {name!r} needs the hook observation (env_kwargs observation: hook or "

@@ -118,7 +118,7 @@ class ElasticStringPendulumEnv(gym.Env):
     | `action_latency` | 0 | control steps (0-50) between an action and its application (hover before the first) |
     | `wind` | 0.0 | mean wind speed [m/s] (gusts of 0.2 x it, direction drawn per episode), or a dict of esp_gym/wind.py `WindOptions` (speed, direction, gust_std, gust_time, drag coefficients, line_diameter, push_rate, push_speed): drag on the line and the load, pushes on the load |
     | `preset` | None | `"hard"`: randomize, wind 6 m/s with 1.5 m/s gusts and a push every 5 s on average, the hook observation with sensor noise 1 and a latency of 1 step (docs/environment.md) |
-    | `winch` | False | True: a winch at the pivot, its reel speed the 7th action, the length the last observation; h is chosen for the shortest string it reaches (`scene.winch`) |
+    | `winch` | None | True: a winch at the pivot, its reel speed the 7th action, the length the last observation; h is chosen for the shortest string it reaches (`scene.winch`). None: as the task needs (True for `lift` and `lower`) |
     | `render_mode` | None | `"rgb_array"`: uint8 frames, front and side views |
 
     ## Version History
@@ -133,7 +133,7 @@ class ElasticStringPendulumEnv(gym.Env):
                  scene_overrides: Optional[dict] = None, render_mode: Optional[str] = None,
                  randomize: Union[bool, dict] = False, observation: str = "full",
                  sensor_noise: Union[float, dict] = 0.0, action_latency: int = 0, wind: Union[float, dict] = 0.0,
-                 preset: Optional[str] = None, winch: bool = False):
+                 preset: Optional[str] = None, winch: Optional[bool] = None):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.setup = make_setup(scene, task, control_period, h, safety, force_limit, torque_limit, scene_overrides,

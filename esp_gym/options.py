@@ -50,7 +50,8 @@ class EnvOptions(BaseModel):
     #: a speed or a mapping: checked by esp_gym/wind.py
     wind: Any = 0.0
     preset: Optional[Literal["hard"]] = None
-    winch: Flag = False
+    #: None: as the task needs (lift, lower)
+    winch: Optional[Flag] = None
 
 
 def validation_message(error: ValidationError, what: str) -> str:

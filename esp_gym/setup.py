@@ -155,7 +155,7 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
                scene_overrides: Optional[dict] = None, randomize: Union[bool, dict] = False,
                observation: str = "full", sensor_noise: Union[float, dict] = 0.0,
                action_latency: int = 0, wind: Union[float, dict] = 0.0, preset: Optional[str] = None,
-               winch: bool = False) -> EnvSetup:
+               winch: Optional[bool] = None) -> EnvSetup:
     """Resolve the environment's arguments (see :class:`~esp_gym.env.ElasticStringPendulumEnv`),
     validated by :class:`~esp_gym.options.EnvOptions` (ValueError naming each bad one)."""
     o = env_options(scene=scene, task=task, control_period=control_period, h=h, safety=safety,
@@ -179,9 +179,10 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
     if not resolved.pivot.is_free:
         raise ValueError(f"ElasticStringPendulum-v0 pushes the pivot: scene {resolved.name!r} needs pivot.kind: free")
     t = get_task(o.task)
-    if t.needs_winch and not o.winch:
-        raise ValueError(f"ElasticStringPendulum-v0: task={o.task!r} reels the string: pass winch=True")
-    if o.winch and resolved.solver.string != "explicit":
+    winch = t.needs_winch if o.winch is None else o.winch
+    if t.needs_winch and not winch:
+        raise ValueError(f"ElasticStringPendulum-v0: task={o.task!r} reels the string: it needs winch=True")
+    if winch and resolved.solver.string != "explicit":
         raise ValueError("ElasticStringPendulum-v0: winch=True runs with the explicit string (solver.string: "
                          "explicit) so far")
     randomizer = None if o.randomize is False else Randomizer(resolved, o.randomize)
@@ -192,13 +193,13 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
     bound_name = f"safety = {safety} x the stability bound" if explicit else "the transverse bound"
     # the stiffest episode (shortest, lightest, stiffest string) needs the most steps
     stiffest = resolved if randomizer is None else randomizer.scene(randomizer.stiffest())
-    if o.winch:  # and the shortest string the winch reaches
+    if winch:  # and the shortest string the winch reaches
         stiffest = shortest(stiffest)
     if h is None:
         wanted, what = scheme_substeps(stiffest, control_period, safety), bound_name
     else:
         wanted, what = control_period / h, f"h = {h} s"
-        if (randomizer is not None or o.winch) and explicit and not keep_unstable \
+        if (randomizer is not None or winch) and explicit and not keep_unstable \
                 and h > stiffest.string.stability_bound:
             raise ValueError(f"h = {h} s is above the stability bound {stiffest.string.stability_bound:.4g} s of the "
                              "stiffest string of the randomize ranges (shortest, lightest, largest EA) and the winch's "
@@ -208,7 +209,7 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
                          f"{wanted:.3g} physics steps per step (at most {MAX_SUBSTEPS:,}): use a larger h or "
                          f"safety, a shorter control_period, or a softer, longer or coarser string")
     if h is None:
-        substeps = scheme_substeps(shortest(resolved) if o.winch else resolved, control_period, safety)
+        substeps = scheme_substeps(shortest(resolved) if winch else resolved, control_period, safety)
     else:
         substeps = int(round(wanted))
         if substeps < 1 or abs(substeps * h - control_period) > 1e-9 * control_period:
@@ -223,5 +224,5 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
     return EnvSetup(scene=resolved, task=t, task_params=t.params(resolved), control_period=float(control_period),
                     substeps=substeps, hover=np.array([0.0, 0.0, -weight]), force_limit=float(force_limit),
                     torque_limit=float(o.torque_limit), safety=float(safety), fixed_h=h, randomizer=randomizer,
-                    observer=Observer(o.observation, o.sensor_noise, o.winch), action_latency=o.action_latency,
-                    wind=None if wind_given is None else Wind(wind_given, control_period), winch=o.winch)
+                    observer=Observer(o.observation, o.sensor_noise, winch), action_latency=o.action_latency,
+                    wind=None if wind_given is None else Wind(wind_given, control_period), winch=winch)

@@ -76,11 +76,13 @@ def pilot_error(scene: Scene, h: float, horizon: float) -> float:
 
 
 def choose_h(scene: Scene, accuracy: Optional[float] = None, horizon: float = 0.1, safety: float = 0.7,
-             divides: Optional[float] = None) -> StepChoice:
+             divides: Optional[float] = None, reeling: bool = False) -> StepChoice:
     """The largest h [s] that is stable with margin ``safety`` and, if ``accuracy`` [m] is given,
     keeps the load-position error over ``horizon`` [s] below it (estimated by a pilot pair of
-    runs; see the module docstring). With ``divides`` [s] (e.g. a control period) h is rounded
-    down so that it divides that time. Uses the scene's integrator (its order and composition).
+    runs at the scene's length; see the module docstring). With ``divides`` [s] (e.g. a control
+    period) h is rounded down so that it divides that time. ``reeling``: stable for the shortest
+    string the scene's winch reaches too (the bound scales with the element length). Uses the
+    scene's integrator (its order and composition).
 
     >>> choice = choose_h(load_scene("paper_example"), accuracy=1e-6)
     >>> sim = Simulator(choice.scene(load_scene("paper_example")))
@@ -93,7 +95,7 @@ def choose_h(scene: Scene, accuracy: Optional[float] = None, horizon: float = 0.
         raise ValueError(f"horizon must be a positive time [s], got {horizon}")
     if divides is not None and not (divides > 0 and math.isfinite(divides)):
         raise ValueError(f"divides must be a positive time [s], got {divides}")
-    h_stable = safety * scene.stability_bound
+    h_stable = safety * scene.stability_bound * (scene.winch_range[0] / scene.string.length if reeling else 1.0)
     h, limited, h_acc, estimate, pilot_h, pilot_err = h_stable, "stability", None, None, None, None
     if accuracy is not None:
         p = scene.solver.scheme.order

@@ -181,3 +181,12 @@ def test_what_cannot_reel_says_why():
         sim.run(0.01)
     with pytest.raises(ValueError, match="winch's range"):
         esp_gym.load_scene("paper_example", winch={"max_length": 0.9})
+
+
+def test_choose_h_for_a_reeling_string_is_stable_at_the_winchs_shortest():
+    scene = esp_gym.load_scene("paper_example", winch={"min_length": 0.4})
+    fixed, reeling = esp_gym.choose_h(scene), esp_gym.choose_h(scene, reeling=True)
+    assert reeling.h == pytest.approx(0.4 * fixed.h, rel=1e-12)
+    Simulator(reeling.scene(scene)).step(10, reel_speed=0.5)  # accepted at the shortest length
+    with pytest.raises(ValueError, match="winch.min_length"):
+        Simulator(fixed.scene(scene)).step(10, reel_speed=0.5)

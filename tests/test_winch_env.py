@@ -69,7 +69,7 @@ def test_lift_and_lower_put_the_target_where_a_string_of_another_length_hangs():
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    (dict(task="lift"), "winch=True"), (dict(task="lower"), "winch=True"),
+    (dict(task="lift", winch=False), "winch=True"), (dict(task="lower", winch=False), "winch=True"),
     (dict(winch=1), "winch"), (dict(winch=True, scene_overrides={"solver": {"string": "implicit"}}), "explicit string"),
     (dict(winch=True, h=1e-3), "winch.s shortest"),
 ])
@@ -88,3 +88,18 @@ def test_a_bad_reel_action_raises_and_changes_nothing():
             env.step(bad)
     after = env.unwrapped.sim.state
     assert np.array_equal(before.r, after.r) and before.winch == after.winch
+
+
+@pytest.mark.parametrize("task", ["lift", "lower"])
+def test_the_hoist_baseline_reels_the_load_to_its_target(task):
+    """agents.controllers.Hoist (the pivot's PD law and a reel law on the depth error) beats the
+    zero action by far (10 episodes in the tuning: lift 488.9 against 285.0, lower 413.8 against
+    197.0) and ends with the load near its target: 3 episodes here."""
+    from agents.controllers import ZeroPolicy, baselines
+    from agents.evaluate import evaluate_policy
+
+    hoist = baselines(task)["pd"]
+    ours = evaluate_policy(hoist, task, 3, seed=1000)
+    zero = evaluate_policy(ZeroPolicy(), task, 3, seed=1000)
+    assert ours["mean_return"] > zero["mean_return"] + 100.0, (ours, zero)
+    assert ours["success_rate"] == 1.0
