@@ -24,7 +24,6 @@ def winch_state(scene: Scene, max_len2: float) -> np.ndarray:
     s, st = scene.string, np.zeros(WINCH.size)
     consistent = s.mass_model == "consistent"
     st[WINCH["length"]] = s.length
-    st[WINCH["dH_dl"]] = np.nan
     st[WINCH["mass_per_length"]] = s.mass_per_length
     st[WINCH["EA"]] = s.EA
     st[WINCH["max_stretch"]] = math.sqrt(max_len2) / s.u
@@ -82,7 +81,6 @@ class Winch:
         st = self._state
         st[WINCH.scalar("length")] = length
         st[WINCH.scalar("reel_speed")] = self.check_speed(reel_speed)
-        st[WINCH.scalar("dH_dl")] = np.nan  # not known for a new state
 
     @staticmethod
     def _number(name: str, value) -> float:

@@ -156,15 +156,14 @@ B_EXTERNAL_IMPULSE = BALANCE.start("external_impulse")
 B_WINCH_WORK = BALANCE.scalar("winch_work")
 
 #: The winch (kernels/winch.py): the unstretched length l [m] and the reel speed dl/dt [m/s]
-#: of the state (the speed its momenta were made with), dH/dl at the state [J/m] (NaN: not yet
-#: known), the string's constants mass per length [kg/m], EA [N], solver.max_stretch, the
+#: of the state (the speed its momenta were made with), the string's constants mass per length
+#: [kg/m], EA [N], solver.max_stretch, the
 #: consistent or lumped mass model's shares of an element's mass on its end nodes' diagonal
 #: and off the diagonal, and the winch's range [m].
-WINCH = Layout(("length", 1), ("reel_speed", 1), ("dH_dl", 1), ("mass_per_length", 1), ("EA", 1),
+WINCH = Layout(("length", 1), ("reel_speed", 1), ("mass_per_length", 1), ("EA", 1),
                ("max_stretch", 1), ("end_share", 1), ("off_share", 1), ("min_length", 1), ("max_length", 1))
 WN_LENGTH = WINCH.scalar("length")
 WN_SPEED = WINCH.scalar("reel_speed")
-WN_DH_DL = WINCH.scalar("dH_dl")
 WN_MASS_PER_LENGTH = WINCH.scalar("mass_per_length")
 WN_EA = WINCH.scalar("EA")
 WN_MAX_STRETCH = WINCH.scalar("max_stretch")

@@ -21,7 +21,7 @@ With v = 0 this is the fixed-length step at length l.
 
 The energy reported while reeling is the Hamiltonian H = T2 - T0 + V of this time-dependent
 Lagrangian (T2 the usual kinetic energy of the nodes' motion), with p = M(l) rdot + c C^T r; the
-winch's work is the integral of dH/dt = (dH/dl) v along the steps (the trapezoid rule) plus H's jump
+winch's work is the integral of dH/dt = (dH/dl) v along the steps (the midpoint rule) plus H's jump
 at fixed (q, p) where the reel speed changes.
 """
 import numpy as np
@@ -30,7 +30,7 @@ from .diagnostics import diagnostics
 from .disturbance import kick
 from .jit import kernel
 from .layout import (B_GRAVITY_IMPULSE, B_WINCH_WORK, D_ENERGY, D_KINETIC_STRING, D_LINEAR_MOMENTUM, D_PI3, OK,
-                     R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS, WN_DH_DL, WN_EA, WN_END_SHARE,
+                     R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS, WN_EA, WN_END_SHARE,
                      WN_LENGTH, WN_MASS_PER_LENGTH, WN_MAX_LENGTH, WN_MAX_STRETCH, WN_MIN_LENGTH, WN_OFF_SHARE,
                      WN_SPEED, LGVIParams, StateArrays, Work)
 from .lgvi import held_inputs, kahan_add, left_torque, lgvi_commit, new_positions, rigid_increments
@@ -298,6 +298,49 @@ def winch_energy(S, P, WA, D, length, v):
 
 
 @kernel(inline="always")
+def midpoint_dH_dl(S, W, P, WA, h, l0, l1, first):
+    """dH/dl [J/m] at the midpoint of the step just taken (l0 -> l1 in ``h``): positions
+    r_k + dr/2, velocities dr/h (second-order accurate there), length (l0 + l1)/2; the formula
+    of :func:`winch_energy` without its solve for the velocities. The midpoint rule of
+    v dH/dl over the step is the winch's work, second order as the step."""
+    r = S.r
+    Y = W.Y  # dr (+ the remainders), so r_k + dr/2 = r_{k+1} - dr/2
+    n = r.shape[0] - 1
+    st = WA.state
+    mu = st[WN_MASS_PER_LENGTH]
+    length = 0.5 * (l0 + l1)
+    u = length / n
+    m = mu * u
+    off = st[WN_OFF_SHARE] * m
+    end = 0.5 * m - off
+    v = (l1 - l0) / h
+    theta = mu * v * v / (n * length)
+    kinetic = 0.0
+    convective = 0.0
+    vz = 0.0
+    de = 0.0
+    for e in range(n):
+        a0 = Y[e, 0] / h if e >= first else 0.0
+        a1 = Y[e, 1] / h if e >= first else 0.0
+        a2 = Y[e, 2] / h if e >= first else 0.0
+        b0 = Y[e + 1, 0] / h
+        b1 = Y[e + 1, 1] / h
+        b2 = Y[e + 1, 2] / h
+        kinetic += end * (a0 * a0 + a1 * a1 + a2 * a2 + b0 * b0 + b1 * b1 + b2 * b2) + 2.0 * off * (
+            a0 * b0 + a1 * b1 + a2 * b2)
+        x0 = (r[e + 1, 0] - r[e, 0]) - 0.5 * h * (b0 - a0)
+        x1 = (r[e + 1, 1] - r[e, 1]) - 0.5 * h * (b1 - a1)
+        x2 = (r[e + 1, 2] - r[e, 2]) - 0.5 * h * (b2 - a2)
+        s = x0 * x0 + x1 * x1 + x2 * x2
+        convective += WA.coef[e, 2] * s
+        vz += (r[e, 2] - 0.5 * h * a2) + (r[e + 1, 2] - 0.5 * h * b2)
+        eps = np.sqrt(s) / u - 1.0
+        if not (P.slack and eps < 0.0):
+            de += eps + 0.5 * eps * eps
+    return (-0.5 * kinetic + 0.5 * theta * convective - P.g * 0.5 * m * vz) / length - st[WN_EA] / n * de
+
+
+@kernel(inline="always")
 def winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed):
     """Take up to ``nsteps`` steps reeling at ``speed`` [m/s] (held; each step's speed is cut so
     the length stays in the winch's range, and is 0 at an end), with constant ``inputs``; stop at
@@ -328,13 +371,9 @@ def winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed):
             v = (end - length) / h
         if v != st[WN_SPEED]:  # H jumps at fixed (q, p) when the reel speed changes
             H_old, _ = winch_energy(S, P, WA, D, length, st[WN_SPEED])
-            H_new, dH = winch_energy(S, P, WA, D, length, v)
+            H_new, _ = winch_energy(S, P, WA, D, length, v)
             kahan_add(S.acc, S.accc, B_WINCH_WORK, H_new - H_old)
             st[WN_SPEED] = v
-            st[WN_DH_DL] = dH
-        if v != 0.0 and np.isnan(st[WN_DH_DL]):
-            _, dH = winch_energy(S, P, WA, D, length, v)
-            st[WN_DH_DL] = dH
         if composed:
             save_state(S, W.backup)
             for i in range(st.shape[0]):
@@ -352,9 +391,7 @@ def winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed):
             if status != OK:
                 break
             if v != 0.0:
-                _, dH = winch_energy(S, P, WA, D, lb, v)
-                kahan_add(S.acc, S.accc, B_WINCH_WORK, 0.5 * hi * v * (st[WN_DH_DL] + dH))
-                st[WN_DH_DL] = dH
+                kahan_add(S.acc, S.accc, B_WINCH_WORK, hi * v * midpoint_dH_dl(S, W, P, WA, hi, la, lb, first))
             st[WN_LENGTH] = lb
         total += iters
         most = max(most, iters)
@@ -370,8 +407,6 @@ def winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed):
             stats[R_NEWTON_TOTAL] = total
             stats[R_NEWTON_MAX] = most
             return
-        if v == 0.0:
-            st[WN_DH_DL] = np.nan
         if disturbed:
             kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, h if k + 1 < nsteps else 0.5 * h, first)
     stats[R_STATUS] = OK
