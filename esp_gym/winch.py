@@ -74,13 +74,13 @@ class Winch:
 
     def set(self, length: float, reel_speed: float) -> None:
         """Set the length [m] and the state's reel speed [m/s] (checked)."""
-        length = self._number("length", length)
+        length, speed = self._number("length", length), self.check_speed(reel_speed)  # both, before any change
         if not self.min_length <= length <= self.max_length:
             raise ValueError(f"length = {length:g} m lies outside the winch's range "
                              f"[{self.min_length:g}, {self.max_length:g}] m")
         st = self._state
         st[WINCH.scalar("length")] = length
-        st[WINCH.scalar("reel_speed")] = self.check_speed(reel_speed)
+        st[WINCH.scalar("reel_speed")] = speed
 
     @staticmethod
     def _number(name: str, value) -> float:

@@ -195,3 +195,14 @@ def test_choose_h_for_a_reeling_string_is_stable_at_the_winchs_shortest():
     Simulator(reeling.scene(scene)).step(10, reel_speed=0.5)  # accepted at the shortest length
     with pytest.raises(ValueError, match="winch.min_length"):
         Simulator(fixed.scene(scene)).step(10, reel_speed=0.5)
+
+
+def test_a_state_with_a_bad_winch_is_refused_whole():
+    sim = Simulator(esp_gym.load_scene("paper_example"))
+    sim.step(50, reel_speed=0.2)
+    good = sim.state
+    for winch, message in (((5.0, 0.0), "range"), ((1.0, float("nan")), "finite"), ((1.0, 3.0), "max_speed")):
+        bad = State(good.r, good.p, good.R, good.Pi, good.step, good.remainders, winch)
+        with pytest.raises(ValueError, match=message):
+            sim.set_state(bad)
+        assert sim.state.winch == good.winch and np.array_equal(sim.state.r, good.r)
