@@ -120,7 +120,7 @@ class ZeroPolicy:
 #: The winch's tasks: mean return over 10 episodes (seeds 1000+) on a grid of k_length in {0.5, 1,
 #: 2, 4} 1/s x the stabilize or transport pivot gains: lift 488.9 at 2 (490.0 at 4, but the
 #: transport gains fail there: 318.9), lower 413.8 at 1, stabilize gains both (zero action:
-#: 285.0, 197.0); agents/tune.py does not reach the winch's gain yet.
+#: 285.0, 197.0); `python -m agents.tune --task lift --grid '{"k_length": [0.5, 1, 2, 4]}'` reruns it.
 BASELINES.update(lift=Hoist(BASELINES["stabilize"], 2.0), lower=Hoist(BASELINES["stabilize"], 1.0))
 
 

@@ -5,7 +5,8 @@
 
 Every combination of the ``--grid`` values replaces those gains of the task's baseline; each is
 scored by its mean return over ``--episodes`` episodes (seeds 1000 + i). Prints the ten best as
-JSON lines, best first.
+JSON lines, best first. The winch's tasks (lift, lower) tune their Hoist: the PD law's gains and
+``k_length``.
 """
 from __future__ import annotations
 
@@ -14,12 +15,27 @@ import json
 from dataclasses import fields, replace
 
 from agents.cli import ArgumentParser
-from agents.controllers import baseline
+from agents.controllers import Hoist, baseline
 from agents.evaluate import evaluate_policy
 from esp_gym.tasks import TASKS
 
 #: The coarse grid of the first search (the default ``--grid``).
 COARSE_GRID = dict(kp=[1, 2, 4, 8], kd=[1, 2, 4, 8], k_sway=[0, 1, 2, 4, 8], k_spin=[0, 0.01, 0.02, 0.05])
+
+
+def gain_names(law) -> list:
+    """The gains ``--grid`` may set: the PD law's, and a Hoist's ``k_length`` besides its PD's."""
+    if isinstance(law, Hoist):
+        return sorted([f.name for f in fields(law.pd)] + ["k_length"])
+    return sorted(f.name for f in fields(law))
+
+
+def with_gains(law, gains: dict):
+    """``law`` with ``gains`` replaced (a Hoist's PD gains go to its PD law)."""
+    if isinstance(law, Hoist):
+        pd = {k: v for k, v in gains.items() if k != "k_length"}
+        return replace(law, pd=replace(law.pd, **pd), k_length=gains.get("k_length", law.k_length))
+    return replace(law, **gains)
 
 
 def tune(task: str, episodes: int, grid: dict, top: int = 10) -> list:
@@ -28,7 +44,7 @@ def tune(task: str, episodes: int, grid: dict, top: int = 10) -> list:
     base = baseline(task)
     for values in itertools.product(*grid.values()):
         gains = dict(zip(grid, values))
-        stats = evaluate_policy(replace(base, **gains), task=task, episodes=episodes, seed=1000)
+        stats = evaluate_policy(with_gains(base, gains), task=task, episodes=episodes, seed=1000)
         results.append((stats["mean_return"], gains))
     results.sort(key=lambda x: -x[0])
     for ret, gains in results[:top]:
@@ -53,7 +69,7 @@ def main(argv=None) -> list:
 
 def checked_grid(grid, task: str) -> dict:
     """``grid`` if it maps gains of the task's baseline to non-empty lists of numbers."""
-    gains = sorted(f.name for f in fields(baseline(task)))
+    gains = gain_names(baseline(task))
     if not isinstance(grid, dict) or not grid:
         raise ValueError(f"expected a JSON object of gain -> list of values, got {grid!r}")
     for name, values in grid.items():

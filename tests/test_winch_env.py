@@ -103,3 +103,15 @@ def test_the_hoist_baseline_reels_the_load_to_its_target(task):
     zero = evaluate_policy(ZeroPolicy(), task, 3, seed=1000)
     assert ours["mean_return"] > zero["mean_return"] + 100.0, (ours, zero)
     assert ours["success_rate"] == 1.0
+
+
+def test_tune_sets_the_hoists_gains():
+    """agents.tune reaches a Hoist's reel gain and its PD law's gains (one grid point, one episode)."""
+    from agents.controllers import Hoist
+    from agents.tune import gain_names, with_gains
+
+    law = Hoist()
+    assert "k_length" in gain_names(law) and "kp" in gain_names(law)
+    tuned = with_gains(law, {"k_length": 3.0, "kp": 5.0})
+    assert (tuned.k_length, tuned.pd.kp, tuned.pd.kd) == (3.0, 5.0, law.pd.kd)
+    assert with_gains(law, {"kd": 1.0}).k_length == law.k_length
