@@ -281,9 +281,15 @@ def plot_learning_curve(run_dir: Path, title: str) -> Optional[Path]:
             val = json.loads(ref.read_text()).get(name)
             if val is not None:
                 ax.axhline(val, color="k", ls=style, lw=1, label=name.replace("_", " "))
-    ax.set_xlabel("environment steps")
-    ax.set_ylabel("episode return")
-    ax.set_title(title)
+    return save_learning_curve(fig, ax, run_dir, title)
+
+
+def save_learning_curve(fig, ax, run_dir: Path, title: str) -> Path:
+    """Label a learning curve's axes (environment steps, episode return), title, grid and legend,
+    and write it to ``run_dir/learning_curve.png``; closes the figure."""
+    import matplotlib.pyplot as plt
+
+    ax.set(xlabel="environment steps", ylabel="episode return", title=title)
     ax.grid(True, alpha=0.3)
     ax.legend(loc="lower right", fontsize=8)
     out = run_dir / "learning_curve.png"

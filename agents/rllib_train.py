@@ -34,12 +34,12 @@ import yaml
 
 import esp_gym
 from agents.cli import SettingsError, one_line, parse_settings, settings_parser
-from agents.common import ROOT, ConfigError, json_default
+from agents.common import ROOT, ConfigError, json_default, save_learning_curve
 from agents.controllers import ZeroPolicy
 from agents.evaluate import evaluate_policy
 from agents.ray_cluster import AddressError, check_address, cluster_nodes, connect, shutdown, token_auth
 from agents.rllib_common import CONFIG_FILE, RLlibPolicy, RLlibRunConfig, load_rllib_config, ppo_config, runner_steps
-from agents.runs import write_status, write_stopped
+from agents.runs import new_run_dir, write_status, write_stopped
 from esp_gym.tasks import TASKS
 
 ALGO = "rllib_ppo"
@@ -89,15 +89,7 @@ def check_settings(s: Settings) -> tuple:
     except (ValueError, TypeError) as err:
         raise SettingsError("--set", f"env_kwargs {cfg.env_kwargs}: {one_line(err)} (from --set or {CONFIG_FILE})") \
             from None
-    if s.run_name is not None and (Path(s.run_name).name != s.run_name or s.run_name in ("", ".", "..")):
-        raise SettingsError("--run-name", f"{s.run_name!r} is not a directory name")
-    runs = Path(s.runs)
-    if runs.exists() and not runs.is_dir():
-        raise SettingsError("--runs", f"{runs} is not a directory")
-    name = s.run_name or f"{esp_gym.ENV_ID}__{ALGO}__{s.task}__{s.seed}__{time.strftime('%Y%m%d-%H%M%S')}"
-    run_dir = runs / name
-    if run_dir.exists():
-        raise SettingsError("--run-name" if s.run_name else "--runs", f"{run_dir} already exists")
+    run_dir = new_run_dir(s.runs, s.run_name, ALGO, s.task, s.seed)
     try:
         check_address(s.address)
     except AddressError as err:
@@ -149,13 +141,7 @@ def plot_curve(run_dir: Path, title: str) -> Path:
         e = json.loads(ev.read_text())
         ax.errorbar([rows[-1]["env_steps"]], [e["mean_return"]], yerr=[e["std_return"]], fmt="s", color="tab:red",
                     label="final deterministic evaluation")
-    ax.set(xlabel="environment steps", ylabel="episode return", title=title)
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc="lower right", fontsize=8)
-    out = run_dir / "learning_curve.png"
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
-    return out
+    return save_learning_curve(fig, ax, run_dir, title)
 
 
 def read_progress(path: Path) -> list:

@@ -41,7 +41,7 @@ from agents.controllers import ZeroPolicy
 from agents.evaluate import evaluate_policy
 from agents.normalization import NormStats
 from agents.residual import base_policy, write_residual
-from agents.runs import Resume, RunCheckpoint, RunMonitor, write_status, write_stopped
+from agents.runs import Resume, RunCheckpoint, RunMonitor, new_run_dir, write_status, write_stopped
 from esp_gym.tasks import TASKS
 
 
@@ -131,19 +131,6 @@ def _config(s: Settings) -> RunConfig:
     return cfg
 
 
-def _new_run_dir(s: Settings) -> Path:
-    if s.run_name is not None and (Path(s.run_name).name != s.run_name or s.run_name in ("", ".", "..")):
-        raise SettingsError("--run-name", f"{s.run_name!r} is not a directory name")
-    runs = Path(s.runs)
-    if runs.exists() and not runs.is_dir():
-        raise SettingsError("--runs", f"{runs} is not a directory")
-    name = s.run_name or f"{esp_gym.ENV_ID}__{s.algo}__{s.task}__{s.seed}__{time.strftime('%Y%m%d-%H%M%S')}"
-    run_dir = runs / name
-    if run_dir.exists():
-        raise SettingsError("--run-name" if s.run_name else "--runs", f"{run_dir} already exists")
-    return run_dir
-
-
 def prepare(s: Settings, given: frozenset = frozenset()) -> Prepared:
     """Check the settings and build the environments and the model; raises SettingsError (one
     line, naming the argument) for anything wrong, having written nothing. ``given``: the
@@ -175,7 +162,7 @@ def prepare(s: Settings, given: frozenset = frozenset()) -> Prepared:
             raise SettingsError("--resume", f"no normalisation statistics beside {resume.checkpoint} "
                                             f"(model_vecnormalize_{resume.steps}_steps.npz or .pkl)")
     else:
-        run_dir = _new_run_dir(s)
+        run_dir = new_run_dir(s.runs, s.run_name, s.algo, s.task, s.seed)
 
     if cfg.privileged_critic and s.algo != "ppo":
         raise SettingsError("--set", f"privileged_critic needs an actor-critic with a state value (ppo), not {s.algo}")

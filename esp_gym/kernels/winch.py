@@ -159,7 +159,7 @@ def length_params(P, WA, length, m_mean, first, n, diagnostic):
 
 
 @kernel(inline="always")
-def step_solve(S, W, WA, h, c, hh, up0, up1, up2, push_pivot, first, n):
+def step_solve(S, W, WA, c, hh, up0, up1, up2, push_pivot, first, n):
     """X = A^-1 B of (1w), B = p + h/2 f~ - c C^T r (+ h/2 u_p on a pushed free pivot), with the
     step's factors (WA.lower, WA.inv, WA.cp) and f~ in ``W.fl``; three columns at once."""
     X = W.X
@@ -214,7 +214,7 @@ def winch_substep(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, compens
     factor_tridiagonal(P, WA, m_mean, 0.5 * h * c, first, n, WA.inv, WA.cp, WA.w, WA.jeff, WA.lower, WA.upper)
     up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2 = held_inputs(inputs, forced)
     l_0, l_1, l_2, t0, t1, t2 = left_torque(S.R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
-    step_solve(S, W, WA, h, c, hh, up0, up1, up2, free and forced, first, n)
+    step_solve(S, W, WA, c, hh, up0, up1, up2, free and forced, first, n)
     c0, c1, c2, e0, e1, e2, dr00, dr01, dr02, iters, status = rigid_increments(
         S, W, P, h, WA.jeff, WA.w, t0, t1, t2, free, forced, coupled)
     if status != OK:
