@@ -31,15 +31,20 @@ import numpy as np
 import scipy.linalg
 
 from agents.lqr import (LQR, REDUCED, equilibrium_target, lift, lqr_solution, plain_setup, preview_feedforward,
-                        preview_terms, reference_drift, reward_weights)
+                        preview_terms, reference_drift, reference_states, reward_weights)
 from esp_gym.control import ControlStep
-from esp_gym.kernels.layout import ACTION, TARGET
+from esp_gym.kernels.layout import ACTION, TARGET, Layout
 from esp_gym.observe import UNIT_NOISE
 from esp_gym.params import override_scene
 from esp_gym.tasks import hanging_depth
 
 #: Entries of z that the process noise drives (velocities: forces act on them).
 DRIVEN = ("pivot_velocity", "load_velocity", "rate_h")
+#: What a ``track`` design tells a residual network of the reference beside its estimate
+#: (:attr:`HookLQG.features`): the preview feed-forward [action units], the reference's velocity
+#: [m/s] and its displacement [m] over the next PREVIEW_TIMES [s].
+PREVIEW_TIMES = (0.5, 1.0)
+REFERENCE_CONTEXT = Layout(("feedforward", 3), ("reference_velocity", 3), ("reference_ahead", 3 * len(PREVIEW_TIMES)))
 
 
 def measurement_model(setup, episode=None, z_step: float = 1e-5) -> tuple:
@@ -170,12 +175,29 @@ class HookLQG:
         self._predicted = np.zeros(self.A_est.shape[0])
         self._estimate = self._predicted
         self._drift0 = None
+        self._context = np.zeros(REFERENCE_CONTEXT.size)
 
     @property
     def estimate(self) -> np.ndarray:
         """The filtered [z; q; f] after the last observation (z: REDUCED, q: the pending actions,
         f: the load force [N])."""
         return self._estimate
+
+    @property
+    def features(self) -> np.ndarray:
+        """What a residual network sees of this law: the estimate, and for a ``track`` design the
+        reference's REFERENCE_CONTEXT after the last observation (zeros for a fixed target)."""
+        return np.concatenate((self._estimate, self._context)) if self.preview else self._estimate
+
+    def _reference_context(self, feedforward: np.ndarray) -> np.ndarray:
+        context = np.zeros(REFERENCE_CONTEXT.size)
+        context[REFERENCE_CONTEXT["feedforward"]] = feedforward
+        now = float(self._target[TARGET.scalar("clock")])
+        ahead = reference_states(self._target, now + np.array((0.0,) + PREVIEW_TIMES))
+        pivot = REDUCED["pivot_error"]
+        context[REFERENCE_CONTEXT["reference_velocity"]] = ahead[0, REDUCED["pivot_velocity"]]
+        context[REFERENCE_CONTEXT["reference_ahead"]] = (ahead[1:, pivot] - ahead[0, pivot]).ravel()
+        return context
 
     def _drift(self) -> np.ndarray:
         """The reference's drifts d_k of the next preview steps (16 each), or None."""
@@ -194,7 +216,9 @@ class HookLQG:
         force = -self.K @ estimate[:nx] - self.K_force @ estimate[nx:]
         drift = self._drift()
         if drift is not None:  # the reference moves z only: the pending actions' drift is 0
-            force = force + preview_feedforward(self.preview, drift)
+            feedforward = preview_feedforward(self.preview, drift)
+            force = force + feedforward
+            self._context = self._reference_context(feedforward)
         force = np.clip(force, -1.0, 1.0)
         self._estimate, self._drift0 = estimate, None if drift is None else drift[0]
         self._predict(force)
@@ -256,6 +280,13 @@ class ScheduledLQG:
         if self._law is None:
             return np.zeros(self.laws[0].A_est.shape[0])
         return self._law.estimate
+
+    @property
+    def features(self) -> np.ndarray:
+        """The current design's :attr:`HookLQG.features` (zeros before the first observation)."""
+        if self._law is None:
+            return np.zeros(self.laws[0].features.shape)
+        return self._law.features
 
     def act(self, obs: np.ndarray, setup) -> np.ndarray:
         if self._law is None:  # weigh the load with the first observation

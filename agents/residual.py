@@ -6,7 +6,8 @@ reads it back and adds the same baseline when it acts.
 
 ``pd`` is stateless and acts on the raw observation. ``lqg`` (hook observation) is a Kalman
 filter per environment: it is told the action actually applied (base plus network), and the
-network also sees its estimate [z; q; f] (agents/lqg.py), appended to the observation, so the
+network also sees its estimate [z; q; f] (agents/lqg.py; for ``track`` also the reference's
+feed-forward, velocity and displacement ahead), appended to the observation, so the
 policy starts from the filter's state rather than from raw hook readings.
 """
 from __future__ import annotations
@@ -41,15 +42,16 @@ def base_policy(name: str, task: str, env_kwargs: Optional[dict] = None):
 
 
 def base_features(base, batch: tuple = ()) -> np.ndarray:
-    """What the network sees of a base beside the observation: a stateful base's estimate, shape
-    batch + (k,), or an empty (..., 0) array for a stateless one."""
-    estimate = getattr(base, "estimate", None)
-    return np.zeros(batch + (0,)) if estimate is None else np.asarray(estimate, dtype=np.float64)
+    """What the network sees of a base beside the observation: a stateful base's ``features``
+    (its estimate, and a ``track`` design's reference context, agents/lqg.py), shape batch + (k,),
+    or an empty (..., 0) array for a stateless one."""
+    features = getattr(base, "features", None)
+    return np.zeros(batch + (0,)) if features is None else np.asarray(features, dtype=np.float64)
 
 
 class BatchedBase:
     """A baseline over a batch of environments: a stateless one acts on the whole batch at once,
-    a stateful one (with ``clone``, ``start``, ``applied``, ``estimate``) as one copy each."""
+    a stateful one (with ``clone``, ``start``, ``applied``, ``features``) as one copy each."""
 
     def __init__(self, base, num_envs: int):
         self.stateful = hasattr(base, "clone")

@@ -22,7 +22,8 @@ from .kernels.specialise import general_kernels, specialised_kernels
 from .kernels.string import state_forces
 from .params import Scene, check_rotation
 from .trajectory import Trajectory  # noqa: F401  (re-exported)
-from .kernels.winch import winch_advance, winch_forces
+from .kernels.winch import winch_forces
+from .kernels.winch_loops import winch_advance, winch_advance_implicit
 from .winch import Winch
 from .state import State, build_params, check_memory, initial_state, legendre_momenta  # noqa: F401  (re-exported)
 
@@ -318,10 +319,11 @@ class Simulator:
     def _reel(self, n: int, speed: float) -> None:
         """:meth:`step` with the winch (kernels/winch.py), in calls of about :attr:`call_seconds`."""
         a, w = self._arrays, self.winch.arrays
+        advance = winch_advance_implicit if self.implicit else winch_advance
         while n > 0:
             k = min(n, self.steps_per_call)
             n -= k
-            self._timed(winch_advance, (a, self._work, self.params, w, self._diag, self._inputs, speed, k,
+            self._timed(advance, (a, self._work, self.params, w, self._diag, self._inputs, speed, k,
                                         self._stats), k)
 
     def run(self, t_final: float, record_every: int = 100, every_step: bool = False,

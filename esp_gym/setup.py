@@ -182,9 +182,6 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
     winch = t.needs_winch if o.winch is None else o.winch
     if t.needs_winch and not winch:
         raise ValueError(f"ElasticStringPendulum-v0: task={o.task!r} reels the string: it needs winch=True")
-    if winch and resolved.solver.string != "explicit":
-        raise ValueError("ElasticStringPendulum-v0: winch=True runs with the explicit string (solver.string: "
-                         "explicit) so far")
     randomizer = None if o.randomize is False else Randomizer(resolved, o.randomize)
     # the scene's scheme (explicit unless asked): choose_scheme's cost rule would pick the implicit
     # string for stiff strings, but its accuracy under random actions is not established yet

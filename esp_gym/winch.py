@@ -51,7 +51,7 @@ class Winch:
             self._arrays = WinchArrays(
                 state=self._state, coef=convective_weights(n, self.consistent), lower=z(n + 1), upper=z(n + 1),
                 inv=z(n + 1), cp=z(n + 1), w=z(n + 1), jeff=z((3, 3)), pshift=z((n + 1, 3)), dinv=z(n + 1),
-                dcp=z(n + 1), dw=z(n + 1), djeff=z((3, 3)), backup=z(WINCH.size))
+                dcp=z(n + 1), dw=z(n + 1), djeff=z((3, 3)), backup=z(WINCH.size), diag=z(n + 1), rhs=z((n + 1, 3)))
         return self._arrays
 
     def use_scene(self, scene: Scene, max_len2: float) -> None:
@@ -100,10 +100,11 @@ class Winch:
         return v
 
     def check_scene(self, scene: Scene, h: float) -> None:
-        """ValueError unless ``scene`` can reel at step ``h``: the explicit string, and h stable at
-        the winch's shortest length (the bound scales with the element length)."""
-        if scene.solver.string != "explicit":
-            raise ValueError("reel_speed: the winch runs with the explicit string (solver.string: explicit) so far")
+        """ValueError unless ``scene`` can reel at step ``h``: the explicit string's h stable at the
+        winch's shortest length (the bound scales with the element length); the implicit string
+        has no such bound (its steps cut themselves back where the transverse one breaks)."""
+        if scene.solver.string == "implicit":
+            return
         bound = scene.stability_bound * self.stability_scale
         if h > bound and not scene.allow_unstable_h:
             raise ValueError(f"reel_speed: h = {h:g} s exceeds the stability bound {bound:.4g} s at the winch's "

@@ -135,7 +135,10 @@ def winch_string_lagrangian(scene, r, dr, l0, l1, convective=True) -> float:
     over the step, by Gauss-Legendre in time and zeta along the straight-line motion; the part
     free of dr (|lambda (k - zeta) x_e|^2) and the potential by the trapezoid rule in time.
     ``convective=False`` drops lambda's terms (a negative control: the material does not flow).
-    With ``mass_model: lumped`` every zeta-integral is the trapezoid rule (as the lumped mass is)."""
+    With ``mass_model: lumped`` every zeta-integral is the trapezoid rule (as the lumped mass is).
+    With ``solver.string: implicit`` the elastic term is instead -h EA/(2 ubar) phi(sbar)^2 per
+    element, sbar the mean of its stretches |x| - u at both ends (u = l/N at each) and ubar = (u_k +
+    u_k+1)/2: the implicit string's mean-length energy with the rest length moving."""
     h, mu, EA, g, n = scene.h, scene.string.mass_per_length, scene.string.EA, scene.gravity, scene.string.elements
     speed = (l1 - l0) / h if convective else 0.0
     lumped = scene.string.mass_model == "lumped"
@@ -154,15 +157,24 @@ def winch_string_lagrangian(scene, r, dr, l0, l1, convective=True) -> float:
         v, c = shape / h, drift(l, x)
         moving = np.sum(v * v, axis=2) + 2.0 * np.sum(v * c, axis=2)
         total += h * w_tau * 0.5 * mu * (l / n) * float(np.sum(weights[None, :] * moving))
+    implicit = scene.solver.string == "implicit"
+    stretch = []
     for l, q in ((l0, r), (l1, r + dr)):
         x, u = q[1:] - q[:-1], l / n
         c = drift(l, x)
         t0 = 0.5 * mu * u * float(np.sum(weights[None, :] * np.sum(c * c, axis=2)))
-        strain = np.linalg.norm(x, axis=1) / u - 1.0
+        stretch.append(np.linalg.norm(x, axis=1) - u)
+        strain = stretch[-1] / u
         if scene.string.law == "slack":
             strain = np.maximum(strain, 0.0)
-        potential = float(np.sum(0.5 * EA * strain ** 2 * u) - mu * g * u * np.sum(0.5 * (q[:-1, 2] + q[1:, 2])))
+        elastic = 0.0 if implicit else float(np.sum(0.5 * EA * strain ** 2 * u))
+        potential = elastic - mu * g * u * float(np.sum(0.5 * (q[:-1, 2] + q[1:, 2])))
         total += 0.5 * h * (t0 - potential)
+    if implicit:
+        mean = 0.5 * (stretch[0] + stretch[1])
+        if scene.string.law == "slack":
+            mean = np.maximum(mean, 0.0)
+        total -= h * float(np.sum(EA / (l0 + l1) * n * mean ** 2))  # EA/(2 ubar) sbar^2, ubar = (l0 + l1)/(2N)
     return total
 
 

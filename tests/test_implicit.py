@@ -99,7 +99,7 @@ def _element_tension(s0, s1, kappa=3.0, u=0.5, slack=True):
     from esp_gym.kernels.implicit_terms import element_terms
     r = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, u + s0]])
     Y = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, s1 - s0]])
-    T, *_, stiffness = element_terms(r, Y, 0, kappa, u, slack)
+    T, *_, stiffness = element_terms(r, Y, 0, kappa, u, u, slack)
     return T, stiffness
 
 

@@ -183,7 +183,8 @@ class Stuck:
         time.sleep(3600)
 lifecycle.track(Stuck())
 print("ready", flush=True)
-time.sleep(3600)
+while True:  # short sleeps: a signal the kernel hands to another thread is handled at the next
+    time.sleep(0.05)  # bytecode; one long sleep would miss it (seen once in CI: a 30 s time-out)
 '''
 
 

@@ -52,18 +52,27 @@ def test_lqg_residual_env_with_a_zero_network_is_the_lqg():
     """ResidualVecEnv over the scheduled LQG (one filter per environment, told the applied
     action) and a zero network action reproduces the LQG's own episodes on the same seeds (the
     batched and single environments are the same bit for bit); the observation carries the
-    filter's estimate, and so do terminal observations."""
+    filter's features (its estimate and the reference's context: feed-forward, velocity and
+    displacement ahead, agents/lqg.py), and so do terminal observations."""
     from agents.evaluate import run_episodes
+    from agents.lqg import REFERENCE_CONTEXT
     from agents.residual import base_policy
+    from esp_gym.kernels.layout import TARGET
 
     kwargs = {"preset": "hard"}
     venv = ElasticStringPendulumSB3VecEnv(num_envs=2, task="track", max_episode_steps=60, **kwargs)
     venv.seed(500)
     wrapped = ResidualVecEnv(venv, base_policy("lqg", "track", kwargs), venv.setup)
     obs = wrapped.reset()
-    estimate = wrapped.batch.copies[0].estimate
-    assert obs.shape == (2, venv.observation_space.shape[0] + estimate.size)
-    assert np.array_equal(obs[0, -estimate.size:], estimate.astype(np.float32))
+    law = wrapped.batch.copies[0]
+    features = law.features
+    assert features.size == law.estimate.size + REFERENCE_CONTEXT.size
+    assert obs.shape == (2, venv.observation_space.shape[0] + features.size)
+    assert np.array_equal(obs[0, -features.size:], features.astype(np.float32))
+    context = features[law.estimate.size:]
+    target = venv.control.target[0]
+    assert np.allclose(context[REFERENCE_CONTEXT["reference_velocity"]], target[TARGET["velocity"]])
+    assert np.linalg.norm(context[REFERENCE_CONTEXT["reference_ahead"]]) > 0.01  # the curve moves on
     returns = np.zeros(2)
     for _ in range(60):
         obs, rewards, dones, infos = wrapped.step(np.zeros((2, 6), np.float32))

@@ -173,9 +173,6 @@ def test_a_bad_reel_command_raises_and_changes_nothing(bad, message):
 
 
 def test_what_cannot_reel_says_why():
-    implicit = Simulator(esp_gym.load_scene("drone_load", solver={"string": "implicit"}))
-    with pytest.raises(ValueError, match="explicit string"):
-        implicit.step(1, reel_speed=0.1)
     near = esp_gym.load_scene("paper_example", h=6e-4)  # stable at 1 m, not at the winch's 0.5 m
     with pytest.raises(ValueError, match="winch.min_length"):
         Simulator(near).step(1, reel_speed=0.1)

@@ -53,11 +53,40 @@ TOO_TENSE = -1
 
 
 @kernel(forceinline=True)
-def implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled):
+def explicit_start(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled):
+    """The implicit string's first guess: one explicit step with the forces ``S.f`` of the last
+    step's right half (the tensions along the elements at r_k): the tensions of consecutive steps
+    differ little even where f(r_k) would carry the stiff modes, and the body's turn comes with
+    the coupling. Increments into ``W.Y``; returns the Cayley vector (0 if the explicit step's
+    own Newton failed, with the string solve's increments)."""
+    n = S.r.shape[0] - 1
+    first = 0 if free else 1
+    c0, c1, c2, _, _, _, _, _, _, _, status = explicit_increments(S, W, P, h, up0, up1, up2, t0, t1, t2, free,
+                                                                  forced, coupled)
+    if status != 0:
+        c0 = c1 = c2 = 0.0
+        X = W.X
+        Y = W.Y
+        string_solve(P.inv, P.cp, first, S.p, S.f, 0.5 * h, up0, up1, up2, free and forced, X)
+        for a in range(first, n + 1):
+            Y[a, 0] = h * X[a, 0]
+            Y[a, 1] = h * X[a, 1]
+            Y[a, 2] = h * X[a, 2]
+    return c0, c1, c2
+
+
+@kernel(forceinline=True)
+def implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled, c0, c1, c2, diag, lower, upper,
+                    rhs, u0, u1, reeling):
     """Solve the implicit string's equations (module docstring) for the increments y (into
-    ``W.Y``, rows before the first unknown 0) and the Cayley vector c, from the explicit start.
-    ``t`` is the left torque tau_k [N m] (:func:`~.lgvi.left_torque`), ``up`` the pivot force [N]
-    (read if ``free and forced``).
+    ``W.Y``, rows before the first unknown 0) and the Cayley vector c, from the first guess in
+    ``W.Y`` and ``c`` (:func:`explicit_start`). ``t`` is the left torque tau_k [N m]
+    (:func:`~.lgvi.left_torque`), ``up`` the pivot force [N] (read if ``free and forced``).
+    ``reeling`` (a compile-time constant; kernels/winch_implicit.py): the mass matrix has the
+    diagonal ``diag`` and the off-diagonals ``lower`` (row a, column a-1) and ``upper`` (column
+    a+1), the right-hand side's constant part is ``rhs`` (h p_k + h^2/2 (f_g + grad T0) - h c C^T
+    r_k), and the rest lengths are ``u0``, ``u1`` at the two ends; otherwise ``diag`` is P.mdiag,
+    the off-diagonals P.off, the constant part h p_k + h^2/2 f_g, and u0 = u1 = P.u.
     Returns ``(c0, c1, c2, iterations, status)``: status 0, or NEWTON_FAILED / NON_FINITE."""
     r = S.r
     p = S.p
@@ -73,7 +102,6 @@ def implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled
     u = P.u
     slack = P.slack
     off = P.off
-    mdiag = P.mdiag
     M = P.M
     q4 = 0.25 * h * h
     gk0 = h * (S.Pi[0] + 0.5 * h * t0)  # h Pi_k + h^2/2 tau_k [kg m^2]
@@ -91,18 +119,6 @@ def implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled
         reach = max(reach, abs(r[a, 0]), abs(r[a, 1]), abs(r[a, 2]))
     rounding2 = (ROUNDOFF_ULPS * 2.220446049250313e-16 * reach) ** 2  # the positions' rounding [m^2]
     body_length2 = 4.0 * (J[0, 0] + J[1, 1] + J[2, 2]) / M  # (2 x the body's radius of gyration)^2 [m^2]
-    # start: one explicit step with the forces S.f of the last step's right half (the tensions
-    # along the elements at r_k): the tensions of consecutive steps differ little even where
-    # f(r_k) would carry the stiff modes, and the body's turn comes with the coupling
-    c0, c1, c2, _, _, _, _, _, _, _, status = explicit_increments(S, W, P, h, up0, up1, up2, t0, t1, t2, free,
-                                                                  forced, coupled)
-    if status != 0:
-        c0 = c1 = c2 = 0.0
-        string_solve(P.inv, P.cp, first, p, S.f, 0.5 * h, up0, up1, up2, free and forced, X)
-        for a in range(first, n + 1):
-            Y[a, 0] = h * X[a, 0]
-            Y[a, 1] = h * X[a, 1]
-            Y[a, 2] = h * X[a, 2]
     for a in range(first):
         Y[a, 0] = 0.0
         Y[a, 1] = 0.0
@@ -110,7 +126,7 @@ def implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled
     # the elements taut at r_k keep the taut branch (the elastic law) until Newton has converged
     # (docs/physics.md, "The taut-branch start")
     taut = W.taut
-    hold_taut(r, taut, u, slack)
+    hold_taut(r, taut, u0, slack)
     dc0 = dc1 = dc2 = 0.0
     alpha = 1.0
     merit_prev = np.inf
@@ -129,7 +145,7 @@ def implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled
         tp0 = tp1 = tp2 = 0.0  # the element above node a: T n_k, and k
         k00 = k01 = k02 = k10 = k11 = k12 = k20 = k21 = k22 = 0.0
         if not free:
-            tp0, tp1, tp2, k00, k01, k02, k10, k11, k12, k20, k21, k22 = element_block(r, Y, 0, kappa, u,
+            tp0, tp1, tp2, k00, k01, k02, k10, k11, k12, k20, k21, k22 = element_block(r, Y, 0, kappa, u0, u1,
                                                                                       slack and taut[0] == 0.0)
         e00 = e01 = e02 = e10 = e11 = e12 = e20 = e21 = e22 = 0.0  # E_{a-1}
         z0 = z1 = z2 = 0.0  # z_{a-1}
@@ -139,28 +155,38 @@ def implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled
             ta0 = ta1 = ta2 = 0.0
             l00 = l01 = l02 = l10 = l11 = l12 = l20 = l21 = l22 = 0.0
             if a < n:
-                ta0, ta1, ta2, l00, l01, l02, l10, l11, l12, l20, l21, l22 = element_block(r, Y, a, kappa, u,
-                                                                                          slack and taut[a] == 0.0)
+                ta0, ta1, ta2, l00, l01, l02, l10, l11, l12, l20, l21, l22 = element_block(r, Y, a, kappa, u0,
+                                                                                          u1, slack and taut[a] == 0.0)
             grav = g_mid
             if a == 0:
                 grav = g_end0
             elif a == n:
                 grav = g_endn
-            my0 = mdiag[a] * Y[a, 0]
-            my1 = mdiag[a] * Y[a, 1]
-            my2 = mdiag[a] * Y[a, 2]
+            lo = off  # the mass matrix's row a: A_{a,a-1}, A_{a,a+1}
+            up = off
+            if reeling:
+                lo = lower[a]
+                up = upper[a]
+            my0 = diag[a] * Y[a, 0]
+            my1 = diag[a] * Y[a, 1]
+            my2 = diag[a] * Y[a, 2]
             if a > 0:
-                my0 += off * Y[a - 1, 0]
-                my1 += off * Y[a - 1, 1]
-                my2 += off * Y[a - 1, 2]
+                my0 += lo * Y[a - 1, 0]
+                my1 += lo * Y[a - 1, 1]
+                my2 += lo * Y[a - 1, 2]
             if a < n:
-                my0 += off * Y[a + 1, 0]
-                my1 += off * Y[a + 1, 1]
-                my2 += off * Y[a + 1, 2]
+                my0 += up * Y[a + 1, 0]
+                my1 += up * Y[a + 1, 1]
+                my2 += up * Y[a + 1, 2]
             # -G_a = h p_a + h^2/2 (f~_a + f_g,a) (+ h^2/2 u_p) - (M_tot y)_a  [- M q at the attachment]
-            r0 = (h * p[a, 0] + h2 * (ta0 - tp0)) - my0
-            r1 = (h * p[a, 1] + h2 * (ta1 - tp1)) - my1
-            r2 = (h * p[a, 2] + h2 * ((ta2 - tp2) + grav)) - my2
+            if reeling:
+                r0 = (rhs[a, 0] + h2 * (ta0 - tp0)) - my0
+                r1 = (rhs[a, 1] + h2 * (ta1 - tp1)) - my1
+                r2 = (rhs[a, 2] + h2 * (ta2 - tp2)) - my2
+            else:
+                r0 = (h * p[a, 0] + h2 * (ta0 - tp0)) - my0
+                r1 = (h * p[a, 1] + h2 * (ta1 - tp1)) - my1
+                r2 = (h * p[a, 2] + h2 * ((ta2 - tp2) + grav)) - my2
             if free and forced and a == 0:
                 r0 += h2 * up0
                 r1 += h2 * up1
@@ -169,20 +195,20 @@ def implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled
                 r0 -= M * q0
                 r1 -= M * q1
                 r2 -= M * q2
-            inv_m = 1.0 / mdiag[a]
+            inv_m = 1.0 / diag[a]
             merit += (r0 * r0 + r1 * r1 + r2 * r2) * inv_m * inv_m
-            s00 = mdiag[a] + q4 * (k00 + l00)
+            s00 = diag[a] + q4 * (k00 + l00)
             s01 = q4 * (k01 + l01)
             s02 = q4 * (k02 + l02)
             s10 = q4 * (k10 + l10)
-            s11 = mdiag[a] + q4 * (k11 + l11)
+            s11 = diag[a] + q4 * (k11 + l11)
             s12 = q4 * (k12 + l12)
             s20 = q4 * (k20 + l20)
             s21 = q4 * (k21 + l21)
-            s22 = mdiag[a] + q4 * (k22 + l22)
+            s22 = diag[a] + q4 * (k22 + l22)
             if a > first:
-                # O = A_{a,a-1} = off I - h^2/4 k_{a-1}: S_a = A_aa - O E_{a-1}, rhs_a -= O z_{a-1}
-                o00, o01, o02, o10, o11, o12, o20, o21, o22 = coupling_block(off, q4, k00, k01, k02, k10, k11, k12,
+                # O = A_{a,a-1} = lo I - h^2/4 k_{a-1}: S_a = A_aa - O E_{a-1}, rhs_a -= O z_{a-1}
+                o00, o01, o02, o10, o11, o12, o20, o21, o22 = coupling_block(lo, q4, k00, k01, k02, k10, k11, k12,
                                                                              k20, k21, k22)
                 s00 -= o00 * e00 + o01 * e10 + o02 * e20
                 s01 -= o00 * e01 + o01 * e11 + o02 * e21
@@ -198,8 +224,8 @@ def implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled
                 r2 -= o20 * z0 + o21 * z1 + o22 * z2
             if a < n:
                 i00, i01, i02, i10, i11, i12, i20, i21, i22 = inverse3(s00, s01, s02, s10, s11, s12, s20, s21, s22)
-                # E_a = S_a^-1 A_{a,a+1}, A_{a,a+1} = off I - h^2/4 k_a; z_a = S_a^-1 rhs_a
-                o00, o01, o02, o10, o11, o12, o20, o21, o22 = coupling_block(off, q4, l00, l01, l02, l10, l11, l12,
+                # E_a = S_a^-1 A_{a,a+1}, A_{a,a+1} = up I - h^2/4 k_a; z_a = S_a^-1 rhs_a
+                o00, o01, o02, o10, o11, o12, o20, o21, o22 = coupling_block(up, q4, l00, l01, l02, l10, l11, l12,
                                                                              l20, l21, l22)
                 e00 = i00 * o00 + i01 * o10 + i02 * o20
                 e01 = i00 * o01 + i01 * o11 + i02 * o21
@@ -338,7 +364,7 @@ def implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled
         if converged:
             # an element held to the taut branch that ended slack takes the slack law's
             # branch from here on: a new equation, so the merit and the rates restart
-            if release_slack(r, Y, taut, u) == 0:
+            if release_slack(r, Y, taut, u1) == 0:
                 return c0, c1, c2, it, 0
             merit_prev = np.inf
             large_step = True
@@ -388,11 +414,13 @@ def implicit_step_once(S, W, P, inputs, h, free, forced, coupled, compensated, b
     first = 0 if free else 1
     up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2 = held_inputs(inputs, forced)
     l0, l1, l2, t0, t1, t2 = left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
-    c0, c1, c2, iters, status = implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled)
+    c0, c1, c2 = explicit_start(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled)
+    c0, c1, c2, iters, status = implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled, c0, c1,
+                                                c2, P.mdiag, P.mdiag, P.mdiag, S.p, P.u, P.u, False)
     if status != 0:
         return status, iters
     # the string's impulse over the step, h/2 (fl + fr): along the elements at both ends
-    _, tension = split_forces(r, Y, P, W.fl, W.fr)
+    _, tension = split_forces(r, Y, P, W.fl, W.fr, P.m, P.m, P.u, P.u)
     if bounded and 12.0 * tension * h * h > TRANSVERSE_LIMIT * TRANSVERSE_LIMIT * P.u * P.m:
         return TOO_TENSE, iters
     cayley_minus_identity(c0, c1, c2, W.FmI)

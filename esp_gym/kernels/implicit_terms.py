@@ -7,9 +7,10 @@ from .jit import kernel
 
 
 @kernel(inline="always")
-def element_terms(r, Y, a, kappa, u, slack):
-    """Element ``a`` (nodes a, a+1) over the step r_k -> r_k + Y, stretches s0 = |x_k| - u and
-    s1 = |x_k + dx| - u: its tension T = kappa (s0 + s1)/2 [N] (with ``slack``: 0 where both are
+def element_terms(r, Y, a, kappa, u0, u1, slack):
+    """Element ``a`` (nodes a, a+1) over the step r_k -> r_k + Y, stretches s0 = |x_k| - u0 and
+    s1 = |x_k + dx| - u1 (the rest lengths at both ends: equal unless a winch reels, then kappa is
+    EA over their mean): its tension T = kappa (s0 + s1)/2 [N] (with ``slack``: 0 where both are
     negative and the energy's secant where they straddle 0), the unit vectors n_k, n_{k+1} along
     it at both ends, and 2 dT/ds1 [N/m] (kappa where taut). Returns
     ``(T, n_k (3), n_{k+1} (3), 2 dT/ds1)``."""
@@ -21,8 +22,8 @@ def element_terms(r, Y, a, kappa, u, slack):
     w1 = x1 + (Y[a + 1, 1] - Y[a, 1])
     w2 = x2 + (Y[a + 1, 2] - Y[a, 2])
     ln = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-    s0 = lk - u
-    s1 = ln - u
+    s0 = lk - u0
+    s1 = ln - u1
     T = 0.5 * kappa * (s0 + s1)
     dT = kappa
     if slack:
@@ -76,10 +77,10 @@ def release_slack(r, Y, taut, u):
 
 
 @kernel(inline="always")
-def element_block(r, Y, a, kappa, u, slack):
+def element_block(r, Y, a, kappa, u0, u1, slack):
     """Element ``a``'s share of the Newton system (:func:`element_terms`): its force on node a,
     T n_k (3) [N], and k = 2 dT/ds1 n_k n_{k+1}^T (9, row-major) [N/m]."""
-    T, n0, n1, n2, m0, m1, m2, dT = element_terms(r, Y, a, kappa, u, slack)
+    T, n0, n1, n2, m0, m1, m2, dT = element_terms(r, Y, a, kappa, u0, u1, slack)
     return (T * n0, T * n1, T * n2, dT * n0 * m0, dT * n0 * m1, dT * n0 * m2, dT * n1 * m0, dT * n1 * m1,
             dT * n1 * m2, dT * n2 * m0, dT * n2 * m1, dT * n2 * m2)
 
@@ -92,11 +93,13 @@ def coupling_block(off, q4, k00, k01, k02, k10, k11, k12, k20, k21, k22):
 
 
 @kernel
-def split_forces(r, Y, P, fl, fr):
+def split_forces(r, Y, P, fl, fr, mass0, mass1, u0, u1):
     """The string's forces of the step, gravity included [N]: ``fl`` = f_g + sum T n_k (the left
     half, along the elements at r_k) and ``fr`` = f_g + sum T n_{k+1} (the right half), T the
-    elements' tensions at their mean lengths (:func:`element_terms`). Returns the sum of the
-    tensions (non-finite iff any is) and the largest [N]."""
+    elements' tensions at their mean lengths (:func:`element_terms`; rest lengths ``u0``, ``u1``
+    [m] at the two ends) and f_g the weight at element mass ``mass0`` (left) and ``mass1`` (right)
+    [kg]: P.m and P.u at both ends unless a winch reels. Returns the sum of the tensions
+    (non-finite iff any is) and the largest [N]."""
     n = r.shape[0] - 1
     total = 0.0
     most = 0.0
@@ -104,12 +107,15 @@ def split_forces(r, Y, P, fl, fr):
         for a in range(n + 1):
             fl[a, i] = 0.0
             fr[a, i] = 0.0
-    fl[0, 2] = fr[0, 2] = (0.5 * P.m + P.Mp) * P.g
+    fl[0, 2] = (0.5 * mass0 + P.Mp) * P.g
+    fr[0, 2] = (0.5 * mass1 + P.Mp) * P.g
     for a in range(1, n):
-        fl[a, 2] = fr[a, 2] = P.m * P.g
-    fl[n, 2] = fr[n, 2] = (0.5 * P.m + P.M) * P.g
+        fl[a, 2] = mass0 * P.g
+        fr[a, 2] = mass1 * P.g
+    fl[n, 2] = (0.5 * mass0 + P.M) * P.g
+    fr[n, 2] = (0.5 * mass1 + P.M) * P.g
     for a in range(n):
-        T, k0, k1, k2, m0, m1, m2, _ = element_terms(r, Y, a, P.kappa, P.u, P.slack)
+        T, k0, k1, k2, m0, m1, m2, _ = element_terms(r, Y, a, P.kappa, u0, u1, P.slack)
         fl[a, 0] += T * k0
         fl[a, 1] += T * k1
         fl[a, 2] += T * k2

@@ -110,8 +110,10 @@ Work = namedtuple("Work", "fn X Y FmI RF Rn jac backup fl fr dy elim taut ext")
 #: winch"), the Thomas factors of the step's matrix (``lower``, ``upper``, ``inv``, ``cp``, and
 #: its attachment column ``w``, (N+1,)) with ``jeff`` (3, 3), the shifted momenta ``pshift``
 #: (N+1, 3) and the mass matrix at the current length for the diagnostics (``dinv``, ``dcp``,
-#: ``dw``, ``djeff``), and a checkpoint of ``state`` (``backup``).
-WinchArrays = namedtuple("WinchArrays", "state coef lower upper inv cp w jeff pshift dinv dcp dw djeff backup")
+#: ``dw``, ``djeff``), a checkpoint of ``state`` (``backup``), and for the implicit string
+#: (kernels/winch_implicit.py) the step matrix's diagonal ``diag`` (N+1,) and the constant part
+#: ``rhs`` (N+1, 3) of its residual.
+WinchArrays = namedtuple("WinchArrays", "state coef lower upper inv cp w jeff pshift dinv dcp dw djeff backup diag rhs")
 
 #: Scratch and outputs of the diagnostics: node velocities V (N+1, 3) [m/s], per-element strain
 #: energy (N,) [J], body angular velocity omega (3,, body frame) [rad/s], and ``out``

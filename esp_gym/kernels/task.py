@@ -29,7 +29,8 @@ from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, A_REEL_SPEED, ACTION_SIZE, AP
                      StateArrays, Work)
 from .loops import advance_loop
 from .reference import advance_reference
-from .winch import length_params, winch_energy, winch_loop
+from .winch import length_params, winch_energy
+from .winch_loops import winch_loop
 
 
 @kernel
@@ -185,7 +186,7 @@ def env_step_one(S, W, P, D, WA, inputs, reel, nsub, target, tp, action, obs, te
         phi = external_potential(S, P, W.ext, first)
     # the general kernel: an environment always has inputs and, as a rule, an off-centre load
     if winched:
-        winch_loop(S, W, P, WA, D, inputs, reel, nsub, result, disturbed)
+        winch_loop(S, W, P, WA, D, inputs, reel, nsub, result, disturbed, implicit)
     else:
         advance_loop(S, W, P, inputs, nsub, result, free, True, True, P.compensated, False, implicit, disturbed)
     if disturbed:
@@ -240,7 +241,7 @@ def diag_row(D, b):
 def winch_row(WA, b):
     """Sub-environment ``b`` of a stacked :class:`WinchArrays` (views)."""
     return WinchArrays(WA.state[b], WA.coef[b], WA.lower[b], WA.upper[b], WA.inv[b], WA.cp[b], WA.w[b], WA.jeff[b],
-                       WA.pshift[b], WA.dinv[b], WA.dcp[b], WA.dw[b], WA.djeff[b], WA.backup[b])
+                       WA.pshift[b], WA.dinv[b], WA.dcp[b], WA.dw[b], WA.djeff[b], WA.backup[b], WA.diag[b], WA.rhs[b])
 
 
 @kernel(inline="always")

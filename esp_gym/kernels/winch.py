@@ -22,19 +22,16 @@ With v = 0 this is the fixed-length step at length l.
 The energy reported while reeling is the Hamiltonian H = T2 - T0 + V of this time-dependent
 Lagrangian (T2 the usual kinetic energy of the nodes' motion), with p = M(l) rdot + c C^T r; the
 winch's work is the integral of dH/dt = (dH/dl) v along the steps (the midpoint rule) plus H's jump
-at fixed (q, p) where the reel speed changes.
+at fixed (q, p) where the reel speed changes. The loops that reel are kernels/winch_loops.py's;
+the implicit string's step kernels/winch_implicit.py's.
 """
 import numpy as np
 
 from .diagnostics import diagnostics
-from .disturbance import kick
 from .jit import kernel
-from .layout import (B_GRAVITY_IMPULSE, B_WINCH_WORK, D_ENERGY, D_KINETIC_STRING, D_LINEAR_MOMENTUM, D_PI3, OK,
-                     R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS, WN_EA, WN_END_SHARE,
-                     WN_LENGTH, WN_MASS_PER_LENGTH, WN_MAX_LENGTH, WN_MAX_STRETCH, WN_MIN_LENGTH, WN_OFF_SHARE,
-                     WN_SPEED, LGVIParams, StateArrays, Work)
+from .layout import (B_GRAVITY_IMPULSE, D_ENERGY, D_KINETIC_STRING, D_LINEAR_MOMENTUM, D_PI3, OK, WN_EA, WN_END_SHARE,
+                     WN_LENGTH, WN_MASS_PER_LENGTH, WN_MAX_STRETCH, WN_OFF_SHARE, LGVIParams, StateArrays, Work)
 from .lgvi import held_inputs, kahan_add, left_torque, lgvi_commit, new_positions, rigid_increments
-from .loops import restore_state, save_state
 from .string import nodal_forces
 
 
@@ -123,6 +120,7 @@ def factor_tridiagonal(P, WA, m, skew, first, n, inv, cp, w, jeff, lower, upper)
             up = off + skew * (coef[a, 0] + coef[a, 1])
         lower[a] = lo
         upper[a] = up
+        WA.diag[a] = d
         inv[a] = 1.0 / (d - lo * prev)
         cp[a] = up * inv[a]
         prev = cp[a]
@@ -298,11 +296,13 @@ def winch_energy(S, P, WA, D, length, v):
 
 
 @kernel(inline="always")
-def midpoint_dH_dl(S, W, P, WA, h, l0, l1, first):
+def midpoint_dH_dl(S, W, P, WA, h, l0, l1, first, elastic):
     """dH/dl [J/m] at the midpoint of the step just taken (l0 -> l1 in ``h``): positions
     r_k + dr/2, velocities dr/h (second-order accurate there), length (l0 + l1)/2; the formula
     of :func:`winch_energy` without its solve for the velocities. The midpoint rule of
-    v dH/dl over the step is the winch's work, second order as the step."""
+    v dH/dl over the step is the winch's work, second order as the step. ``elastic`` False: the
+    elastic energy's share left out (the implicit string counts it per step:
+    kernels/winch_implicit.py)."""
     r = S.r
     Y = W.Y  # dr (+ the remainders), so r_k + dr/2 = r_{k+1} - dr/2
     n = r.shape[0] - 1
@@ -335,87 +335,6 @@ def midpoint_dH_dl(S, W, P, WA, h, l0, l1, first):
         convective += WA.coef[e, 2] * s
         vz += (r[e, 2] - 0.5 * h * a2) + (r[e + 1, 2] - 0.5 * h * b2)
         eps = np.sqrt(s) / u - 1.0
-        if not (P.slack and eps < 0.0):
+        if elastic and not (P.slack and eps < 0.0):
             de += eps + 0.5 * eps * eps
     return (-0.5 * kinetic + 0.5 * theta * convective - P.g * 0.5 * m * vz) / length - st[WN_EA] / n * de
-
-
-@kernel(inline="always")
-def winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed):
-    """Take up to ``nsteps`` steps reeling at ``speed`` [m/s] (held; each step's speed is cut so
-    the length stays in the winch's range, and is 0 at an end), with constant ``inputs``; stop at
-    the first failure with the last good state. ``stats`` as :func:`~.loops.advance_loop`'s. The
-    winch's work joins ``S.acc`` (B_WINCH_WORK). Every term is computed (the general path).
-    ``disturbed`` (a compile-time constant): the held external forces ``W.ext`` kick as in
-    :func:`~.loops.advance_loop` (h/2 before the first step and after the last, h between)."""
-    free = P.first == 0
-    first = 0 if free else 1
-    compensated = P.compensated
-    st = WA.state
-    gammas = P.gammas
-    composed = gammas.shape[0] > 1
-    h = P.h
-    total = 0
-    most = 0
-    if disturbed and nsteps > 0:
-        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, 0.5 * h, first)
-    for k in range(nsteps):
-        length = st[WN_LENGTH]
-        v = speed
-        end = length + h * v
-        if end >= st[WN_MAX_LENGTH]:
-            end = st[WN_MAX_LENGTH]
-            v = (end - length) / h
-        elif end <= st[WN_MIN_LENGTH]:
-            end = st[WN_MIN_LENGTH]
-            v = (end - length) / h
-        if v != st[WN_SPEED]:  # H jumps at fixed (q, p) when the reel speed changes
-            H_old, _ = winch_energy(S, P, WA, D, length, st[WN_SPEED])
-            H_new, _ = winch_energy(S, P, WA, D, length, v)
-            kahan_add(S.acc, S.accc, B_WINCH_WORK, H_new - H_old)
-            st[WN_SPEED] = v
-        if composed:
-            save_state(S, W.backup)
-            for i in range(st.shape[0]):
-                WA.backup[i] = st[i]
-        iters = 0
-        status = OK
-        reached = 0.0
-        for i in range(gammas.shape[0]):
-            hi = gammas[i] * h
-            la = length + reached * h * v
-            reached += gammas[i]
-            lb = end if i == gammas.shape[0] - 1 else length + reached * h * v
-            status, it = winch_substep(S, W, P, WA, inputs, hi, la, lb, free, True, True, compensated)
-            iters += it
-            if status != OK:
-                break
-            if v != 0.0:
-                kahan_add(S.acc, S.accc, B_WINCH_WORK, hi * v * midpoint_dH_dl(S, W, P, WA, hi, la, lb, first))
-            st[WN_LENGTH] = lb
-        total += iters
-        most = max(most, iters)
-        if status != OK:
-            if composed:
-                restore_state(S, W.backup)
-                for i in range(st.shape[0]):
-                    st[i] = WA.backup[i]
-            if disturbed:  # take the pending half kick back
-                kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, -0.5 * h, first)
-            stats[R_STATUS] = status
-            stats[R_STEPS] = k
-            stats[R_NEWTON_TOTAL] = total
-            stats[R_NEWTON_MAX] = most
-            return
-        if disturbed:
-            kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, h if k + 1 < nsteps else 0.5 * h, first)
-    stats[R_STATUS] = OK
-    stats[R_STEPS] = nsteps
-    stats[R_NEWTON_TOTAL] = total
-    stats[R_NEWTON_MAX] = most
-
-
-@kernel
-def winch_advance(S, W, P, WA, D, inputs, speed, nsteps, stats):
-    """:func:`winch_loop` without external forces: ``Simulator.step``'s winch."""
-    winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, False)

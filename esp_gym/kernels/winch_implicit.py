@@ -1,0 +1,184 @@
+"""The implicit string with a winch (docs/physics.md, "The winch", "The implicit string too").
+
+The discrete Lagrangian is the explicit winch's (kernels/winch.py: T2 + T1 exact along the
+step, T0 and gravity by the trapezoid rule) with the elastic term of the implicit string
+(kernels/implicit.py): each element's energy at its mean stretch over the step,
+
+    -h EA / (2 ubar) phi(sbar)^2,   sbar = ((|x_k| - u_k) + (|x_k+1| - u_k+1)) / 2,   ubar = (u_k + u_k+1) / 2,
+
+u = l / N at each end. Its equations are the implicit string's with the step's mass matrix of
+(1w) (tridiagonal, not symmetric) in place of M, and the constant part of the residual
+
+    h p_k + h^2/2 (f_g + grad T0)(r_k, l_k) - h c C^T r_k,
+
+and the momenta p_k+1 = p_k + h/2 (f~_k + f~_k+1) + c C dr as in (3w), f~ the tensions of the step
+along the elements at each end plus the weight and grad T0 at that end's length. The first guess
+is the explicit winch step with the last step's right forces; a step that fails is cut back as
+the implicit string's, each piece reeling its share of the length.
+"""
+import numpy as np
+
+from .implicit import CUTBACKS, TOO_TENSE, TRANSVERSE_LIMIT, implicit_newton
+from .implicit_terms import element_terms, split_forces
+from .jit import kernel
+from .layout import B_GRAVITY_IMPULSE, B_WINCH_WORK, NEWTON_FAILED, OK, WN_EA, WN_LENGTH, WN_MASS_PER_LENGTH
+from .lgvi import held_inputs, kahan_add, left_torque, lgvi_commit, new_positions, rigid_increments
+from .so3 import cayley_minus_identity
+from .winch import (add_convective_forces, convective_impulse, convective_momentum, factor_tridiagonal, length_params,
+                    midpoint_dH_dl, step_solve)
+
+
+@kernel(inline="always")
+def winch_implicit_once(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, compensated, bounded):
+    """One step of length ``h`` of the implicit string while the winch takes the unstretched
+    length ``l0 -> l1`` [m], without cutting back: the state untouched on failure and (``bounded``)
+    where its largest tension breaks the transverse bound at the shorter end's elements (status
+    TOO_TENSE). ``S.f`` holds the last step's right forces on entry (the first guess's) and this
+    step's on success. Returns ``(status, newton_iterations, the winch's elastic work [J])``
+    (:func:`elastic_winch_work`)."""
+    r = S.r
+    R = S.R
+    X = W.X
+    Y = W.Y
+    fl = W.fl
+    coef = WA.coef
+    rhs = WA.rhs
+    n = r.shape[0] - 1
+    first = 0 if free else 1
+    mu = WA.state[WN_MASS_PER_LENGTH]
+    v = (l1 - l0) / h
+    c = mu * v / n
+    hh = 0.5 * h
+    h2 = 0.5 * h * h
+    m0 = mu * l0 / n
+    m1 = mu * l1 / n
+    m_mean = 0.5 * (m0 + m1)
+    u0 = l0 / n
+    u1 = l1 / n
+    Pm = length_params(P, WA, 0.5 * (l0 + l1), m_mean, first, n, False)  # kappa = EA/ubar, u = ubar
+    factor_tridiagonal(P, WA, m_mean, hh * c, first, n, WA.inv, WA.cp, WA.w, WA.jeff, WA.lower, WA.upper)
+    up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2 = held_inputs(inputs, forced)
+    l_0, l_1, l_2, t0, t1, t2 = left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
+    # the first guess: the explicit winch step (1w) with the last step's right forces
+    theta0 = mu * v * v / (n * l0)
+    for a in range(n + 1):
+        for i in range(3):
+            fl[a, i] = S.f[a, i]
+    if v != 0.0:
+        add_convective_forces(r, coef, theta0, fl, first)
+    step_solve(S, W, WA, c, hh, up0, up1, up2, free and forced, first, n)
+    c0, c1, c2, _, _, _, _, _, _, _, status = rigid_increments(S, W, Pm, h, WA.jeff, WA.w, t0, t1, t2, free, forced,
+                                                               coupled)
+    if status != OK:  # the string solve alone
+        c0 = c1 = c2 = 0.0
+        for a in range(first, n + 1):
+            for i in range(3):
+                Y[a, i] = h * X[a, i]
+    # the residual's constant part: h p_k + h^2/2 (f_g + grad T0)(r_k, l0) - h c C^T r_k
+    for a in range(n + 1):
+        for i in range(3):
+            rhs[a, i] = h * (S.p[a, i] - c * convective_momentum(r, coef, a, i)) if a >= first else 0.0
+        rhs[a, 2] += h2 * m0 * P.g
+    rhs[0, 2] += h2 * (P.Mp - 0.5 * m0) * P.g
+    rhs[n, 2] += h2 * (P.M - 0.5 * m0) * P.g
+    if v != 0.0:
+        add_convective_forces(r, coef, h2 * theta0, rhs, first)
+    c0, c1, c2, iters, status = implicit_newton(S, W, Pm, h, t0, t1, t2, up0, up1, up2, free, forced, coupled, c0, c1,
+                                                c2, WA.diag, WA.lower, WA.upper, rhs, u0, u1, True)
+    if status != OK:
+        return status, iters, 0.0
+    # the step's forces at each end: tensions along the elements, the weight at that end's length
+    _, tension = split_forces(r, Y, Pm, fl, W.fr, m0, m1, u0, u1)
+    short = min(u0, u1)
+    if bounded and 12.0 * tension * h * h > TRANSVERSE_LIMIT * TRANSVERSE_LIMIT * short * mu * short:
+        return TOO_TENSE, iters, 0.0
+    elastic = elastic_winch_work(r, Y, WA.state[WN_EA], Pm.kappa, u0, u1, P.slack)
+    cayley_minus_identity(c0, c1, c2, W.FmI)
+    yn0 = Y[n, 0]
+    yn1 = Y[n, 1]
+    yn2 = Y[n, 2]
+    e0 = R[0, 0] * yn0 + R[1, 0] * yn1 + R[2, 0] * yn2  # R_k^T dr_{N+1}
+    e1 = R[0, 1] * yn0 + R[1, 1] * yn1 + R[2, 1] * yn2
+    e2 = R[0, 2] * yn0 + R[1, 2] * yn1 + R[2, 2] * yn2
+    dr00 = Y[0, 0]
+    dr01 = Y[0, 1]
+    dr02 = Y[0, 2]
+    new_positions(S, W, first, compensated)
+    # the impulse h/2 (fl + fr) + c C dr: grad T0 at both ends and (2/h) c C dr join fl, so that
+    # fr (-> S.f, the next step's first guess) holds the tensions and the weight only
+    if v != 0.0:
+        add_convective_forces(r, coef, theta0, fl, first)
+        add_convective_forces(X, coef, mu * v * v / (n * l1), fl, first)
+        q = 2.0 * c / h
+        for a in range(first, n + 1):
+            for i in range(3):
+                fl[a, i] += q * convective_impulse(Y, coef, a, i)
+    P1 = length_params(P, WA, l1, m_mean, first, n, False)
+    status = lgvi_commit(S, W, P1, h, c0, c1, c2, e0, e1, e2, l_0, l_1, l_2, t0, t1, t2, tb0, tb1, tb2, ts0, ts1, ts2,
+                         up0, up1, up2, dr00, dr01, dr02, free, forced, coupled, compensated, True)
+    if status == OK:  # the commit counted the weight at l1; the step's is at the mean length
+        kahan_add(S.acc, S.accc, B_GRAVITY_IMPULSE + 2, h * P.g * n * (m_mean - P1.m))
+    return status, iters, elastic
+
+
+@kernel(inline="always")
+def elastic_winch_work(r, Y, EA, kappa, u0, u1, slack):
+    """The winch's work on the elastic energy over the step r_k -> r_k + Y with the rest length
+    u0 -> u1 [J]: sum over the elements of V(|x_k+1|, u1) - V(|x_k|, u0) - T (|x_k+1| - |x_k|),
+    V(l, u) = EA/(2u) phi(l - u)^2 and T the step's tension (:func:`~.implicit_terms.element_terms`),
+    whose work on the nodes is T times the length change: the energy change the nodes' motion does
+    not account for. Exact per step, so the balance closes however coarsely h resolves the
+    string's axial modes, which a quadrature of dV/dl at points of the step would alias."""
+    total = 0.0
+    for a in range(r.shape[0] - 1):
+        T, _, _, _, _, _, _, _ = element_terms(r, Y, a, kappa, u0, u1, slack)
+        x0 = r[a + 1, 0] - r[a, 0]
+        x1 = r[a + 1, 1] - r[a, 1]
+        x2 = r[a + 1, 2] - r[a, 2]
+        lk = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+        x0 += Y[a + 1, 0] - Y[a, 0]
+        x1 += Y[a + 1, 1] - Y[a, 1]
+        x2 += Y[a + 1, 2] - Y[a, 2]
+        ln = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+        s0 = lk - u0
+        s1 = ln - u1
+        if slack:
+            s0 = max(s0, 0.0)
+            s1 = max(s1, 0.0)
+        total += 0.5 * EA * (s1 * s1 / u1 - s0 * s0 / u0) - T * (ln - lk)
+    return total
+
+
+@kernel(inline="always")
+def winch_implicit_substep(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, compensated):
+    """A step of the implicit string reeling ``l0 -> l1`` [m] over ``h`` [s], cut back where it
+    fails as :func:`~.implicit.implicit_substep` (the rest in halves, to h / 2**CUTBACKS), each
+    piece reeling its share at the same speed; each piece's winch work (the midpoint rule) joins
+    the balances and the winch's length follows. Returns ``(status, newton_iterations)``."""
+    first = 0 if free else 1
+    full = 1 << CUTBACKS
+    left = full
+    size = full
+    done = 0
+    cuts = 0
+    total = 0
+    while left > 0:
+        la = l0 + (l1 - l0) * (done / full)
+        lb = l1 if done + size == full else l0 + (l1 - l0) * ((done + size) / full)
+        piece = h * (size / full)
+        status, iters, elastic = winch_implicit_once(S, W, P, WA, inputs, piece, la, lb, free, forced, coupled,
+                                                     compensated, cuts < CUTBACKS)
+        total += iters
+        if (status == NEWTON_FAILED or status == TOO_TENSE) and cuts < CUTBACKS:
+            cuts += 1
+            size >>= 1
+            continue
+        if status != OK:
+            return status, total
+        if lb != la:  # the elastic energy's share exactly, the rest by the midpoint rule
+            kahan_add(S.acc, S.accc, B_WINCH_WORK,
+                      elastic + (lb - la) * midpoint_dH_dl(S, W, P, WA, piece, la, lb, first, False))
+        WA.state[WN_LENGTH] = lb
+        left -= size
+        done += size
+    return OK, total
