@@ -112,6 +112,14 @@ class Winch:
                              "or take a smaller h")
 
     @property
+    def vector(self) -> np.ndarray:
+        """The live WINCH vector (length, reel speed, the string's constants, the range), read
+        only (recordings read it: esp_gym/viz/recorder.py)."""
+        view = self._state.view()
+        view.flags.writeable = False
+        return view
+
+    @property
     def length(self) -> float:
         """The unstretched length [m]."""
         return float(self._state[WINCH.scalar("length")])

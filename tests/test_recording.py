@@ -360,3 +360,35 @@ def test_env_recording_holds_the_pushes(tmp_path):
     vectors = read(path, R.PUSH)["Arrows3D:vectors"]
     f32 = lambda x: np.asarray(x, dtype=np.float32)  # noqa: E731
     assert np.array_equal(f32(vectors)[:, 0], f32(push * 0.02))
+
+
+def test_env_recording_holds_the_winch(tmp_path):
+    """A `lower` rollout reeling out, then in: the recording holds the unstretched length, the
+    reel speed and the winch's work of every sample as the simulator reports them, and its
+    E - E0 - W includes the winch's work (it stays below 1 % of the work: measured 1.0 mJ of 0.92 J).
+    Negative control: a recording without a winch has no /winch entities."""
+    path = tmp_path / "winch.rrd"
+    env = RecordRerun(gym.make("ElasticStringPendulum-v0", task="lower"), path)
+    env.reset(seed=4)
+    sim = env.unwrapped.sim
+    reported = [sim.diagnostics()]
+    for k in range(40):
+        action = np.zeros(7)
+        action[6] = 0.5 if k < 20 else -0.25
+        env.step(action)
+        reported.append(sim.diagnostics())
+    env.close()
+    for entity, key in ((R.WINCH_LENGTH, "unstretched_length"), (R.WINCH_SPEED, "reel_speed"),
+                        (R.WINCH_WORK, "winch_work")):
+        steps, got = values(path, entity)
+        assert list(steps) == list(range(41))
+        assert np.array_equal(got, [d[key] for d in reported]), entity
+    _, residual = values(path, "/diag/energy_residual")
+    assert np.allclose(residual, [d["energy_balance_residual"] for d in reported], rtol=0, atol=1e-12)
+    assert max(abs(d["winch_work"]) for d in reported) > 1e2 * np.max(np.abs(residual))  # measured 900x
+    plain = tmp_path / "plain.rrd"
+    env = RecordRerun(gym.make("ElasticStringPendulum-v0", task="transport"), plain)
+    env.reset(seed=4)
+    env.step(np.zeros(6))
+    env.close()
+    assert not {e for e in entities(plain) if e.startswith("/winch")}

@@ -361,11 +361,14 @@ DR_PUSH_SCALE = DRAWS.scalar("push_scale")
 #: an episode's reset; ``R`` row-major; ``sensors`` (:data:`SENSORS`: hook tension [N], load
 #: target offset [m]) and ``disturbance`` (:data:`DISTURBANCE`: gust and wind [m/s], load drag,
 #: push, line drag [N]), spatial frame, zeros for free simulations; ``rho`` the episode's
-#: attachment -> centre of mass offset rho_c (body frame) [m].
+#: attachment -> centre of mass offset rho_c (body frame) [m]; ``winch`` (:data:`SAMPLE_WINCH`)
+#: the unstretched length [m], the reel speed [m/s] and the winch's work [J] (E - E0 - W then
+#: subtracts it too).
+SAMPLE_WINCH = Layout(("unstretched_length", 1), ("reel_speed", 1), ("winch_work", 1))
 SAMPLE_HEAD = Layout(("step", 1), ("time", 1), ("episode", 1), ("stepped", 1), ("newton", 1), ("reward", 1),
                      ("action", ACTION_SIZE), ("terms", len(REWARD_TERMS)), ("inputs", 6), ("balances", 4),
                      ("target", TARGET.size), ("R", 9), ("sensors", SENSORS.size),
-                     ("disturbance", DISTURBANCE.size), ("rho", 3))
+                     ("disturbance", DISTURBANCE.size), ("rho", 3), ("winch", SAMPLE_WINCH.size))
 S_STEP = SAMPLE_HEAD.scalar("step")
 S_TIME = SAMPLE_HEAD.scalar("time")
 S_EPISODE = SAMPLE_HEAD.scalar("episode")
@@ -381,6 +384,10 @@ S_ROT = SAMPLE_HEAD.start("R")
 S_SENSORS = SAMPLE_HEAD.start("sensors")
 S_DISTURBANCE = SAMPLE_HEAD.start("disturbance")
 S_RHO = SAMPLE_HEAD.start("rho")
+S_WINCH = SAMPLE_HEAD.start("winch")
+SW_LENGTH = SAMPLE_WINCH.scalar("unstretched_length")
+SW_SPEED = SAMPLE_WINCH.scalar("reel_speed")
+SW_WORK = SAMPLE_WINCH.scalar("winch_work")
 S_NODES = SAMPLE_HEAD.size
 #: Offsets inside the ``balances`` field.
 SB_WORK, SB_ENERGY_RESIDUAL, SB_ANGULAR_IMPULSE, SB_PI3_RESIDUAL = range(4)

@@ -11,10 +11,11 @@ runtime (``jit.py``), so there is no slice assignment.
 import math
 
 from .jit import kernel
-from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, B_ANGULAR_IMPULSE_Z, B_WORK, D_ENERGY, D_PI3, IN_BODY_TORQUE,
-                     IN_PIVOT_FORCE, R_NEWTON_TOTAL, R_STEPS, S_ACTION, S_BALANCES, S_DISTURBANCE, S_EPISODE,
-                     S_INPUTS, S_NEWTON, S_NODES, S_REWARD, S_RHO, S_ROT, S_SENSORS, S_STEP, S_STEPPED, S_TARGET,
-                     S_TERMS, S_TIME, SAMPLE_HEAD, SB_ANGULAR_IMPULSE, SB_ENERGY_RESIDUAL, SB_PI3_RESIDUAL, SB_WORK)
+from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, B_ANGULAR_IMPULSE_Z, B_WINCH_WORK, B_WORK, D_ENERGY, D_PI3,
+                     IN_BODY_TORQUE, IN_PIVOT_FORCE, R_NEWTON_TOTAL, R_STEPS, S_ACTION, S_BALANCES, S_DISTURBANCE,
+                     S_EPISODE, S_INPUTS, S_NEWTON, S_NODES, S_REWARD, S_RHO, S_ROT, S_SENSORS, S_STEP, S_STEPPED,
+                     S_TARGET, S_TERMS, S_TIME, S_WINCH, SAMPLE_HEAD, SB_ANGULAR_IMPULSE, SB_ENERGY_RESIDUAL,
+                     SB_PI3_RESIDUAL, SB_WORK, SW_LENGTH, SW_SPEED, SW_WORK, WN_LENGTH, WN_SPEED)
 
 _HEAD_SIZES = dict(SAMPLE_HEAD.fields)
 #: Entries of the head's action, reward-terms, target, sensors and disturbance fields.
@@ -27,15 +28,16 @@ N_DISTURBANCE = _HEAD_SIZES["disturbance"]
 
 @kernel
 def capture_sample(buf, i, r, R, out, strain, acc, action, terms, report, inputs, target, sensors, disturbance, rho,
-                   E0, pi30, step, t, episode, stepped, reward):
+                   winch, E0, pi30, step, t, episode, stepped, reward):
     """Write one sample into row ``i`` of ``buf`` from live arrays: nodes ``r``, ``R``, the
     diagnostics ``out`` (DIAG) and ``strain`` energies (current), the balances ``acc``
     (BALANCE), the applied ``action`` (ACTION) and reward ``terms`` (REWARD), the step
     ``report`` (REPORT: the Newton column is newton_total / steps, NaN without steps), the
     ``inputs`` (INPUTS: pivot force, body torque), ``target`` (TARGET; NaN when not an
     episode's reset), the ``sensors`` (SENSORS), the ``disturbance`` (DISTURBANCE) and the
-    episode's ``rho`` (rho_c, body frame [m]). The balance residuals are computed as in ``Simulator.diagnostics``
-    (same operations, same order, so the same bits)."""
+    episode's ``rho`` (rho_c, body frame [m]), and the ``winch`` state (WINCH; its length and
+    speed, with the winch's work from ``acc``). The balance residuals are computed as in
+    ``Simulator.diagnostics`` (same operations, same order, so the same bits)."""
     row = buf[i]
     row[S_STEP] = step
     row[S_TIME] = t
@@ -51,7 +53,7 @@ def capture_sample(buf, i, r, R, out, strain, acc, action, terms, report, inputs
         row[S_INPUTS + IN_PIVOT_FORCE + c] = inputs[IN_PIVOT_FORCE + c]
         row[S_INPUTS + IN_BODY_TORQUE + c] = inputs[IN_BODY_TORQUE + c]
     row[S_BALANCES + SB_WORK] = acc[B_WORK]
-    row[S_BALANCES + SB_ENERGY_RESIDUAL] = out[D_ENERGY] - E0 - acc[B_WORK]
+    row[S_BALANCES + SB_ENERGY_RESIDUAL] = out[D_ENERGY] - E0 - acc[B_WORK] - acc[B_WINCH_WORK]
     row[S_BALANCES + SB_ANGULAR_IMPULSE] = acc[B_ANGULAR_IMPULSE_Z]
     row[S_BALANCES + SB_PI3_RESIDUAL] = out[D_PI3] - pi30 - acc[B_ANGULAR_IMPULSE_Z]
     for k in range(N_TARGET):
@@ -62,6 +64,9 @@ def capture_sample(buf, i, r, R, out, strain, acc, action, terms, report, inputs
         row[S_DISTURBANCE + k] = disturbance[k]
     for c in range(3):
         row[S_RHO + c] = rho[c]
+    row[S_WINCH + SW_LENGTH] = winch[WN_LENGTH]
+    row[S_WINCH + SW_SPEED] = winch[WN_SPEED]
+    row[S_WINCH + SW_WORK] = acc[B_WINCH_WORK]
     for a in range(3):
         for c in range(3):
             row[S_ROT + 3 * a + c] = R[a, c]

@@ -12,7 +12,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from ..kernels.layout import ACTION, DIAG, DISTURBANCE, REWARD_TERMS, SB_ENERGY_RESIDUAL, SB_PI3_RESIDUAL, SB_WORK, \
-    SENSORS
+    SENSORS, SW_LENGTH, SW_SPEED, SW_WORK
 from . import palette
 from .geometry import equivalent_box, prism_triangles, quaternion_xyzw
 
@@ -41,6 +41,10 @@ ENV_WIND = "/env/wind"
 ENV_HOOK_TENSION = "/env/hook_tension"
 ENV_PUSH = "/env/push"
 ENV_DRAG = "/env/drag"
+#: With a winch: the unstretched length [m], the reel speed [m/s] and the winch's work [J].
+WINCH_LENGTH = "/winch/unstretched_length"
+WINCH_SPEED = "/winch/reel_speed"
+WINCH_WORK = "/winch/work"
 
 ENERGY_PARTS = ("kinetic_string", "kinetic_body", "kinetic_pivot", "potential_gravity", "potential_elastic")
 ACTION_NAMES = ("force_x", "force_y", "force_z", "torque_x", "torque_y", "torque_z")
@@ -49,13 +53,15 @@ ACTION_NAMES = ("force_x", "force_y", "force_z", "torque_x", "torque_y", "torque
 class Series(NamedTuple):
     """Named scalar series sharing one entity: the names, their sources (a field of
     :func:`~esp_gym.kernels.layout.sample_layout` and an offset in it), colours, whether only
-    samples after a step have values (not resets), whether only env rollouts have them."""
+    samples after a step have values (not resets), whether only env rollouts have them, whether
+    only recordings with a winch have them."""
 
     names: tuple
     sources: tuple
     colors: list
     stepped_only: bool = False
     env_only: bool = False
+    winch_only: bool = False
 
 
 def _diag(*names) -> tuple:
@@ -99,12 +105,15 @@ SCALARS = {
     ENV_HOOK_TENSION: Series(*_axes("sensors", SENSORS, "hook_tension"), TAB10[:3], env_only=True),
     ENV_PUSH: Series(*_axes("disturbance", DISTURBANCE, "push", "xy"), TAB10[:2], env_only=True),  # horizontal
     ENV_DRAG: Series(_LOAD_DRAG[0] + _LINE_DRAG[0], _LOAD_DRAG[1] + _LINE_DRAG[1], TAB10[:6], env_only=True),
+    WINCH_LENGTH: Series(("unstretched length",), _field("winch", [SW_LENGTH]), [TAB10[2]], winch_only=True),
+    WINCH_SPEED: Series(("reel speed",), _field("winch", [SW_SPEED]), [TAB10[0]], winch_only=True),
+    WINCH_WORK: Series(("winch work",), _field("winch", [SW_WORK]), [TAB10[1]], winch_only=True),
 }
 
 
-def default_blueprint(env: bool) -> rrb.Blueprint:
+def default_blueprint(env: bool, winch: bool = False) -> rrb.Blueprint:
     """The 3-D view beside the diagnostics (and, for env rollouts, reward and action, and wind
-    and forces) panels."""
+    and forces; with a winch, its length, speed and work) panels."""
     ts = rrb.TimeSeriesView
     panels = [
         ts(origin="/diag/energy", name="energy [J]"),
@@ -121,6 +130,10 @@ def default_blueprint(env: bool) -> rrb.Blueprint:
         panels.append(rrb.Tabs(ts(origin=ENV_WIND, name="wind [m/s]"),
                                ts(origin=ENV_HOOK_TENSION, name="hook tension [N]"),
                                ts(origin=ENV_PUSH, name="push [N]"), ts(origin=ENV_DRAG, name="drag [N]")))
+    if winch:
+        panels.append(rrb.Tabs(ts(origin=WINCH_LENGTH, name="unstretched length [m]"),
+                               ts(origin=WINCH_SPEED, name="reel speed [m/s]"),
+                               ts(origin=WINCH_WORK, name="winch work [J]")))
     return rrb.Blueprint(
         rrb.Horizontal(rrb.Spatial3DView(origin=WORLD, name="3-D"), rrb.Vertical(*panels), column_shares=[3, 2]),
         collapse_panels=True)

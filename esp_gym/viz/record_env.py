@@ -53,7 +53,7 @@ class RecordRerun(gym.Wrapper):
         self.control = control
         setup = control.setup
         self.flush_on_episode_end = bool(flush_on_episode_end)
-        self.recorder = Recorder(path, setup.scene, env=True, sample_period=setup.control_period,
+        self.recorder = Recorder(path, setup.scene, env=True, winch=setup.winch, sample_period=setup.control_period,
                                  force_offset=setup.hover, action_scale=(setup.force_limit, setup.torque_limit),
                                  **recorder_kwargs)
         self._live = None  # the simulator's live (StateArrays, DiagWork), from the first reset on
@@ -94,7 +94,8 @@ class RecordRerun(gym.Wrapper):
         state, diag = self._live
         rec.add_sample(state, diag, report=control.report, step=self._step, time=self._step * rec.sample_period,
                        episode=self._episode, action=control.action, terms=control.reward_terms,
-                       sensors=control.sensors, disturbance=control.disturbance, rho=self._rho, **sample)
+                       sensors=control.sensors, disturbance=control.disturbance, rho=self._rho,
+                       winch=control.sim.winch.vector, **sample)
 
     def close(self):
         try:

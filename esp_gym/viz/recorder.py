@@ -15,7 +15,7 @@ import pyarrow as pa
 import rerun as rr
 
 from ..kernels.layout import (ACTION, DISTURBANCE, INPUTS, REPORT, REWARD_TERMS, R_NEWTON_TOTAL, R_STEPS, SENSORS,
-                              TARGET, sample_layout)
+                              TARGET, WINCH, sample_layout)
 from ..control import read_only
 from ..kernels.recording import capture_sample, sample_geometry, trail_points
 from . import arrow, lifecycle, palette
@@ -35,6 +35,7 @@ class Recorder:
     | `path` | | output ``.rrd`` (parent directories are created) |
     | `scene` | | the :class:`~esp_gym.params.Scene` (body shape, string, gravity) |
     | `env` | False | also the reward, action and return series (env rollouts) |
+    | `winch` | False | also the winch's length, reel speed and work series |
     | `sample_period` | 0.02 | time between samples: ``time = step * sample_period`` for env rollouts; sets the trail length |
     | `strain_scale` | scene | string colours saturate at this element strain energy [J] (:func:`default_strain_scale`) |
     | `force_scale` | 0.05 | pivot-force arrow length per newton [m/N]; env: also the push and hook tension |
@@ -60,7 +61,7 @@ class Recorder:
     :attr:`samples_written` samples, readable (lifecycle.py, :class:`~esp_gym.viz.lifecycle.RrdFile`).
     """
 
-    def __init__(self, path, scene, *, env: bool = False, sample_period: float = 0.02,
+    def __init__(self, path, scene, *, env: bool = False, winch: bool = False, sample_period: float = 0.02,
                  strain_scale: Optional[float] = None, force_scale: float = 0.05, wind_scale: float = 0.05,
                  force_offset=None, torque_scale: float = 10.0, action_scale: Optional[tuple] = None,
                  trail_seconds: float = 1.0, trail_spacing: float = 0.1, flush_every: int = 2000,
@@ -78,6 +79,7 @@ class Recorder:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.scene = scene
         self.env = bool(env)
+        self.winch = bool(winch)
         self.sample_period = float(sample_period)
         self.strain_scale = float(strain_scale) if strain_scale else default_strain_scale(scene)
         self.force_scale, self.torque_scale = float(force_scale), float(torque_scale)
@@ -104,6 +106,7 @@ class Recorder:
         self._zeros = read_only(np.zeros(max(ACTION.size, len(REWARD_TERMS), INPUTS.size, SENSORS.size,
                                              DISTURBANCE.size)))
         self._no_target = read_only(np.full(TARGET.size, math.nan))
+        self._no_winch = read_only(np.zeros(WINCH.size))
         self._trail_hist = np.empty((0, 3))  # the current episode's last load positions
         self._trail_episode = None
         self._return = (None, 0.0)  # (episode, return) at the last sample written
@@ -116,7 +119,7 @@ class Recorder:
         self.rec = rr.RecordingStream(application_id, recording_id=recording_id)
         self.rec.set_log_time_enabled(False)
         self.rec.set_log_tick_enabled(False)
-        self._file.attach(self.rec, default_blueprint(self.env))
+        self._file.attach(self.rec, default_blueprint(self.env, self.winch))
         self._log_static()
         lifecycle.track(self)
 
@@ -142,7 +145,7 @@ class Recorder:
             log(BODY_COM, _com(rho), static=True)
             log(BODY_SHAPE, body_shape(self.scene.body, rho), static=True)
         for path, series in SCALARS.items():
-            if self.env or not series.env_only:
+            if (self.env or not series.env_only) and (self.winch or not series.winch_only):
                 log(path, rr.SeriesLines(names=list(series.names), colors=series.colors), static=True)
         if self.env:
             log(RETURN, rr.SeriesLines(names="return", colors=[BLACK]), static=True)
@@ -186,15 +189,16 @@ class Recorder:
 
     def add_sample(self, state, diag, *, report, step, time, stepped: bool, episode: int = 0, action=None,
                    terms=None, reward: float = math.nan, inputs=None, target=None, sensors=None, disturbance=None,
-                   rho=None) -> None:
+                   rho=None, winch=None) -> None:
         """Record one sample from live kernel arrays: ``state``
         (:class:`~esp_gym.kernels.layout.StateArrays`) and ``diag`` (DiagWork, current), the
         step ``report`` (REPORT), ``step`` and ``time`` [s] on the timelines, whether it follows
         a step (``stepped``; False after a reset), the ``episode``, the applied ``action``
         (ACTION) and reward ``terms`` (REWARD) with the ``reward``, the ``inputs`` (INPUTS), the
         episode's ``target`` (TARGET; at the episode's reset, and while it moves), the
-        ``sensors`` (SENSORS), the ``disturbance`` (DISTURBANCE) and the episode's ``rho``
-        (rho_c, body frame [m]). Arrays not given are zeros (the target: none; rho: the scene's);
+        ``sensors`` (SENSORS), the ``disturbance`` (DISTURBANCE), the episode's ``rho``
+        (rho_c, body frame [m]) and the ``winch`` (WINCH, :attr:`~esp_gym.winch.Winch.vector`).
+        Arrays not given are zeros (the target: none; rho: the scene's);
         pass read-only float64 arrays (one compiled signature). Raises RecordingError after a
         failed write."""
         if self.closed:
@@ -205,7 +209,8 @@ class Recorder:
                        z if action is None else action, z if terms is None else terms, report,
                        z if inputs is None else inputs, self._no_target if target is None else target,
                        z if sensors is None else sensors, z if disturbance is None else disturbance,
-                       self.rho if rho is None else rho, self.E0, self.pi3_0, float(step), float(time),
+                       self.rho if rho is None else rho, self._no_winch if winch is None else winch, self.E0,
+                       self.pi3_0, float(step), float(time),
                        float(episode), 1.0 if stepped else 0.0, float(reward))
         self._commit()
 
@@ -221,7 +226,8 @@ class Recorder:
         if self._last_newton is None:
             self.start_episode(sim)
         d = sim.diagnostics()  # also makes the simulator's diagnostic arrays (read below) current
-        residuals = [d["energy"] - self.E0 - d["work"], d["pi3"] - self.pi3_0 - d["angular_impulse_z"]]  # as recorded
+        residuals = [d["energy"] - self.E0 - d["work"] - d["winch_work"],
+                     d["pi3"] - self.pi3_0 - d["angular_impulse_z"]]  # as recorded
         self.max_abs_residuals = np.maximum(self.max_abs_residuals, np.abs(residuals))
         total, steps = sim.newton_iterations, sim.step_count
         report = np.zeros(REPORT.size, dtype=np.int64)
@@ -233,7 +239,7 @@ class Recorder:
         state, _, _, diag = sim.buffers
         self.add_sample(state, diag, report=read_only(report), step=sim.step_count if step is None else step,
                         time=sim.time if time is None else time, stepped=report[R_STEPS] > 0,
-                        inputs=read_only(inputs))
+                        inputs=read_only(inputs), winch=sim.winch.vector)
 
     def _commit(self) -> None:
         """Count the row just written (last, so an interrupted sample is simply not counted)
@@ -337,7 +343,7 @@ class Recorder:
         scalar = rr.Scalars.descriptor_scalars()
         missing = ~stepped  # reset samples have no step: no Newton count, reward or action
         for path, series in SCALARS.items():
-            if series.env_only and not self.env:
+            if (series.env_only and not self.env) or (series.winch_only and not self.winch):
                 continue
             columns = self._columns[path]
             mask = missing if series.stepped_only else None

@@ -41,7 +41,8 @@ Entities (SI units; spatial frame unless stated; gravity along +z, the 3-D view 
 ``/diag/energy/total``          E [J]
 ``/diag/energy/parts``          kinetic_string, kinetic_body, kinetic_pivot, potential_gravity,
                                 potential_elastic and the input work W [J] (named series)
-``/diag/energy_residual``       E - E0 - W [J] (the input work balance; E0 at the episode's start)
+``/diag/energy_residual``       E - E0 - W [J] (the input work balance, the winch's work included;
+                                E0 at the episode's start)
 ``/diag/pi3``                   pi3 [kg m^2/s]
 ``/diag/pi3_residual``          pi3 - pi3_0 - angular impulse [kg m^2/s]
 ``/diag/orthogonality``         ||I - R^T R||_F
@@ -56,6 +57,10 @@ Entities (SI units; spatial frame unless stated; gravity along +z, the 3-D view 
 ``/env/push``                   env rollouts: the push on the load push_x, _y [N] (horizontal)
 ``/env/drag``                   env rollouts: the drag on the load load_drag_x, _y, _z and on the
                                 line (summed over its nodes) line_drag_x, _y, _z [N]
+``/winch/unstretched_length``   with a winch (``winch=True``): the string's unstretched length [m]
+``/winch/reel_speed``           ... the reel speed of the last step [m/s] (the reel action times
+                                ``winch.max_speed``, 0 once the winch stops at its range)
+``/winch/work``                 ... and the winch's work since the episode's start [J]
 ==============================  =====================================================================
 
 A sample holds the state after a step (or a reset, or the start of a free simulation) and its
@@ -100,7 +105,8 @@ from .geometry import equivalent_box, prism_triangles, quaternion_xyzw
 from .lifecycle import RecordingError
 from .entities import (BODY, BODY_COM, BODY_SHAPE, BODY_TORQUE, ENV_DRAG, ENV_HOOK_TENSION, ENV_PUSH, ENV_WIND,
                        HOOK_TENSION, LOAD_TRAIL, NEWTON, PIVOT, PIVOT_FORCE, PUSH, RETURN, SCALARS, STRING,
-                       TARGET_LOAD, TARGET_PIVOT, WIND, WORLD, default_blueprint, default_strain_scale)
+                       TARGET_LOAD, TARGET_PIVOT, WIND, WINCH_LENGTH, WINCH_SPEED, WINCH_WORK, WORLD, default_blueprint,
+                       default_strain_scale)
 from .record_env import RecordRerun, default_record_every, record_simulation
 from .recorder import Recorder
 
@@ -109,5 +115,5 @@ __all__ = [
     "default_strain_scale", "default_blueprint", "quaternion_xyzw", "prism_triangles", "equivalent_box",
     "REWARD_TERMS", "SCALARS", "WORLD", "STRING", "BODY", "BODY_SHAPE", "BODY_COM", "BODY_TORQUE", "PIVOT",
     "PIVOT_FORCE", "LOAD_TRAIL", "TARGET_PIVOT", "TARGET_LOAD", "NEWTON", "RETURN", "WIND", "PUSH", "HOOK_TENSION",
-    "ENV_WIND", "ENV_HOOK_TENSION", "ENV_PUSH", "ENV_DRAG",
+    "ENV_WIND", "ENV_HOOK_TENSION", "ENV_PUSH", "ENV_DRAG", "WINCH_LENGTH", "WINCH_SPEED", "WINCH_WORK",
 ]
