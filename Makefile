@@ -26,8 +26,12 @@ install: $(VENV)/.installed
 demo: $(VENV)/.installed
 	$(BIN)/esp-gym paper --out $(OUT)/paper
 
+# two processes for most of the suite, then the clock-sensitive modules alone (tests/conftest.py);
+# both parts always run, and the target fails if either did
 test: $(VENV)/.installed-test
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n 2 --dist loadfile -m "not serial"; parallel=$$?; \
+	$(BIN)/python -m pytest -p no:xdist -m serial; serial=$$?; \
+	test $$parallel -eq 0 -a $$serial -eq 0
 
 bench: $(VENV)/.installed
 	$(BIN)/python -m benchmarks.step_cost

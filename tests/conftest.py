@@ -4,6 +4,18 @@ import pytest
 
 import esp_gym
 
+#: Modules whose tests hold wall-clock limits on signals and subprocesses, or start a Ray
+#: cluster: `make test` runs them after the others, in one process (the rest on two, with
+#: pytest-xdist), so another worker's load cannot stretch their clocks (docs/testing.md).
+SERIAL_MODULES = {"test_interrupt.py", "test_recording_failures.py", "test_ray.py", "test_cache.py"}
+
+
+def pytest_collection_modifyitems(items):
+    for item in items:
+        if item.path.name in SERIAL_MODULES:
+            item.add_marker(pytest.mark.serial)
+
+
 #: The paper's example and two scenes far from it (see configs/scenes/*.yaml).
 INVARIANT_SCENES = ["paper_example", "short_stiff", "large_offset"]
 

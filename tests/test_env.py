@@ -212,8 +212,9 @@ def test_vector_bad_actions_raise_and_change_nothing(kind):
 VECTOR_OPTIONS = [{}, {"randomize": True},
                   {"randomize": True, "observation": "hook", "sensor_noise": 1.0, "action_latency": 2},
                   {"preset": "hard"}, {"task": "track", "randomize": True},
-                  {"task": "lower", "winch": True, "preset": "hard"}]
-VECTOR_IDS = ["plain", "randomize", "hook-noise-latency", "hard", "track", "winch-lower-hard"]
+                  {"task": "lower", "winch": True, "preset": "hard"},
+                  {"task": "lower", "scene_overrides": {"solver": {"string": "implicit"}, "EA": 2e4}}]
+VECTOR_IDS = ["plain", "randomize", "hook-noise-latency", "hard", "track", "winch-lower-hard", "winch-lower-implicit"]
 
 
 @pytest.mark.parametrize("options", VECTOR_OPTIONS, ids=VECTOR_IDS)

@@ -97,10 +97,13 @@ def convective_impulse(dr, coef, a, i):
 
 
 @kernel(inline="always")
-def factor_tridiagonal(P, WA, m, skew, first, n, inv, cp, w, jeff, lower, upper):
+def factor_tridiagonal(P, WA, m, skew, first, n, inv, cp, w, jeff, lower, upper, diag):
     """Thomas factors of the mass matrix at element mass ``m`` plus the skew part ``skew`` (C - C^T)
     (the step's matrix of (1w); ``skew = 0``: the symmetric mass matrix at that length), on rows
-    ``first..N``; its attachment column ``w`` = A^-1 e_N and ``jeff`` = J + M^2 w_N rho^ rho^."""
+    ``first..N``; its attachment column ``w`` = A^-1 e_N and ``jeff`` = J + M^2 w_N rho^ rho^,
+    and its ``diag``onal. Every output is a parameter: written as ``WA.diag[a]`` here, the
+    diagonal stayed zero in the batched entry point (numba 0.68.1, parallel=True, this function
+    inlined in the prange body), while the single environment's was right."""
     st = WA.state
     coef = WA.coef
     end = st[WN_END_SHARE] * m
@@ -120,7 +123,7 @@ def factor_tridiagonal(P, WA, m, skew, first, n, inv, cp, w, jeff, lower, upper)
             up = off + skew * (coef[a, 0] + coef[a, 1])
         lower[a] = lo
         upper[a] = up
-        WA.diag[a] = d
+        diag[a] = d
         inv[a] = 1.0 / (d - lo * prev)
         cp[a] = up * inv[a]
         prev = cp[a]
@@ -146,7 +149,8 @@ def length_params(P, WA, length, m_mean, first, n, diagnostic):
     u = length / n
     m = st[WN_MASS_PER_LENGTH] * u
     if diagnostic:
-        factor_tridiagonal(P, WA, m_mean, 0.0, first, n, WA.dinv, WA.dcp, WA.dw, WA.djeff, WA.lower, WA.upper)
+        factor_tridiagonal(P, WA, m_mean, 0.0, first, n, WA.dinv, WA.dcp, WA.dw, WA.djeff, WA.lower, WA.upper,
+                           WA.diag)
         inv, cp, w, jeff = WA.dinv, WA.dcp, WA.dw, WA.djeff
     else:
         inv, cp, w, jeff = WA.inv, WA.cp, WA.w, WA.jeff
@@ -209,7 +213,8 @@ def winch_substep(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, compens
             fl[a, i] = S.f[a, i]
     if v != 0.0:
         add_convective_forces(S.r, WA.coef, mu * v * v / (n * l0), fl, first)
-    factor_tridiagonal(P, WA, m_mean, 0.5 * h * c, first, n, WA.inv, WA.cp, WA.w, WA.jeff, WA.lower, WA.upper)
+    factor_tridiagonal(P, WA, m_mean, 0.5 * h * c, first, n, WA.inv, WA.cp, WA.w, WA.jeff, WA.lower, WA.upper,
+                       WA.diag)
     up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2 = held_inputs(inputs, forced)
     l_0, l_1, l_2, t0, t1, t2 = left_torque(S.R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
     step_solve(S, W, WA, c, hh, up0, up1, up2, free and forced, first, n)

@@ -56,7 +56,7 @@ def winch_implicit_once(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, c
     u0 = l0 / n
     u1 = l1 / n
     Pm = length_params(P, WA, 0.5 * (l0 + l1), m_mean, first, n, False)  # kappa = EA/ubar, u = ubar
-    factor_tridiagonal(P, WA, m_mean, hh * c, first, n, WA.inv, WA.cp, WA.w, WA.jeff, WA.lower, WA.upper)
+    factor_tridiagonal(P, WA, m_mean, hh * c, first, n, WA.inv, WA.cp, WA.w, WA.jeff, WA.lower, WA.upper, WA.diag)
     up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2 = held_inputs(inputs, forced)
     l_0, l_1, l_2, t0, t1, t2 = left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
     # the first guess: the explicit winch step (1w) with the last step's right forces
