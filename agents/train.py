@@ -241,6 +241,7 @@ def run(p: Prepared, argv: Optional[list] = None, callbacks: Sequence = ()) -> P
     ``running``, then ``finished``, ``interrupted`` (Ctrl-C, or the caller stopped it by raising
     SystemExit) or ``failed`` (the error is re-raised either way). ``callbacks``: more SB3 callbacks."""
     from stable_baselines3.common.callbacks import CallbackList, EvalCallback
+    from stable_baselines3.common.logger import CSVOutputFormat, Logger
     from stable_baselines3.common.vec_env import unwrap_vec_normalize
 
     s, cfg, run_dir, model = p.settings, p.cfg, p.run_dir, p.model
@@ -271,6 +272,10 @@ def run(p: Prepared, argv: Optional[list] = None, callbacks: Sequence = ()) -> P
             TqdmCallback(cfg.total_timesteps, disable=not s.progress),  # counts from the resumed step
         ] + ([limit] if limit else []) + list(callbacks))
         first = model.num_timesteps
+        # SB3's training statistics (losses, entropy, KL, ...) into the run, one file per segment
+        # (a resume does not overwrite the first); by default SB3 makes an empty /tmp/SB3-* per run
+        progress = "progress.csv" if not p.resume else f"progress_from_{first}_steps.csv"
+        model.set_logger(Logger(str(run_dir), [CSVOutputFormat(str(run_dir / progress))]))
         remaining = cfg.total_timesteps - first  # a resumed run continues up to the total
         start = time.perf_counter()
         model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=not p.resume)

@@ -1,6 +1,7 @@
 """Agents: the training script end to end on a tiny budget, evaluation, the baselines and the
 shipped policy."""
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -26,12 +27,19 @@ def test_training_smoke_writes_a_loadable_run(tmp_path, algo, budget):
     cmd = [sys.executable, "-m", "agents.train", "--algo", algo, "--set", *budget,
            "--eval-freq", "512", "--eval-episodes", "1", "--checkpoint-freq", "512", "--reference-episodes", "1",
            "--runs", str(tmp_path), "--run-name", "smoke", "--no-progress"]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=900, cwd=ROOT)
+    scratch = tmp_path / "tmp"  # the run's temporary directory: SB3 left an empty SB3-* there per run
+    scratch.mkdir()
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=900, cwd=ROOT,
+                          env={**os.environ, "TMPDIR": str(scratch)})
     assert proc.returncode == 0, proc.stderr[-3000:]
     run = tmp_path / "smoke"
     for name in ("model.zip", "vecnormalize.npz", "config.yaml", "args.json", "command.txt", "monitor.csv",
-                 "evaluations.npz", "learning_curve.png", "references.json", "training.json", "status.json"):
+                 "evaluations.npz", "learning_curve.png", "references.json", "training.json", "status.json",
+                 "progress.csv"):
         assert (run / name).is_file(), name
+    if algo == "ppo":  # SB3 writes a row per PPO update (SAC's after every 4th episode: none here)
+        assert "time/total_timesteps" in (run / "progress.csv").read_text().splitlines()[0]
+    assert not list(scratch.glob("SB3-*"))
     assert json.loads((run / "status.json").read_text())["status"] == "finished"
     assert list((run / "checkpoints").glob("model_*_steps.zip"))
     assert not list(run.rglob("*.pkl"))  # normalisation statistics are data (.npz), not pickles
