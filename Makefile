@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 PIP := $(BIN)/python -m pip install --disable-pip-version-check -q -c constraints.txt
 OUT ?= out
 
-.PHONY: demo test bench install clean
+.PHONY: demo test fuzz bench install clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -32,6 +32,11 @@ test: $(VENV)/.installed-test
 	$(BIN)/python -m pytest -n 2 --dist loadfile -m "not serial"; parallel=$$?; \
 	$(BIN)/python -m pytest -p no:xdist -m serial; serial=$$?; \
 	test $$parallel -eq 0 -a $$serial -eq 0
+
+# the property and fuzz tests with fresh examples (make test draws the same ones every run)
+fuzz: $(VENV)/.installed-test
+	HYPOTHESIS_PROFILE=explore $(BIN)/python -m pytest -n 2 --dist loadfile tests/test_properties.py \
+		tests/test_params.py tests/test_fuzz_scenes.py tests/test_fuzz_cli.py tests/test_arguments.py
 
 bench: $(VENV)/.installed
 	$(BIN)/python -m benchmarks.step_cost

@@ -14,12 +14,13 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .kernels.diagnostics import diagnostics as diagnostics_kernel
-from .kernels.layout import (BALANCE, BLOW_UP, DIAG, INPUTS, LOOP_REPORT_SIZE, NEWTON_FAILED, NON_FINITE, OK,
+from .kernels.layout import (BALANCE, DIAG, INPUTS, LOOP_REPORT_SIZE, OK,
                              R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS, STEP_DIAG, DiagWork, Snapshots,
-                             LGVIParams, StateArrays, Work, status_message)
+                             LGVIParams, StateArrays, Work)
 from .kernels.loops import state_size
 from .kernels.specialise import general_kernels, specialised_kernels
 from .kernels.string import state_forces
+from .errors import SimulationError, failure_advice  # noqa: F401  (re-exported)
 from .params import Scene, check_rotation
 from .trajectory import Trajectory  # noqa: F401  (re-exported)
 from .kernels.winch import winch_forces
@@ -39,40 +40,6 @@ class _NoBar:
 
     def update(self, n: int) -> None:
         pass
-
-
-class SimulationError(RuntimeError):
-    """The stepper could not take a step. The simulator keeps the last good state."""
-
-    def __init__(self, status: int, step: int, time: float, newton_iterations: int, advice: str = ""):
-        self.status = status
-        self.step = step
-        self.time = time
-        super().__init__(
-            f"step {step} (t = {time:.6g} s) failed: {status_message(status)} "
-            f"(Newton iterations in the failing step: {newton_iterations}); "
-            f"the simulator holds the last good state. {advice}".rstrip())
-
-
-def failure_advice(scene: Scene, status: int) -> str:
-    """What to change after a failed step, from the kind of failure and how h compares with the
-    stability bound (a smaller h is the answer only when h is near or past the bound)."""
-    bound = scene.stability_bound
-    ratio = scene.h / bound
-    if status in (BLOW_UP, NON_FINITE) and ratio > 0.7:
-        return (f"h = {scene.h:g} s is {ratio:.2g} x the stability bound {bound:.3g} s: use h <= 0.7 x the bound "
-                f"(esp_gym.choose_h).")
-    if status == NEWTON_FAILED and scene.solver.string == "implicit":
-        return ("The implicit string's Newton iteration did not converge (it can cycle where elements switch between "
-                "slack and taut, or when the body turns far in one step): use a smaller h, a larger "
-                "solver.newton_max_iter, or solver.string: explicit.")
-    if status == NEWTON_FAILED:
-        return "The body turned too far in one step: use a smaller h or a larger solver.newton_max_iter."
-    if status == BLOW_UP:
-        return (f"h is {ratio:.2g} x the stability bound, so the step is stable: the inputs or the initial state "
-                f"stretched an element past solver.max_stretch; use smaller inputs, or raise max_stretch if "
-                f"that stretch is intended.")
-    return "The forces or inputs overflowed: check their magnitudes."
 
 
 def _vector_input(name: str, value) -> np.ndarray:
@@ -326,15 +293,14 @@ class Simulator:
             self._timed(advance, (a, self._work, self.params, w, self._diag, self._inputs, speed, k,
                                         self._stats), k)
 
-    def run(self, t_final: float, record_every: int = 100, every_step: bool = False,
-            progress: bool = False, pivot_force=None, body_torque=None, spatial_torque=None) -> Trajectory:
+    def run(self, t_final: float, record_every: int = 100, every_step: bool = False, progress: bool = False,
+            pivot_force=None, body_torque=None, spatial_torque=None, reel_speed=None) -> Trajectory:
         """Advance by ``t_final`` seconds (a whole number of steps) with constant inputs (as in
-        :meth:`step`), recording every ``record_every`` steps (and energy, pi3, orthogonality
-        after every step if ``every_step``). Returns a :class:`Trajectory` whose first snapshot
-        is the current state. The length stays as it is: a winch that has moved reels with
-        :meth:`step` only."""
-        if not self.winch.idle:
-            raise ValueError("run() keeps the scene's string length; the winch has moved it: use step(reel_speed=...)")
+        :meth:`step`, ``reel_speed`` included), recording every ``record_every`` steps (and
+        energy, pi3, orthogonality after every step if ``every_step``). Returns a
+        :class:`Trajectory` whose first snapshot is the current state. While the winch reels or
+        holds a moved length, Python records between compiled calls of ``record_every`` steps
+        (of one step with ``every_step``): the same states as :meth:`step`'s."""
         nsteps = int(round(t_final / self.h))
         if nsteps < 0 or abs(nsteps * self.h - t_final) > 1e-9 * max(1.0, abs(t_final)):
             raise ValueError(f"t_final = {t_final} s is not a whole number of steps h = {self.h} s")
@@ -343,60 +309,77 @@ class Simulator:
             raise ValueError(f"record_every must be >= 1, got {record_every}")
         if every_step and nsteps % record_every:
             raise ValueError("every_step needs t_final to be a whole number of record_every steps")
+        speed = 0.0 if reel_speed is None else self.winch.check_speed(reel_speed)
+        reeling = speed != 0.0 or not self.winch.idle
+        if reeling:
+            self.winch.check_scene(self.scene, self.h)
         self._set_inputs(pivot_force, body_torque, spatial_torque)
-        advance, record = self._kernels()
         n = self.scene.string.elements
         K = nsteps // record_every
         e = np.empty
         snap = Snapshots(r=e((K + 1, n + 1, 3)), R=e((K + 1, 3, 3)), omega=e((K + 1, 3)), v=e((K + 1, 3)),
                          diag=e((K + 1, DIAG.size)), strain=e((K + 1, n)), acc=e((K + 1, BALANCE.size)),
                          step_diag=e((nsteps if every_step else 0, STEP_DIAG.size)))
-        a, d = self._arrays, self._diag
-        self._update_diag()
-        snap.r[0], snap.R[0], snap.omega[0], snap.v[0] = a.r, a.R, d.omega, d.V[-1]
-        snap.diag[0], snap.strain[0], snap.acc[0] = d.out, d.strain, a.acc
-        step0 = self._step
-        iters0 = self.newton_iterations
+        length = np.full(K + 1, self.winch.length)
+        self._snapshot(snap, 0)
+        step0, iters0 = self._step, self.newton_iterations
         start = _time.perf_counter()
         # a disabled tqdm still costs ~50 us: build one only when asked for
         bar_cm = (tqdm(total=nsteps, unit="step", unit_scale=True, desc=f"{self.scene.name} (N={n}, h={self.h:g})")
                   if progress else contextlib.nullcontext(_NoBar()))
         with bar_cm as bar:
-            j = 0
-            while j < K:  # in calls of ~call_seconds (see step), so Ctrl-C stops a long run
-                j1 = min(K, j + max(1, self.steps_per_call // record_every))
-                rows = slice(j + 1, j1 + 1)
-                part = Snapshots(*(x[rows] for x in snap[:-1]),
-                                 step_diag=snap.step_diag[j * record_every:j1 * record_every])
-                self._timed(record, (a, self._work, self.params, self._inputs, record_every, d, part, self._stats),
-                            (j1 - j) * record_every)
-                bar.update((j1 - j) * record_every)
-                j = j1
+            if reeling:
+                self._run_reeling(snap, length, record_every, speed, every_step, bar)
+            else:
+                self._run_compiled(snap, record_every, bar)
             rest = nsteps - K * record_every
             if rest:
-                self.step(rest, pivot_force, body_torque, spatial_torque)
+                self.step(rest, pivot_force, body_torque, spatial_torque, reel_speed=speed)
                 bar.update(rest)
-        wall = _time.perf_counter() - start
         t = (step0 + record_every * np.arange(K + 1)) * self.h
-        cols = {name: snap.diag[:, DIAG.scalar(name)].copy() for name in DIAG.names if name != "linear_momentum"}
-        work = snap.acc[:, BALANCE.scalar("work")]
-        impulse = snap.acc[:, BALANCE.scalar("angular_impulse_z")]
-        traj = Trajectory(
-            t=t, nodes=snap.r, R=snap.R, omega=snap.omega, attach_velocity=snap.v,
-            strain_energy=snap.strain, linear_momentum=snap.diag[:, DIAG["linear_momentum"]].copy(),
-            work=work.copy(), angular_impulse_z=impulse.copy(),
-            energy_balance_residual=cols["energy"] - self._E0 - work,
-            pi3_balance_residual=cols["pi3"] - self._pi3_0 - impulse,
-            gravity_impulse=snap.acc[:, BALANCE["gravity_impulse"]].copy(),
-            pivot_impulse=snap.acc[:, BALANCE["pivot_impulse"]].copy(),
-            steps=nsteps, newton_iterations=self.newton_iterations - iters0, wall_time_s=wall, **cols,
-        )
-        if every_step:
-            traj.t_every_step = (step0 + 1 + np.arange(nsteps)) * self.h
-            traj.energy_every_step = snap.step_diag[:, STEP_DIAG.scalar("energy")].copy()
-            traj.pi3_every_step = snap.step_diag[:, STEP_DIAG.scalar("pi3")].copy()
-            traj.orthogonality_every_step = snap.step_diag[:, STEP_DIAG.scalar("orthogonality")].copy()
-        return traj
+        return Trajectory.from_snapshots(
+            snap, t, length, self._E0, self._pi3_0, nsteps, self.newton_iterations - iters0,
+            _time.perf_counter() - start, (step0 + 1 + np.arange(nsteps)) * self.h if every_step else None)
+
+    def _run_compiled(self, snap: Snapshots, record_every: int, bar) -> None:
+        """:meth:`run`'s snapshots 1.. by the compiled recording loop, in calls of about
+        :attr:`call_seconds` (see :meth:`step`), so Ctrl-C stops a long run."""
+        _, record = self._kernels()
+        K = snap.r.shape[0] - 1
+        j = 0
+        while j < K:
+            j1 = min(K, j + max(1, self.steps_per_call // record_every))
+            rows = slice(j + 1, j1 + 1)
+            part = Snapshots(*(x[rows] for x in snap[:-1]), step_diag=snap.step_diag[j * record_every:j1 * record_every])
+            self._timed(record, (self._arrays, self._work, self.params, self._inputs, record_every, self._diag, part,
+                                 self._stats), (j1 - j) * record_every)
+            bar.update((j1 - j) * record_every)
+            j = j1
+
+    def _run_reeling(self, snap: Snapshots, length: np.ndarray, record_every: int, speed: float, every_step: bool,
+                     bar) -> None:
+        """:meth:`run`'s snapshots 1.. with the winch: :meth:`_reel` between them."""
+        out = self._diag.out
+        for j in range(1, snap.r.shape[0]):
+            if every_step:
+                for i in range((j - 1) * record_every, j * record_every):
+                    self._reel(1, speed)
+                    self._update_diag()
+                    row = snap.step_diag[i]
+                    for name in STEP_DIAG.names:
+                        row[STEP_DIAG.scalar(name)] = out[DIAG.scalar(name)]
+            else:
+                self._reel(record_every, speed)
+            self._snapshot(snap, j)
+            length[j] = self.winch.length
+            bar.update(record_every)
+
+    def _snapshot(self, snap: Snapshots, j: int) -> None:
+        """Row ``j`` of ``snap`` from the current state."""
+        self._update_diag()
+        a, d = self._arrays, self._diag
+        snap.r[j], snap.R[j], snap.omega[j], snap.v[j] = a.r, a.R, d.omega, d.V[-1]
+        snap.diag[j], snap.strain[j], snap.acc[j] = d.out, d.strain, a.acc
 
     # -- diagnostics ------------------------------------------------------------------------
     def _update_diag(self) -> float:

@@ -1,6 +1,9 @@
 """Shared fixtures and small reusable checkers for the physics tests."""
+import os
+
 import numpy as np
 import pytest
+from hypothesis import settings
 
 import esp_gym
 
@@ -14,6 +17,14 @@ def pytest_collection_modifyitems(items):
     for item in items:
         if item.path.name in SERIAL_MODULES:
             item.add_marker(pytest.mark.serial)
+
+
+#: Hypothesis draws the same examples on every run (profile "ci", the default: a red CI is a
+#: defect, not a draw) or fresh ones saved in .hypothesis/ (``HYPOTHESIS_PROFILE=explore``,
+#: `make fuzz`); the tests' own settings (max_examples, deadline) apply under both.
+settings.register_profile("ci", derandomize=True, database=None)
+settings.register_profile("explore", derandomize=False)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 
 #: The paper's example and two scenes far from it (see configs/scenes/*.yaml).

@@ -178,7 +178,7 @@ _options = st.fixed_dictionaries({}, optional={
 })
 
 
-@settings(derandomize=True, max_examples=60, deadline=None)
+@settings(max_examples=60, deadline=None)
 @given(_options)
 def test_fuzzed_environment_options_give_a_working_env_or_a_named_error(options):
     try:

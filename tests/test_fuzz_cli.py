@@ -14,7 +14,7 @@ from esp_gym import cli, model
 from esp_gym.params import SCENES_DIR
 from esp_gym.viz import recording
 
-FUZZ = settings(derandomize=True, database=None, deadline=None, max_examples=400,
+FUZZ = settings(deadline=None, max_examples=400,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 STATUSES = {cli.EXIT_OK, cli.EXIT_USAGE, cli.EXIT_SCENE}  # 1 and 4 need a run, and nothing runs here
 

@@ -1,8 +1,8 @@
 """Fuzzed scenes (issue 12): whatever a scene dict, an override or a scene file holds, loading it
 gives a valid Scene or a SceneError with a message, never another exception.
 
-Examples are derandomized and few (each test a few seconds at most), so CI sees the same ones on
-every run.
+Examples are few (each test a few seconds at most) and, under `make test`, derandomized
+(tests/conftest.py), so CI sees the same ones on every run; `make fuzz` draws fresh ones.
 """
 import math
 
@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 
 from esp_gym.params import ALIASES, SCENES_DIR, Scene, SceneError, load_scene, override_scene, scene_from_dict
 
-FUZZ = settings(derandomize=True, database=None, deadline=None, max_examples=300,
+FUZZ = settings(deadline=None, max_examples=300,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
 BASE = load_scene("paper_example").model_dump(mode="json")

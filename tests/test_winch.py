@@ -177,12 +177,36 @@ def test_what_cannot_reel_says_why():
     with pytest.raises(ValueError, match="winch.min_length"):
         Simulator(near).step(1, reel_speed=0.1)
     Simulator(esp_gym.load_scene(near, winch={"min_length": 0.9})).step(1, reel_speed=0.1)
-    sim = Simulator(esp_gym.load_scene("paper_example"))
-    sim.step(10, reel_speed=0.1)
-    with pytest.raises(ValueError, match="step\\(reel_speed"):
-        sim.run(0.01)
     with pytest.raises(ValueError, match="winch's range"):
         esp_gym.load_scene("paper_example", winch={"max_length": 0.9})
+
+
+@pytest.mark.parametrize("string", ["explicit", "implicit"])
+def test_run_while_reeling_records_the_states_of_step(string):
+    """run(reel_speed=...) is step(reel_speed=...) with snapshots: every row equals the state and
+    diagnostics after the same steps taken by step, bit for bit, per step with every_step; a run
+    at a moved length holds it. The energy balance with the winch's work closes."""
+    scene = esp_gym.load_scene("paper_example", N=6, solver={"string": string})
+    ran, stepped = Simulator(scene), Simulator(scene)
+    traj = ran.run(23 * 10 * scene.h, record_every=10, every_step=True, reel_speed=0.4)
+    assert traj.nodes.shape[0] == 24 and traj.energy_every_step.shape == (230,)
+    for j in range(24):
+        d = stepped.diagnostics()
+        assert np.array_equal(traj.nodes[j], stepped.state.r)
+        assert traj.unstretched_length[j] == d["unstretched_length"] and traj.winch_work[j] == d["winch_work"]
+        assert traj.energy_balance_residual[j] == d["energy_balance_residual"]
+        for i in range(10 if j < 23 else 0):
+            stepped.step(1, reel_speed=0.4)
+            assert traj.energy_every_step[10 * j + i] == stepped.diagnostics()["energy"]
+    assert traj.unstretched_length[-1] == pytest.approx(1.0 + 0.4 * 230 * scene.h, rel=1e-12)
+    assert abs(traj.energy_balance_residual).max() < 1e-3 * abs(traj.winch_work[-1])
+    held = ran.run(95 * scene.h, record_every=10)  # the reel stopped at a moved length: 9 rows and 5 steps
+    stepped.step(90)
+    assert np.array_equal(held.nodes[-1], stepped.state.r) and held.unstretched_length.shape == (10,)
+    stepped.step(5)
+    assert np.array_equal(ran.state.r, stepped.state.r)
+    assert np.all(held.unstretched_length == traj.unstretched_length[-1]) and np.allclose(held.winch_work[1:], held.winch_work[1], rtol=1e-9)
+    assert abs(held.energy_balance_residual).max() < 1e-3 * abs(held.winch_work[-1])  # with the stop's jump of H
 
 
 def test_choose_h_for_a_reeling_string_is_stable_at_the_winchs_shortest():

@@ -104,7 +104,7 @@ def back_substitute(cp, first, y0, y1, y2, x):
 def tridiag_solve(inv, cp, off, first, b, x):
     """Solve the constant tridiagonal system ``M x = b`` on rows ``first..N`` (3 columns).
 
-    ``inv``/``cp`` are the Thomas factors of M (from :func:`esp_gym.model.tridiag_factor`),
+    ``inv``/``cp`` are the Thomas factors of M (from :func:`tridiag_factor`),
     ``off`` its constant off-diagonal. Rows below ``first`` are not touched.
     """
     n = b.shape[0] - 1
