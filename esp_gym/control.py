@@ -25,7 +25,7 @@ import numpy as np
 from .kernels.layout import (DISTURBANCE, DISTURBANCE_PARAMS, DRAWS, INPUTS, OBSERVATION, R_TERMINATION, REPORT, REWARD,
                              REWARD_TERMS, SENSORS, TARGET, WINCH_OBSERVATION, LGVIParams)
 from .kernels.string import state_forces
-from .kernels.task import ENTRY_POINTS, actions_finite, env_reset_observe
+from .kernels.task import actions_finite, env_reset_observe, env_step, env_step_batch
 from .model import Simulator
 from .options import check_count
 from .setup import Episode, EnvSetup
@@ -134,7 +134,8 @@ class ControlStep:
         self._drawn = z(batch + (1,), dtype=np.int64)
         self._rngs = [None] * (self.num_envs or 1)  # each (sub-)environment's generator, for more draws
         self._windy = setup.wind is not None
-        self._entry = ENTRY_POINTS[self.sim.implicit, self._windy, setup.winch]
+        #: the scheme, wind and winch flags of env_step's last arguments (kernels/task.py)
+        self._flags = (bool(self.sim.implicit), bool(self._windy), bool(setup.winch))
         self._was_reset = z(batch, dtype=bool)  # stepping a state that was never set is an error
         self._ready = False  # all of _was_reset, kept as a bool: step checks it every call
         self._make_views()
@@ -265,10 +266,10 @@ class ControlStep:
             if self._windy and self._drawn[0] == BLOCK:
                 self._draws[...] = Wind.draws(self._rngs[0])
                 self._drawn[0] = 0
-            if not self._entry[0](s, w, p, d, wa, raw, self._action_params, self._inputs, int(self._substeps),
-                                  self._target, self._task_params, self._action, self._obs, self._terms,
-                                  self._sensors, self._report, self._wind_params, self._disturbance, self._draws,
-                                  self._drawn):
+            if not env_step(s, w, p, d, wa, raw, self._action_params, self._inputs, int(self._substeps),
+                            self._target, self._task_params, self._action, self._obs, self._terms, self._sensors,
+                            self._report, self._wind_params, self._disturbance, self._draws, self._drawn,
+                            *self._flags):
                 raise ValueError(f"action must be finite, got {raw.tolist()}")
             self.sim.count_steps(self._report)
             return
@@ -285,9 +286,9 @@ class ControlStep:
             for i in np.flatnonzero(self._drawn[:, 0] == BLOCK):
                 self._draws[i] = Wind.draws(self._rngs[i])
                 self._drawn[i] = 0
-        self._entry[1](s, w, d, p, wa, raw, self._action_params, self._inputs, active, self._substeps, self._target,
+        env_step_batch(s, w, d, p, wa, raw, self._action_params, self._inputs, active, self._substeps, self._target,
                        self._task_params, self._action, self._obs, self._terms, self._sensors, self._report,
-                       self._wind_params, self._disturbance, self._draws, self._drawn)
+                       self._wind_params, self._disturbance, self._draws, self._drawn, *self._flags)
 
     @staticmethod
     def _delay(raw: np.ndarray, pending: np.ndarray) -> np.ndarray:

@@ -118,12 +118,14 @@ def _rewind(S, W):
     restore_state(S, W.backup)
 
 
-@kernel(inline="always")
+@kernel
 def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, forces_ready=False,
                  implicit=False, disturbed=False):
     """Take up to ``nsteps`` steps with constant ``inputs``; stop at the first failure with
     the last good state. ``stats`` (int64, >= 4): status, steps taken, total Newton iterations,
-    max per step.
+    max per step. The flags are constants in the simulator's specialised kernels (their dead
+    branches pruned) and arguments in the environment's step (kernels/task.py); a call of its
+    own, not inlined, so one compile serves every caller of a signature.
 
     A composed step (or a cut-back implicit one) that fails part-way has moved the state. Instead of copying the state
     before every step (that cost 13 % of a composed step), the state is saved every
@@ -132,9 +134,9 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
     so it ends on exactly the state after the last good step. One call site of the step keeps
     the inlined code single. ``forces_ready``: ``S.f`` already holds the forces at ``S.r`` (as
     it does after any successful step), so they are not recomputed. ``implicit``: the implicit
-    string's step (a compile-time constant, as the flags); its ``S.f`` is part of the state
+    string's step; its ``S.f`` is part of the state
     (the last step's midpoint forces, its first guess: kernels/implicit.py) and is never
-    recomputed here. ``disturbed`` (a compile-time constant): the held external forces ``W.ext``
+    recomputed here. ``disturbed``: the held external forces ``W.ext``
     act too, as kicks of h/2 on both sides of every step (kernels/disturbance.py), the kicks
     between two steps merged into one; after a failure the pending half kick is taken back.
     """

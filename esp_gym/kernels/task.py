@@ -59,7 +59,7 @@ def env_sensors(S, P, target, sensors):
         sensors[SN_LOAD_TARGET_OFFSET + i] = target[T_LOAD + i] - r[0, i]
 
 
-@kernel(inline="always")
+@kernel
 def env_observe(S, P, D, target, tp, action, obs, terms, sensors, length):
     """Observation (OBSERVATION), SENSORS and reward terms (REWARD) of the current state (``D``
     filled by diagnostics) at the unstretched ``length`` [m] (the scene's; a winch's current one,
@@ -165,15 +165,14 @@ def take_action(raw, ap, action, inputs):
     return ap[AP_MAX_REEL_SPEED] * action[A_REEL_SPEED]
 
 
-@kernel(inline="always")
+@kernel
 def env_step_one(S, W, P, D, WA, inputs, reel, nsub, target, tp, action, obs, terms, sensors, result, dp, ds, draws,
                  drawn, implicit=False, disturbed=False, winched=False):
     """One control step: ``nsub`` physics steps with constant ``inputs`` (INPUTS), then
     observation, reward terms and termination code. ``result``: the step's REPORT (int64).
-    ``winched`` (a compile-time constant): the winch reels at ``reel`` [m/s] (kernels/winch.py,
-    its arrays ``WA``), and the observation ends with the unstretched length.
-    ``implicit`` (a compile-time constant): the implicit string's step (kernels/implicit.py).
-    ``disturbed`` (a compile-time constant): wind and pushes (kernels/disturbance.py) from the
+    ``winched``: the winch reels at ``reel`` [m/s] (kernels/winch.py, its arrays ``WA``), and
+    the observation ends with the unstretched length. ``implicit``: the implicit string's step
+    (kernels/implicit.py). ``disturbed``: wind and pushes (kernels/disturbance.py) from the
     episode's DISTURBANCE_PARAMS ``dp``, the DISTURBANCE state ``ds`` and the next row
     ``drawn[0]`` of the random ``draws`` (rows of DRAWS; ``drawn[0]`` is then advanced); their
     work over the step joins the balances."""
@@ -253,62 +252,59 @@ def params_row(P, b):
                       P.max_iter[b], P.gammas[b], P.max_len2[b], P.compensated[b], P.mdiag[b])
 
 
-def _entry_points(implicit: bool, disturbed: bool, winched: bool):
-    """``(step, batch)``, the compiled entry points of one string scheme, with or without wind and
-    pushes (``implicit`` and ``disturbed`` are closure constants, so each variant compiles only
-    when it is used; numba caches closures by their values, as in kernels/specialise.py).
+@kernel
+def env_step(s, w, p, d, wa, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result, dp, ds, draws,
+             drawn, implicit, disturbed, winched):
+    """:func:`take_action` of the raw action, then :func:`env_step_one`, for one environment
+    (one compiled call per control step). Returns False, with nothing changed, if the raw action
+    is not finite. ``s, w, p, d, wa`` are the fields of StateArrays, Work, LGVIParams, DiagWork
+    and WinchArrays (read only when ``winched``) as *plain* tuples: numba's dispatcher types a
+    plain tuple about twice as fast as a namedtuple (3 us less per call here), and the
+    namedtuples are rebuilt for free in compiled code. ``dp, ds, draws, drawn`` (read only when
+    ``disturbed``): DISTURBANCE_PARAMS, DISTURBANCE, (K, DRAWS) random draws and the index (1,)
+    int64 of the next one, which the caller keeps below K.
 
-    ``step(s, w, p, d, wa, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result,
-    dp, ds, draws, drawn)``: :func:`take_action` of the raw action, then :func:`env_step_one`,
-    for one environment (one compiled call per control step). Returns False, with nothing
-    changed, if the raw action is not finite. ``s, w, p, d, wa`` are the fields of StateArrays,
-    Work, LGVIParams, DiagWork and WinchArrays (read only when ``winched``) as *plain* tuples: numba's dispatcher types a plain tuple
-    about twice as fast as a namedtuple (3 us less per call here), and the namedtuples are
-    rebuilt for free in compiled code. ``dp, ds, draws, drawn`` (read only when ``disturbed``):
-    DISTURBANCE_PARAMS, DISTURBANCE, (K, DRAWS) random draws and the index (1,) int64 of the
-    next one, which the caller keeps below K.
-
-    ``batch(s, w, d, p, wa, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors,
-    result, dp, ds, draws, drawn)``: :func:`take_action` of ``raw[b]`` and :func:`env_step_one`
-    for every environment b with ``active[b]``, in parallel (the raw actions must be finite:
-    :func:`actions_finite`). ``s, w, d, p, wa`` are StateArrays, Work, DiagWork, LGVIParams and
-    WinchArrays whose arrays carry a leading batch axis (:func:`params_row`), as plain tuples; the other
-    arrays are batched too: raw (B, ACTION), ap (B, ACTION_PARAMS), inputs (B, INPUTS), nsub
-    (B,), target (B, TARGET), tp (B, TASK_PARAMS), action, obs, terms, sensors (B, SENSORS),
-    result (B, REPORT), dp, ds, draws (B, K, DRAWS), drawn (B, 1).
-    """
-
-    @kernel
-    def step(s, w, p, d, wa, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result, dp, ds, draws,
-             drawn):
-        reel = take_action(raw, ap, action, inputs)
-        if reel == -np.inf:
-            return False
-        env_step_one(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), inputs, reel, nsub,
-                     target, tp, action, obs, terms, sensors, result, dp, ds, draws, drawn, implicit, disturbed,
-                     winched)
-        return True
-
-    @kernel(parallel=True)
-    def batch(s, w, d, p, wa, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors, result, dp, ds,
-              draws, drawn):
-        S = StateArrays(*s)
-        W = Work(*w)
-        D = DiagWork(*d)
-        P = LGVIParams(*p)
-        WA = WinchArrays(*wa)
-        for b in prange(raw.shape[0]):
-            if active[b]:
-                reel = take_action(raw[b], ap[b], action[b], inputs[b])
-                if reel != -np.inf:
-                    env_step_one(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), winch_row(WA, b),
-                                 inputs[b], reel, nsub[b], target[b], tp[b], action[b], obs[b], terms[b], sensors[b],
-                                 result[b], dp[b], ds[b], draws[b], drawn[b], implicit, disturbed, winched)
-
-    return step, batch
+    ``implicit, disturbed, winched`` (bool) choose the string scheme, the wind and the winch.
+    They are arguments, not compile-time constants: as constants each of their eight
+    combinations compiled the whole step again (numba types a constant bool as a literal, one
+    signature each), 45-90 s apiece on a cold cache; as arguments one compile serves them all,
+    and the branches they choose cost nothing measurable (docs/performance.md, "Start-up")."""
+    reel = take_action(raw, ap, action, inputs)
+    if reel == -np.inf:
+        return False
+    env_step_one(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), inputs, reel, nsub,
+                 target, tp, action, obs, terms, sensors, result, dp, ds, draws, drawn, implicit, disturbed, winched)
+    return True
 
 
-#: The entry points by (implicit string, wind and pushes, winch) (see :func:`_entry_points`); each
-#: compiles only for environments that use it.
-ENTRY_POINTS = {(implicit, disturbed, winched): _entry_points(implicit, disturbed, winched)
-                for implicit in (False, True) for disturbed in (False, True) for winched in (False, True)}
+@kernel(parallel=True)
+def env_step_batch(s, w, d, p, wa, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors, result, dp,
+                   ds, draws, drawn, implicit, disturbed, winched):
+    """:func:`take_action` of ``raw[b]`` and :func:`env_step_one` for every environment b with
+    ``active[b]``, in parallel (the raw actions must be finite: :func:`actions_finite`). ``s, w,
+    d, p, wa`` are StateArrays, Work, DiagWork, LGVIParams and WinchArrays whose arrays carry a
+    leading batch axis (:func:`params_row`), as plain tuples; the other arrays are batched too:
+    raw (B, ACTION), ap (B, ACTION_PARAMS), inputs (B, INPUTS), nsub (B,), target (B, TARGET), tp
+    (B, TASK_PARAMS), action, obs, terms, sensors (B, SENSORS), result (B, REPORT), dp, ds, draws
+    (B, K, DRAWS), drawn (B, 1). ``implicit, disturbed, winched`` as in :func:`env_step`."""
+    S = StateArrays(*s)
+    W = Work(*w)
+    D = DiagWork(*d)
+    P = LGVIParams(*p)
+    WA = WinchArrays(*wa)
+    for b in prange(raw.shape[0]):
+        if active[b]:
+            env_step_row(S, W, D, P, WA, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result, dp,
+                         ds, draws, drawn, implicit, disturbed, winched, b)
+
+
+@kernel
+def env_step_row(S, W, D, P, WA, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result, dp, ds,
+                 draws, drawn, implicit, disturbed, winched, b):
+    """:func:`env_step_batch`'s step of environment ``b`` (a call of its own, so the parallel
+    loop's body stays small: numba lowers that body again, inlined code and all)."""
+    reel = take_action(raw[b], ap[b], action[b], inputs[b])
+    if reel != -np.inf:
+        env_step_one(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), winch_row(WA, b), inputs[b],
+                     reel, nsub[b], target[b], tp[b], action[b], obs[b], terms[b], sensors[b], result[b], dp[b], ds[b],
+                     draws[b], drawn[b], implicit, disturbed, winched)

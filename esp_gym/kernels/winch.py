@@ -300,7 +300,7 @@ def winch_energy(S, P, WA, D, length, v):
     return out[D_ENERGY], dH
 
 
-@kernel(inline="always")
+@kernel(forceinline=True)
 def midpoint_dH_dl(S, W, P, WA, h, l0, l1, first, elastic):
     """dH/dl [J/m] at the midpoint of the step just taken (l0 -> l1 in ``h``): positions
     r_k + dr/2, velocities dr/h (second-order accurate there), length (l0 + l1)/2; the formula

@@ -28,7 +28,7 @@ from .winch import (add_convective_forces, convective_impulse, convective_moment
                     midpoint_dH_dl, step_solve)
 
 
-@kernel(inline="always")
+@kernel(forceinline=True)
 def winch_implicit_once(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, compensated, bounded):
     """One step of length ``h`` of the implicit string while the winch takes the unstretched
     length ``l0 -> l1`` [m], without cutting back: the state untouched on failure and (``bounded``)
@@ -149,7 +149,7 @@ def elastic_winch_work(r, Y, EA, kappa, u0, u1, slack):
     return total
 
 
-@kernel(inline="always")
+@kernel(forceinline=True)
 def winch_implicit_substep(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, compensated):
     """A step of the implicit string reeling ``l0 -> l1`` [m] over ``h`` [s], cut back where it
     fails as :func:`~.implicit.implicit_substep` (the rest in halves, to h / 2**CUTBACKS), each

@@ -11,16 +11,17 @@ from .winch import midpoint_dH_dl, winch_energy, winch_substep
 from .winch_implicit import winch_implicit_substep
 
 
-@kernel(inline="always")
+@kernel
 def winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed, implicit=False):
     """Take up to ``nsteps`` steps reeling at ``speed`` [m/s] (held; each step's speed is cut so
     the length stays in the winch's range, and is 0 at an end), with constant ``inputs``; stop at
     the first failure with the last good state. ``stats`` as :func:`~.loops.advance_loop`'s. The
     winch's work joins ``S.acc`` (B_WINCH_WORK). Every term is computed (the general path).
-    ``disturbed`` (a compile-time constant): the held external forces ``W.ext`` kick as in
-    :func:`~.loops.advance_loop` (h/2 before the first step and after the last, h between).
-    ``implicit`` (a compile-time constant): the implicit string's step (kernels/winch_implicit.py,
-    order 2), which may cut itself back, so each step is checkpointed."""
+    ``disturbed`` (a constant in the simulator's kernels, an argument in the environment's):
+    the held external forces ``W.ext`` kick as in :func:`~.loops.advance_loop` (h/2 before the
+    first step and after the last, h between). ``implicit`` (likewise): the implicit string's
+    step (kernels/winch_implicit.py, order 2), which may cut itself back, so each step is
+    checkpointed."""
     free = P.first == 0
     first = 0 if free else 1
     compensated = P.compensated
