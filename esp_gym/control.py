@@ -23,7 +23,8 @@ from typing import Optional
 import numpy as np
 
 from .kernels.layout import (DISTURBANCE, DISTURBANCE_PARAMS, DRAWS, INPUTS, OBSERVATION, R_TERMINATION, REPORT, REWARD,
-                             REWARD_TERMS, SENSORS, TARGET, WINCH_OBSERVATION, LGVIParams)
+                             REWARD_TERMS, SCHEME_DISTURBED, SCHEME_IMPLICIT, SCHEME_WINCHED, SENSORS, TARGET,
+                             WINCH_OBSERVATION, LGVIParams)
 from .kernels.string import state_forces
 from .kernels.task import actions_finite, env_reset_observe, env_step, env_step_batch
 from .model import Simulator
@@ -134,8 +135,9 @@ class ControlStep:
         self._drawn = z(batch + (1,), dtype=np.int64)
         self._rngs = [None] * (self.num_envs or 1)  # each (sub-)environment's generator, for more draws
         self._windy = setup.wind is not None
-        #: the scheme, wind and winch flags of env_step's last arguments (kernels/task.py)
-        self._flags = (bool(self.sim.implicit), bool(self._windy), bool(setup.winch))
+        #: env_step's ``scheme`` (kernels/task.py): the string scheme, wind and winch
+        self._scheme = ((SCHEME_IMPLICIT if self.sim.implicit else 0) | (SCHEME_DISTURBED if self._windy else 0)
+                        | (SCHEME_WINCHED if setup.winch else 0))
         self._was_reset = z(batch, dtype=bool)  # stepping a state that was never set is an error
         self._ready = False  # all of _was_reset, kept as a bool: step checks it every call
         self._make_views()
@@ -269,7 +271,7 @@ class ControlStep:
             if not env_step(s, w, p, d, wa, raw, self._action_params, self._inputs, int(self._substeps),
                             self._target, self._task_params, self._action, self._obs, self._terms, self._sensors,
                             self._report, self._wind_params, self._disturbance, self._draws, self._drawn,
-                            *self._flags):
+                            self._scheme):
                 raise ValueError(f"action must be finite, got {raw.tolist()}")
             self.sim.count_steps(self._report)
             return
@@ -288,7 +290,7 @@ class ControlStep:
                 self._drawn[i] = 0
         env_step_batch(s, w, d, p, wa, raw, self._action_params, self._inputs, active, self._substeps, self._target,
                        self._task_params, self._action, self._obs, self._terms, self._sensors, self._report,
-                       self._wind_params, self._disturbance, self._draws, self._drawn, *self._flags)
+                       self._wind_params, self._disturbance, self._draws, self._drawn, self._scheme)
 
     @staticmethod
     def _delay(raw: np.ndarray, pending: np.ndarray) -> np.ndarray:

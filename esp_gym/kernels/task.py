@@ -22,6 +22,7 @@ from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, A_REEL_SPEED, ACTION_SIZE, AP
                      WinchArrays, B_WORK, D_STRETCHED_LENGTH, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE,
                      O_ANGULAR_VELOCITY, O_ATTITUDE, O_LOAD_ERROR, O_LOAD_VELOCITY, O_PIVOT_ERROR, O_PIVOT_VELOCITY,
                      O_STRETCH, OK, R_STATUS, R_STEPS, R_TERMINATION, RW_CONTROL, RW_LOAD_POSITION, RW_LOAD_VELOCITY,
+                     SCHEME_DISTURBED, SCHEME_IMPLICIT, SCHEME_WINCHED,
                      RW_PIVOT_POSITION, RW_SPIN, RW_SWING, SN_HOOK_TENSION, SN_LOAD_TARGET_OFFSET, T_LOAD, T_PIVOT, T_VELOCITY, TERM_NONE, TERM_OVERSTRETCH,
                      TERM_WORKSPACE, TP_MAX_STRETCHED_LENGTH, TP_SCALE_POSITION, TP_SCALE_SPIN, TP_SCALE_SWING,
                      TP_SCALE_VELOCITY, TP_STRING_LENGTH, TP_W_CONTROL, TP_W_LOAD_POSITION, TP_W_LOAD_VELOCITY,
@@ -254,7 +255,7 @@ def params_row(P, b):
 
 @kernel
 def env_step(s, w, p, d, wa, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result, dp, ds, draws,
-             drawn, implicit, disturbed, winched):
+             drawn, scheme):
     """:func:`take_action` of the raw action, then :func:`env_step_one`, for one environment
     (one compiled call per control step). Returns False, with nothing changed, if the raw action
     is not finite. ``s, w, p, d, wa`` are the fields of StateArrays, Work, LGVIParams, DiagWork
@@ -264,29 +265,33 @@ def env_step(s, w, p, d, wa, raw, ap, inputs, nsub, target, tp, action, obs, ter
     ``disturbed``): DISTURBANCE_PARAMS, DISTURBANCE, (K, DRAWS) random draws and the index (1,)
     int64 of the next one, which the caller keeps below K.
 
-    ``implicit, disturbed, winched`` (bool) choose the string scheme, the wind and the winch.
-    They are arguments, not compile-time constants: as constants each of their eight
-    combinations compiled the whole step again (numba types a constant bool as a literal, one
-    signature each), 45-90 s apiece on a cold cache; as arguments one compile serves them all,
-    and the branches they choose cost nothing measurable (docs/performance.md, "Start-up")."""
+    ``scheme`` (int, bits SCHEME_*) chooses the implicit string, wind and pushes, and the winch.
+    It is an argument, not a compile-time constant: as constants each of the eight combinations
+    compiled the whole step again (numba types a constant bool as a literal, one signature
+    each), 36-60 s apiece on a cold cache; as an argument one compile serves them all
+    (docs/performance.md, "Start-up")."""
     reel = take_action(raw, ap, action, inputs)
     if reel == -np.inf:
         return False
     env_step_one(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), inputs, reel, nsub,
-                 target, tp, action, obs, terms, sensors, result, dp, ds, draws, drawn, implicit, disturbed, winched)
+                 target, tp, action, obs, terms, sensors, result, dp, ds, draws, drawn, (scheme & SCHEME_IMPLICIT) != 0,
+                 (scheme & SCHEME_DISTURBED) != 0, (scheme & SCHEME_WINCHED) != 0)
     return True
 
 
 @kernel(parallel=True)
 def env_step_batch(s, w, d, p, wa, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors, result, dp,
-                   ds, draws, drawn, implicit, disturbed, winched):
+                   ds, draws, drawn, scheme):
     """:func:`take_action` of ``raw[b]`` and :func:`env_step_one` for every environment b with
     ``active[b]``, in parallel (the raw actions must be finite: :func:`actions_finite`). ``s, w,
     d, p, wa`` are StateArrays, Work, DiagWork, LGVIParams and WinchArrays whose arrays carry a
     leading batch axis (:func:`params_row`), as plain tuples; the other arrays are batched too:
     raw (B, ACTION), ap (B, ACTION_PARAMS), inputs (B, INPUTS), nsub (B,), target (B, TARGET), tp
     (B, TASK_PARAMS), action, obs, terms, sensors (B, SENSORS), result (B, REPORT), dp, ds, draws
-    (B, K, DRAWS), drawn (B, 1). ``implicit, disturbed, winched`` as in :func:`env_step`."""
+    (B, K, DRAWS), drawn (B, 1). ``scheme`` as in :func:`env_step`."""
+    implicit = (scheme & SCHEME_IMPLICIT) != 0
+    disturbed = (scheme & SCHEME_DISTURBED) != 0
+    winched = (scheme & SCHEME_WINCHED) != 0
     S = StateArrays(*s)
     W = Work(*w)
     D = DiagWork(*d)
