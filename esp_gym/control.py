@@ -23,10 +23,10 @@ from typing import Optional
 import numpy as np
 
 from .kernels.layout import (DISTURBANCE, DISTURBANCE_PARAMS, DRAWS, INPUTS, OBSERVATION, R_TERMINATION, REPORT, REWARD,
-                             REWARD_TERMS, SCHEME_DISTURBED, SCHEME_IMPLICIT, SCHEME_WINCHED, SENSORS, TARGET,
+                             REWARD_TERMS, SCHEME_DISTURBED, SCHEME_IMPLICIT, SENSORS, TARGET,
                              WINCH_OBSERVATION, LGVIParams)
 from .kernels.string import state_forces
-from .kernels.task import actions_finite, env_reset_observe, env_step, env_step_batch
+from .kernels.task import ENTRY_POINTS, actions_finite, env_reset_observe
 from .model import Simulator
 from .options import check_count
 from .setup import Episode, EnvSetup
@@ -135,9 +135,9 @@ class ControlStep:
         self._drawn = z(batch + (1,), dtype=np.int64)
         self._rngs = [None] * (self.num_envs or 1)  # each (sub-)environment's generator, for more draws
         self._windy = setup.wind is not None
-        #: env_step's ``scheme`` (kernels/task.py): the string scheme, wind and winch
-        self._scheme = ((SCHEME_IMPLICIT if self.sim.implicit else 0) | (SCHEME_DISTURBED if self._windy else 0)
-                        | (SCHEME_WINCHED if setup.winch else 0))
+        #: the compiled step and batched step (kernels/task.py), and their ``scheme``
+        self._step_kernel, self._batch_kernel = ENTRY_POINTS[bool(setup.winch)]
+        self._scheme = (SCHEME_IMPLICIT if self.sim.implicit else 0) | (SCHEME_DISTURBED if self._windy else 0)
         self._was_reset = z(batch, dtype=bool)  # stepping a state that was never set is an error
         self._ready = False  # all of _was_reset, kept as a bool: step checks it every call
         self._make_views()
@@ -268,10 +268,10 @@ class ControlStep:
             if self._windy and self._drawn[0] == BLOCK:
                 self._draws[...] = Wind.draws(self._rngs[0])
                 self._drawn[0] = 0
-            if not env_step(s, w, p, d, wa, raw, self._action_params, self._inputs, int(self._substeps),
-                            self._target, self._task_params, self._action, self._obs, self._terms, self._sensors,
-                            self._report, self._wind_params, self._disturbance, self._draws, self._drawn,
-                            self._scheme):
+            if not self._step_kernel(s, w, p, d, wa, raw, self._action_params, self._inputs, int(self._substeps),
+                                     self._target, self._task_params, self._action, self._obs, self._terms,
+                                     self._sensors, self._report, self._wind_params, self._disturbance, self._draws,
+                                     self._drawn, self._scheme):
                 raise ValueError(f"action must be finite, got {raw.tolist()}")
             self.sim.count_steps(self._report)
             return
@@ -288,9 +288,9 @@ class ControlStep:
             for i in np.flatnonzero(self._drawn[:, 0] == BLOCK):
                 self._draws[i] = Wind.draws(self._rngs[i])
                 self._drawn[i] = 0
-        env_step_batch(s, w, d, p, wa, raw, self._action_params, self._inputs, active, self._substeps, self._target,
-                       self._task_params, self._action, self._obs, self._terms, self._sensors, self._report,
-                       self._wind_params, self._disturbance, self._draws, self._drawn, self._scheme)
+        self._batch_kernel(s, w, d, p, wa, raw, self._action_params, self._inputs, active, self._substeps,
+                           self._target, self._task_params, self._action, self._obs, self._terms, self._sensors,
+                           self._report, self._wind_params, self._disturbance, self._draws, self._drawn, self._scheme)
 
     @staticmethod
     def _delay(raw: np.ndarray, pending: np.ndarray) -> np.ndarray:

@@ -351,12 +351,11 @@ DR_PUSH_CHANCE = DRAWS.scalar("push_chance")
 DR_PUSH_AZIMUTH = DRAWS.scalar("push_azimuth")
 DR_PUSH_SCALE = DRAWS.scalar("push_scale")
 
-#: The environment step's ``scheme`` (kernels/task.py): bits for the implicit string, wind and
-#: pushes, and the winch. One int argument, not three bools: each argument costs the dispatcher
-#: about 0.09 us per call.
+#: The environment step's ``scheme`` (kernels/task.py): bits for the implicit string and for wind
+#: and pushes. One int argument, not two bools: each argument costs numba's dispatcher about
+#: 0.09 us per call.
 SCHEME_IMPLICIT = 1
 SCHEME_DISTURBED = 2
-SCHEME_WINCHED = 4
 
 
 # -- a recording sample (kernels/recording.py, esp_gym/viz/recorder.py) ---------------------------

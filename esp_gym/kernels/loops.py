@@ -118,14 +118,14 @@ def _rewind(S, W):
     restore_state(S, W.backup)
 
 
-@kernel
+@kernel(inline="always")
 def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, forces_ready=False,
                  implicit=False, disturbed=False):
     """Take up to ``nsteps`` steps with constant ``inputs``; stop at the first failure with
     the last good state. ``stats`` (int64, >= 4): status, steps taken, total Newton iterations,
-    max per step. The flags are constants in the simulator's specialised kernels (their dead
-    branches pruned) and arguments in the environment's step (kernels/task.py); a call of its
-    own, not inlined, so one compile serves every caller of a signature.
+    max per step. The flags are constants in the simulator's specialised kernels, which inline
+    this loop and prune its dead branches; the environment's step, whose flags are arguments,
+    calls :func:`advance_loop_shared`.
 
     A composed step (or a cut-back implicit one) that fails part-way has moved the state. Instead of copying the state
     before every step (that cost 13 % of a composed step), the state is saved every
@@ -181,6 +181,15 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
         kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, -hh, first)
     _finish(stats, failed, target, total, most)
 
+
+
+@kernel
+def advance_loop_shared(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, forces_ready, implicit,
+                        disturbed):
+    """:func:`advance_loop` compiled as a function of its own, every branch kept: one compile serves
+    every value of the flags (the environment's step, kernels/task.py; docs/performance.md,
+    "Start-up")."""
+    advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, forces_ready, implicit, disturbed)
 
 
 @kernel(inline="always")

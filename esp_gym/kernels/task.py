@@ -22,16 +22,16 @@ from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, A_REEL_SPEED, ACTION_SIZE, AP
                      WinchArrays, B_WORK, D_STRETCHED_LENGTH, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE,
                      O_ANGULAR_VELOCITY, O_ATTITUDE, O_LOAD_ERROR, O_LOAD_VELOCITY, O_PIVOT_ERROR, O_PIVOT_VELOCITY,
                      O_STRETCH, OK, R_STATUS, R_STEPS, R_TERMINATION, RW_CONTROL, RW_LOAD_POSITION, RW_LOAD_VELOCITY,
-                     SCHEME_DISTURBED, SCHEME_IMPLICIT, SCHEME_WINCHED,
+                     SCHEME_DISTURBED, SCHEME_IMPLICIT,
                      RW_PIVOT_POSITION, RW_SPIN, RW_SWING, SN_HOOK_TENSION, SN_LOAD_TARGET_OFFSET, T_LOAD, T_PIVOT, T_VELOCITY, TERM_NONE, TERM_OVERSTRETCH,
                      TERM_WORKSPACE, TP_MAX_STRETCHED_LENGTH, TP_SCALE_POSITION, TP_SCALE_SPIN, TP_SCALE_SWING,
                      TP_SCALE_VELOCITY, TP_STRING_LENGTH, TP_W_CONTROL, TP_W_LOAD_POSITION, TP_W_LOAD_VELOCITY,
                      TP_W_PIVOT_POSITION, TP_W_SPIN, TP_W_SWING, TP_WORKSPACE_RADIUS, DiagWork, LGVIParams,
                      StateArrays, Work)
-from .loops import advance_loop
+from .loops import advance_loop_shared
 from .reference import advance_reference
 from .winch import length_params, winch_energy
-from .winch_loops import winch_loop
+from .winch_loops import winch_loop_shared
 
 
 @kernel
@@ -186,9 +186,9 @@ def env_step_one(S, W, P, D, WA, inputs, reel, nsub, target, tp, action, obs, te
         phi = external_potential(S, P, W.ext, first)
     # the general kernel: an environment always has inputs and, as a rule, an off-centre load
     if winched:
-        winch_loop(S, W, P, WA, D, inputs, reel, nsub, result, disturbed, implicit)
+        winch_loop_shared(S, W, P, WA, D, inputs, reel, nsub, result, disturbed, implicit)
     else:
-        advance_loop(S, W, P, inputs, nsub, result, free, True, True, P.compensated, False, implicit, disturbed)
+        advance_loop_shared(S, W, P, inputs, nsub, result, free, True, True, P.compensated, False, implicit, disturbed)
     if disturbed:
         kahan_add(S.acc, S.accc, B_WORK, external_potential(S, P, W.ext, first) - phi)
     advance_reference(target, result[R_STEPS] * P.h)
@@ -253,63 +253,69 @@ def params_row(P, b):
                       P.max_iter[b], P.gammas[b], P.max_len2[b], P.compensated[b], P.mdiag[b])
 
 
-@kernel
-def env_step(s, w, p, d, wa, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result, dp, ds, draws,
+def _entry_points(winched: bool):
+    """``(step, batch)``, the compiled entry points of the environment without or with the winch
+    (``winched`` is a closure constant: the winch's loop compiles only for environments that
+    reel).
+
+    ``step(s, w, p, d, wa, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors,
+    result, dp, ds, draws, drawn, scheme)``: :func:`take_action` of the raw action, then
+    :func:`env_step_one`, for one environment (one compiled call per control step). Returns
+    False, with nothing changed, if the raw action is not finite. ``s, w, p, d, wa`` are the
+    fields of StateArrays, Work, LGVIParams, DiagWork and WinchArrays (read only when
+    ``winched``) as *plain* tuples: numba's dispatcher types a plain tuple about twice as fast
+    as a namedtuple (3 us less per call here), and the namedtuples are rebuilt for free in
+    compiled code. ``dp, ds, draws, drawn`` (read only when disturbed): DISTURBANCE_PARAMS,
+    DISTURBANCE, (K, DRAWS) random draws and the index (1,) int64 of the next one, which the
+    caller keeps below K.
+
+    ``scheme`` (int, bits SCHEME_*) chooses the implicit string and wind and pushes. It is an
+    argument, not a compile-time constant: as constants each combination compiled the whole step
+    again (numba types a constant bool as a literal, one signature each), 36-60 s apiece on a
+    cold cache; as an argument one compile serves them all (docs/performance.md, "Start-up").
+
+    ``batch(s, w, d, p, wa, raw, ap, inputs, active, nsub, target, tp, action, obs, terms,
+    sensors, result, dp, ds, draws, drawn, scheme)``: :func:`take_action` of ``raw[b]`` and
+    :func:`env_step_one` for every environment b with ``active[b]``, in parallel (the raw actions
+    must be finite: :func:`actions_finite`). ``s, w, d, p, wa`` are StateArrays, Work, DiagWork,
+    LGVIParams and WinchArrays whose arrays carry a leading batch axis (:func:`params_row`), as
+    plain tuples; the other arrays are batched too: raw (B, ACTION), ap (B, ACTION_PARAMS),
+    inputs (B, INPUTS), nsub (B,), target (B, TARGET), tp (B, TASK_PARAMS), action, obs, terms,
+    sensors (B, SENSORS), result (B, REPORT), dp, ds, draws (B, K, DRAWS), drawn (B, 1).
+    """
+
+    @kernel
+    def step(s, w, p, d, wa, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result, dp, ds, draws,
              drawn, scheme):
-    """:func:`take_action` of the raw action, then :func:`env_step_one`, for one environment
-    (one compiled call per control step). Returns False, with nothing changed, if the raw action
-    is not finite. ``s, w, p, d, wa`` are the fields of StateArrays, Work, LGVIParams, DiagWork
-    and WinchArrays (read only when ``winched``) as *plain* tuples: numba's dispatcher types a
-    plain tuple about twice as fast as a namedtuple (3 us less per call here), and the
-    namedtuples are rebuilt for free in compiled code. ``dp, ds, draws, drawn`` (read only when
-    ``disturbed``): DISTURBANCE_PARAMS, DISTURBANCE, (K, DRAWS) random draws and the index (1,)
-    int64 of the next one, which the caller keeps below K.
+        reel = take_action(raw, ap, action, inputs)
+        if reel == -np.inf:
+            return False
+        env_step_one(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), inputs, reel, nsub,
+                     target, tp, action, obs, terms, sensors, result, dp, ds, draws, drawn,
+                     (scheme & SCHEME_IMPLICIT) != 0, (scheme & SCHEME_DISTURBED) != 0, winched)
+        return True
 
-    ``scheme`` (int, bits SCHEME_*) chooses the implicit string, wind and pushes, and the winch.
-    It is an argument, not a compile-time constant: as constants each of the eight combinations
-    compiled the whole step again (numba types a constant bool as a literal, one signature
-    each), 36-60 s apiece on a cold cache; as an argument one compile serves them all
-    (docs/performance.md, "Start-up")."""
-    reel = take_action(raw, ap, action, inputs)
-    if reel == -np.inf:
-        return False
-    env_step_one(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), inputs, reel, nsub,
-                 target, tp, action, obs, terms, sensors, result, dp, ds, draws, drawn, (scheme & SCHEME_IMPLICIT) != 0,
-                 (scheme & SCHEME_DISTURBED) != 0, (scheme & SCHEME_WINCHED) != 0)
-    return True
+    @kernel(parallel=True)
+    def batch(s, w, d, p, wa, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors, result, dp, ds,
+              draws, drawn, scheme):
+        implicit = (scheme & SCHEME_IMPLICIT) != 0
+        disturbed = (scheme & SCHEME_DISTURBED) != 0
+        S = StateArrays(*s)
+        W = Work(*w)
+        D = DiagWork(*d)
+        P = LGVIParams(*p)
+        WA = WinchArrays(*wa)
+        for b in prange(raw.shape[0]):
+            if active[b]:
+                reel = take_action(raw[b], ap[b], action[b], inputs[b])
+                if reel != -np.inf:
+                    env_step_one(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), winch_row(WA, b),
+                                 inputs[b], reel, nsub[b], target[b], tp[b], action[b], obs[b], terms[b], sensors[b],
+                                 result[b], dp[b], ds[b], draws[b], drawn[b], implicit, disturbed, winched)
 
-
-@kernel(parallel=True)
-def env_step_batch(s, w, d, p, wa, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors, result, dp,
-                   ds, draws, drawn, scheme):
-    """:func:`take_action` of ``raw[b]`` and :func:`env_step_one` for every environment b with
-    ``active[b]``, in parallel (the raw actions must be finite: :func:`actions_finite`). ``s, w,
-    d, p, wa`` are StateArrays, Work, DiagWork, LGVIParams and WinchArrays whose arrays carry a
-    leading batch axis (:func:`params_row`), as plain tuples; the other arrays are batched too:
-    raw (B, ACTION), ap (B, ACTION_PARAMS), inputs (B, INPUTS), nsub (B,), target (B, TARGET), tp
-    (B, TASK_PARAMS), action, obs, terms, sensors (B, SENSORS), result (B, REPORT), dp, ds, draws
-    (B, K, DRAWS), drawn (B, 1). ``scheme`` as in :func:`env_step`."""
-    implicit = (scheme & SCHEME_IMPLICIT) != 0
-    disturbed = (scheme & SCHEME_DISTURBED) != 0
-    winched = (scheme & SCHEME_WINCHED) != 0
-    S = StateArrays(*s)
-    W = Work(*w)
-    D = DiagWork(*d)
-    P = LGVIParams(*p)
-    WA = WinchArrays(*wa)
-    for b in prange(raw.shape[0]):
-        if active[b]:
-            env_step_row(S, W, D, P, WA, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result, dp,
-                         ds, draws, drawn, implicit, disturbed, winched, b)
+    return step, batch
 
 
-@kernel
-def env_step_row(S, W, D, P, WA, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result, dp, ds,
-                 draws, drawn, implicit, disturbed, winched, b):
-    """:func:`env_step_batch`'s step of environment ``b`` (a call of its own, so the parallel
-    loop's body stays small: numba lowers that body again, inlined code and all)."""
-    reel = take_action(raw[b], ap[b], action[b], inputs[b])
-    if reel != -np.inf:
-        env_step_one(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), winch_row(WA, b), inputs[b],
-                     reel, nsub[b], target[b], tp[b], action[b], obs[b], terms[b], sensors[b], result[b], dp[b], ds[b],
-                     draws[b], drawn[b], implicit, disturbed, winched)
+#: The entry points without and with the winch (see :func:`_entry_points`); each compiles only
+#: for environments that use it.
+ENTRY_POINTS = {winched: _entry_points(winched) for winched in (False, True)}

@@ -11,14 +11,14 @@ from .winch import midpoint_dH_dl, winch_energy, winch_substep
 from .winch_implicit import winch_implicit_substep
 
 
-@kernel
+@kernel(inline="always")
 def winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed, implicit=False):
     """Take up to ``nsteps`` steps reeling at ``speed`` [m/s] (held; each step's speed is cut so
     the length stays in the winch's range, and is 0 at an end), with constant ``inputs``; stop at
     the first failure with the last good state. ``stats`` as :func:`~.loops.advance_loop`'s. The
     winch's work joins ``S.acc`` (B_WINCH_WORK). Every term is computed (the general path).
-    ``disturbed`` (a constant in the simulator's kernels, an argument in the environment's):
-    the held external forces ``W.ext`` kick as in :func:`~.loops.advance_loop` (h/2 before the
+    ``disturbed`` (a constant in the simulator's kernels below; an argument in the environment's,
+    which calls :func:`winch_loop_shared`): the held external forces ``W.ext`` kick as in :func:`~.loops.advance_loop` (h/2 before the
     first step and after the last, h between). ``implicit`` (likewise): the implicit string's
     step (kernels/winch_implicit.py, order 2), which may cut itself back, so each step is
     checkpointed."""
@@ -91,6 +91,13 @@ def winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed, implicit
     stats[R_STEPS] = nsteps
     stats[R_NEWTON_TOTAL] = total
     stats[R_NEWTON_MAX] = most
+
+
+@kernel
+def winch_loop_shared(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed, implicit):
+    """:func:`winch_loop` compiled as a function of its own, every branch kept: one compile serves
+    every value of the flags (the environment's step, kernels/task.py)."""
+    winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed, implicit)
 
 
 @kernel
