@@ -79,19 +79,28 @@ def reel_profile(sim, steps, samples=20):
     return np.array(out)
 
 
+def reel_balance_by_h(scenes):
+    """:func:`reel_profile` over 0.3 s for each scene (one per h): the residual's root mean
+    squares, the winch's work at the end of each, and the last run's balance without W_winch
+    (the negative control)."""
+    rms, winch_work = [], []
+    for scene in scenes:
+        sim = Simulator(scene)
+        residual = reel_profile(sim, int(round(0.1 / scene.h)))
+        rms.append(float(np.sqrt(np.mean(residual ** 2))))
+        d = sim.diagnostics()
+        winch_work.append(d["winch_work"])
+        unbalanced = d["energy_balance_residual"] + d["winch_work"]
+    return rms, winch_work, unbalanced
+
+
 def test_the_energy_balance_with_the_winch_is_second_order():
     """E - E0 - W - W_winch over 0.3 s of reeling (h = 200, 100, 50 us): its root mean square over
     60 times falls 4x per halving (measured 3.94, 3.99) and is below 1e-5 of the winch's work
     (measured 2.5e-8 J against 12 mJ; the energy is about 40 mJ). Negative control: without W_winch
     the balance is O(1)."""
-    rms, winch_work = [], []
-    for h in (2e-4, 1e-4, 5e-5):
-        sim = Simulator(esp_gym.load_scene("paper_example", h=h))
-        residual = reel_profile(sim, int(round(0.1 / h)))
-        rms.append(float(np.sqrt(np.mean(residual ** 2))))
-        d = sim.diagnostics()
-        winch_work.append(d["winch_work"])
-        unbalanced = d["energy_balance_residual"] + d["winch_work"]
+    rms, winch_work, unbalanced = reel_balance_by_h(esp_gym.load_scene("paper_example", h=h)
+                                                    for h in (2e-4, 1e-4, 5e-5))
     ratios = [rms[i] / rms[i + 1] for i in range(2)]
     assert all(3.6 < q < 4.4 for q in ratios), (rms, ratios)
     assert rms[-1] < 1e-5 * abs(winch_work[-1]) and abs(winch_work[-1]) > 1e-3

@@ -8,7 +8,7 @@ import esp_gym
 from esp_gym.model import Simulator, State
 from discrete_lagrangian import GEOMETRIC_OVERRIDES, random_state, winch_lagrangian
 from test_discrete_lagrangian import legendre_errors
-from test_winch import reel_profile, reel_step
+from test_winch import reel_balance_by_h, reel_step
 
 IMPLICIT = {"solver": {"string": "implicit", "newton_tol": 1e-13}}
 
@@ -50,14 +50,8 @@ def test_the_energy_balance_with_the_winch_is_second_order_for_the_implicit_stri
     with the implicit string at h = 400, 200, 100 us: the balance's root mean square falls about
     4x per halving (measured 3.86, 4.00; 8.1e-9 J at 100 us against 12 mJ of winch work).
     Negative control: without W_winch it is O(1)."""
-    rms, work = [], []
-    for h in (4e-4, 2e-4, 1e-4):
-        sim = Simulator(esp_gym.load_scene("paper_example", N=6, h=h, allow_unstable_h=True, **IMPLICIT))
-        residual = reel_profile(sim, int(round(0.1 / h)))
-        rms.append(float(np.sqrt(np.mean(residual ** 2))))
-        d = sim.diagnostics()
-        work.append(d["winch_work"])
-        unbalanced = d["energy_balance_residual"] + d["winch_work"]
+    rms, work, unbalanced = reel_balance_by_h(
+        esp_gym.load_scene("paper_example", N=6, h=h, allow_unstable_h=True, **IMPLICIT) for h in (4e-4, 2e-4, 1e-4))
     ratios = [rms[i] / rms[i + 1] for i in range(2)]
     assert all(3.5 < q < 4.5 for q in ratios), (rms, ratios)
     assert rms[-1] < 1e-4 * abs(work[-1]) and abs(work[-1]) > 1e-3

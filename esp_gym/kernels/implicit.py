@@ -403,6 +403,27 @@ def implicit_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
 
 
 @kernel(inline="always")
+def implicit_positions(S, W, c0, c1, c2, first, compensated):
+    """After the Newton of the fixed-length or reeling step: ``W.FmI`` = F - I, the new positions,
+    and :func:`~.lgvi.lgvi_commit`'s ``(e, dr_0)``: R_k^T dr_{N+1} (body frame), dr_0 [m]."""
+    R = S.R
+    Y = W.Y
+    n = Y.shape[0] - 1
+    cayley_minus_identity(c0, c1, c2, W.FmI)
+    yn0 = Y[n, 0]
+    yn1 = Y[n, 1]
+    yn2 = Y[n, 2]
+    e0 = R[0, 0] * yn0 + R[1, 0] * yn1 + R[2, 0] * yn2  # R_k^T dr_{N+1}
+    e1 = R[0, 1] * yn0 + R[1, 1] * yn1 + R[2, 1] * yn2
+    e2 = R[0, 2] * yn0 + R[1, 2] * yn1 + R[2, 2] * yn2
+    dr00 = Y[0, 0]
+    dr01 = Y[0, 1]
+    dr02 = Y[0, 2]
+    new_positions(S, W, first, compensated)
+    return e0, e1, e2, dr00, dr01, dr02
+
+
+@kernel(inline="always")
 def implicit_step_once(S, W, P, inputs, h, free, forced, coupled, compensated, bounded):
     """One step of length ``h`` of the implicit string without cutting back: the state untouched
     on failure, and (``bounded``) where its largest tension breaks the transverse bound
@@ -410,7 +431,6 @@ def implicit_step_once(S, W, P, inputs, h, free, forced, coupled, compensated, b
     r = S.r
     R = S.R
     Y = W.Y
-    n = r.shape[0] - 1
     first = 0 if free else 1
     up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2 = held_inputs(inputs, forced)
     l0, l1, l2, t0, t1, t2 = left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
@@ -423,17 +443,7 @@ def implicit_step_once(S, W, P, inputs, h, free, forced, coupled, compensated, b
     _, tension = split_forces(r, Y, P, W.fl, W.fr, P.m, P.m, P.u, P.u)
     if bounded and 12.0 * tension * h * h > TRANSVERSE_LIMIT * TRANSVERSE_LIMIT * P.u * P.m:
         return TOO_TENSE, iters
-    cayley_minus_identity(c0, c1, c2, W.FmI)
-    yn0 = Y[n, 0]
-    yn1 = Y[n, 1]
-    yn2 = Y[n, 2]
-    e0 = R[0, 0] * yn0 + R[1, 0] * yn1 + R[2, 0] * yn2  # R_k^T dr_{N+1}
-    e1 = R[0, 1] * yn0 + R[1, 1] * yn1 + R[2, 1] * yn2
-    e2 = R[0, 2] * yn0 + R[1, 2] * yn1 + R[2, 2] * yn2
-    dr00 = Y[0, 0]
-    dr01 = Y[0, 1]
-    dr02 = Y[0, 2]
-    new_positions(S, W, first, compensated)
+    e0, e1, e2, dr00, dr01, dr02 = implicit_positions(S, W, c0, c1, c2, first, compensated)
     status = lgvi_commit(S, W, P, h, c0, c1, c2, e0, e1, e2, l0, l1, l2, t0, t1, t2, tb0, tb1, tb2, ts0, ts1, ts2,
                          up0, up1, up2, dr00, dr01, dr02, free, forced, coupled, compensated, True)
     return status, iters

@@ -18,12 +18,11 @@ the implicit string's, each piece reeling its share of the length.
 """
 import numpy as np
 
-from .implicit import CUTBACKS, TOO_TENSE, TRANSVERSE_LIMIT, implicit_newton
+from .implicit import CUTBACKS, TOO_TENSE, TRANSVERSE_LIMIT, implicit_newton, implicit_positions
 from .implicit_terms import element_terms, split_forces
 from .jit import kernel
 from .layout import B_GRAVITY_IMPULSE, B_WINCH_WORK, NEWTON_FAILED, OK, WN_EA, WN_LENGTH, WN_MASS_PER_LENGTH
-from .lgvi import held_inputs, kahan_add, left_torque, lgvi_commit, new_positions, rigid_increments
-from .so3 import cayley_minus_identity
+from .lgvi import held_inputs, kahan_add, left_torque, lgvi_commit, rigid_increments
 from .winch import (add_convective_forces, convective_impulse, convective_momentum, factor_tridiagonal, length_params,
                     midpoint_dH_dl, step_solve)
 
@@ -93,17 +92,7 @@ def winch_implicit_once(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, c
     if bounded and 12.0 * tension * h * h > TRANSVERSE_LIMIT * TRANSVERSE_LIMIT * short * mu * short:
         return TOO_TENSE, iters, 0.0
     elastic = elastic_winch_work(r, Y, WA.state[WN_EA], Pm.kappa, u0, u1, P.slack)
-    cayley_minus_identity(c0, c1, c2, W.FmI)
-    yn0 = Y[n, 0]
-    yn1 = Y[n, 1]
-    yn2 = Y[n, 2]
-    e0 = R[0, 0] * yn0 + R[1, 0] * yn1 + R[2, 0] * yn2  # R_k^T dr_{N+1}
-    e1 = R[0, 1] * yn0 + R[1, 1] * yn1 + R[2, 1] * yn2
-    e2 = R[0, 2] * yn0 + R[1, 2] * yn1 + R[2, 2] * yn2
-    dr00 = Y[0, 0]
-    dr01 = Y[0, 1]
-    dr02 = Y[0, 2]
-    new_positions(S, W, first, compensated)
+    e0, e1, e2, dr00, dr01, dr02 = implicit_positions(S, W, c0, c1, c2, first, compensated)
     # the impulse h/2 (fl + fr) + c C dr: grad T0 at both ends and (2/h) c C dr join fl, so that
     # fr (-> S.f, the next step's first guess) holds the tensions and the weight only
     if v != 0.0:
