@@ -302,7 +302,7 @@ def mujoco_stable(cfg: Settings, h: float, integrator: str):
 
 def stability(cfg: Settings):
     """Largest stable h of each integrator on the ratio grid (scanned up to the first failure)."""
-    bound = lumped_scene(cfg, cfg.cost_h).string.stability_bound
+    bound = lumped_scene(cfg, cfg.cost_h).string.element_bound
     checks = {LGVI: lambda h: lgvi_stable(cfg, h, False), SUZUKI: lambda h: lgvi_stable(cfg, h, True)}
     checks.update({f"MuJoCo {i}": (lambda h, i=i: mujoco_stable(cfg, h, i)) for i in MUJOCO_ALL})
     rows = []

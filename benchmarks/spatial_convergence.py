@@ -82,7 +82,7 @@ def attachment_path(N: int, start: str, mass_model: str, t_final: float, sample:
     """Attachment point every ``sample`` s over [0, t_final] (rows) and the h used [s]."""
     import esp_gym
 
-    bound = scene_for(N, start, mass_model).string.stability_bound
+    bound = scene_for(N, start, mass_model).string.element_bound
     k = refine * math.ceil(sample / (h_fraction * bound))
     h = sample / k
     sim = esp_gym.Simulator(scene_for(N, start, mass_model, h=h))

@@ -111,7 +111,7 @@ def trial(sc, T: float, energy_tol: float, inputs=None, snapshots: int = 400) ->
     scale = energy_scale(sc)
     every = max(1, n // snapshots)
     start = time.perf_counter()
-    row = {"h": sc.h, "h_max": sc.string.stability_bound, "steps": n, "energy_scale_J": scale}
+    row = {"h": sc.h, "h_max": sc.string.element_bound, "steps": n, "energy_scale_J": scale}
     try:
         traj = sim.run(n * sc.h, record_every=every, **inputs)
     except esp_gym.SimulationError as err:
@@ -141,7 +141,7 @@ def trial(sc, T: float, energy_tol: float, inputs=None, snapshots: int = 400) ->
 
 def largest_stable_h(make, T: float, energy_tol: float, bisections: int, inputs=None) -> dict:
     """Bisection for the largest stable h in [0.5, 1.5] x h_max; ``make(h)`` builds the scene."""
-    bound = make(1e-6).string.stability_bound
+    bound = make(1e-6).string.element_bound
     lo, hi = 0.5 * bound, 1.5 * bound
     if not trial(make(lo), T, energy_tol, inputs, snapshots=50)["stable"]:
         return {"h_max": bound, "h_stable": None, "ratio": None, "note": "unstable at 0.5 h_max"}
@@ -250,7 +250,7 @@ def count_snaps(traj, length: float) -> int:
 def run_cases(cfg: Settings):
     rows = []
     for name, make, inputs, T in hard_cases(cfg):
-        bound = make(1e-6).string.stability_bound
+        bound = make(1e-6).string.element_bound
         hs = sorted({min(1e-4, 0.9 * bound), 0.9 * bound})
         for h in hs:
             r = trial(make(h), T, cfg.energy_tol, inputs, snapshots=2000 if "snap" in name else 400)
@@ -302,7 +302,7 @@ def slack_sweep(cfg: Settings):
             for frac in cfg.sweep:
                 if case == "snaps":
                     sc0 = scene(h=1e-4, **{**SNAP, "string.law": law})
-                    h = frac * sc0.string.stability_bound
+                    h = frac * sc0.string.element_bound
                     r = trial(scene(h=h, **{**SNAP, "string.law": law}), cfg.case_time, np.inf, snapshots=1000)
                     traj = r.pop("_traj", None)
                     if traj is None:
@@ -311,7 +311,7 @@ def slack_sweep(cfg: Settings):
                         t, dE, status = traj.t, traj.energy_balance_residual, "ok"
                     scale = r["energy_scale_J"]
                 else:
-                    bound = scene("drone_load").string.stability_bound
+                    bound = scene("drone_load").string.element_bound
                     h = 0.02 / math.ceil(0.02 / (frac * bound) - 1e-9)
                     d = drone_run(h, law, cfg.drone_time)
                     t, dE, status, scale = d["t"], d["dE"], d["status"], d["energy_scale_J"]

@@ -36,7 +36,7 @@ def scene_for(n: int, h_max: float = 1e-4, safety: float = 0.8):
     """paper_example with N = n and h = min(h_max, safety * stability bound)."""
     import esp_gym
 
-    bound = esp_gym.load_scene("paper_example", N=n, allow_unstable_h=True).string.stability_bound
+    bound = esp_gym.load_scene("paper_example", N=n, allow_unstable_h=True).string.element_bound
     h = min(h_max, safety * bound)
     return esp_gym.load_scene("paper_example", N=n, h=h), bound
 

@@ -69,10 +69,10 @@ class StringParams(_Frozen):
         return self.EA / self.u
 
     @property
-    def stability_bound(self) -> float:
-        """Largest stable h of the explicit string update [s]: 2/omega_max, where the axial mode
-        of one free element bounds the chain's: omega_max = sqrt(12 kappa/m) with consistent
-        mass, sqrt(4 kappa/m) lumped."""
+    def element_bound(self) -> float:
+        """One free element's bound [s]: 2/omega_e with omega_e = sqrt(12 kappa/m) (consistent mass)
+        or sqrt(4 kappa/m) (lumped). A lower bound of the assembled string's
+        (:attr:`Scene.stability_bound`, esp_gym/stability.py), which it approaches as N grows."""
         # within the bounds of docs/scenes.md no factor here is 0 or overflows
         return 2.0 / math.sqrt((12.0 if self.mass_model == "consistent" else 4.0) * self.kappa / self.m)
 
@@ -291,11 +291,14 @@ class Scene(_Frozen):
 
     @property
     def stability_bound(self) -> float:
-        """Largest stable h [s]: the string's bound, times the composition's bound factor
-        when one is used; ``inf`` for the implicit string (docs/physics.md)."""
+        """Largest stable h [s]: 2/omega_max of the assembled chain (the string's elements, the
+        pivot's and the load's masses: :func:`esp_gym.stability.explicit_bound`), times the
+        composition's bound factor when one is used; ``inf`` for the implicit string
+        (docs/physics.md, "The stability bound")."""
         if self.solver.string == "implicit":
             return math.inf
-        return self.string.stability_bound * self.solver.bound_factor
+        from .stability import explicit_bound  # stability reads the scene's sections only
+        return explicit_bound(self)
 
     @property
     def winch_range(self) -> tuple:
@@ -312,7 +315,7 @@ class Scene(_Frozen):
             composed = "" if scheme.stages == 1 else f", times {scheme.bound_factor:.4f} for {scheme.name}"
             raise ValueError(
                 f"h = {self.h:.6g} s exceeds the stability bound h_max = {bound:.6g} s "
-                f"(2/omega_max, omega_max = sqrt(12 EA/(mu u^2)) for N = {self.string.elements}{composed}); "
+                f"(2/omega_max of the assembled string, N = {self.string.elements}{composed}); "
                 "use a smaller h or set allow_unstable_h: true")
         shortest, longest = self.winch_range
         if not shortest <= self.string.length <= longest:

@@ -124,17 +124,24 @@ class Randomizer:
         self._log = np.array([k in LOG_UNIFORM and k in ranges for k in SCENE_PARAMS.names])
         self._check_corners()
 
-    def stiffest(self) -> np.ndarray:
-        """The values of the episode that needs the smallest step: the shortest, lightest,
-        stiffest string, the heaviest load (the implicit string's transverse bound), the others
-        nominal."""
+    def stiffest(self) -> list:
+        """The values (SCENE_PARAMS order) of the episodes that need the smallest step, the others
+        nominal: the shortest, lightest, stiffest string with the lightest pivot and load, the
+        smallest box and the largest offsets (the explicit string's bound: least mass at the
+        chain's ends, esp_gym/stability.py), and the same string under the heaviest load (the
+        implicit string's transverse bound grows with the tension)."""
         names = SCENE_PARAMS.names
-        values = np.array([nominal_values(self.nominal)[k] for k in names])
-        for k in ("string_length", "mass_per_length"):
-            values[names.index(k)] = self._low[names.index(k)]
-        for k in ("EA", "load_mass"):
-            values[names.index(k)] = self._high[names.index(k)]
-        return values
+        light = np.array([nominal_values(self.nominal)[k] for k in names])
+        for i, k in enumerate(names):
+            if k in ("string_length", "mass_per_length", "load_mass", "pivot_mass") or k.startswith("load_size"):
+                light[i] = self._low[i]
+            elif k == "EA":
+                light[i] = self._high[i]
+            elif k.startswith("attachment_offset"):
+                light[i] = self._low[i] if abs(self._low[i]) > abs(self._high[i]) else self._high[i]
+        heavy = light.copy()
+        heavy[names.index("load_mass")] = self._high[names.index("load_mass")]
+        return [light, heavy]
 
     def draw(self, rng: np.random.Generator) -> np.ndarray:
         """One episode's values (SCENE_PARAMS order), one uniform draw per name."""

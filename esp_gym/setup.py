@@ -20,7 +20,7 @@ from .options import MAX_SUBSTEPS, EnvOptions, env_options
 from .params import Scene, load_scene, override_scene, scene_from_dict
 from .randomize import Randomizer, nominal_values
 from .state import build_params
-from .stepsize import scheme_substeps
+from .stepsize import scheme_substeps, shortest
 from .tasks import Task, get_task
 from .wind import WIND_INFO, Wind, drag_areas, wind_options
 
@@ -47,12 +47,6 @@ def action_params(hover: np.ndarray, force_limit: float, torque_limit: float, ma
     ap[ACTION_PARAMS["torque_limit"]] = torque_limit
     ap[ACTION_PARAMS["max_reel_speed"]] = max_reel_speed
     return ap
-
-
-def shortest(scene: Scene) -> Scene:
-    """``scene`` with the shortest string its winch reaches: the one whose explicit step bound is
-    smallest (the bound scales with the element length)."""
-    return override_scene(scene, {"string": {"length": scene.winch_range[0]}, "allow_unstable_h": True})
 
 
 @dataclass(frozen=True)
@@ -188,18 +182,18 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
     # (docs/physics.md, "The environment's choice")
     explicit = resolved.solver.string == "explicit"
     bound_name = f"safety = {safety} x the stability bound" if explicit else "the transverse bound"
-    # the stiffest episode (shortest, lightest, stiffest string) needs the most steps
-    stiffest = resolved if randomizer is None else randomizer.scene(randomizer.stiffest())
+    # the stiffest episodes (shortest, lightest, stiffest string; light or heavy ends) need the most steps
+    stiffest = [resolved] if randomizer is None else [randomizer.scene(v) for v in randomizer.stiffest()]
     if winch:  # and the shortest string the winch reaches
-        stiffest = shortest(stiffest)
+        stiffest = [shortest(scene) for scene in stiffest]
     if h is None:
-        wanted, what = scheme_substeps(stiffest, control_period, safety), bound_name
+        wanted, what = max(scheme_substeps(scene, control_period, safety) for scene in stiffest), bound_name
     else:
         wanted, what = control_period / h, f"h = {h} s"
-        if (randomizer is not None or winch) and explicit and not keep_unstable \
-                and h > stiffest.string.stability_bound:
-            raise ValueError(f"h = {h} s is above the stability bound {stiffest.string.stability_bound:.4g} s of the "
-                             "stiffest string of the randomize ranges (shortest, lightest, largest EA) and the winch's "
+        bound = min(scene.stability_bound for scene in stiffest)
+        if (randomizer is not None or winch) and explicit and not keep_unstable and h > bound:
+            raise ValueError(f"h = {h} s is above the stability bound {bound:.4g} s of the stiffest string of the "
+                             "randomize ranges (shortest, lightest, largest EA, lightest ends) and the winch's "
                              "shortest: leave h to the environment, narrow the ranges or raise winch.min_length")
     if wanted > MAX_SUBSTEPS:
         raise ValueError(f"ElasticStringPendulum-v0: control_period = {control_period} s with {what} needs "

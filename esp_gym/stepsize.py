@@ -27,6 +27,15 @@ from typing import Optional
 import numpy as np
 
 from .params import Scene, scene_from_dict
+from .stability import explicit_bound, transverse_bound
+
+
+def shortest(scene: Scene) -> Scene:
+    """``scene`` with the shortest string its winch reaches: the one whose explicit step bound is
+    smallest (its elements are shortest). A copy, not validated again: the winch's range may reach
+    below the bounds a scene file must keep (a 1 um string's default ``min_length`` is 0.5 um)."""
+    return scene.model_copy(update={"string": scene.string.model_copy(update={"length": scene.winch_range[0]}),
+                                    "allow_unstable_h": True})
 
 
 @dataclass(frozen=True)
@@ -95,7 +104,7 @@ def choose_h(scene: Scene, accuracy: Optional[float] = None, horizon: float = 0.
         raise ValueError(f"horizon must be a positive time [s], got {horizon}")
     if divides is not None and not (divides > 0 and math.isfinite(divides)):
         raise ValueError(f"divides must be a positive time [s], got {divides}")
-    h_stable = safety * scene.stability_bound * (scene.winch_range[0] / scene.string.length if reeling else 1.0)
+    h_stable = safety * (shortest(scene) if reeling else scene).stability_bound
     h, limited, h_acc, estimate, pilot_h, pilot_err = h_stable, "stability", None, None, None, None
     if accuracy is not None:
         p = scene.solver.scheme.order
@@ -134,15 +143,6 @@ DESIGN_TENSION = 4.0
 TRANSVERSE_SAFETY = 0.9
 
 
-def transverse_bound(scene: Scene, tension: float) -> float:
-    """The implicit string's stability bound [s] at ``tension`` [N]: 2/omega_t with omega_t^2 =
-    12 T/(u m), the highest transverse frequency of a string of elements of rest length u and
-    mass m = mu u under T (its directions are explicit: docs/physics.md)."""
-    s = scene.string
-    u = s.length / s.elements
-    return 2.0 / math.sqrt(12.0 * tension / (u * s.mass_per_length * u))
-
-
 @dataclass(frozen=True)
 class SchemeChoice:
     """The result of :func:`choose_scheme`."""
@@ -155,10 +155,10 @@ class SchemeChoice:
 
 
 def explicit_substeps(scene: Scene, control_period: float, safety: float) -> int:
-    """Steps of the explicit string per control period: ``ceil(period / (safety x its bound))``
-    (the scene's composition included, whatever its ``solver.string``)."""
-    bound = scene.string.stability_bound * scene.solver.bound_factor
-    return math.ceil(control_period / (safety * bound) - 1e-9)
+    """Steps of the explicit string per control period: ``ceil(period / (safety x its bound))``,
+    the assembled string's bound (esp_gym/stability.py) with the scene's composition, whatever
+    its ``solver.string``."""
+    return math.ceil(control_period / (safety * explicit_bound(scene)) - 1e-9)
 
 
 def implicit_substeps(scene: Scene, control_period: float) -> int:

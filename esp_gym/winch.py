@@ -15,6 +15,7 @@ import numpy as np
 from .kernels.layout import WINCH, WinchArrays
 from .kernels.winch import convective_weights, winch_energy
 from .params import Scene
+from .stepsize import shortest
 
 
 def winch_state(scene: Scene, max_len2: float) -> np.ndarray:
@@ -65,7 +66,7 @@ class Winch:
         self.scene_length = float(s.length)
         self.max_speed = float(scene.winch.max_speed)
         self.min_length, self.max_length = scene.winch_range
-        self.stability_scale = self.min_length / self.scene_length  # the bound scales with the element length
+        self._shortest_bound = None  # the stability bound at min_length, found when first needed
         self.reset()
 
     def reset(self) -> None:
@@ -101,11 +102,13 @@ class Winch:
 
     def check_scene(self, scene: Scene, h: float) -> None:
         """ValueError unless ``scene`` can reel at step ``h``: the explicit string's h stable at the
-        winch's shortest length (the bound scales with the element length); the implicit string
+        winch's shortest length (the assembled string's bound there); the implicit string
         has no such bound (its steps cut themselves back where the transverse one breaks)."""
         if scene.solver.string == "implicit":
             return
-        bound = scene.stability_bound * self.stability_scale
+        if self._shortest_bound is None:  # the assembled string's, at its shortest elements
+            self._shortest_bound = shortest(scene).stability_bound
+        bound = self._shortest_bound
         if h > bound and not scene.allow_unstable_h:
             raise ValueError(f"reel_speed: h = {h:g} s exceeds the stability bound {bound:.4g} s at the winch's "
                              f"shortest length winch.min_length = {self.min_length:g} m; raise winch.min_length "

@@ -18,7 +18,7 @@ def test_second_order_convergence(name):
 
     The scheme is a symmetric variational integrator started from the continuous Legendre
     transform, so positions, momenta and R all converge as h^2."""
-    h0 = esp_gym.load_scene(name).string.stability_bound / 8
+    h0 = esp_gym.load_scene(name).string.element_bound / 8
     T = 0.05
     hs = [T / round(T / (h0 / 2 ** i)) for i in range(4)]
     ref = _final(name, hs[-1] / 32, T)

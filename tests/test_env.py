@@ -48,8 +48,8 @@ def test_make_with_module_prefix_and_spaces():
     assert env.observation_space.shape == (22,) and env.observation_space.dtype == np.float32
     u = env.unwrapped
     assert u.setup.substeps * u.scene.h == pytest.approx(0.02, rel=1e-12)
-    assert u.scene.h <= 0.5 * u.scene.string.stability_bound
-    assert (u.setup.substeps - 1) * 0.5 * u.scene.string.stability_bound < 0.02  # the largest such h
+    assert u.scene.h <= 0.5 * u.scene.stability_bound
+    assert (u.setup.substeps - 1) * 0.5 * u.scene.stability_bound < 0.02  # the largest such h
 
 
 def test_zero_action_holds_the_system_up():

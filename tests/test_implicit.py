@@ -76,7 +76,7 @@ def test_runs_stably_past_the_explicit_stability_bound():
     """A string 100x stiffer than the paper's at h = 10x its explicit bound (h omega_max ~ 20):
     the explicit step blows up, the implicit one keeps the energy within 1 % over 0.5 s."""
     stiff = dict(N=6, EA=100 * esp_gym.load_scene("paper_example").string.EA, **GEOMETRIC_OVERRIDES)
-    bound = esp_gym.load_scene("paper_example", **stiff, h=1e-6).string.stability_bound
+    bound = esp_gym.load_scene("paper_example", **stiff, h=1e-6).string.element_bound
     h = 0.5 / round(0.5 / (10 * bound))  # about 10x the bound, dividing 0.5 s
     explicit = esp_gym.Simulator(esp_gym.load_scene("paper_example", **stiff, h=h, allow_unstable_h=True))
     with pytest.raises(esp_gym.SimulationError):
@@ -176,7 +176,7 @@ def test_the_environment_runs_the_implicit_string_where_asked_and_keeps_the_expl
     # an EA override alone needs no h: the scene's own h is replaced by the environment's
     env = gym.make(esp_gym.ENV_ID, scene_overrides={"string": {"EA": 2e4}})
     assert env.unwrapped.scene.solver.string == "explicit"
-    assert env.unwrapped.setup.substeps == choose_scheme(env.unwrapped.scene, 0.02, 0.5).explicit_substeps == 351
+    assert env.unwrapped.setup.substeps == choose_scheme(env.unwrapped.scene, 0.02, 0.5).explicit_substeps == 332
     overrides = {"string": {"EA": 2e5}, "solver": {"string": "implicit"}}
     env = gym.make(esp_gym.ENV_ID, scene_overrides=overrides)
     scene = env.unwrapped.scene

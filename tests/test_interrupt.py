@@ -69,7 +69,7 @@ def test_a_failure_in_a_cut_step_keeps_the_last_good_state(order, factor):
     """Just above the stability bound a run fails after some 10^4 steps (a composed step then
     rewinds to its last checkpoint and replays): the same step, the same last good state,
     whether the steps are one call or many."""
-    bound = esp_gym.load_scene("paper_example").string.stability_bound
+    bound = esp_gym.load_scene("paper_example").string.element_bound
     over = {"h": factor * bound, "allow_unstable_h": True, "solver": {"order": order}}
     one, cut = simulator(over, one_call=True), simulator(over)
     errors = []

@@ -42,9 +42,11 @@ def test_bad_field_is_named(overrides, needle):
 
 
 def test_h_above_stability_bound_states_the_bound():
-    bound = load_scene("paper_example").string.stability_bound
-    assert bound == pytest.approx(7.2169e-4, rel=1e-4)  # docs/physics.md: 7.2e-4 s
-    with pytest.raises(SceneError, match=r"h = 0\.001 s exceeds the stability bound h_max = 0\.000721688 s"):
+    scene = load_scene("paper_example")
+    assert scene.string.element_bound == pytest.approx(7.2169e-4, rel=1e-4)  # docs/physics.md: 7.22e-4 s
+    assert scene.stability_bound == pytest.approx(7.2836e-4, rel=1e-4)  # the assembled string's: 7.28e-4 s
+    with pytest.raises(SceneError, match=r"h = 0\.001 s exceeds the stability bound h_max = 0\.00072836 s "
+                                         r"\(2/omega_max of the assembled string, N = 20\)"):
         load_scene("paper_example", h=1e-3)
     assert load_scene("paper_example", h=1e-3, allow_unstable_h=True).h == 1e-3
 

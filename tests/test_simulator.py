@@ -57,7 +57,7 @@ def test_run_rejects_bad_arguments():
 def test_unstable_step_raises_and_keeps_last_good_state():
     """Beyond the stability bound the string blows up: a SimulationError, never a silent NaN."""
     scene = esp_gym.load_scene("paper_example", allow_unstable_h=True)
-    scene = esp_gym.load_scene("paper_example", h=2.5 * scene.string.stability_bound, allow_unstable_h=True)
+    scene = esp_gym.load_scene("paper_example", h=2.5 * scene.string.element_bound, allow_unstable_h=True)
     sim = esp_gym.Simulator(scene)
     with pytest.raises(SimulationError, match="failed") as err:
         sim.step(100_000)
@@ -73,7 +73,7 @@ def test_blow_up_guard_stops_an_unstable_run_while_it_is_finite(factor):
     solver.max_stretch = 10 rest lengths) stops it with its own status while every element is
     still far from overflow; with the guard relaxed to 1e6 the same run goes on for more steps
     (negative control: the guard, not something else, stopped it)."""
-    bound = esp_gym.load_scene("paper_example").string.stability_bound
+    bound = esp_gym.load_scene("paper_example").string.element_bound
     scene = esp_gym.load_scene("paper_example", h=factor * bound, allow_unstable_h=True)
     sim = esp_gym.Simulator(scene)
     with pytest.raises(SimulationError, match="max_stretch") as err:
@@ -111,7 +111,7 @@ def test_state_save_and_restore_is_bit_exact():
 def test_failure_advice_fits_the_failure():
     """"A smaller h usually helps" was said of every failure; now h is blamed only where it is
     near or past the stability bound."""
-    bound = esp_gym.load_scene("paper_example").string.stability_bound
+    bound = esp_gym.load_scene("paper_example").string.element_bound
     unstable = esp_gym.Simulator(esp_gym.load_scene("paper_example", h=2.5 * bound, allow_unstable_h=True))
     with pytest.raises(SimulationError, match=r"x the stability bound .*use h <= 0.7") as err:
         unstable.step(100_000)
