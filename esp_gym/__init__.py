@@ -9,7 +9,7 @@ from gymnasium.envs.registration import register, registry
 from .params import Scene, SceneError, available_scenes, load_scene
 
 __all__ = ["Scene", "SceneError", "Simulator", "SimulationError", "StepChoice", "Trajectory", "available_scenes", "choose_h",
-           "load_scene"]
+           "choose_resolution", "ResolutionChoice", "load_scene"]
 __version__ = "0.1.0"
 
 ENV_ID = "ElasticStringPendulum-v0"
@@ -30,7 +30,7 @@ def __getattr__(name):
         from . import model
 
         return getattr(model, name)
-    if name in ("choose_h", "StepChoice"):
+    if name in ("choose_h", "StepChoice", "choose_resolution", "ResolutionChoice"):
         from . import stepsize
 
         return getattr(stepsize, name)

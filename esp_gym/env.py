@@ -108,7 +108,7 @@ class ElasticStringPendulumEnv(gym.Env):
     | `task` | `"stabilize"` | `"stabilize"`, `"transport"`, `"track"`; with `winch=True` also `"lift"`, `"lower"` |
     | `control_period` | 0.02 | seconds per `step` (a whole number of physics steps) |
     | `h` | None | physics step; None: the largest dividing the control period under `safety` x the stability bound (with `scene_overrides={"solver": {"string": "implicit"}}`, under 0.9 x the implicit string's transverse bound: docs/physics.md) |
-    | `safety` | 0.5 | margin under the stability bound for the automatic h (long runs of the tension-only string under random inputs gain spurious energy above ~0.6: 0.8 J in 10 s at 0.8) |
+    | `safety` | None | margin under the stability bound for the automatic h; None: 0.5 (long runs of the tension-only string under random inputs gain spurious energy above ~0.6: 0.8 J in 10 s at 0.8), or the resolution rule's with `string.elements: auto` (0.35 for the tension-only string: docs/physics.md) |
     | `force_limit` | 0.6 W | [N] per axis at action 1 |
     | `torque_limit` | 0.02 | [N m] per axis at action 1 |
     | `scene_overrides` | None | dict of scene overrides, validated as in `esp_gym.load_scene` |
@@ -128,7 +128,7 @@ class ElasticStringPendulumEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
 
     def __init__(self, scene: Union[str, Path, Scene] = "drone_load", task: str = "stabilize",
-                 control_period: float = 0.02, h: Optional[float] = None, safety: float = 0.5,
+                 control_period: float = 0.02, h: Optional[float] = None, safety: Optional[float] = None,
                  force_limit: Optional[float] = None, torque_limit: float = 0.02,
                  scene_overrides: Optional[dict] = None, render_mode: Optional[str] = None,
                  randomize: Union[bool, dict] = False, observation: str = "full",

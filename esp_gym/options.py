@@ -37,7 +37,7 @@ class EnvOptions(BaseModel):
     task: str = "stabilize"
     control_period: Real = Field(0.02, gt=0, allow_inf_nan=False, description="seconds per step")
     h: Optional[Real] = Field(None, gt=0, allow_inf_nan=False, description="physics step [s]")
-    safety: Real = Field(0.5, gt=0, le=1, allow_inf_nan=False)
+    safety: Optional[Real] = Field(None, gt=0, le=1, allow_inf_nan=False)
     force_limit: Optional[Real] = Field(None, gt=0, allow_inf_nan=False, description="[N] at action 1")
     torque_limit: Real = Field(0.02, ge=0, allow_inf_nan=False, description="[N m] at action 1")
     scene_overrides: Optional[dict] = None

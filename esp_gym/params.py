@@ -49,6 +49,9 @@ class StringParams(_Frozen):
     law: Literal["elastic", "slack"] = Field(
         "elastic", description="elastic: the paper's law, resists compression; slack: tension only, "
                                "energy EA/2 max(|r'| - 1, 0)^2 (a real string goes slack)")
+    auto: Flag = Field(False, description="N and the scene's h were chosen by esp_gym.choose_resolution "
+                                           "(the scene file said elements: auto); the environment chooses again for "
+                                           "its control period and for each randomised episode")
     mass_model: Literal["consistent", "lumped"] = Field(
         "consistent", description="consistent: the paper's finite-element mass (tridiagonal); lumped: "
                                   "m/2 at each end of an element (diagonal; sqrt(3) larger stable steps)")
@@ -288,6 +291,26 @@ class Scene(_Frozen):
     solver: SolverParams = SolverParams()
     initial: InitialState = InitialState()
     winch: WinchParams = WinchParams()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _resolve_auto_elements(cls, data: Any) -> Any:
+        """``string.elements: auto``: N and h by :func:`esp_gym.choose_resolution` (5 mm over 4 s;
+        docs/physics.md, "The string's resolution"), the scene's own h replaced."""
+        if not (isinstance(data, Mapping) and isinstance(data.get("string"), Mapping)
+                and isinstance(data["string"].get("elements"), str) and data["string"]["elements"] == "auto"):
+            return data
+        initial = data.get("initial")
+        if isinstance(initial, Mapping) and (initial.get("nodes") is not None
+                                             or initial.get("node_velocities") is not None):
+            raise ValueError("string.elements: auto chooses N, so initial.nodes and initial.node_velocities "
+                             "(one row per node) cannot be given with it")
+        from .stepsize import choose_resolution  # the rule reads a scene: resolve a provisional one
+        provisional = cls.model_validate({**data, "string": {**data["string"], "elements": 1},
+                                          "h": data.get("h", 1.0), "allow_unstable_h": True})
+        choice = choose_resolution(provisional)
+        return {**data, "string": {**data["string"], "elements": choice.elements, "auto": True},
+                "solver": {**(data.get("solver") or {}), "string": choice.string}, "h": choice.h}
 
     @property
     def stability_bound(self) -> float:

@@ -20,7 +20,7 @@ from .options import MAX_SUBSTEPS, EnvOptions, env_options
 from .params import Scene, load_scene, override_scene, scene_from_dict
 from .randomize import Randomizer, nominal_values
 from .state import build_params
-from .stepsize import scheme_substeps, shortest
+from .stepsize import auto_elements, resolution_safety, scheme_substeps, shortest
 from .tasks import Task, get_task
 from .wind import WIND_INFO, Wind, drag_areas, wind_options
 
@@ -144,7 +144,7 @@ class EnvSetup:
 
 
 def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabilize",
-               control_period: float = 0.02, h: Optional[float] = None, safety: float = 0.5,
+               control_period: float = 0.02, h: Optional[float] = None, safety: Optional[float] = None,
                force_limit: Optional[float] = None, torque_limit: float = 0.02,
                scene_overrides: Optional[dict] = None, randomize: Union[bool, dict] = False,
                observation: str = "full", sensor_noise: Union[float, dict] = 0.0,
@@ -177,6 +177,16 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
     if t.needs_winch and not winch:
         raise ValueError(f"ElasticStringPendulum-v0: task={o.task!r} reels the string: it needs winch=True")
     randomizer = None if o.randomize is False else Randomizer(resolved, o.randomize)
+    if resolved.string.auto and resolved.solver.string == "explicit":
+        # the resolution rule (docs/physics.md, "The string's resolution"): N for the nominal scene
+        # (every episode keeps the arrays' shape), each episode's step for its own draw
+        # (EnvSetup.draw_episode, scheme_substeps)
+        elements = auto_elements(resolved)
+        if elements != resolved.string.elements:
+            resolved = resolved.model_copy(update={"string": resolved.string.model_copy(update={"elements": elements})})
+            randomizer = None if randomizer is None else Randomizer(resolved, o.randomize)
+        safety = resolution_safety(resolved) if safety is None else safety
+    safety = 0.5 if safety is None else safety
     # the scene's scheme (explicit unless asked): choose_scheme's cost rule would pick the implicit
     # string for stiff strings, but its accuracy under random actions is not established yet
     # (docs/physics.md, "The environment's choice")

@@ -32,10 +32,13 @@ from typing import Optional
 
 import numpy as np
 
-from .state import hat
-
 #: Largest N whose chain eigenproblem is solved exactly; beyond it the one-element bound is used.
 MAX_EXACT_ELEMENTS = 256
+
+
+def hat(v) -> np.ndarray:
+    """The hat map: ``hat(v) @ y == np.cross(v, y)``."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def attachment_mass(body) -> float:

@@ -15,6 +15,7 @@ import numpy as np
 from .kernels.layout import LGVIParams
 from .kernels.string import tridiag_factor
 from .params import Scene
+from .stability import hat
 
 
 @dataclass
@@ -39,11 +40,6 @@ class State:
     def copy(self) -> "State":
         rem = None if self.remainders is None else tuple(a.copy() for a in self.remainders)
         return State(self.r.copy(), self.p.copy(), self.R.copy(), self.Pi.copy(), self.step, rem, self.winch)
-
-
-def hat(v) -> np.ndarray:
-    """The hat map: ``hat(v) @ y == np.cross(v, y)``."""
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def cross3(a, b) -> np.ndarray:

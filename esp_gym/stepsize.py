@@ -172,10 +172,14 @@ def implicit_substeps(scene: Scene, control_period: float) -> int:
 
 
 def scheme_substeps(scene: Scene, control_period: float, safety: float) -> int:
-    """Steps per control period of the scene's own scheme (``solver.string``)."""
+    """Steps per control period of the scene's own scheme (``solver.string``); for a string whose
+    resolution is chosen (``string.auto``) also no fewer than :func:`accurate_step` needs."""
     if scene.solver.string == "implicit":
         return implicit_substeps(scene, control_period)
-    return explicit_substeps(scene, control_period, safety)
+    steps = explicit_substeps(scene, control_period, safety)
+    if scene.string.auto:
+        steps = max(steps, math.ceil(control_period / accurate_step(scene) - 1e-9))
+    return steps
 
 
 def choose_scheme(scene: Scene, control_period: float, safety: float) -> SchemeChoice:
@@ -192,3 +196,131 @@ def choose_scheme(scene: Scene, control_period: float, safety: float) -> SchemeC
               f"{n_implicit} implicit ones at {IMPLICIT_COST} each")
     return SchemeChoice("implicit" if implicit else "explicit", n_implicit if implicit else n_explicit, n_explicit,
                         n_implicit, reason)
+
+
+# -- the string's resolution: elements, scheme and step chosen by accuracy (docs/physics.md,
+# "The string's resolution") -------------------------------------------------------------------
+
+#: The load-path error of an N-element string, e_N = SPATIAL_ERROR l beta^(3/2) N^(-1/2) (horizon/4 s)
+#: with beta = mu l / M the string's mass over the load's: fitted to the protocol's measurements
+#: (benchmarks/resolution.py; 1.0 mm at beta = 0.1 and 7.4 mm at beta = 0.4 with N = 1, 0.3 and 3.2 mm with
+#: N = 8, on drone_load at EA = 200 N against N = 32 at h/8, over 4 s).
+SPATIAL_ERROR = 0.032
+#: The protocol's horizon the errors were measured over [s].
+PROTOCOL_HORIZON = 4.0
+#: Margin under the assembled string's bound (esp_gym/stability.py) where the tension-only law keeps
+#: its energy (each slack-to-taut crossing at h omega near 1 pumps energy into the element): over
+#: 100 s of the PD law with action noise and of random actions at N = 1, EA = 2e5 to 1e7 N, 0.35 kept
+#: the residual at 0.01-0.07 J, 0.5 let it grow to 0.1-0.5 J (benchmarks/resolution.py).
+SLACK_SAFETY = 0.35
+#: The same margin for the two-sided elastic law (no kink): the environment's.
+ELASTIC_SAFETY = 0.5
+#: The largest N the rule considers; beyond it the accuracy is reported as not met.
+MAX_AUTO_ELEMENTS = 256
+
+
+@dataclass(frozen=True)
+class ResolutionChoice:
+    """The result of :func:`choose_resolution` (lengths in m, times in s)."""
+
+    elements: int  #: N, the fewest elements whose predicted load error meets the accuracy
+    string: str  #: the string's scheme: "explicit"
+    h: float  #: the step (dividing ``divides`` when given)
+    substeps: Optional[int]  #: steps per ``divides`` (None without it)
+    spatial_error: float  #: predicted load-path error of N elements over the horizon
+    step_error: float  #: predicted load-path error of the step h over the horizon
+    limited_by: str  #: what set h: "stability" (the energy margin under the bound) or "accuracy"
+    reason: str  #: one line for logs
+
+    def scene(self, scene: Scene) -> Scene:
+        """``scene`` with this resolution: N, h and the scheme (the string stays marked ``auto``)."""
+        data = scene.model_dump()
+        data["string"] = {**data["string"], "elements": self.elements, "auto": True}
+        data["solver"] = {**data["solver"], "string": self.string}
+        return scene_from_dict({**data, "h": self.h}, source=repr(scene.name))
+
+
+def _number(name: str, value, positive: bool = True) -> float:
+    """``value`` as a float: ValueError naming ``name`` unless it is a finite real number (> 0)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{name} must be a real number, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value) or (positive and value <= 0.0):
+        raise ValueError(f"{name} must be a finite {'positive ' if positive else ''}number, got {value!r}")
+    return value
+
+
+def spatial_error(scene: Scene, elements: int, horizon: float) -> float:
+    """The predicted load-path error [m] of ``elements`` elements over ``horizon`` [s]:
+    SPATIAL_ERROR l beta^(3/2) N^(-1/2) horizon/PROTOCOL_HORIZON, beta = mu l / M."""
+    s = scene.string
+    beta = s.mass_per_length * s.length / scene.body.mass
+    return SPATIAL_ERROR * s.length * beta ** 1.5 / math.sqrt(elements) * horizon / PROTOCOL_HORIZON
+
+
+def step_error(scene: Scene, h: float, horizon: float) -> float:
+    """The predicted load-path error [m] of the step h over ``horizon`` [s]: the phase error of the
+    load bouncing on the string, (W/m) h^2/8 per the protocol's horizon, W the weight below the pivot
+    and m the load's least effective mass (esp_gym/stability.py): the bounce's amplitude W l/EA times
+    (h omega_b)^2/8, omega_b^2 = EA/(l m)."""
+    from .stability import attachment_mass
+    weight = scene.gravity * (scene.body.mass + scene.string.length * scene.string.mass_per_length)
+    return weight / attachment_mass(scene.body) * h * h / 8.0 * horizon / PROTOCOL_HORIZON
+
+
+def resolution_safety(scene: Scene) -> float:
+    """The rule's margin under the stability bound: SLACK_SAFETY (tension-only) or ELASTIC_SAFETY."""
+    return SLACK_SAFETY if scene.string.law == "slack" else ELASTIC_SAFETY
+
+
+def auto_elements(scene: Scene, accuracy: float = 5e-3, horizon: float = PROTOCOL_HORIZON) -> int:
+    """The fewest elements whose predicted error (:func:`spatial_error`, falling as N^(-1/2)) is at
+    most half of ``accuracy`` [m] over ``horizon`` [s], at most MAX_AUTO_ELEMENTS."""
+    wanted = (spatial_error(scene, 1, horizon) / (0.5 * accuracy)) ** 2
+    return min(MAX_AUTO_ELEMENTS, max(1, math.ceil(wanted - 1e-9)))
+
+
+def accurate_step(scene: Scene, accuracy: float = 5e-3, horizon: float = PROTOCOL_HORIZON) -> float:
+    """The largest h [s] whose predicted error (:func:`step_error`) is at most half of ``accuracy``."""
+    return math.sqrt(0.5 * accuracy / step_error(scene, 1.0, horizon))
+
+
+def choose_resolution(scene: Scene, accuracy: float = 5e-3, horizon: float = PROTOCOL_HORIZON,
+                      divides: Optional[float] = None, safety: Optional[float] = None) -> ResolutionChoice:
+    """The string's resolution for a load-path ``accuracy`` [m] over ``horizon`` [s]: the fewest
+    elements N whose predicted error (:func:`spatial_error`) is at most half of it, then the
+    largest h under ``safety`` x the assembled string's bound at that N (default SLACK_SAFETY for
+    the tension-only law, ELASTIC_SAFETY for the elastic one: the slack law's energy) whose
+    predicted error (:func:`step_error`) is at most the other half, rounded down to divide
+    ``divides`` [s] (a control period) when given. The explicit string (docs/physics.md, "The
+    string's resolution", for why not the implicit one). Deterministic, and monotone: a tighter
+    accuracy never gets fewer elements or a longer step.
+
+    >>> scene = load_scene("drone_load", EA=2e5, allow_unstable_h=True)
+    >>> sim = Simulator(choose_resolution(scene, divides=0.02).scene(scene))
+    """
+    accuracy = _number("accuracy", accuracy)
+    horizon = _number("horizon", horizon)
+    if accuracy < 1e-9:
+        raise ValueError(f"accuracy must be at least 1e-9 m (a nanometre), got {accuracy!r}")
+    if divides is not None:
+        divides = _number("divides", divides)
+    safety = resolution_safety(scene) if safety is None else _number("safety", safety)
+    if safety > 1.0:
+        raise ValueError(f"safety must be in (0, 1], got {safety}")
+    base = scene.model_copy(update={"solver": scene.solver.model_copy(update={"string": "explicit"}),
+                                    "allow_unstable_h": True})
+    elements = auto_elements(base, accuracy, horizon)
+    at_n = base.model_copy(update={"string": base.string.model_copy(update={"elements": elements})})
+    h_stable = safety * at_n.stability_bound
+    h_accurate = accurate_step(at_n, accuracy, horizon)
+    h, limited = (h_stable, "stability") if h_stable <= h_accurate else (h_accurate, "accuracy")
+    substeps = None
+    if divides is not None:
+        substeps = math.ceil(divides / h - 1e-9)
+        h = divides / substeps
+    e_space, e_step = spatial_error(at_n, elements, horizon), step_error(at_n, h, horizon)
+    met = "" if e_space <= 0.5 * accuracy else f" (accuracy not met: N is capped at {MAX_AUTO_ELEMENTS})"
+    reason = (f"N = {elements}, explicit, h = {h:.4g} s ({limited}): predicted load error {e_space:.2g} m "
+              f"(elements) + {e_step:.2g} m (step) over {horizon:g} s{met}")
+    return ResolutionChoice(elements, "explicit", h, substeps, e_space, e_step, limited, reason)

@@ -13,7 +13,8 @@ import numpy as np
 
 from .kernels.layout import TARGET, TASK_PARAM_NAMES
 from .kernels.reference import reference_at
-from .state import State, cross3, hat, legendre_momenta
+from .stability import hat
+from .state import State, cross3, legendre_momenta
 from .params import Scene
 
 

@@ -215,8 +215,10 @@ VECTOR_OPTIONS = [{}, {"randomize": True},
                   {"randomize": True, "observation": "hook", "sensor_noise": 1.0, "action_latency": 2},
                   {"preset": "hard"}, {"task": "track", "randomize": True},
                   {"task": "lower", "winch": True, "preset": "hard"},
-                  {"task": "lower", "scene_overrides": {"solver": {"string": "implicit"}, "EA": 2e4}}]
-VECTOR_IDS = ["plain", "randomize", "hook-noise-latency", "hard", "track", "winch-lower-hard", "winch-lower-implicit"]
+                  {"task": "lower", "scene_overrides": {"solver": {"string": "implicit"}, "EA": 2e4}},
+                  {"randomize": True, "scene_overrides": {"string": {"EA": 2e5, "elements": "auto"}}}]
+VECTOR_IDS = ["plain", "randomize", "hook-noise-latency", "hard", "track", "winch-lower-hard", "winch-lower-implicit",
+              "randomize-auto"]
 
 
 @pytest.mark.parametrize("options", VECTOR_OPTIONS, ids=VECTOR_IDS)

@@ -9,7 +9,7 @@ import pytest
 import esp_gym
 from esp_gym.model import SimulationError
 from esp_gym.stability import MAX_EXACT_ELEMENTS, attachment_mass, chain_omega2, explicit_bound, transverse_bound
-from esp_gym.state import hat
+from esp_gym.stability import hat
 
 
 def softest_direction(body) -> np.ndarray:

@@ -1,0 +1,111 @@
+"""The string's resolution chosen by accuracy (esp_gym.choose_resolution, ``string.elements: auto``;
+docs/physics.md, "The string's resolution"): the interface, the rule's properties, and the
+energy behaviour it was chosen for."""
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import esp_gym
+from esp_gym import choose_resolution, load_scene
+from esp_gym.stepsize import SLACK_SAFETY, spatial_error, step_error
+
+ENV_ID = "ElasticStringPendulum-v0"
+
+
+def test_a_scene_file_may_ask_for_auto_elements():
+    scene = load_scene("drone_load", string={"elements": "auto"})
+    choice = choose_resolution(load_scene("drone_load"))
+    assert scene.string.auto and (scene.string.elements, scene.h) == (choice.elements, choice.h) == (1, choice.h)
+    esp_gym.Simulator(scene).step(10)
+    fixed = load_scene("drone_load")
+    assert not fixed.string.auto and fixed.string.elements == 8
+
+
+def test_the_environment_applies_the_rule_without_an_h():
+    env = gym.make(ENV_ID, scene_overrides={"string": {"EA": 2e5, "elements": "auto"}})
+    u = env.unwrapped
+    choice = choose_resolution(load_scene("drone_load", EA=2e5, allow_unstable_h=True), divides=0.02)
+    assert (u.scene.string.elements, u.scene.h, u.setup.substeps) == (choice.elements, choice.h, choice.substeps)
+    assert u.scene.h <= SLACK_SAFETY * u.scene.stability_bound
+    env.reset(seed=0)
+    for _ in range(20):
+        env.step(env.action_space.sample())
+
+
+def test_the_plain_default_is_unchanged():
+    """The default scene keeps its 8 elements and the environment's 34 steps per control step."""
+    u = gym.make(ENV_ID).unwrapped
+    assert (u.scene.string.elements, u.scene.string.auto, u.setup.substeps) == (8, False, 34)
+
+
+SCENES = [{}, {"EA": 2e5}, {"EA": 1e7}, {"string": {"mass_per_length": 0.2}},
+          {"string": {"mass_per_length": 0.4, "length": 2.0}, "winch": {"max_length": 4.0}},
+          {"string": {"law": "elastic"}}]
+
+
+@pytest.mark.parametrize("overrides", SCENES)
+def test_a_tighter_accuracy_never_gets_a_coarser_string_or_a_longer_step(overrides):
+    scene = load_scene("drone_load", allow_unstable_h=True, **overrides)
+    previous = None
+    for accuracy in np.geomspace(5e-2, 1e-5, 25):
+        choice = choose_resolution(scene, accuracy=float(accuracy), divides=0.02)
+        assert choice == choose_resolution(scene, accuracy=float(accuracy), divides=0.02)  # deterministic
+        if previous is not None:
+            assert choice.elements >= previous.elements and choice.h <= previous.h
+        # the prediction meets the accuracy unless N is capped
+        assert choice.spatial_error + choice.step_error <= accuracy * (1 + 1e-12) or "not met" in choice.reason
+        previous = choice
+
+
+def test_the_error_models_scale_as_measured():
+    scene = load_scene("drone_load")
+    assert spatial_error(scene, 4, 4.0) == pytest.approx(0.5 * spatial_error(scene, 1, 4.0), rel=1e-12)
+    heavy = load_scene("drone_load", string={"mass_per_length": 0.2})
+    assert spatial_error(heavy, 1, 4.0) == pytest.approx(8.0 * spatial_error(scene, 1, 4.0), rel=1e-12)
+    assert step_error(scene, 0.02, 4.0) == pytest.approx(4.0 * step_error(scene, 0.01, 4.0), rel=1e-12)
+    # measured (benchmarks/resolution.py): N = 1 at EA = 200 N is 0.7-1.1 mm off the converged
+    # reference, and one step per control step adds about 1.2 mm
+    assert 0.5e-3 < spatial_error(scene, 1, 4.0) < 2e-3 and 0.6e-3 < step_error(scene, 0.02, 4.0) < 2.4e-3
+
+
+@pytest.mark.parametrize("bad,message", [
+    (dict(accuracy=True), "accuracy must be a real number"), (dict(accuracy="1e-3"), "accuracy must be a real"),
+    (dict(accuracy=1e-20), "at least 1e-9"), (dict(accuracy=-1.0), "accuracy"), (dict(horizon=0.0), "horizon"),
+    (dict(divides=float("nan")), "divides"), (dict(safety=2.0), "safety")])
+def test_bad_arguments_name_themselves(bad, message):
+    with pytest.raises(ValueError, match=message):
+        choose_resolution(load_scene("drone_load"), **bad)
+
+
+def test_auto_elements_refuse_given_node_rows():
+    scene = load_scene("paper_example")
+    with pytest.raises(esp_gym.SceneError, match="elements: auto"):
+        load_scene("paper_example", string={"elements": "auto"},
+                   initial={"nodes": scene.initial_nodes().tolist()})
+
+
+def pd_noise_residual(scene_overrides: dict, steps: int, safety=None) -> float:
+    """Largest |E - E0 - W| [J] over ``steps`` control steps of the PD law with +-0.5 uniform
+    action noise (the protocol of docs/physics.md, "The string's resolution"), seed 0."""
+    from agents.controllers import AntiSwayPD
+    env = gym.make(ENV_ID, scene_overrides=scene_overrides, safety=safety, max_episode_steps=10 ** 6)
+    u = env.unwrapped
+    obs, _ = env.reset(seed=0)
+    pd, rng, worst = AntiSwayPD(), np.random.default_rng(0), 0.0
+    for _ in range(steps):
+        action = np.clip(pd.act(obs, u.setup) + 0.5 * rng.uniform(-1, 1, 6), -1, 1).astype(np.float32)
+        obs, _, terminated, _, info = env.step(action)
+        assert not terminated, info
+        worst = max(worst, abs(u.sim.diagnostics()["energy_balance_residual"]))
+    return worst
+
+
+def test_the_rules_step_keeps_a_stiff_tethers_energy():
+    """EA = 2e5 N, the rule's choice (N = 1, 30 steps per control step), 20 s of the protocol: the
+    balance stays within 0.05 J (0.03 J measured over 100 s); negative control: at 0.8 of the
+    bound the tension-only string's slack-to-taut crossings pump energy (0.26 J in 4 s measured)."""
+    auto = {"string": {"EA": 2e5, "elements": "auto"}}
+    assert pd_noise_residual(auto, 1000) < 0.05
+    assert pd_noise_residual(auto, 200, safety=0.8) > 0.1
