@@ -7,10 +7,11 @@ Prints a table and writes ``OUT/env_throughput.json`` and ``OUT/env_throughput.p
   the bare env, zero and random actions, resets included when episodes end;
 * batched: ``gymnasium.make_vec`` (one parallel compiled call per step) and the SB3 VecEnv,
   for 1 to 64 environments;
-* ``--ea-sweep`` (alone): the string's EA from 2e2 to 2e6 N on ``drone_load``
-  (``scene_overrides``), random actions, resets included, with the environment's own scheme and
-  step and with the implicit string asked for (``solver.string: implicit``), the runs of one
-  repeat interleaved; writes ``OUT/env_throughput_ea.json``;
+* ``--ea-sweep`` (alone): the string's EA from 2e2 to 1e7 N on ``drone_load``
+  (``scene_overrides``), random actions, resets included, with the resolution rule
+  (``string.elements: auto``), with the scene's 8 elements at the environment's step, and with the
+  implicit string asked for (``solver.string: implicit``), the runs of one repeat interleaved;
+  writes ``OUT/env_throughput_ea.json`` and ``.png``;
 * ``--realism`` (alone): the plain environment against the realism options (``randomize=True``,
   then with the ``hook`` observation and sensor noise too, then randomisation, the hard preset's
   wind and pushes and the ``hook`` observation (the issue's bar), then ``preset="hard"``),
@@ -103,43 +104,65 @@ def main(argv=None) -> dict:
 
 
 #: The sweep's string stiffnesses [N].
-SWEEP_EA = (2e2, 2e3, 2e4, 2e5, 2e6)
+SWEEP_EA = (2e2, 2e3, 2e4, 2e5, 2e6, 1e7)
+#: The string schemes of the sweep, as scene overrides: the resolution rule (elements: auto), the
+#: scene's own 8 elements with the environment's step (0.5 of the bound), the implicit string.
+SWEEP_SCHEMES = {"elements auto": {"string": {"elements": "auto"}}, "N = 8, explicit": {},
+                 "N = 8, implicit": {"solver": {"string": "implicit"}}}
 
 
 def ea_sweep(args) -> dict:
-    """Steps/s against EA: the environment's choice and the implicit string (module docstring)."""
+    """Steps/s against EA for each of SWEEP_SCHEMES (module docstring)."""
     steps = 200 if args.quick else 2_000
     repeats = 1 if args.quick else args.repeats
-    schemes = {"environment's choice": {}, "implicit string": {"solver": {"string": "implicit"}}}
+    sweep = SWEEP_EA[:2] if args.quick else SWEEP_EA
     makers, rates, chosen = {}, {}, {}
-    for ea in SWEEP_EA:
-        for name, extra in schemes.items():
-            overrides = {"string": {"EA": ea}, **extra}
+    for ea in sweep:
+        for name, extra in SWEEP_SCHEMES.items():
+            overrides = {**extra, "string": {**extra.get("string", {}), "EA": ea}}
             env = gym.make(esp_gym.ENV_ID, scene_overrides=overrides)
-            chosen[(ea, name)] = (env.unwrapped.scene.solver.string, env.unwrapped.setup.substeps)
+            u = env.unwrapped
+            chosen[(ea, name)] = (u.scene.solver.string, u.scene.string.elements, u.setup.substeps)
             makers[(ea, name)] = (lambda o=overrides: gym.make(esp_gym.ENV_ID, scene_overrides=o))
             rates[(ea, name)] = []
     for _ in range(repeats):  # interleaved: each repeat runs every configuration once
         for key, make in makers.items():
             rates[key].append(single(make, steps, True, 1))
-    print("EA [N]      scheme (env's choice)  steps   steps/s    | implicit: steps   steps/s")
+    print(f"{'EA [N]':9s}" + "".join(f" | {name:>15s}: N  steps   steps/s" for name in SWEEP_SCHEMES))
     table = []
-    for ea in SWEEP_EA:
+    for ea in sweep:
         row = {"EA": ea}
-        for name in schemes:
-            scheme, substeps = chosen[(ea, name)]
-            row[name] = {"scheme": scheme, "substeps": substeps, "steps_per_s": float(np.median(rates[(ea, name)]))}
+        for name in SWEEP_SCHEMES:
+            scheme, elements, substeps = chosen[(ea, name)]
+            row[name] = {"scheme": scheme, "elements": elements, "substeps": substeps,
+                         "steps_per_s": float(np.median(rates[(ea, name)]))}
         table.append(row)
-        env_row, imp_row = row["environment's choice"], row["implicit string"]
-        print(f"{ea:9.0e}   {env_row['scheme']:21s}  {env_row['substeps']:5d}  {env_row['steps_per_s']:9,.0f}    | "
-              f"          {imp_row['substeps']:5d}  {imp_row['steps_per_s']:9,.0f}")
-    base = table[0]["environment's choice"]["steps_per_s"]
+        print(f"{ea:9.0e}" + "".join(f" | {'':15s} {row[n]['elements']:3d} {row[n]['substeps']:5d} "
+                                     f"{row[n]['steps_per_s']:9,.0f}" for n in SWEEP_SCHEMES))
+    base = table[0]["elements auto"]["steps_per_s"]
     for row in table:
-        best = max(row[name]["steps_per_s"] for name in schemes)
-        print(f"  EA {row['EA']:.0e}: best / EA=200 = {best / base:.2f}")
+        auto = row["elements auto"]["steps_per_s"]
+        print(f"  EA {row['EA']:.0e}: elements auto / its EA = 200 N = {auto / base:.2f}; "
+              f"/ N = 8 explicit at this EA = {auto / row['N = 8, explicit']['steps_per_s']:.1f}")
     finish(args.out, "env_throughput_ea", {"sweep": table, "steps": steps, "repeats": repeats,
-                                           "machine": machine("gymnasium")}, {})
+                                           "machine": machine("gymnasium")},
+           {"env_throughput_ea.png": lambda path: _plot_sweep(table, path)})
     return {"sweep": table}
+
+
+def _plot_sweep(table: list, path) -> None:
+    fig = figure((6, 3.6), dpi=130)
+    ax = fig.subplots()
+    for name, marker in zip(SWEEP_SCHEMES, "osd"):
+        ax.plot([row["EA"] for row in table], [row[name]["steps_per_s"] for row in table], marker + "-", label=name)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("EA [N]")
+    ax.set_ylabel("environment steps / s")
+    ax.set_title("drone_load, random actions, one env (2 cores)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    fig.savefig(path)
 
 
 #: The options the realism comparison times against the plain environment.

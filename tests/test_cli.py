@@ -110,6 +110,31 @@ def test_env_throughput_realism_quick_runs(tmp_path):
     assert all(row["single"] > 0 and row["batched"] > 0 for row in table.values())
 
 
+def test_env_throughput_ea_sweep_quick_runs(tmp_path):
+    proc = subprocess.run(
+        [sys.executable, "-m", "benchmarks.env_throughput", "--ea-sweep", "--quick", "--out", str(tmp_path)],
+        capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    sweep = json.loads((tmp_path / "env_throughput_ea.json").read_text())["sweep"]
+    assert [row["elements auto"]["elements"] for row in sweep] == [1, 1]
+    assert all(row[name]["steps_per_s"] > 0 for row in sweep for name in row if name != "EA")
+    assert (tmp_path / "env_throughput_ea.png").stat().st_size > 0
+
+
+def test_resolution_quick_measures_accuracy_and_energy(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "benchmarks.resolution", "--quick", "--out", str(tmp_path)],
+                          capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads((tmp_path / "resolution.json").read_text())
+    assert [row["elements"] for row in result["accuracy"]] == [1, 1]
+    assert not any(row["failures"] for row in result["accuracy"])
+    # EA = 200 N, where the reference converges (its floor is below 0.1 mm), 2 seeds of 4 s: the
+    # rule's one element and one step per control step within 5 mm (2.5 mm measured)
+    soft = result["accuracy"][0]
+    assert soft["reference_floor_median"] < 1e-4 and soft["load_error_worst"] < 5e-3
+    assert len(result["energy"]) == 4 and (tmp_path / "resolution.png").stat().st_size > 0
+
+
 def test_spatial_convergence_quick_shows_order_2_on_smooth_data(tmp_path):
     """The finite elements converge at order 2 in N on smooth data (the hanging start), and
     more slowly from the paper's velocity jump at the attachment point (order ~1)."""

@@ -1,0 +1,180 @@
+"""The resolution rule (``string.elements: auto``, esp_gym.choose_resolution) measured under its
+protocol, at each EA of the sweep on ``drone_load``:
+
+* accuracy: the task's baseline in closed loop (``stabilize``'s PD law, agents.controllers) plus
+  uniform action noise of +-0.5 (its own seed), ``--seeds`` episodes of 4 s; the load's centre of
+  mass and the pivot at every control step against a converged reference (N = 32 at an eighth of
+  the rule's step, and at most a quarter of N = 32's stability bound), largest distance over the
+  run; median and worst over the seeds. The reference's own floor: the same reference against one
+  at half its step (median over the seeds);
+* energy: 100 s of the protocol and 100 s of random actions (episodes restart where they end;
+  each restart resets the balance), the largest |E - E0 - W| and its largest per 20 s window (a
+  trend shows as windows that grow), and the physics failures.
+
+Prints tables and writes ``OUT/resolution.json`` and ``OUT/resolution.png``.
+Usage: ``python -m benchmarks.resolution [--quick] [--seeds K] [--out DIR]``.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import gymnasium as gym
+import numpy as np
+from tqdm import tqdm
+
+import esp_gym
+from agents.controllers import AntiSwayPD
+from benchmarks.common import arg_parser, figure, finish, machine
+
+#: The EAs of the sweep [N] (benchmarks/env_throughput.py --ea-sweep runs the same).
+SWEEP_EA = (2e2, 2e3, 2e4, 2e5, 2e6, 1e7)
+CONTROL_PERIOD = 0.02
+#: The protocol: action noise amplitude and horizon [s].
+NOISE, HORIZON = 0.5, 4.0
+REFERENCE_ELEMENTS = 32
+
+
+def make(overrides: dict, h=None):
+    return gym.make(esp_gym.ENV_ID, scene_overrides=overrides, h=h, max_episode_steps=10 ** 7,
+                    disable_env_checker=True)
+
+
+def protocol_paths(overrides: dict, h, seed: int, steps: int):
+    """Load centre of mass and pivot (steps + 1, 3) under the PD law plus noise, the energy
+    balance's largest |residual|, and the termination reason (None: ran through)."""
+    env = make(overrides, h)
+    u = env.unwrapped
+    rho = np.asarray(u.scene.body.rho_c)
+    obs, _ = env.reset(seed=seed)
+    pd, rng = AntiSwayPD(), np.random.default_rng(10_000 + seed)
+    load, pivot = np.full((steps + 1, 3), np.nan), np.full((steps + 1, 3), np.nan)
+    worst = 0.0
+    for k in range(steps + 1):
+        state = u.sim.state
+        load[k], pivot[k] = state.r[-1] + state.R @ rho, state.r[0]
+        worst = max(worst, abs(u.sim.diagnostics()["energy_balance_residual"]))
+        if k == steps:
+            break
+        action = np.clip(pd.act(obs, u.setup) + NOISE * rng.uniform(-1, 1, 6), -1, 1).astype(np.float32)
+        obs, _, terminated, _, info = env.step(action)
+        if terminated:
+            return load, pivot, worst, info["termination_reason"]
+    return load, pivot, worst, None
+
+
+def reference_h(ea: float, rule_h: float) -> float:
+    scene = esp_gym.load_scene("drone_load", EA=ea, N=REFERENCE_ELEMENTS, allow_unstable_h=True)
+    h = min(rule_h / 8.0, 0.25 * scene.stability_bound)
+    return CONTROL_PERIOD / math.ceil(CONTROL_PERIOD / h - 1e-9)
+
+
+def distance(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.nanmax(np.linalg.norm(a - b, axis=1)))
+
+
+def accuracy(ea: float, seeds: int, bar) -> dict:
+    auto = {"string": {"EA": ea, "elements": "auto"}}
+    u = make(auto).unwrapped
+    rule_h, elements = u.scene.h, u.scene.string.elements
+    ref_over = {"string": {"EA": ea, "elements": REFERENCE_ELEMENTS}}
+    h_ref = reference_h(ea, rule_h)
+    steps = int(round(HORIZON / CONTROL_PERIOD))
+    loads, pivots, floors, energies, failures = [], [], [], [], []
+    for seed in range(seeds):
+        load, pivot, energy, failed = protocol_paths(auto, None, seed, steps)
+        ref_load, ref_pivot, _, _ = protocol_paths(ref_over, h_ref, seed, steps)
+        fine_load, _, _, _ = protocol_paths(ref_over, h_ref / 2, seed, steps)
+        loads.append(distance(load, ref_load))
+        pivots.append(distance(pivot, ref_pivot))
+        floors.append(distance(ref_load, fine_load))
+        energies.append(energy)
+        failures.append(failed)
+        bar.update()
+    return {"EA": ea, "elements": elements, "substeps": int(round(CONTROL_PERIOD / rule_h)), "h": rule_h,
+            "reference_h": h_ref, "load_error_median": float(np.median(loads)), "load_error_worst": max(loads),
+            "pivot_error_worst": max(pivots), "reference_floor_median": float(np.median(floors)),
+            "energy_residual_worst_4s": max(energies), "failures": [f for f in failures if f]}
+
+
+def long_run(ea: float, mode: str, seconds: float) -> dict:
+    env = make({"string": {"EA": ea, "elements": "auto"}})
+    u = env.unwrapped
+    obs, _ = env.reset(seed=0)
+    pd, rng = AntiSwayPD(), np.random.default_rng(0)
+    steps, window = int(round(seconds / CONTROL_PERIOD)), int(round(min(20.0, seconds) / CONTROL_PERIOD))
+    windows, current, failures, episodes = [], 0.0, 0, 1
+    for k in range(steps):
+        if mode == "random":
+            action = rng.uniform(-1, 1, 6)
+        else:
+            action = np.clip(pd.act(obs, u.setup) + NOISE * rng.uniform(-1, 1, 6), -1, 1)
+        obs, _, terminated, _, info = env.step(action.astype(np.float32))
+        current = max(current, abs(u.sim.diagnostics()["energy_balance_residual"]))
+        if (k + 1) % window == 0 or k + 1 == steps:
+            windows.append(current)
+            current = 0.0
+        if terminated:
+            failures += info["termination_reason"].startswith("physics")
+            obs, _ = env.reset()
+            episodes += 1
+    return {"EA": ea, "mode": mode, "seconds": seconds, "worst": max(windows), "windows": windows,
+            "failures": failures, "episodes": episodes}
+
+
+def main(argv=None) -> dict:
+    parser = arg_parser(__doc__)
+    parser.add_argument("--seeds", type=int, default=10, help="episodes per EA for the accuracy (default 10)")
+    args = parser.parse_args(argv)
+    if args.seeds < 1:
+        parser.error(f"--seeds must be at least 1, got {args.seeds}")
+    start = time.perf_counter()
+    sweep = SWEEP_EA[:2] if args.quick else SWEEP_EA
+    seeds = 2 if args.quick else args.seeds
+    seconds = 2.0 if args.quick else 100.0
+    with tqdm(total=len(sweep) * seeds, desc="accuracy (seeds)", disable=args.quick) as bar:
+        table = [accuracy(ea, seeds, bar) for ea in sweep]
+    print(f"\naccuracy over {HORIZON:g} s, {seeds} seeds (PD law + +-{NOISE} action noise), lengths in mm")
+    print("EA [N]     N  steps | load median  worst | pivot worst | reference floor | energy 4 s [J] | failures")
+    for row in table:
+        print(f"{row['EA']:8.0e} {row['elements']:3d} {row['substeps']:6d} | {1e3 * row['load_error_median']:11.2f} "
+              f"{1e3 * row['load_error_worst']:6.2f} | {1e3 * row['pivot_error_worst']:11.2f} | "
+              f"{1e3 * row['reference_floor_median']:15.2f} | {row['energy_residual_worst_4s']:14.2e} | "
+              f"{len(row['failures'])}")
+    runs = [long_run(ea, mode, seconds) for ea in tqdm(sweep, desc="long runs", disable=args.quick)
+            for mode in ("pd+noise", "random")]
+    print(f"\nenergy over {seconds:g} s: largest |E - E0 - W| [J], and per 20 s window")
+    for run in runs:
+        windows = " ".join(f"{w:.3f}" for w in run["windows"])
+        print(f"{run['EA']:8.0e} {run['mode']:9s} {run['worst']:.3f}  [{windows}]  "
+              f"failures {run['failures']}, episodes {run['episodes']}")
+    finish(args.out, "resolution", {"accuracy": table, "energy": runs, "seeds": seeds, "horizon": HORIZON,
+                                    "noise": NOISE, "machine": machine("gymnasium")},
+           {"resolution.png": lambda path: _plot(table, runs, path)}, start)
+    return {"accuracy": table, "energy": runs}
+
+
+def _plot(table: list, runs: list, path) -> None:
+    fig = figure((9, 3.4), dpi=130)
+    left, right = fig.subplots(1, 2)
+    ea = [row["EA"] for row in table]
+    left.plot(ea, [1e3 * row["load_error_median"] for row in table], "o-", label="load, median")
+    left.plot(ea, [1e3 * row["load_error_worst"] for row in table], "v--", label="load, worst")
+    left.plot(ea, [1e3 * row["reference_floor_median"] for row in table], "s:", label="reference's own floor")
+    left.axhline(5.0, color="grey", lw=0.8)
+    left.set(xscale="log", xlabel="EA [N]", ylabel="distance to the reference [mm]", title="elements auto: accuracy")
+    left.legend(fontsize=8)
+    for mode, marker in (("pd+noise", "o-"), ("random", "s-")):
+        chosen = [run for run in runs if run["mode"] == mode]
+        right.plot([run["EA"] for run in chosen], [run["worst"] for run in chosen], marker, label=mode)
+    right.axhline(0.05, color="grey", lw=0.8)
+    right.set(xscale="log", yscale="log", xlabel="EA [N]", ylabel="largest |E - E0 - W| [J]",
+              title="energy balance over the long runs")
+    right.legend(fontsize=8)
+    for ax in (left, right):
+        ax.grid(True, which="both", alpha=0.3)
+    fig.savefig(path)
+
+
+if __name__ == "__main__":
+    main()
