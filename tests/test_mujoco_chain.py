@@ -189,3 +189,16 @@ def test_mujoco_chain_benchmark_quick_runs(tmp_path):
     assert all(row["status"] == "ok" for rows in results["work_precision"].values() for row in rows)
     assert {s["integrator"] for s in results["stability"]} >= {"LGVI (esp_gym)", "MuJoCo RK4", "MuJoCo Euler"}
     assert (tmp_path / "mujoco_chain.png").stat().st_size > 0
+
+
+def test_stiff_work_precision_quick_runs(tmp_path):
+    """The stiff work-precision benchmark's smoke test: every method runs (or is abandoned or
+    fails with its status), and the resolution rule's point is the fastest to 1 cm."""
+    proc = subprocess.run(
+        [sys.executable, "-m", "benchmarks.stiff_work_precision", "--quick", "--out", str(tmp_path)],
+        capture_output=True, text=True, timeout=600, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads((tmp_path / "stiff_work_precision.json").read_text())
+    assert set(result["results"]) >= {"LGVI, elements auto", "LGVI, N = 8 explicit", "MuJoCo discrete, N = 8 lumped"}
+    fastest = {name: t for name, t in result["time_to_error"]["0.01"].items() if t is not None}
+    assert min(fastest, key=fastest.get) == "LGVI, elements auto"
