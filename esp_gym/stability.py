@@ -19,22 +19,17 @@ configuration and orientation, and it is reached by a straight string whose axis
 load's softest direction. Gravity's own stiffness (the load's pendulum, about 10 rad/s) is left
 out: it is orders of magnitude below the elastic frequencies the bound is about.
 
-Up to :data:`MAX_EXACT_ELEMENTS` elements the eigenproblem is solved exactly (dense, N + 1
-unknowns); beyond, one free element's frequency sqrt(12 kappa/m) (consistent mass; sqrt(4
-kappa/m) lumped) bounds it from above (the assembled chain's largest eigenvalue is at most the
-largest of its elements'; the end masses only add mass), and the two agree to 6e-5 at N = 256.
+The eigenproblem is tridiagonal and solved by Sturm bisection in O(N) (a compiled kernel,
+esp_gym/kernels/stability.py). One free element's frequency sqrt(12 kappa/m) (consistent mass;
+sqrt(4 kappa/m) lumped) bounds it from above (the assembled chain's largest eigenvalue is at most
+the largest of its elements'; the end masses only add mass); the two agree to 6e-5 at N = 256.
 """
 from __future__ import annotations
 
 import math
-from functools import lru_cache
 from typing import Optional
 
 import numpy as np
-
-#: Largest N whose chain eigenproblem is solved exactly; beyond it the one-element bound is used.
-MAX_EXACT_ELEMENTS = 256
-
 
 def hat(v) -> np.ndarray:
     """The hat map: ``hat(v) @ y == np.cross(v, y)``."""
@@ -45,36 +40,24 @@ def attachment_mass(body) -> float:
     """The smallest translational mass [kg] the load presents at its attachment point:
     the least eigenvalue of ``M I + M^2 hat(rho_c) J^-1 hat(rho_c)``, the body's mass matrix in
     (attachment velocity, Omega) with Omega eliminated (J about the attachment point). It equals M
-    for rho_c = 0 and falls towards 0 as the body's inertia about its centre of mass does."""
-    M = float(body.mass)
-    rho = hat(np.asarray(body.rho_c, dtype=float))
-    J = np.asarray(body.J, dtype=float)
-    effective = M * np.eye(3) + M * M * rho @ np.linalg.solve(0.5 * (J + J.T), rho)
-    return float(np.linalg.eigvalsh(0.5 * (effective + effective.T))[0])
+    for rho_c = 0 and falls towards 0 as the body's inertia about its centre of mass does
+    (closed form, compiled: esp_gym/kernels/stability.py)."""
+    from .kernels.stability import least_effective_mass  # compiled on first use
+    return float(least_effective_mass(float(body.mass), np.asarray(body.rho_c, dtype=np.float64),
+                                      np.ascontiguousarray(body.J, dtype=np.float64)))
 
 
-@lru_cache(maxsize=4096)
 def chain_omega2(elements: int, element_mass: float, stiffness: float, consistent: bool,
                  pivot_mass: Optional[float], end_mass: float) -> float:
     """omega_max^2 [1/s^2] of a chain of ``elements`` elements of mass ``element_mass`` [kg] and
     ``stiffness`` [N/m] each: a free pivot's ``pivot_mass`` [kg] on node 1 (None: the pivot is
     fixed, node 1 does not move) and ``end_mass`` [kg] on the attachment node, on top of the
-    element masses (consistent m/6 [[2, 1], [1, 2]] or lumped m/2 per end)."""
-    n, m = elements, element_mass
-    if n > MAX_EXACT_ELEMENTS:
-        return (12.0 if consistent else 4.0) * stiffness / m
-    end, off = (2.0 * m / 6.0, m / 6.0) if consistent else (0.5 * m, 0.0)
-    mass = np.diag(np.full(n + 1, 2.0 * end)) + off * (np.eye(n + 1, k=1) + np.eye(n + 1, k=-1))
-    mass[0, 0] = end + (pivot_mass or 0.0)
-    mass[n, n] = end + end_mass
-    laplacian = 2.0 * np.eye(n + 1) - np.eye(n + 1, k=1) - np.eye(n + 1, k=-1)
-    laplacian[0, 0] = laplacian[n, n] = 1.0
-    first = 0 if pivot_mass is not None else 1
-    mass, laplacian = mass[first:, first:], laplacian[first:, first:]
-    # K x = lambda M x as a symmetric standard problem: C = L^-1 K L^-T, M = L L^T
-    inv_l = np.linalg.inv(np.linalg.cholesky(mass))
-    c = inv_l @ laplacian @ inv_l.T
-    return float(stiffness * np.linalg.eigvalsh(0.5 * (c + c.T))[-1])
+    element masses (consistent m/6 [[2, 1], [1, 2]] or lumped m/2 per end). Sturm bisection in
+    O(N) (esp_gym/kernels/stability.py), exact to a few ulp for any N."""
+    from .kernels.stability import largest_eigenvalue  # compiled on first use
+    fixed = pivot_mass is None
+    return float(stiffness) * largest_eigenvalue(int(elements), float(element_mass), bool(consistent),
+                                                 0.0 if fixed else float(pivot_mass), fixed, float(end_mass))
 
 
 def chain_bound(scene, stiffness: float) -> float:
