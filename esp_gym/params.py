@@ -10,6 +10,7 @@ t = 0 and every constant the stepper derives are finite: esp_gym/scene_input.py,
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Literal, Optional
@@ -305,10 +306,16 @@ class Scene(_Frozen):
                                              or initial.get("node_velocities") is not None):
             raise ValueError("string.elements: auto chooses N, so initial.nodes and initial.node_velocities "
                              "(one row per node) cannot be given with it")
+        solver = data.get("solver")
+        if isinstance(solver, Mapping) and solver.get("string") == "implicit":
+            raise ValueError("string.elements: auto chooses the explicit string (docs/physics.md, \"The string's "
+                             "resolution\"); drop solver.string: implicit or give string.elements")
         from .stepsize import choose_resolution  # the rule reads a scene: resolve a provisional one
         provisional = cls.model_validate({**data, "string": {**data["string"], "elements": 1},
                                           "h": data.get("h", 1.0), "allow_unstable_h": True})
         choice = choose_resolution(provisional)
+        if not choice.met:
+            warnings.warn(f"string.elements: auto: {choice.reason}", stacklevel=2)
         return {**data, "string": {**data["string"], "elements": choice.elements, "auto": True},
                 "solver": {**(data.get("solver") or {}), "string": choice.string}, "h": choice.h}
 

@@ -231,6 +231,7 @@ class ResolutionChoice:
     step_error: float  #: predicted load-path error of the step h over the horizon
     limited_by: str  #: what set h: "stability" (the energy margin under the bound) or "accuracy"
     reason: str  #: one line for logs
+    met: bool = True  #: False when even MAX_AUTO_ELEMENTS elements miss the accuracy
 
     def scene(self, scene: Scene) -> Scene:
         """``scene`` with this resolution: N, h and the scheme (the string stays marked ``auto``)."""
@@ -320,7 +321,8 @@ def choose_resolution(scene: Scene, accuracy: float = 5e-3, horizon: float = PRO
         substeps = math.ceil(divides / h - 1e-9)
         h = divides / substeps
     e_space, e_step = spatial_error(at_n, elements, horizon), step_error(at_n, h, horizon)
-    met = "" if e_space <= 0.5 * accuracy else f" (accuracy not met: N is capped at {MAX_AUTO_ELEMENTS})"
+    met = e_space <= 0.5 * accuracy * (1 + 1e-12)
     reason = (f"N = {elements}, explicit, h = {h:.4g} s ({limited}): predicted load error {e_space:.2g} m "
-              f"(elements) + {e_step:.2g} m (step) over {horizon:g} s{met}")
-    return ResolutionChoice(elements, "explicit", h, substeps, e_space, e_step, limited, reason)
+              f"(elements) + {e_step:.2g} m (step) over {horizon:g} s"
+              + ("" if met else f" (accuracy {accuracy:g} m not met: N is capped at {MAX_AUTO_ELEMENTS})"))
+    return ResolutionChoice(elements, "explicit", h, substeps, e_space, e_step, limited, reason, met)

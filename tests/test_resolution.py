@@ -55,7 +55,7 @@ def test_a_tighter_accuracy_never_gets_a_coarser_string_or_a_longer_step(overrid
         if previous is not None:
             assert choice.elements >= previous.elements and choice.h <= previous.h
         # the prediction meets the accuracy unless N is capped
-        assert choice.spatial_error + choice.step_error <= accuracy * (1 + 1e-12) or "not met" in choice.reason
+        assert choice.spatial_error + choice.step_error <= accuracy * (1 + 1e-12) or not choice.met
         previous = choice
 
 
@@ -77,6 +77,14 @@ def test_the_error_models_scale_as_measured():
 def test_bad_arguments_name_themselves(bad, message):
     with pytest.raises(ValueError, match=message):
         choose_resolution(load_scene("drone_load"), **bad)
+
+
+def test_auto_elements_refuse_the_implicit_string_and_warn_when_the_accuracy_is_out_of_reach():
+    with pytest.raises(esp_gym.SceneError, match="auto chooses the explicit string"):
+        load_scene("drone_load", string={"elements": "auto"}, solver={"string": "implicit"})
+    with pytest.warns(UserWarning, match="not met: N is capped at 256"):
+        heavy = load_scene("drone_load", string={"elements": "auto", "mass_per_length": 5.0})
+    assert heavy.string.elements == 256
 
 
 def test_auto_elements_refuse_given_node_rows():
