@@ -55,6 +55,11 @@ class StepChoice:
         return scene_from_dict({**scene.model_dump(), "h": self.h}, source=repr(scene.name))
 
 
+#: The smallest accuracy [m] choose_h takes: the positions' rounding (1e-16 of a metre-sized scene
+#: per step, compensated) accumulated over a pilot run's 1e4-1e6 steps is of this order; a target of
+#: 1e-20 m asked for pilot runs that did not end in 20 minutes.
+MIN_ACCURACY = 1e-12
+
 #: Load positions held at once while comparing the pilot pair (bounds its memory, whatever the
 #: horizon: the runs go in chunks of at most this many coarse steps' samples of the whole string).
 PILOT_CHUNK_FLOATS = 1 << 22
@@ -96,14 +101,16 @@ def choose_h(scene: Scene, accuracy: Optional[float] = None, horizon: float = 0.
     >>> choice = choose_h(load_scene("paper_example"), accuracy=1e-6)
     >>> sim = Simulator(choice.scene(load_scene("paper_example")))
     """
-    if not 0 < safety <= 1:
+    safety, horizon = _number("safety", safety), _number("horizon", horizon)
+    if not safety <= 1:
         raise ValueError(f"safety must be in (0, 1], got {safety}")
-    if accuracy is not None and not (accuracy > 0 and math.isfinite(accuracy)):
-        raise ValueError(f"accuracy must be a positive length [m], got {accuracy}")
-    if not (horizon > 0 and math.isfinite(horizon)):
-        raise ValueError(f"horizon must be a positive time [s], got {horizon}")
-    if divides is not None and not (divides > 0 and math.isfinite(divides)):
-        raise ValueError(f"divides must be a positive time [s], got {divides}")
+    if accuracy is not None:
+        accuracy = _number("accuracy", accuracy)
+        if accuracy < MIN_ACCURACY:
+            raise ValueError(f"accuracy must be at least {MIN_ACCURACY:g} m, got {accuracy:g}: below it the pilot "
+                             "runs' own rounding decides, and their length grows without bound")
+    if divides is not None:
+        divides = _number("divides", divides)
     h_stable = safety * (shortest(scene) if reeling else scene).stability_bound
     h, limited, h_acc, estimate, pilot_h, pilot_err = h_stable, "stability", None, None, None, None
     if accuracy is not None:

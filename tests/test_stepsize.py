@@ -56,8 +56,13 @@ def test_loose_target_gives_the_stable_step():
     assert choice.scene(scene).h == choice.h
 
 
-@pytest.mark.parametrize("kwargs", [{"accuracy": 0.0}, {"accuracy": -1e-6}, {"accuracy": math.nan},
-                                    {"horizon": 0.0}, {"safety": 1.5}, {"divides": -0.01}])
-def test_bad_arguments_raise(kwargs):
-    with pytest.raises(ValueError):
+@pytest.mark.parametrize("kwargs,name", [
+    ({"accuracy": 0.0}, "accuracy"), ({"accuracy": -1e-6}, "accuracy"), ({"accuracy": math.nan}, "accuracy"),
+    ({"accuracy": True}, "accuracy must be a real number"), ({"accuracy": "1e-6"}, "accuracy must be a real number"),
+    ({"accuracy": 1e-20}, "at least 1e-12 m"), ({"horizon": 0.0}, "horizon"), ({"safety": 1.5}, "safety"),
+    ({"safety": "0.7"}, "safety"), ({"divides": -0.01}, "divides")])
+def test_bad_arguments_raise_naming_themselves(kwargs, name):
+    """Each is a ValueError naming the argument, at once (True was taken as 1 m, "1e-6" raised a
+    TypeError, and 1e-20 m ran its pilot runs for over 20 minutes)."""
+    with pytest.raises(ValueError, match=name):
         esp_gym.choose_h(esp_gym.load_scene("paper_example"), **kwargs)
