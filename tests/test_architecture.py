@@ -170,3 +170,17 @@ def test_the_environments_do_not_import_torch():
     code = code.replace("esp_gym.vector;", "esp_gym.sb3_vector;")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True)
     assert done.stdout.strip() == "['stable_baselines3', 'torch']"
+
+
+def modules_not_named(doc: str) -> list:
+    """The modules of esp_gym/ (packages' __init__ aside) whose file name ``doc`` does not give."""
+    package = ROOT / "esp_gym"
+    return sorted(str(p.relative_to(package)) for p in package.rglob("*.py")
+                  if p.name != "__init__.py" and "__pycache__" not in p.parts and p.name not in doc)
+
+
+def test_the_architecture_doc_names_every_module():
+    doc = (ROOT / "docs" / "architecture.md").read_text()
+    assert modules_not_named(doc) == []
+    # negative control: a doc without a module's file name is caught
+    assert "stability.py" in " ".join(modules_not_named(doc.replace("stability.py", "")))
