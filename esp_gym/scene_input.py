@@ -17,6 +17,7 @@ docs/scenes.md has the rules and the bounds.
 from __future__ import annotations
 
 import copy
+import math
 import os
 import re
 from collections.abc import Collection, Mapping
@@ -66,6 +67,18 @@ def plain_number(value: Any) -> Any:
     if isinstance(value, (bool, np.bool_, str, bytes)):
         raise ValueError(f"must be a number, not {type(value).__name__} {value!r}")
     return value.item() if isinstance(value, np.generic) else value
+
+
+def real_number(name: str, value: Any, positive: bool = False) -> float:
+    """``value`` as a float, for arguments outside a scene (a reel speed, an accuracy): ValueError
+    naming ``name`` unless it is a real number (not a bool or text) that is finite, and > 0 when
+    ``positive``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{name} must be a real number [SI], got {value!r}")
+    value = float(value)
+    if not math.isfinite(value) or (positive and value <= 0.0):
+        raise ValueError(f"{name} must be finite{' and positive' if positive else ''}, got {value!r}")
+    return value
 
 
 def _sequence(value: Any) -> Any:

@@ -27,6 +27,7 @@ from typing import Optional
 import numpy as np
 
 from .params import Scene, scene_from_dict
+from .scene_input import real_number
 from .stability import explicit_bound, transverse_bound
 
 
@@ -65,6 +66,21 @@ MIN_ACCURACY = 1e-12
 PILOT_CHUNK_FLOATS = 1 << 22
 
 
+def checked_targets(accuracy, horizon, divides, safety) -> tuple:
+    """``(accuracy, horizon, divides, safety)`` of :func:`choose_h` and :func:`choose_resolution` as
+    floats (None stays None): ValueError naming the first that is not a finite positive real number,
+    an accuracy below MIN_ACCURACY [m] or a safety above 1."""
+    accuracy, divides, safety = (None if v is None else real_number(name, v, positive=True)
+                                 for name, v in (("accuracy", accuracy), ("divides", divides), ("safety", safety)))
+    horizon = real_number("horizon", horizon, positive=True)
+    if accuracy is not None and accuracy < MIN_ACCURACY:
+        raise ValueError(f"accuracy must be at least {MIN_ACCURACY:g} m, got {accuracy:g}: below it the pilot "
+                         "runs' own rounding decides, and their length grows without bound")
+    if safety is not None and safety > 1.0:
+        raise ValueError(f"safety must be in (0, 1], got {safety}")
+    return accuracy, horizon, divides, safety
+
+
 def pilot_error(scene: Scene, h: float, horizon: float) -> float:
     """max over the coarse steps of |x_h - x_h/2|, x the load (attachment node) position, of
     two runs from the scene's initial state over ``horizon`` [s]; memory independent of the
@@ -101,16 +117,7 @@ def choose_h(scene: Scene, accuracy: Optional[float] = None, horizon: float = 0.
     >>> choice = choose_h(load_scene("paper_example"), accuracy=1e-6)
     >>> sim = Simulator(choice.scene(load_scene("paper_example")))
     """
-    safety, horizon = _number("safety", safety), _number("horizon", horizon)
-    if not safety <= 1:
-        raise ValueError(f"safety must be in (0, 1], got {safety}")
-    if accuracy is not None:
-        accuracy = _number("accuracy", accuracy)
-        if accuracy < MIN_ACCURACY:
-            raise ValueError(f"accuracy must be at least {MIN_ACCURACY:g} m, got {accuracy:g}: below it the pilot "
-                             "runs' own rounding decides, and their length grows without bound")
-    if divides is not None:
-        divides = _number("divides", divides)
+    accuracy, horizon, divides, safety = checked_targets(accuracy, horizon, divides, safety)
     h_stable = safety * (shortest(scene) if reeling else scene).stability_bound
     h, limited, h_acc, estimate, pilot_h, pilot_err = h_stable, "stability", None, None, None, None
     if accuracy is not None:
@@ -248,16 +255,6 @@ class ResolutionChoice:
         return scene_from_dict({**data, "h": self.h}, source=repr(scene.name))
 
 
-def _number(name: str, value, positive: bool = True) -> float:
-    """``value`` as a float: ValueError naming ``name`` unless it is a finite real number (> 0)."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ValueError(f"{name} must be a real number, got {value!r}")
-    value = float(value)
-    if not math.isfinite(value) or (positive and value <= 0.0):
-        raise ValueError(f"{name} must be a finite {'positive ' if positive else ''}number, got {value!r}")
-    return value
-
-
 def spatial_error(scene: Scene, elements: int, horizon: float) -> float:
     """The predicted load-path error [m] of ``elements`` elements over ``horizon`` [s]:
     SPATIAL_ERROR l beta^(3/2) N^(-1/2) horizon/PROTOCOL_HORIZON, beta = mu l / M."""
@@ -307,15 +304,8 @@ def choose_resolution(scene: Scene, accuracy: float = 5e-3, horizon: float = PRO
     >>> scene = load_scene("drone_load", EA=2e5, allow_unstable_h=True)
     >>> sim = Simulator(choose_resolution(scene, divides=0.02).scene(scene))
     """
-    accuracy = _number("accuracy", accuracy)
-    horizon = _number("horizon", horizon)
-    if accuracy < 1e-9:
-        raise ValueError(f"accuracy must be at least 1e-9 m (a nanometre), got {accuracy!r}")
-    if divides is not None:
-        divides = _number("divides", divides)
-    safety = resolution_safety(scene) if safety is None else _number("safety", safety)
-    if safety > 1.0:
-        raise ValueError(f"safety must be in (0, 1], got {safety}")
+    accuracy, horizon, divides, safety = checked_targets(accuracy, horizon, divides, safety)
+    safety = resolution_safety(scene) if safety is None else safety
     base = scene.model_copy(update={"solver": scene.solver.model_copy(update={"string": "explicit"}),
                                     "allow_unstable_h": True})
     elements = auto_elements(base, accuracy, horizon)

@@ -15,6 +15,7 @@ import numpy as np
 from .kernels.layout import WINCH, WinchArrays
 from .kernels.winch import convective_weights, winch_energy
 from .params import Scene
+from .scene_input import real_number
 from .stepsize import shortest
 
 
@@ -75,7 +76,7 @@ class Winch:
 
     def set(self, length: float, reel_speed: float) -> None:
         """Set the length [m] and the state's reel speed [m/s] (checked)."""
-        length, speed = self._number("length", length), self.check_speed(reel_speed)  # both, before any change
+        length, speed = real_number("length", length), self.check_speed(reel_speed)  # both, before any change
         if not self.min_length <= length <= self.max_length:
             raise ValueError(f"length = {length:g} m lies outside the winch's range "
                              f"[{self.min_length:g}, {self.max_length:g}] m")
@@ -83,19 +84,10 @@ class Winch:
         st[WINCH.scalar("length")] = length
         st[WINCH.scalar("reel_speed")] = speed
 
-    @staticmethod
-    def _number(name: str, value) -> float:
-        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
-            raise ValueError(f"{name} must be a real number [SI], got {value!r}")
-        value = float(value)
-        if not math.isfinite(value):
-            raise ValueError(f"{name} must be finite, got {value}")
-        return value
-
     def check_speed(self, reel_speed) -> float:
         """``reel_speed`` [m/s] as a float: ValueError naming it unless it is a finite real of
         magnitude at most ``winch.max_speed``."""
-        v = self._number("reel_speed", reel_speed)
+        v = real_number("reel_speed", reel_speed)
         if abs(v) > self.max_speed:
             raise ValueError(f"reel_speed = {v:g} m/s exceeds winch.max_speed = {self.max_speed:g} m/s")
         return v

@@ -87,13 +87,18 @@ def test_snapshot_figure_does_not_autoscale_over_uninitialised_memory(tmp_path, 
     assert path.stat().st_size > 0
 
 
+def quick_benchmark(module: str, tmp_path, output: str, *flags: str, timeout: int = 300) -> dict:
+    """Run ``python -m benchmarks.MODULE FLAGS --quick --out tmp_path`` from the repository root,
+    assert it exits 0, and return its ``OUTPUT.json``."""
+    proc = subprocess.run([sys.executable, "-m", f"benchmarks.{module}", *flags, "--quick", "--out", str(tmp_path)],
+                          capture_output=True, text=True, timeout=timeout, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    return json.loads((tmp_path / f"{output}.json").read_text())
+
+
 def test_step_cost_quick_runs(tmp_path):
     # --quick takes well under 20 s here (cold compile to the first step is most of it)
-    proc = subprocess.run(
-        [sys.executable, "-m", "benchmarks.step_cost", "--quick", "--out", str(tmp_path)],
-        capture_output=True, text=True, timeout=300, cwd=ROOT)
-    assert proc.returncode == 0, proc.stderr
-    results = json.loads((tmp_path / "step_cost.json").read_text())
+    results = quick_benchmark("step_cost", tmp_path, "step_cost")
     assert [r["N"] for r in results["step_cost"]] == [5, 20]
     assert all(r["us_per_step"] > 0 and r["h"] < r["h_bound"] for r in results["step_cost"])
     assert results["startup"]["cold"]["first_step_s"] > 0
@@ -101,31 +106,20 @@ def test_step_cost_quick_runs(tmp_path):
 
 
 def test_env_throughput_realism_quick_runs(tmp_path):
-    proc = subprocess.run(
-        [sys.executable, "-m", "benchmarks.env_throughput", "--realism", "--quick", "--out", str(tmp_path)],
-        capture_output=True, text=True, timeout=300, cwd=ROOT)
-    assert proc.returncode == 0, proc.stderr
-    table = json.loads((tmp_path / "env_throughput_realism.json").read_text())["table"]
+    table = quick_benchmark("env_throughput", tmp_path, "env_throughput_realism", "--realism")["table"]
     assert set(table) == {"plain", "randomize", "randomize, hook, noise", "randomize, wind, hook", "preset hard"}
     assert all(row["single"] > 0 and row["batched"] > 0 for row in table.values())
 
 
 def test_env_throughput_ea_sweep_quick_runs(tmp_path):
-    proc = subprocess.run(
-        [sys.executable, "-m", "benchmarks.env_throughput", "--ea-sweep", "--quick", "--out", str(tmp_path)],
-        capture_output=True, text=True, timeout=300, cwd=ROOT)
-    assert proc.returncode == 0, proc.stderr
-    sweep = json.loads((tmp_path / "env_throughput_ea.json").read_text())["sweep"]
+    sweep = quick_benchmark("env_throughput", tmp_path, "env_throughput_ea", "--ea-sweep")["sweep"]
     assert [row["elements auto"]["elements"] for row in sweep] == [1, 1]
     assert all(row[name]["steps_per_s"] > 0 for row in sweep for name in row if name != "EA")
     assert (tmp_path / "env_throughput_ea.png").stat().st_size > 0
 
 
 def test_resolution_quick_measures_accuracy_and_energy(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "benchmarks.resolution", "--quick", "--out", str(tmp_path)],
-                          capture_output=True, text=True, timeout=300, cwd=ROOT)
-    assert proc.returncode == 0, proc.stderr
-    result = json.loads((tmp_path / "resolution.json").read_text())
+    result = quick_benchmark("resolution", tmp_path, "resolution")
     assert [row["elements"] for row in result["accuracy"]] == [1, 1]
     assert not any(row["failures"] for row in result["accuracy"])
     # EA = 200 N, where the reference converges (its floor is below 0.1 mm), 2 seeds of 4 s: the
@@ -138,11 +132,7 @@ def test_resolution_quick_measures_accuracy_and_energy(tmp_path):
 def test_spatial_convergence_quick_shows_order_2_on_smooth_data(tmp_path):
     """The finite elements converge at order 2 in N on smooth data (the hanging start), and
     more slowly from the paper's velocity jump at the attachment point (order ~1)."""
-    proc = subprocess.run(
-        [sys.executable, "-m", "benchmarks.spatial_convergence", "--quick", "--out", str(tmp_path)],
-        capture_output=True, text=True, timeout=300, cwd=ROOT)
-    assert proc.returncode == 0, proc.stderr
-    table = json.loads((tmp_path / "spatial_convergence.json").read_text())["table"]
+    table = quick_benchmark("spatial_convergence", tmp_path, "spatial_convergence")["table"]
     for mass in ("consistent", "lumped"):
         smooth = [o for o in table[f"hanging/{mass}"]["order"] if o is not None]
         assert smooth and all(abs(o - 2.0) < 0.2 for o in smooth), smooth
@@ -154,11 +144,7 @@ def test_spatial_convergence_quick_shows_order_2_on_smooth_data(tmp_path):
 def test_cold_start_quick_measures_a_cold_and_a_warm_start(tmp_path):
     """The start-up benchmark's smoke test: a fresh cache compiles, the second process loads
     what the first one cached, so its first step comes sooner."""
-    proc = subprocess.run(
-        [sys.executable, "-m", "benchmarks.cold_start", "--quick", "--out", str(tmp_path)],
-        capture_output=True, text=True, timeout=600, cwd=ROOT)
-    assert proc.returncode == 0, proc.stderr
-    runs = json.loads((tmp_path / "cold_start.json").read_text())["runs"]
+    runs = quick_benchmark("cold_start", tmp_path, "cold_start", timeout=600)["runs"]
     assert [(r["case"], r["cache"]) for r in runs] == [("simulator", "cold"), ("simulator", "warm")]
     cold, warm = runs
     assert 0 < cold["import_s"] <= cold["construct_s"] <= cold["first_step_s"] <= cold["process_s"]

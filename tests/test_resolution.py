@@ -72,7 +72,7 @@ def test_the_error_models_scale_as_measured():
 
 @pytest.mark.parametrize("bad,message", [
     (dict(accuracy=True), "accuracy must be a real number"), (dict(accuracy="1e-3"), "accuracy must be a real"),
-    (dict(accuracy=1e-20), "at least 1e-9"), (dict(accuracy=-1.0), "accuracy"), (dict(horizon=0.0), "horizon"),
+    (dict(accuracy=1e-20), "at least 1e-12 m"), (dict(accuracy=-1.0), "accuracy"), (dict(horizon=0.0), "horizon"),
     (dict(divides=float("nan")), "divides"), (dict(safety=2.0), "safety")])
 def test_bad_arguments_name_themselves(bad, message):
     with pytest.raises(ValueError, match=message):

@@ -37,7 +37,7 @@ def below_count(lam, elements, m, consistent, pivot_mass, fixed_pivot, end_mass)
             stiff = 1.0
         if a == elements:
             mass = end + end_mass
-            stiff = 1.0 if elements > 0 else 0.0
+            stiff = 1.0
         diagonal = stiff - lam * mass
         if a > first:
             coupling = -1.0 - lam * off_mass
