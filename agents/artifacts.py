@@ -87,3 +87,65 @@ def load_model(path: str | Path, env=None):
     except Exception as err:  # SB3 reports a damaged archive by assert, KeyError, RuntimeError, ...
         reason = " ".join(f"{type(err).__name__}: {err}".split())
         raise ModelFileError(f"{path}: cannot be loaded as a {algo.upper()} model ({reason})") from err
+
+
+class ConfigurationError(ValueError):
+    """A model run in a configuration whose observations or actions it cannot take."""
+
+
+#: What a model's configuration is compared by: the task, the preset, the observation mode and
+#: the winch (the ones that change the observation or the action: ``layout``) and the realism
+#: options that change the task's difficulty.
+CONFIGURATION_FIELDS = ("task", "preset", "observation", "winch", "randomize", "wind", "sensor_noise",
+                        "action_latency")
+
+
+def model_configuration(model: str | Path) -> Optional[dict]:
+    """The configuration a model was trained in: ``{"task": ..., "env_kwargs": ...}`` from the
+    ``args.json`` and ``config.yaml`` of its run directory (beside the model, or above a
+    checkpoint); None where they are missing (a model saved by hand)."""
+    import yaml
+
+    model = Path(model)
+    for directory in (model.parent, model.parent.parent):
+        args, config = directory / "args.json", directory / "config.yaml"
+        if args.is_file() and config.is_file():
+            task = json.loads(args.read_text()).get("task")
+            env_kwargs = (yaml.safe_load(config.read_text()) or {}).get("env_kwargs") or {}
+            if isinstance(task, str) and isinstance(env_kwargs, dict):
+                return {"task": task, "env_kwargs": env_kwargs}
+    return None
+
+
+def describe_configuration(task: str, env_kwargs: Optional[dict]) -> dict:
+    """The resolved :data:`CONFIGURATION_FIELDS` of a task and its environment options, with the
+    observation and action sizes (``layout``)."""
+    from esp_gym.setup import make_setup
+
+    setup = make_setup(task=task, **(env_kwargs or {}))
+    return {"task": setup.task.name, "preset": (env_kwargs or {}).get("preset"), "observation": setup.observer.mode,
+            "winch": setup.winch, "randomize": setup.randomizer is not None, "wind": setup.wind is not None,
+            "sensor_noise": bool(setup.observer.noise_std.any()), "action_latency": setup.action_latency,
+            "layout": (setup.observer.layout.size, setup.action_size)}
+
+
+def check_configuration(model: str | Path, trained: Optional[dict], task: str, env_kwargs: Optional[dict]) -> None:
+    """A model trained in ``trained`` (:func:`model_configuration`; None: unknown, nothing to
+    check) run on ``task`` with ``env_kwargs``: ConfigurationError naming both where its
+    observations or actions differ in size, a warning naming the differences where only the
+    configuration does."""
+    if trained is None:
+        return
+    was = describe_configuration(trained["task"], trained["env_kwargs"])
+    now = describe_configuration(task, env_kwargs)
+    differ = [f"{name} {now[name]!r} (trained with {was[name]!r})" for name in CONFIGURATION_FIELDS
+              if now[name] != was[name]]
+    if not differ:
+        return
+    text = f"{model} was trained on another configuration: " + ", ".join(differ)
+    if now["layout"] != was["layout"]:
+        raise ConfigurationError(f"{text}; its observations and actions (sizes {was['layout']}) do not fit these "
+                                 f"({now['layout']})")
+    import warnings
+
+    warnings.warn(f"{text}; it runs (the sizes fit), but it did not learn this configuration", stacklevel=3)

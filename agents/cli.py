@@ -58,6 +58,13 @@ class ArgumentParser(argparse.ArgumentParser):
         if path is not None and not Path(path).is_file():
             self.error(f"argument {option}: {path} is not a file")
 
+    def check_new_file(self, option: str, path: Optional[str]) -> None:
+        """An error unless a file can be written at ``path`` (None: no file): its directory
+        exists and ``path`` is not a directory."""
+        if path and Path(path).is_dir():
+            self.error(f"argument {option}: {path} is a directory, not a file")
+        self.check_parent_dir(option, path)
+
     def check_parent_dir(self, option: str, path: Optional[str]) -> None:
         """An error unless the directory a file ``path`` is to be written in exists (None: no file)."""
         if path and not Path(path).resolve().parent.is_dir():

@@ -62,6 +62,7 @@ def compare(task: str, preset: Optional[str] = None, episodes: int = 100, seed: 
     path = Path(model) if model else shipped_model(task, preset)
     if model or path.is_file():
         policies["policy"] = SB3Policy(path)
+        policies["policy"].check(task, env_kwargs)  # before any episode: a model that does not fit says so
     results = {}
     for name, policy in tqdm(policies.items(), desc=f"compare {task} {preset or 'nominal'}", disable=not progress):
         results[name] = run_episodes(policy, task, episodes, seed, env_kwargs=env_kwargs)
@@ -100,6 +101,7 @@ def markdown(c: dict) -> str:
 def main(argv=None) -> dict:
     ap = ArgumentParser(prog="python -m agents.compare", description=__doc__.split("\n\n")[0])
     ap.add_episode_options(TASKS, episodes=100, preset=True, default_seed=HELD_OUT_SEED)
+    ap.minimums["episodes"] = 2  # a paired bootstrap interval needs two differences
     ap.add_argument("--model", default=None, help="model .zip (default: the shipped one for the task and preset)")
     ap.add_argument("--json", action="store_true", help="print one JSON object instead of the Markdown table")
     ap.add_argument("--out", default=None, metavar="DIR", help="also write compare_TASK[_PRESET].md and .json here")

@@ -29,7 +29,8 @@ import gymnasium as gym
 import numpy as np
 
 import esp_gym
-from agents.artifacts import ModelFileError, load_model, stats_path_for
+from agents.artifacts import (ConfigurationError, ModelFileError, check_configuration, load_model, model_configuration,
+                              stats_path_for)
 from agents.cli import ArgumentParser
 from agents.controllers import ZeroPolicy, baseline
 from agents.normalization import NormalizationFileError, NormStats
@@ -64,6 +65,19 @@ class SB3Policy:
         self._stack = None
         #: the baseline the network's action is added to (agents/residual.py), or None
         self.residual = residual_for(path)
+        self.path = path
+        #: the task and environment options it was trained with (agents.artifacts.model_configuration), or None
+        self.configuration = model_configuration(path)
+        self._checked = set()
+
+    def check(self, task: str, env_kwargs: Optional[dict] = None) -> None:
+        """Before running on ``task`` with ``env_kwargs``: ConfigurationError where the model's
+        observations or actions do not fit them, a warning where only its configuration differs
+        (agents.artifacts.check_configuration)."""
+        key = (task, repr(sorted((env_kwargs or {}).items())))
+        if key not in self._checked:  # once per configuration (compare checks before its episodes)
+            check_configuration(self.path, self.configuration, task, env_kwargs)
+            self._checked.add(key)
 
     def reset(self, env=None) -> None:
         """Start an episode: a frame-stacked model's earlier observations are zeros again, a
@@ -150,6 +164,8 @@ def run_episodes(policy, task: str = "stabilize", episodes: int = 50, seed: int 
     of the first episode. A policy with ``reset(env)`` is reset after each env reset."""
     if policy is None:
         policy = baseline(task, make_setup(task=task, **(env_kwargs or {})).winch)
+    if isinstance(policy, SB3Policy):
+        policy.check(task, env_kwargs)
     out = []
     for i in range(episodes):
         env = gym.make(esp_gym.ENV_ID, task=task, **(env_kwargs or {}))
@@ -215,14 +231,17 @@ def main(argv=None) -> dict:
     ap.add_argument("--record", metavar="FILE.rrd", default=None,
                     help="write a Rerun recording of the first episode to FILE.rrd")
     args = ap.parse_args(argv)
-    ap.check_parent_dir("--record", args.record)
+    ap.check_new_file("--record", args.record)
     env_kwargs = {"preset": args.preset} if args.preset else {}
     try:
         policy = load_policy(args.policy, args.task, env_kwargs)
     except ValueError as err:  # ModelFileError, NormalizationFileError
         ap.error(f"argument --policy: {err}")
-    stats = evaluate_policy(policy, task=args.task, episodes=args.episodes, seed=args.seed, record=args.record,
-                            env_kwargs=env_kwargs)
+    try:
+        stats = evaluate_policy(policy, task=args.task, episodes=args.episodes, seed=args.seed, record=args.record,
+                                env_kwargs=env_kwargs)
+    except ConfigurationError as err:  # raised before the first episode
+        ap.error(f"argument --policy: {err}")
     stats["preset"] = args.preset
     stats["policy"] = args.policy
     print(json.dumps(stats))

@@ -100,23 +100,43 @@ def parse_space(text: Optional[str]) -> dict:
 
 
 def check_space(space: dict, s: Settings) -> None:
-    """Every key and value of ``space`` as agents.train would take it (with the base ``--set``);
-    ConfigError/ValueError naming the key."""
-    from esp_gym.setup import make_setup
-
-    for key, values in space.items():
-        for value in values:
-            if key == "seed":
-                if not isinstance(value, int) or isinstance(value, bool) or value < 0:
-                    raise ValueError(f"seed: {value!r} is not an integer >= 0")
-                continue
+    """The trials of ``space`` as agents.train would take them (with the base ``--set``): every
+    value of every key, the other keys at their first values (:func:`check_trial`); a space of
+    seeds alone, the base settings' trial. SettingsError naming ``--space`` (the key and value)
+    or ``--set``."""
+    for value in space.get("seed", []):
+        if not isinstance(value, int) or isinstance(value, bool) or value < 0:
+            raise SettingsError("--space", f"seed: {value!r} is not an integer >= 0")
+    keys = [key for key in space if key != "seed"]
+    first = [override(key, space[key][0]) for key in keys]
+    if not keys:
+        try:
+            check_trial(s, [])
+        except (ValueError, TypeError, MemoryError) as err:
+            raise SettingsError("--set", one_line(err)) from None
+    for i, key in enumerate(keys):
+        for value in space[key]:
             try:
-                cfg = load_run_config(s.algo, esp_gym.ENV_ID, s.task, list(s.set) + [override(key, value)])
-                make_setup(task=s.task, **cfg.env_kwargs)
+                check_trial(s, first[:i] + [override(key, value)] + first[i + 1:])
             except ConfigError as err:
-                raise ValueError(f"key {key!r}: {err}") from None
-            except (ValueError, TypeError) as err:
-                raise ValueError(f"key {key!r} = {value!r}: {one_line(err)}") from None
+                raise SettingsError("--space", f"key {key!r}: {err}") from None
+            except (ValueError, TypeError, MemoryError) as err:
+                raise SettingsError("--space", f"key {key!r} = {value!r}: {one_line(err)}") from None
+
+
+def check_trial(s: Settings, extra: list) -> None:
+    """What a trial with ``--set`` and ``extra`` would build, before a cluster starts: its config,
+    its environment's options, the residual's baseline and the batch's memory (ConfigError,
+    ValueError, TypeError or MemoryError, as the trial would raise them)."""
+    from agents.residual import base_policy
+    from esp_gym.setup import make_setup
+    from esp_gym.state import check_memory
+
+    cfg = load_run_config(s.algo, esp_gym.ENV_ID, s.task, list(s.set) + list(extra))
+    setup = make_setup(task=s.task, **cfg.env_kwargs)
+    if cfg.residual is not None:
+        base_policy(cfg.residual, s.task, cfg.env_kwargs)
+    check_memory(setup.scene.string.elements, cfg.n_envs)
 
 
 def override(key: str, value) -> str:
@@ -216,14 +236,14 @@ def prepare(s: Settings, given: frozenset) -> tuple:
             raise SettingsError("--resume", f"{s.resume} is not a sweep's directory (no sweep.json and tune/)")
         return Spec(**json.loads(saved.read_text())), True
     try:
-        space = parse_space(s.space)
-        check_space(space, s)
-    except ValueError as err:
-        raise SettingsError("--space", str(err)) from None
-    try:
         load_run_config(s.algo, esp_gym.ENV_ID, s.task, list(s.set))
     except ConfigError as err:
         raise SettingsError("--set", str(err)) from None
+    try:
+        space = parse_space(s.space)
+    except ValueError as err:
+        raise SettingsError("--space", str(err)) from None
+    check_space(space, s)
     out = _new_out(s)
     return Spec({k: v for k, v in dataclasses.asdict(s).items() if k in SWEEP_SETTINGS}, space,
                 str(out.resolve())), False

@@ -99,9 +99,9 @@ def main(argv=None) -> dict:
     ap.add_argument("--policy", choices=("baseline", "zero"), default="baseline")
     ap.minimums = {"seed": 0, "steps": 1}
     a = ap.parse_args(argv)
+    ap.check_out_dir("--out", a.out)  # as compare's and robustness's: a new directory in an existing one
     out = Path(a.out)
-    if not out.is_dir():
-        ap.error(f"argument --out: no directory {out}")
+    out.mkdir(exist_ok=True)
     results = {}
     for task in sorted(TASKS):
         policy = ZeroPolicy() if a.policy == "zero" else baseline(task)

@@ -166,10 +166,13 @@ def prepare(s: Settings, given: frozenset = frozenset()) -> Prepared:
 
     if cfg.privileged_critic and s.algo != "ppo":
         raise SettingsError("--set", f"privileged_critic needs an actor-critic with a state value (ppo), not {s.algo}")
-    monitor = RunMonitor(_make_vec_env(cfg.n_envs, s.task, s.seed, cfg.env_kwargs, cfg.residual,
-                                       cfg.privileged_critic))
-    eval_env = VecMonitor(_make_vec_env(min(4, s.eval_episodes), s.task, s.seed + 10_000, cfg.env_kwargs,
-                                        cfg.residual, cfg.privileged_critic))
+    try:  # a residual the observation cannot feed, a batch past the memory: before anything is written
+        monitor = RunMonitor(_make_vec_env(cfg.n_envs, s.task, s.seed, cfg.env_kwargs, cfg.residual,
+                                           cfg.privileged_critic))
+        eval_env = VecMonitor(_make_vec_env(min(4, s.eval_episodes), s.task, s.seed + 10_000, cfg.env_kwargs,
+                                            cfg.residual, cfg.privileged_critic))
+    except (ValueError, MemoryError) as err:
+        raise SettingsError("--set", one_line(str(err))) from None
     venv = monitor
     try:
         if resume and resume.stats is not None:

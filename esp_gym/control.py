@@ -92,7 +92,7 @@ class ControlStep:
         self.setup = setup
         self.num_envs = None if num_envs is None else check_count("num_envs", num_envs)
         batch = () if self.num_envs is None else (self.num_envs,)
-        check_memory(setup.scene.string.elements, copies=1 + (self.num_envs or 0))
+        check_memory(setup.scene.string.elements, self.num_envs)
         #: The simulator stepped in place (one environment), or the template of the batch's arrays.
         self.sim = Simulator(setup.scene)
         state, work, params, diag = self.sim.buffers

@@ -10,7 +10,8 @@ import numpy as np
 
 from .control import INFO_REWARD_KEYS, ControlStep
 from .setup import make_setup
-from .kernels.layout import INPUTS, TARGET, termination_reason
+from .errors import termination_reason
+from .kernels.layout import INPUTS, TARGET
 from .params import Scene
 
 
@@ -96,7 +97,8 @@ class ElasticStringPendulumEnv(gym.Env):
 
     ## Episode End
     Terminated (with `info["termination_reason"]`): `physics_failure: ...` (Newton's method
-    did not converge or the state became non-finite; the state is the last good one),
+    did not converge or the state became non-finite; the state is the last good one), `energy_balance`
+    (|E - E0 - W| passed the energy watchdog's bound, `solver.energy_watchdog`: docs/physics.md),
     `string_overstretched` (stretched length > 1.5 l, l the current length), `left_workspace` (pivot or load more than
     4 m from its target). Truncated: only by the time limit (`max_episode_steps`, 500 steps =
     10 s at the default 50 Hz).
@@ -112,12 +114,12 @@ class ElasticStringPendulumEnv(gym.Env):
     | `force_limit` | 0.6 W | [N] per axis at action 1 |
     | `torque_limit` | 0.02 | [N m] per axis at action 1 |
     | `scene_overrides` | None | dict of scene overrides, validated as in `esp_gym.load_scene` |
-    | `randomize` | False | True: each episode draws the string's length, EA, mass per length, the load's mass, box and attachment offset, and the pivot mass from default ranges around the scene's values; a dict name -> (low, high) sets ranges (esp_gym/randomize.py, docs/environment.md) |
-    | `observation` | `"full"` | `"full"` or `"hook"` (Observation Space) |
-    | `sensor_noise` | 0.0 | s: Gaussian noise of s x UNIT_NOISE per field; or a dict field -> standard deviation |
-    | `action_latency` | 0 | control steps (0-50) between an action and its application (hover before the first) |
-    | `wind` | 0.0 | mean wind speed [m/s] (gusts of 0.2 x it, direction drawn per episode), or a dict of esp_gym/wind.py `WindOptions` (speed, direction, gust_std, gust_time, drag coefficients, line_diameter, push_rate, push_speed): drag on the line and the load, pushes on the load |
-    | `preset` | None | `"hard"`: randomize, wind 6 m/s with 1.5 m/s gusts and a push every 5 s on average, the hook observation with sensor noise 1 and a latency of 1 step (docs/environment.md) |
+    | `randomize` | None | None: the preset's, else False. True: each episode draws the string's length, EA, mass per length, the load's mass, box and attachment offset, and the pivot mass from default ranges around the scene's values; a dict name -> (low, high) sets ranges (esp_gym/randomize.py, docs/environment.md) |
+    | `observation` | None | `"full"` or `"hook"` (Observation Space); None: the preset's, else `"full"` |
+    | `sensor_noise` | None | None: the preset's, else 0. s: Gaussian noise of s x UNIT_NOISE per field; or a dict field -> standard deviation |
+    | `action_latency` | None | control steps (0-50) between an action and its application (hover before the first); None: the preset's, else 0 |
+    | `wind` | None | None: the preset's, else 0. The mean wind speed [m/s] (gusts of 0.2 x it, direction drawn per episode), or a dict of esp_gym/wind.py `WindOptions` (speed, direction, gust_std, gust_time, drag coefficients, line_diameter, push_rate, push_speed): drag on the line and the load, pushes on the load |
+    | `preset` | None | `"hard"`: randomize, wind 6 m/s with 1.5 m/s gusts and a push every 5 s on average, the hook observation with sensor noise 1 and a latency of 1 step (docs/environment.md). An option given explicitly (even at its usual default) replaces the preset's: `preset="hard", observation="full"` is the hard preset with the full observation |
     | `winch` | None | True: a winch at the pivot, its reel speed the 7th action, the length the last observation; h is chosen for the shortest string it reaches (`scene.winch`). None: as the task needs (True for `lift` and `lower`) |
     | `render_mode` | None | `"rgb_array"`: uint8 frames, front and side views |
 
@@ -131,9 +133,9 @@ class ElasticStringPendulumEnv(gym.Env):
                  control_period: float = 0.02, h: Optional[float] = None, safety: Optional[float] = None,
                  force_limit: Optional[float] = None, torque_limit: float = 0.02,
                  scene_overrides: Optional[dict] = None, render_mode: Optional[str] = None,
-                 randomize: Union[bool, dict] = False, observation: str = "full",
-                 sensor_noise: Union[float, dict] = 0.0, action_latency: int = 0, wind: Union[float, dict] = 0.0,
-                 preset: Optional[str] = None, winch: Optional[bool] = None):
+                 randomize: Union[bool, dict, None] = None, observation: Optional[str] = None,
+                 sensor_noise: Union[float, dict, None] = None, action_latency: Optional[int] = None,
+                 wind: Union[float, dict, None] = None, preset: Optional[str] = None, winch: Optional[bool] = None):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.setup = make_setup(scene, task, control_period, h, safety, force_limit, torque_limit, scene_overrides,

@@ -1,7 +1,8 @@
-"""What a failed step raises, and what to change after it."""
+"""What a failed step raises, what to change after it, and what its status codes say
+(kernels/layout.py, STATUS)."""
 from __future__ import annotations
 
-from .kernels.layout import BLOW_UP, NEWTON_FAILED, NON_FINITE, status_message
+from .kernels.layout import BLOW_UP, ENERGY_BALANCE, NEWTON_FAILED, NON_FINITE, PHYSICS_FAILURES, STATUS
 from .params import Scene
 
 
@@ -12,6 +13,10 @@ class SimulationError(RuntimeError):
         self.status = status
         self.step = step
         self.time = time
+        if status == ENERGY_BALANCE:  # the watchdog: the steps were taken, the state is finite
+            super().__init__(f"after step {step} (t = {time:.6g} s): {status_message(status)}; the simulator holds "
+                             f"the state where it broke. {advice}".rstrip())
+            return
         super().__init__(
             f"step {step} (t = {time:.6g} s) failed: {status_message(status)} "
             f"(Newton iterations in the failing step: {newton_iterations}); "
@@ -37,3 +42,17 @@ def failure_advice(scene: Scene, status: int) -> str:
                 f"stretched an element past solver.max_stretch; use smaller inputs, or raise max_stretch if "
                 f"that stretch is intended.")
     return "The forces or inputs overflowed: check their magnitudes."
+
+
+def status_message(code: int) -> str:
+    """The message of a status code (the code itself if it is unknown)."""
+    status = STATUS.get(int(code))
+    return str(code) if status is None else status.message
+
+
+def termination_reason(code: int) -> str:
+    """``info["termination_reason"]`` of a termination code ("" for 0)."""
+    code = int(code)
+    if code in PHYSICS_FAILURES:
+        return "physics_failure: " + STATUS[code].message
+    return STATUS[code].reason

@@ -25,6 +25,8 @@ from .params import Scene, check_rotation
 from .trajectory import Trajectory  # noqa: F401  (re-exported)
 from .kernels.winch import winch_forces
 from .kernels.winch_loops import winch_advance, winch_advance_implicit
+from .stepsize import at_length
+from .watchdog import WATCH_EVERY, check_balance
 from .winch import Winch
 from .state import State, build_params, check_memory, initial_state, legendre_momenta  # noqa: F401  (re-exported)
 
@@ -99,6 +101,7 @@ class Simulator:
         self._kernel_cache: dict = {}
         self._stats = np.zeros(LOOP_REPORT_SIZE, dtype=np.int64)
         state_forces(self._arrays, self.params)
+        self._unwatched = 0  #: steps since the energy watchdog last looked (see :meth:`_account`)
         self.newton_iterations = 0  #: total Newton iterations so far
         self.newton_iterations_max = 0  #: most iterations in any one step so far
         self.reset_balances()
@@ -234,12 +237,29 @@ class Simulator:
         """Count the report of the last kernel call and raise on failure. Counted once: the
         counts are then zeroed, so a second call (the ``finally`` after a Ctrl-C that came
         as the kernel returned) adds nothing."""
+        steps = int(self._stats[R_STEPS])
         self.count_steps(self._stats)
         self._stats[R_STEPS] = self._stats[R_NEWTON_TOTAL] = 0
         status = int(self._stats[R_STATUS])
         if status != OK:
             raise SimulationError(status, self._step, self.time, int(self._stats[R_NEWTON_MAX]),
-                                  failure_advice(self.scene, status))
+                                  failure_advice(self._scene_now(), status))
+        self._unwatched += steps
+        if self._unwatched >= WATCH_EVERY:
+            self._unwatched = 0
+            self._watch()
+
+    def _watch(self) -> None:
+        """The energy watchdog (esp_gym/watchdog.py): SimulationError once the balance breaks."""
+        if self.scene.solver.energy_watchdog is not None:
+            acc = self._arrays.acc
+            work = acc[BALANCE.scalar("work")] + acc[BALANCE.scalar("winch_work")]
+            check_balance(self.scene, self._update_diag() - self._E0 - work, work, self._step, self.time,
+                          self._scene_now().stability_bound)
+
+    def _scene_now(self) -> Scene:
+        """The scene at the winch's current length (its bound is the one a failure is measured by)."""
+        return self.scene if self.winch.idle else at_length(self.scene, self.winch.length)
 
     def _timed(self, kernel, args: tuple, steps: int) -> None:
         """Call ``kernel(*args)``, which takes ``steps`` steps, and count them, also when an

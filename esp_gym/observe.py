@@ -31,6 +31,10 @@ UNIT_NOISE = {
     "load_target_offset": 0.01, "unstretched_length": 0.005,
 }
 
+#: The largest sensor_noise, a level or a standard deviation (every field's unit noise is at most
+#: 0.1): noise far past any sensor, and float32 observations stay finite.
+MAX_NOISE = 1e6
+
 #: The step's measured vector: OBSERVATION then SENSORS; with a winch, WINCH_OBSERVATION then SENSORS.
 MEASURED = {False: Layout(*OBSERVATION.fields, *SENSORS.fields), True: Layout(*WINCH_OBSERVATION.fields, *SENSORS.fields)}
 #: The winch's field of an observation (esp_gym/winch.py).
@@ -93,6 +97,7 @@ class Observer:
 def _deviation(name: str, value: Any) -> float:
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise ValueError(f"{name} must be a real number >= 0, got {value!r}")
-    if not (math.isfinite(float(value)) and float(value) >= 0.0):
-        raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
+    if not (math.isfinite(float(value)) and 0.0 <= float(value) <= MAX_NOISE):
+        raise ValueError(f"{name} must be finite and >= 0, at most {MAX_NOISE:g} (so that a float32 observation stays "
+                         f"finite), got {value!r}")
     return float(value)

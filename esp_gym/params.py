@@ -201,6 +201,9 @@ class SolverParams(_Frozen):
                           "over 1e7+ steps); false is ~13 % faster, as good over short runs (docs/performance.md)")
     string: Literal["explicit", "implicit"] = Field(
         "explicit", description="the string's elastic forces: explicit (the paper's) or implicit (docs/physics.md)")
+    energy_watchdog: Optional[Real] = Field(1.0, gt=0, le=1e6, description=(
+        "f: a run whose |E - E0 - W| passes f (energy scale + |W|) raises SimulationError, an episode ends "
+        "(esp_gym/watchdog.py, docs/physics.md); null: no watchdog"))
 
     @model_validator(mode="after")
     def _composition_has_the_order(self) -> "SolverParams":

@@ -24,7 +24,9 @@ run-time values only, never a compiled kernel's types.
 
 User ranges (``randomize={"EA": (1e3, 1e6), ...}``) are absolute, in the units above, and
 replace the defaults of the names given; a pair (v, v) fixes a value. The extreme scenes of the
-ranges are validated like any scene when the environment is made.
+ranges are validated like any scene when the environment is made, with the attachment on the
+box's face at the smallest box (the environment also checks that the load can hang:
+esp_gym/setup.py, ``check_hanging``). A range is a tuple, list or array (a set has no order).
 """
 from __future__ import annotations
 
@@ -79,8 +81,8 @@ def default_ranges(scene: Scene) -> dict:
 def _pair(name: str, given: Any) -> tuple:
     """A user's range: two finite real numbers, low <= high (positive unless signed)."""
     what = f"randomize: {name}"
-    if isinstance(given, (str, bytes, Mapping)) or not hasattr(given, "__len__") or len(given) != 2:
-        raise ValueError(f"{what} must be a pair (low, high), got {given!r}")
+    if not isinstance(given, (tuple, list, np.ndarray)) or len(given) != 2:  # a set has no order
+        raise ValueError(f"{what} must be a pair (low, high): a tuple, list or array, got {given!r}")
     out = []
     for x in given:
         if isinstance(x, (bool, np.bool_)) or not isinstance(x, (int, float, np.integer, np.floating)):
@@ -189,6 +191,12 @@ class Randomizer:
                 thin[i] = lows[i]
             elif name.startswith("attachment_offset"):
                 thin[i] = lows[i] if abs(lows[i]) > abs(highs[i]) else highs[i]
+        names = SCENE_PARAMS.names
+        for axis in "xy" if "attachment_offset_x" in self.ranges or "attachment_offset_y" in self.ranges else "":
+            offset, half = abs(thin[names.index("attachment_offset_" + axis)]), thin[names.index("load_size_" + axis)] / 2
+            if offset > half:
+                raise ValueError(f"randomize: attachment_offset_{axis} reaches {offset:g} m, off the load's face "
+                                 f"(half its {axis} size is {half:g} m at the smallest box)")
         for what, values in (("the lows", lows), ("the highs", highs), ("the smallest box, largest offset", thin)):
             data = self.scene(values).model_dump()
             data["allow_unstable_h"] = True  # the environment chooses each episode's h

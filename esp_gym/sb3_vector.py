@@ -15,7 +15,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 from . import MAX_EPISODE_STEPS
 from .control import INFO_REWARD_KEYS, ControlStep
 from .setup import make_setup
-from .kernels.layout import termination_reason
+from .errors import termination_reason
 from .options import check_count
 from .vector import reset_sub_env
 

@@ -16,7 +16,7 @@ from gymnasium import spaces
 
 from .kernels.layout import ACTION_PARAMS, ACTION_SIZE, SCENE_PARAMS, WINCH_ACTION, LGVIParams
 from .observe import Observer
-from .options import MAX_SUBSTEPS, EnvOptions, env_options
+from .options import MAX_SUBSTEPS, env_options
 from .params import Scene, load_scene, override_scene, scene_from_dict
 from .randomize import Randomizer, nominal_values
 from .state import build_params
@@ -34,6 +34,25 @@ def total_weight(scene: Scene) -> float:
     """The weight of pivot, string and load [N]: the hover force's size."""
     return scene.gravity * (scene.body.mass + (scene.pivot.mass or 0.0)
                             + scene.string.length * scene.string.mass_per_length)
+
+
+def check_hanging(scene: Scene, task: Task, randomizer: Optional[Randomizer]) -> None:
+    """ValueError unless the load can hang in every episode: under the weight it carries, the
+    string's top stretches by g (M + mu l) / EA, at most half the stretch at which the task ends
+    an episode (at the ranges' worst corner with ``randomizer``: the softest string, the heaviest
+    and longest load and string), or every episode would end at its first steps."""
+    nominal = nominal_values(scene)
+    ranges = {} if randomizer is None else randomizer.ranges
+    low = {k: ranges.get(k, (v, v))[0] for k, v in nominal.items()}
+    high = {k: ranges.get(k, (v, v))[1] for k, v in nominal.items()}
+    weight = scene.gravity * (high["load_mass"] + high["mass_per_length"] * high["string_length"])
+    stretch, allowed = weight / low["EA"], 0.5 * (task.max_stretch - 1.0)
+    if stretch > allowed:
+        where = " at the randomize ranges' softest, heaviest corner" if randomizer is not None else ""
+        raise ValueError(f"ElasticStringPendulum-v0: the load cannot hang: its weight {weight:.4g} N stretches the "
+                         f"string (EA = {low['EA']:.4g} N) by {stretch:.3g} of its length{where}, past {allowed:g} "
+                         f"(half of the {task.max_stretch - 1.0:g} at which task {task.name!r} ends an episode); "
+                         f"raise EA or lighten the load or the string")
 
 
 def action_params(hover: np.ndarray, force_limit: float, torque_limit: float, max_reel_speed: float) -> np.ndarray:
@@ -146,22 +165,22 @@ class EnvSetup:
 def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabilize",
                control_period: float = 0.02, h: Optional[float] = None, safety: Optional[float] = None,
                force_limit: Optional[float] = None, torque_limit: float = 0.02,
-               scene_overrides: Optional[dict] = None, randomize: Union[bool, dict] = False,
-               observation: str = "full", sensor_noise: Union[float, dict] = 0.0,
-               action_latency: int = 0, wind: Union[float, dict] = 0.0, preset: Optional[str] = None,
-               winch: Optional[bool] = None) -> EnvSetup:
+               scene_overrides: Optional[dict] = None, randomize: Union[bool, dict, None] = None,
+               observation: Optional[str] = None, sensor_noise: Union[float, dict, None] = None,
+               action_latency: Optional[int] = None, wind: Union[float, dict, None] = None,
+               preset: Optional[str] = None, winch: Optional[bool] = None) -> EnvSetup:
     """Resolve the environment's arguments (see :class:`~esp_gym.env.ElasticStringPendulumEnv`),
-    validated by :class:`~esp_gym.options.EnvOptions` (ValueError naming each bad one)."""
+    validated by :class:`~esp_gym.options.EnvOptions` (ValueError naming each bad one). The
+    options a preset sets take, in this order: the value given (None: not given), the preset's,
+    EnvOptions' default."""
+    given = {name: value for name, value in dict(randomize=randomize, observation=observation,
+                                                 sensor_noise=sensor_noise, action_latency=action_latency,
+                                                 wind=wind).items() if value is not None}
     o = env_options(scene=scene, task=task, control_period=control_period, h=h, safety=safety,
                     force_limit=force_limit, torque_limit=torque_limit, scene_overrides=scene_overrides,
-                    randomize=randomize, observation=observation, sensor_noise=sensor_noise,
-                    action_latency=action_latency, wind=wind, preset=preset, winch=winch)
+                    preset=preset, winch=winch, **given)
     if o.preset is not None:
-        given = [name for name in PRESETS[o.preset] if getattr(o, name) != EnvOptions.model_fields[name].default]
-        if given:
-            raise ValueError(f"ElasticStringPendulum-v0: preset={o.preset!r} sets {sorted(PRESETS[o.preset])}; "
-                             f"drop {given} or the preset")
-        o = o.model_copy(update=PRESETS[o.preset])
+        o = o.model_copy(update={name: value for name, value in PRESETS[o.preset].items() if name not in given})
     control_period, h, safety = o.control_period, o.h, o.safety
     overrides = dict(o.scene_overrides or {})
     base = o.scene if isinstance(o.scene, Scene) else load_scene(o.scene)
@@ -177,6 +196,7 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
     if t.needs_winch and not winch:
         raise ValueError(f"ElasticStringPendulum-v0: task={o.task!r} reels the string: it needs winch=True")
     randomizer = None if o.randomize is False else Randomizer(resolved, o.randomize)
+    check_hanging(resolved, t, randomizer)
     if resolved.string.auto and resolved.solver.string == "explicit":
         # the resolution rule (docs/physics.md, "The string's resolution"): N for the nominal scene
         # (every episode keeps the arrays' shape), each episode's step for its own draw

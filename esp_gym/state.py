@@ -91,13 +91,14 @@ def attachment_column(diag, off: float, cp, first: int) -> np.ndarray:
 BYTES_PER_NODE = 8 * 86
 
 
-def check_memory(elements: int, copies: int = 1) -> None:
-    """Raise MemoryError, before anything is allocated, if ``copies`` simulators of a string
-    with ``elements`` elements would not fit in the memory available now."""
-    needed = BYTES_PER_NODE * (int(elements) + 1) * int(copies)
+def check_memory(elements: int, num_envs: Optional[int] = None) -> None:
+    """Raise MemoryError, before anything is allocated, if a simulator of a string with
+    ``elements`` elements (and a batch of ``num_envs`` environments of it) would not fit in the
+    memory available now."""
+    needed = BYTES_PER_NODE * (int(elements) + 1) * (1 + int(num_envs or 0))
     available = available_memory()
     if available is not None and needed > available:
-        many = f"{copies} environments with " if copies > 1 else ""
+        many = f"num_envs = {num_envs} environments with " if num_envs else ""
         raise MemoryError(f"string.elements = {elements}: {many}a string this long needs about "
                           f"{needed / 2**30:.1f} GiB, and {available / 2**30:.1f} GiB of memory is available")
 

@@ -31,12 +31,18 @@ from .scene_input import real_number
 from .stability import explicit_bound, transverse_bound
 
 
+def at_length(scene: Scene, length: float) -> Scene:
+    """``scene`` with its string's unstretched length ``length`` [m] (where a winch has taken it).
+    A copy, not validated again: the winch's range may reach below the bounds a scene file must
+    keep (a 1 um string's default ``min_length`` is 0.5 um)."""
+    return scene.model_copy(update={"string": scene.string.model_copy(update={"length": float(length)}),
+                                    "allow_unstable_h": True})
+
+
 def shortest(scene: Scene) -> Scene:
     """``scene`` with the shortest string its winch reaches: the one whose explicit step bound is
-    smallest (its elements are shortest). A copy, not validated again: the winch's range may reach
-    below the bounds a scene file must keep (a 1 um string's default ``min_length`` is 0.5 um)."""
-    return scene.model_copy(update={"string": scene.string.model_copy(update={"length": scene.winch_range[0]}),
-                                    "allow_unstable_h": True})
+    smallest (its elements are shortest); see :func:`at_length`."""
+    return at_length(scene, scene.winch_range[0])
 
 
 @dataclass(frozen=True)

@@ -16,6 +16,7 @@ from .kernels.reference import reference_at
 from .stability import hat
 from .state import State, cross3, legendre_momenta
 from .params import Scene
+from .watchdog import task_constants
 
 
 @dataclass(frozen=True)
@@ -60,7 +61,9 @@ class Task:
             w_control=self.w_control, scale_position=self.scale_position,
             scale_velocity=self.scale_velocity, scale_swing=self.scale_swing, scale_spin=self.scale_spin,
             max_stretched_length=self.max_stretch * scene.string.length,
-            workspace_radius=self.workspace_radius, string_length=scene.string.length)
+            workspace_radius=self.workspace_radius, string_length=scene.string.length,
+            energy_origin=0.0)
+        values["energy_watchdog"], values["energy_bound"] = task_constants(scene)
         return np.array([values[k] for k in TASK_PARAM_NAMES], dtype=np.float64)
 
     @property

@@ -21,7 +21,7 @@ from gymnasium.vector.utils import batch_space
 from . import MAX_EPISODE_STEPS
 from .control import INFO_REWARD_KEYS, ControlStep
 from .setup import make_setup
-from .kernels.layout import termination_reason
+from .errors import termination_reason
 from .options import check_count
 
 

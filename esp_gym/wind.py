@@ -44,6 +44,11 @@ LINE_DENSITY = 1150.0
 #: Gusts' standard deviation per axis as a share of the mean speed when only a speed is given
 #: (a turbulence intensity; 0.1-0.2 near the ground).
 TURBULENCE_INTENSITY = 0.2
+#: Upper bounds of the options (SI): a wind, gust or push speed past 100 m/s (above any
+#: hurricane's), a fluid denser than water, a drag coefficient past 10, a line thicker than 1 m or
+#: a gust memory past 1e4 s describes no flight, and 1e4 pushes per second is a statistics test's;
+#: they also keep every force finite.
+MAX_SPEED, MAX_DENSITY, MAX_DRAG, MAX_DIAMETER, MAX_RATE, MAX_TIME = 100.0, 1000.0, 10.0, 1.0, 1e4, 1e4
 
 
 class WindOptions(BaseModel):
@@ -51,19 +56,21 @@ class WindOptions(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    speed: Real = Field(0.0, ge=0, allow_inf_nan=False, description="mean horizontal wind [m/s]")
+    speed: Real = Field(0.0, ge=0, le=MAX_SPEED, allow_inf_nan=False, description="mean horizontal wind [m/s]")
     direction: Optional[Real] = Field(None, allow_inf_nan=False,
                                       description="azimuth the wind blows towards [rad]; None: drawn per episode")
-    gust_std: Optional[Real] = Field(None, ge=0, allow_inf_nan=False,
+    gust_std: Optional[Real] = Field(None, ge=0, le=MAX_SPEED, allow_inf_nan=False,
                                      description="gusts' standard deviation per axis [m/s]; None: 0.2 x speed")
-    gust_time: Real = Field(1.0, gt=0, allow_inf_nan=False, description="gusts' correlation time [s]")
-    air_density: Real = Field(1.225, gt=0, allow_inf_nan=False, description="[kg/m^3]")
-    load_drag_coefficient: Real = Field(1.05, ge=0, allow_inf_nan=False, description="C_d of the load")
-    line_drag_coefficient: Real = Field(1.2, ge=0, allow_inf_nan=False, description="C_d of the line in cross-flow")
-    line_diameter: Optional[Real] = Field(None, gt=0, allow_inf_nan=False,
+    gust_time: Real = Field(1.0, gt=0, le=MAX_TIME, allow_inf_nan=False, description="gusts' correlation time [s]")
+    air_density: Real = Field(1.225, gt=0, le=MAX_DENSITY, allow_inf_nan=False, description="[kg/m^3]")
+    load_drag_coefficient: Real = Field(1.05, ge=0, le=MAX_DRAG, allow_inf_nan=False, description="C_d of the load")
+    line_drag_coefficient: Real = Field(1.2, ge=0, le=MAX_DRAG, allow_inf_nan=False,
+                                        description="C_d of the line in cross-flow")
+    line_diameter: Optional[Real] = Field(None, gt=0, le=MAX_DIAMETER, allow_inf_nan=False,
                                           description="[m]; None: from the mass per length at 1150 kg/m^3")
-    push_rate: Real = Field(0.0, ge=0, allow_inf_nan=False, description="pushes per second (Poisson)")
-    push_speed: Real = Field(0.5, ge=0, allow_inf_nan=False, description="a push's mean velocity change [m/s]")
+    push_rate: Real = Field(0.0, ge=0, le=MAX_RATE, allow_inf_nan=False, description="pushes per second (Poisson)")
+    push_speed: Real = Field(0.5, ge=0, le=MAX_SPEED, allow_inf_nan=False,
+                             description="a push's mean velocity change [m/s]")
 
     @property
     def gusts(self) -> float:

@@ -118,7 +118,8 @@ def _fake_run(tmp_path: Path) -> Path:
 
 @pytest.mark.parametrize("case", ["unknown_key_in_an_earlier_set", "nested_unknown_key", "eval_freq_zero",
                                   "run_exists", "algorithm_rejects", "resume_not_a_checkpoint_name",
-                                  "resume_outside_a_run", "resume_missing", "resume_with_run_setting"])
+                                  "resume_outside_a_run", "resume_missing", "resume_with_run_setting",
+                                  "residual_without_its_observation", "batch_past_memory"])
 def test_train_errors_are_one_line_and_write_nothing(tmp_path, case):
     run = _fake_run(tmp_path)
     shutil.copy(SHIPPED, run / "checkpoints" / "model.zip")
@@ -140,6 +141,9 @@ def test_train_errors_are_one_line_and_write_nothing(tmp_path, case):
         "resume_missing": (["--resume", tmp_path / "nothing.zip"], ["--resume", "nothing.zip"]),
         "resume_with_run_setting": (["--resume", run / "checkpoints" / "model_100_steps.zip", "--seed", "3"],
                                     ["--seed", "--resume"]),
+        "residual_without_its_observation": (["--set", *TINY, "residual=lqg", *new], ["--set", "'lqg'", "hook"]),
+        "batch_past_memory": (["--set", *TINY, "n_envs=100000000", *new],
+                              ["--set", "num_envs = 100000000 environments", "GiB"]),
     }[case]
     before = tree(tmp_path)
     assert_usage_error(cli("agents.train", *args), *names)
@@ -157,7 +161,15 @@ def test_evaluate_rejects_policy_names_it_does_not_know():
     ("agents.evaluate", ["--policy", "zero", "--episodes", "1", "--record", "{missing}/x.rrd"], ["--record", "{missing}"]),
     ("agents.evaluate", ["--policy", "lqr", "--preset", "hard", "--episodes", "1"], ["--policy", "'lqr'", "lqg"]),
     ("agents.compare", ["--model", "no_such_model.zip"], ["--model", "no_such_model.zip"]),
-    ("agents.compare", ["--model", SHIPPED, "--episodes", "1", "--out", "{missing}/x.json"], ["--out", "{missing}"]),
+    ("agents.compare", ["--model", SHIPPED, "--episodes", "2", "--out", "{missing}/x.json"], ["--out", "{missing}"]),
+    ("agents.compare", ["--episodes", "1"], ["--episodes", ">= 2"]),
+    ("agents.evaluate", ["--policy", "zero", "--episodes", "1", "--record", "{tmp}"], ["--record", "is a directory"]),
+    ("agents.task_figures", ["--out", "{missing}/figures", "--steps", "2"], ["--out", "{missing}"]),
+    # a model where its observations do not fit: one line naming both configurations
+    ("agents.evaluate", ["--policy", ROOT / "models" / "lift_ppo" / "model.zip", "--task", "stabilize"],
+     ["--policy", "task 'stabilize' (trained with 'lift')", "do not fit"]),
+    ("agents.compare", ["--task", "stabilize", "--model", ROOT / "models" / "lift_ppo" / "model.zip", "--episodes", "2"],
+     ["--model", "winch False (trained with True)"]),
     ("agents.tune", ["--grid", '{"kq": [1]}'], ["--grid", "'kq'", "kp"]),
     ("agents.tune", ["--grid", '{"kp": [1'], ["--grid", "not JSON"]),
 ])
@@ -165,10 +177,28 @@ def test_script_errors_are_one_line(tmp_path, module, args, names):
     missing = tmp_path / "missing"  # a directory that does not exist
 
     def fill(text):
-        return str(text).replace("{missing}", str(missing))
+        return str(text).replace("{missing}", str(missing)).replace("{tmp}", str(tmp_path))
 
     assert_usage_error(cli(module, *map(fill, args)), *map(fill, names))
     assert not missing.exists()
+
+
+def test_a_model_knows_its_configuration_and_says_where_it_is_run_elsewhere():
+    """The task and options of its run directory: the same configuration is silent, another one
+    whose sizes fit warns, one whose observations do not fit refuses (the Python API)."""
+    import warnings
+
+    from agents.artifacts import ConfigurationError
+
+    policy = SB3Policy(ROOT / "models" / "stabilize_hard_ppo" / "model.zip")
+    assert policy.configuration == {"task": "stabilize", "env_kwargs": {"preset": "hard"}}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        policy.check("stabilize", {"preset": "hard"})
+    with pytest.warns(UserWarning, match=r"task 'track' \(trained with 'stabilize'\); it runs"):
+        policy.check("track", {"preset": "hard"})
+    with pytest.raises(ConfigurationError, match=r"observation 'full' \(trained with 'hook'\)"):
+        policy.check("stabilize", {})
 
 
 # --- model files --------------------------------------------------------------------------------

@@ -34,6 +34,12 @@ def _scene(name: str, elements: int):
     (dict(force_limit=float("inf")), "force_limit"), (dict(force_limit=0.0), "force_limit"),
     (dict(torque_limit=float("inf")), "torque_limit"), (dict(torque_limit=-1.0), "torque_limit"),
     (dict(torque_limit="big"), "torque_limit"),
+    # bounds that keep the observations and forces finite (a larger value meant NaN or inf)
+    (dict(wind=1e160), "wind: speed"), (dict(wind={"speed": 5.0, "gust_std": 1e3}), "gust_std"),
+    (dict(wind={"speed": 5.0, "air_density": 1e9}), "air_density"),
+    (dict(wind={"push_rate": 1.0, "push_speed": 1e5}), "push_speed"),
+    (dict(sensor_noise=1e40), r"sensor_noise must be finite and >= 0, at most 1e\+06"),
+    (dict(observation="hook", sensor_noise={"hook_tension": 1e9}), "sensor_noise\\['hook_tension'\\]"),
 ])
 def test_bad_environment_options_are_named(kwargs, named):
     with pytest.raises(ValueError, match=named):
@@ -57,6 +63,11 @@ def test_a_batch_size_must_be_a_whole_number(num_envs):
         with pytest.raises(ValueError, match="num_envs"):
             cls(num_envs=num_envs)
     assert ElasticStringPendulumVectorEnv(num_envs=2.0).num_envs == 2  # an integral float is a count
+
+
+def test_a_batch_too_large_for_memory_says_how_many_environments_were_asked_for():
+    with pytest.raises(MemoryError, match=r"num_envs = 1000000000 environments .* GiB"):
+        ElasticStringPendulumVectorEnv(num_envs=1e9)
 
 
 @pytest.mark.parametrize("action", [
@@ -144,8 +155,8 @@ def test_a_long_string_builds_in_linear_time_and_memory():
 def test_a_string_the_machine_cannot_hold_is_refused_before_allocating():
     with pytest.raises(MemoryError, match=r"string.elements = 1000000000000: .* GiB"):
         esp_gym.Simulator(_scene("paper_example", 10**12))
-    with pytest.raises(MemoryError, match="1000000 environments"):
-        check_memory(10**6, copies=10**6)
+    with pytest.raises(MemoryError, match="num_envs = 1000000 environments"):
+        check_memory(10**6, num_envs=10**6)
     check_memory(20)  # negative control
 
 

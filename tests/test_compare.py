@@ -53,7 +53,7 @@ def test_compare_prints_the_interface_json(capsys):
 
 def test_compare_rejects_a_missing_model(capsys):
     with pytest.raises(SystemExit) as exc:
-        compare.main(["--task", "stabilize", "--episodes", "1", "--model", "nowhere.zip"])
+        compare.main(["--task", "stabilize", "--episodes", "2", "--model", "nowhere.zip"])
     assert exc.value.code == 2
     assert "--model" in capsys.readouterr().err
 

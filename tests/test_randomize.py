@@ -126,7 +126,13 @@ def test_user_ranges_replace_the_defaults_and_a_fixed_value_stays():
     ({"EA": ("100", 200.0)}, "EA must hold two real numbers"),
     ({"load_mass": (0.1, math.inf)}, "load_mass must be finite"),
     ({"load_mass": (1e-12, 1.0)}, "(?s)invalid scene at the lows of the randomize ranges.*body.mass"),
-    ({"attachment_offset_x": (-1e4, 1e4)}, "(?s)invalid scene at the .* of the randomize ranges.*J_eff"),
+    ({"attachment_offset_x": (-1e4, 1e4)}, "attachment_offset_x reaches 10000 m, off the load's face"),
+    ({"attachment_offset_y": (0.0, 0.06)}, r"attachment_offset_y reaches 0.06 m, off the load's face \(half its y"),
+    ({"EA": {100.0, 200.0}}, "EA must be a pair .* a tuple, list or array"),
+    # ranges under which the load cannot hang: every episode would end at its first step
+    ({"EA": (1e-3, 1e-2)}, "the load cannot hang: .*\\(EA = 0.001 N\\)"),
+    ({"load_mass": (1e9, 1e9)}, "the load cannot hang"),
+    ({"string_length": (1e5, 1e5)}, "the load cannot hang"),
     ({"EA": (1e9, 1e9)}, "physics steps per step"),
     (1, "randomize must be False, True or a mapping"),
     ("yes", "randomize must be False, True or a mapping"),
@@ -134,6 +140,20 @@ def test_user_ranges_replace_the_defaults_and_a_fixed_value_stays():
 def test_bad_ranges_are_named(randomize, match):
     with pytest.raises(ValueError, match=match):
         ElasticStringPendulumEnv(randomize=randomize)
+
+
+def test_the_hanging_check_has_its_edge_where_it_says():
+    """The stretch g (M + mu l) / EA of the ranges' worst corner against half the task's limit
+    (0.25 of the length): just under it the environment is made, just over it refused; the
+    nominal scene is checked the same way."""
+    weight = 9.81 * (2 * 0.5 + 2 * 0.05 * 1.25)  # the default ranges' heaviest load and string
+    ElasticStringPendulumEnv(randomize={"EA": (weight / 0.2499, 200.0)})
+    with pytest.raises(ValueError, match="the load cannot hang"):
+        ElasticStringPendulumEnv(randomize={"EA": (weight / 0.2501, 200.0)})
+    nominal = 9.81 * (0.5 + 0.05)
+    ElasticStringPendulumEnv(scene_overrides={"string": {"EA": nominal / 0.2499}})
+    with pytest.raises(ValueError, match="the load cannot hang: its weight 5.396 N"):
+        ElasticStringPendulumEnv(scene_overrides={"string": {"EA": nominal / 0.2501}})
 
 
 def test_a_box_only_range_on_another_load_is_refused():

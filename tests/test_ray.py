@@ -141,6 +141,10 @@ def test_tune_sweep_runs_on_both_nodes_and_resumes_after_interruption(cluster, t
     ("agents.sweep", ["--space", '{"seed": [-1]}'], ["--space", "seed"]),
     ("agents.sweep", ["--space", '{"n_steps": 64}'], ["--space", "n_steps", "list"]),
     ("agents.sweep", ["--space", '{"seed": [0]}', "--address", "127.0.0.1:{port}"], ["--address"]),
+    # what every trial would fail on is found before the cluster starts
+    ("agents.sweep", ["--set", "residual=lqg", "--space", '{"seed": [0, 1]}'], ["--set", "'lqg'", "hook"]),
+    ("agents.sweep", ["--space", '{"residual": ["lqg"]}'], ["--space", "'residual' = 'lqg'", "hook"]),
+    ("agents.sweep", ["--space", '{"n_envs": [100000000]}'], ["--space", "num_envs = 100000000", "GiB"]),
 ])
 def test_bad_input_is_one_line_naming_the_argument_and_writes_nothing(tmp_path, module, args, names):
     port = str(free_port())  # nothing listens there
@@ -153,6 +157,17 @@ def test_bad_input_is_one_line_naming_the_argument_and_writes_nothing(tmp_path, 
     for name in names:
         assert name.replace("{port}", port) in lines[0], lines[0]
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_space_key_may_complete_what_the_base_settings_lack():
+    """The base --set alone is no trial: a residual that needs the hook observation is fine where
+    every trial of the space sets it (each value is checked with the others' first values)."""
+    from agents.sweep import Settings, check_space
+
+    s = Settings(set=["residual=lqg"], task="stabilize")
+    check_space({"env_kwargs.preset": ["hard"], "seed": [0, 1]}, s)
+    with pytest.raises(ValueError, match="'env_kwargs.observation' = 'full'.*hook"):
+        check_space({"env_kwargs.observation": ["hook", "full"]}, s)
 
 
 def test_a_sweep_space_is_a_mapping_of_lists():

@@ -191,11 +191,25 @@ def test_wind_needs_the_load_shape_and_presets_are_checked():
         gym.make(ENV_ID, wind=3.0, scene=shapeless)
     with pytest.raises(ValueError, match="preset"):
         gym.make(ENV_ID, preset="easy")
-    with pytest.raises(ValueError, match=r"drop \['randomize'\]"):
-        gym.make(ENV_ID, preset="hard", randomize=True)
     env = gym.make(ENV_ID, preset="hard").unwrapped
     assert env.setup.observer.mode == "hook" and env.setup.randomizer is not None
     assert env.setup.wind.options == WindOptions(**PRESETS["hard"]["wind"])
+    assert env.setup.action_latency == 1
+
+
+def test_options_given_with_a_preset_replace_its_own_even_at_their_defaults():
+    """The preset fills only the options not given: an explicit value, the usual default
+    included, wins (a hard environment with the full observation is what it says)."""
+    full = gym.make(ENV_ID, preset="hard", observation="full").unwrapped.setup
+    assert full.observer.mode == "full"
+    assert full.randomizer is not None and full.wind is not None and full.action_latency == 1
+    calm = gym.make(ENV_ID, preset="hard", wind=0.0, randomize=False, action_latency=0, sensor_noise=0.0).unwrapped.setup
+    assert calm.wind is None and calm.randomizer is None and calm.action_latency == 0
+    assert calm.observer.mode == "hook"
+    assert gym.make(ENV_ID, preset="hard", randomize={"EA": (150.0, 250.0)}).unwrapped.setup.randomizer is not None
+    # without a preset the options keep their usual defaults
+    plain = gym.make(ENV_ID).unwrapped.setup
+    assert plain.observer.mode == "full" and plain.wind is None and plain.randomizer is None
 
 
 def test_still_air_is_the_plain_environment():

@@ -286,11 +286,13 @@ RW_SPIN = REWARD.scalar("spin")
 RW_CONTROL = REWARD.scalar("control")
 
 #: The task's constants (esp_gym/tasks.py): reward weights, shaping scales [m, m/s, rad,
-#: rad/s], termination limits [m] and the string's rest length [m].
+#: rad/s], termination limits [m], the string's rest length [m], and the energy watchdog's
+#: fraction, bound [J] and the episode's E0 [J] (esp_gym/watchdog.py; the reset writes E0).
 TASK_PARAMS = Layout(*((name, 1) for name in (
     "w_load_position", "w_load_velocity", "w_pivot_position", "w_swing", "w_spin", "w_control",
     "scale_position", "scale_velocity", "scale_swing", "scale_spin",
-    "max_stretched_length", "workspace_radius", "string_length")))
+    "max_stretched_length", "workspace_radius", "string_length", "energy_watchdog", "energy_bound",
+    "energy_origin")))
 TASK_PARAM_NAMES = TASK_PARAMS.names
 TP_W_LOAD_POSITION = TASK_PARAMS.scalar("w_load_position")
 TP_W_LOAD_VELOCITY = TASK_PARAMS.scalar("w_load_velocity")
@@ -305,6 +307,9 @@ TP_SCALE_SPIN = TASK_PARAMS.scalar("scale_spin")
 TP_MAX_STRETCHED_LENGTH = TASK_PARAMS.scalar("max_stretched_length")
 TP_WORKSPACE_RADIUS = TASK_PARAMS.scalar("workspace_radius")
 TP_STRING_LENGTH = TASK_PARAMS.scalar("string_length")
+TP_ENERGY_WATCHDOG = TASK_PARAMS.scalar("energy_watchdog")
+TP_ENERGY_BOUND = TASK_PARAMS.scalar("energy_bound")
+TP_ENERGY_ORIGIN = TASK_PARAMS.scalar("energy_origin")
 
 #: An episode's physical parameters (esp_gym/randomize.py; the env's ``reset`` info
 #: ``"scene_params"``): string rest length [m], axial stiffness [N], mass per length [kg/m], load
@@ -419,6 +424,8 @@ STATUS = {
     4: Status("left_workspace", "the pivot or the load left the workspace", "left_workspace"),
     5: Status("blow_up", "an element stretched beyond solver.max_stretch times its rest length "
                          "(the step is blowing up)", None),
+    6: Status("energy_balance", "the energy balance |E - E0 - W| passed the watchdog's bound (the step is "
+                                "gaining energy)", "energy_balance"),
 }
 OK = 0
 #: A control step that does not end the episode.
@@ -430,19 +437,8 @@ TERM_WORKSPACE = 4
 #: An element grew past solver.max_stretch times its rest length: an unstable step blowing up
 #: (typically h above the stability bound) caught while the state is still finite.
 BLOW_UP = 5
+#: The energy watchdog (esp_gym/watchdog.py) ended a finite state that gains energy.
+ENERGY_BALANCE = 6
 #: Codes of the physics (failures of a step); the others are the environment's terminations.
 PHYSICS_FAILURES = (NEWTON_FAILED, NON_FINITE, BLOW_UP)
 
-
-def status_message(code: int) -> str:
-    """The message of a status code (the code itself if it is unknown)."""
-    status = STATUS.get(int(code))
-    return str(code) if status is None else status.message
-
-
-def termination_reason(code: int) -> str:
-    """``info["termination_reason"]`` of a termination code ("" for 0)."""
-    code = int(code)
-    if code in PHYSICS_FAILURES:
-        return "physics_failure: " + STATUS[code].message
-    return STATUS[code].reason

@@ -18,16 +18,17 @@ from .diagnostics import diagnostics
 from .disturbance import disturb, external_potential
 from .lgvi import kahan_add
 from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, A_REEL_SPEED, ACTION_SIZE, AP_FORCE_LIMIT, AP_HIGH, AP_HOVER,
-                     AP_LOW, AP_MAX_REEL_SPEED, AP_TORQUE_LIMIT, O_LENGTH, WN_LENGTH, WN_MASS_PER_LENGTH, WN_SPEED,
-                     WinchArrays, B_WORK, D_STRETCHED_LENGTH, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE,
-                     O_ANGULAR_VELOCITY, O_ATTITUDE, O_LOAD_ERROR, O_LOAD_VELOCITY, O_PIVOT_ERROR, O_PIVOT_VELOCITY,
-                     O_STRETCH, OK, R_STATUS, R_STEPS, R_TERMINATION, RW_CONTROL, RW_LOAD_POSITION, RW_LOAD_VELOCITY,
-                     SCHEME_DISTURBED, SCHEME_IMPLICIT,
-                     RW_PIVOT_POSITION, RW_SPIN, RW_SWING, SN_HOOK_TENSION, SN_LOAD_TARGET_OFFSET, T_LOAD, T_PIVOT, T_VELOCITY, TERM_NONE, TERM_OVERSTRETCH,
-                     TERM_WORKSPACE, TP_MAX_STRETCHED_LENGTH, TP_SCALE_POSITION, TP_SCALE_SPIN, TP_SCALE_SWING,
-                     TP_SCALE_VELOCITY, TP_STRING_LENGTH, TP_W_CONTROL, TP_W_LOAD_POSITION, TP_W_LOAD_VELOCITY,
-                     TP_W_PIVOT_POSITION, TP_W_SPIN, TP_W_SWING, TP_WORKSPACE_RADIUS, DiagWork, LGVIParams,
-                     StateArrays, Work)
+                     AP_LOW, AP_MAX_REEL_SPEED, AP_TORQUE_LIMIT, B_WINCH_WORK, B_WORK, D_ENERGY, D_STRETCHED_LENGTH,
+                     ENERGY_BALANCE, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE, O_ANGULAR_VELOCITY, O_ATTITUDE,
+                     O_LENGTH, O_LOAD_ERROR, O_LOAD_VELOCITY, O_PIVOT_ERROR, O_PIVOT_VELOCITY, O_STRETCH, OK,
+                     R_STATUS, R_STEPS, R_TERMINATION, RW_CONTROL, RW_LOAD_POSITION, RW_LOAD_VELOCITY,
+                     RW_PIVOT_POSITION, RW_SPIN, RW_SWING, SCHEME_DISTURBED, SCHEME_IMPLICIT, SN_HOOK_TENSION,
+                     SN_LOAD_TARGET_OFFSET, T_LOAD, T_PIVOT, T_VELOCITY, TERM_NONE, TERM_OVERSTRETCH, TERM_WORKSPACE,
+                     TP_ENERGY_BOUND, TP_ENERGY_ORIGIN, TP_ENERGY_WATCHDOG, TP_MAX_STRETCHED_LENGTH,
+                     TP_SCALE_POSITION, TP_SCALE_SPIN, TP_SCALE_SWING, TP_SCALE_VELOCITY, TP_STRING_LENGTH,
+                     TP_W_CONTROL, TP_W_LOAD_POSITION, TP_W_LOAD_VELOCITY, TP_W_PIVOT_POSITION, TP_W_SPIN, TP_W_SWING,
+                     TP_WORKSPACE_RADIUS, WN_LENGTH, WN_MASS_PER_LENGTH, WN_SPEED, DiagWork, LGVIParams, StateArrays,
+                     WinchArrays, Work)
 from .loops import advance_loop_shared
 from .reference import advance_reference
 from .winch import length_params, winch_energy
@@ -121,6 +122,19 @@ def env_observe(S, P, D, target, tp, action, obs, terms, sensors, length):
 
 
 @kernel(inline="always")
+def energy_watchdog(S, D, tp, code):
+    """``code``, or ENERGY_BALANCE where the energy balance of the state just observed (``D``
+    filled) broke the episode's bound: |E - E0 - W| > f (scale + |W|), W the inputs' and the
+    winch's work, E0 the reset's energy (docs/physics.md, "The energy watchdog"). It outranks
+    the task's terminations."""
+    work = S.acc[B_WORK] + S.acc[B_WINCH_WORK]
+    residual = D.out[D_ENERGY] - tp[TP_ENERGY_ORIGIN] - work
+    if not (abs(residual) <= tp[TP_ENERGY_BOUND] + tp[TP_ENERGY_WATCHDOG] * abs(work)):
+        return ENERGY_BALANCE
+    return code
+
+
+@kernel(inline="always")
 def action_inputs(action, ap, inputs):
     """Clipped action (ACTION) -> kernel inputs (INPUTS): pivot force hover + force_limit x
     the action's pivot force [N] (spatial), body torque torque_limit x its body torque [N m],
@@ -203,14 +217,15 @@ def env_step_one(S, W, P, D, WA, inputs, reel, nsub, target, tp, action, obs, te
     else:
         diagnostics(S, P, D)
         code = env_observe(S, P, D, target, tp, action, obs, terms, sensors, tp[TP_STRING_LENGTH])
-    result[R_TERMINATION] = status if status != OK else code
+    result[R_TERMINATION] = status if status != OK else energy_watchdog(S, D, tp, code)
 
 
 @kernel
 def env_reset_observe(S, P, D, WA, target, tp, action, obs, terms, sensors, winched):
-    """Observation of a freshly set state (no step; a winch at the scene's length and at rest).
-    Returns the termination code."""
+    """Observation of a freshly set state (no step; a winch at the scene's length and at rest),
+    whose energy becomes the episode's E0 (TP_ENERGY_ORIGIN). Returns the termination code."""
     diagnostics(S, P, D)
+    tp[TP_ENERGY_ORIGIN] = D.out[D_ENERGY]
     code = env_observe(S, P, D, target, tp, action, obs, terms, sensors, tp[TP_STRING_LENGTH])
     if winched:
         obs[O_LENGTH] = WA.state[WN_LENGTH]
