@@ -223,7 +223,7 @@ class ControlStep:
         if episode is not None:
             self._use_episode(episode, None if index is None else int(index))
         if self.num_envs is None:
-            self.sim.set_state(state)
+            self.sim.set_state(state, check=False)  # built for this scene, as the batch's rows below
             S, D, P = self._state, self._diag, self._params
             obs, terms, action, tgt, tp = self._obs, self._terms, self._action, self._target, self._task_params
             sensors, pending = self._sensors, self._pending

@@ -144,22 +144,24 @@ class Simulator:
                      (a.rc.copy(), a.pc.copy(), a.Rc.copy(), a.Pic.copy()),
                      None if self.winch.idle else (self.winch.length, self.winch.reel_speed))
 
-    def set_state(self, state: State) -> None:
-        """Replace the state (copied, checked like a scene: real, finite, of this scene's shapes,
-        R a rotation to ``ROTATION_TOL``, its winch's length in range); resets the balances."""
+    def set_state(self, state: State, check: bool = True) -> None:
+        """Replace the state (copied; resets the balances), checked like a scene (real, finite, of
+        this scene's shapes, R a rotation to ``ROTATION_TOL``) unless ``check`` is False (a state
+        its caller built for this scene: an environment's reset); its winch's length in range."""
         a = self._arrays
         checked = {}
         for name in ("r", "p", "R", "Pi"):
             given = np.asarray(getattr(state, name))
-            if given.dtype.kind not in "iuf":
+            if check and given.dtype.kind not in "iuf":
                 raise ValueError(f"state.{name} must hold real numbers, got dtype {given.dtype}")
             new = given.astype(np.float64, copy=False)
-            if new.shape != getattr(a, name).shape:
+            if check and new.shape != getattr(a, name).shape:
                 raise ValueError(f"state.{name} has shape {new.shape}, expected {getattr(a, name).shape}")
-            if not np.all(np.isfinite(new)):
+            if check and not np.all(np.isfinite(new)):
                 raise ValueError(f"state.{name} is not finite")
             checked[name] = new
-        check_rotation("state.R", checked["R"], ROTATION_TOL)
+        if check:
+            check_rotation("state.R", checked["R"], ROTATION_TOL)
         winch = getattr(state, "winch", None)
         if winch is None:
             self.winch.reset()
@@ -234,9 +236,8 @@ class Simulator:
     steps_per_call = 1 << 14
 
     def _account(self) -> None:
-        """Count the report of the last kernel call and raise on failure. Counted once: the
-        counts are then zeroed, so a second call (the ``finally`` after a Ctrl-C that came
-        as the kernel returned) adds nothing."""
+        """Count the report of the last kernel call, raise on failure, and let the watchdog look.
+        Counted once: a second call (the ``finally`` after a late Ctrl-C) adds nothing."""
         steps = int(self._stats[R_STEPS])
         self.count_steps(self._stats)
         self._stats[R_STEPS] = self._stats[R_NEWTON_TOTAL] = 0

@@ -21,7 +21,8 @@ from pydantic import Field, ValidationError, field_validator, model_validator
 from .compositions import COMPOSITIONS, DEFAULT_FOR_ORDER, Composition
 from .scene_input import (ALIASES, BOUNDS, Count, Flag, Frozen as _Frozen, Real, SceneError, bounded,  # noqa: F401
                           is_yaml_path, matrix, merge_overrides, read_scene_file, validation_message, vector)
-from .shapes import Box, Cylinder, EllipticCylinder, Shape, Sphere, inertia_about_attachment  # noqa: F401
+from .shapes import (Box, Cylinder, EllipticCylinder, Shape, Sphere, attachment_inertia,  # noqa: F401
+                     check_inertia, inertia_about_attachment)
 
 Vec3 = vector()
 Mat3 = matrix()
@@ -95,22 +96,8 @@ class BodyParams(_Frozen):
     @field_validator("inertia")
     @classmethod
     def _inertia_is_physical(cls, J: Optional[Mat3]) -> Optional[Mat3]:
-        if J is None:
-            return J
-        A = np.array(J, dtype=float)
-        scale = np.abs(A).max()
-        if scale == 0:
-            raise ValueError("J must be positive definite (it is zero)")
-        asym = np.abs(A - A.T).max()
-        if asym > 1e-12 * scale:
-            raise ValueError(f"J must be symmetric (max |J - J^T| = {asym:.3g})")
-        lam = np.linalg.eigvalsh(0.5 * (A + A.T))
-        if lam[0] <= 0:
-            raise ValueError(f"J must be positive definite (eigenvalues {np.array2string(lam, precision=4)})")
-        if lam[0] + lam[1] < lam[2] * (1 - 1e-12):
-            raise ValueError(
-                "J violates the triangle inequality of principal moments "
-                f"({lam[0]:.4g} + {lam[1]:.4g} < {lam[2]:.4g}); no mass distribution has it")
+        if J is not None:
+            check_inertia(np.array(J, dtype=float))
         return J
 
     @model_validator(mode="after")
@@ -145,7 +132,7 @@ class BodyParams(_Frozen):
         """Inertia about the attachment point, body frame [kg m^2] (given, or from the shape)."""
         if self.inertia is not None:
             return np.array(self.inertia, dtype=float)
-        return inertia_about_attachment(self.mass, self.shape.inertia_cm(self.mass), self.rho_c)
+        return attachment_inertia(float(self.mass), tuple(map(float, self.rho_c)), self.shape).copy()
 
 
 class PivotParams(_Frozen):

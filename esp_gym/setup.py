@@ -142,7 +142,8 @@ class EnvSetup:
         if substeps < 1 or abs(substeps * scene.h - self.control_period) > 1e-9 * self.control_period:
             raise ValueError(f"scene {scene.name!r}: h = {scene.h} s does not divide the control period "
                              f"{self.control_period} s")
-        values = np.array([nominal_values(scene)[k] for k in SCENE_PARAMS.names])
+        nominal = nominal_values(scene)
+        values = np.array([nominal[k] for k in SCENE_PARAMS.names])
         hover = np.array([0.0, 0.0, -total_weight(scene)])
         return Episode(values, scene, build_params(scene), substeps, self.task.params(scene),
                        action_params(hover, self.force_limit, self.torque_limit, scene.winch.max_speed))

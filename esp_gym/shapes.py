@@ -3,6 +3,7 @@
 (esp_gym/wind.py). Sizes [m], masses [kg], inertia [kg m^2]."""
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Annotated, Literal, Union
 
 import numpy as np
@@ -59,6 +60,31 @@ class Sphere(Frozen):
 
 
 Shape = Annotated[Union[Box, Cylinder, EllipticCylinder, Sphere], Field(discriminator="kind")]
+
+
+@lru_cache(maxsize=64)
+def attachment_inertia(mass: float, rho_c: tuple, shape: "Shape") -> np.ndarray:
+    """The inertia about the attachment point [kg m^2] of a body of ``mass`` and ``shape`` whose
+    centre of mass is ``rho_c`` from it; cached (a randomised reset needs its episode's three
+    times; callers get copies from BodyParams.J)."""
+    return inertia_about_attachment(mass, shape.inertia_cm(mass), rho_c)
+
+
+def check_inertia(J: np.ndarray) -> None:
+    """ValueError unless ``J`` (3, 3) [kg m^2] is an inertia: symmetric, positive definite, and
+    its principal moments obey the triangle inequality (some mass distribution has it)."""
+    scale = np.abs(J).max()
+    if scale == 0:
+        raise ValueError("J must be positive definite (it is zero)")
+    asym = np.abs(J - J.T).max()
+    if asym > 1e-12 * scale:
+        raise ValueError(f"J must be symmetric (max |J - J^T| = {asym:.3g})")
+    lam = np.linalg.eigvalsh(0.5 * (J + J.T))
+    if lam[0] <= 0:
+        raise ValueError(f"J must be positive definite (eigenvalues {np.array2string(lam, precision=4)})")
+    if lam[0] + lam[1] < lam[2] * (1 - 1e-12):
+        raise ValueError("J violates the triangle inequality of principal moments "
+                         f"({lam[0]:.4g} + {lam[1]:.4g} < {lam[2]:.4g}); no mass distribution has it")
 
 
 def inertia_about_attachment(mass: float, inertia_cm: np.ndarray, rho_c) -> np.ndarray:

@@ -11,11 +11,13 @@ import esp_gym
 #: cluster: `make test` runs them after the others, in one process (the rest on two, with
 #: pytest-xdist), so another worker's load cannot stretch their clocks (docs/testing.md).
 SERIAL_MODULES = {"test_interrupt.py", "test_recording_failures.py", "test_ray.py", "test_cache.py"}
+#: Single tests that bound a wall time of their own (a median over repeats), run with them.
+SERIAL_TESTS = {"test_a_randomised_reset_costs_at_most_two_and_a_half_plain_ones"}
 
 
 def pytest_collection_modifyitems(items):
     for item in items:
-        if item.path.name in SERIAL_MODULES:
+        if item.path.name in SERIAL_MODULES or item.name in SERIAL_TESTS:
             item.add_marker(pytest.mark.serial)
 
 

@@ -185,14 +185,18 @@ def test_a_nan_action_changes_nothing_with_randomize():
     assert np.array_equal(before.r, env.sim.state.r) and np.array_equal(before.p, env.sim.state.p)
 
 
-def test_a_randomised_reset_takes_under_a_millisecond():
-    """Draw, scene, constants, step count, state and first observation: the median of 200
-    resets (0.35 ms measured on the 2-core machine)."""
-    env = gym.make(ENV_ID, randomize=True).unwrapped
-    env.reset(seed=0)
-    times = []
+def test_a_randomised_reset_costs_at_most_two_and_a_half_plain_ones():
+    """Draw, scene, constants, step count, state and first observation, against a plain reset:
+    medians of 200 each, interleaved in one run (the machine's speed swings 2x between runs:
+    0.29-0.62 ms plain, 0.61-1.2 ms randomised; the ratio stays 1.9-2.1)."""
+    envs = [gym.make(ENV_ID, randomize=randomize).unwrapped for randomize in (False, True)]
+    times = [[], []]
+    for env in envs:
+        env.reset(seed=0)
     for _ in range(200):
-        t = time.perf_counter()
-        env.reset()
-        times.append(time.perf_counter() - t)
-    assert np.median(times) < 1e-3
+        for env, kept in zip(envs, times):
+            t = time.perf_counter()
+            env.reset()
+            kept.append(time.perf_counter() - t)
+    plain, randomised = (np.median(kept) for kept in times)
+    assert randomised < 2.5 * plain, (randomised, plain)
