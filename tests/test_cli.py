@@ -249,3 +249,18 @@ def test_help_documents_the_exit_statuses(capsys):
         for text in ("exit status: 0 done", "1 the simulation failed", "2 bad arguments",
                      "3 invalid or unreadable scene", "4 the outputs could not be written"):
             assert text in out, (argv, text)
+
+
+def test_energy_balance_quick_runs(tmp_path):
+    result = quick_benchmark("energy_balance", tmp_path, "energy_balance")
+    assert len(result["table"]) == 20 and all(row["fired"] == 0 for row in result["table"])
+    assert all(0.0 <= row["relative"] < 1.0 for row in result["table"])
+    assert (tmp_path / "energy_balance.png").stat().st_size > 0
+
+
+def test_implicit_energy_quick_runs(tmp_path):
+    table = quick_benchmark("implicit_energy", tmp_path, "implicit_energy")["table"]
+    assert [row["multiple"] for row in table] == [1, 2]
+    assert table[1]["substeps"] == 2 * table[0]["substeps"]
+    assert all(np.isfinite(r["worst"]) for row in table for r in row["runs"])
+    assert (tmp_path / "implicit_energy.png").stat().st_size > 0
