@@ -81,65 +81,64 @@ def test_the_simulator_looks_every_64_steps_or_more():
     assert sim.step_count == WATCH_EVERY
 
 
-def pd_noise_episode(env_kwargs: dict, steps: int, seed: int = 0):
-    """The PD law plus +-0.5 uniform action noise: (termination reason, control steps, the
-    residual over the bound at each step)."""
+def watched_episode(env_kwargs: dict, steps: int, act):
+    """An episode of up to ``steps`` control steps, ``act(k, obs, setup)`` choosing each action:
+    (termination reason, control steps, |E - E0 - W| over the watchdog's bound at each step)."""
     env = gym.make(ENV_ID, max_episode_steps=steps, disable_env_checker=True, **env_kwargs)
-    obs, _ = env.reset(seed=seed)
-    u, pd, rng = env.unwrapped, AntiSwayPD(), np.random.default_rng(seed)
-    ratio = []
+    obs, _ = env.reset(seed=0)
+    u, ratio = env.unwrapped, []
     for k in range(steps):
-        action = np.clip(pd.act(obs, u.setup) + 0.5 * rng.uniform(-1, 1, 6), -1, 1)
-        obs, _, terminated, truncated, info = env.step(action.astype(np.float32))
+        obs, _, terminated, truncated, info = env.step(np.asarray(act(k, obs, u.setup), dtype=np.float32))
         d = u.sim.diagnostics()
         work = d["work"] + d["winch_work"]
         ratio.append(abs(d["energy_balance_residual"]) / (energy_scale(u.scene) + abs(work)))
         if terminated or truncated:
             return info.get("termination_reason", ""), k + 1, np.array(ratio)
     return "", steps, np.array(ratio)
+
+
+def assert_the_watchdog_ends_it(env_kwargs: dict, watchdog_off: dict, steps: int, act):
+    """The episode ends by the watchdog before ``steps``, exactly where the same run without it
+    (``watchdog_off``: its env_kwargs) first passes the bound, and that run goes on."""
+    reason, ended, _ = watched_episode(env_kwargs, steps, act())
+    assert reason == "energy_balance" and ended < steps, (reason, ended)
+    reason_off, ran, ratio = watched_episode(watchdog_off, ended + 5, act())
+    assert reason_off == "" and ran == ended + 5
+    assert np.argmax(ratio > 1.0) + 1 == ended and ratio[:ended - 1].max() <= 1.0
+
+
+def pd_with_noise():
+    """The PD law plus +-0.5 uniform action noise (its own generator, seed 0)."""
+    pd, rng = AntiSwayPD(), np.random.default_rng(0)
+    return lambda k, obs, setup: np.clip(pd.act(obs, setup) + 0.5 * rng.uniform(-1, 1, 6), -1, 1)
+
+
+def hoist_reeling_back_and_forth():
+    """The hoist, its reel command replaced by +-1 switching every 25 control steps."""
+    hoist = Hoist()
+
+    def act(k, obs, setup):
+        action = hoist.act(obs, setup).astype(np.float64)
+        action[-1] = 1.0 if (k // 25) % 2 else -1.0
+        return action
+    return act
 
 
 def test_the_environment_ends_the_implicit_strings_energy_gain():
     """The implicit string at EA = 2e5 N at the environment's step under the PD law plus noise
-    gains energy (until it is fixed): the episode ends as the balance passes the bound, exactly
-    where the run without the watchdog first passes it, and that run goes on."""
+    gains energy (until it is fixed)."""
     stiff = {"string": {"EA": 2e5}, "solver": {"string": "implicit"}}
-    reason, steps, _ = pd_noise_episode({"scene_overrides": stiff}, 1000)
-    assert reason == "energy_balance", (reason, steps)
     off = {**stiff, "solver": {"string": "implicit", "energy_watchdog": None}}
-    reason_off, steps_off, ratio = pd_noise_episode({"scene_overrides": off}, steps + 5)
-    assert reason_off == "" and steps_off == steps + 5
-    assert np.argmax(ratio > 1.0) + 1 == steps and ratio[:steps - 1].max() <= 1.0
-
-
-def reel_switching_episode(watchdog, steps: int):
-    """``lower`` at EA = 2e5 N: the hoist, its reel command replaced by +-1 switching every 25
-    control steps. Returns (termination reason, control steps, residual over bound per step)."""
-    scene = {"string": {"EA": 2e5}, "solver": {"energy_watchdog": watchdog}}
-    env = gym.make(ENV_ID, task="lower", scene_overrides=scene, max_episode_steps=steps, disable_env_checker=True)
-    obs, _ = env.reset(seed=0)
-    u, hoist, ratio = env.unwrapped, Hoist(), []
-    for k in range(steps):
-        action = hoist.act(obs, u.setup).astype(np.float32)
-        action[-1] = 1.0 if (k // 25) % 2 else -1.0
-        obs, _, terminated, truncated, info = env.step(action)
-        d = u.sim.diagnostics()
-        work = d["work"] + d["winch_work"]
-        ratio.append(abs(d["energy_balance_residual"]) / (energy_scale(u.scene) + abs(work)))
-        if terminated or truncated:
-            return info.get("termination_reason", ""), k + 1, np.array(ratio)
-    return "", steps, np.array(ratio)
+    assert_the_watchdog_ends_it({"scene_overrides": stiff}, {"scene_overrides": off}, 1000, pd_with_noise)
 
 
 def test_the_environment_ends_the_stiff_winchs_energy_gain():
-    """The explicit string at EA = 2e5 N reeling back and forth gains energy where its elements
-    flicker between slack and taut (until it is fixed: docs/physics.md, "The winch"): the
-    episode ends where the run without the watchdog first passes the bound, and that run goes on."""
-    reason, steps, _ = reel_switching_episode(1.0, 2000)
-    assert reason == "energy_balance" and steps < 2000, (reason, steps)
-    reason_off, steps_off, ratio = reel_switching_episode(None, steps + 5)
-    assert reason_off == "" and steps_off == steps + 5
-    assert np.argmax(ratio > 1.0) + 1 == steps and ratio[:steps - 1].max() <= 1.0
+    """``lower`` at EA = 2e5 N, the explicit string reeling back and forth, gains energy where its
+    elements flicker between slack and taut (until it is fixed: docs/physics.md, "The winch")."""
+    scene = {"string": {"EA": 2e5}}
+    off = {**scene, "solver": {"energy_watchdog": None}}
+    assert_the_watchdog_ends_it({"task": "lower", "scene_overrides": scene},
+                                {"task": "lower", "scene_overrides": off}, 2000, hoist_reeling_back_and_forth)
 
 
 def test_a_tiny_bound_ends_episodes_alike_single_and_batched():
