@@ -232,7 +232,7 @@ class ControlStep:
             S, D = self._row(i)
             P = LGVIParams(*(a[i] if a.ndim > 1 else a[i].item() for a in self._params))
             S.r[...], S.p[...], S.R[...], S.Pi[...] = state.r, state.p, state.R, state.Pi
-            for a in (S.rc, S.pc, S.Rc, S.Pic, S.acc, S.accc):
+            for a in (S.rc, S.pc, S.Rc, S.Pic, S.acc, S.accc, S.owed):
                 a[...] = 0.0
             state_forces(S, P)
             self._winch.state[i] = winch_state(self.scenes[i], P.max_len2)

@@ -88,12 +88,12 @@ class Simulator:
         z = np.zeros
         self._arrays = StateArrays(
             r=st.r, p=st.p, R=st.R, Pi=st.Pi, rc=z((n + 1, 3)), pc=z((n + 1, 3)), Rc=z((3, 3)),
-            Pic=z(3), f=z((n + 1, 3)), acc=z(BALANCE.size), accc=z(BALANCE.size))
+            Pic=z(3), f=z((n + 1, 3)), acc=z(BALANCE.size), accc=z(BALANCE.size), owed=z(n))
         self._step = 0
         self._work = Work(fn=z((n + 1, 3)), X=z((n + 1, 3)), Y=z((n + 1, 3)),
                           FmI=z((3, 3)), RF=z((3, 3)), Rn=z((3, 3)), jac=z((3, 3)),
                           backup=z(state_size(self._arrays)), fl=z((n + 1, 3)), fr=z((n + 1, 3)), dy=z((n + 1, 3)),
-                          elim=z((n + 1, 3, 3)), taut=z(n), ext=z((n + 2, 3)))
+                          elim=z((n + 1, 3, 3)), taut=z(n), ext=z((n + 2, 3)), switch=z(n))
         self._diag = DiagWork(V=z((n + 1, 3)), strain=z(n), omega=z(3), out=z(DIAG.size))
         self._inputs = z(INPUTS.size)
         self._forced = False  #: any input non-zero (picks the forced or the unforced kernels)
@@ -141,7 +141,7 @@ class Simulator:
         """A copy of the current discrete state (with its summation remainders)."""
         a = self._arrays
         return State(a.r.copy(), a.p.copy(), a.R.copy(), a.Pi.copy(), self._step,
-                     (a.rc.copy(), a.pc.copy(), a.Rc.copy(), a.Pic.copy()),
+                     (a.rc.copy(), a.pc.copy(), a.Rc.copy(), a.Pic.copy(), a.owed.copy()),
                      None if self.winch.idle else (self.winch.length, self.winch.reel_speed))
 
     def set_state(self, state: State, check: bool = True) -> None:
@@ -171,8 +171,8 @@ class Simulator:
             getattr(a, name)[...] = new
         self._step = int(state.step)
         rem = getattr(state, "remainders", None)
-        for i, c in enumerate((a.rc, a.pc, a.Rc, a.Pic)):
-            c[...] = 0.0 if rem is None else rem[i]
+        for i, c in enumerate((a.rc, a.pc, a.Rc, a.Pic, a.owed)):
+            c[...] = 0.0 if rem is None or i >= len(rem) else rem[i]
         if self.winch.idle:
             state_forces(a, self.params)
         else:

@@ -188,6 +188,10 @@ class SolverParams(_Frozen):
                           "over 1e7+ steps); false is ~13 % faster, as good over short runs (docs/performance.md)")
     string: Literal["explicit", "implicit"] = Field(
         "explicit", description="the string's elastic forces: explicit (the paper's) or implicit (docs/physics.md)")
+    slack_switch: Literal["settled", "plain"] = Field("settled", description=(
+        "the explicit string's step where an element of the slack law turns slack or taut: settled (an "
+        "impulse along the element settles the energy the step's trapezoid rule misses there) or plain (the "
+        "variational step as it is, whose errors there add up: docs/physics.md)"))
     energy_watchdog: Optional[Real] = Field(1.0, gt=0, le=1e6, description=(
         "f: a run whose |E - E0 - W| passes f (energy scale + |W|) raises SimulationError, an episode ends "
         "(esp_gym/watchdog.py, docs/physics.md); null: no watchdog"))

@@ -22,8 +22,10 @@ from .stability import hat
 class State:
     """A discrete state ``(q_k, p_k)`` at step ``step``; arrays are copies owned by the caller.
 
-    ``remainders`` holds the compensated-summation remainders of (r, p, R, Pi): restoring them
-    makes save/restore bit-exact; ``None`` (e.g. after editing the momenta) restarts them at 0.
+    ``remainders`` holds the compensated-summation remainders of (r, p, R, Pi) and the energy the
+    explicit string's slack switches still owe per element (``owed``, kernels/switch.py):
+    restoring them makes save/restore bit-exact; ``None`` (e.g. after editing the momenta)
+    restarts them at 0.
     ``winch``: the unstretched length [m] and the reel speed the momenta were made with [m/s]
     (esp_gym/winch.py); ``None`` is the scene's length at rest (a winch that never moved: such a
     state fits any scene, as before there were winches).
@@ -139,6 +141,7 @@ def build_params(scene: Scene) -> LGVIParams:
         gammas=scene.solver.scheme.weights(),
         max_len2=float((scene.solver.max_stretch * scene.string.u) ** 2),
         compensated=bool(scene.solver.compensated), mdiag=diag,
+        settle=scene.string.law == "slack" and scene.solver.slack_switch == "settled",
     )
 
 

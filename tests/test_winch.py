@@ -136,8 +136,8 @@ def test_reeling_out_then_in_with_the_momenta_reversed_returns_the_state():
     start = sim.state
     sim.step(2000, reel_speed=0.4)
     out = sim.state
-    rc, pc, Rc, Pic = out.remainders
-    sim.set_state(State(out.r, -out.p, out.R, -out.Pi, out.step, (rc, -pc, Rc, -Pic), (out.winch[0], -0.4)))
+    rc, pc, Rc, Pic, owed = out.remainders
+    sim.set_state(State(out.r, -out.p, out.R, -out.Pi, out.step, (rc, -pc, Rc, -Pic, owed), (out.winch[0], -0.4)))
     sim.step(2000, reel_speed=-0.4)
     back = sim.state
     assert np.abs(back.r - start.r).max() < 1e-12

@@ -18,19 +18,13 @@ from .so3 import solve3
 from .string import element_strain, tridiag_solve
 
 
-@kernel
-def diagnostics(S, P, D):
-    """Fill the :class:`~.layout.DiagWork` ``D`` (``D.out``: :data:`~.layout.DIAG`) from the state
-    ``S`` (:class:`~.layout.StateArrays`)."""
-    r = S.r
-    p = S.p
-    R = S.R
-    Pi = S.Pi
-    V = D.V
-    strain = D.strain
-    omega = D.omega
-    out = D.out
-    n = r.shape[0] - 1
+@kernel(inline="always")
+def node_velocities(p, Pi0, Pi1, Pi2, R, P, V):
+    """The continuous Legendre transform inverted: node velocities ``V`` (N+1, 3) [m/s] from the
+    momenta ``p`` (N+1, 3) [kg m/s] and ``Pi`` (body frame) [kg m^2/s] at the attitude R, by the
+    step's Schur complement (module docstring); rows of fixed nodes are 0. Returns the body's
+    angular velocity Omega (body frame) [rad/s] and R (rho_c x Omega) [m/s], six scalars."""
+    n = p.shape[0] - 1
     first = P.first
     M = P.M
     rho0 = P.rho[0]
@@ -49,13 +43,10 @@ def diagnostics(S, P, D):
     e2 = R[0, 2] * y0 + R[1, 2] * y1 + R[2, 2] * y2
     w0, w1, w2 = solve3(
         P.Jeff,
-        Pi[0] - M * (rho1 * e2 - rho2 * e1),
-        Pi[1] - M * (rho2 * e0 - rho0 * e2),
-        Pi[2] - M * (rho0 * e1 - rho1 * e0),
+        Pi0 - M * (rho1 * e2 - rho2 * e1),
+        Pi1 - M * (rho2 * e0 - rho0 * e2),
+        Pi2 - M * (rho0 * e1 - rho1 * e0),
     )
-    omega[0] = w0
-    omega[1] = w1
-    omega[2] = w2
     x0 = rho1 * w2 - rho2 * w1  # rho_c x Omega, then R (rho_c x Omega)
     x1 = rho2 * w0 - rho0 * w2
     x2 = rho0 * w1 - rho1 * w0
@@ -67,6 +58,30 @@ def diagnostics(S, P, D):
         V[a, 0] += M * w[a] * q0
         V[a, 1] += M * w[a] * q1
         V[a, 2] += M * w[a] * q2
+    return w0, w1, w2, q0, q1, q2
+
+
+@kernel
+def diagnostics(S, P, D):
+    """Fill the :class:`~.layout.DiagWork` ``D`` (``D.out``: :data:`~.layout.DIAG`) from the state
+    ``S`` (:class:`~.layout.StateArrays`)."""
+    r = S.r
+    p = S.p
+    R = S.R
+    Pi = S.Pi
+    V = D.V
+    strain = D.strain
+    omega = D.omega
+    out = D.out
+    n = r.shape[0] - 1
+    M = P.M
+    rho0 = P.rho[0]
+    rho1 = P.rho[1]
+    rho2 = P.rho[2]
+    w0, w1, w2, q0, q1, q2 = node_velocities(p, Pi[0], Pi[1], Pi[2], R, P, V)
+    omega[0] = w0
+    omega[1] = w1
+    omega[2] = w2
     # kinetic energy of the string: element a contributes 1/2 [v_a v_b] M_e [v_a v_b]^T with
     # M_e = [[m/2 - off, off], [off, m/2 - off]] (consistent: off = m/6; lumped: off = 0)
     ts = 0.0

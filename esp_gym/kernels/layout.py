@@ -83,16 +83,18 @@ class Layout:
 #: ``slack``: tension-only string law; ``compensated``: Kahan-compensated state updates (the
 #: general path reads it at run time, the specialised kernels compile it in).
 #: ``mdiag``: the mass matrix's diagonal on the unknown nodes (0 on a fixed pivot), for the
-#: implicit string's residual (kernels/implicit.py).
+#: implicit string's residual (kernels/implicit.py). ``settle``: the explicit string settles the
+#: energy of its slack switches (kernels/switch.py; ``solver.slack_switch``).
 LGVIParams = namedtuple(
     "LGVIParams",
-    "h m kappa u g M Mp rho J Jd Jeff inv cp off w first slack tol max_iter gammas max_len2 compensated mdiag",
+    "h m kappa u g M Mp rho J Jd Jeff inv cp off w first slack tol max_iter gammas max_len2 compensated mdiag settle",
 )
 
 #: The state the kernels advance: positions r and momenta p (N+1, 3), R (3, 3), Pi (3,), the
-#: compensated-summation remainders rc, pc, Rc, Pic of each, the forces f at r (N+1, 3), and
-#: the input balances acc (:data:`BALANCE`) with their remainders accc.
-StateArrays = namedtuple("StateArrays", "r p R Pi rc pc Rc Pic f acc accc")
+#: compensated-summation remainders rc, pc, Rc, Pic of each, the forces f at r (N+1, 3), the
+#: input balances acc (:data:`BALANCE`) with their remainders accc, and per element the energy
+#: the explicit string's slack switch still owes, ``owed`` (N,) [J] (kernels/switch.py).
+StateArrays = namedtuple("StateArrays", "r p R Pi rc pc Rc Pic f acc accc owed")
 
 #: Scratch arrays of one simulator; ``backup`` holds a checkpoint of the state during composed
 #: steps (kernels/loops.py), so a failure can go back to it. The implicit string's Newton
@@ -103,7 +105,10 @@ StateArrays = namedtuple("StateArrays", "r p R Pi rc pc Rc Pic f acc accc")
 #: the slack law until it has converged (docs/physics.md, "The taut-branch start").
 #: ``ext`` (N+2, 3): the external forces held over a control step (kernels/disturbance.py), on
 #: the nodes (rows 0..N) and on the load's centre of mass (row N+1) [N], spatial frame.
-Work = namedtuple("Work", "fn X Y FmI RF Rn jac backup fl fr dy elim taut ext")
+#: ``switch`` (N,): the explicit string's energy errors of a step's slack switches [J]
+#: (kernels/switch.py), which also uses ``dy`` and ``fr`` as scratch (the explicit string's
+#: step does not: the winch's loop reads ``Y``, the step's increments, after it).
+Work = namedtuple("Work", "fn X Y FmI RF Rn jac backup fl fr dy elim taut ext switch")
 
 #: The winch's arrays (kernels/winch.py): ``state`` (:data:`WINCH`), per element the weights
 #: ``coef`` (N, 3) of its convective kinetic energy (alpha, beta, gamma: docs/physics.md, "The

@@ -41,7 +41,7 @@ def lgvi_step(S, W, P, inputs, free, forced, coupled, compensated, implicit=Fals
 @kernel
 def state_size(S):
     """Number of floats :func:`save_state` writes."""
-    return 5 * S.r.size + 2 * S.R.size + 2 * S.Pi.size + 2 * S.acc.size
+    return 5 * S.r.size + 2 * S.R.size + 2 * S.Pi.size + 2 * S.acc.size + S.owed.size
 
 
 @kernel(inline="always")
@@ -84,6 +84,7 @@ def _move_state(S, buf, to_buf):
     k = _move_vector(S.Pic, buf, k, to_buf)
     k = _move_vector(S.acc, buf, k, to_buf)
     k = _move_vector(S.accc, buf, k, to_buf)
+    k = _move_vector(S.owed, buf, k, to_buf)
     _move_rows(S.f, buf, k, to_buf)
 
 

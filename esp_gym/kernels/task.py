@@ -236,14 +236,14 @@ def env_reset_observe(S, P, D, WA, target, tp, action, obs, terms, sensors, winc
 def state_row(S, b):
     """Sub-environment ``b`` of a stacked :class:`StateArrays` (views)."""
     return StateArrays(S.r[b], S.p[b], S.R[b], S.Pi[b], S.rc[b], S.pc[b], S.Rc[b], S.Pic[b], S.f[b], S.acc[b],
-                       S.accc[b])
+                       S.accc[b], S.owed[b])
 
 
 @kernel(inline="always")
 def work_row(W, b):
     """Sub-environment ``b`` of a stacked :class:`Work` (views)."""
     return Work(W.fn[b], W.X[b], W.Y[b], W.FmI[b], W.RF[b], W.Rn[b], W.jac[b], W.backup[b], W.fl[b], W.fr[b], W.dy[b],
-                W.elim[b], W.taut[b], W.ext[b])
+                W.elim[b], W.taut[b], W.ext[b], W.switch[b])
 
 
 @kernel(inline="always")
@@ -265,7 +265,7 @@ def params_row(P, b):
     (B,) array, each array field with a leading batch axis): the types of one environment's."""
     return LGVIParams(P.h[b], P.m[b], P.kappa[b], P.u[b], P.g[b], P.M[b], P.Mp[b], P.rho[b], P.J[b], P.Jd[b],
                       P.Jeff[b], P.inv[b], P.cp[b], P.off[b], P.w[b], P.first[b], P.slack[b], P.tol[b],
-                      P.max_iter[b], P.gammas[b], P.max_len2[b], P.compensated[b], P.mdiag[b])
+                      P.max_iter[b], P.gammas[b], P.max_len2[b], P.compensated[b], P.mdiag[b], P.settle[b])
 
 
 def _entry_points(winched: bool):

@@ -27,12 +27,13 @@ the implicit string's step kernels/winch_implicit.py's.
 """
 import numpy as np
 
-from .diagnostics import diagnostics
+from .diagnostics import diagnostics, node_velocities
 from .jit import kernel
 from .layout import (B_GRAVITY_IMPULSE, D_ENERGY, D_KINETIC_STRING, D_LINEAR_MOMENTUM, D_PI3, OK, WN_EA, WN_END_SHARE,
                      WN_LENGTH, WN_MASS_PER_LENGTH, WN_MAX_STRETCH, WN_OFF_SHARE, LGVIParams, StateArrays, Work)
 from .lgvi import held_inputs, kahan_add, left_torque, lgvi_commit, new_positions, rigid_increments
 from .string import nodal_forces
+from .switch import settle_switches, switch_errors
 
 
 def convective_weights(elements: int, consistent: bool) -> np.ndarray:
@@ -157,7 +158,7 @@ def length_params(P, WA, length, m_mean, first, n, diagnostic):
     guard = st[WN_MAX_STRETCH] * u
     return LGVIParams(P.h, m, st[WN_EA] / u, u, P.g, P.M, P.Mp, P.rho, P.J, P.Jd, jeff, inv, cp,
                       st[WN_OFF_SHARE] * m, w, P.first, P.slack, P.tol, P.max_iter, P.gammas, guard * guard,
-                      P.compensated, P.mdiag)
+                      P.compensated, P.mdiag, P.settle)
 
 
 @kernel(inline="always")
@@ -191,6 +192,21 @@ def step_solve(S, W, WA, c, hh, up0, up1, up2, push_pivot, first, n):
         X[a, 0] = y0
         X[a, 1] = y1
         X[a, 2] = y2
+
+
+@kernel(inline="always")
+def winch_velocities(S, P, WA, length, c, first, n, V):
+    """The node velocities ``V`` [m/s] of the state at unstretched length ``length`` with the
+    convective coefficient ``c`` = mu v / N: the symmetric mass matrix at that length (into the
+    diagnostics' factors ``WA.d*``) applied to the momenta less c C^T r (``WA.pshift``). Returns
+    the constants at that length with those factors (LGVIParams)."""
+    Pd = length_params(P, WA, length, WA.state[WN_MASS_PER_LENGTH] * length / n, first, n, True)
+    ps = WA.pshift
+    for a in range(n + 1):
+        for i in range(3):
+            ps[a, i] = S.p[a, i] - (c * convective_momentum(S.r, WA.coef, a, i) if a >= first else 0.0)
+    node_velocities(ps, S.Pi[0], S.Pi[1], S.Pi[2], S.R, Pd, V)
+    return Pd
 
 
 @kernel(forceinline=True)
@@ -232,9 +248,17 @@ def winch_substep(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, compens
             for i in range(3):
                 fl[a, i] += q * convective_impulse(W.Y, WA.coef, a, i)
     P1 = length_params(P, WA, l1, m_mean, first, n, False)
-    W1 = Work(W.fn, W.X, W.Y, W.FmI, W.RF, W.Rn, W.jac, W.backup, fl, W.fn, W.dy, W.elim, W.taut, W.ext)
+    unsettled = 0
+    if P.settle:  # the slack switches of the step (kernels/switch.py), at each end's length
+        u0 = l0 / n
+        unsettled = switch_errors(S.r, W.X, st[WN_EA] / u0, u0, P1.kappa, P1.u, (l1 - l0) * st[WN_EA] / n, S.owed,
+                                  W.switch)
+    W1 = Work(W.fn, W.X, W.Y, W.FmI, W.RF, W.Rn, W.jac, W.backup, fl, W.fn, W.dy, W.elim, W.taut, W.ext, W.switch)
     status = lgvi_commit(S, W1, P1, h, c0, c1, c2, e0, e1, e2, l_0, l_1, l_2, t0, t1, t2, tb0, tb1, tb2, ts0, ts1,
                          ts2, up0, up1, up2, dr00, dr01, dr02, free, forced, coupled, compensated, True)
+    if status == OK and unsettled > 0:
+        Pd = winch_velocities(S, P, WA, l1, c, first, n, W.dy)
+        settle_switches(S, Pd, h, W.switch, S.owed, W.dy, W.fr)
     if status == OK:  # the commit counted the weight at l1; the step's is at the mean length
         kahan_add(S.acc, S.accc, B_GRAVITY_IMPULSE + 2, h * P.g * n * (m_mean - P1.m))
     return status, iters
@@ -265,7 +289,7 @@ def winch_energy(S, P, WA, D, length, v):
     for a in range(n + 1):
         for i in range(3):
             ps[a, i] = S.p[a, i] - (c * convective_momentum(r, WA.coef, a, i) if a >= first else 0.0)
-    S2 = StateArrays(r, ps, S.R, S.Pi, S.rc, S.pc, S.Rc, S.Pic, S.f, S.acc, S.accc)
+    S2 = StateArrays(r, ps, S.R, S.Pi, S.rc, S.pc, S.Rc, S.Pic, S.f, S.acc, S.accc, S.owed)
     diagnostics(S2, Pl, D)
     # pi3 and the linear momentum from the momenta themselves
     out = D.out

@@ -99,7 +99,7 @@ class ElasticStringODE:
         # the simulator's state and diagnostics arrays, for _diagnose
         self._diag = (StateArrays(r=z((n + 1, 3)), p=z((n + 1, 3)), R=z((3, 3)), Pi=z(3), rc=z((n + 1, 3)),
                                   pc=z((n + 1, 3)), Rc=z((3, 3)), Pic=z(3), f=z((n + 1, 3)), acc=z(BALANCE.size),
-                                  accc=z(BALANCE.size)),
+                                  accc=z(BALANCE.size), owed=z(n)),
                       DiagWork(V=z((n + 1, 3)), strain=z(n), omega=z(3), out=z(DIAG.size)))
         self.nfev = 0  #: right-hand side evaluations through :meth:`rhs` / :meth:`rhs_columns`
 
