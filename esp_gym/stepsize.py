@@ -159,8 +159,10 @@ IMPLICIT_COST = 34.0
 #: The tension the implicit step is sized for, in units of the weight below the pivot (random
 #: actions of the environment reach 3.6x on drone_load); steps with more are cut back.
 DESIGN_TENSION = 4.0
-#: The implicit step stays this far under the transverse bound 2/omega_t at that tension.
-TRANSVERSE_SAFETY = 0.9
+#: The implicit step stays this far under the transverse bound 2/omega_t at that tension: the
+#: transverse limit h omega_t <= 0.9 x 2 sin(pi/8) of kernels/implicit.py (TRANSVERSE_LIMIT),
+#: under the parametric resonances with the axial modes.
+TRANSVERSE_SAFETY = 0.9 * math.sin(math.pi / 8.0)
 
 
 @dataclass(frozen=True)

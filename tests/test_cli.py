@@ -264,3 +264,12 @@ def test_implicit_energy_quick_runs(tmp_path):
     assert table[1]["substeps"] == 2 * table[0]["substeps"]
     assert all(np.isfinite(r["worst"]) for row in table for r in row["runs"])
     assert (tmp_path / "implicit_energy.png").stat().st_size > 0
+
+
+def test_slack_switch_quick_runs(tmp_path):
+    result = quick_benchmark("slack_switch", tmp_path, "slack_switch")
+    held = {run["switch"]: np.abs(run["residual"]).max() for run in result["held"]}
+    assert held["settled"] < 0.05 < held["plain"], held  # 20 s held: 0.017 J against 0.77 J
+    assert [row["switch"] for row in result["order"]] == ["settled", "plain"]
+    assert len(result["stiff_winch"]) == 2 and all(row["steps"] == 20 for row in result["stiff_winch"])
+    assert (tmp_path / "slack_switch.png").stat().st_size > 0

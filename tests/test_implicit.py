@@ -181,7 +181,7 @@ def test_the_environment_runs_the_implicit_string_where_asked_and_keeps_the_expl
     env = gym.make(esp_gym.ENV_ID, scene_overrides=overrides)
     scene = env.unwrapped.scene
     assert scene.solver.string == "implicit"
-    assert env.unwrapped.setup.substeps == choose_scheme(scene, 0.02, 0.5).implicit_substeps == 7
+    assert env.unwrapped.setup.substeps == choose_scheme(scene, 0.02, 0.5).implicit_substeps == 16
     vec = gym.make_vec(esp_gym.ENV_ID, num_envs=2, scene_overrides=overrides)
     obs, _ = env.reset(seed=5)
     vobs, _ = vec.reset(seed=[5, 6])
