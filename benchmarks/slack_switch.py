@@ -14,6 +14,7 @@ import time
 
 import gymnasium as gym
 import numpy as np
+from matplotlib.ticker import NullFormatter
 from tqdm.auto import tqdm
 
 import esp_gym
@@ -136,6 +137,7 @@ def _plot(held: list, orders: list, path) -> None:
         right.loglog(row["h"], row["worst"], "o-", label=f"{row['switch']} (slope {row['slope']:.2f})")
     h = np.asarray(orders[0]["h"])
     right.loglog(h, orders[0]["worst"][0] * (h / h[0]) ** 2, "k:", lw=0.8, label="h^2")
+    right.xaxis.set_minor_formatter(NullFormatter())
     right.set(xlabel="h [s]", ylabel="largest |E - E0 - W| [J]", title="reel and 1 s held")
     right.grid(True, which="both", alpha=0.3)
     right.legend(fontsize=7)

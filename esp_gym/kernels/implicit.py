@@ -21,8 +21,6 @@ iteration (pieces in kernels/implicit_terms.py). The slack law's kink makes the 
 semismooth: a step that does not reduce the residual (rows in metres) is halved, at most
 ``MAX_HALVINGS`` times per step, while the step is not yet in the round-off range.
 """
-import math
-
 import numpy as np
 
 from .jit import kernel
@@ -47,13 +45,10 @@ LINE_SEARCH_FLOOR = 1e-8
 #: A step whose Newton iteration fails, or whose tension breaks the transverse bound, is cut in
 #: halves, at most this many times (to h / 64).
 CUTBACKS = 6
-#: The transverse limit: h omega_t <= this, omega_t^2 = 12 T_max / (u m) the string's highest
-#: transverse frequency at the step's largest tension. 2 is the stability limit, but the axial
-#: modes the step does not resolve (h omega_a >= 2) turn by pi/2 to pi per step, and their
-#: tension drives pairs of transverse modes parametrically where those turn by as much together:
-#: the transverse modes may turn by at most pi/4 per step, h omega_t <= 2 sin(pi/8) = 0.765
-#: (docs/physics.md, "The implicit string", "The transverse step"). 0.9 of that.
-TRANSVERSE_LIMIT = 0.9 * 2.0 * math.sin(math.pi / 8.0)
+#: The transverse limit: h omega_t <= this (omega_t^2 = 12 T_max / (u m)): under a quarter turn
+#: per step, 0.9 x 2 sin(pi/8), below the parametric resonances with the axial modes the step
+#: does not resolve (docs/physics.md, "The transverse step"; the stability limit is 2).
+TRANSVERSE_LIMIT = 0.9 * 2.0 * float(np.sin(np.pi / 8.0))
 #: Status of a step that broke the transverse bound (internal: it is cut back, never reported).
 TOO_TENSE = -1
 
