@@ -44,7 +44,6 @@ from .layout import (B_ANGULAR_IMPULSE_Z, B_GRAVITY_IMPULSE, B_PIVOT_IMPULSE, B_
                      IN_PIVOT_FORCE, IN_SPATIAL_TORQUE, NEWTON_FAILED, NON_FINITE, OK)
 from .so3 import cayley_minus_identity, cayley_newton
 from .string import nodal_forces, string_solve
-from .diagnostics import node_velocities
 from .switch import settle_switches, switch_errors
 
 
@@ -285,8 +284,7 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
     status = lgvi_commit(S, W, P, h, c0, c1, c2, e0, e1, e2, l0, l1, l2, t0, t1, t2, tb0, tb1, tb2, ts0, ts1, ts2,
                          up0, up1, up2, dr00, dr01, dr02, free, forced, coupled, compensated, False)
     if status == OK and unsettled > 0:
-        node_velocities(S.p, S.Pi[0], S.Pi[1], S.Pi[2], S.R, P, W.dy)
-        settle_switches(S, P, h, W.switch, S.owed, W.dy, W.fr)
+        settle_switches(S, P, h, S.p, W.switch, S.owed, W.dy, W.fr)
     return status, iters
 
 

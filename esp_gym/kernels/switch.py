@@ -80,19 +80,22 @@ def switch_errors(r0, r1, kappa0, u0, kappa1, u1, reel_work, owed, errors):
     return count
 
 
-@kernel(inline="always")
-def settle_switches(S, P, h, errors, owed, V, Z):
+# Not inlined: it runs only on steps with a switch, and inlined into every specialised step it
+# cost 20 % more compile time at the first step (docs/performance.md).
+@kernel
+def settle_switches(S, P, h, momenta, errors, owed, V, Z):
     """Settle the ``errors`` (:func:`switch_errors`) [J] of a step just committed to ``S``: per
     element with an error, the impulse along it that changes the kinetic energy by -error
     (module docstring), added to ``S.p``; what cannot be settled goes to ``owed``, whose other
-    entries are zeroed. On entry ``V`` (N+1, 3) holds the velocities of the new state [m/s]
-    (kept up to date here); ``Z`` (N+1, 3) is scratch; ``P`` holds the mass matrix of the new
-    state (its Thomas factors, ``w``, ``Jeff``)."""
+    entries are zeroed. The velocities of the new state [m/s] come from ``momenta`` (``S.p``, or
+    the winch's shifted ones) with the mass matrix of ``P`` (its Thomas factors, ``w``,
+    ``Jeff``) into ``V`` (N+1, 3); ``Z`` (N+1, 3) is scratch."""
     r = S.r
     p = S.p
     n = r.shape[0] - 1
     first = P.first
     hh = 0.5 * h
+    node_velocities(momenta, S.Pi[0], S.Pi[1], S.Pi[2], S.R, P, V)
     for a in range(n):
         e = errors[a]
         owed[a] = 0.0

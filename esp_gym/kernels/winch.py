@@ -27,7 +27,7 @@ the implicit string's step kernels/winch_implicit.py's.
 """
 import numpy as np
 
-from .diagnostics import diagnostics, node_velocities
+from .diagnostics import diagnostics
 from .jit import kernel
 from .layout import (B_GRAVITY_IMPULSE, D_ENERGY, D_KINETIC_STRING, D_LINEAR_MOMENTUM, D_PI3, OK, WN_EA, WN_END_SHARE,
                      WN_LENGTH, WN_MASS_PER_LENGTH, WN_MAX_STRETCH, WN_OFF_SHARE, LGVIParams, StateArrays, Work)
@@ -194,19 +194,18 @@ def step_solve(S, W, WA, c, hh, up0, up1, up2, push_pivot, first, n):
         X[a, 2] = y2
 
 
-@kernel(inline="always")
-def winch_velocities(S, P, WA, length, c, first, n, V):
-    """The node velocities ``V`` [m/s] of the state at unstretched length ``length`` with the
-    convective coefficient ``c`` = mu v / N: the symmetric mass matrix at that length (into the
-    diagnostics' factors ``WA.d*``) applied to the momenta less c C^T r (``WA.pshift``). Returns
-    the constants at that length with those factors (LGVIParams)."""
+@kernel
+def settle_reeling_switches(S, P, WA, W, h, length, c, first, n):
+    """:func:`~.switch.settle_switches` of a winch step that ended at unstretched length
+    ``length`` with the convective coefficient ``c`` = mu v / N: the velocities from the momenta
+    less c C^T r (into ``WA.pshift``) and the symmetric mass matrix at that length (into the
+    diagnostics' factors ``WA.d*``). Not inlined, as settle_switches."""
     Pd = length_params(P, WA, length, WA.state[WN_MASS_PER_LENGTH] * length / n, first, n, True)
     ps = WA.pshift
     for a in range(n + 1):
         for i in range(3):
             ps[a, i] = S.p[a, i] - (c * convective_momentum(S.r, WA.coef, a, i) if a >= first else 0.0)
-    node_velocities(ps, S.Pi[0], S.Pi[1], S.Pi[2], S.R, Pd, V)
-    return Pd
+    settle_switches(S, Pd, h, ps, W.switch, S.owed, W.dy, W.fr)
 
 
 @kernel(forceinline=True)
@@ -257,8 +256,7 @@ def winch_substep(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, compens
     status = lgvi_commit(S, W1, P1, h, c0, c1, c2, e0, e1, e2, l_0, l_1, l_2, t0, t1, t2, tb0, tb1, tb2, ts0, ts1,
                          ts2, up0, up1, up2, dr00, dr01, dr02, free, forced, coupled, compensated, True)
     if status == OK and unsettled > 0:
-        Pd = winch_velocities(S, P, WA, l1, c, first, n, W.dy)
-        settle_switches(S, Pd, h, W.switch, S.owed, W.dy, W.fr)
+        settle_reeling_switches(S, P, WA, W, h, l1, c, first, n)
     if status == OK:  # the commit counted the weight at l1; the step's is at the mean length
         kahan_add(S.acc, S.accc, B_GRAVITY_IMPULSE + 2, h * P.g * n * (m_mean - P1.m))
     return status, iters
