@@ -113,7 +113,9 @@ def pd_noise_residual(scene_overrides: dict, steps: int, safety=None) -> float:
 def test_the_rules_step_keeps_a_stiff_tethers_energy():
     """EA = 2e5 N, the rule's choice (N = 1, 30 steps per control step), 20 s of the protocol: the
     balance stays within 0.05 J (0.03 J measured over 100 s); negative control: at 0.8 of the
-    bound the tension-only string's slack-to-taut crossings pump energy (0.26 J in 4 s measured)."""
+    bound the plain step's slack-to-taut crossings pump energy (0.26 J in 4 s measured; the margin
+    was chosen for it, and the settled switch keeps it there too: docs/physics.md)."""
     auto = {"string": {"EA": 2e5, "elements": "auto"}}
     assert pd_noise_residual(auto, 1000) < 0.05
-    assert pd_noise_residual(auto, 200, safety=0.8) > 0.1
+    plain = {"string": {"EA": 2e5, "elements": "auto"}, "solver": {"slack_switch": "plain"}}
+    assert pd_noise_residual(plain, 200, safety=0.8) > 0.1
