@@ -1,9 +1,11 @@
 """The explicit string's slack switch, settled against plain (docs/physics.md, "The slack switch of
 the explicit string"): ``drone_load`` reeled in to 0.5 m at 1 m/s and held for ``--hold`` s
 (the energy balance |E - E0 - W| over time, at the environment's winch step h and at h/2); the
-balance's order over the reel and 1 s of holding (h ... h/16); and ``lower`` at EA = 2e5 and 2e6 N
+balance's order over the reel and 1 s of holding (h ... h/16); ``lower`` at EA = 2e5 and 2e6 N
 with the hoist's reel command switching +-1 every 25 control steps (``--steps`` control steps,
-``--seeds`` seeds). The energy watchdog is off throughout, so that a gain shows in full.
+``--seeds`` seeds); and the resolution rule's string (``elements: auto``) at 0.35, 0.5 and 0.8 of
+its stability bound under ``stabilize``'s PD law with +-0.5 action noise, 1,000 control steps,
+seed 0. The energy watchdog is off throughout, so that a gain shows in full.
 
 Prints the tables and writes ``OUT/slack_switch.json`` and ``OUT/slack_switch.png``.
 Usage: ``python -m benchmarks.slack_switch [--quick] [--hold S] [--steps K] [--seeds N] [--out DIR]``.
@@ -18,7 +20,7 @@ from matplotlib.ticker import NullFormatter
 from tqdm.auto import tqdm
 
 import esp_gym
-from agents.controllers import Hoist
+from agents.controllers import AntiSwayPD, Hoist
 from benchmarks.common import arg_parser, figure, finish, machine
 from esp_gym.watchdog import energy_scale
 
@@ -81,6 +83,29 @@ def stiff_winch(switch: str, EA: float, seed: int, steps: int) -> dict:
             "substeps": int(u.setup.substeps)}
 
 
+#: The resolution rule's EAs and step margins (esp_gym.stepsize.SLACK_SAFETY is 0.35).
+MARGIN_EA = (2e5, 2e6, 1e7)
+MARGINS = (0.35, 0.5, 0.8)
+
+
+def margin(switch: str, EA: float, safety: float, steps: int) -> dict:
+    """The rule's string at EA, ``safety`` x its bound, under the PD law with +-0.5 noise: the
+    largest |E - E0 - W| [J] over ``steps`` control steps, seed 0."""
+    env = gym.make(esp_gym.ENV_ID, safety=safety, max_episode_steps=10 ** 6, disable_env_checker=True,
+                   scene_overrides={"string": {"EA": EA, "elements": "auto"},
+                                    "solver": {"slack_switch": switch, "energy_watchdog": None}})
+    obs, _ = env.reset(seed=0)
+    u, pd, rng, worst = env.unwrapped, AntiSwayPD(), np.random.default_rng(0), 0.0
+    for _ in range(steps):
+        action = np.clip(pd.act(obs, u.setup) + 0.5 * rng.uniform(-1, 1, 6), -1, 1)
+        obs, _, terminated, _, _ = env.step(action.astype(np.float32))
+        worst = max(worst, abs(u.sim.diagnostics()["energy_balance_residual"]))
+        if terminated:
+            break
+    return {"switch": switch, "EA": EA, "safety": safety, "worst": worst, "substeps": int(u.setup.substeps),
+            "elements": int(u.scene.string.elements)}
+
+
 def main(argv=None) -> dict:
     parser = arg_parser(__doc__, "20 s held at h, order over h..h/4 and 0.2 s, 20 control steps at 2e5 N")
     parser.add_argument("--hold", type=float, default=1000.0, help="seconds held after the reel (settled)")
@@ -117,7 +142,15 @@ def main(argv=None) -> dict:
     for row in winch:
         print(f"{row['EA']:8.0e} {row['switch']:>8} {row['seed']:4d} {row['steps']:6d} {row['worst']:25.3e} "
               f"{row['over_scale']:8.4f} {row['spin']:12.2f}  {row['reason'] or '-'}")
-    payload = {"held": held, "order": orders, "stiff_winch": winch, "winch_h": WINCH_H,
+    margin_ea, margins, margin_steps = ((2e5,), (0.35,), 20) if args.quick else (MARGIN_EA, MARGINS, 1000)
+    rule = [margin(s, EA, m, margin_steps) for EA in margin_ea for m in margins for s in SWITCHES]
+    print(f"\nthe resolution rule's string, PD law + noise, {margin_steps} control steps: largest |E - E0 - W| [J]")
+    print(f"{'EA [N]':>8} {'N':>3} " + " ".join(f"{f'{m} x bound (settled / plain)':>30}" for m in margins))
+    for EA in margin_ea:
+        rows = {(r["safety"], r["switch"]): r for r in rule if r["EA"] == EA}
+        print(f"{EA:8.0e} {rows[(margins[0], 'settled')]['elements']:3d} " + " ".join(
+            f"{rows[(m, 'settled')]['worst']:>14.2e} / {rows[(m, 'plain')]['worst']:<13.2e}" for m in margins))
+    payload = {"held": held, "order": orders, "stiff_winch": winch, "rule_margins": rule, "winch_h": WINCH_H,
                "machine": machine("gymnasium")}
     finish(args.out, "slack_switch", payload, {"slack_switch.png": lambda path: _plot(held, orders, path)}, start)
     return payload

@@ -272,4 +272,5 @@ def test_slack_switch_quick_runs(tmp_path):
     assert held["settled"] < 0.05 < held["plain"], held  # 20 s held: 0.017 J against 0.77 J
     assert [row["switch"] for row in result["order"]] == ["settled", "plain"]
     assert len(result["stiff_winch"]) == 2 and all(row["steps"] == 20 for row in result["stiff_winch"])
+    assert [(r["switch"], r["elements"]) for r in result["rule_margins"]] == [("settled", 1), ("plain", 1)]
     assert (tmp_path / "slack_switch.png").stat().st_size > 0
