@@ -34,13 +34,13 @@ PLAIN_HOLD = 100.0
 
 def reeled_and_held(switch: str, h: float, hold: float, every: float, bar=None) -> dict:
     """|E - E0 - W| [J] at the end of the reel and then every ``every`` s of holding (until the
-    step fails: ``failed``, its message)."""
+    step fails: ``failed``, its message), and the length reeled to [m]."""
     scene = esp_gym.load_scene("drone_load", h=h, allow_unstable_h=True, **{"initial.direction": [0.3, 0.0, 1.0]},
                                solver={"energy_watchdog": None, "slack_switch": switch})
     weight = scene.gravity * (scene.body.mass + scene.pivot.mass + scene.string.length * scene.string.mass_per_length)
     sim = esp_gym.Simulator(scene)
     sim.step(int(round(0.5 / h)) + 10, reel_speed=-1.0, pivot_force=[0.0, 0.0, -weight])
-    times, residual, failed = [0.0], [sim.diagnostics()["energy_balance_residual"]], ""
+    times, residual, failed, length = [0.0], [sim.diagnostics()["energy_balance_residual"]], "", sim.winch.length
     for k in range(int(round(hold / every))):
         try:
             sim.step(int(round(every / h)), pivot_force=[0.0, 0.0, -weight])
@@ -51,7 +51,7 @@ def reeled_and_held(switch: str, h: float, hold: float, every: float, bar=None) 
         residual.append(sim.diagnostics()["energy_balance_residual"])
         if bar is not None:
             bar.update(every)
-    return {"switch": switch, "h": h, "t": times, "residual": residual, "failed": failed}
+    return {"switch": switch, "h": h, "t": times, "residual": residual, "failed": failed, "length": length}
 
 
 def order(switch: str, halvings: int, hold: float) -> dict:

@@ -26,6 +26,7 @@ from typing import Optional
 
 import numpy as np
 
+from .kernels.implicit import TRANSVERSE_LIMIT
 from .params import Scene, scene_from_dict
 from .scene_input import real_number
 from .stability import explicit_bound, transverse_bound
@@ -160,9 +161,9 @@ IMPLICIT_COST = 34.0
 #: actions of the environment reach 3.6x on drone_load); steps with more are cut back.
 DESIGN_TENSION = 4.0
 #: The implicit step stays this far under the transverse bound 2/omega_t at that tension: the
-#: transverse limit h omega_t <= 0.9 x 2 sin(pi/8) of kernels/implicit.py (TRANSVERSE_LIMIT),
-#: under the parametric resonances with the axial modes.
-TRANSVERSE_SAFETY = 0.9 * math.sin(math.pi / 8.0)
+#: transverse limit h omega_t <= TRANSVERSE_LIMIT (kernels/implicit.py), under the parametric
+#: resonances with the axial modes.
+TRANSVERSE_SAFETY = TRANSVERSE_LIMIT / 2.0
 
 
 @dataclass(frozen=True)

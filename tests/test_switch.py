@@ -5,16 +5,14 @@ string is kept to round-off, the reeled-and-held string's balance stays bounded 
 order, the stiff winch's episodes keep theirs, and the settling impulses are internal: momentum
 and pi3 balances are untouched. Each with the plain step (``solver.slack_switch: plain``) as the
 negative control."""
-import gymnasium as gym
 import numpy as np
 import pytest
 
 import esp_gym
-from agents.controllers import Hoist
+from benchmarks.slack_switch import WINCH_H, order, reeled_and_held, stiff_winch
 from esp_gym.kernels.diagnostics import diagnostics
 from esp_gym.kernels.layout import DIAG, DiagWork
 from esp_gym.stability import explicit_bound
-from esp_gym.watchdog import energy_scale
 
 SWITCHES = ("settled", "plain")
 
@@ -71,34 +69,14 @@ def test_a_flickering_string_keeps_its_modified_energy_to_round_off(switch):
         assert worst >= 1e-2, worst
 
 
-def reeled_and_held(switch: str, h: float, hold: float, every: float = 1.0):
-    """The reeled-and-held ``drone_load``: from a 0.3 rad swing, reeled in to 0.5 m at 1 m/s, then
-    held for ``hold`` s, the free pivot's force balancing the weight. Returns |E - E0 - W| [J]
-    after the reel and then every ``every`` s."""
-    scene = esp_gym.load_scene("drone_load", h=h, allow_unstable_h=True, **{"initial.direction": [0.3, 0.0, 1.0]},
-                               solver={"energy_watchdog": None, "slack_switch": switch})
-    weight = scene.gravity * (scene.body.mass + scene.pivot.mass + scene.string.length * scene.string.mass_per_length)
-    sim = esp_gym.Simulator(scene)
-    sim.step(int(round(0.5 / h)) + 10, reel_speed=-1.0, pivot_force=[0.0, 0.0, -weight])
-    assert sim.winch.length == 0.5
-    out = [abs(sim.diagnostics()["energy_balance_residual"])]
-    for _ in range(int(round(hold / every))):
-        sim.step(int(round(every / h)), pivot_force=[0.0, 0.0, -weight])
-        out.append(abs(sim.diagnostics()["energy_balance_residual"]))
-    return np.array(out)
-
-
-#: The winch's step in the environment for drone_load (choose_h(reeling=True)): 71 per 20 ms.
-WINCH_H = 0.02 / 71
-
-
 def test_the_reeled_and_held_strings_balance_stays_bounded():
     """30 s held at the environment's winch step: settled, |E - E0 - W| stays under 0.05 J
     (measured 0.017 J; benchmarks/slack_switch.py runs 1000 s); plain, it grows past 1 J (the
     flicker's errors random-walk and feed the flicker: 0.13, 0.77, 2.5 J at 10, 20, 30 s)."""
-    settled = reeled_and_held("settled", WINCH_H, 30.0, 10.0)
+    runs = [reeled_and_held(s, WINCH_H, 30.0, 10.0) for s in SWITCHES]
+    assert all(run["length"] == 0.5 for run in runs)
+    settled, plain = (np.abs(run["residual"]) for run in runs)
     assert settled.max() < 0.05, settled
-    plain = reeled_and_held("plain", WINCH_H, 30.0, 10.0)
     assert plain.max() > 1.0, plain
 
 
@@ -106,10 +84,8 @@ def test_the_reeled_and_held_balance_is_second_order():
     """The largest |E - E0 - W| over the reel and 1 s of holding at h, h/2, ..., h/16 falls as h^2
     (fitted slope >= 1.9; measured 2.14). The plain step is second order over so short a run too
     (2.26): its defect is the growth over long ones, above."""
-    hs = [WINCH_H / 2 ** i for i in range(5)]
-    worst = [reeled_and_held("settled", h, 1.0, 0.1).max() for h in hs]
-    slope = np.polyfit(np.log(hs), np.log(worst), 1)[0]
-    assert slope >= 1.9, (slope, worst)
+    result = order("settled", 4, 1.0)
+    assert result["slope"] >= 1.9, result
 
 
 def test_settling_keeps_momentum_and_pi3():
@@ -132,28 +108,13 @@ def test_settling_keeps_momentum_and_pi3():
     assert abs(d["pi3_balance_residual"]) <= 1e-12
 
 
-def stiff_winch_episode(switch: str, steps: int) -> float:
-    """``lower`` at EA = 2e5 N, the hoist with its reel command switching +-1 every 25 control
-    steps: the largest |E - E0 - W| [J] over the episode, the watchdog off."""
-    env = gym.make(esp_gym.ENV_ID, task="lower", max_episode_steps=steps, disable_env_checker=True,
-                   scene_overrides={"string": {"EA": 2e5}, "solver": {"energy_watchdog": None, "slack_switch": switch}})
-    obs, _ = env.reset(seed=0)
-    u, hoist, worst = env.unwrapped, Hoist(), 0.0
-    for k in range(steps):
-        action = hoist.act(obs, u.setup).astype(np.float64)
-        action[-1] = 1.0 if (k // 25) % 2 else -1.0
-        obs, _, terminated, truncated, _ = env.step(action.astype(np.float32))
-        worst = max(worst, abs(u.sim.diagnostics()["energy_balance_residual"]))
-        assert not terminated
-    return worst / energy_scale(u.scene)
-
-
 def test_a_stiff_winch_episode_keeps_its_balance():
     """500 control steps (2,097 physics steps each): settled, under 1 % of the energy scale
     (measured 0.28 %); plain, more than ten times that (measured 13 %)."""
-    settled = stiff_winch_episode("settled", 500)
-    assert settled < 0.01, settled
-    assert stiff_winch_episode("plain", 500) > 10 * settled
+    settled, plain = (stiff_winch(s, 2e5, 0, 500) for s in SWITCHES)
+    assert settled["steps"] == plain["steps"] == 500 and not settled["reason"] and not plain["reason"]
+    assert settled["over_scale"] < 0.01, settled
+    assert plain["over_scale"] > 10 * settled["over_scale"]
 
 
 def test_a_step_without_a_switch_is_the_variational_step_bit_for_bit():
