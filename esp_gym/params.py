@@ -192,6 +192,11 @@ class SolverParams(_Frozen):
         "the explicit string's step where an element of the slack law turns slack or taut: settled (an "
         "impulse along the element settles the energy the step's trapezoid rule misses there) or plain (the "
         "variational step as it is, whose errors there add up: docs/physics.md)"))
+    implicit_form: Literal["energy_momentum", "variational"] = Field("energy_momentum", description=(
+        "the implicit string's forces over a step: energy_momentum (each element's tension along the discrete "
+        "gradient's direction: the string's energy is conserved exactly, at any step) or variational (along the "
+        "element at both ends of the step, the discrete Euler-Lagrange equations of its Lagrangian, with an "
+        "explicit transverse bound: docs/physics.md)"))
     energy_watchdog: Optional[Real] = Field(1.0, gt=0, le=1e6, description=(
         "f: a run whose |E - E0 - W| passes f (energy scale + |W|) raises SimulationError, an episode ends "
         "(esp_gym/watchdog.py, docs/physics.md); null: no watchdog"))

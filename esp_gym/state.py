@@ -142,6 +142,7 @@ def build_params(scene: Scene) -> LGVIParams:
         max_len2=float((scene.solver.max_stretch * scene.string.u) ** 2),
         compensated=bool(scene.solver.compensated), mdiag=diag,
         settle=scene.string.law == "slack" and scene.solver.slack_switch == "settled",
+        gradient=scene.solver.implicit_form == "energy_momentum",
     )
 
 

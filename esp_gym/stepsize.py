@@ -158,11 +158,13 @@ def choose_h(scene: Scene, accuracy: Optional[float] = None, horizon: float = 0.
 #: included, against 0.62 us; in hover 4.2 us with 3 iterations: docs/physics.md).
 IMPLICIT_COST = 34.0
 #: The tension the implicit step is sized for, in units of the weight below the pivot (random
-#: actions of the environment reach 3.6x on drone_load); steps with more are cut back.
+#: actions of the environment reach 3.6x on drone_load); steps with more are cut back in the
+#: variational form.
 DESIGN_TENSION = 4.0
 #: The implicit step stays this far under the transverse bound 2/omega_t at that tension: the
-#: transverse limit h omega_t <= TRANSVERSE_LIMIT (kernels/implicit.py), under the parametric
-#: resonances with the axial modes.
+#: transverse limit h omega_t <= TRANSVERSE_LIMIT (kernels/implicit.py), which the variational
+#: form needs under its parametric resonances, and which resolves the transverse waves for the
+#: energy-momentum form (docs/physics.md, "The environment's choice").
 TRANSVERSE_SAFETY = TRANSVERSE_LIMIT / 2.0
 
 

@@ -77,6 +77,30 @@ def string_elastic_mean_length(scene, r0, r1) -> float:
     return float(np.sum(0.5 * EA * strain ** 2 * u))  # W is constant along the element
 
 
+def discrete_gradient_forces(scene, r0, r1, l0=None, l1=None) -> np.ndarray:
+    """The implicit string's elastic forces over a step in its energy-momentum form (``solver.
+    implicit_form: energy_momentum``, docs/physics.md) [N], (N+1, 3): element a pulls node a by
+    T_a d_a and node a+1 by -T_a d_a, with d_a = (x_k + x_{k+1})/(|x_k| + |x_{k+1}|) and T_a the
+    elastic energy's secant in the element's stretch s = |x| - u, (V(s_{k+1}) - V(s_k))/(s_{k+1} -
+    s_k), V(s) = kappa/2 s^2 (max(s, 0)^2 for the slack law). The rest length u is l/N at each end
+    (l0, l1: a winch's unstretched lengths; the scene's by default) and kappa = EA over its mean."""
+    n, EA = scene.string.elements, scene.string.EA
+    u0 = (scene.string.length if l0 is None else l0) / n
+    u1 = (scene.string.length if l1 is None else l1) / n
+    kappa = EA / (0.5 * (u0 + u1))
+    x0, x1 = np.diff(r0, axis=0), np.diff(r1, axis=0)
+    len0, len1 = np.linalg.norm(x0, axis=1), np.linalg.norm(x1, axis=1)
+    s0, s1 = len0 - u0, len1 - u1
+    e0, e1 = (np.maximum(s0, 0.0), np.maximum(s1, 0.0)) if scene.string.law == "slack" else (s0, s1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tension = np.where(s1 != s0, 0.5 * kappa * (e1 ** 2 - e0 ** 2) / (s1 - s0), kappa * e0)
+    pull = tension[:, None] * (x0 + x1) / (len0 + len1)[:, None]
+    forces = np.zeros_like(r0)
+    forces[:-1] += pull
+    forces[1:] -= pull
+    return forces
+
+
 def string_lagrangian(scene, r, dr) -> float:
     """L_{d_{k,str}} = sum_a L_{d_{k,a}} [J s]: kinetic minus trapezoidal-in-time potential;
     for the implicit string (``solver.string: implicit``) the elastic part is instead

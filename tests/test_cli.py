@@ -259,9 +259,13 @@ def test_energy_balance_quick_runs(tmp_path):
 
 
 def test_implicit_energy_quick_runs(tmp_path):
-    table = quick_benchmark("implicit_energy", tmp_path, "implicit_energy")["table"]
-    assert [row["multiple"] for row in table] == [1, 2]
-    assert table[1]["substeps"] == 2 * table[0]["substeps"]
+    result = quick_benchmark("implicit_energy", tmp_path, "implicit_energy")
+    table = result["table"]
+    assert [row["string"] for row in result["winch"]] == ["implicit", "explicit"]
+    assert all(np.isfinite(row["residual"]) and row["steps"] == 20 for row in result["winch"])
+    assert [(row["form"], row["multiple"]) for row in table] == [("energy_momentum", 0.5), ("energy_momentum", 1),
+                                                                 ("variational", 2), ("variational", 4)]
+    assert table[1]["substeps"] == 2 * table[0]["substeps"] and table[3]["substeps"] == 4 * table[1]["substeps"]
     assert all(np.isfinite(r["worst"]) for row in table for r in row["runs"])
     assert (tmp_path / "implicit_energy.png").stat().st_size > 0
 

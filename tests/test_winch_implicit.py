@@ -1,6 +1,8 @@
 """The implicit string with a winch (kernels/winch_implicit.py; docs/physics.md, "The winch"):
-its step against finite differences of its discrete Lagrangian, the energy balance's order, the
-momentum balances, reversibility, and a stiff string reeled far past the explicit bound."""
+its step against finite differences of its discrete Lagrangian (the variational form) or of the
+winch's Lagrangian without elastic energy forced by the elastic discrete gradient (the
+energy-momentum form), the energy balance's order, the momentum balances, reversibility, and a
+stiff string reeled far past the explicit bound."""
 import numpy as np
 import pytest
 
@@ -8,9 +10,11 @@ import esp_gym
 from esp_gym.model import Simulator, State
 from discrete_lagrangian import GEOMETRIC_OVERRIDES, random_state, winch_lagrangian
 from test_discrete_lagrangian import legendre_errors
+from test_implicit import lagrange_dalembert_errors
 from test_winch import reel_balance_by_h, reel_step
 
 IMPLICIT = {"solver": {"string": "implicit", "newton_tol": 1e-13}}
+VARIATIONAL = {"solver": {"string": "implicit", "newton_tol": 1e-13, "implicit_form": "variational"}}
 
 SCENES = {
     "paper-N5": dict(N=5),
@@ -23,13 +27,13 @@ SCENES = {
 @pytest.mark.parametrize("scene_id, seed, length, speed", [
     ("paper-N5", 1, 1.0, 0.5), ("geometric-N3", 3, 0.7, -0.6), ("slack-N4", 5, 1.15, 0.5),
     ("lumped-free-N4", 4, 1.1, -0.4)])
-def test_the_step_satisfies_the_legendre_transforms_of_the_reeling_implicit_string(scene_id, seed, length, speed):
+def test_the_variational_step_satisfies_the_legendre_transforms_of_the_reeling_string(scene_id, seed, length, speed):
     """p_k = -D_1 L_d and p_{k+1} = D_2 L_d, L_d the winch's with the elastic energy at the
     elements' mean stretches over the step (rest lengths l_k/N and l_k+1/N at its ends), by finite
     differences at a random state, h = 1 ms (under the transverse limit: no step is cut back):
     relative 1e-7. Negative controls: the explicit winch's L_d, and the implicit one without the
     material's flow."""
-    scene = esp_gym.load_scene("paper_example", h=1e-3, allow_unstable_h=True, **IMPLICIT, **SCENES[scene_id])
+    scene = esp_gym.load_scene("paper_example", h=1e-3, allow_unstable_h=True, **VARIATIONAL, **SCENES[scene_id])
     before = random_state(scene, np.random.default_rng(seed))
     after = reel_step(scene, before, length, speed)
     end = after.winch[0]
@@ -44,6 +48,26 @@ def test_the_step_satisfies_the_legendre_transforms_of_the_reeling_implicit_stri
     assert max(static.values()) > 1e-4, static
     explicit = scene.model_copy(update={"solver": scene.solver.model_copy(update={"string": "explicit"})})
     assert max(legendre_errors(explicit, before, after, L=winch_lagrangian(length, end)).values()) > 1e-4
+
+
+@pytest.mark.parametrize("scene_id, seed, length, speed", [
+    ("paper-N5", 1, 1.0, 0.5), ("geometric-N3", 3, 0.7, -0.6), ("slack-N4", 5, 1.15, 0.5),
+    ("lumped-free-N4", 4, 1.1, -0.4)])
+def test_the_energy_momentum_step_of_the_reeling_string_is_forced_by_the_discrete_gradient(scene_id, seed, length,
+                                                                                           speed):
+    """p_k = -D_1 L0_d - h/2 F and p_{k+1} = D_2 L0_d + h/2 F, L0_d the winch's L_d without elastic
+    energy and F the discrete gradient forces at rest lengths l_k/N and l_k+1/N (both from their
+    definitions), at a random state, h = 1 ms: relative 1e-7. Negative control: the material's
+    flow left out of L0_d."""
+    scene = esp_gym.load_scene("paper_example", h=1e-3, allow_unstable_h=True, **IMPLICIT, **SCENES[scene_id])
+    before = random_state(scene, np.random.default_rng(seed))
+    after = reel_step(scene, before, length, speed)
+    end = after.winch[0]
+    errors = lagrange_dalembert_errors(scene, before, after, L=winch_lagrangian(length, end), lengths=(length, end))
+    assert max(errors.values()) < 1e-7, errors
+    static = lagrange_dalembert_errors(scene, before, after, L=winch_lagrangian(length, end, convective=False),
+                                       lengths=(length, end))
+    assert max(static.values()) > 1e-4, static
 
 
 def test_the_energy_balance_with_the_winch_is_second_order_for_the_implicit_string_too():

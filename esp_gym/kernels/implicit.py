@@ -1,18 +1,18 @@
-"""The implicit string: the LGVI with each element's elastic energy at its mean length over the
-step (docs/physics.md, "The implicit string"; a scene option, order 2).
-
-The discrete Lagrangian is the explicit scheme's with the elastic term -h/2 (V_e(r_k) +
-V_e(r_{k+1})) replaced by -h sum_a kappa/2 phi(lbar_a)^2, lbar_a = (|x_k,a| + |x_k+1,a|)/2;
-kinetic, gravity and rigid-body terms and the inputs are unchanged. Its discrete Euler-Lagrange
-equations in the unknowns y = dr (the string's increments) and the Cayley vector c of F_k,
-multiplied by h::
+"""The implicit string (docs/physics.md, "The implicit string"; a scene option, order 2): the LGVI
+with each element's elastic energy taken over the step as a whole, at its mean length; kinetic,
+gravity and rigid-body terms and the inputs are the explicit scheme's. In the unknowns y = dr (the
+string's increments) and the Cayley vector c of F_k, multiplied by h::
 
     G_a = (M_tot y)_a + M delta_aN R_k (F(c) - I) rho_c - h^2/2 (f~_k + f_g)_a - h b_a = 0
     phi = g + g x c + (g . c) c - 2 J c = 0,    g = h Pi_k + h^2/2 tau_k - M rho_c x (R_k^T y_N)
 
-with f~_k the forces of the tensions T_a = kappa phi(lbar_a) along the elements at r_k and b =
-p_k (+ h/2 u_p at a free pivot; phi is (2) in Cayley form, Lee 2008). Then p_{k+1} = p_k + h f_g
-+ h/2 (f~_k + f~_{k+1}) (+ h u_p), and R_{k+1}, Pi_{k+1} by (4) as in kernels/lgvi.py.
+with b = p_k (+ h/2 u_p at a free pivot; phi is (2) in Cayley form, Lee 2008), then p_{k+1} = p_k
++ h f_g + h/2 (f~_k + f~_{k+1}) (+ h u_p), and R_{k+1}, Pi_{k+1} by (4) as in kernels/lgvi.py.
+f~ are the forces of the elements' tensions T_a over the step (the energy's secant in the stretch):
+in the energy-momentum form (``P.gradient``, the default) along the discrete gradient's direction
+(x_k + x_{k+1})/(|x_k| + |x_{k+1}|) at both ends, so that the string's energy is conserved exactly;
+in the variational form along the elements at r_k (f~_k) and r_{k+1} (f~_{k+1}), the discrete
+Euler-Lagrange equations of the mean-length Lagrangian (kernels/implicit_terms.py).
 
 Newton's method solves them together: the string's block-tridiagonal Jacobian (3x3 blocks)
 bordered by the body's three unknowns, which couple to the attachment node only; block
@@ -42,12 +42,11 @@ MAX_HALVINGS = 8
 #: A correction below this (relative to the increments) is in the quadratic, round-off
 #: dominated range, where the residual no longer measures progress: no line search there.
 LINE_SEARCH_FLOOR = 1e-8
-#: A step whose Newton iteration fails, or whose tension breaks the transverse bound, is cut in
-#: halves, at most this many times (to h / 64).
+#: A step whose Newton iteration fails, or (variational form) whose tension breaks the transverse
+#: limit, is cut in halves, at most this many times (to h / 64).
 CUTBACKS = 6
-#: The transverse limit: h omega_t <= this (omega_t^2 = 12 T_max / (u m)): under a quarter turn
-#: per step, 0.9 x 2 sin(pi/8), below the parametric resonances with the axial modes the step
-#: does not resolve (docs/physics.md, "The transverse step"; the stability limit is 2).
+#: The transverse limit of the variational form: h omega_t <= this (omega_t^2 = 12 T_max / (u m)),
+#: under a quarter turn per step, below its parametric resonances (docs/physics.md, "The transverse step").
 TRANSVERSE_LIMIT = 0.9 * 2.0 * float(np.sin(np.pi / 8.0))
 #: Status of a step that broke the transverse bound (internal: it is cut back, never reported).
 TOO_TENSE = -1
@@ -102,6 +101,7 @@ def implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled
     kappa = P.kappa
     u = P.u
     slack = P.slack
+    gradient = P.gradient
     off = P.off
     M = P.M
     q4 = 0.25 * h * h
@@ -146,8 +146,8 @@ def implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled
         tp0 = tp1 = tp2 = 0.0  # the element above node a: T n_k, and k
         k00 = k01 = k02 = k10 = k11 = k12 = k20 = k21 = k22 = 0.0
         if not free:
-            tp0, tp1, tp2, k00, k01, k02, k10, k11, k12, k20, k21, k22 = element_block(r, Y, 0, kappa, u0, u1,
-                                                                                      slack and taut[0] == 0.0)
+            tp0, tp1, tp2, k00, k01, k02, k10, k11, k12, k20, k21, k22 = element_block(
+                r, Y, 0, kappa, u0, u1, slack and taut[0] == 0.0, gradient)
         e00 = e01 = e02 = e10 = e11 = e12 = e20 = e21 = e22 = 0.0  # E_{a-1}
         z0 = z1 = z2 = 0.0  # z_{a-1}
         s00 = s01 = s02 = s10 = s11 = s12 = s20 = s21 = s22 = 0.0
@@ -156,8 +156,8 @@ def implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled
             ta0 = ta1 = ta2 = 0.0
             l00 = l01 = l02 = l10 = l11 = l12 = l20 = l21 = l22 = 0.0
             if a < n:
-                ta0, ta1, ta2, l00, l01, l02, l10, l11, l12, l20, l21, l22 = element_block(r, Y, a, kappa, u0,
-                                                                                          u1, slack and taut[a] == 0.0)
+                ta0, ta1, ta2, l00, l01, l02, l10, l11, l12, l20, l21, l22 = element_block(
+                    r, Y, a, kappa, u0, u1, slack and taut[a] == 0.0, gradient)
             grav = g_mid
             if a == 0:
                 grav = g_end0
@@ -427,7 +427,7 @@ def implicit_positions(S, W, c0, c1, c2, first, compensated):
 @kernel(inline="always")
 def implicit_step_once(S, W, P, inputs, h, free, forced, coupled, compensated, bounded):
     """One step of length ``h`` of the implicit string without cutting back: the state untouched
-    on failure, and (``bounded``) where its largest tension breaks the transverse bound
+    on failure, and (``bounded``, variational form) where its largest tension breaks the transverse limit
     (status ``TOO_TENSE``). Returns ``(status, newton_iterations)``."""
     r = S.r
     R = S.R
@@ -442,7 +442,7 @@ def implicit_step_once(S, W, P, inputs, h, free, forced, coupled, compensated, b
         return status, iters
     # the string's impulse over the step, h/2 (fl + fr): along the elements at both ends
     _, tension = split_forces(r, Y, P, W.fl, W.fr, P.m, P.m, P.u, P.u)
-    if bounded and 12.0 * tension * h * h > TRANSVERSE_LIMIT * TRANSVERSE_LIMIT * P.u * P.m:
+    if bounded and not P.gradient and 12.0 * tension * h * h > TRANSVERSE_LIMIT * TRANSVERSE_LIMIT * P.u * P.m:
         return TOO_TENSE, iters
     e0, e1, e2, dr00, dr01, dr02 = implicit_positions(S, W, c0, c1, c2, first, compensated)
     status = lgvi_commit(S, W, P, h, c0, c1, c2, e0, e1, e2, l0, l1, l2, t0, t1, t2, tb0, tb1, tb2, ts0, ts1, ts2,

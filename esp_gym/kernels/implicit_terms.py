@@ -1,6 +1,8 @@
 """The pieces of the implicit string's Newton system (kernels/implicit.py, docs/physics.md "The
-implicit string"): an element's tension over the step and its directions, the string's forces of
-the step, the body's coupling blocks, and a 3x3 inverse."""
+implicit string"): an element's tension over the step and its directions, its force and Jacobian
+block in either form (the energy-momentum form's discrete gradient, or the variational form's
+directions at the two ends), the string's forces of the step, the body's coupling blocks, and a
+3x3 inverse."""
 import math
 
 from .jit import kernel
@@ -77,12 +79,36 @@ def release_slack(r, Y, taut, u):
 
 
 @kernel(inline="always")
-def element_block(r, Y, a, kappa, u0, u1, slack):
-    """Element ``a``'s share of the Newton system (:func:`element_terms`): its force on node a,
-    T n_k (3) [N], and k = 2 dT/ds1 n_k n_{k+1}^T (9, row-major) [N/m]."""
+def gradient_direction(r, Y, a, n0, n1, n2, m0, m1, m2):
+    """The discrete gradient's direction of element ``a`` over the step, d = (x_k + x_{k+1}) /
+    (|x_k| + |x_{k+1}|) (|d| <= 1, = 1 where the element does not turn), from its unit vectors n_k
+    = (n0, n1, n2) and n_{k+1} = (m0, m1, m2) at both ends; with T its tension, T d . dx equals
+    T d|x| exactly (docs/physics.md, "The energy-momentum form"). Returns ``(d (3), 1/(|x_k| +
+    |x_{k+1}|) [1/m])``."""
+    x0 = r[a + 1, 0] - r[a, 0]
+    x1 = r[a + 1, 1] - r[a, 1]
+    x2 = r[a + 1, 2] - r[a, 2]
+    w0 = x0 + (Y[a + 1, 0] - Y[a, 0])
+    w1 = x1 + (Y[a + 1, 1] - Y[a, 1])
+    w2 = x2 + (Y[a + 1, 2] - Y[a, 2])
+    inv_sum = 1.0 / ((n0 * x0 + n1 * x1 + n2 * x2) + (m0 * w0 + m1 * w1 + m2 * w2))
+    return (x0 + w0) * inv_sum, (x1 + w1) * inv_sum, (x2 + w2) * inv_sum, inv_sum
+
+
+@kernel(inline="always")
+def element_block(r, Y, a, kappa, u0, u1, slack, gradient):
+    """Element ``a``'s share of the Newton system (:func:`element_terms`): its force on node a
+    [N] and k = 2 d(force)/dx_{k+1} (9, row-major) [N/m]. ``gradient`` (the energy-momentum
+    form): force T d (:func:`gradient_direction`), k = 2 dT/ds1 d n_{k+1}^T + 2T/(|x_k| +
+    |x_{k+1}|) (I - d n_{k+1}^T); otherwise (the variational form) T n_k and 2 dT/ds1 n_k n_{k+1}^T."""
     T, n0, n1, n2, m0, m1, m2, dT = element_terms(r, Y, a, kappa, u0, u1, slack)
-    return (T * n0, T * n1, T * n2, dT * n0 * m0, dT * n0 * m1, dT * n0 * m2, dT * n1 * m0, dT * n1 * m1,
-            dT * n1 * m2, dT * n2 * m0, dT * n2 * m1, dT * n2 * m2)
+    g = 0.0  # the geometric stiffness 2 T / (|x_k| + |x_{k+1}|)
+    if gradient:
+        n0, n1, n2, inv_sum = gradient_direction(r, Y, a, n0, n1, n2, m0, m1, m2)
+        g = 2.0 * T * inv_sum
+        dT -= g
+    return (T * n0, T * n1, T * n2, dT * n0 * m0 + g, dT * n0 * m1, dT * n0 * m2, dT * n1 * m0, dT * n1 * m1 + g,
+            dT * n1 * m2, dT * n2 * m0, dT * n2 * m1, dT * n2 * m2 + g)
 
 
 @kernel(inline="always")
@@ -98,8 +124,10 @@ def split_forces(r, Y, P, fl, fr, mass0, mass1, u0, u1):
     half, along the elements at r_k) and ``fr`` = f_g + sum T n_{k+1} (the right half), T the
     elements' tensions at their mean lengths (:func:`element_terms`; rest lengths ``u0``, ``u1``
     [m] at the two ends) and f_g the weight at element mass ``mass0`` (left) and ``mass1`` (right)
-    [kg]: P.m and P.u at both ends unless a winch reels. Returns the sum of the tensions
-    (non-finite iff any is) and the largest [N]."""
+    [kg]: P.m and P.u at both ends unless a winch reels. With ``P.gradient`` (the energy-momentum
+    form) both halves take the discrete gradient's direction d (:func:`gradient_direction`) in
+    place of n_k and n_{k+1}. Returns the sum of the tensions (non-finite iff any is) and the
+    largest [N]."""
     n = r.shape[0] - 1
     total = 0.0
     most = 0.0
@@ -116,6 +144,11 @@ def split_forces(r, Y, P, fl, fr, mass0, mass1, u0, u1):
     fr[n, 2] = (0.5 * mass1 + P.M) * P.g
     for a in range(n):
         T, k0, k1, k2, m0, m1, m2, _ = element_terms(r, Y, a, P.kappa, u0, u1, P.slack)
+        if P.gradient:
+            k0, k1, k2, _ = gradient_direction(r, Y, a, k0, k1, k2, m0, m1, m2)
+            m0 = k0
+            m1 = k1
+            m2 = k2
         fl[a, 0] += T * k0
         fl[a, 1] += T * k1
         fl[a, 2] += T * k2

@@ -83,12 +83,10 @@ class Layout:
 #: ``slack``: tension-only string law; ``compensated``: Kahan-compensated state updates (the
 #: general path reads it at run time, the specialised kernels compile it in).
 #: ``mdiag``: the mass matrix's diagonal on the unknown nodes (0 on a fixed pivot), for the
-#: implicit string's residual (kernels/implicit.py). ``settle``: the explicit string settles the
-#: energy of its slack switches (kernels/switch.py; ``solver.slack_switch``).
-LGVIParams = namedtuple(
-    "LGVIParams",
-    "h m kappa u g M Mp rho J Jd Jeff inv cp off w first slack tol max_iter gammas max_len2 compensated mdiag settle",
-)
+#: implicit string's residual (kernels/implicit.py). ``settle``: the explicit string settles its
+#: slack switches (kernels/switch.py); ``gradient``: the implicit string's energy-momentum form.
+LGVIParams = namedtuple("LGVIParams", "h m kappa u g M Mp rho J Jd Jeff inv cp off w first slack tol max_iter gammas "
+                                      "max_len2 compensated mdiag settle gradient")
 
 #: The state the kernels advance: positions r and momenta p (N+1, 3), R (3, 3), Pi (3,), the
 #: compensated-summation remainders rc, pc, Rc, Pic of each, the forces f at r (N+1, 3), the

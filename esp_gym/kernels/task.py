@@ -265,7 +265,8 @@ def params_row(P, b):
     (B,) array, each array field with a leading batch axis): the types of one environment's."""
     return LGVIParams(P.h[b], P.m[b], P.kappa[b], P.u[b], P.g[b], P.M[b], P.Mp[b], P.rho[b], P.J[b], P.Jd[b],
                       P.Jeff[b], P.inv[b], P.cp[b], P.off[b], P.w[b], P.first[b], P.slack[b], P.tol[b],
-                      P.max_iter[b], P.gammas[b], P.max_len2[b], P.compensated[b], P.mdiag[b], P.settle[b])
+                      P.max_iter[b], P.gammas[b], P.max_len2[b], P.compensated[b], P.mdiag[b], P.settle[b],
+                      P.gradient[b])
 
 
 def _entry_points(winched: bool):

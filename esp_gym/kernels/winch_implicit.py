@@ -30,8 +30,9 @@ from .winch import (add_convective_forces, convective_impulse, convective_moment
 @kernel(forceinline=True)
 def winch_implicit_once(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, compensated, bounded):
     """One step of length ``h`` of the implicit string while the winch takes the unstretched
-    length ``l0 -> l1`` [m], without cutting back: the state untouched on failure and (``bounded``)
-    where its largest tension breaks the transverse bound at the shorter end's elements (status
+    length ``l0 -> l1`` [m], without cutting back: the state untouched on failure and (``bounded``, the
+    variational form) where its largest tension breaks the transverse limit at the shorter end's
+    elements (status
     TOO_TENSE). ``S.f`` holds the last step's right forces on entry (the first guess's) and this
     step's on success. Returns ``(status, newton_iterations, the winch's elastic work [J])``
     (:func:`elastic_winch_work`)."""
@@ -89,7 +90,7 @@ def winch_implicit_once(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, c
     # the step's forces at each end: tensions along the elements, the weight at that end's length
     _, tension = split_forces(r, Y, Pm, fl, W.fr, m0, m1, u0, u1)
     short = min(u0, u1)
-    if bounded and 12.0 * tension * h * h > TRANSVERSE_LIMIT * TRANSVERSE_LIMIT * short * mu * short:
+    if bounded and not P.gradient and 12.0 * tension * h * h > TRANSVERSE_LIMIT**2 * short * mu * short:
         return TOO_TENSE, iters, 0.0
     elastic = elastic_winch_work(r, Y, WA.state[WN_EA], Pm.kappa, u0, u1, P.slack)
     e0, e1, e2, dr00, dr01, dr02 = implicit_positions(S, W, c0, c1, c2, first, compensated)
