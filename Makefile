@@ -7,7 +7,7 @@ BIN := $(VENV)/bin
 PIP := $(BIN)/python -m pip install --disable-pip-version-check -q -c constraints.txt
 OUT ?= out
 
-.PHONY: demo test fuzz bench install clean
+.PHONY: demo test check fuzz bench install clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -26,12 +26,20 @@ install: $(VENV)/.installed
 demo: $(VENV)/.installed
 	$(BIN)/esp-gym paper --out $(OUT)/paper
 
-# two processes for most of the suite, then the clock-sensitive modules alone (tests/conftest.py);
-# both parts always run, and the target fails if either did
+# the environment's configurations compiled first, in two processes (esp-gym compile: each compiles
+# once instead of in whichever test worker meets it first); then two processes for most of the
+# suite, then the clock-sensitive modules alone (tests/conftest.py); both parts always run, and the
+# target fails if either did
 test: $(VENV)/.installed-test
+	$(BIN)/esp-gym compile --jobs 2 --no-progress
 	$(BIN)/python -m pytest -n 2 --dist loadfile -m "not serial"; parallel=$$?; \
 	$(BIN)/python -m pytest -p no:xdist -m serial; serial=$$?; \
 	test $$parallel -eq 0 -a $$serial -eq 0
+
+# the quick inner loop: the suite without the scripts' end-to-end runs (slow) and the clock-sensitive
+# modules (serial); under a minute with a warm kernel cache
+check: $(VENV)/.installed-test
+	$(BIN)/python -m pytest -n 2 --dist loadfile -m "not serial and not slow" -q
 
 # the property and fuzz tests with fresh examples (make test draws the same ones every run)
 fuzz: $(VENV)/.installed-test

@@ -143,29 +143,37 @@ def baseline(task: str, winch: bool = False):
     return Hoist(law) if winch and not isinstance(law, Hoist) else law
 
 
-def baselines(task: str, env_kwargs: Optional[dict] = None) -> dict:
-    """Every classical baseline of ``task`` with the environment options ``env_kwargs``, by name:
-    with the full observation ``pd``, ``lqr`` (each episode's own design: agents/lqr.py
-    EpisodeLQR; ``track``: with the reference's preview) and for ``transport`` ``lqr_zv`` (the
-    ZV-shaped path, agents/shaping.py); with the hook observation ``pd`` (pivot terms only) and
-    ``lqg`` (a Kalman filter and LQR designed for the nominal scene but for the load's mass,
-    scheduled on the hook tension: the hook does not reveal the episode's other parameters,
-    agents/lqg.py). Stateful ones are reset per episode by evaluate_policy."""
+def baseline_factories(task: str, env_kwargs: Optional[dict] = None) -> dict:
+    """Every classical baseline of ``task`` with the environment options ``env_kwargs``, by name,
+    as a function that builds it (some designs linearise the environment's step, which compiles
+    it on a cold cache: a name can be checked without that). With the full observation ``pd``,
+    ``lqr`` (each episode's own design: agents/lqr.py EpisodeLQR; ``track``: with the reference's
+    preview) and for ``transport`` ``lqr_zv`` (the ZV-shaped path, agents/shaping.py); with the
+    hook observation ``pd`` (pivot terms only) and ``lqg`` (a Kalman filter and LQR designed for
+    the nominal scene but for the load's mass, scheduled on the hook tension: the hook does not
+    reveal the episode's other parameters, agents/lqg.py). Stateful ones are reset per episode by
+    evaluate_policy."""
     from agents.lqg import ScheduledLQG
     from agents.lqr import EpisodeLQR, LQR, LQRTracker
     from agents.shaping import ShapedLQR
     from esp_gym.setup import make_setup
 
     setup = make_setup(task=task, **(env_kwargs or {}))
-    out = {"pd": baseline(task, setup.winch)}
+    out = {"pd": lambda: baseline(task, setup.winch)}
     if setup.winch:  # the model-based designs are for a fixed length
         return out
     if setup.observer.mode == "hook":
-        out["lqg"] = ScheduledLQG(setup, **LQG_TUNING)
+        out["lqg"] = lambda: ScheduledLQG(setup, **LQG_TUNING)
         return out
     weight = LQR_WEIGHT[task]
     design = LQRTracker.design if task == "track" else LQR.design
-    out["lqr"] = EpisodeLQR(lambda s, episode: design(s, episode, weight))
+    out["lqr"] = lambda: EpisodeLQR(lambda s, episode: design(s, episode, weight))
     if task == "transport":
-        out["lqr_zv"] = EpisodeLQR(lambda s, episode: ShapedLQR.design(s, episode, weight, **SHAPING))
+        out["lqr_zv"] = lambda: EpisodeLQR(lambda s, episode: ShapedLQR.design(s, episode, weight, **SHAPING))
     return out
+
+
+def baselines(task: str, env_kwargs: Optional[dict] = None) -> dict:
+    """Every classical baseline of ``task`` with the environment options ``env_kwargs``, built, by
+    name (:func:`baseline_factories`)."""
+    return {name: build() for name, build in baseline_factories(task, env_kwargs).items()}

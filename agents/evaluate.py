@@ -130,11 +130,11 @@ def load_policy(spec: str, task: str = "stabilize", env_kwargs: Optional[dict] =
     if spec == "baseline":
         return None
     if not Path(spec).exists():
-        from agents.controllers import baselines
+        from agents.controllers import baseline_factories
 
-        known = baselines(task, env_kwargs)
+        known = baseline_factories(task, env_kwargs)
         if spec in known:
-            return known[spec]
+            return known[spec]()
         raise ModelFileError(f"{spec!r} is not one of {', '.join(POLICY_NAMES + tuple(known))} (for task {task!r}) "
                              f"nor an existing model file")
     return SB3Policy(spec)

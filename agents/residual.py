@@ -28,17 +28,15 @@ RESIDUAL_FILE = "residual.json"
 def base_policy(name: str, task: str, env_kwargs: Optional[dict] = None):
     """The baseline ``name`` of ``task`` under the environment options ``env_kwargs`` (one
     environment's; :class:`BatchedBase` runs it over a batch)."""
-    from agents.controllers import baselines
+    from agents.controllers import baseline_factories
 
     if name not in BASES:
         raise ValueError(f"residual must be one of {BASES}, got {name!r}")
-    if name == "pd":
-        return baselines(task, env_kwargs)["pd"]  # the winch's Hoist where the task reels
-    known = baselines(task, env_kwargs)
+    known = baseline_factories(task, env_kwargs)  # "pd" is the winch's Hoist where the task reels
     if name not in known:
         raise ValueError(f"residual {name!r} needs the hook observation (env_kwargs observation: hook or "
                          f"preset: hard); with {env_kwargs or {}} the baselines are {sorted(known)}")
-    return known[name]
+    return known[name]()
 
 
 def base_features(base, batch: tuple = ()) -> np.ndarray:

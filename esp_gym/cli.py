@@ -23,6 +23,10 @@ Subcommands:
     energy and momentum diagnostics every K physics steps (default: ~50 samples per simulated
     second) and at the end. Open it with ``rerun FILE.rrd``.
 
+``esp-gym compile [--jobs 2] [--no-progress]``
+    Compile every configuration of the environment's step into the kernel cache ahead of use,
+    in worker processes (esp_gym/precompile.py), and print the seconds of each as one JSON line.
+
 Every argument is checked before anything is created on disk or allocated: times must be
 positive and finite, ``--out`` must name a directory (``paper``) or a file (``record``) that can
 be written, and a run may take at most :data:`MAX_STEPS` physics steps and hold or write at most
@@ -312,6 +316,14 @@ def check_record_args(scene, t_final: float, record_every: Optional[int]) -> tup
     return steps, every
 
 
+def _cmd_compile(args, argv) -> int:
+    from .precompile import precompile
+
+    seconds = precompile(args.jobs, progress=not args.no_progress)
+    print(json.dumps({"seconds": {name: round(t, 1) for name, t in sorted(seconds.items())}}))
+    return EXIT_OK
+
+
 def _cmd_record(args, argv) -> int:
     from .model import SimulationError, Simulator
     from .params import SceneError, load_scene
@@ -410,6 +422,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="physics steps between samples (default: ~50 samples per simulated second)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(handler=_cmd_record)
+    p = sub.add_parser("compile", help="compile every configuration of the environment's step ahead of use",
+                       epilog=epilog,
+                       description="Compile the environment's step for every configuration (with or without the "
+                                   "winch, explicit or implicit string, single or batched) into the kernel cache, "
+                                   "in worker processes; prints the seconds of each as one JSON line.")
+    p.add_argument("--jobs", type=_steps, default=2, help="worker processes (default: %(default)s)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(handler=_cmd_compile)
     return parser
 
 

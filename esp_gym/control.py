@@ -23,7 +23,7 @@ from typing import Optional
 import numpy as np
 
 from .kernels.layout import (DISTURBANCE, DISTURBANCE_PARAMS, DRAWS, INPUTS, OBSERVATION, R_TERMINATION, REPORT, REWARD,
-                             REWARD_TERMS, SCHEME_DISTURBED, SCHEME_IMPLICIT, SENSORS, TARGET,
+                             REWARD_TERMS, SCHEME_DISTURBED, SENSORS, TARGET,
                              WINCH_OBSERVATION, LGVIParams)
 from .kernels.string import state_forces
 from .kernels.task import ENTRY_POINTS, actions_finite, env_reset_observe
@@ -73,7 +73,7 @@ class ControlStep:
     One environment (``num_envs=None``) steps the :class:`~esp_gym.model.Simulator`
     :attr:`sim` in place (its step counter and Newton totals follow). A batch keeps stacked
     copies of a simulator's arrays and steps every active sub-environment in one parallel
-    call; both run the same compiled :func:`~esp_gym.kernels.task.env_step_one`, so their
+    call; both run the same compiled control step (esp_gym/kernels/task.py), so their
     numbers agree bit for bit.
 
     Each (sub-)environment carries its episode's run-time physics (:class:`Episode`: the
@@ -136,8 +136,8 @@ class ControlStep:
         self._rngs = [None] * (self.num_envs or 1)  # each (sub-)environment's generator, for more draws
         self._windy = setup.wind is not None
         #: the compiled step and batched step (kernels/task.py), and their ``scheme``
-        self._step_kernel, self._batch_kernel = ENTRY_POINTS[bool(setup.winch)]
-        self._scheme = (SCHEME_IMPLICIT if self.sim.implicit else 0) | (SCHEME_DISTURBED if self._windy else 0)
+        self._step_kernel, self._batch_kernel = ENTRY_POINTS[(bool(setup.winch), bool(self.sim.implicit))]
+        self._scheme = SCHEME_DISTURBED if self._windy else 0
         self._was_reset = z(batch, dtype=bool)  # stepping a state that was never set is an error
         self._ready = False  # all of _was_reset, kept as a bool: step checks it every call
         self._make_views()

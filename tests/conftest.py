@@ -15,10 +15,17 @@ SERIAL_MODULES = {"test_interrupt.py", "test_recording_failures.py", "test_ray.p
 SERIAL_TESTS = {"test_a_randomised_reset_costs_at_most_two_and_a_half_plain_ones"}
 
 
+#: Modules that run the scripts end to end in subprocesses (the command lines, the benchmarks' and
+#: the training's smoke runs): marked slow, which `make check` leaves to `make test`.
+SLOW_MODULES = {"test_cli.py", "test_agents.py", "test_agents_cli.py", "test_mujoco_chain.py"}
+
+
 def pytest_collection_modifyitems(items):
     for item in items:
         if item.path.name in SERIAL_MODULES or item.name in SERIAL_TESTS:
             item.add_marker(pytest.mark.serial)
+        if item.path.name in SLOW_MODULES:
+            item.add_marker(pytest.mark.slow)
 
 
 #: Hypothesis draws the same examples on every run (profile "ci", the default: a red CI is a

@@ -84,3 +84,50 @@ def test_a_read_only_package_without_a_home_still_runs(tmp_path):
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.strip() == "0.5"
     assert f"using {tmp_path}" in done.stderr
+
+
+def test_stale_cache_directories_are_pruned_to_the_most_recent(tmp_path):
+    """Beside the current cache, other kernel sources' directories beyond the KEEP_STALE most
+    recently written are removed; anything not named like a kernel cache stays. Negative control:
+    with room to keep them all, nothing goes."""
+    from esp_gym.kernels.jit import KEEP_STALE, prune_stale_caches
+    current = tmp_path / "esp_gym-kernels-0000000000000000"
+    current.mkdir()
+    stale = []
+    for age in range(5):  # the first is the newest
+        path = tmp_path / f"esp_gym-kernels-{age + 1:016x}"
+        path.mkdir()
+        (path / "kernel.nbi").write_bytes(b"x")
+        os.utime(path, (1e9 - age * 1e5, 1e9 - age * 1e5))
+        stale.append(path)
+    unrelated = [tmp_path / "esp_gym-kernels-notahash", tmp_path / "mine"]
+    for path in unrelated:
+        path.mkdir()
+    assert prune_stale_caches(str(current), keep=10) == []
+    removed = prune_stale_caches(str(current))
+    assert sorted(removed) == sorted(str(p) for p in stale[KEEP_STALE:])
+    assert current.is_dir() and all(p.is_dir() for p in stale[:KEEP_STALE] + unrelated)
+    assert not any(p.exists() for p in stale[KEEP_STALE:])
+
+
+def test_a_first_compile_says_so_once_and_a_cached_start_says_nothing(tmp_path):
+    """The notice of kernels/jit.py: an announced kernel compiling on an empty cache prints one
+    line on standard error, once per process however many signatures compile; a second process
+    loads it from the cache and prints nothing."""
+    (tmp_path / "announced_kernel.py").write_text(
+        "from esp_gym.kernels.jit import announce_compile, kernel\n"
+        "@kernel\n"
+        "def double(x):\n"
+        "    return 2 * x\n"
+        "announce_compile(double, 'a test kernel', 3)\n")
+    code = "from announced_kernel import double; print(double(2), double(2.5))"
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"),
+           "PYTHONPATH": os.pathsep.join([str(tmp_path), str(ROOT)])}
+    runs = [subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, env=env,
+                           timeout=600) for _ in range(2)]
+    assert all(run.returncode == 0 and run.stdout.split() == ["4", "5.0"] for run in runs), runs
+    notice = [line for line in runs[0].stderr.splitlines() if line.startswith("esp_gym: compiling")]
+    assert len(notice) == 1 and notice[0].startswith(
+        f"esp_gym: compiling a test kernel for this machine, first run only (up to about 3 s on 2 cores; cached in "
+        f"{tmp_path / 'cache'}{os.sep}esp_gym-kernels-"), runs[0].stderr
+    assert "esp_gym: compiling" not in runs[1].stderr

@@ -278,3 +278,19 @@ def test_slack_switch_quick_runs(tmp_path):
     assert len(result["stiff_winch"]) == 2 and all(row["steps"] == 20 for row in result["stiff_winch"])
     assert [(r["switch"], r["elements"]) for r in result["rule_margins"]] == [("settled", 1), ("plain", 1)]
     assert (tmp_path / "slack_switch.png").stat().st_size > 0
+
+
+def test_compile_takes_every_configuration_of_the_environment(tmp_path):
+    """``esp-gym compile`` builds, resets and steps an environment of each of the eight
+    configurations of the compiled step (here from the cache `make test` filled) and prints their
+    seconds as one JSON line; a bad --jobs is one line with exit code 2."""
+    from esp_gym.precompile import CONFIGURATIONS
+    proc = subprocess.run([sys.executable, "-m", "esp_gym.cli", "compile", "--jobs", "2", "--no-progress"],
+                          capture_output=True, text=True, timeout=1200, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    seconds = json.loads(proc.stdout)["seconds"]
+    assert sorted(seconds) == sorted(c.name for c in CONFIGURATIONS) and len(seconds) == 8
+    assert all(t >= 0 for t in seconds.values())
+    bad = subprocess.run([sys.executable, "-m", "esp_gym.cli", "compile", "--jobs", "0"], capture_output=True,
+                         text=True, timeout=600, cwd=tmp_path)
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "--jobs" in bad.stderr, bad.stderr

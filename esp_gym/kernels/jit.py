@@ -24,6 +24,9 @@ inherit the flag.
 """
 import hashlib
 import os
+import re
+import shutil
+import sys
 import tempfile
 import warnings
 from pathlib import Path
@@ -31,7 +34,7 @@ from pathlib import Path
 import numba
 from llvmlite import ir
 from numba import njit, types
-from numba.core import cgutils
+from numba.core import cgutils, event
 from numba.extending import intrinsic
 
 _HERE = Path(__file__).resolve().parent
@@ -73,6 +76,33 @@ def cache_candidates(environ=os.environ, package_dir: Path = _HERE) -> list:
     return candidates
 
 
+#: Cache directories of other kernel sources kept beside the current one (the most recently
+#: written first): enough to switch between a few checkouts without recompiling, not a pile.
+KEEP_STALE = 2
+_CACHE_NAME = re.compile(r"esp_gym-kernels-[0-9a-f]{16}")
+
+
+def prune_stale_caches(current: str, keep: int = KEEP_STALE) -> list:
+    """Remove the kernel cache directories beside ``current`` that belong to other kernel sources
+    (``esp_gym-kernels-<hash>``), all but the ``keep`` most recently modified. Returns the paths
+    removed; one that cannot be removed (in use, permissions) is left."""
+    base, name = os.path.split(current)
+    try:
+        others = [e for e in os.scandir(base) if e.is_dir(follow_symlinks=False) and e.name != name
+                  and _CACHE_NAME.fullmatch(e.name)]
+    except OSError:
+        return []
+    others.sort(key=lambda e: e.stat(follow_symlinks=False).st_mtime, reverse=True)
+    removed = []
+    for entry in others[keep:]:
+        try:
+            shutil.rmtree(entry.path)
+            removed.append(entry.path)
+        except OSError:
+            pass
+    return removed
+
+
 def choose_cache_dir(environ=os.environ, package_dir: Path = _HERE) -> tuple:
     """``(cache directory or None, warning or None)``: the first writable candidate of
     :func:`cache_candidates`, in a subdirectory named after the kernel sources' hash. None when
@@ -95,6 +125,8 @@ def choose_cache_dir(environ=os.environ, package_dir: Path = _HERE) -> tuple:
 CACHE_DIR, _CACHE_WARNING = choose_cache_dir()
 if _CACHE_WARNING:
     warnings.warn(_CACHE_WARNING, RuntimeWarning, stacklevel=2)
+if CACHE_DIR is not None:
+    prune_stale_caches(CACHE_DIR)
 
 JIT_OPTIONS = dict(cache=CACHE_DIR is not None, nogil=True, fastmath=False, error_model="numpy", boundscheck=False, _nrt=False)
 
@@ -115,6 +147,43 @@ def kernel(fn=None, **extra):
             numba.config.CACHE_DIR = previous
 
     return compile_ if fn is None else compile_(fn)
+
+
+# -- saying that the first start compiles ------------------------------------------------------
+
+#: The entry points whose first compile is long enough to say so: their Python function ->
+#: (what compiles, its seconds on the 2-core machine from benchmarks.cold_start).
+_ANNOUNCED = {}
+_SAID = set()
+#: Whether the notice is printed (on standard error).
+COMPILE_NOTICE = True
+
+
+def announce_compile(dispatcher, what: str, seconds: float):
+    """Register ``dispatcher`` (a kernel) as an entry point whose first compile prints one line,
+    once per process, saying what compiles and for about how long (:class:`_CompileNotice`)."""
+    _ANNOUNCED[dispatcher.py_func] = (what, seconds)
+    return dispatcher
+
+
+class _CompileNotice(event.Listener):
+    """numba's ``numba:compile`` event starts only where no cached code loads: an actual compile."""
+
+    def on_start(self, ev):
+        data = ev.data if isinstance(ev.data, dict) else {}
+        entry = _ANNOUNCED.get(getattr(data.get("dispatcher"), "py_func", None))
+        if entry is None or entry[0] in _SAID or not COMPILE_NOTICE:
+            return
+        _SAID.add(entry[0])
+        where = f"cached in {CACHE_DIR}" if CACHE_DIR else "not cached: every process compiles"
+        print(f"esp_gym: compiling {entry[0]} for this machine, first run only (up to about {entry[1]:.0f} s "
+              f"on 2 cores; {where})", file=sys.stderr, flush=True)
+
+    def on_end(self, ev):
+        pass
+
+
+event.register("numba:compile", _CompileNotice())
 
 
 @intrinsic

@@ -359,10 +359,9 @@ DR_PUSH_CHANCE = DRAWS.scalar("push_chance")
 DR_PUSH_AZIMUTH = DRAWS.scalar("push_azimuth")
 DR_PUSH_SCALE = DRAWS.scalar("push_scale")
 
-#: The environment step's ``scheme`` (kernels/task.py): bits for the implicit string and for wind
-#: and pushes. One int argument, not two bools: each argument costs numba's dispatcher about
-#: 0.09 us per call.
-SCHEME_IMPLICIT = 1
+#: The environment step's ``scheme`` (kernels/task.py): a bit for wind and pushes (an int, so that
+#: a later run-time option is a bit, not an argument: each costs numba's dispatcher about 0.09 us
+#: per call).
 SCHEME_DISTURBED = 2
 
 

@@ -125,8 +125,8 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
     """Take up to ``nsteps`` steps with constant ``inputs``; stop at the first failure with
     the last good state. ``stats`` (int64, >= 4): status, steps taken, total Newton iterations,
     max per step. The flags are constants in the simulator's specialised kernels, which inline
-    this loop and prune its dead branches; the environment's step, whose flags are arguments,
-    calls :func:`advance_loop_shared`.
+    this loop and prune its dead branches; the environment's step calls it through
+    :func:`shared_advance_loop`, ``implicit`` compiled in and the other flags arguments.
 
     A composed step (or a cut-back implicit one) that fails part-way has moved the state. Instead of copying the state
     before every step (that cost 13 % of a composed step), the state is saved every
@@ -184,13 +184,25 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
 
 
 
-@kernel
-def advance_loop_shared(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, forces_ready, implicit,
-                        disturbed):
-    """:func:`advance_loop` compiled as a function of its own, every branch kept: one compile serves
-    every value of the flags (the environment's step, kernels/task.py; docs/performance.md,
-    "Start-up")."""
-    advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, forces_ready, implicit, disturbed)
+def shared_advance_loop(implicit: bool):
+    """:func:`advance_loop` compiled as a function of its own for one string scheme (``implicit``
+    a closure constant, its other branch pruned), the other flags arguments with every branch
+    kept: one compile per scheme serves every value of them (the environment's step,
+    kernels/task.py; docs/performance.md, "Start-up")."""
+
+    @kernel
+    def advance_loop_shared(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, forces_ready,
+                            disturbed):
+        advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, forces_ready, implicit,
+                     disturbed)
+
+    return advance_loop_shared
+
+
+#: The environment's loops, one per string scheme (module globals, so that the entry points that
+#: call them are cached: numba does not cache a function with a compiled function in its closure).
+advance_loop_explicit = shared_advance_loop(False)
+advance_loop_implicit = shared_advance_loop(True)
 
 
 @kernel(inline="always")

@@ -1,6 +1,6 @@
 """Specialised entry points: the loops of kernels/loops.py compiled for one kind of scene, with
 what it does not need compiled out."""
-from .jit import kernel
+from .jit import announce_compile, kernel
 from .loops import advance_loop, lgvi_advance, lgvi_record, record_loop
 
 
@@ -16,7 +16,18 @@ def _compile_specialised(free: bool, forced: bool, coupled: bool, compensated: b
     def record(S, W, P, inputs, every, D, snap, stats):
         record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled, compensated, implicit)
 
-    return advance, record
+    return announced(advance, record)
+
+
+#: The seconds to the simulator's first step on an empty cache (2 cores; docs/performance.md,
+#: "Start-up"), said when its loops first compile.
+COLD_SIMULATOR_STEP_S = 15
+
+
+def announced(advance, record):
+    """``(advance, record)``, registered to say so when they first compile."""
+    return (announce_compile(advance, "the simulator's step", COLD_SIMULATOR_STEP_S),
+            announce_compile(record, "the simulator's recording step", COLD_SIMULATOR_STEP_S))
 
 
 def _compile_general_implicit():
@@ -31,14 +42,14 @@ def _compile_general_implicit():
     def record(S, W, P, inputs, every, D, snap, stats):
         record_loop(S, W, P, inputs, every, D, snap, stats, P.first == 0, True, True, P.compensated, True)
 
-    return advance, record
+    return announced(advance, record)
 
 
 def general_kernels(implicit: bool = False):
     """``(advance, record)`` of the general path (every term computed) for the explicit string
     (:func:`~.loops.lgvi_advance`, :func:`~.loops.lgvi_record`) or the implicit one."""
     if not implicit:
-        return lgvi_advance, lgvi_record
+        return announced(lgvi_advance, lgvi_record)
     if "general" not in _SPECIALISED:
         _SPECIALISED["general"] = _compile_general_implicit()
     return _SPECIALISED["general"]

@@ -1,6 +1,6 @@
 """Compiled per-environment step of the Gymnasium environment: inputs -> physics -> observation,
 reward terms, termination. The single and the batched environments call the same
-:func:`env_step_one`, so their results agree bit for bit; esp_gym/control.py is their
+:func:`env_prepare`, the loop and :func:`env_finish`, so their results agree bit for bit; esp_gym/control.py is their
 Python face.
 
 Every packed vector is laid out in kernels/layout.py: the observation (OBSERVATION), reward
@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numba import prange
 
-from .jit import kernel
+from .jit import announce_compile, kernel
 from .diagnostics import diagnostics
 from .disturbance import disturb, external_potential
 from .lgvi import kahan_add
@@ -22,17 +22,17 @@ from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, A_REEL_SPEED, ACTION_SIZE, AP
                      ENERGY_BALANCE, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE, O_ANGULAR_VELOCITY, O_ATTITUDE,
                      O_LENGTH, O_LOAD_ERROR, O_LOAD_VELOCITY, O_PIVOT_ERROR, O_PIVOT_VELOCITY, O_STRETCH, OK,
                      R_STATUS, R_STEPS, R_TERMINATION, RW_CONTROL, RW_LOAD_POSITION, RW_LOAD_VELOCITY,
-                     RW_PIVOT_POSITION, RW_SPIN, RW_SWING, SCHEME_DISTURBED, SCHEME_IMPLICIT, SN_HOOK_TENSION,
+                     RW_PIVOT_POSITION, RW_SPIN, RW_SWING, SCHEME_DISTURBED, SN_HOOK_TENSION,
                      SN_LOAD_TARGET_OFFSET, T_LOAD, T_PIVOT, T_VELOCITY, TERM_NONE, TERM_OVERSTRETCH, TERM_WORKSPACE,
                      TP_ENERGY_BOUND, TP_ENERGY_ORIGIN, TP_ENERGY_WATCHDOG, TP_MAX_STRETCHED_LENGTH,
                      TP_SCALE_POSITION, TP_SCALE_SPIN, TP_SCALE_SWING, TP_SCALE_VELOCITY, TP_STRING_LENGTH,
                      TP_W_CONTROL, TP_W_LOAD_POSITION, TP_W_LOAD_VELOCITY, TP_W_PIVOT_POSITION, TP_W_SPIN, TP_W_SWING,
                      TP_WORKSPACE_RADIUS, WN_LENGTH, WN_MASS_PER_LENGTH, WN_SPEED, DiagWork, LGVIParams, StateArrays,
                      WinchArrays, Work)
-from .loops import advance_loop_shared
+from .loops import advance_loop_explicit, advance_loop_implicit
 from .reference import advance_reference
 from .winch import length_params, winch_energy
-from .winch_loops import winch_loop_shared
+from .winch_loops import winch_loop_explicit, winch_loop_implicit
 
 
 @kernel
@@ -181,42 +181,72 @@ def take_action(raw, ap, action, inputs):
 
 
 @kernel
-def env_step_one(S, W, P, D, WA, inputs, reel, nsub, target, tp, action, obs, terms, sensors, result, dp, ds, draws,
-                 drawn, implicit=False, disturbed=False, winched=False):
-    """One control step: ``nsub`` physics steps with constant ``inputs`` (INPUTS), then
-    observation, reward terms and termination code. ``result``: the step's REPORT (int64).
-    ``winched``: the winch reels at ``reel`` [m/s] (kernels/winch.py, its arrays ``WA``), and
-    the observation ends with the unstretched length. ``implicit``: the implicit string's step
-    (kernels/implicit.py). ``disturbed``: wind and pushes (kernels/disturbance.py) from the
-    episode's DISTURBANCE_PARAMS ``dp``, the DISTURBANCE state ``ds`` and the next row
-    ``drawn[0]`` of the random ``draws`` (rows of DRAWS; ``drawn[0]`` is then advanced); their
-    work over the step joins the balances."""
-    free = P.first == 0
-    first = 0 if free else 1
-    phi = 0.0
-    if disturbed:
-        disturb(S.r, S.R, D.V, D.omega, P.rho, dp, ds, draws[drawn[0]], W.ext)
-        drawn[0] += 1
-        phi = external_potential(S, P, W.ext, first)
-    # the general kernel: an environment always has inputs and, as a rule, an off-centre load
+def env_prepare(S, W, P, D, dp, ds, draws, drawn, disturbed):
+    """Before a control step's physics: with ``disturbed``, wind and pushes (kernels/disturbance.py)
+    from the episode's DISTURBANCE_PARAMS ``dp``, the DISTURBANCE state ``ds`` and the next row
+    ``drawn[0]`` of the random ``draws`` (rows of DRAWS; ``drawn[0]`` is then advanced) into
+    ``W.ext``. Returns their potential at the start [J] (0 without)."""
+    if not disturbed:
+        return 0.0
+    disturb(S.r, S.R, D.V, D.omega, P.rho, dp, ds, draws[drawn[0]], W.ext)
+    drawn[0] += 1
+    return external_potential(S, P, W.ext, 0 if P.first == 0 else 1)
+
+
+@kernel(inline="always")
+def control_step(S, W, P, D, WA, inputs, reel, nsub, target, tp, action, obs, terms, sensors, result, dp, ds, draws,
+                 drawn, disturbed, winched, implicit):
+    """One control step of one environment: :func:`env_prepare`, ``nsub`` physics steps with
+    constant ``inputs`` by the loop of the configuration, :func:`env_finish` (or
+    :func:`env_finish_winched`). ``winched`` and ``implicit`` are the entry point's closure
+    constants: inlined there, the other three loops' calls are pruned and never compiled."""
+    phi = env_prepare(S, W, P, D, dp, ds, draws, drawn, disturbed)
     if winched:
-        winch_loop_shared(S, W, P, WA, D, inputs, reel, nsub, result, disturbed, implicit)
+        if implicit:
+            winch_loop_implicit(S, W, P, WA, D, inputs, reel, nsub, result, disturbed)
+        else:
+            winch_loop_explicit(S, W, P, WA, D, inputs, reel, nsub, result, disturbed)
+        env_finish_winched(S, W, P, D, WA, target, tp, action, obs, terms, sensors, result, phi, disturbed)
+        return
+    if implicit:
+        advance_loop_implicit(S, W, P, inputs, nsub, result, P.first == 0, True, True, P.compensated, False, disturbed)
     else:
-        advance_loop_shared(S, W, P, inputs, nsub, result, free, True, True, P.compensated, False, implicit, disturbed)
+        advance_loop_explicit(S, W, P, inputs, nsub, result, P.first == 0, True, True, P.compensated, False, disturbed)
+    env_finish(S, W, P, D, target, tp, action, obs, terms, sensors, result, phi, disturbed)
+
+
+@kernel(inline="always")
+def close_balances(S, W, P, target, result, phi, disturbed):
+    """After a control step's physics (``result``: its REPORT, int64): the external forces' work
+    joins the balances (``disturbed``; ``phi`` their potential at the start) and the tracking
+    reference advances. Returns the step's status."""
     if disturbed:
-        kahan_add(S.acc, S.accc, B_WORK, external_potential(S, P, W.ext, first) - phi)
+        kahan_add(S.acc, S.accc, B_WORK, external_potential(S, P, W.ext, 0 if P.first == 0 else 1) - phi)
     advance_reference(target, result[R_STEPS] * P.h)
-    status = result[R_STATUS]
-    if winched:
-        length = WA.state[WN_LENGTH]
-        winch_energy(S, P, WA, D, length, WA.state[WN_SPEED])
-        n = S.r.shape[0] - 1
-        Pl = length_params(P, WA, length, WA.state[WN_MASS_PER_LENGTH] * length / n, first, n, False)
-        code = env_observe(S, Pl, D, target, tp, action, obs, terms, sensors, length)
-        obs[O_LENGTH] = length
-    else:
-        diagnostics(S, P, D)
-        code = env_observe(S, P, D, target, tp, action, obs, terms, sensors, tp[TP_STRING_LENGTH])
+    return result[R_STATUS]
+
+
+@kernel
+def env_finish(S, W, P, D, target, tp, action, obs, terms, sensors, result, phi, disturbed):
+    """After a control step's physics, without the winch: :func:`close_balances`, then the
+    observation, reward terms and termination code."""
+    status = close_balances(S, W, P, target, result, phi, disturbed)
+    diagnostics(S, P, D)
+    code = env_observe(S, P, D, target, tp, action, obs, terms, sensors, tp[TP_STRING_LENGTH])
+    result[R_TERMINATION] = status if status != OK else energy_watchdog(S, D, tp, code)
+
+
+@kernel
+def env_finish_winched(S, W, P, D, WA, target, tp, action, obs, terms, sensors, result, phi, disturbed):
+    """:func:`env_finish` with the winch: the energy and the observation at the unstretched length
+    the step ended at, which ends the observation."""
+    status = close_balances(S, W, P, target, result, phi, disturbed)
+    length = WA.state[WN_LENGTH]
+    winch_energy(S, P, WA, D, length, WA.state[WN_SPEED])
+    n = S.r.shape[0] - 1
+    Pl = length_params(P, WA, length, WA.state[WN_MASS_PER_LENGTH] * length / n, 0 if P.first == 0 else 1, n, False)
+    code = env_observe(S, Pl, D, target, tp, action, obs, terms, sensors, length)
+    obs[O_LENGTH] = length
     result[R_TERMINATION] = status if status != OK else energy_watchdog(S, D, tp, code)
 
 
@@ -269,14 +299,14 @@ def params_row(P, b):
                       P.gradient[b])
 
 
-def _entry_points(winched: bool):
-    """``(step, batch)``, the compiled entry points of the environment without or with the winch
-    (``winched`` is a closure constant: the winch's loop compiles only for environments that
-    reel).
+def _entry_points(winched: bool, implicit: bool):
+    """``(step, batch)``, the compiled entry points of the environment without or with the winch,
+    on the explicit or the implicit string (closure constants: each configuration compiles only
+    its own loop and string step, when it is first asked for: :func:`_control_step`).
 
     ``step(s, w, p, d, wa, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors,
     result, dp, ds, draws, drawn, scheme)``: :func:`take_action` of the raw action, then
-    :func:`env_step_one`, for one environment (one compiled call per control step). Returns
+    the control step (below), for one environment (one compiled call per control step). Returns
     False, with nothing changed, if the raw action is not finite. ``s, w, p, d, wa`` are the
     fields of StateArrays, Work, LGVIParams, DiagWork and WinchArrays (read only when
     ``winched``) as *plain* tuples: numba's dispatcher types a plain tuple about twice as fast
@@ -285,14 +315,12 @@ def _entry_points(winched: bool):
     DISTURBANCE, (K, DRAWS) random draws and the index (1,) int64 of the next one, which the
     caller keeps below K.
 
-    ``scheme`` (int, bits SCHEME_*) chooses the implicit string and wind and pushes. It is an
-    argument, not a compile-time constant: as constants each combination compiled the whole step
-    again (numba types a constant bool as a literal, one signature each), 36-60 s apiece on a
-    cold cache; as an argument one compile serves them all (docs/performance.md, "Start-up").
+    ``scheme`` (int, bits SCHEME_*) turns on wind and pushes. It is an argument, not a
+    compile-time constant: their code is small, and one compile serves both values.
 
     ``batch(s, w, d, p, wa, raw, ap, inputs, active, nsub, target, tp, action, obs, terms,
     sensors, result, dp, ds, draws, drawn, scheme)``: :func:`take_action` of ``raw[b]`` and
-    :func:`env_step_one` for every environment b with ``active[b]``, in parallel (the raw actions
+    the control step for every environment b with ``active[b]``, in parallel (the raw actions
     must be finite: :func:`actions_finite`). ``s, w, d, p, wa`` are StateArrays, Work, DiagWork,
     LGVIParams and WinchArrays whose arrays carry a leading batch axis (:func:`params_row`), as
     plain tuples; the other arrays are batched too: raw (B, ACTION), ap (B, ACTION_PARAMS),
@@ -300,21 +328,24 @@ def _entry_points(winched: bool):
     sensors (B, SENSORS), result (B, REPORT), dp, ds, draws (B, K, DRAWS), drawn (B, 1).
     """
 
+    # Both take control_step with ``winched`` and ``implicit`` as closure constants (numba prunes the
+    # other loops' calls); the closures hold nothing but the two bools, so numba caches them (it
+    # keys a closure by its cells, and a compiled function in a cell is another key in every process).
+
     @kernel
     def step(s, w, p, d, wa, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result, dp, ds, draws,
              drawn, scheme):
         reel = take_action(raw, ap, action, inputs)
         if reel == -np.inf:
             return False
-        env_step_one(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), inputs, reel, nsub,
+        control_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), inputs, reel, nsub,
                      target, tp, action, obs, terms, sensors, result, dp, ds, draws, drawn,
-                     (scheme & SCHEME_IMPLICIT) != 0, (scheme & SCHEME_DISTURBED) != 0, winched)
+                     (scheme & SCHEME_DISTURBED) != 0, winched, implicit)
         return True
 
     @kernel(parallel=True)
     def batch(s, w, d, p, wa, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors, result, dp, ds,
               draws, drawn, scheme):
-        implicit = (scheme & SCHEME_IMPLICIT) != 0
         disturbed = (scheme & SCHEME_DISTURBED) != 0
         S = StateArrays(*s)
         W = Work(*w)
@@ -325,13 +356,23 @@ def _entry_points(winched: bool):
             if active[b]:
                 reel = take_action(raw[b], ap[b], action[b], inputs[b])
                 if reel != -np.inf:
-                    env_step_one(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), winch_row(WA, b),
+                    control_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), winch_row(WA, b),
                                  inputs[b], reel, nsub[b], target[b], tp[b], action[b], obs[b], terms[b], sensors[b],
-                                 result[b], dp[b], ds[b], draws[b], drawn[b], implicit, disturbed, winched)
+                                 result[b], dp[b], ds[b], draws[b], drawn[b], disturbed, winched, implicit)
 
-    return step, batch
+    # the cold first steps of benchmarks.cold_start (docs/performance.md, "Start-up")
+    which = ("the environment's step" + (" on the implicit string" if implicit else "")
+             + (" with the winch" if winched else ""))
+    return (announce_compile(step, which, COLD_ENV_STEP_S),
+            announce_compile(batch, "the batched " + which[4:], COLD_BATCH_STEP_S))
 
 
-#: The entry points without and with the winch (see :func:`_entry_points`); each compiles only
-#: for environments that use it.
-ENTRY_POINTS = {winched: _entry_points(winched) for winched in (False, True)}
+#: The seconds to the first step of an environment and of a vector environment on an empty cache
+#: (2 cores; docs/performance.md, "Start-up"), said when their entry points first compile.
+COLD_ENV_STEP_S = 21
+COLD_BATCH_STEP_S = 31
+
+#: The entry points by (winched, implicit) (see :func:`_entry_points`); each compiles only for
+#: environments that use it.
+ENTRY_POINTS = {(winched, implicit): _entry_points(winched, implicit) for winched in (False, True)
+                for implicit in (False, True)}

@@ -18,7 +18,7 @@ def winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed, implicit
     the first failure with the last good state. ``stats`` as :func:`~.loops.advance_loop`'s. The
     winch's work joins ``S.acc`` (B_WINCH_WORK). Every term is computed (the general path).
     ``disturbed`` (a constant in the simulator's kernels below; an argument in the environment's,
-    which calls :func:`winch_loop_shared`): the held external forces ``W.ext`` kick as in :func:`~.loops.advance_loop` (h/2 before the
+    which calls it through :func:`shared_winch_loop`): the held external forces ``W.ext`` kick as in :func:`~.loops.advance_loop` (h/2 before the
     first step and after the last, h between). ``implicit`` (likewise): the implicit string's
     step (kernels/winch_implicit.py, order 2), which may cut itself back, so each step is
     checkpointed."""
@@ -93,11 +93,21 @@ def winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed, implicit
     stats[R_NEWTON_MAX] = most
 
 
-@kernel
-def winch_loop_shared(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed, implicit):
-    """:func:`winch_loop` compiled as a function of its own, every branch kept: one compile serves
-    every value of the flags (the environment's step, kernels/task.py)."""
-    winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed, implicit)
+def shared_winch_loop(implicit: bool):
+    """:func:`winch_loop` compiled as a function of its own for one string scheme (``implicit`` a
+    closure constant), ``disturbed`` an argument with both branches kept (the environment's
+    step, kernels/task.py)."""
+
+    @kernel
+    def winch_loop_shared(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed):
+        winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed, implicit)
+
+    return winch_loop_shared
+
+
+#: The environment's winch loops, one per string scheme (module globals, see kernels/loops.py).
+winch_loop_explicit = shared_winch_loop(False)
+winch_loop_implicit = shared_winch_loop(True)
 
 
 @kernel

@@ -1,0 +1,74 @@
+"""Compiling the environment's configurations ahead of use (``esp-gym compile``).
+
+Each configuration of the environment's compiled step (with or without the winch, on the
+explicit or the implicit string, single or batched: ``ENTRY_POINTS`` in esp_gym/kernels/task.py)
+compiles on its first step and is cached on disk (docs/performance.md, "Start-up"). This takes
+them all in worker processes, so that a machine (a container image, a CI run, a cluster's nodes)
+pays the compile once, in parallel, instead of at the first step of each.
+"""
+from __future__ import annotations
+
+import concurrent.futures
+import multiprocessing
+import time
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Configuration:
+    """One compiled configuration of the environment's step, and an environment that runs it."""
+
+    winch: bool
+    implicit: bool
+    batched: bool
+
+    @property
+    def name(self) -> str:
+        return "-".join(("winch" if self.winch else "fixed", "implicit" if self.implicit else "explicit",
+                         "batched" if self.batched else "single"))
+
+
+#: Every configuration, the first environment's (no winch, explicit, single) first.
+CONFIGURATIONS = tuple(Configuration(w, i, b) for w in (False, True) for i in (False, True) for b in (False, True))
+
+
+def compile_configuration(config: Configuration) -> float:
+    """Build an environment of ``config``, reset it and take one step (which compiles, or loads,
+    its kernels); returns the seconds it took. Runs in a worker process."""
+    start = time.perf_counter()
+    import gymnasium as gym
+
+    import esp_gym
+    from esp_gym.kernels import jit
+
+    jit.COMPILE_NOTICE = False  # the command reports its own progress
+    options = {"task": "lift" if config.winch else "stabilize", "disable_env_checker": True}
+    if config.implicit:
+        options["scene_overrides"] = {"solver": {"string": "implicit"}}
+    if config.batched:
+        env = gym.make_vec(esp_gym.ENV_ID, num_envs=2, **{k: v for k, v in options.items() if k != "disable_env_checker"})
+    else:
+        env = gym.make(esp_gym.ENV_ID, **options)
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    env.close()
+    return time.perf_counter() - start
+
+
+def precompile(jobs: int = 2, configurations=CONFIGURATIONS, progress: bool = True) -> dict:
+    """Compile ``configurations`` in ``jobs`` worker processes (spawned: each a fresh
+    interpreter, as a user's would be). Returns the seconds of each, by name."""
+    if not isinstance(jobs, int) or isinstance(jobs, bool) or jobs < 1:
+        raise ValueError(f"jobs must be a whole number >= 1, got {jobs!r}")
+    from tqdm import tqdm
+
+    seconds = {}
+    context = multiprocessing.get_context("spawn")
+    with concurrent.futures.ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
+        futures = {pool.submit(compile_configuration, c): c for c in configurations}
+        with tqdm(total=len(futures), desc="compiling esp_gym's environment", unit="configuration",
+                  disable=not progress) as bar:
+            for future in concurrent.futures.as_completed(futures):
+                seconds[futures[future].name] = future.result()
+                bar.update(1)
+    return seconds
