@@ -288,7 +288,7 @@ class ControlStep:
             for i in np.flatnonzero(self._drawn[:, 0] == BLOCK):
                 self._draws[i] = Wind.draws(self._rngs[i])
                 self._drawn[i] = 0
-        self._batch_kernel(s, w, d, p, wa, raw, self._action_params, self._inputs, active, self._substeps,
+        self._batch_kernel(s, w, p, d, wa, raw, self._action_params, self._inputs, active, self._substeps,
                            self._target, self._task_params, self._action, self._obs, self._terms, self._sensors,
                            self._report, self._wind_params, self._disturbance, self._draws, self._drawn, self._scheme)
 

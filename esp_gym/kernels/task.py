@@ -318,11 +318,12 @@ def _entry_points(winched: bool, implicit: bool):
     ``scheme`` (int, bits SCHEME_*) turns on wind and pushes. It is an argument, not a
     compile-time constant: their code is small, and one compile serves both values.
 
-    ``batch(s, w, d, p, wa, raw, ap, inputs, active, nsub, target, tp, action, obs, terms,
-    sensors, result, dp, ds, draws, drawn, scheme)``: :func:`take_action` of ``raw[b]`` and
+    ``batch(s, w, p, d, wa, raw, ap, inputs, active, nsub, target, tp, action, obs, terms,
+    sensors, result, dp, ds, draws, drawn, scheme)`` (the arguments of ``step`` in the same order,
+    with ``active`` after ``inputs``): :func:`take_action` of ``raw[b]`` and
     the control step for every environment b with ``active[b]``, in parallel (the raw actions
-    must be finite: :func:`actions_finite`). ``s, w, d, p, wa`` are StateArrays, Work, DiagWork,
-    LGVIParams and WinchArrays whose arrays carry a leading batch axis (:func:`params_row`), as
+    must be finite: :func:`actions_finite`). ``s, w, p, d, wa`` are StateArrays, Work, LGVIParams,
+    DiagWork and WinchArrays whose arrays carry a leading batch axis (:func:`params_row`), as
     plain tuples; the other arrays are batched too: raw (B, ACTION), ap (B, ACTION_PARAMS),
     inputs (B, INPUTS), nsub (B,), target (B, TARGET), tp (B, TASK_PARAMS), action, obs, terms,
     sensors (B, SENSORS), result (B, REPORT), dp, ds, draws (B, K, DRAWS), drawn (B, 1).
@@ -344,7 +345,7 @@ def _entry_points(winched: bool, implicit: bool):
         return True
 
     @kernel(parallel=True)
-    def batch(s, w, d, p, wa, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors, result, dp, ds,
+    def batch(s, w, p, d, wa, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors, result, dp, ds,
               draws, drawn, scheme):
         disturbed = (scheme & SCHEME_DISTURBED) != 0
         S = StateArrays(*s)
