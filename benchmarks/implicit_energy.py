@@ -21,8 +21,9 @@ import matplotlib.ticker
 import numpy as np
 
 import esp_gym
-from agents.controllers import AntiSwayPD, Hoist
+from agents.controllers import AntiSwayPD
 from benchmarks.common import arg_parser, figure, finish, machine
+from benchmarks.slack_switch import stiff_winch
 
 SWEEP_EA = (2e5, 2e6, 1e7)
 #: The substeps of each form, in multiples of the environment's choice.
@@ -58,23 +59,11 @@ WINCH_MULTIPLES = (1, 2, 4)
 
 
 def reversing_reel(EA: float, substeps, steps: int, string: str = "implicit") -> dict:
-    """``lower`` at EA (``substeps`` per control step, None: the environment's), the hoist with the
-    reel command switching +-1 every 25 control steps, no noise, seed 0: the balance E - E0 - W
-    [J] at the end and the substeps."""
-    kwargs = {} if substeps is None else {"h": 0.02 / substeps}
-    env = gym.make(esp_gym.ENV_ID, task="lower", max_episode_steps=steps, disable_env_checker=True,
-                   scene_overrides={"string": {"EA": EA}, "solver": {"string": string, "energy_watchdog": None}},
-                   **kwargs)
-    obs, _ = env.reset(seed=0)
-    u, hoist = env.unwrapped, Hoist()
-    for k in range(1, steps + 1):
-        action = hoist.act(obs, u.setup).astype(np.float64)
-        action[-1] = 1.0 if (k // 25) % 2 else -1.0
-        obs, _, terminated, truncated, _ = env.step(action.astype(np.float32))
-        if terminated or truncated:
-            break
-    return {"EA": EA, "string": string, "substeps": int(u.setup.substeps), "steps": k,
-            "residual": float(u.sim.diagnostics()["energy_balance_residual"])}
+    """``lower`` at EA with the reel reversing every 25 control steps, seed 0
+    (:func:`benchmarks.slack_switch.stiff_winch`; ``substeps`` per control step, None: the
+    environment's): the balance E - E0 - W [J] at the end (``residual``), the steps and substeps."""
+    run = stiff_winch("settled", EA, 0, steps, string, substeps)
+    return {"EA": EA, "string": string, "substeps": run["substeps"], "steps": run["steps"], "residual": run["final"]}
 
 
 def main(argv=None) -> dict:

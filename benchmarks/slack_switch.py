@@ -62,11 +62,15 @@ def order(switch: str, halvings: int, hold: float) -> dict:
     return {"switch": switch, "h": hs, "worst": worst, "slope": float(np.polyfit(np.log(hs), np.log(worst), 1)[0])}
 
 
-def stiff_winch(switch: str, EA: float, seed: int, steps: int) -> dict:
-    """``lower`` at EA, the hoist with its reel command switching +-1 every 25 control steps: the
-    largest |E - E0 - W| over the energy scale, the steps taken and how it ended."""
+def stiff_winch(switch: str, EA: float, seed: int, steps: int, string: str = "explicit", substeps=None) -> dict:
+    """``lower`` at EA, the hoist with its reel command switching +-1 every 25 control steps (the
+    ``string`` scheme, ``substeps`` per control step; None: the environment's): the largest
+    |E - E0 - W| and its value at the end [J], the largest over the energy scale, the steps taken
+    and how it ended."""
+    solver = {"energy_watchdog": None, "slack_switch": switch, "string": string}
     env = gym.make(esp_gym.ENV_ID, task="lower", max_episode_steps=steps, disable_env_checker=True,
-                   scene_overrides={"string": {"EA": EA}, "solver": {"energy_watchdog": None, "slack_switch": switch}})
+                   scene_overrides={"string": {"EA": EA}, "solver": solver},
+                   **({} if substeps is None else {"h": 0.02 / substeps}))
     obs, _ = env.reset(seed=seed)
     u, hoist, worst, reason, k = env.unwrapped, Hoist(), 0.0, "", 0
     for k in range(1, steps + 1):
@@ -78,7 +82,8 @@ def stiff_winch(switch: str, EA: float, seed: int, steps: int) -> dict:
             reason = info.get("termination_reason", "") if terminated else ""
             break
     omega = float(np.linalg.norm(u.sim.diagnostics()["omega"]))
-    return {"switch": switch, "EA": EA, "seed": seed, "steps": k, "worst": worst,
+    return {"switch": switch, "string": string, "EA": EA, "seed": seed, "steps": k, "worst": worst,
+            "final": float(u.sim.diagnostics()["energy_balance_residual"]),
             "over_scale": worst / energy_scale(u.scene), "reason": reason, "spin": omega,
             "substeps": int(u.setup.substeps)}
 

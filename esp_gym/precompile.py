@@ -42,13 +42,13 @@ def compile_configuration(config: Configuration) -> float:
     from esp_gym.kernels import jit
 
     jit.COMPILE_NOTICE = False  # the command reports its own progress
-    options = {"task": "lift" if config.winch else "stabilize", "disable_env_checker": True}
+    options = {"task": "lift" if config.winch else "stabilize"}
     if config.implicit:
         options["scene_overrides"] = {"solver": {"string": "implicit"}}
     if config.batched:
-        env = gym.make_vec(esp_gym.ENV_ID, num_envs=2, **{k: v for k, v in options.items() if k != "disable_env_checker"})
+        env = gym.make_vec(esp_gym.ENV_ID, num_envs=2, **options)
     else:
-        env = gym.make(esp_gym.ENV_ID, **options)
+        env = gym.make(esp_gym.ENV_ID, disable_env_checker=True, **options)
     env.reset(seed=0)
     env.step(env.action_space.sample())
     env.close()

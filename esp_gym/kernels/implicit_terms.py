@@ -9,20 +9,24 @@ from .jit import kernel
 
 
 @kernel(inline="always")
-def element_terms(r, Y, a, kappa, u0, u1, slack):
-    """Element ``a`` (nodes a, a+1) over the step r_k -> r_k + Y, stretches s0 = |x_k| - u0 and
-    s1 = |x_k + dx| - u1 (the rest lengths at both ends: equal unless a winch reels, then kappa is
-    EA over their mean): its tension T = kappa (s0 + s1)/2 [N] (with ``slack``: 0 where both are
-    negative and the energy's secant where they straddle 0), the unit vectors n_k, n_{k+1} along
-    it at both ends, and 2 dT/ds1 [N/m] (kappa where taut). Returns
-    ``(T, n_k (3), n_{k+1} (3), 2 dT/ds1)``."""
+def element_vectors(r, Y, a):
+    """Element ``a`` (nodes a, a+1) at both ends of the step r_k -> r_k + Y: x_k = r_{a+1} - r_a
+    and x_{k+1} = x_k + (Y_{a+1} - Y_a) [m]. Returns ``(x_k (3), x_{k+1} (3))``."""
     x0 = r[a + 1, 0] - r[a, 0]
     x1 = r[a + 1, 1] - r[a, 1]
     x2 = r[a + 1, 2] - r[a, 2]
+    return x0, x1, x2, x0 + (Y[a + 1, 0] - Y[a, 0]), x1 + (Y[a + 1, 1] - Y[a, 1]), x2 + (Y[a + 1, 2] - Y[a, 2])
+
+
+@kernel(inline="always")
+def secant_terms(x0, x1, x2, w0, w1, w2, kappa, u0, u1, slack):
+    """An element x_k = (x0, x1, x2) -> x_{k+1} = (w0, w1, w2) over the step, stretches s0 = |x_k| -
+    u0 and s1 = |x_{k+1}| - u1 (the rest lengths at both ends: equal unless a winch reels, then
+    kappa is EA over their mean): its tension T = kappa (s0 + s1)/2 [N] (with ``slack``: 0 where
+    both are negative and the energy's secant where they straddle 0), the unit vectors n_k,
+    n_{k+1} along it at both ends, 2 dT/ds1 [N/m] (kappa where taut) and its lengths [m].
+    Returns ``(T, n_k (3), n_{k+1} (3), 2 dT/ds1, |x_k|, |x_{k+1}|)``."""
     lk = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
-    w0 = x0 + (Y[a + 1, 0] - Y[a, 0])
-    w1 = x1 + (Y[a + 1, 1] - Y[a, 1])
-    w2 = x2 + (Y[a + 1, 2] - Y[a, 2])
     ln = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
     s0 = lk - u0
     s1 = ln - u1
@@ -43,7 +47,7 @@ def element_terms(r, Y, a, kappa, u0, u1, slack):
             d = s0 - s1
             T = 0.5 * kappa * s0 * s0 / d
             dT = kappa * s0 * s0 / (d * d)
-    return T, x0 / lk, x1 / lk, x2 / lk, w0 / ln, w1 / ln, w2 / ln, dT
+    return T, x0 / lk, x1 / lk, x2 / lk, w0 / ln, w1 / ln, w2 / ln, dT, lk, ln
 
 
 @kernel(inline="always")
@@ -79,32 +83,27 @@ def release_slack(r, Y, taut, u):
 
 
 @kernel(inline="always")
-def gradient_direction(r, Y, a, n0, n1, n2, m0, m1, m2):
-    """The discrete gradient's direction of element ``a`` over the step, d = (x_k + x_{k+1}) /
-    (|x_k| + |x_{k+1}|) (|d| <= 1, = 1 where the element does not turn), from its unit vectors n_k
-    = (n0, n1, n2) and n_{k+1} = (m0, m1, m2) at both ends; with T its tension, T d . dx equals
-    T d|x| exactly (docs/physics.md, "The energy-momentum form"). Returns ``(d (3), 1/(|x_k| +
-    |x_{k+1}|) [1/m])``."""
-    x0 = r[a + 1, 0] - r[a, 0]
-    x1 = r[a + 1, 1] - r[a, 1]
-    x2 = r[a + 1, 2] - r[a, 2]
-    w0 = x0 + (Y[a + 1, 0] - Y[a, 0])
-    w1 = x1 + (Y[a + 1, 1] - Y[a, 1])
-    w2 = x2 + (Y[a + 1, 2] - Y[a, 2])
+def gradient_direction(x0, x1, x2, w0, w1, w2, n0, n1, n2, m0, m1, m2):
+    """The discrete gradient's direction of an element x_k = (x0, x1, x2) -> x_{k+1} = (w0, w1, w2)
+    over the step, d = (x_k + x_{k+1}) / (|x_k| + |x_{k+1}|) (|d| <= 1, = 1 where the element does
+    not turn), the lengths from its unit vectors n_k = (n0, n1, n2) and n_{k+1} = (m0, m1, m2); with
+    T its tension, T d . dx equals T d|x| exactly (docs/physics.md, "The energy-momentum form").
+    Returns ``(d (3), 1/(|x_k| + |x_{k+1}|) [1/m])``."""
     inv_sum = 1.0 / ((n0 * x0 + n1 * x1 + n2 * x2) + (m0 * w0 + m1 * w1 + m2 * w2))
     return (x0 + w0) * inv_sum, (x1 + w1) * inv_sum, (x2 + w2) * inv_sum, inv_sum
 
 
 @kernel(inline="always")
 def element_block(r, Y, a, kappa, u0, u1, slack, gradient):
-    """Element ``a``'s share of the Newton system (:func:`element_terms`): its force on node a
+    """Element ``a``'s share of the Newton system (:func:`secant_terms` of its :func:`element_vectors`): its force on node a
     [N] and k = 2 d(force)/dx_{k+1} (9, row-major) [N/m]. ``gradient`` (the energy-momentum
     form): force T d (:func:`gradient_direction`), k = 2 dT/ds1 d n_{k+1}^T + 2T/(|x_k| +
     |x_{k+1}|) (I - d n_{k+1}^T); otherwise (the variational form) T n_k and 2 dT/ds1 n_k n_{k+1}^T."""
-    T, n0, n1, n2, m0, m1, m2, dT = element_terms(r, Y, a, kappa, u0, u1, slack)
+    x0, x1, x2, w0, w1, w2 = element_vectors(r, Y, a)
+    T, n0, n1, n2, m0, m1, m2, dT, _, _ = secant_terms(x0, x1, x2, w0, w1, w2, kappa, u0, u1, slack)
     g = 0.0  # the geometric stiffness 2 T / (|x_k| + |x_{k+1}|)
     if gradient:
-        n0, n1, n2, inv_sum = gradient_direction(r, Y, a, n0, n1, n2, m0, m1, m2)
+        n0, n1, n2, inv_sum = gradient_direction(x0, x1, x2, w0, w1, w2, n0, n1, n2, m0, m1, m2)
         g = 2.0 * T * inv_sum
         dT -= g
     return (T * n0, T * n1, T * n2, dT * n0 * m0 + g, dT * n0 * m1, dT * n0 * m2, dT * n1 * m0, dT * n1 * m1 + g,
@@ -122,7 +121,7 @@ def coupling_block(off, q4, k00, k01, k02, k10, k11, k12, k20, k21, k22):
 def split_forces(r, Y, P, fl, fr, mass0, mass1, u0, u1):
     """The string's forces of the step, gravity included [N]: ``fl`` = f_g + sum T n_k (the left
     half, along the elements at r_k) and ``fr`` = f_g + sum T n_{k+1} (the right half), T the
-    elements' tensions at their mean lengths (:func:`element_terms`; rest lengths ``u0``, ``u1``
+    elements' tensions at their mean lengths (:func:`secant_terms`; rest lengths ``u0``, ``u1``
     [m] at the two ends) and f_g the weight at element mass ``mass0`` (left) and ``mass1`` (right)
     [kg]: P.m and P.u at both ends unless a winch reels. With ``P.gradient`` (the energy-momentum
     form) both halves take the discrete gradient's direction d (:func:`gradient_direction`) in
@@ -143,9 +142,10 @@ def split_forces(r, Y, P, fl, fr, mass0, mass1, u0, u1):
     fl[n, 2] = (0.5 * mass0 + P.M) * P.g
     fr[n, 2] = (0.5 * mass1 + P.M) * P.g
     for a in range(n):
-        T, k0, k1, k2, m0, m1, m2, _ = element_terms(r, Y, a, P.kappa, u0, u1, P.slack)
+        x0, x1, x2, w0, w1, w2 = element_vectors(r, Y, a)
+        T, k0, k1, k2, m0, m1, m2, _, _, _ = secant_terms(x0, x1, x2, w0, w1, w2, P.kappa, u0, u1, P.slack)
         if P.gradient:
-            k0, k1, k2, _ = gradient_direction(r, Y, a, k0, k1, k2, m0, m1, m2)
+            k0, k1, k2, _ = gradient_direction(x0, x1, x2, w0, w1, w2, k0, k1, k2, m0, m1, m2)
             m0 = k0
             m1 = k1
             m2 = k2

@@ -49,13 +49,14 @@ def general_kernels(implicit: bool = False):
     """``(advance, record)`` of the general path (every term computed) for the explicit string
     (:func:`~.loops.lgvi_advance`, :func:`~.loops.lgvi_record`) or the implicit one."""
     if not implicit:
-        return announced(lgvi_advance, lgvi_record)
+        return _GENERAL_EXPLICIT
     if "general" not in _SPECIALISED:
         _SPECIALISED["general"] = _compile_general_implicit()
     return _SPECIALISED["general"]
 
 
 _SPECIALISED = {}
+_GENERAL_EXPLICIT = announced(lgvi_advance, lgvi_record)
 
 
 def specialised_kernels(free: bool, forced: bool, coupled: bool, compensated: bool = True, implicit: bool = False):

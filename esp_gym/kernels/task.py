@@ -1,7 +1,7 @@
 """Compiled per-environment step of the Gymnasium environment: inputs -> physics -> observation,
 reward terms, termination. The single and the batched environments call the same
-:func:`env_prepare`, the loop and :func:`env_finish`, so their results agree bit for bit; esp_gym/control.py is their
-Python face.
+:func:`control_step`, so their results agree bit for bit; esp_gym/control.py is their Python
+face.
 
 Every packed vector is laid out in kernels/layout.py: the observation (OBSERVATION), reward
 terms (REWARD), task parameters ``tp`` (TASK_PARAMS, from esp_gym/tasks.py), action
@@ -201,6 +201,7 @@ def control_step(S, W, P, D, WA, inputs, reel, nsub, target, tp, action, obs, te
     :func:`env_finish_winched`). ``winched`` and ``implicit`` are the entry point's closure
     constants: inlined there, the other three loops' calls are pruned and never compiled."""
     phi = env_prepare(S, W, P, D, dp, ds, draws, drawn, disturbed)
+    # the general loop: an environment always has inputs and, as a rule, an off-centre load
     if winched:
         if implicit:
             winch_loop_implicit(S, W, P, WA, D, inputs, reel, nsub, result, disturbed)

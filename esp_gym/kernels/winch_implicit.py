@@ -16,10 +16,9 @@ along the elements at each end plus the weight and grad T0 at that end's length.
 is the explicit winch step with the last step's right forces; a step that fails is cut back as
 the implicit string's, each piece reeling its share of the length.
 """
-import numpy as np
 
 from .implicit import CUTBACKS, TOO_TENSE, TRANSVERSE_LIMIT, implicit_newton, implicit_positions
-from .implicit_terms import element_terms, split_forces
+from .implicit_terms import element_vectors, secant_terms, split_forces
 from .jit import kernel
 from .layout import B_GRAVITY_IMPULSE, B_WINCH_WORK, NEWTON_FAILED, OK, WN_EA, WN_LENGTH, WN_MASS_PER_LENGTH
 from .lgvi import held_inputs, kahan_add, left_torque, lgvi_commit, rigid_increments
@@ -115,21 +114,14 @@ def winch_implicit_once(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, c
 def elastic_winch_work(r, Y, EA, kappa, u0, u1, slack):
     """The winch's work on the elastic energy over the step r_k -> r_k + Y with the rest length
     u0 -> u1 [J]: sum over the elements of V(|x_k+1|, u1) - V(|x_k|, u0) - T (|x_k+1| - |x_k|),
-    V(l, u) = EA/(2u) phi(l - u)^2 and T the step's tension (:func:`~.implicit_terms.element_terms`),
+    V(l, u) = EA/(2u) phi(l - u)^2 and T the step's tension (:func:`~.implicit_terms.secant_terms`),
     whose work on the nodes is T times the length change: the energy change the nodes' motion does
     not account for. Exact per step, so the balance closes however coarsely h resolves the
     string's axial modes, which a quadrature of dV/dl at points of the step would alias."""
     total = 0.0
     for a in range(r.shape[0] - 1):
-        T, _, _, _, _, _, _, _ = element_terms(r, Y, a, kappa, u0, u1, slack)
-        x0 = r[a + 1, 0] - r[a, 0]
-        x1 = r[a + 1, 1] - r[a, 1]
-        x2 = r[a + 1, 2] - r[a, 2]
-        lk = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
-        x0 += Y[a + 1, 0] - Y[a, 0]
-        x1 += Y[a + 1, 1] - Y[a, 1]
-        x2 += Y[a + 1, 2] - Y[a, 2]
-        ln = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+        x0, x1, x2, w0, w1, w2 = element_vectors(r, Y, a)
+        T, _, _, _, _, _, _, _, lk, ln = secant_terms(x0, x1, x2, w0, w1, w2, kappa, u0, u1, slack)
         s0 = lk - u0
         s1 = ln - u1
         if slack:
