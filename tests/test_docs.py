@@ -41,6 +41,22 @@ def test_every_relative_link_points_to_an_existing_file(path):
     assert broken_links(path.read_text(encoding="utf-8"), path.parent) == []
 
 
+def control_characters(text: str) -> list:
+    """(line, character code) of every control character but the newline: what a Python string
+    without its r prefix leaves of a LaTeX command such as \\tfrac (a tab) or \\big (a backspace)."""
+    return [(i, hex(ord(c))) for i, line in enumerate(text.split("\n"), 1) for c in line if ord(c) < 32]
+
+
+@pytest.mark.parametrize("path", DOCS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_the_docs_hold_no_control_characters(path):
+    assert control_characters(path.read_text(encoding="utf-8")) == []
+
+
+def test_control_characters_are_found():
+    """Negative control: a tab where a LaTeX tfrac was meant is found; an escaped backslash is not."""
+    assert control_characters("$x = \tfrac12$\nfine\n\\big(") == [(1, "0x9")]
+
+
 def test_the_docs_are_there_and_link_somewhere():
     """The pages this test walks exist and carry links, so the test above is not vacuous."""
     names = {p.name for p in DOCS}

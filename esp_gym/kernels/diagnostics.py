@@ -61,6 +61,41 @@ def node_velocities(p, Pi0, Pi1, Pi2, R, P, V):
     return w0, w1, w2, q0, q1, q2
 
 
+@kernel(inline="always")
+def kinetic_energies(V, w0, w1, w2, q0, q1, q2, P):
+    """The kinetic energies of the string, the body and the pivot [J] from the node velocities
+    ``V`` [m/s] and the body's Omega (body frame) [rad/s] and R (rho_c x Omega) [m/s]
+    (:func:`node_velocities`'s returns)."""
+    n = V.shape[0] - 1
+    M = P.M
+    # element a contributes 1/2 [v_a v_b] M_e [v_a v_b]^T with M_e = [[m/2 - off, off], [off, m/2 - off]]
+    # (consistent: off = m/6; lumped: off = 0)
+    ts = 0.0
+    end = 0.5 * P.m - P.off
+    for a in range(n):
+        va0 = V[a, 0]
+        va1 = V[a, 1]
+        va2 = V[a, 2]
+        vb0 = V[a + 1, 0]
+        vb1 = V[a + 1, 1]
+        vb2 = V[a + 1, 2]
+        ts += (end * (va0 * va0 + va1 * va1 + va2 * va2 + vb0 * vb0 + vb1 * vb1 + vb2 * vb2)
+               + 2.0 * P.off * (va0 * vb0 + va1 * vb1 + va2 * vb2))
+    ts *= 0.5
+    # body: M/2 |v|^2 + 1/2 Omega.J Omega + M v . R (Omega x rho_c)
+    J = P.J
+    Jw0 = J[0, 0] * w0 + J[0, 1] * w1 + J[0, 2] * w2
+    Jw1 = J[1, 0] * w0 + J[1, 1] * w1 + J[1, 2] * w2
+    Jw2 = J[2, 0] * w0 + J[2, 1] * w1 + J[2, 2] * w2
+    vn0 = V[n, 0]
+    vn1 = V[n, 1]
+    vn2 = V[n, 2]
+    tb = (0.5 * M * (vn0 * vn0 + vn1 * vn1 + vn2 * vn2) + 0.5 * (w0 * Jw0 + w1 * Jw1 + w2 * Jw2)
+          - M * (vn0 * q0 + vn1 * q1 + vn2 * q2))
+    tp = 0.5 * P.Mp * (V[0, 0] * V[0, 0] + V[0, 1] * V[0, 1] + V[0, 2] * V[0, 2])
+    return ts, tb, tp
+
+
 @kernel
 def diagnostics(S, P, D):
     """Fill the :class:`~.layout.DiagWork` ``D`` (``D.out``: :data:`~.layout.DIAG`) from the state
@@ -82,36 +117,13 @@ def diagnostics(S, P, D):
     omega[0] = w0
     omega[1] = w1
     omega[2] = w2
-    # kinetic energy of the string: element a contributes 1/2 [v_a v_b] M_e [v_a v_b]^T with
-    # M_e = [[m/2 - off, off], [off, m/2 - off]] (consistent: off = m/6; lumped: off = 0)
-    ts = 0.0
+    ts, tb, tp = kinetic_energies(V, w0, w1, w2, q0, q1, q2, P)
     vg = 0.0
-    end = 0.5 * P.m - P.off
     for a in range(n):
-        va0 = V[a, 0]
-        va1 = V[a, 1]
-        va2 = V[a, 2]
-        vb0 = V[a + 1, 0]
-        vb1 = V[a + 1, 1]
-        vb2 = V[a + 1, 2]
-        ts += (end * (va0 * va0 + va1 * va1 + va2 * va2 + vb0 * vb0 + vb1 * vb1 + vb2 * vb2)
-               + 2.0 * P.off * (va0 * vb0 + va1 * vb1 + va2 * vb2))
         vg += r[a, 2] + r[a + 1, 2]
-    ts *= 0.5
-    # body: M/2 |v|^2 + 1/2 Omega.J Omega + M v . R (Omega x rho_c)
-    J = P.J
-    Jw0 = J[0, 0] * w0 + J[0, 1] * w1 + J[0, 2] * w2
-    Jw1 = J[1, 0] * w0 + J[1, 1] * w1 + J[1, 2] * w2
-    Jw2 = J[2, 0] * w0 + J[2, 1] * w1 + J[2, 2] * w2
-    vn0 = V[n, 0]
-    vn1 = V[n, 1]
-    vn2 = V[n, 2]
-    tb = (0.5 * M * (vn0 * vn0 + vn1 * vn1 + vn2 * vn2) + 0.5 * (w0 * Jw0 + w1 * Jw1 + w2 * Jw2)
-          - M * (vn0 * q0 + vn1 * q1 + vn2 * q2))
     zc = R[2, 0] * rho0 + R[2, 1] * rho1 + R[2, 2] * rho2
     pot_g = -P.g * (0.5 * P.m * vg + M * (r[n, 2] + zc) + P.Mp * r[0, 2])
     pot_e, length = element_strain(r, P.kappa, P.u, P.slack, strain)
-    tp = 0.5 * P.Mp * (V[0, 0] * V[0, 0] + V[0, 1] * V[0, 1] + V[0, 2] * V[0, 2])
     # pi3 = e3 . (sum r_a x p_a + R Pi); total linear momentum sum p_a
     pi3 = R[2, 0] * Pi[0] + R[2, 1] * Pi[1] + R[2, 2] * Pi[2]
     P0 = 0.0

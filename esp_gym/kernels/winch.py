@@ -21,13 +21,14 @@ With v = 0 this is the fixed-length step at length l.
 
 The energy reported while reeling is the Hamiltonian H = T2 - T0 + V of this time-dependent
 Lagrangian (T2 the usual kinetic energy of the nodes' motion), with p = M(l) rdot + c C^T r; the
-winch's work is the integral of dH/dt = (dH/dl) v along the steps (the midpoint rule) plus H's jump
-at fixed (q, p) where the reel speed changes. The loops that reel are kernels/winch_loops.py's;
+winch's work is the integral of dH/dt = (dH/dl) v along the steps plus H's jump at fixed (q, p)
+where the reel speed changes: the midpoint rule for the explicit string, per step for the implicit
+one (:func:`length_shift`). The loops that reel are kernels/winch_loops.py's;
 the implicit string's step kernels/winch_implicit.py's.
 """
 import numpy as np
 
-from .diagnostics import diagnostics
+from .diagnostics import diagnostics, kinetic_energies, node_velocities
 from .jit import kernel
 from .layout import (B_GRAVITY_IMPULSE, D_ENERGY, D_KINETIC_STRING, D_LINEAR_MOMENTUM, D_PI3, OK, WN_EA, WN_END_SHARE,
                      WN_LENGTH, WN_MASS_PER_LENGTH, WN_MAX_STRETCH, WN_OFF_SHARE, LGVIParams, StateArrays, Work)
@@ -322,14 +323,50 @@ def winch_energy(S, P, WA, D, length, v):
     return out[D_ENERGY], dH
 
 
+@kernel(inline="always")
+def kinetic_at_length(S, P, WA, D, length, first, n):
+    """The kinetic energy [J] of the state whose node momenta less c C^T r are in ``WA.pshift``,
+    with the string's mass at unstretched length ``length`` (the symmetric mass matrix's factors
+    into the diagnostics' ``WA.d*``, the velocities into ``D.V``)."""
+    Pl = length_params(P, WA, length, WA.state[WN_MASS_PER_LENGTH] * length / n, first, n, True)
+    w0, w1, w2, q0, q1, q2 = node_velocities(WA.pshift, S.Pi[0], S.Pi[1], S.Pi[2], S.R, Pl, D.V)
+    ts, tb, tp = kinetic_energies(D.V, w0, w1, w2, q0, q1, q2, Pl)
+    return ts + tb + tp
+
+
+@kernel
+def length_shift(S, P, WA, D, l0, l1, v):
+    """H(q, p; l1) - H(q, p; l0) less the elastic energy's share [J]: the change of the kinetic,
+    convective (T0) and gravity terms of H (:func:`winch_energy`, at reel speed ``v``) when the
+    length alone goes ``l0 -> l1`` at the state's (q, p). The implicit string's winch work per
+    step is the mean of this at the step's two states plus the elastic share counted exactly
+    (docs/physics.md, "The implicit string too"). Uses the diagnostics' scratch (``D.V``,
+    ``WA.pshift``, ``WA.d*``)."""
+    r = S.r
+    n = r.shape[0] - 1
+    first = P.first
+    mu = WA.state[WN_MASS_PER_LENGTH]
+    c = mu * v / n
+    ps = WA.pshift
+    for a in range(n + 1):
+        for i in range(3):
+            ps[a, i] = S.p[a, i] - (c * convective_momentum(r, WA.coef, a, i) if a >= first else 0.0)
+    vz = 0.0
+    for e in range(n):
+        vz += r[e, 2] + r[e + 1, 2]
+    kinetic = kinetic_at_length(S, P, WA, D, l1, first, n) - kinetic_at_length(S, P, WA, D, l0, first, n)
+    convective = convective_energy(r, WA.coef, mu * v * v / n) * (1.0 / l1 - 1.0 / l0)
+    weight = -P.g * 0.5 * (mu / n) * (l1 - l0) * vz
+    return kinetic - convective + weight
+
+
 @kernel(forceinline=True)
-def midpoint_dH_dl(S, W, P, WA, h, l0, l1, first, elastic):
+def midpoint_dH_dl(S, W, P, WA, h, l0, l1, first):
     """dH/dl [J/m] at the midpoint of the step just taken (l0 -> l1 in ``h``): positions
     r_k + dr/2, velocities dr/h (second-order accurate there), length (l0 + l1)/2; the formula
     of :func:`winch_energy` without its solve for the velocities. The midpoint rule of
-    v dH/dl over the step is the winch's work, second order as the step. ``elastic`` False: the
-    elastic energy's share left out (the implicit string counts it per step:
-    kernels/winch_implicit.py)."""
+    v dH/dl over the step is the explicit string's winch work, second order as the step (the
+    implicit string's is counted per step: :func:`length_shift`, kernels/winch_implicit.py)."""
     r = S.r
     Y = W.Y  # dr (+ the remainders), so r_k + dr/2 = r_{k+1} - dr/2
     n = r.shape[0] - 1
@@ -362,6 +399,6 @@ def midpoint_dH_dl(S, W, P, WA, h, l0, l1, first, elastic):
         convective += WA.coef[e, 2] * s
         vz += (r[e, 2] - 0.5 * h * a2) + (r[e + 1, 2] - 0.5 * h * b2)
         eps = np.sqrt(s) / u - 1.0
-        if elastic and not (P.slack and eps < 0.0):
+        if not (P.slack and eps < 0.0):
             de += eps + 0.5 * eps * eps
     return (-0.5 * kinetic + 0.5 * theta * convective - P.g * 0.5 * m * vz) / length - st[WN_EA] / n * de

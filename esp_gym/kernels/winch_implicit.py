@@ -14,7 +14,9 @@ u = l / N at each end. Its equations are the implicit string's with the step's m
 and the momenta p_k+1 = p_k + h/2 (f~_k + f~_k+1) + c C dr as in (3w), f~ the tensions of the step
 along the elements at each end plus the weight and grad T0 at that end's length. The first guess
 is the explicit winch step with the last step's right forces; a step that fails is cut back as
-the implicit string's, each piece reeling its share of the length.
+the implicit string's, each piece reeling its share of the length. The winch's work is counted per
+step: the elastic energy's change that the tensions' work does not account for, plus the mean over
+the step's two states of H's change with the length alone (kinetic, T0 and weight terms).
 """
 
 from .implicit import CUTBACKS, TOO_TENSE, TRANSVERSE_LIMIT, implicit_newton, implicit_positions
@@ -23,7 +25,7 @@ from .jit import kernel
 from .layout import B_GRAVITY_IMPULSE, B_WINCH_WORK, NEWTON_FAILED, OK, WN_EA, WN_LENGTH, WN_MASS_PER_LENGTH
 from .lgvi import held_inputs, kahan_add, left_torque, lgvi_commit, rigid_increments
 from .winch import (add_convective_forces, convective_impulse, convective_momentum, factor_tridiagonal, length_params,
-                    midpoint_dH_dl, step_solve)
+                    length_shift, step_solve)
 
 
 @kernel(forceinline=True)
@@ -132,12 +134,18 @@ def elastic_winch_work(r, Y, EA, kappa, u0, u1, slack):
 
 
 @kernel(forceinline=True)
-def winch_implicit_substep(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, compensated):
+def winch_implicit_substep(S, W, P, WA, D, inputs, h, l0, l1, free, forced, coupled, compensated):
     """A step of the implicit string reeling ``l0 -> l1`` [m] over ``h`` [s], cut back where it
     fails as :func:`~.implicit.implicit_substep` (the rest in halves, to h / 2**CUTBACKS), each
-    piece reeling its share at the same speed; each piece's winch work (the midpoint rule) joins
-    the balances and the winch's length follows. Returns ``(status, newton_iterations)``."""
-    first = 0 if free else 1
+    piece reeling its share at the same speed; each piece's winch work joins the balances and the
+    winch's length follows. The work of a piece from state z_k to z_k+1, la -> lb: the elastic
+    energy's share exactly (:func:`elastic_winch_work`) plus the mean of H's change with the
+    length alone at z_k and at z_k+1 (:func:`~.winch.length_shift`, a discrete gradient in l:
+    with the energy-momentum string it closes the balance at every reel speed, where the midpoint
+    rule of dH/dl erred by O(h^3) per step with the sign of the reel, and so drifted under a
+    reel that keeps reversing). ``D``: the diagnostics' scratch. Returns
+    ``(status, newton_iterations)``."""
+    v = (l1 - l0) / h
     full = 1 << CUTBACKS
     left = full
     size = full
@@ -148,6 +156,7 @@ def winch_implicit_substep(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled
         la = l0 + (l1 - l0) * (done / full)
         lb = l1 if done + size == full else l0 + (l1 - l0) * ((done + size) / full)
         piece = h * (size / full)
+        before = length_shift(S, P, WA, D, la, lb, v) if lb != la else 0.0
         status, iters, elastic = winch_implicit_once(S, W, P, WA, inputs, piece, la, lb, free, forced, coupled,
                                                      compensated, cuts < CUTBACKS)
         total += iters
@@ -157,9 +166,9 @@ def winch_implicit_substep(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled
             continue
         if status != OK:
             return status, total
-        if lb != la:  # the elastic energy's share exactly, the rest by the midpoint rule
-            kahan_add(S.acc, S.accc, B_WINCH_WORK,
-                      elastic + (lb - la) * midpoint_dH_dl(S, W, P, WA, piece, la, lb, first, False))
+        if lb != la:
+            after = length_shift(S, P, WA, D, la, lb, v)
+            kahan_add(S.acc, S.accc, B_WINCH_WORK, elastic + 0.5 * (before + after))
         WA.state[WN_LENGTH] = lb
         left -= size
         done += size

@@ -61,7 +61,7 @@ def winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed, implicit
             reached += gammas[i]
             lb = end if i == gammas.shape[0] - 1 else length + reached * h * v
             if implicit:  # its pieces add their work and move the length
-                status, it = winch_implicit_substep(S, W, P, WA, inputs, hi, la, lb, free, True, True, compensated)
+                status, it = winch_implicit_substep(S, W, P, WA, D, inputs, hi, la, lb, free, True, True, compensated)
             else:
                 status, it = winch_substep(S, W, P, WA, inputs, hi, la, lb, free, True, True, compensated)
             iters += it
@@ -69,7 +69,7 @@ def winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed, implicit
                 break
             if not implicit:
                 if v != 0.0:
-                    kahan_add(S.acc, S.accc, B_WINCH_WORK, hi * v * midpoint_dH_dl(S, W, P, WA, hi, la, lb, first, True))
+                    kahan_add(S.acc, S.accc, B_WINCH_WORK, hi * v * midpoint_dH_dl(S, W, P, WA, hi, la, lb, first))
                 st[WN_LENGTH] = lb
         total += iters
         most = max(most, iters)
