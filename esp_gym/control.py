@@ -26,6 +26,7 @@ from .kernels.layout import (DISTURBANCE, DISTURBANCE_PARAMS, DRAWS, INPUTS, OBS
                              REWARD_TERMS, SCHEME_DISTURBED, SENSORS, TARGET,
                              WINCH_OBSERVATION, LGVIParams)
 from .kernels.string import state_forces
+from .kernels.env_arrays import EnvArrays
 from .kernels.task import ENTRY_POINTS, actions_finite, env_reset_observe
 from .model import Simulator
 from .options import check_count
@@ -122,7 +123,7 @@ class ControlStep:
         # actions on their way (oldest first): each step applies the oldest and queues the new one
         self._pending = z(batch + (setup.action_latency, setup.action_size))
         # the episode's run-time physics besides the stepper's constants
-        self._substeps = np.full(batch, nominal.substeps, dtype=np.int64)
+        self._substeps = np.full(batch + (1,), nominal.substeps, dtype=np.int64)
         self._task_params = np.tile(nominal.task_params, batch + (1,))
         self._action_params = np.tile(nominal.action_params, batch + (1,))
         self._scene_params = np.zeros(batch + (len(setup.param_names),))
@@ -142,10 +143,17 @@ class ControlStep:
         self._ready = False  # all of _was_reset, kept as a bool: step checks it every call
         self._make_views()
 
+    def _env_arrays(self) -> EnvArrays:
+        """The environment's arrays as the compiled step takes them (kernels/env_arrays.py)."""
+        return EnvArrays(ap=self._action_params, inputs=self._inputs, nsub=self._substeps, target=self._target,
+                         tp=self._task_params, action=self._action, obs=self._obs, terms=self._terms,
+                         sensors=self._sensors, result=self._report, dp=self._wind_params, ds=self._disturbance,
+                         draws=self._draws, drawn=self._drawn)
+
     def _make_views(self) -> None:
         # plain tuples: numba's dispatcher types them ~2x faster than namedtuples (kernels/task.py)
         self._kernel_tuples = (tuple(self._state), tuple(self._work), tuple(self._params), tuple(self._diag),
-                               tuple(self._winch))
+                               tuple(self._winch), tuple(self._env_arrays()))
         self.observation = read_only(self._obs)
         self.reward_terms = read_only(self._terms)
         self.action = read_only(self._action)
@@ -200,8 +208,8 @@ class ControlStep:
             if episode.scene is not self.sim.scene:
                 self.sim.use_scene(episode.scene, episode.params)
                 self._params = self.sim.params
-                state, work, _, diag, winch = self._kernel_tuples  # only the constants changed
-                self._kernel_tuples = (state, work, tuple(self._params), diag, winch)
+                state, work, _, diag, winch, env = self._kernel_tuples  # only the constants changed
+                self._kernel_tuples = (state, work, tuple(self._params), diag, winch, env)
             self._substeps[...] = episode.substeps
         else:
             for stacked, value in zip(self._params, episode.params):
@@ -224,9 +232,8 @@ class ControlStep:
             self._use_episode(episode, None if index is None else int(index))
         if self.num_envs is None:
             self.sim.set_state(state, check=False)  # built for this scene, as the batch's rows below
-            S, D, P = self._state, self._diag, self._params
-            obs, terms, action, tgt, tp = self._obs, self._terms, self._action, self._target, self._task_params
-            sensors, pending = self._sensors, self._pending
+            S, D, P, E = self._state, self._diag, self._params, self._env_arrays()
+            pending = self._pending
         else:
             i = int(index)
             S, D = self._row(i)
@@ -236,17 +243,16 @@ class ControlStep:
                 a[...] = 0.0
             state_forces(S, P)
             self._winch.state[i] = winch_state(self.scenes[i], P.max_len2)
-            obs, terms, action, tgt, tp = self._obs[i], self._terms[i], self._action[i], self._target[i], \
-                self._task_params[i]
-            sensors, pending = self._sensors[i], self._pending[i]
-        tgt[...] = target
-        action[...] = 0.0
+            E = EnvArrays(*(a[i] for a in self._env_arrays()))
+            pending = self._pending[i]
+        E.target[...] = target
+        E.action[...] = 0.0
         pending[...] = 0.0  # a new episode starts with hover commands in flight
         if not self._ready:
             self._was_reset[() if index is None else int(index)] = True
             self._ready = bool(self._was_reset.all())
         WA = self.sim.winch.arrays if index is None else type(self._winch)(*(a[int(index)] for a in self._winch))
-        return int(env_reset_observe(S, P, D, WA, tgt, tp, action, obs, terms, sensors, self.setup.winch))
+        return int(env_reset_observe(S, P, D, WA, E, self.setup.winch))
 
     # -- step -------------------------------------------------------------------------------------
     def step(self, actions, active: Optional[np.ndarray] = None) -> None:
@@ -254,7 +260,7 @@ class ControlStep:
         any float array; clipped to the box in the compiled step. ValueError, with nothing
         changed, if its shape is wrong or an entry is not finite. ``active`` (batch only, bool
         (num_envs,)): the sub-environments to step (default: all); the others are untouched."""
-        s, w, p, d, wa = self._kernel_tuples
+        s, w, p, d, wa, e = self._kernel_tuples
         if not self._ready:
             never = "" if self.num_envs is None else f" (sub-environments {np.flatnonzero(~self._was_reset).tolist()})"
             raise RuntimeError(f"call reset() before step(){never}")
@@ -268,10 +274,7 @@ class ControlStep:
             if self._windy and self._drawn[0] == BLOCK:
                 self._draws[...] = Wind.draws(self._rngs[0])
                 self._drawn[0] = 0
-            if not self._step_kernel(s, w, p, d, wa, raw, self._action_params, self._inputs, int(self._substeps),
-                                     self._target, self._task_params, self._action, self._obs, self._terms,
-                                     self._sensors, self._report, self._wind_params, self._disturbance, self._draws,
-                                     self._drawn, self._scheme):
+            if not self._step_kernel(s, w, p, d, wa, e, raw, self._scheme):
                 raise ValueError(f"action must be finite, got {raw.tolist()}")
             self.sim.count_steps(self._report)
             return
@@ -288,9 +291,7 @@ class ControlStep:
             for i in np.flatnonzero(self._drawn[:, 0] == BLOCK):
                 self._draws[i] = Wind.draws(self._rngs[i])
                 self._drawn[i] = 0
-        self._batch_kernel(s, w, p, d, wa, raw, self._action_params, self._inputs, active, self._substeps,
-                           self._target, self._task_params, self._action, self._obs, self._terms, self._sensors,
-                           self._report, self._wind_params, self._disturbance, self._draws, self._drawn, self._scheme)
+        self._batch_kernel(s, w, p, d, wa, e, raw, active, self._scheme)
 
     @staticmethod
     def _delay(raw: np.ndarray, pending: np.ndarray) -> np.ndarray:

@@ -29,8 +29,10 @@ from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, A_REEL_SPEED, ACTION_SIZE, AP
                      TP_W_CONTROL, TP_W_LOAD_POSITION, TP_W_LOAD_VELOCITY, TP_W_PIVOT_POSITION, TP_W_SPIN, TP_W_SWING,
                      TP_WORKSPACE_RADIUS, WN_LENGTH, WN_MASS_PER_LENGTH, WN_SPEED, DiagWork, LGVIParams, StateArrays,
                      WinchArrays, Work)
+from .env_arrays import EnvArrays
 from .loops import advance_loop_explicit, advance_loop_implicit
 from .reference import advance_reference
+from .rows import row_function
 from .winch import length_params, winch_energy
 from .winch_loops import winch_loop_explicit, winch_loop_implicit
 
@@ -62,11 +64,17 @@ def env_sensors(S, P, target, sensors):
 
 
 @kernel
-def env_observe(S, P, D, target, tp, action, obs, terms, sensors, length):
-    """Observation (OBSERVATION), SENSORS and reward terms (REWARD) of the current state (``D``
+def env_observe(S, P, D, E, length):
+    """Observation (``E.obs``), SENSORS and reward terms (REWARD) of the current state (``D``
     filled by diagnostics) at the unstretched ``length`` [m] (the scene's; a winch's current one,
-    whose constants ``P`` then holds). Returns the termination code (TERM_*)."""
-    env_sensors(S, P, target, sensors)
+    whose constants ``P`` then holds), ``E`` the environment's :class:`~.env_arrays.EnvArrays`.
+    Returns the termination code (TERM_*)."""
+    target = E.target
+    tp = E.tp
+    action = E.action
+    obs = E.obs
+    terms = E.terms
+    env_sensors(S, P, target, E.sensors)
     r = S.r
     R = S.R
     n = r.shape[0] - 1
@@ -181,153 +189,122 @@ def take_action(raw, ap, action, inputs):
 
 
 @kernel
-def env_prepare(S, W, P, D, dp, ds, draws, drawn, disturbed):
+def env_prepare(S, W, P, D, E, disturbed):
     """Before a control step's physics: with ``disturbed``, wind and pushes (kernels/disturbance.py)
-    from the episode's DISTURBANCE_PARAMS ``dp``, the DISTURBANCE state ``ds`` and the next row
-    ``drawn[0]`` of the random ``draws`` (rows of DRAWS; ``drawn[0]`` is then advanced) into
-    ``W.ext``. Returns their potential at the start [J] (0 without)."""
+    from the episode's DISTURBANCE_PARAMS ``E.dp``, the DISTURBANCE state ``E.ds`` and the next
+    row ``E.drawn[0]`` of the random ``E.draws`` (rows of DRAWS; ``E.drawn[0]`` is then advanced)
+    into ``W.ext``. Returns their potential at the start [J] (0 without)."""
     if not disturbed:
         return 0.0
-    disturb(S.r, S.R, D.V, D.omega, P.rho, dp, ds, draws[drawn[0]], W.ext)
-    drawn[0] += 1
+    disturb(S.r, S.R, D.V, D.omega, P.rho, E.dp, E.ds, E.draws[E.drawn[0]], W.ext)
+    E.drawn[0] += 1
     return external_potential(S, P, W.ext, 0 if P.first == 0 else 1)
 
 
 @kernel(inline="always")
-def control_step(S, W, P, D, WA, inputs, reel, nsub, target, tp, action, obs, terms, sensors, result, dp, ds, draws,
-                 drawn, disturbed, winched, implicit):
-    """One control step of one environment: :func:`env_prepare`, ``nsub`` physics steps with
-    constant ``inputs`` by the loop of the configuration, :func:`env_finish` (or
-    :func:`env_finish_winched`). ``winched`` and ``implicit`` are the entry point's closure
-    constants: inlined there, the other three loops' calls are pruned and never compiled."""
-    phi = env_prepare(S, W, P, D, dp, ds, draws, drawn, disturbed)
+def control_step(S, W, P, D, WA, E, reel, disturbed, winched, implicit):
+    """One control step of one environment (``E``: its :class:`~.env_arrays.EnvArrays`, the
+    inputs already taken from the action, ``reel`` the reel speed [m/s]): :func:`env_prepare`,
+    ``E.nsub[0]`` physics steps with constant inputs by the loop of the configuration,
+    :func:`env_finish` (or :func:`env_finish_winched`). ``winched`` and ``implicit`` are the
+    entry point's closure constants: inlined there, the other three loops' calls are pruned and
+    never compiled."""
+    phi = env_prepare(S, W, P, D, E, disturbed)
+    nsub = E.nsub[0]
     # the general loop: an environment always has inputs and, as a rule, an off-centre load
     if winched:
         if implicit:
-            winch_loop_implicit(S, W, P, WA, D, inputs, reel, nsub, result, disturbed)
+            winch_loop_implicit(S, W, P, WA, D, E.inputs, reel, nsub, E.result, disturbed)
         else:
-            winch_loop_explicit(S, W, P, WA, D, inputs, reel, nsub, result, disturbed)
-        env_finish_winched(S, W, P, D, WA, target, tp, action, obs, terms, sensors, result, phi, disturbed)
+            winch_loop_explicit(S, W, P, WA, D, E.inputs, reel, nsub, E.result, disturbed)
+        env_finish_winched(S, W, P, D, WA, E, phi, disturbed)
         return
     if implicit:
-        advance_loop_implicit(S, W, P, inputs, nsub, result, P.first == 0, True, True, P.compensated, False, disturbed)
+        advance_loop_implicit(S, W, P, E.inputs, nsub, E.result, P.first == 0, True, True, P.compensated, False,
+                              disturbed)
     else:
-        advance_loop_explicit(S, W, P, inputs, nsub, result, P.first == 0, True, True, P.compensated, False, disturbed)
-    env_finish(S, W, P, D, target, tp, action, obs, terms, sensors, result, phi, disturbed)
+        advance_loop_explicit(S, W, P, E.inputs, nsub, E.result, P.first == 0, True, True, P.compensated, False,
+                              disturbed)
+    env_finish(S, W, P, D, E, phi, disturbed)
 
 
 @kernel(inline="always")
-def close_balances(S, W, P, target, result, phi, disturbed):
-    """After a control step's physics (``result``: its REPORT, int64): the external forces' work
-    joins the balances (``disturbed``; ``phi`` their potential at the start) and the tracking
-    reference advances. Returns the step's status."""
+def close_balances(S, W, P, E, phi, disturbed):
+    """After a control step's physics (``E.result``: its REPORT, int64): the external forces'
+    work joins the balances (``disturbed``; ``phi`` their potential at the start) and the
+    tracking reference advances. Returns the step's status."""
     if disturbed:
         kahan_add(S.acc, S.accc, B_WORK, external_potential(S, P, W.ext, 0 if P.first == 0 else 1) - phi)
-    advance_reference(target, result[R_STEPS] * P.h)
-    return result[R_STATUS]
+    advance_reference(E.target, E.result[R_STEPS] * P.h)
+    return E.result[R_STATUS]
 
 
 @kernel
-def env_finish(S, W, P, D, target, tp, action, obs, terms, sensors, result, phi, disturbed):
+def env_finish(S, W, P, D, E, phi, disturbed):
     """After a control step's physics, without the winch: :func:`close_balances`, then the
     observation, reward terms and termination code."""
-    status = close_balances(S, W, P, target, result, phi, disturbed)
+    status = close_balances(S, W, P, E, phi, disturbed)
     diagnostics(S, P, D)
-    code = env_observe(S, P, D, target, tp, action, obs, terms, sensors, tp[TP_STRING_LENGTH])
-    result[R_TERMINATION] = status if status != OK else energy_watchdog(S, D, tp, code)
+    code = env_observe(S, P, D, E, E.tp[TP_STRING_LENGTH])
+    E.result[R_TERMINATION] = status if status != OK else energy_watchdog(S, D, E.tp, code)
 
 
 @kernel
-def env_finish_winched(S, W, P, D, WA, target, tp, action, obs, terms, sensors, result, phi, disturbed):
+def env_finish_winched(S, W, P, D, WA, E, phi, disturbed):
     """:func:`env_finish` with the winch: the energy and the observation at the unstretched length
     the step ended at, which ends the observation."""
-    status = close_balances(S, W, P, target, result, phi, disturbed)
+    status = close_balances(S, W, P, E, phi, disturbed)
     length = WA.state[WN_LENGTH]
     winch_energy(S, P, WA, D, length, WA.state[WN_SPEED])
     n = S.r.shape[0] - 1
     Pl = length_params(P, WA, length, WA.state[WN_MASS_PER_LENGTH] * length / n, 0 if P.first == 0 else 1, n, False)
-    code = env_observe(S, Pl, D, target, tp, action, obs, terms, sensors, length)
-    obs[O_LENGTH] = length
-    result[R_TERMINATION] = status if status != OK else energy_watchdog(S, D, tp, code)
+    code = env_observe(S, Pl, D, E, length)
+    E.obs[O_LENGTH] = length
+    E.result[R_TERMINATION] = status if status != OK else energy_watchdog(S, D, E.tp, code)
 
 
 @kernel
-def env_reset_observe(S, P, D, WA, target, tp, action, obs, terms, sensors, winched):
+def env_reset_observe(S, P, D, WA, E, winched):
     """Observation of a freshly set state (no step; a winch at the scene's length and at rest),
     whose energy becomes the episode's E0 (TP_ENERGY_ORIGIN). Returns the termination code."""
     diagnostics(S, P, D)
-    tp[TP_ENERGY_ORIGIN] = D.out[D_ENERGY]
-    code = env_observe(S, P, D, target, tp, action, obs, terms, sensors, tp[TP_STRING_LENGTH])
+    E.tp[TP_ENERGY_ORIGIN] = D.out[D_ENERGY]
+    code = env_observe(S, P, D, E, E.tp[TP_STRING_LENGTH])
     if winched:
-        obs[O_LENGTH] = WA.state[WN_LENGTH]
+        E.obs[O_LENGTH] = WA.state[WN_LENGTH]
     return code
 
 
-@kernel(inline="always")
-def state_row(S, b):
-    """Sub-environment ``b`` of a stacked :class:`StateArrays` (views)."""
-    return StateArrays(S.r[b], S.p[b], S.R[b], S.Pi[b], S.rc[b], S.pc[b], S.Rc[b], S.Pic[b], S.f[b], S.acc[b],
-                       S.accc[b], S.owed[b])
-
-
-@kernel(inline="always")
-def work_row(W, b):
-    """Sub-environment ``b`` of a stacked :class:`Work` (views)."""
-    return Work(W.fn[b], W.X[b], W.Y[b], W.FmI[b], W.RF[b], W.Rn[b], W.jac[b], W.backup[b], W.fl[b], W.fr[b], W.dy[b],
-                W.elim[b], W.taut[b], W.ext[b], W.switch[b])
-
-
-@kernel(inline="always")
-def diag_row(D, b):
-    """Sub-environment ``b`` of a stacked :class:`DiagWork` (views)."""
-    return DiagWork(D.V[b], D.strain[b], D.omega[b], D.out[b])
-
-
-@kernel(inline="always")
-def winch_row(WA, b):
-    """Sub-environment ``b`` of a stacked :class:`WinchArrays` (views)."""
-    return WinchArrays(WA.state[b], WA.coef[b], WA.lower[b], WA.upper[b], WA.inv[b], WA.cp[b], WA.w[b], WA.jeff[b],
-                       WA.pshift[b], WA.dinv[b], WA.dcp[b], WA.dw[b], WA.djeff[b], WA.backup[b], WA.diag[b], WA.rhs[b])
-
-
-@kernel(inline="always")
-def params_row(P, b):
-    """Sub-environment ``b``'s constants from a stacked :class:`LGVIParams` (each scalar field a
-    (B,) array, each array field with a leading batch axis): the types of one environment's."""
-    return LGVIParams(P.h[b], P.m[b], P.kappa[b], P.u[b], P.g[b], P.M[b], P.Mp[b], P.rho[b], P.J[b], P.Jd[b],
-                      P.Jeff[b], P.inv[b], P.cp[b], P.off[b], P.w[b], P.first[b], P.slack[b], P.tol[b],
-                      P.max_iter[b], P.gammas[b], P.max_len2[b], P.compensated[b], P.mdiag[b], P.settle[b],
-                      P.gradient[b])
+#: Sub-environment b's row of each stacked struct (kernels/rows.py).
+state_row = row_function(StateArrays)
+work_row = row_function(Work)
+diag_row = row_function(DiagWork)
+winch_row = row_function(WinchArrays)
+params_row = row_function(LGVIParams)
+env_row = row_function(EnvArrays)
 
 
 def _entry_points(winched: bool, implicit: bool):
     """``(step, batch)``, the compiled entry points of the environment without or with the winch,
     on the explicit or the implicit string (closure constants: each configuration compiles only
-    its own loop and string step, when it is first asked for: :func:`_control_step`).
+    its own loop and string step, when it is first asked for: :func:`control_step`).
 
-    ``step(s, w, p, d, wa, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors,
-    result, dp, ds, draws, drawn, scheme)``: :func:`take_action` of the raw action, then
-    the control step (below), for one environment (one compiled call per control step). Returns
-    False, with nothing changed, if the raw action is not finite. ``s, w, p, d, wa`` are the
-    fields of StateArrays, Work, LGVIParams, DiagWork and WinchArrays (read only when
-    ``winched``) as *plain* tuples: numba's dispatcher types a plain tuple about twice as fast
-    as a namedtuple (3 us less per call here), and the namedtuples are rebuilt for free in
-    compiled code. ``dp, ds, draws, drawn`` (read only when disturbed): DISTURBANCE_PARAMS,
-    DISTURBANCE, (K, DRAWS) random draws and the index (1,) int64 of the next one, which the
-    caller keeps below K.
+    ``step(s, w, p, d, wa, e, raw, scheme)``: :func:`take_action` of the raw action (ACTION),
+    then the control step (:func:`control_step`), for one environment (one compiled call per
+    control step). Returns False, with nothing changed, if the raw action is not finite.
+    ``s, w, p, d, wa, e`` are the fields of StateArrays, Work, LGVIParams, DiagWork, WinchArrays
+    (read only when ``winched``) and EnvArrays (kernels/env_arrays.py) as *plain* tuples: numba's
+    dispatcher types a plain tuple about twice as fast as a namedtuple (3 us less per call here),
+    and the namedtuples are rebuilt for free in compiled code.
 
     ``scheme`` (int, bits SCHEME_*) turns on wind and pushes. It is an argument, not a
     compile-time constant: their code is small, and one compile serves both values.
 
-    ``batch(s, w, p, d, wa, raw, ap, inputs, active, nsub, target, tp, action, obs, terms,
-    sensors, result, dp, ds, draws, drawn, scheme)`` (the arguments of ``step`` in the same order,
-    with ``active`` after ``inputs``): :func:`take_action` of ``raw[b]`` and
-    the control step for every environment b with ``active[b]``, in parallel (the raw actions
-    must be finite: :func:`actions_finite`). ``s, w, p, d, wa`` are StateArrays, Work, LGVIParams,
-    DiagWork and WinchArrays whose arrays carry a leading batch axis (:func:`params_row`), as
-    plain tuples; the other arrays are batched too: raw (B, ACTION), ap (B, ACTION_PARAMS),
-    inputs (B, INPUTS), nsub (B,), target (B, TARGET), tp (B, TASK_PARAMS), action, obs, terms,
-    sensors (B, SENSORS), result (B, REPORT), dp, ds, draws (B, K, DRAWS), drawn (B, 1).
+    ``batch(s, w, p, d, wa, e, raw, active, scheme)``: the same for every environment b with
+    ``active[b]``, in parallel (the raw actions (B, ACTION) must be finite:
+    :func:`actions_finite`); every array of the six structs carries a leading batch axis (the
+    constants of LGVIParams too), and each environment's row is taken by the structs' row
+    functions (kernels/rows.py).
     """
 
     # Both take control_step with ``winched`` and ``implicit`` as closure constants (numba prunes the
@@ -335,32 +312,31 @@ def _entry_points(winched: bool, implicit: bool):
     # keys a closure by its cells, and a compiled function in a cell is another key in every process).
 
     @kernel
-    def step(s, w, p, d, wa, raw, ap, inputs, nsub, target, tp, action, obs, terms, sensors, result, dp, ds, draws,
-             drawn, scheme):
-        reel = take_action(raw, ap, action, inputs)
+    def step(s, w, p, d, wa, e, raw, scheme):
+        E = EnvArrays(*e)
+        reel = take_action(raw, E.ap, E.action, E.inputs)
         if reel == -np.inf:
             return False
-        control_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), inputs, reel, nsub,
-                     target, tp, action, obs, terms, sensors, result, dp, ds, draws, drawn,
+        control_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), E, reel,
                      (scheme & SCHEME_DISTURBED) != 0, winched, implicit)
         return True
 
     @kernel(parallel=True)
-    def batch(s, w, p, d, wa, raw, ap, inputs, active, nsub, target, tp, action, obs, terms, sensors, result, dp, ds,
-              draws, drawn, scheme):
+    def batch(s, w, p, d, wa, e, raw, active, scheme):
         disturbed = (scheme & SCHEME_DISTURBED) != 0
         S = StateArrays(*s)
         W = Work(*w)
         D = DiagWork(*d)
         P = LGVIParams(*p)
         WA = WinchArrays(*wa)
+        E = EnvArrays(*e)
         for b in prange(raw.shape[0]):
             if active[b]:
-                reel = take_action(raw[b], ap[b], action[b], inputs[b])
+                Eb = env_row(E, b)
+                reel = take_action(raw[b], Eb.ap, Eb.action, Eb.inputs)
                 if reel != -np.inf:
                     control_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), winch_row(WA, b),
-                                 inputs[b], reel, nsub[b], target[b], tp[b], action[b], obs[b], terms[b], sensors[b],
-                                 result[b], dp[b], ds[b], draws[b], drawn[b], disturbed, winched, implicit)
+                                 Eb, reel, disturbed, winched, implicit)
 
     # the cold first steps of benchmarks.cold_start (docs/performance.md, "Start-up")
     which = ("the environment's step" + (" on the implicit string" if implicit else "")
