@@ -47,7 +47,7 @@ def reduced_state(obs: np.ndarray, axis: np.ndarray) -> np.ndarray:
     axis (:func:`hanging_axis`)."""
     obs = np.asarray(obs, dtype=np.float64)
     att = obs[..., OBSERVATION["attitude_6d"]]
-    columns = att.reshape(att.shape[:-1] + (2, 3))  # R's first two columns (kernels/task.py env_observe)
+    columns = att.reshape(att.shape[:-1] + (2, 3))  # R's first two columns (kernels/task_terms.py observe)
     first, second = columns[..., 0, :], columns[..., 1, :]
     R = np.stack((first, second, np.cross(first, second)), axis=-1)
     z = np.empty(obs.shape[:-1] + (REDUCED.size,))

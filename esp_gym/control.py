@@ -2,7 +2,7 @@
 single environment, the batched environments and the recording wrapper share.
 
 A :class:`ControlStep` owns the arrays of one environment (or, with ``num_envs``, of a batch:
-every array gains a leading axis) and the compiled calls on them (kernels/task.py):
+every array gains a leading axis) and the compiled calls on them (kernels/env_step.py):
 
 * :meth:`ControlStep.start_episode` draws an episode (its physics when randomised, its state
   and targets) and :meth:`ControlStep.reset` puts it in and computes the observation;
@@ -26,8 +26,8 @@ from .kernels.layout import (DISTURBANCE, DISTURBANCE_PARAMS, DRAWS, INPUTS, OBS
                              REWARD_TERMS, SCHEME_DISTURBED, SENSORS, TARGET,
                              WINCH_OBSERVATION, LGVIParams)
 from .kernels.string import state_forces
-from .kernels.env_arrays import EnvArrays
-from .kernels.task import ENTRY_POINTS, actions_finite, env_reset_observe
+from .kernels.env_arrays import FEATURES, EnvArrays
+from .kernels.env_step import ENTRY_POINTS, actions_finite, env_reset_observe
 from .model import Simulator
 from .options import check_count
 from .setup import Episode, EnvSetup
@@ -46,7 +46,7 @@ def raw_actions(actions, shape: tuple, name: str = "action") -> np.ndarray:
     only if needed, so one compiled signature serves every caller), of ``shape`` (ValueError
     otherwise) and real (TypeError for complex, bool, object and masked arrays, whose imaginary
     part or mask would otherwise be dropped). Finiteness and clipping are the kernel's
-    (kernels/task.py ``take_action``)."""
+    (kernels/env_step.py ``take_action``)."""
     if isinstance(actions, np.ma.MaskedArray):
         raise TypeError(f"{name} must be a plain array, not a masked array (its mask would be dropped)")
     given = np.asarray(actions)
@@ -74,7 +74,7 @@ class ControlStep:
     One environment (``num_envs=None``) steps the :class:`~esp_gym.model.Simulator`
     :attr:`sim` in place (its step counter and Newton totals follow). A batch keeps stacked
     copies of a simulator's arrays and steps every active sub-environment in one parallel
-    call; both run the same compiled control step (esp_gym/kernels/task.py), so their
+    call; both run the same compiled control step (esp_gym/kernels/env_step.py), so their
     numbers agree bit for bit.
 
     Each (sub-)environment carries its episode's run-time physics (:class:`Episode`: the
@@ -120,6 +120,7 @@ class ControlStep:
         self._terms = z(batch + (REWARD.size,))
         self._report = z(batch + (REPORT.size,), dtype=np.int64)
         self._sensors = z(batch + (SENSORS.size,))
+        self._features = z(batch + (FEATURES.size,))
         # actions on their way (oldest first): each step applies the oldest and queues the new one
         self._pending = z(batch + (setup.action_latency, setup.action_size))
         # the episode's run-time physics besides the stepper's constants
@@ -136,7 +137,7 @@ class ControlStep:
         self._drawn = z(batch + (1,), dtype=np.int64)
         self._rngs = [None] * (self.num_envs or 1)  # each (sub-)environment's generator, for more draws
         self._windy = setup.wind is not None
-        #: the compiled step and batched step (kernels/task.py), and their ``scheme``
+        #: the compiled step and batched step (kernels/env_step.py), and their ``scheme``
         self._step_kernel, self._batch_kernel = ENTRY_POINTS[(bool(setup.winch), bool(self.sim.implicit))]
         self._scheme = SCHEME_DISTURBED if self._windy else 0
         self._was_reset = z(batch, dtype=bool)  # stepping a state that was never set is an error
@@ -147,11 +148,11 @@ class ControlStep:
         """The environment's arrays as the compiled step takes them (kernels/env_arrays.py)."""
         return EnvArrays(ap=self._action_params, inputs=self._inputs, nsub=self._substeps, target=self._target,
                          tp=self._task_params, action=self._action, obs=self._obs, terms=self._terms,
-                         sensors=self._sensors, result=self._report, dp=self._wind_params, ds=self._disturbance,
-                         draws=self._draws, drawn=self._drawn)
+                         sensors=self._sensors, features=self._features, result=self._report, dp=self._wind_params,
+                         ds=self._disturbance, draws=self._draws, drawn=self._drawn)
 
     def _make_views(self) -> None:
-        # plain tuples: numba's dispatcher types them ~2x faster than namedtuples (kernels/task.py)
+        # plain tuples: numba's dispatcher types them ~2x faster than namedtuples (kernels/env_step.py)
         self._kernel_tuples = (tuple(self._state), tuple(self._work), tuple(self._params), tuple(self._diag),
                                tuple(self._winch), tuple(self._env_arrays()))
         self.observation = read_only(self._obs)
@@ -161,12 +162,13 @@ class ControlStep:
         self.target = read_only(self._target)
         self.report = read_only(self._report)
         self.sensors = read_only(self._sensors)
+        self.features = read_only(self._features)
         self.scene_params = read_only(self._scene_params)
         self.disturbance = read_only(self._disturbance)
 
     # a pickled view would come back as a copy: pickle the arrays, rebuild the views
     _VIEWS = ("_kernel_tuples", "observation", "reward_terms", "action", "inputs", "target", "report", "sensors",
-              "scene_params", "disturbance")
+              "features", "scene_params", "disturbance")
 
     def __getstate__(self) -> dict:
         return {k: v for k, v in self.__dict__.items() if k not in self._VIEWS}

@@ -1,7 +1,6 @@
 """ElasticStringPendulum-v0: a load on an elastic string under a free, actuated pivot."""
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Optional, Union
 
@@ -11,6 +10,7 @@ import numpy as np
 from .control import INFO_REWARD_KEYS, ControlStep
 from .setup import make_setup
 from .errors import termination_reason
+from .kernels.env_arrays import FEATURES
 from .kernels.layout import INPUTS, TARGET
 from .params import Scene
 
@@ -169,14 +169,14 @@ class ElasticStringPendulumEnv(gym.Env):
         return self.sim.state.r[0]
 
     def load_position(self) -> np.ndarray:
-        """Load centre of mass [m]."""
-        st = self.sim.state
-        return st.r[-1] + st.R @ np.asarray(self.scene.body.rho_c)
+        """Load centre of mass [m] (spatial frame), as the last reset or step computed it
+        (kernels/task_terms.py ``task_features``)."""
+        return self.control.features[FEATURES["load_position"]].copy()
 
     def swing_angle(self) -> float:
-        """Angle of pivot -> load centre of mass from the downward vertical [rad]."""
-        d = self.load_position() - self.pivot_position()
-        return float(math.atan2(math.hypot(d[0], d[1]), d[2]))
+        """Angle of pivot -> load centre of mass from the downward vertical [rad], as the last
+        reset or step computed it for the reward (kernels/task_terms.py ``task_features``)."""
+        return float(self.control.features[FEATURES.scalar("swing")])
 
     # -- gymnasium API ------------------------------------------------------------------------
     def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None):

@@ -1,7 +1,7 @@
 """Compiling the environment's configurations ahead of use (``esp-gym compile``).
 
 Each configuration of the environment's compiled step (with or without the winch, on the
-explicit or the implicit string, single or batched: ``ENTRY_POINTS`` in esp_gym/kernels/task.py)
+explicit or the implicit string, single or batched: ``ENTRY_POINTS`` in esp_gym/kernels/env_step.py)
 compiles on its first step and is cached on disk (docs/performance.md, "Start-up"). This takes
 them all in worker processes, so that a machine (a container image, a CI run, a cluster's nodes)
 pays the compile once, in parallel, instead of at the first step of each.

@@ -1,6 +1,6 @@
 """Tasks of ElasticStringPendulum-v0: targets, initial-state distributions and reward weights.
 
-The reward itself is compiled (esp_gym/kernels/task.py) so the single and the batched
+The reward itself is compiled (esp_gym/kernels/task_terms.py) so the single and the batched
 environments share it; this module holds what varies per task, as small pure functions.
 Every distance is in metres, spatial frame, gravity along +e3 (so "below" is +z).
 """

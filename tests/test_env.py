@@ -102,6 +102,34 @@ def test_reward_terms_sum_exactly_and_are_bounded(task):
             env.reset()
 
 
+def test_the_features_the_reward_reads_are_the_states():
+    """``load_position()`` and ``swing_angle()`` read the features the compiled step computed for
+    the reward (kernels/task_terms.py): the load's centre r_N + R rho_c and the angle of
+    (load - pivot) from +e3 agree with the state to 1e-12 after reset and every step, and the
+    swing term is its weight times the tolerance 1/(1 + (swing/scale)^2) to round-off.
+    Negative control: after the state is moved behind the environment's back, the features
+    keep the last step's values."""
+    env = gym.make(ENV_ID, task="transport").unwrapped
+    env.reset(seed=3)
+    task = env.setup.task
+    for k in range(30):
+        if k:
+            _, _, terminated, _, info = env.step(np.full(6, 0.4 * (-1) ** (k // 10), dtype=np.float32))
+            assert not terminated
+            shaped = task.w_swing / (1.0 + (env.swing_angle() / task.scale_swing) ** 2)
+            assert info["reward_swing"] == pytest.approx(shaped, rel=1e-14, abs=1e-15)
+        state = env.sim.state
+        load = state.r[-1] + state.R @ np.asarray(env.scene.body.rho_c)
+        d = load - state.r[0]
+        assert np.max(np.abs(env.load_position() - load)) < 1e-12
+        assert abs(env.swing_angle() - np.arctan2(np.hypot(d[0], d[1]), d[2])) < 1e-12
+    assert env.swing_angle() > 0.01
+    moved = env.sim.state
+    moved.r[:, 0] += 0.5
+    env.sim.set_state(moved)
+    assert np.max(np.abs(env.load_position() - (moved.r[-1] + moved.R @ np.asarray(env.scene.body.rho_c)))) > 0.4
+
+
 @pytest.mark.parametrize("bad, match", [
     (np.zeros(5), "shape"), (np.zeros((1, 6)), "shape"),
     (np.array([0, 0, np.nan, 0, 0, 0]), "finite"), (np.array([np.inf, 0, 0, 0, 0, 0]), "finite"),

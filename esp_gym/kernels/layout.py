@@ -201,7 +201,7 @@ R_TERMINATION = REPORT.scalar("termination")
 #: A run of steps fills the first four entries only.
 LOOP_REPORT_SIZE = R_TERMINATION
 
-# -- the environment (kernels/task.py) ------------------------------------------------------------
+# -- the environment (kernels/env_step.py) ------------------------------------------------------------
 
 #: The action in [-1, 1]: pivot force (spatial, x force_limit, added to the hover force) and
 #: body torque (body frame, x torque_limit).
@@ -359,7 +359,7 @@ DR_PUSH_CHANCE = DRAWS.scalar("push_chance")
 DR_PUSH_AZIMUTH = DRAWS.scalar("push_azimuth")
 DR_PUSH_SCALE = DRAWS.scalar("push_scale")
 
-#: The environment step's ``scheme`` (kernels/task.py): a bit for wind and pushes (an int, so that
+#: The environment step's ``scheme`` (kernels/env_step.py): a bit for wind and pushes (an int, so that
 #: a later run-time option is a bit, not an argument: each costs numba's dispatcher about 0.09 us
 #: per call).
 SCHEME_DISTURBED = 2

@@ -188,7 +188,7 @@ def shared_advance_loop(implicit: bool):
     """:func:`advance_loop` compiled as a function of its own for one string scheme (``implicit``
     a closure constant, its other branch pruned), the other flags arguments with every branch
     kept: one compile per scheme serves every value of them (the environment's step,
-    kernels/task.py; docs/performance.md, "Start-up")."""
+    kernels/env_step.py; docs/performance.md, "Start-up")."""
 
     @kernel
     def advance_loop_shared(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, forces_ready,

@@ -96,7 +96,7 @@ def winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed, implicit
 def shared_winch_loop(implicit: bool):
     """:func:`winch_loop` compiled as a function of its own for one string scheme (``implicit`` a
     closure constant), ``disturbed`` an argument with both branches kept (the environment's
-    step, kernels/task.py)."""
+    step, kernels/env_step.py)."""
 
     @kernel
     def winch_loop_shared(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed):

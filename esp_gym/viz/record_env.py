@@ -32,7 +32,7 @@ class RecordRerun(gym.Wrapper):
     :meth:`close`) and stops the recording; the file keeps what came before.
 
     There is no every-physics-step option: the environment advances its physics steps inside
-    one compiled call (kernels/task.py), so the intermediate states never reach Python;
+    one compiled call (kernels/env_step.py), so the intermediate states never reach Python;
     recording them would mean re-stepping the physics outside the environment's own kernel.
 
     The sample is copied by one compiled call (:meth:`Recorder.add_sample`) from the env's

@@ -1,15 +1,14 @@
-"""Compiled per-environment step of the Gymnasium environment: inputs -> physics -> observation,
-reward terms, termination. The single and the batched environments call the same
-:func:`control_step`, so their results agree bit for bit; esp_gym/control.py is their Python
-face.
+"""The environment's compiled control step: the raw action -> the inputs -> the physics' loop ->
+the balances closed -> the tasks' stages (kernels/task_terms.py: features, observation, reward
+terms, termination) -> the energy watchdog. The single and the batched environments call the
+same :func:`control_step`, so their results agree bit for bit; esp_gym/control.py is their
+Python face, and :data:`ENTRY_POINTS` are the compiled calls it makes.
 
-Every packed vector is laid out in kernels/layout.py: the observation (OBSERVATION), reward
-terms (REWARD), task parameters ``tp`` (TASK_PARAMS, from esp_gym/tasks.py), action
-parameters ``ap`` (ACTION_PARAMS), targets (TARGET, spatial frame [m]), inputs (INPUTS) and
-the step report (REPORT).
+The arrays are named structs (kernels/env_arrays.py's EnvArrays and the physics' in
+kernels/layout.py); every packed vector is laid out in kernels/layout.py: the action
+parameters (ACTION_PARAMS), the inputs (INPUTS), the task parameters (TASK_PARAMS, from
+esp_gym/tasks.py) and the step report (REPORT).
 """
-import math
-
 import numpy as np
 from numba import prange
 
@@ -18,115 +17,18 @@ from .diagnostics import diagnostics
 from .disturbance import disturb, external_potential
 from .lgvi import kahan_add
 from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, A_REEL_SPEED, ACTION_SIZE, AP_FORCE_LIMIT, AP_HIGH, AP_HOVER,
-                     AP_LOW, AP_MAX_REEL_SPEED, AP_TORQUE_LIMIT, B_WINCH_WORK, B_WORK, D_ENERGY, D_STRETCHED_LENGTH,
-                     ENERGY_BALANCE, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE, O_ANGULAR_VELOCITY, O_ATTITUDE,
-                     O_LENGTH, O_LOAD_ERROR, O_LOAD_VELOCITY, O_PIVOT_ERROR, O_PIVOT_VELOCITY, O_STRETCH, OK,
-                     R_STATUS, R_STEPS, R_TERMINATION, RW_CONTROL, RW_LOAD_POSITION, RW_LOAD_VELOCITY,
-                     RW_PIVOT_POSITION, RW_SPIN, RW_SWING, SCHEME_DISTURBED, SN_HOOK_TENSION,
-                     SN_LOAD_TARGET_OFFSET, T_LOAD, T_PIVOT, T_VELOCITY, TERM_NONE, TERM_OVERSTRETCH, TERM_WORKSPACE,
-                     TP_ENERGY_BOUND, TP_ENERGY_ORIGIN, TP_ENERGY_WATCHDOG, TP_MAX_STRETCHED_LENGTH,
-                     TP_SCALE_POSITION, TP_SCALE_SPIN, TP_SCALE_SWING, TP_SCALE_VELOCITY, TP_STRING_LENGTH,
-                     TP_W_CONTROL, TP_W_LOAD_POSITION, TP_W_LOAD_VELOCITY, TP_W_PIVOT_POSITION, TP_W_SPIN, TP_W_SWING,
-                     TP_WORKSPACE_RADIUS, WN_LENGTH, WN_MASS_PER_LENGTH, WN_SPEED, DiagWork, LGVIParams, StateArrays,
+                     AP_LOW, AP_MAX_REEL_SPEED, AP_TORQUE_LIMIT, B_WINCH_WORK, B_WORK, D_ENERGY, ENERGY_BALANCE,
+                     IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE, O_LENGTH, OK, R_STATUS, R_STEPS,
+                     R_TERMINATION, SCHEME_DISTURBED, TP_ENERGY_BOUND, TP_ENERGY_ORIGIN, TP_ENERGY_WATCHDOG,
+                     TP_STRING_LENGTH, WN_LENGTH, WN_MASS_PER_LENGTH, WN_SPEED, DiagWork, LGVIParams, StateArrays,
                      WinchArrays, Work)
 from .env_arrays import EnvArrays
 from .loops import advance_loop_explicit, advance_loop_implicit
 from .reference import advance_reference
 from .rows import row_function
+from .task_terms import observe_and_score
 from .winch import length_params, winch_energy
 from .winch_loops import winch_loop_explicit, winch_loop_implicit
-
-
-@kernel
-def _tol(x, scale):
-    """Bounded shaping in (0, 1]: 1 at x = 0, 1/2 at x = scale (a Cauchy-shaped tolerance)."""
-    q = x / scale
-    return 1.0 / (1.0 + q * q)
-
-
-@kernel(inline="always")
-def env_sensors(S, P, target, sensors):
-    """SENSORS of the current state: the first element's force on the pivot, c x_0 with c =
-    kappa (1 - u/|x_0|) (0 where a slack string is compressed; kernels/string.py
-    ``nodal_forces``), and the load target - pivot position."""
-    r = S.r
-    x0 = r[1, 0] - r[0, 0]
-    x1 = r[1, 1] - r[0, 1]
-    x2 = r[1, 2] - r[0, 2]
-    c = P.kappa * (1.0 - P.u / math.sqrt(x0 * x0 + x1 * x1 + x2 * x2))
-    if P.slack and c < 0.0:
-        c = 0.0
-    sensors[SN_HOOK_TENSION] = c * x0
-    sensors[SN_HOOK_TENSION + 1] = c * x1
-    sensors[SN_HOOK_TENSION + 2] = c * x2
-    for i in range(3):
-        sensors[SN_LOAD_TARGET_OFFSET + i] = target[T_LOAD + i] - r[0, i]
-
-
-@kernel
-def env_observe(S, P, D, E, length):
-    """Observation (``E.obs``), SENSORS and reward terms (REWARD) of the current state (``D``
-    filled by diagnostics) at the unstretched ``length`` [m] (the scene's; a winch's current one,
-    whose constants ``P`` then holds), ``E`` the environment's :class:`~.env_arrays.EnvArrays`.
-    Returns the termination code (TERM_*)."""
-    target = E.target
-    tp = E.tp
-    action = E.action
-    obs = E.obs
-    terms = E.terms
-    env_sensors(S, P, target, E.sensors)
-    r = S.r
-    R = S.R
-    n = r.shape[0] - 1
-    rho = P.rho
-    V = D.V
-    w = D.omega
-    # load centre of mass and its velocity: r_N + R rho_c, v_N + R (Omega x rho_c)
-    x0 = w[1] * rho[2] - w[2] * rho[1]
-    x1 = w[2] * rho[0] - w[0] * rho[2]
-    x2 = w[0] * rho[1] - w[1] * rho[0]
-    ep = 0.0
-    el = 0.0
-    vl = 0.0
-    for i in range(3):
-        ci = r[n, i] + (R[i, 0] * rho[0] + R[i, 1] * rho[1] + R[i, 2] * rho[2])
-        vi = V[n, i] + (R[i, 0] * x0 + R[i, 1] * x1 + R[i, 2] * x2)
-        vi -= target[T_VELOCITY + i]  # relative to the moving reference (x - 0.0 == x)
-        ei = r[0, i] - target[T_PIVOT + i]
-        li = ci - target[T_LOAD + i]
-        obs[O_PIVOT_ERROR + i] = ei
-        obs[O_PIVOT_VELOCITY + i] = V[0, i] - target[T_VELOCITY + i]
-        obs[O_LOAD_ERROR + i] = li
-        obs[O_LOAD_VELOCITY + i] = vi
-        obs[O_ATTITUDE + i] = R[i, 0]
-        obs[O_ATTITUDE + 3 + i] = R[i, 1]
-        obs[O_ANGULAR_VELOCITY + i] = w[i]
-        ep += ei * ei
-        el += li * li
-        vl += vi * vi
-    stretched = D.out[D_STRETCHED_LENGTH]
-    obs[O_STRETCH] = stretched / length - 1.0
-    # swing: angle of (load - pivot) from the downward vertical e3
-    dx = (r[n, 0] - r[0, 0]) + (R[0, 0] * rho[0] + R[0, 1] * rho[1] + R[0, 2] * rho[2])  # load - pivot
-    dy = (r[n, 1] - r[0, 1]) + (R[1, 0] * rho[0] + R[1, 1] * rho[1] + R[1, 2] * rho[2])
-    dz = (r[n, 2] - r[0, 2]) + (R[2, 0] * rho[0] + R[2, 1] * rho[1] + R[2, 2] * rho[2])
-    swing = math.atan2(math.sqrt(dx * dx + dy * dy), dz)
-    spin = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
-    a2 = 0.0
-    for i in range(action.shape[0]):
-        a2 += action[i] * action[i]
-    terms[RW_LOAD_POSITION] = tp[TP_W_LOAD_POSITION] * _tol(math.sqrt(el), tp[TP_SCALE_POSITION])
-    terms[RW_LOAD_VELOCITY] = tp[TP_W_LOAD_VELOCITY] * _tol(math.sqrt(vl), tp[TP_SCALE_VELOCITY])
-    terms[RW_PIVOT_POSITION] = tp[TP_W_PIVOT_POSITION] * _tol(math.sqrt(ep), tp[TP_SCALE_POSITION])
-    terms[RW_SWING] = tp[TP_W_SWING] * _tol(swing, tp[TP_SCALE_SWING])
-    terms[RW_SPIN] = tp[TP_W_SPIN] * _tol(spin, tp[TP_SCALE_SPIN])
-    terms[RW_CONTROL] = -tp[TP_W_CONTROL] * a2 / action.shape[0]
-    if not (stretched <= tp[TP_MAX_STRETCHED_LENGTH] * (length / tp[TP_STRING_LENGTH])):
-        return TERM_OVERSTRETCH
-    radius = tp[TP_WORKSPACE_RADIUS]
-    if not (ep <= radius * radius and el <= radius * radius):
-        return TERM_WORKSPACE
-    return TERM_NONE
 
 
 @kernel(inline="always")
@@ -245,7 +147,7 @@ def env_finish(S, W, P, D, E, phi, disturbed):
     observation, reward terms and termination code."""
     status = close_balances(S, W, P, E, phi, disturbed)
     diagnostics(S, P, D)
-    code = env_observe(S, P, D, E, E.tp[TP_STRING_LENGTH])
+    code = observe_and_score(S, P, D, E, E.tp[TP_STRING_LENGTH])
     E.result[R_TERMINATION] = status if status != OK else energy_watchdog(S, D, E.tp, code)
 
 
@@ -258,7 +160,7 @@ def env_finish_winched(S, W, P, D, WA, E, phi, disturbed):
     winch_energy(S, P, WA, D, length, WA.state[WN_SPEED])
     n = S.r.shape[0] - 1
     Pl = length_params(P, WA, length, WA.state[WN_MASS_PER_LENGTH] * length / n, 0 if P.first == 0 else 1, n, False)
-    code = env_observe(S, Pl, D, E, length)
+    code = observe_and_score(S, Pl, D, E, length)
     E.obs[O_LENGTH] = length
     E.result[R_TERMINATION] = status if status != OK else energy_watchdog(S, D, E.tp, code)
 
@@ -269,7 +171,7 @@ def env_reset_observe(S, P, D, WA, E, winched):
     whose energy becomes the episode's E0 (TP_ENERGY_ORIGIN). Returns the termination code."""
     diagnostics(S, P, D)
     E.tp[TP_ENERGY_ORIGIN] = D.out[D_ENERGY]
-    code = env_observe(S, P, D, E, E.tp[TP_STRING_LENGTH])
+    code = observe_and_score(S, P, D, E, E.tp[TP_STRING_LENGTH])
     if winched:
         E.obs[O_LENGTH] = WA.state[WN_LENGTH]
     return code
