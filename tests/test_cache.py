@@ -44,7 +44,7 @@ def test_a_writable_package_directory_needs_no_warning(tmp_path):
 def test_a_kernel_runs_when_numba_cache_dir_is_unwritable():
     """End to end: before the fallback this raised numba's "cannot cache function ... no locator
     available" at the first compiled call."""
-    code = ("import numpy as np; from esp_gym.kernels.lgvi import kahan_add; "
+    code = ("import numpy as np; from esp_gym.kernels.sums import kahan_add; "
             "x = np.zeros(1); c = np.zeros(1); kahan_add(x, c, 0, 0.5); print(x[0])")
     env = {**os.environ, "NUMBA_CACHE_DIR": UNWRITABLE}
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, env=env,
@@ -73,7 +73,7 @@ def test_a_read_only_package_without_a_home_still_runs(tmp_path):
     if not _mount_read_only(source, mounted):
         pytest.skip("cannot make a read-only bind mount here (needs root)")
     try:
-        code = ("import numpy as np; from esp_gym.kernels.lgvi import kahan_add; "
+        code = ("import numpy as np; from esp_gym.kernels.sums import kahan_add; "
                 "x = np.zeros(1); c = np.zeros(1); kahan_add(x, c, 0, 0.5); print(x[0])")
         env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "XDG_CACHE_HOME")}
         env.update(HOME=UNWRITABLE, PYTHONPATH=str(mounted), TMPDIR=str(tmp_path))

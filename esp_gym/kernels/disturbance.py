@@ -27,7 +27,7 @@ from .layout import (B_ANGULAR_IMPULSE_Z, B_EXTERNAL_IMPULSE, DP_GUST_DECAY, DP_
                      DP_LOAD_FACES, DP_LOAD_ROUND, DP_LOAD_SEMI_AXES, DP_LOAD_SIDE, DP_MEAN_WIND, DP_PUSH_CHANCE,
                      DP_PUSH_FORCE, DR_GUST, DR_PUSH_AZIMUTH, DR_PUSH_CHANCE, DR_PUSH_SCALE, DS_GUST, DS_LINE_DRAG,
                      DS_LOAD_DRAG, DS_PUSH, DS_WIND)
-from .lgvi import kahan_add
+from .sums import kahan_add
 
 
 @kernel(inline="always")

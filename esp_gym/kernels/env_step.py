@@ -15,7 +15,7 @@ from numba import prange
 from .jit import announce_compile, kernel
 from .diagnostics import diagnostics
 from .disturbance import disturb, external_potential
-from .lgvi import kahan_add
+from .sums import kahan_add
 from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, A_REEL_SPEED, ACTION_SIZE, AP_FORCE_LIMIT, AP_HIGH, AP_HOVER,
                      AP_LOW, AP_MAX_REEL_SPEED, AP_TORQUE_LIMIT, B_WINCH_WORK, B_WORK, D_ENERGY, ENERGY_BALANCE,
                      IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE, O_LENGTH, OK, R_STATUS, R_STEPS,

@@ -6,26 +6,26 @@ string's increments) and the Cayley vector c of F_k, multiplied by h::
     G_a = (M_tot y)_a + M delta_aN R_k (F(c) - I) rho_c - h^2/2 (f~_k + f_g)_a - h b_a = 0
     phi = g + g x c + (g . c) c - 2 J c = 0,    g = h Pi_k + h^2/2 tau_k - M rho_c x (R_k^T y_N)
 
-with b = p_k (+ h/2 u_p at a free pivot; phi is (2) in Cayley form, Lee 2008), then p_{k+1} = p_k
-+ h f_g + h/2 (f~_k + f~_{k+1}) (+ h u_p), and R_{k+1}, Pi_{k+1} by (4) as in kernels/lgvi.py.
+with b = p_k (+ h/2 u_p at a free pivot; phi is (2) in Cayley form, Lee 2008), then the commit of
+every scheme (kernels/step_shared.py) with the impulse h/2 (f~_k + f~_{k+1}).
 f~ are the forces of the elements' tensions T_a over the step (the energy's secant in the stretch):
 in the energy-momentum form (``P.gradient``, the default) along the discrete gradient's direction
 (x_k + x_{k+1})/(|x_k| + |x_{k+1}|) at both ends, so that the string's energy is conserved exactly;
 in the variational form along the elements at r_k (f~_k) and r_{k+1} (f~_{k+1}), the discrete
 Euler-Lagrange equations of the mean-length Lagrangian (kernels/implicit_terms.py).
 
-Newton's method solves them together: the string's block-tridiagonal Jacobian (3x3 blocks)
-bordered by the body's three unknowns, which couple to the attachment node only; block
-elimination from the pivot down, a 3x3 Schur complement there, back substitution: O(N) per
-iteration (pieces in kernels/implicit_terms.py). The slack law's kink makes the residual only
-semismooth: a step that does not reduce the residual (rows in metres) is halved, at most
-``MAX_HALVINGS`` times per step, while the step is not yet in the round-off range.
+Newton's method solves them together: the string's block-tridiagonal Jacobian bordered by the
+body's three unknowns (coupled to the attachment node only), by block elimination from the pivot
+down, a 3x3 Schur complement there and back substitution: O(N) per iteration (the pieces in
+kernels/implicit_terms.py). The slack law's kink makes the residual only semismooth: a step that
+does not reduce it (rows in metres) is halved, at most ``MAX_HALVINGS`` times, while not in round-off.
 """
 import numpy as np
 
 from .jit import kernel
 from .layout import NEWTON_FAILED, NON_FINITE
-from .lgvi import explicit_increments, held_inputs, left_torque, lgvi_commit, new_positions
+from .lgvi import explicit_increments
+from .step_shared import commit_step, held_inputs, left_torque, new_positions
 from .implicit_terms import (body_coupling, coupling_block, element_block, hold_taut, inverse3, release_slack,
                              split_forces)
 from .so3 import cayley_jacobian, cayley_minus_identity, cayley_residual, solve3
@@ -406,7 +406,7 @@ def implicit_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
 @kernel(inline="always")
 def implicit_positions(S, W, c0, c1, c2, first, compensated):
     """After the Newton of the fixed-length or reeling step: ``W.FmI`` = F - I, the new positions,
-    and :func:`~.lgvi.lgvi_commit`'s ``(e, dr_0)``: R_k^T dr_{N+1} (body frame), dr_0 [m]."""
+    and :func:`~.step_shared.commit_step`'s ``(e, dr_0)``: R_k^T dr_{N+1} (body frame), dr_0 [m]."""
     R = S.R
     Y = W.Y
     n = Y.shape[0] - 1
@@ -429,22 +429,20 @@ def implicit_step_once(S, W, P, inputs, h, free, forced, coupled, compensated, b
     """One step of length ``h`` of the implicit string without cutting back: the state untouched
     on failure, and (``bounded``, variational form) where its largest tension breaks the transverse limit
     (status ``TOO_TENSE``). Returns ``(status, newton_iterations)``."""
-    r = S.r
-    R = S.R
-    Y = W.Y
     first = 0 if free else 1
     up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2 = held_inputs(inputs, forced)
-    l0, l1, l2, t0, t1, t2 = left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
+    l0, l1, l2, t0, t1, t2 = left_torque(S.R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
     c0, c1, c2 = explicit_start(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled)
     c0, c1, c2, iters, status = implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled, c0, c1,
                                                 c2, P.mdiag, P.mdiag, P.mdiag, S.p, P.u, P.u, False)
     if status != 0:
         return status, iters
     # the string's impulse over the step, h/2 (fl + fr): along the elements at both ends
-    _, tension = split_forces(r, Y, P, W.fl, W.fr, P.m, P.m, P.u, P.u)
+    _, tension = split_forces(S.r, W.Y, P, W.fl, W.fr, P.m, P.m, P.u, P.u)
     if bounded and not P.gradient and 12.0 * tension * h * h > TRANSVERSE_LIMIT * TRANSVERSE_LIMIT * P.u * P.m:
         return TOO_TENSE, iters
     e0, e1, e2, dr00, dr01, dr02 = implicit_positions(S, W, c0, c1, c2, first, compensated)
-    status = lgvi_commit(S, W, P, h, c0, c1, c2, e0, e1, e2, l0, l1, l2, t0, t1, t2, tb0, tb1, tb2, ts0, ts1, ts2,
-                         up0, up1, up2, dr00, dr01, dr02, free, forced, coupled, compensated, True)
+    status = commit_step(S, W, P, h, (c0, c1, c2), (e0, e1, e2), (dr00, dr01, dr02), (l0, l1, l2, t0, t1, t2),
+                         (up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2), (W.fl, W.fr),
+                         (free, forced, coupled, compensated))
     return status, iters

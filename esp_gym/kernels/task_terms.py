@@ -126,8 +126,8 @@ def terminate(D, E, length):
     tp = E.tp
     if not (D.out[D_STRETCHED_LENGTH] <= tp[TP_MAX_STRETCHED_LENGTH] * (length / tp[TP_STRING_LENGTH])):
         return TERM_OVERSTRETCH
-    radius = tp[TP_WORKSPACE_RADIUS]
-    if not (squared_norm(E.obs, O_PIVOT_ERROR) <= radius * radius and squared_norm(E.obs, O_LOAD_ERROR) <= radius * radius):
+    r2 = tp[TP_WORKSPACE_RADIUS] * tp[TP_WORKSPACE_RADIUS]
+    if not (squared_norm(E.obs, O_PIVOT_ERROR) <= r2 and squared_norm(E.obs, O_LOAD_ERROR) <= r2):
         return TERM_WORKSPACE
     return TERM_NONE
 

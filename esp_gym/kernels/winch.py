@@ -31,8 +31,10 @@ import numpy as np
 from .diagnostics import diagnostics, kinetic_energies, node_velocities
 from .jit import kernel
 from .layout import (B_GRAVITY_IMPULSE, D_ENERGY, D_KINETIC_STRING, D_LINEAR_MOMENTUM, D_PI3, OK, WN_EA, WN_END_SHARE,
-                     WN_LENGTH, WN_MASS_PER_LENGTH, WN_MAX_STRETCH, WN_OFF_SHARE, LGVIParams, StateArrays, Work)
-from .lgvi import held_inputs, kahan_add, left_torque, lgvi_commit, new_positions, rigid_increments
+                     WN_LENGTH, WN_MASS_PER_LENGTH, WN_MAX_STRETCH, WN_OFF_SHARE, LGVIParams, StateArrays)
+from .lgvi import rigid_increments
+from .step_shared import commit_step, held_inputs, left_torque, new_positions
+from .sums import kahan_add
 from .string import nodal_forces
 from .switch import settle_switches, switch_errors
 
@@ -253,9 +255,9 @@ def winch_substep(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, compens
         u0 = l0 / n
         unsettled = switch_errors(S.r, W.X, st[WN_EA] / u0, u0, P1.kappa, P1.u, (l1 - l0) * st[WN_EA] / n, S.owed,
                                   W.switch)
-    W1 = Work(W.fn, W.X, W.Y, W.FmI, W.RF, W.Rn, W.jac, W.backup, fl, W.fn, W.dy, W.elim, W.taut, W.ext, W.switch)
-    status = lgvi_commit(S, W1, P1, h, c0, c1, c2, e0, e1, e2, l_0, l_1, l_2, t0, t1, t2, tb0, tb1, tb2, ts0, ts1,
-                         ts2, up0, up1, up2, dr00, dr01, dr02, free, forced, coupled, compensated, True)
+    status = commit_step(S, W, P1, h, (c0, c1, c2), (e0, e1, e2), (dr00, dr01, dr02), (l_0, l_1, l_2, t0, t1, t2),
+                         (up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2), (fl, W.fn),
+                         (free, forced, coupled, compensated))
     if status == OK and unsettled > 0:
         settle_reeling_switches(S, P, WA, W, h, l1, c, first, n)
     if status == OK:  # the commit counted the weight at l1; the step's is at the mean length

@@ -23,7 +23,9 @@ from .implicit import CUTBACKS, TOO_TENSE, TRANSVERSE_LIMIT, implicit_newton, im
 from .implicit_terms import element_vectors, secant_terms, split_forces
 from .jit import kernel
 from .layout import B_GRAVITY_IMPULSE, B_WINCH_WORK, NEWTON_FAILED, OK, WN_EA, WN_LENGTH, WN_MASS_PER_LENGTH
-from .lgvi import held_inputs, kahan_add, left_torque, lgvi_commit, rigid_increments
+from .lgvi import rigid_increments
+from .step_shared import commit_step, held_inputs, left_torque
+from .sums import kahan_add
 from .winch import (add_convective_forces, convective_impulse, convective_momentum, factor_tridiagonal, length_params,
                     length_shift, step_solve)
 
@@ -105,8 +107,9 @@ def winch_implicit_once(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, c
             for i in range(3):
                 fl[a, i] += q * convective_impulse(Y, coef, a, i)
     P1 = length_params(P, WA, l1, m_mean, first, n, False)
-    status = lgvi_commit(S, W, P1, h, c0, c1, c2, e0, e1, e2, l_0, l_1, l_2, t0, t1, t2, tb0, tb1, tb2, ts0, ts1, ts2,
-                         up0, up1, up2, dr00, dr01, dr02, free, forced, coupled, compensated, True)
+    status = commit_step(S, W, P1, h, (c0, c1, c2), (e0, e1, e2), (dr00, dr01, dr02), (l_0, l_1, l_2, t0, t1, t2),
+                         (up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2), (W.fl, W.fr),
+                         (free, forced, coupled, compensated))
     if status == OK:  # the commit counted the weight at l1; the step's is at the mean length
         kahan_add(S.acc, S.accc, B_GRAVITY_IMPULSE + 2, h * P.g * n * (m_mean - P1.m))
     return status, iters, elastic

@@ -5,7 +5,7 @@ from .disturbance import kick
 from .jit import kernel
 from .layout import (B_WINCH_WORK, OK, R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS, WN_LENGTH, WN_MAX_LENGTH,
                      WN_MIN_LENGTH, WN_SPEED)
-from .lgvi import kahan_add
+from .sums import kahan_add
 from .loops import restore_state, save_state
 from .winch import midpoint_dH_dl, winch_energy, winch_substep
 from .winch_implicit import winch_implicit_substep
