@@ -17,14 +17,13 @@ from .kernels.diagnostics import diagnostics as diagnostics_kernel
 from .kernels.layout import (BALANCE, DIAG, INPUTS, LOOP_REPORT_SIZE, OK,
                              R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS, STEP_DIAG, DiagWork, Snapshots,
                              LGVIParams, StateArrays, Work)
-from .kernels.loops import state_size
+from .kernels.loops import state_size, winch_advance, winch_advance_implicit
 from .kernels.specialise import general_kernels, specialised_kernels
 from .kernels.string import state_forces
 from .errors import SimulationError, failure_advice  # noqa: F401  (re-exported)
 from .params import Scene, check_rotation
 from .trajectory import Trajectory  # noqa: F401  (re-exported)
 from .kernels.winch import winch_forces
-from .kernels.winch_loops import winch_advance, winch_advance_implicit
 from .stepsize import at_length
 from .watchdog import WATCH_EVERY, check_balance
 from .winch import Winch

@@ -10,6 +10,7 @@ import pytest
 
 import esp_gym
 from esp_gym.stepsize import shortest
+from esp_gym.errors import SimulationError
 from esp_gym.model import Simulator, State
 from discrete_lagrangian import GEOMETRIC_OVERRIDES, random_state, winch_lagrangian
 from test_discrete_lagrangian import legendre_errors
@@ -239,3 +240,26 @@ def test_a_state_with_a_bad_winch_is_refused_whole():
         with pytest.raises(ValueError, match=message):
             sim.set_state(bad)
         assert sim.state.winch == good.winch and np.array_equal(sim.state.r, good.r)
+
+
+def test_a_composed_reeling_step_that_fails_holds_the_last_good_step():
+    """A composed (order-4) step that fails part-way while the winch reels in is undone from
+    its checkpoint, the winch's length and reel with it (kernels/loops.py): the simulator holds
+    exactly (bit for bit) the state and length a fresh run of the completed steps reaches.
+    Negative control: one step fewer is another state."""
+    solver = {"solver": {"order": 4, "energy_watchdog": None}}
+    base = esp_gym.load_scene("paper_example", **solver)
+    scene = esp_gym.load_scene("paper_example", h=1.03 * base.stability_bound, allow_unstable_h=True, **solver)
+    sim = Simulator(scene)
+    with pytest.raises(SimulationError):
+        sim.step(20_000, reel_speed=-0.05)
+    k = sim.step_count
+    assert k > 64, k
+    again, short = Simulator(scene), Simulator(scene)
+    again.step(k, reel_speed=-0.05)
+    short.step(k - 1, reel_speed=-0.05)
+    a, b = sim.state, again.state
+    for name in ("r", "p", "R", "Pi"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert a.winch == b.winch and sim.diagnostics()["winch_work"] == again.diagnostics()["winch_work"]
+    assert not np.array_equal(a.r, short.state.r)

@@ -23,12 +23,11 @@ from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, A_REEL_SPEED, ACTION_SIZE, AP
                      TP_STRING_LENGTH, WN_LENGTH, WN_MASS_PER_LENGTH, WN_SPEED, DiagWork, LGVIParams, StateArrays,
                      WinchArrays, Work)
 from .env_arrays import EnvArrays
-from .loops import advance_loop_explicit, advance_loop_implicit
+from .loops import advance_loop_explicit, advance_loop_implicit, winch_loop_explicit, winch_loop_implicit
 from .reference import advance_reference
 from .rows import row_function
 from .task_terms import observe_and_score
 from .winch import length_params, winch_energy
-from .winch_loops import winch_loop_explicit, winch_loop_implicit
 
 
 @kernel(inline="always")

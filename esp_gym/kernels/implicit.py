@@ -376,33 +376,6 @@ def implicit_newton(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled
     return c0, c1, c2, P.max_iter, NON_FINITE
 
 
-@kernel(forceinline=True)
-def implicit_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
-    """One step of the implicit string, in place; the contract of
-    :func:`~.lgvi.lgvi_substep` (flags, inputs, compensation, ``S.f`` the forces at the state).
-    Where Newton does not converge the step is cut back: the rest of it is taken in steps of
-    half the length, down to h / 2**CUTBACKS (docs/physics.md, "Cutting the step back").
-    A failure past that leaves the state after the last good cut step (the loops rewind it:
-    kernels/loops.py). Returns ``(status, newton_iterations)``."""
-    # time in units of h / 2**CUTBACKS: exact integer bookkeeping of the cut steps
-    left = 1 << CUTBACKS
-    size = left
-    cuts = 0
-    total = 0
-    while left > 0:
-        status, iters = implicit_step_once(S, W, P, inputs, h * (size / (1 << CUTBACKS)), free, forced, coupled,
-                                           compensated, cuts < CUTBACKS)
-        total += iters
-        if (status == NEWTON_FAILED or status == TOO_TENSE) and cuts < CUTBACKS:
-            cuts += 1
-            size >>= 1
-            continue
-        if status != 0:
-            return status, total
-        left -= size
-    return 0, total
-
-
 @kernel(inline="always")
 def implicit_positions(S, W, c0, c1, c2, first, compensated):
     """After the Newton of the fixed-length or reeling step: ``W.FmI`` = F - I, the new positions,

@@ -23,7 +23,7 @@ The energy reported while reeling is the Hamiltonian H = T2 - T0 + V of this tim
 Lagrangian (T2 the usual kinetic energy of the nodes' motion), with p = M(l) rdot + c C^T r; the
 winch's work is the integral of dH/dt = (dH/dl) v along the steps plus H's jump at fixed (q, p)
 where the reel speed changes: the midpoint rule for the explicit string, per step for the implicit
-one (:func:`length_shift`). The loops that reel are kernels/winch_loops.py's;
+one (:func:`length_shift`). The loops that reel are kernels/loops.py's;
 the implicit string's step kernels/winch_implicit.py's.
 """
 import numpy as np
@@ -98,6 +98,19 @@ def convective_impulse(dr, coef, a, i):
     if a < n:
         s -= coef[a, 0] * dr[a, i] + coef[a, 1] * dr[a + 1, i]
     return s
+
+
+@kernel(inline="always")
+def add_convective_impulse(X, dr, coef, theta1, c, h, fl, first):
+    """``fl += grad T0 at (X, l1) + (2/h) c C dr`` on rows ``first..N``: the convective share of
+    a reeling step's impulse h/2 (f~_k + f~_{k+1}) + c C dr of (3w), ``theta1`` = mu v^2 / (N l1),
+    ``X`` the new positions, ``dr`` the increments [N]."""
+    n = X.shape[0] - 1
+    add_convective_forces(X, coef, theta1, fl, first)
+    q = 2.0 * c / h
+    for a in range(first, n + 1):
+        for i in range(3):
+            fl[a, i] += q * convective_impulse(dr, coef, a, i)
 
 
 @kernel(inline="always")
@@ -244,11 +257,7 @@ def winch_substep(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, compens
     # the impulse h/2 (f~_k + f~_{k+1}) + c C dr, with f_{k+1} (nodal forces at l1) added by the
     # commit: fl <- f~_k + grad T0 at (r_{k+1}, l1) + (2/h) c C dr
     if v != 0.0:
-        add_convective_forces(W.X, WA.coef, mu * v * v / (n * l1), fl, first)
-        q = 2.0 * c / h
-        for a in range(first, n + 1):
-            for i in range(3):
-                fl[a, i] += q * convective_impulse(W.Y, WA.coef, a, i)
+        add_convective_impulse(W.X, W.Y, WA.coef, mu * v * v / (n * l1), c, h, fl, first)
     P1 = length_params(P, WA, l1, m_mean, first, n, False)
     unsettled = 0
     if P.settle:  # the slack switches of the step (kernels/switch.py), at each end's length

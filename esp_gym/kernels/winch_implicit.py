@@ -13,21 +13,22 @@ u = l / N at each end. Its equations are the implicit string's with the step's m
 
 and the momenta p_k+1 = p_k + h/2 (f~_k + f~_k+1) + c C dr as in (3w), f~ the tensions of the step
 along the elements at each end plus the weight and grad T0 at that end's length. The first guess
-is the explicit winch step with the last step's right forces; a step that fails is cut back as
-the implicit string's, each piece reeling its share of the length. The winch's work is counted per
-step: the elastic energy's change that the tensions' work does not account for, plus the mean over
-the step's two states of H's change with the length alone (kinetic, T0 and weight terms).
+is the explicit winch step with the last step's right forces. kernels/cutback.py cuts a step
+that fails back, as the implicit string's, each piece reeling its share of the length, and counts
+the winch's work per piece: the elastic energy's change that the tensions' work does not account
+for (:func:`elastic_winch_work`), plus the mean over the piece's two states of H's change with
+the length alone (kinetic, T0 and weight terms).
 """
 
-from .implicit import CUTBACKS, TOO_TENSE, TRANSVERSE_LIMIT, implicit_newton, implicit_positions
+from .implicit import TOO_TENSE, TRANSVERSE_LIMIT, implicit_newton, implicit_positions
 from .implicit_terms import element_vectors, secant_terms, split_forces
 from .jit import kernel
-from .layout import B_GRAVITY_IMPULSE, B_WINCH_WORK, NEWTON_FAILED, OK, WN_EA, WN_LENGTH, WN_MASS_PER_LENGTH
+from .layout import B_GRAVITY_IMPULSE, OK, WN_EA, WN_MASS_PER_LENGTH
 from .lgvi import rigid_increments
 from .step_shared import commit_step, held_inputs, left_torque
 from .sums import kahan_add
-from .winch import (add_convective_forces, convective_impulse, convective_momentum, factor_tridiagonal, length_params,
-                    length_shift, step_solve)
+from .winch import (add_convective_forces, add_convective_impulse, convective_momentum, factor_tridiagonal,
+                    length_params, step_solve)
 
 
 @kernel(forceinline=True)
@@ -101,11 +102,7 @@ def winch_implicit_once(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, c
     # fr (-> S.f, the next step's first guess) holds the tensions and the weight only
     if v != 0.0:
         add_convective_forces(r, coef, theta0, fl, first)
-        add_convective_forces(X, coef, mu * v * v / (n * l1), fl, first)
-        q = 2.0 * c / h
-        for a in range(first, n + 1):
-            for i in range(3):
-                fl[a, i] += q * convective_impulse(Y, coef, a, i)
+        add_convective_impulse(X, Y, coef, mu * v * v / (n * l1), c, h, fl, first)
     P1 = length_params(P, WA, l1, m_mean, first, n, False)
     status = commit_step(S, W, P1, h, (c0, c1, c2), (e0, e1, e2), (dr00, dr01, dr02), (l_0, l_1, l_2, t0, t1, t2),
                          (up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2), (W.fl, W.fr),
@@ -136,43 +133,3 @@ def elastic_winch_work(r, Y, EA, kappa, u0, u1, slack):
     return total
 
 
-@kernel(forceinline=True)
-def winch_implicit_substep(S, W, P, WA, D, inputs, h, l0, l1, free, forced, coupled, compensated):
-    """A step of the implicit string reeling ``l0 -> l1`` [m] over ``h`` [s], cut back where it
-    fails as :func:`~.implicit.implicit_substep` (the rest in halves, to h / 2**CUTBACKS), each
-    piece reeling its share at the same speed; each piece's winch work joins the balances and the
-    winch's length follows. The work of a piece from state z_k to z_k+1, la -> lb: the elastic
-    energy's share exactly (:func:`elastic_winch_work`) plus the mean of H's change with the
-    length alone at z_k and at z_k+1 (:func:`~.winch.length_shift`, a discrete gradient in l:
-    with the energy-momentum string it closes the balance at every reel speed, where the midpoint
-    rule of dH/dl erred by O(h^3) per step with the sign of the reel, and so drifted under a
-    reel that keeps reversing). ``D``: the diagnostics' scratch. Returns
-    ``(status, newton_iterations)``."""
-    v = (l1 - l0) / h
-    full = 1 << CUTBACKS
-    left = full
-    size = full
-    done = 0
-    cuts = 0
-    total = 0
-    while left > 0:
-        la = l0 + (l1 - l0) * (done / full)
-        lb = l1 if done + size == full else l0 + (l1 - l0) * ((done + size) / full)
-        piece = h * (size / full)
-        before = length_shift(S, P, WA, D, la, lb, v) if lb != la else 0.0
-        status, iters, elastic = winch_implicit_once(S, W, P, WA, inputs, piece, la, lb, free, forced, coupled,
-                                                     compensated, cuts < CUTBACKS)
-        total += iters
-        if (status == NEWTON_FAILED or status == TOO_TENSE) and cuts < CUTBACKS:
-            cuts += 1
-            size >>= 1
-            continue
-        if status != OK:
-            return status, total
-        if lb != la:
-            after = length_shift(S, P, WA, D, la, lb, v)
-            kahan_add(S.acc, S.accc, B_WINCH_WORK, elastic + 0.5 * (before + after))
-        WA.state[WN_LENGTH] = lb
-        left -= size
-        done += size
-    return OK, total
