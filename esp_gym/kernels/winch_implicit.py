@@ -20,7 +20,8 @@ for (:func:`elastic_winch_work`), plus the mean over the piece's two states of H
 the length alone (kinetic, T0 and weight terms).
 """
 
-from .implicit import TOO_TENSE, TRANSVERSE_LIMIT, implicit_newton, implicit_positions
+from .implicit import TOO_TENSE, TRANSVERSE_LIMIT, implicit_positions
+from .implicit_newton import implicit_newton
 from .implicit_terms import element_vectors, secant_terms, split_forces
 from .jit import kernel
 from .layout import B_GRAVITY_IMPULSE, OK, WN_EA, WN_MASS_PER_LENGTH
@@ -87,8 +88,9 @@ def winch_implicit_once(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, c
     rhs[n, 2] += h2 * (P.M - 0.5 * m0) * P.g
     if v != 0.0:
         add_convective_forces(r, coef, h2 * theta0, rhs, first)
-    c0, c1, c2, iters, status = implicit_newton(S, W, Pm, h, t0, t1, t2, up0, up1, up2, free, forced, coupled, c0, c1,
-                                                c2, WA.diag, WA.lower, WA.upper, rhs, u0, u1, True)
+    c0, c1, c2, iters, status = implicit_newton(S, W, Pm, h, (t0, t1, t2), (up0, up1, up2), (c0, c1, c2),
+                                                (WA.diag, WA.lower, WA.upper, rhs), (u0, u1),
+                                                (free, forced, coupled, True))
     if status != OK:
         return status, iters, 0.0
     # the step's forces at each end: tensions along the elements, the weight at that end's length
