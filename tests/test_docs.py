@@ -81,3 +81,48 @@ def test_link_checker_reports_a_broken_link():
 def test_readme_is_a_guide_under_200_lines():
     lines = (ROOT / "README.md").read_text(encoding="utf-8").count("\n")
     assert lines < README_MAX_LINES, f"README.md has {lines} lines; move depth into docs/"
+
+
+def cold_start_figures(path=ROOT / "docs" / "img" / "cold_start.json") -> dict:
+    """(case, cache) -> the first step's seconds, from benchmarks.cold_start's output file."""
+    import json
+
+    runs = json.loads(path.read_text(encoding="utf-8"))["runs"]
+    return {(run["case"], run["cache"]): run["first_step_s"] for run in runs}
+
+
+def cold_start_misquotes(readme: str, performance: str, figures: dict) -> list:
+    """The cold-start figures the README and docs/performance.md should quote (one decimal) and
+    do not."""
+    f = {key: f"{value:.1f}" for key, value in figures.items()}
+    wanted = [(readme, f"{f['env', 'cold']} s / {f['env', 'warm']} s (8-env vector env: "
+                       f"{f['vector env (8)', 'cold']} s / {f['vector env (8)', 'warm']} s)")]
+    for case, row in (("simulator", "`Simulator(\"paper_example\").step(1)`"),
+                      ("env", "`gym.make(\"ElasticStringPendulum-v0\")`, reset, step"),
+                      ("vector env (8)", "`gym.make_vec(..., num_envs=8)`, reset, step")):
+        wanted.append((performance, f"| {row} | {f[case, 'cold']} | {f[case, 'warm']} |"))
+    return [text for doc, text in wanted if text not in doc]
+
+
+def test_the_cold_start_figures_are_the_benchmarks_output():
+    """The README's and docs/performance.md's start-up figures are docs/img/cold_start.json's
+    (``python -m benchmarks.cold_start --repeats 1 --out docs/img``), and the compile notices
+    announce at least the measured cold first step, and at most 30 % more."""
+    from esp_gym.kernels.env_step import COLD_BATCH_STEP_S, COLD_ENV_STEP_S
+    from esp_gym.kernels.specialise import COLD_SIMULATOR_STEP_S
+
+    figures = cold_start_figures()
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    performance = (ROOT / "docs" / "performance.md").read_text(encoding="utf-8")
+    assert cold_start_misquotes(readme, performance, figures) == []
+    for announced, case in ((COLD_SIMULATOR_STEP_S, "simulator"), (COLD_ENV_STEP_S, "env"),
+                            (COLD_BATCH_STEP_S, "vector env (8)")):
+        assert figures[case, "cold"] <= announced <= 1.3 * figures[case, "cold"], (case, announced)
+
+
+def test_a_misquoted_cold_start_figure_is_found():
+    """Negative control: the output file's figures one tenth of a second off are misquotes."""
+    figures = {key: value + 0.1 for key, value in cold_start_figures().items()}
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    performance = (ROOT / "docs" / "performance.md").read_text(encoding="utf-8")
+    assert len(cold_start_misquotes(readme, performance, figures)) == 4
