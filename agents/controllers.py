@@ -34,7 +34,7 @@ from typing import Optional
 
 import numpy as np
 
-from esp_gym.kernels.layout import ACTION, WINCH_ACTION
+from esp_gym.kernels.env_arrays import ACTION, WINCH_ACTION
 
 
 @dataclass(frozen=True)

@@ -35,7 +35,7 @@ from agents.cli import ArgumentParser
 from agents.controllers import ZeroPolicy, baseline
 from agents.normalization import NormalizationFileError, NormStats
 from agents.residual import base_features, residual_for
-from esp_gym.kernels.layout import SENSORS
+from esp_gym.kernels.env_arrays import SENSORS
 from esp_gym.setup import make_setup
 from esp_gym.tasks import TASKS
 

@@ -33,7 +33,8 @@ import scipy.linalg
 from agents.lqr import (LQR, REDUCED, equilibrium_target, lift, lqr_solution, plain_setup, preview_feedforward,
                         preview_terms, reference_drift, reference_states, reward_weights)
 from esp_gym.control import ControlStep
-from esp_gym.kernels.layout import ACTION, TARGET, Layout
+from esp_gym.kernels.layout import Layout
+from esp_gym.kernels.env_arrays import ACTION, TARGET
 from esp_gym.observe import UNIT_NOISE
 from esp_gym.params import override_scene
 from esp_gym.tasks import hanging_depth

@@ -31,7 +31,8 @@ import numpy as np
 import scipy.linalg
 
 from esp_gym.control import ControlStep
-from esp_gym.kernels.layout import ACTION, OBSERVATION, TARGET, Layout
+from esp_gym.kernels.layout import Layout
+from esp_gym.kernels.env_arrays import ACTION, OBSERVATION, TARGET
 from esp_gym.observe import Observer
 from esp_gym.state import State, cross3, legendre_momenta
 from esp_gym.tasks import hanging_axis, hanging_depth, rotation_between, static_node_depths

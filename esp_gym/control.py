@@ -13,7 +13,8 @@ every array gains a leading axis) and the compiled calls on them (kernels/env_st
 
 Everything is readable through named, read-only views (``observation``, ``sensors``,
 ``reward_terms``, ``action``, ``inputs``, ``target``, ``report``, ``scene_params``,
-``disturbance``) laid out in kernels/layout.py; the observation a mode returns is
+``disturbance``) laid out in kernels/env_arrays.py (INPUTS and REPORT in kernels/layout.py,
+DISTURBANCE in kernels/disturbance.py); the observation a mode returns is
 esp_gym/observe.py's; the environments' shared, resolved arguments are esp_gym/setup.py's.
 """
 from __future__ import annotations
@@ -22,9 +23,9 @@ from typing import Optional
 
 import numpy as np
 
-from .kernels.layout import (DISTURBANCE, DISTURBANCE_PARAMS, DRAWS, INPUTS, OBSERVATION, R_TERMINATION, REPORT, REWARD,
-                             REWARD_TERMS, SCHEME_DISTURBED, SENSORS, TARGET,
-                             WINCH_OBSERVATION, LGVIParams)
+from .kernels.layout import INPUTS, R_TERMINATION, REPORT, LGVIParams
+from .kernels.env_arrays import OBSERVATION, REWARD, REWARD_TERMS, SCHEME_DISTURBED, SENSORS, TARGET, WINCH_OBSERVATION
+from .kernels.disturbance import DISTURBANCE, DISTURBANCE_PARAMS, DRAWS
 from .kernels.string import state_forces
 from .kernels.env_arrays import FEATURES, EnvArrays
 from .kernels.env_step import ENTRY_POINTS, actions_finite, env_reset_observe
@@ -81,7 +82,7 @@ class ControlStep:
     stepper's constants, its number of physics steps, the task's and the action path's
     constants), set by :meth:`reset` with an ``episode`` or drawn by :meth:`start_episode`.
 
-    Views (read-only; leading batch axis for a batch; layouts in kernels/layout.py):
+    Views (read-only; leading batch axis for a batch; layouts in kernels/env_arrays.py):
     ``observation`` (OBSERVATION), ``reward_terms`` (REWARD), ``action`` (the clipped
     action, ACTION), ``inputs`` (INPUTS: pivot force [N], body torque [N m], spatial torque),
     ``target`` (TARGET [m]), ``report`` (REPORT, int64), ``scene_params`` (SCENE_PARAMS of the
@@ -316,7 +317,7 @@ class ControlStep:
 
     @property
     def termination(self):
-        """The termination code of the last step (0: none; kernels/layout.py STATUS), an int or
+        """The termination code of the last step (0: none; kernels/status.py STATUS), an int or
         (num_envs,) int64."""
         if self.num_envs is None:
             return int(self._report[R_TERMINATION])

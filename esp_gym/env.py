@@ -11,7 +11,8 @@ from .control import INFO_REWARD_KEYS, ControlStep
 from .setup import make_setup
 from .errors import termination_reason
 from .kernels.env_arrays import FEATURES
-from .kernels.layout import INPUTS, TARGET
+from .kernels.layout import INPUTS
+from .kernels.env_arrays import TARGET
 from .params import Scene
 
 
@@ -39,7 +40,7 @@ class ElasticStringPendulumEnv(gym.Env):
 
     ## Observation Space
     `Box(-inf, inf, (22,), float32)`, spatial frame unless stated; `env.observation_structure`
-    maps each name below to its slice (esp_gym/kernels/layout.py OBSERVATION):
+    maps each name below to its slice (esp_gym/kernels/env_arrays.py OBSERVATION):
 
     | index | observation | unit |
     |---|---|---|
@@ -92,7 +93,7 @@ class ElasticStringPendulumEnv(gym.Env):
     the nominal ones without `randomize`).
     With `wind`, the episode's mean wind azimuth (unless given) and first gust are drawn next,
     and `"scene_params"` also holds `wind_speed` [m/s] and `wind_direction` [rad]; the wind of
-    the current step is `env.unwrapped.control.disturbance` (kernels/layout.py DISTURBANCE).
+    the current step is `env.unwrapped.control.disturbance` (kernels/disturbance.py DISTURBANCE).
     All randomness comes from `np_random` (seed it through `reset(seed=...)`).
 
     ## Episode End
@@ -148,7 +149,7 @@ class ElasticStringPendulumEnv(gym.Env):
         self.control = ControlStep(self.setup)
         #: The simulator of this environment (its state and diagnostics).
         self.sim = self.control.sim
-        #: Name -> slice of the observation vector of this mode (kernels/layout.py OBSERVATION,
+        #: Name -> slice of the observation vector of this mode (kernels/env_arrays.py OBSERVATION,
         #: HOOK_OBSERVATION).
         self.observation_structure = self.setup.observation_structure
         self._renderer = None

@@ -1,8 +1,8 @@
 """What a failed step raises, what to change after it, and what its status codes say
-(kernels/layout.py, STATUS)."""
+(kernels/status.py, STATUS)."""
 from __future__ import annotations
 
-from .kernels.layout import BLOW_UP, ENERGY_BALANCE, NEWTON_FAILED, NON_FINITE, PHYSICS_FAILURES, STATUS
+from .kernels.status import BLOW_UP, ENERGY_BALANCE, NEWTON_FAILED, NON_FINITE, PHYSICS_FAILURES, STATUS
 from .params import Scene
 
 

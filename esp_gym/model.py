@@ -14,9 +14,9 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .kernels.diagnostics import diagnostics as diagnostics_kernel
-from .kernels.layout import (BALANCE, DIAG, INPUTS, LOOP_REPORT_SIZE, OK,
-                             R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS, STEP_DIAG, DiagWork, Snapshots,
-                             LGVIParams, StateArrays, Work)
+from .kernels.layout import (BALANCE, DIAG, INPUTS, LOOP_REPORT_SIZE, R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS,
+                             STEP_DIAG, DiagWork, Snapshots, LGVIParams, StateArrays, Work)
+from .kernels.status import OK
 from .kernels.loops import state_size, winch_advance, winch_advance_implicit
 from .kernels.specialise import general_kernels, specialised_kernels
 from .kernels.string import state_forces

@@ -1,6 +1,6 @@
 """Observation modes of ElasticStringPendulum-v0 (``observation=``) and their sensor noise.
 
-* ``full``: the compiled step's OBSERVATION (kernels/layout.py), the load's state included;
+* ``full``: the compiled step's OBSERVATION (kernels/env_arrays.py), the load's state included;
 * ``hook``: HOOK_OBSERVATION, what a drone or a crane hook measures: its own position error and
   velocity, the string's pull on it (a load cell; SENSORS ``hook_tension``) and the load target
   relative to it, no load state.
@@ -18,7 +18,8 @@ from typing import Any, Mapping, Union
 
 import numpy as np
 
-from .kernels.layout import HOOK_OBSERVATION, OBSERVATION, SENSORS, WINCH_OBSERVATION, Layout
+from .kernels.layout import Layout
+from .kernels.env_arrays import HOOK_OBSERVATION, OBSERVATION, SENSORS, WINCH_OBSERVATION
 
 #: The observation layout of each mode.
 MODES = {"full": OBSERVATION, "hook": HOOK_OBSERVATION}

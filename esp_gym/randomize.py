@@ -1,6 +1,6 @@
 """Per-episode randomisation of the tether and the load (``randomize=`` of ElasticStringPendulum-v0).
 
-Each episode draws the physical parameters of :data:`~esp_gym.kernels.layout.SCENE_PARAMS` from
+Each episode draws the physical parameters of :data:`~esp_gym.kernels.env_arrays.SCENE_PARAMS` from
 the environment's ``np_random``, in that order, one uniform draw each (so a range that is a
 single value leaves the stream of the others unchanged):
 
@@ -35,7 +35,7 @@ from typing import Any, Mapping, Optional, Union
 
 import numpy as np
 
-from .kernels.layout import SCENE_PARAMS
+from .kernels.env_arrays import SCENE_PARAMS
 from .params import Box, Scene, scene_from_dict
 
 #: The names drawn on a log scale (scale parameters); the others are uniform.

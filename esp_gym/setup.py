@@ -14,7 +14,8 @@ from typing import Optional, Union
 import numpy as np
 from gymnasium import spaces
 
-from .kernels.layout import ACTION_PARAMS, ACTION_SIZE, SCENE_PARAMS, WINCH_ACTION, LGVIParams
+from .kernels.layout import LGVIParams
+from .kernels.env_arrays import ACTION_PARAMS, ACTION_SIZE, SCENE_PARAMS, WINCH_ACTION
 from .observe import Observer
 from .options import MAX_SUBSTEPS, env_options
 from .params import Scene, load_scene, override_scene, scene_from_dict
@@ -56,7 +57,7 @@ def check_hanging(scene: Scene, task: Task, randomizer: Optional[Randomizer]) ->
 
 
 def action_params(hover: np.ndarray, force_limit: float, torque_limit: float, max_reel_speed: float) -> np.ndarray:
-    """The compiled action path's constants (:data:`~esp_gym.kernels.layout.ACTION_PARAMS`):
+    """The compiled action path's constants (:data:`~esp_gym.kernels.env_arrays.ACTION_PARAMS`):
     box bounds [-1, 1], hover force, force and torque limits, the winch's largest reel speed."""
     ap = np.zeros(ACTION_PARAMS.size)
     ap[ACTION_PARAMS["low"]] = -1.0

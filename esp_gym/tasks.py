@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kernels.layout import TARGET, TASK_PARAM_NAMES
+from .kernels.env_arrays import TARGET, TASK_PARAM_NAMES
 from .kernels.reference import reference_at
 from .stability import hat
 from .state import State, cross3, legendre_momenta

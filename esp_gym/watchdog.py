@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 
 from .errors import SimulationError
-from .kernels.layout import ENERGY_BALANCE
+from .kernels.status import ENERGY_BALANCE
 from .params import Scene
 
 #: g0 [m/s^2]: the energy scale's gravity (standard, so that a scene without gravity has one).

@@ -22,7 +22,7 @@ from typing import Any, Mapping, NamedTuple, Optional, Union
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from .kernels.layout import DISTURBANCE, DISTURBANCE_PARAMS, DRAWS
+from .kernels.disturbance import DISTURBANCE, DISTURBANCE_PARAMS, DRAWS
 from .options import validation_message
 from .params import Box, Cylinder, EllipticCylinder, Scene, Sphere
 from .scene_input import Real

@@ -10,7 +10,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import esp_gym
 from esp_gym.env import ElasticStringPendulumEnv
-from esp_gym.kernels.layout import REWARD_TERMS
+from esp_gym.kernels.env_arrays import REWARD_TERMS
 from esp_gym.sb3_vector import ElasticStringPendulumSB3VecEnv
 
 ENV_ID = "ElasticStringPendulum-v0"

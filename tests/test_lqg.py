@@ -9,7 +9,7 @@ from agents.controllers import LQG_TUNING, ZeroPolicy
 from agents.evaluate import evaluate_policy
 from agents.lqg import HookLQG, delayed_system, measurement_model
 from agents.lqr import REDUCED
-from esp_gym.kernels.layout import HOOK_OBSERVATION
+from esp_gym.kernels.env_arrays import HOOK_OBSERVATION
 from esp_gym.setup import make_setup
 
 

@@ -9,7 +9,7 @@ from agents.controllers import ZeroPolicy
 from agents.evaluate import evaluate_policy
 from agents.lqr import LQR, REDUCED, LQRTracker, lift, linearize, reduced_state
 from esp_gym.control import ControlStep
-from esp_gym.kernels.layout import TARGET
+from esp_gym.kernels.env_arrays import TARGET
 from esp_gym.tasks import hanging_axis, hanging_depth
 
 

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
 import esp_gym
-from esp_gym.kernels.layout import ENERGY_BALANCE, STATUS
+from esp_gym.kernels.status import ENERGY_BALANCE, STATUS
 from esp_gym.params import SceneError, scene_from_dict
 from esp_gym.verify.ode import ElasticStringODE
 

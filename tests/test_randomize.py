@@ -14,7 +14,8 @@ import esp_gym  # noqa: F401  (registers the env)
 from esp_gym import load_scene
 from esp_gym.setup import total_weight
 from esp_gym.env import ElasticStringPendulumEnv
-from esp_gym.kernels.layout import INPUTS, SCENE_PARAMS
+from esp_gym.kernels.layout import INPUTS
+from esp_gym.kernels.env_arrays import SCENE_PARAMS
 from esp_gym.model import Simulator
 from esp_gym.params import scene_from_dict
 from esp_gym.randomize import LOG_UNIFORM, default_ranges, nominal_values

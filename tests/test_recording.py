@@ -18,7 +18,8 @@ import pytest
 from rerun.chunk import RrdReader
 
 import esp_gym
-from esp_gym.kernels.layout import DISTURBANCE, SENSORS
+from esp_gym.kernels.env_arrays import SENSORS
+from esp_gym.kernels.disturbance import DISTURBANCE
 from esp_gym.viz import recording as R
 from esp_gym.viz.recording import RecordRerun
 

@@ -57,7 +57,7 @@ def test_lqg_residual_env_with_a_zero_network_is_the_lqg():
     from agents.evaluate import run_episodes
     from agents.lqg import REFERENCE_CONTEXT
     from agents.residual import base_policy
-    from esp_gym.kernels.layout import TARGET
+    from esp_gym.kernels.env_arrays import TARGET
 
     kwargs = {"preset": "hard"}
     venv = ElasticStringPendulumSB3VecEnv(num_envs=2, task="track", max_episode_steps=60, **kwargs)

@@ -10,7 +10,7 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import esp_gym  # noqa: F401  (registers the env)
-from esp_gym.kernels.layout import OBSERVATION, TARGET
+from esp_gym.kernels.env_arrays import OBSERVATION, TARGET
 from esp_gym.kernels.reference import reference_at
 from esp_gym.tasks import TRACK_PERIOD, TRACK_SIZE, track_reference
 

@@ -6,7 +6,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import esp_gym  # noqa: F401  (registers the environment)
-from esp_gym.kernels.layout import WINCH_OBSERVATION
+from esp_gym.kernels.env_arrays import WINCH_OBSERVATION
 
 ENV_ID = "ElasticStringPendulum-v0"
 

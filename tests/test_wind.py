@@ -13,7 +13,8 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 import esp_gym  # noqa: F401  (registers the env)
 from benchmarks.wind_balance import WIND, balances
 from esp_gym.kernels.disturbance import load_area
-from esp_gym.kernels.layout import DISTURBANCE, DISTURBANCE_PARAMS, OBSERVATION, TARGET
+from esp_gym.kernels.env_arrays import OBSERVATION, TARGET
+from esp_gym.kernels.disturbance import DISTURBANCE, DISTURBANCE_PARAMS
 from esp_gym.params import scene_from_dict
 from esp_gym.setup import PRESETS
 from esp_gym.state import State

@@ -9,10 +9,7 @@ temporary directory; with none writable the kernels compile without a cache, wit
 (``jit.choose_cache_dir``). ``jit.kernel`` sets it for every kernel, including those compiled
 later (the specialised step kernels of specialise.py).
 
-Modules: layout.py (every packed array's named layout and the status table), so3.py, string.py,
-lgvi.py (one step), loops.py (many steps, checkpoints, recorded runs), specialise.py,
-diagnostics.py, task.py (the environment's control step), recording.py (recording samples),
-ode.py (the ODE form, for verification). Importing this package compiles nothing: each module
-compiles its kernels on first call (or loads them from the cache).
+docs/architecture.md names every module and what it holds. Importing this package compiles
+nothing: each module compiles its kernels on first call (or loads them from the cache).
 """
 from .jit import CACHE_DIR  # noqa: F401

@@ -7,7 +7,8 @@ speed and adding its share of the winch's work.
 """
 from .implicit import CUTBACKS, TOO_TENSE, implicit_step_once
 from .jit import kernel
-from .layout import B_WINCH_WORK, NEWTON_FAILED, OK, WN_LENGTH
+from .layout import B_WINCH_WORK, WN_LENGTH
+from .status import NEWTON_FAILED, OK
 from .sums import kahan_add
 from .winch import length_shift
 from .winch_implicit import winch_implicit_once

@@ -12,8 +12,8 @@ pi3 = e3 . (sum_a r_a x p_a + R Pi).
 import math
 
 from .jit import kernel
-from .layout import (D_ENERGY, D_KINETIC_BODY, D_KINETIC_PIVOT, D_KINETIC_STRING, D_LINEAR_MOMENTUM,
-                     D_ORTHOGONALITY, D_PI3, D_POTENTIAL_ELASTIC, D_POTENTIAL_GRAVITY, D_STRETCHED_LENGTH)
+from .layout import (D_ENERGY, D_KINETIC_BODY, D_KINETIC_PIVOT, D_KINETIC_STRING, D_LINEAR_MOMENTUM, D_ORTHOGONALITY,
+                     D_PI3, D_POTENTIAL_ELASTIC, D_POTENTIAL_GRAVITY, D_STRETCHED_LENGTH)
 from .so3 import solve3
 from .string import element_strain, tridiag_solve
 

@@ -23,11 +23,46 @@ F_L . (r_N + R rho_c) (:func:`external_potential`), exact for held forces.
 import math
 
 from .jit import kernel
-from .layout import (B_ANGULAR_IMPULSE_Z, B_EXTERNAL_IMPULSE, DP_GUST_DECAY, DP_GUST_INNOVATION, DP_LINE_DRAG,
-                     DP_LOAD_FACES, DP_LOAD_ROUND, DP_LOAD_SEMI_AXES, DP_LOAD_SIDE, DP_MEAN_WIND, DP_PUSH_CHANCE,
-                     DP_PUSH_FORCE, DR_GUST, DR_PUSH_AZIMUTH, DR_PUSH_CHANCE, DR_PUSH_SCALE, DS_GUST, DS_LINE_DRAG,
-                     DS_LOAD_DRAG, DS_PUSH, DS_WIND)
+from .layout import B_ANGULAR_IMPULSE_Z, B_EXTERNAL_IMPULSE, Layout
 from .sums import kahan_add
+
+#: An episode's wind and pushes (esp_gym/wind.py; kernels/disturbance.py): the mean wind [m/s]
+#: (spatial), the gusts' decay a = exp(-T/tau) per control step T and innovation sigma sqrt(1 -
+#: a^2) [m/s] per axis; the line's drag per length and speed^2, rho_air C_d d / 2 [kg/m^2];
+#: the load's drag area law c(n) = faces . |n| + side sqrt(a^2 n_y^2 + b^2 n_x^2) + round
+#: (n the unit relative wind, body frame), each coefficient x rho_air C_d / 2 [kg/m] but the
+#: semi-axes (a, b) [m]; the chance of a push per control step and its mean force [N].
+DISTURBANCE_PARAMS = Layout(("mean_wind", 3), ("gust_decay", 1), ("gust_innovation", 3), ("line_drag", 1),
+                            ("load_faces", 3), ("load_side", 1), ("load_semi_axes", 2), ("load_round", 1),
+                            ("push_chance", 1), ("push_force", 1))
+DP_MEAN_WIND = DISTURBANCE_PARAMS.start("mean_wind")
+DP_GUST_DECAY = DISTURBANCE_PARAMS.scalar("gust_decay")
+DP_GUST_INNOVATION = DISTURBANCE_PARAMS.start("gust_innovation")
+DP_LINE_DRAG = DISTURBANCE_PARAMS.scalar("line_drag")
+DP_LOAD_FACES = DISTURBANCE_PARAMS.start("load_faces")
+DP_LOAD_SIDE = DISTURBANCE_PARAMS.scalar("load_side")
+DP_LOAD_SEMI_AXES = DISTURBANCE_PARAMS.start("load_semi_axes")
+DP_LOAD_ROUND = DISTURBANCE_PARAMS.scalar("load_round")
+DP_PUSH_CHANCE = DISTURBANCE_PARAMS.scalar("push_chance")
+DP_PUSH_FORCE = DISTURBANCE_PARAMS.scalar("push_force")
+
+#: The wind and the external forces of the current control step, spatial frame: the gust and
+#: the wind (mean + gust) [m/s], the drag on the load and the push on it, and the line's drag
+#: summed over its nodes [N].
+DISTURBANCE = Layout(("gust", 3), ("wind", 3), ("load_drag", 3), ("push", 3), ("line_drag", 3))
+DS_GUST = DISTURBANCE.start("gust")
+DS_WIND = DISTURBANCE.start("wind")
+DS_LOAD_DRAG = DISTURBANCE.start("load_drag")
+DS_PUSH = DISTURBANCE.start("push")
+DS_LINE_DRAG = DISTURBANCE.start("line_drag")
+
+#: The random numbers of one control step's disturbance, drawn ahead from np_random: standard
+#: normal gust innovations, and uniforms on [0, 1) for a push's occurrence, azimuth and size.
+DRAWS = Layout(("gust", 3), ("push_chance", 1), ("push_azimuth", 1), ("push_scale", 1))
+DR_GUST = DRAWS.start("gust")
+DR_PUSH_CHANCE = DRAWS.scalar("push_chance")
+DR_PUSH_AZIMUTH = DRAWS.scalar("push_azimuth")
+DR_PUSH_SCALE = DRAWS.scalar("push_scale")
 
 
 @kernel(inline="always")

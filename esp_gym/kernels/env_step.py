@@ -5,9 +5,9 @@ same :func:`control_step`, so their results agree bit for bit; esp_gym/control.p
 Python face, and :data:`ENTRY_POINTS` are the compiled calls it makes.
 
 The arrays are named structs (kernels/env_arrays.py's EnvArrays and the physics' in
-kernels/layout.py); every packed vector is laid out in kernels/layout.py: the action
-parameters (ACTION_PARAMS), the inputs (INPUTS), the task parameters (TASK_PARAMS, from
-esp_gym/tasks.py) and the step report (REPORT).
+kernels/layout.py); every packed vector is laid out by name: the action parameters
+(ACTION_PARAMS) and the task parameters (TASK_PARAMS, from esp_gym/tasks.py) in
+kernels/env_arrays.py, the inputs (INPUTS) and the step report (REPORT) in kernels/layout.py.
 """
 import numpy as np
 from numba import prange
@@ -16,12 +16,13 @@ from .jit import announce_compile, kernel
 from .diagnostics import diagnostics
 from .disturbance import disturb, external_potential
 from .sums import kahan_add
-from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, A_REEL_SPEED, ACTION_SIZE, AP_FORCE_LIMIT, AP_HIGH, AP_HOVER,
-                     AP_LOW, AP_MAX_REEL_SPEED, AP_TORQUE_LIMIT, B_WINCH_WORK, B_WORK, D_ENERGY, ENERGY_BALANCE,
-                     IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE, O_LENGTH, OK, R_STATUS, R_STEPS,
-                     R_TERMINATION, SCHEME_DISTURBED, TP_ENERGY_BOUND, TP_ENERGY_ORIGIN, TP_ENERGY_WATCHDOG,
-                     TP_STRING_LENGTH, WN_LENGTH, WN_MASS_PER_LENGTH, WN_SPEED, DiagWork, LGVIParams, StateArrays,
+from .layout import (B_WINCH_WORK, B_WORK, D_ENERGY, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE, R_STATUS,
+                     R_STEPS, R_TERMINATION, WN_LENGTH, WN_MASS_PER_LENGTH, WN_SPEED, DiagWork, LGVIParams, StateArrays,
                      WinchArrays, Work)
+from .env_arrays import (A_BODY_TORQUE, A_PIVOT_FORCE, A_REEL_SPEED, ACTION_SIZE, AP_FORCE_LIMIT, AP_HIGH, AP_HOVER,
+                         AP_LOW, AP_MAX_REEL_SPEED, AP_TORQUE_LIMIT, O_LENGTH, SCHEME_DISTURBED, TP_ENERGY_BOUND,
+                         TP_ENERGY_ORIGIN, TP_ENERGY_WATCHDOG, TP_STRING_LENGTH)
+from .status import ENERGY_BALANCE, OK
 from .env_arrays import EnvArrays
 from .loops import advance_loop_explicit, advance_loop_implicit, winch_loop_explicit, winch_loop_implicit
 from .reference import advance_reference

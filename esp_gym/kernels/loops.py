@@ -13,8 +13,9 @@ configuration (:func:`shared_advance_loop`, :func:`shared_winch_loop`).
 """
 from .jit import kernel
 from .diagnostics import diagnostics
-from .layout import (B_WINCH_WORK, D_ENERGY, D_ORTHOGONALITY, D_PI3, OK, R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS,
-                     R_STEPS, SD_ENERGY, SD_ORTHOGONALITY, SD_PI3, WN_LENGTH, WN_MAX_LENGTH, WN_MIN_LENGTH, WN_SPEED)
+from .layout import (B_WINCH_WORK, D_ENERGY, D_ORTHOGONALITY, D_PI3, R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS,
+                     SD_ENERGY, SD_ORTHOGONALITY, SD_PI3, WN_LENGTH, WN_MAX_LENGTH, WN_MIN_LENGTH, WN_SPEED)
+from .status import OK
 from .disturbance import kick
 from .cutback import implicit_substep, winch_implicit_substep
 from .lgvi import lgvi_substep

@@ -2,8 +2,8 @@
 arrays into a row, turn buffered rows into the 3-D columns Rerun stores, and build the load's
 trail.
 
-A sample row is laid out by :func:`~.layout.sample_layout`: the fixed head
-(:data:`~.layout.SAMPLE_HEAD`, offsets ``S_*``), then the nodes r (N+1, 3), the per-element
+A sample row is laid out by :func:`sample_layout` (here, with the recording's other layouts): the
+fixed head (:data:`SAMPLE_HEAD`, offsets ``S_*``), then the nodes r (N+1, 3), the per-element
 strain energies (N) and the diagnostics (:data:`~.layout.DIAG`). The variable part's offsets
 come from the array shapes. Explicit loops throughout: the kernels compile without numba's
 runtime (``jit.py``), so there is no slice assignment.
@@ -11,11 +11,49 @@ runtime (``jit.py``), so there is no slice assignment.
 import math
 
 from .jit import kernel
-from .layout import (A_BODY_TORQUE, A_PIVOT_FORCE, B_ANGULAR_IMPULSE_Z, B_WINCH_WORK, B_WORK, D_ENERGY, D_PI3,
-                     IN_BODY_TORQUE, IN_PIVOT_FORCE, R_NEWTON_TOTAL, R_STEPS, S_ACTION, S_BALANCES, S_DISTURBANCE,
-                     S_EPISODE, S_INPUTS, S_NEWTON, S_NODES, S_REWARD, S_RHO, S_ROT, S_SENSORS, S_STEP, S_STEPPED,
-                     S_TARGET, S_TERMS, S_TIME, S_WINCH, SAMPLE_HEAD, SB_ANGULAR_IMPULSE, SB_ENERGY_RESIDUAL,
-                     SB_PI3_RESIDUAL, SB_WORK, SW_LENGTH, SW_SPEED, SW_WORK, WN_LENGTH, WN_SPEED)
+from .layout import (B_ANGULAR_IMPULSE_Z, B_WINCH_WORK, B_WORK, D_ENERGY, D_PI3, DIAG, IN_BODY_TORQUE, IN_PIVOT_FORCE,
+                     R_NEWTON_TOTAL, R_STEPS, WN_LENGTH, WN_SPEED, Layout)
+from .disturbance import DISTURBANCE
+from .env_arrays import A_BODY_TORQUE, A_PIVOT_FORCE, ACTION_SIZE, REWARD_TERMS, SENSORS, TARGET
+
+#: The fixed head of a recording sample row; then the nodes r (N+1, 3), the per-element strain
+#: energies (N) and the diagnostics (:data:`DIAG`): see :func:`sample_columns`. ``stepped`` is
+#: 1 for a sample after a step, 0 after a reset; ``newton`` the mean Newton iterations per
+#: physics step; ``inputs`` pivot force [N] (spatial) and body torque [N m] (body frame);
+#: ``balances`` work, E - E0 - W, angular impulse, pi3 - pi3_0 - impulse; ``target`` NaN but at
+#: an episode's reset; ``R`` row-major; ``sensors`` (:data:`SENSORS`: hook tension [N], load
+#: target offset [m]) and ``disturbance`` (:data:`DISTURBANCE`: gust and wind [m/s], load drag,
+#: push, line drag [N]), spatial frame, zeros for free simulations; ``rho`` the episode's
+#: attachment -> centre of mass offset rho_c (body frame) [m]; ``winch`` (:data:`SAMPLE_WINCH`)
+#: the unstretched length [m], the reel speed [m/s] and the winch's work [J] (E - E0 - W then
+#: subtracts it too).
+SAMPLE_WINCH = Layout(("unstretched_length", 1), ("reel_speed", 1), ("winch_work", 1))
+SAMPLE_HEAD = Layout(("step", 1), ("time", 1), ("episode", 1), ("stepped", 1), ("newton", 1), ("reward", 1),
+                     ("action", ACTION_SIZE), ("terms", len(REWARD_TERMS)), ("inputs", 6), ("balances", 4),
+                     ("target", TARGET.size), ("R", 9), ("sensors", SENSORS.size),
+                     ("disturbance", DISTURBANCE.size), ("rho", 3), ("winch", SAMPLE_WINCH.size))
+S_STEP = SAMPLE_HEAD.scalar("step")
+S_TIME = SAMPLE_HEAD.scalar("time")
+S_EPISODE = SAMPLE_HEAD.scalar("episode")
+S_STEPPED = SAMPLE_HEAD.scalar("stepped")
+S_NEWTON = SAMPLE_HEAD.scalar("newton")
+S_REWARD = SAMPLE_HEAD.scalar("reward")
+S_ACTION = SAMPLE_HEAD.start("action")
+S_TERMS = SAMPLE_HEAD.start("terms")
+S_INPUTS = SAMPLE_HEAD.start("inputs")
+S_BALANCES = SAMPLE_HEAD.start("balances")
+S_TARGET = SAMPLE_HEAD.start("target")
+S_ROT = SAMPLE_HEAD.start("R")
+S_SENSORS = SAMPLE_HEAD.start("sensors")
+S_DISTURBANCE = SAMPLE_HEAD.start("disturbance")
+S_RHO = SAMPLE_HEAD.start("rho")
+S_WINCH = SAMPLE_HEAD.start("winch")
+SW_LENGTH = SAMPLE_WINCH.scalar("unstretched_length")
+SW_SPEED = SAMPLE_WINCH.scalar("reel_speed")
+SW_WORK = SAMPLE_WINCH.scalar("winch_work")
+S_NODES = SAMPLE_HEAD.size
+#: Offsets inside the ``balances`` field.
+SB_WORK, SB_ENERGY_RESIDUAL, SB_ANGULAR_IMPULSE, SB_PI3_RESIDUAL = range(4)
 
 _HEAD_SIZES = dict(SAMPLE_HEAD.fields)
 #: Entries of the head's action, reward-terms, target, sensors and disturbance fields.
@@ -24,6 +62,11 @@ N_TERMS = _HEAD_SIZES["terms"]
 N_TARGET = _HEAD_SIZES["target"]
 N_SENSORS = _HEAD_SIZES["sensors"]
 N_DISTURBANCE = _HEAD_SIZES["disturbance"]
+
+
+def sample_layout(n_elements: int) -> Layout:
+    """The whole sample row for a string of ``n_elements`` elements."""
+    return Layout(*SAMPLE_HEAD.fields, ("nodes", 3 * (n_elements + 1)), ("strain", n_elements), ("diag", DIAG.size))
 
 
 @kernel

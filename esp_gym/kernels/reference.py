@@ -14,8 +14,8 @@ transport) and never changes.
 import math
 
 from .jit import kernel
-from .layout import (T_AMPLITUDE, T_CENTRE, T_CLOCK, T_DEPTH, T_HARMONIC, T_LOAD, T_ORIENTATION, T_PHASE, T_PIVOT,
-                     T_RATE, T_START, T_VELOCITY)
+from .env_arrays import (T_AMPLITUDE, T_CENTRE, T_CLOCK, T_DEPTH, T_HARMONIC, T_LOAD, T_ORIENTATION, T_PHASE, T_PIVOT,
+                         T_RATE, T_START, T_VELOCITY)
 
 
 @kernel

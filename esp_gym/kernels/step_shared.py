@@ -15,8 +15,9 @@ import math
 import numpy as np
 
 from .jit import kernel
-from .layout import (B_ANGULAR_IMPULSE_Z, B_GRAVITY_IMPULSE, B_PIVOT_IMPULSE, B_WORK, BLOW_UP, IN_BODY_TORQUE,
-                     IN_PIVOT_FORCE, IN_SPATIAL_TORQUE, NON_FINITE, OK)
+from .layout import (B_ANGULAR_IMPULSE_Z, B_GRAVITY_IMPULSE, B_PIVOT_IMPULSE, B_WORK, IN_BODY_TORQUE, IN_PIVOT_FORCE,
+                     IN_SPATIAL_TORQUE)
+from .status import BLOW_UP, NON_FINITE, OK
 from .string import nodal_forces
 from .sums import kahan_add
 

@@ -2,20 +2,21 @@
 (docs/environment.md): the features, computed once, then the observation and sensors, the
 reward terms and the termination code, each a stage of its own. kernels/env_step.py calls
 :func:`observe_and_score` after the physics; every vector is laid out by name
-(kernels/layout.py: OBSERVATION, SENSORS, REWARD, TASK_PARAMS, TARGET; kernels/env_arrays.py:
+(kernels/env_arrays.py: OBSERVATION, SENSORS, REWARD, TASK_PARAMS, TARGET,
 FEATURES).
 """
 import math
 
 from .env_arrays import F_LOAD_POSITION, F_LOAD_VELOCITY, F_SPIN, F_SWING
 from .jit import kernel
-from .layout import (D_STRETCHED_LENGTH, O_ANGULAR_VELOCITY, O_ATTITUDE, O_LOAD_ERROR, O_LOAD_VELOCITY,
-                     O_PIVOT_ERROR, O_PIVOT_VELOCITY, O_STRETCH, RW_CONTROL, RW_LOAD_POSITION, RW_LOAD_VELOCITY,
-                     RW_PIVOT_POSITION, RW_SPIN, RW_SWING, SN_HOOK_TENSION, SN_LOAD_TARGET_OFFSET, T_LOAD, T_PIVOT,
-                     T_VELOCITY, TERM_NONE, TERM_OVERSTRETCH, TERM_WORKSPACE, TP_MAX_STRETCHED_LENGTH,
-                     TP_SCALE_POSITION, TP_SCALE_SPIN, TP_SCALE_SWING, TP_SCALE_VELOCITY, TP_STRING_LENGTH,
-                     TP_W_CONTROL, TP_W_LOAD_POSITION, TP_W_LOAD_VELOCITY, TP_W_PIVOT_POSITION, TP_W_SPIN, TP_W_SWING,
-                     TP_WORKSPACE_RADIUS)
+from .layout import D_STRETCHED_LENGTH
+from .env_arrays import (O_ANGULAR_VELOCITY, O_ATTITUDE, O_LOAD_ERROR, O_LOAD_VELOCITY, O_PIVOT_ERROR, O_PIVOT_VELOCITY,
+                         O_STRETCH, RW_CONTROL, RW_LOAD_POSITION, RW_LOAD_VELOCITY, RW_PIVOT_POSITION, RW_SPIN,
+                         RW_SWING, SN_HOOK_TENSION, SN_LOAD_TARGET_OFFSET, T_LOAD, T_PIVOT, T_VELOCITY,
+                         TP_MAX_STRETCHED_LENGTH, TP_SCALE_POSITION, TP_SCALE_SPIN, TP_SCALE_SWING, TP_SCALE_VELOCITY,
+                         TP_STRING_LENGTH, TP_W_CONTROL, TP_W_LOAD_POSITION, TP_W_LOAD_VELOCITY, TP_W_PIVOT_POSITION,
+                         TP_W_SPIN, TP_W_SWING, TP_WORKSPACE_RADIUS)
+from .status import TERM_NONE, TERM_OVERSTRETCH, TERM_WORKSPACE
 from .tolerance import tolerance
 
 

@@ -24,7 +24,8 @@ from .implicit import TOO_TENSE, TRANSVERSE_LIMIT, implicit_positions
 from .implicit_newton import implicit_newton
 from .implicit_terms import element_vectors, secant_terms, split_forces
 from .jit import kernel
-from .layout import B_GRAVITY_IMPULSE, OK, WN_EA, WN_MASS_PER_LENGTH
+from .layout import B_GRAVITY_IMPULSE, WN_EA, WN_MASS_PER_LENGTH
+from .status import OK
 from .lgvi import rigid_increments
 from .step_shared import commit_step, held_inputs, left_torque
 from .sums import kahan_add

@@ -11,7 +11,7 @@ import gymnasium as gym
 import numpy as np
 
 from ..control import ControlStep, read_only
-from ..kernels.layout import TARGET
+from ..kernels.env_arrays import TARGET
 from .recorder import Recorder
 
 

@@ -14,8 +14,10 @@ import numpy as np
 import pyarrow as pa
 import rerun as rr
 
-from ..kernels.layout import (ACTION, DISTURBANCE, INPUTS, REPORT, REWARD_TERMS, R_NEWTON_TOTAL, R_STEPS, SENSORS,
-                              TARGET, WINCH, sample_layout)
+from ..kernels.layout import INPUTS, REPORT, R_NEWTON_TOTAL, R_STEPS, WINCH
+from ..kernels.env_arrays import ACTION, REWARD_TERMS, SENSORS, TARGET
+from ..kernels.disturbance import DISTURBANCE
+from ..kernels.recording import sample_layout
 from ..control import read_only
 from ..kernels.recording import capture_sample, sample_geometry, trail_points
 from . import arrow, lifecycle, palette

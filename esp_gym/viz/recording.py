@@ -68,7 +68,7 @@ diagnostics; for env rollouts also what that ``env.step`` returned and applied (
 action) and the sensors and disturbance of that step (at a reset: of the episode's start; in still
 air zeros). Reset samples have no Newton, reward or action values (nulls: no data at that row).
 
-Bulk logging: each sample is copied into a preallocated row (``kernels.layout.sample_layout``)
+Bulk logging: each sample is copied into a preallocated row (``kernels.recording.sample_layout``)
 by one compiled call (~1 us, ``kernels.recording.capture_sample``); the rows are written
 ``flush_every`` at a time (also after ``flush_seconds`` of wall time, on
 :meth:`Recorder.close`, at exit and on signals; :class:`RecordRerun` optionally at each
@@ -100,7 +100,7 @@ Modules: entities.py (the entity paths and series, the blueprint, the body's sha
 the rgb_array renderer), esp_gym/kernels/recording.py (the compiled sample, geometry and trail
 kernels). This module is their public face.
 """
-from ..kernels.layout import REWARD_TERMS
+from ..kernels.env_arrays import REWARD_TERMS
 from .geometry import equivalent_box, prism_triangles, quaternion_xyzw
 from .lifecycle import RecordingError
 from .entities import (BODY, BODY_COM, BODY_SHAPE, BODY_TORQUE, ENV_DRAG, ENV_HOOK_TENSION, ENV_PUSH, ENV_WIND,

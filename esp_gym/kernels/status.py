@@ -1,0 +1,35 @@
+"""Status and termination codes: what a kernel returns (``REPORT["status"]``) or an environment
+step ends with (``REPORT["termination"]``), with their messages (esp_gym/errors.py) and the
+environment's ``info["termination_reason"]``."""
+from collections import namedtuple
+
+Status = namedtuple("Status", "name message reason")
+
+#: Codes a kernel returns (``REPORT["status"]``) or an environment step ends with
+#: (``REPORT["termination"]``): name, message, and the env's ``info["termination_reason"]``.
+STATUS = {
+    0: Status("ok", "", ""),
+    1: Status("newton_failed", "Newton's method on the Cayley vector did not converge", None),
+    2: Status("non_finite", "the state became non-finite (inf or NaN)", None),
+    3: Status("overstretched", "the string stretched past the task's limit", "string_overstretched"),
+    4: Status("left_workspace", "the pivot or the load left the workspace", "left_workspace"),
+    5: Status("blow_up", "an element stretched beyond solver.max_stretch times its rest length "
+                         "(the step is blowing up)", None),
+    6: Status("energy_balance", "the energy balance |E - E0 - W| passed the watchdog's bound (the step is "
+                                "gaining energy)", "energy_balance"),
+}
+OK = 0
+#: A control step that does not end the episode.
+TERM_NONE = OK
+NEWTON_FAILED = 1
+NON_FINITE = 2
+TERM_OVERSTRETCH = 3
+TERM_WORKSPACE = 4
+#: An element grew past solver.max_stretch times its rest length: an unstable step blowing up
+#: (typically h above the stability bound) caught while the state is still finite.
+BLOW_UP = 5
+#: The energy watchdog (esp_gym/watchdog.py) ended a finite state that gains energy.
+ENERGY_BALANCE = 6
+#: Codes of the physics (failures of a step); the others are the environment's terminations.
+PHYSICS_FAILURES = (NEWTON_FAILED, NON_FINITE, BLOW_UP)
+
