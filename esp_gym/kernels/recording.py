@@ -28,9 +28,14 @@ from .env_arrays import A_BODY_TORQUE, A_PIVOT_FORCE, ACTION_SIZE, REWARD_TERMS,
 #: the unstretched length [m], the reel speed [m/s] and the winch's work [J] (E - E0 - W then
 #: subtracts it too).
 SAMPLE_WINCH = Layout(("unstretched_length", 1), ("reel_speed", 1), ("winch_work", 1))
+#: The sample's inputs: pivot force [N] (spatial) and body torque [N m] (body frame).
+SAMPLE_INPUTS = Layout(("pivot_force", 3), ("body_torque", 3))
+#: The sample's balances [J, N m s]: the inputs' work, E - E0 - W, the angular impulse about e3,
+#: pi3 - pi3_0 - that impulse.
+SAMPLE_BALANCES = Layout(("work", 1), ("energy_residual", 1), ("angular_impulse", 1), ("pi3_residual", 1))
 SAMPLE_HEAD = Layout(("step", 1), ("time", 1), ("episode", 1), ("stepped", 1), ("newton", 1), ("reward", 1),
-                     ("action", ACTION_SIZE), ("terms", len(REWARD_TERMS)), ("inputs", 6), ("balances", 4),
-                     ("target", TARGET.size), ("R", 9), ("sensors", SENSORS.size),
+                     ("action", ACTION_SIZE), ("terms", len(REWARD_TERMS)), ("inputs", SAMPLE_INPUTS.size),
+                     ("balances", SAMPLE_BALANCES.size), ("target", TARGET.size), ("R", 9), ("sensors", SENSORS.size),
                      ("disturbance", DISTURBANCE.size), ("rho", 3), ("winch", SAMPLE_WINCH.size))
 S_STEP = SAMPLE_HEAD.scalar("step")
 S_TIME = SAMPLE_HEAD.scalar("time")
@@ -52,8 +57,12 @@ SW_LENGTH = SAMPLE_WINCH.scalar("unstretched_length")
 SW_SPEED = SAMPLE_WINCH.scalar("reel_speed")
 SW_WORK = SAMPLE_WINCH.scalar("winch_work")
 S_NODES = SAMPLE_HEAD.size
-#: Offsets inside the ``balances`` field.
-SB_WORK, SB_ENERGY_RESIDUAL, SB_ANGULAR_IMPULSE, SB_PI3_RESIDUAL = range(4)
+SI_PIVOT_FORCE = SAMPLE_INPUTS.start("pivot_force")
+SI_BODY_TORQUE = SAMPLE_INPUTS.start("body_torque")
+SB_WORK = SAMPLE_BALANCES.scalar("work")
+SB_ENERGY_RESIDUAL = SAMPLE_BALANCES.scalar("energy_residual")
+SB_ANGULAR_IMPULSE = SAMPLE_BALANCES.scalar("angular_impulse")
+SB_PI3_RESIDUAL = SAMPLE_BALANCES.scalar("pi3_residual")
 
 _HEAD_SIZES = dict(SAMPLE_HEAD.fields)
 #: Entries of the head's action, reward-terms, target, sensors and disturbance fields.
@@ -93,8 +102,8 @@ def capture_sample(buf, i, r, R, out, strain, acc, action, terms, report, inputs
     for k in range(N_TERMS):
         row[S_TERMS + k] = terms[k]
     for c in range(3):
-        row[S_INPUTS + IN_PIVOT_FORCE + c] = inputs[IN_PIVOT_FORCE + c]
-        row[S_INPUTS + IN_BODY_TORQUE + c] = inputs[IN_BODY_TORQUE + c]
+        row[S_INPUTS + SI_PIVOT_FORCE + c] = inputs[IN_PIVOT_FORCE + c]
+        row[S_INPUTS + SI_BODY_TORQUE + c] = inputs[IN_BODY_TORQUE + c]
     row[S_BALANCES + SB_WORK] = acc[B_WORK]
     row[S_BALANCES + SB_ENERGY_RESIDUAL] = out[D_ENERGY] - E0 - acc[B_WORK] - acc[B_WINCH_WORK]
     row[S_BALANCES + SB_ANGULAR_IMPULSE] = acc[B_ANGULAR_IMPULSE_Z]
@@ -158,8 +167,8 @@ def sample_geometry(buf, n, inv_strain_scale, lut, inputs_from_action, force_off
                 force = force_offset[c] + force_limit * row[S_ACTION + A_PIVOT_FORCE + c]
                 torque = torque_limit * row[S_ACTION + A_BODY_TORQUE + c]
             else:
-                force = row[S_INPUTS + IN_PIVOT_FORCE + c]
-                torque = row[S_INPUTS + IN_BODY_TORQUE + c]
+                force = row[S_INPUTS + SI_PIVOT_FORCE + c]
+                torque = row[S_INPUTS + SI_BODY_TORQUE + c]
             force_vec[i, c] = force_scale * (force - force_offset[c])
             torque_vec[i, c] = torque_scale * torque
 
