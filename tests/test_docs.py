@@ -1,5 +1,6 @@
 """The documentation holds together: every relative link in README.md and docs/*.md points to a
-file that exists, and the README stays a guide (under 200 lines)."""
+file that exists and every anchor to a heading, no control character hides in the text, the
+start-up figures are the benchmark's output, and the README stays a guide (under 200 lines)."""
 import re
 from pathlib import Path
 
@@ -126,3 +127,50 @@ def test_a_misquoted_cold_start_figure_is_found():
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     performance = (ROOT / "docs" / "performance.md").read_text(encoding="utf-8")
     assert len(cold_start_misquotes(readme, performance, figures)) == 4
+
+
+def heading_anchors(text: str) -> set:
+    """The anchors GitHub gives the Markdown headings of ``text``: lower case, punctuation but
+    hyphens and underscores dropped, spaces to hyphens; a repeated heading gets -1, -2, ..."""
+    anchors, seen = set(), {}
+    for line in FENCE.sub("", text).splitlines():
+        match = re.match(r"^#{1,6}\s+(.*?)\s*#*\s*$", line)
+        if not match:
+            continue
+        slug = re.sub(r"[^\w\- ]", "", match.group(1).lower().replace("`", "")).replace(" ", "-")
+        count = seen.get(slug, 0)
+        seen[slug] = count + 1
+        anchors.add(slug if count == 0 else f"{slug}-{count}")
+    return anchors
+
+
+def broken_anchors(text: str, base: Path, here: Path) -> list:
+    """``target#anchor`` links of ``text`` (a file in ``base``; ``here`` the file itself, for
+    pure ``#anchor`` links) whose Markdown target has no heading with that anchor."""
+    text = CODE_SPAN.sub("", FENCE.sub("", text))
+    out = []
+    for target in LINK.findall(text):
+        if EXTERNAL.match(target) or "#" not in target:
+            continue
+        path, anchor = target.split("#", 1)
+        file = here if not path else base / path
+        if file.suffix == ".md" and file.exists() and anchor not in heading_anchors(file.read_text(encoding="utf-8")):
+            out.append(target)
+    return out
+
+
+@pytest.mark.parametrize("path", DOCS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_every_anchor_names_a_heading(path):
+    assert broken_anchors(path.read_text(encoding="utf-8"), path.parent, path) == []
+
+
+def test_the_anchor_checker_finds_a_missing_heading(tmp_path):
+    """Negative control: a heading's anchor, with code, punctuation and a repeat, is found; a
+    made-up one and one whose heading was renamed are reported."""
+    text = "# The `winch`: reels, too\n## Cost\n## Cost\n[a](#the-winch-reels-too) [b](#cost-1) [c](#nowhere)\n"
+    assert heading_anchors(text) == {"the-winch-reels-too", "cost", "cost-1"}
+    page = tmp_path / "page.md"
+    page.write_text(text, encoding="utf-8")
+    assert broken_anchors(text, tmp_path, page) == ["#nowhere"]
+    assert broken_anchors("[x](docs/agents.md#baselines-against-trained-policies-issue-15)", ROOT, page) == [
+        "docs/agents.md#baselines-against-trained-policies-issue-15"]
