@@ -1,5 +1,7 @@
-"""Agents for ElasticStringPendulum-v0: SB3 training and evaluation, classical baselines.
+"""Agents for ElasticStringPendulum-v0: SB3 training and evaluation, classical baselines, and
+training on a Ray cluster (the subpackage agents.distributed, the ``ray`` extra).
 
 Run from the repository root as modules: ``python -m agents.train``, ``python -m agents.evaluate``,
-``python -m agents.compare``, ``python -m agents.tune`` (``--help`` for the options of each).
+``python -m agents.compare``, ``python -m agents.gain_search``, ``python -m agents.distributed.train``,
+``python -m agents.distributed.sweep`` (``--help`` for the options of each).
 """

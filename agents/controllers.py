@@ -17,7 +17,7 @@ feedback, and rate damping of the load's spin.
   swing that hoisting and the pivot's moves excite.
 
 Gains were chosen by grid search on the mean return of seeded `stabilize` episodes (seeds
-1000+): first coarse (`python -m agents.tune --task stabilize --episodes 10`: kp in {1, 2, 4, 8},
+1000+): first coarse (`python -m agents.gain_search --task stabilize --episodes 10`: kp in {1, 2, 4, 8},
 kd in {1, 2, 4, 8}, k_sway in {0, 1, 2, 4, 8}, k_spin in {0, 0.01, 0.02, 0.05}; best kp 4,
 kd 2, k_sway 0, k_spin 0.02: 472.5), then refined with 20 episodes (kp in {3, 4, 6}, kd in
 {1.5, 2, 3}, k_sway in {-1, -0.5, 0, 0.5}, kp_z in {8, 16}; best kp 4, kd 2, k_sway 0,
@@ -120,7 +120,7 @@ class ZeroPolicy:
 #: The winch's tasks: mean return over 10 episodes (seeds 1000+) on a grid of k_length in {0.5, 1,
 #: 2, 4} 1/s x the stabilize or transport pivot gains: lift 488.9 at 2 (490.0 at 4, but the
 #: transport gains fail there: 318.9), lower 413.8 at 1, stabilize gains both (zero action:
-#: 285.0, 197.0); `python -m agents.tune --task lift --grid '{"k_length": [0.5, 1, 2, 4]}'` reruns it.
+#: 285.0, 197.0); `python -m agents.gain_search --task lift --grid '{"k_length": [0.5, 1, 2, 4]}'` reruns it.
 BASELINES.update(lift=Hoist(BASELINES["stabilize"], 2.0), lower=Hoist(BASELINES["stabilize"], 1.0))
 
 

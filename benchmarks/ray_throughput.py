@@ -9,7 +9,7 @@ Prints two tables and writes ``OUT/ray_throughput.json`` and ``OUT/ray_learning.
     sampling at once), each runner with 16 environments in one compiled call (``batched``), 16
     environments of one compiled call each (Gymnasium's SyncVectorEnv, ``sync``) or 1 environment;
   - the SB3 VecEnv of 16 environments in this process (SB3's PPO policy and its step loop);
-* learning: ``agents.train`` (SB3 PPO, configs/agents/ppo.yaml) and ``agents.rllib_train`` (RLlib
+* learning: ``agents.train`` (SB3 PPO, configs/agents/ppo.yaml) and ``agents.distributed.train`` (RLlib
   PPO, configs/agents/rllib_ppo.yaml: 2 env runners on this machine) on the same task for the
   same number of environment steps, one after the other; their training curves and the final
   policies' agents/evaluate.py metrics on the same 10 episodes (seeds 10000+).
@@ -42,8 +42,8 @@ def rllib_sampling(nodes: int, steps: int, repeats: int) -> dict:
     """Steps/s of each of MODES on a local cluster of ``nodes`` one-CPU nodes (a driver joins it)."""
     import ray
 
-    from agents.ray_cluster import LocalCluster, connect
-    from agents.rllib_common import load_rllib_config, ppo_config
+    from agents.distributed.cluster import LocalCluster, connect
+    from agents.distributed.rllib import load_rllib_config, ppo_config
 
     rates = {}
     with LocalCluster(nodes=nodes, cpus=1, token=os.environ["RAY_AUTH_TOKEN"]) as cluster:
@@ -123,7 +123,7 @@ def learning(task: str, steps: int, runs: Path, quick: bool) -> dict:
     sb3_wall = time.perf_counter() - start
     iterations = max(1, round(steps / batch))
     start = time.perf_counter()
-    _cli("agents.rllib_train", "--task", task, "--iterations", iterations, "--runs", runs, "--run-name", "rllib",
+    _cli("agents.distributed.train", "--task", task, "--iterations", iterations, "--runs", runs, "--run-name", "rllib",
          "--no-progress", "--eval-episodes", episodes, *small)
     rllib_wall = time.perf_counter() - start
     sb3_eval = evaluate_policy(SB3Policy(runs / "sb3" / "model.zip"), task, episodes, seed=10_000)

@@ -16,8 +16,8 @@ from pathlib import Path
 import psutil
 import pytest
 
-from agents.ray_cluster import LocalCluster, free_port
-from agents.sweep import parse_space
+from agents.distributed.cluster import LocalCluster, free_port
+from agents.distributed.sweep import parse_space
 
 ROOT = Path(__file__).resolve().parent.parent
 #: An RLlib run of a few seconds: 2 runners x 4 environments, 512 steps per iteration.
@@ -36,7 +36,7 @@ def run(module, *args, env=None, timeout=300) -> subprocess.CompletedProcess:
 
 
 def sampling_nodes(training: dict) -> set:
-    """The nodes whose env runners sampled environment steps (training.json of agents.rllib_train)."""
+    """The nodes whose env runners sampled environment steps (training.json of agents.distributed.train)."""
     return {r["node_id"] for r in training["env_runners"] if r["env_steps"] > 0}
 
 
@@ -51,7 +51,7 @@ def cluster():
 
 
 def test_rllib_ppo_samples_on_both_nodes_and_checkpoints(cluster, tmp_path):
-    proc = run("agents.rllib_train", "--task", "stabilize", "--iterations", "2", "--address", cluster.address,
+    proc = run("agents.distributed.train", "--task", "stabilize", "--iterations", "2", "--address", cluster.address,
                "--runs", tmp_path, "--run-name", "r", "--checkpoint-every", "1", "--eval-episodes", "1",
                "--reference-episodes", "1", "--no-progress", "--set", *RLLIB_TINY, env=cluster.env)
     assert proc.returncode == 0, proc.stderr[-4000:]
@@ -90,7 +90,7 @@ def test_tune_sweep_runs_on_both_nodes_and_resumes_after_interruption(cluster, t
     args = ["--task", "stabilize", "--space", '{"seed": [0, 1]}', "--out", out, "--address", cluster.address,
             *SB3_OPTIONS, "--set", *SB3_TINY, "total_timesteps=6000"]
     env = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", **cluster.env}
-    first = subprocess.Popen([sys.executable, "-m", "agents.sweep", *map(str, args)], cwd=ROOT, env=env,
+    first = subprocess.Popen([sys.executable, "-m", "agents.distributed.sweep", *map(str, args)], cwd=ROOT, env=env,
                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:  # interrupt the sweep once every trial has a checkpoint (Ctrl-C: Tune saves its state and stops)
         _wait_for(lambda: len(list(out.glob("runs/*/checkpoints/model_*_steps.zip"))) >= 2 or first.poll() is not None,
@@ -111,7 +111,7 @@ def test_tune_sweep_runs_on_both_nodes_and_resumes_after_interruption(cluster, t
         stopped_rows = [r for r in csv.DictReader(fh) if r["mean_return"] == ""]
     assert len(stopped_rows) == len(interrupted) and all("did not finish" in r["error"] for r in stopped_rows)
 
-    resumed = run("agents.sweep", "--resume", out, "--address", cluster.address, env=cluster.env)
+    resumed = run("agents.distributed.sweep", "--resume", out, "--address", cluster.address, env=cluster.env)
     assert resumed.returncode == 0, resumed.stderr[-4000:]
     with open(out / "results.csv") as fh:
         rows = list(csv.DictReader(fh))
@@ -130,26 +130,26 @@ def test_tune_sweep_runs_on_both_nodes_and_resumes_after_interruption(cluster, t
 
 
 @pytest.mark.parametrize("module, args, names", [
-    ("agents.rllib_train", ["--address", "127.0.0.1:{port}"], ["--address", "127.0.0.1:{port}"]),
-    ("agents.rllib_train", ["--address", "nohostport"], ["--address", "HOST:PORT"]),
-    ("agents.rllib_train", ["--task", "balance"], ["--task", "balance"]),
-    ("agents.rllib_train", ["--set", "env_kwargs.wnd=3"], ["--set", "'env_kwargs.wnd'", "wind"]),
-    ("agents.rllib_train", ["--set", "lr_rate=3"], ["--set", "'lr_rate'", "lr"]),
-    ("agents.rllib_train", ["--set", "env_kwargs.observation=eyes"], ["--set", "observation"]),
-    ("agents.sweep", ["--space", '{"learning_rat": [1e-4]}'], ["--space", "'learning_rat'", "learning_rate"]),
-    ("agents.sweep", ["--space", '{"env_kwargs.randomize": [{"EA": [2, 1]}]}'], ["--space", "env_kwargs.randomize"]),
-    ("agents.sweep", ["--space", '{"seed": [-1]}'], ["--space", "seed"]),
-    ("agents.sweep", ["--space", '{"n_steps": 64}'], ["--space", "n_steps", "list"]),
-    ("agents.sweep", ["--space", '{"seed": [0]}', "--address", "127.0.0.1:{port}"], ["--address"]),
+    ("agents.distributed.train", ["--address", "127.0.0.1:{port}"], ["--address", "127.0.0.1:{port}"]),
+    ("agents.distributed.train", ["--address", "nohostport"], ["--address", "HOST:PORT"]),
+    ("agents.distributed.train", ["--task", "balance"], ["--task", "balance"]),
+    ("agents.distributed.train", ["--set", "env_kwargs.wnd=3"], ["--set", "'env_kwargs.wnd'", "wind"]),
+    ("agents.distributed.train", ["--set", "lr_rate=3"], ["--set", "'lr_rate'", "lr"]),
+    ("agents.distributed.train", ["--set", "env_kwargs.observation=eyes"], ["--set", "observation"]),
+    ("agents.distributed.sweep", ["--space", '{"learning_rat": [1e-4]}'], ["--space", "'learning_rat'", "learning_rate"]),
+    ("agents.distributed.sweep", ["--space", '{"env_kwargs.randomize": [{"EA": [2, 1]}]}'], ["--space", "env_kwargs.randomize"]),
+    ("agents.distributed.sweep", ["--space", '{"seed": [-1]}'], ["--space", "seed"]),
+    ("agents.distributed.sweep", ["--space", '{"n_steps": 64}'], ["--space", "n_steps", "list"]),
+    ("agents.distributed.sweep", ["--space", '{"seed": [0]}', "--address", "127.0.0.1:{port}"], ["--address"]),
     # what every trial would fail on is found before the cluster starts
-    ("agents.sweep", ["--set", "residual=lqg", "--space", '{"seed": [0, 1]}'], ["--set", "'lqg'", "hook"]),
-    ("agents.sweep", ["--space", '{"residual": ["lqg"]}'], ["--space", "'residual' = 'lqg'", "hook"]),
-    ("agents.sweep", ["--space", '{"n_envs": [100000000]}'], ["--space", "num_envs = 100000000", "GiB"]),
+    ("agents.distributed.sweep", ["--set", "residual=lqg", "--space", '{"seed": [0, 1]}'], ["--set", "'lqg'", "hook"]),
+    ("agents.distributed.sweep", ["--space", '{"residual": ["lqg"]}'], ["--space", "'residual' = 'lqg'", "hook"]),
+    ("agents.distributed.sweep", ["--space", '{"n_envs": [100000000]}'], ["--space", "num_envs = 100000000", "GiB"]),
 ])
 def test_bad_input_is_one_line_naming_the_argument_and_writes_nothing(tmp_path, module, args, names):
     port = str(free_port())  # nothing listens there
     fill = [a.replace("{port}", port) for a in args]
-    out = ["--runs", tmp_path / "runs"] if module == "agents.rllib_train" else ["--out", tmp_path / "sweep"]
+    out = ["--runs", tmp_path / "runs"] if module == "agents.distributed.train" else ["--out", tmp_path / "sweep"]
     proc = run(module, *fill, *out, timeout=120)
     assert proc.returncode == 2, proc.stderr[-3000:]
     lines = proc.stderr.strip().splitlines()
@@ -162,7 +162,7 @@ def test_bad_input_is_one_line_naming_the_argument_and_writes_nothing(tmp_path, 
 def test_a_space_key_may_complete_what_the_base_settings_lack():
     """The base --set alone is no trial: a residual that needs the hook observation is fine where
     every trial of the space sets it (each value is checked with the others' first values)."""
-    from agents.sweep import Settings, check_space
+    from agents.distributed.sweep import Settings, check_space
 
     s = Settings(set=["residual=lqg"], task="stabilize")
     check_space({"env_kwargs.preset": ["hard"], "seed": [0, 1]}, s)

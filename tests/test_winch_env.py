@@ -127,9 +127,9 @@ def test_the_hoist_baseline_reels_the_load_to_its_target(task):
 
 
 def test_tune_sets_the_hoists_gains():
-    """agents.tune reaches a Hoist's reel gain and its PD law's gains (one grid point, one episode)."""
+    """agents.gain_search reaches a Hoist's reel gain and its PD law's gains (one grid point, one episode)."""
     from agents.controllers import Hoist
-    from agents.tune import gain_names, with_gains
+    from agents.gain_search import gain_names, with_gains
 
     law = Hoist()
     assert "k_length" in gain_names(law) and "kp" in gain_names(law)

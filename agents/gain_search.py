@@ -1,7 +1,7 @@
 """Grid search of the classical baseline's gains (agents/controllers.py) on seeded episodes.
 
-    python -m agents.tune --task stabilize --episodes 10
-    python -m agents.tune --task stabilize --episodes 20 --grid '{"kp": [3, 4, 6], "kd": [1.5, 2, 3]}'
+    python -m agents.gain_search --task stabilize --episodes 10
+    python -m agents.gain_search --task stabilize --episodes 20 --grid '{"kp": [3, 4, 6], "kd": [1.5, 2, 3]}'
 
 Every combination of the ``--grid`` values replaces those gains of the task's baseline; each is
 scored by its mean return over ``--episodes`` episodes (seeds 1000 + i). Prints the ten best as
@@ -53,7 +53,7 @@ def tune(task: str, episodes: int, grid: dict, top: int = 10) -> list:
 
 
 def main(argv=None) -> list:
-    ap = ArgumentParser(prog="python -m agents.tune", description=__doc__.split("\n\n")[0])
+    ap = ArgumentParser(prog="python -m agents.gain_search", description=__doc__.split("\n\n")[0])
     ap.add_episode_options(TASKS, episodes=20, seed=False)
     ap.add_argument("--grid", type=str, default=None,
                     help=f"JSON object gain -> list of values (default: {json.dumps(COARSE_GRID)})")

@@ -26,7 +26,7 @@ import uuid
 from pathlib import Path
 from typing import Optional
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]  # the repository (agents/distributed/cluster.py)
 #: What a Ray worker of these jobs runs with: one numba and one torch thread per CPU it holds.
 WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 

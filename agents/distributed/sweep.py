@@ -1,10 +1,10 @@
 """Sweep agents.train runs with Ray Tune: hyper-parameters x seeds x environment options, on this
 machine or a Ray cluster, gathered into one table and plot, resumable after an interruption.
 
-    python -m agents.sweep --task stabilize --space '{"learning_rate": [1e-4, 3e-4], "seed": [0, 1, 2]}'
-    python -m agents.sweep --task transport --space '{"env_kwargs.randomize": [false, true], "seed": [0, 1]}' \\
+    python -m agents.distributed.sweep --task stabilize --space '{"learning_rate": [1e-4, 3e-4], "seed": [0, 1, 2]}'
+    python -m agents.distributed.sweep --task transport --space '{"env_kwargs.randomize": [false, true], "seed": [0, 1]}' \\
         --set total_timesteps=500000 --address 10.0.0.1:6379 --out sweeps/randomize
-    python -m agents.sweep --resume sweeps/randomize
+    python -m agents.distributed.sweep --resume sweeps/randomize
 
 ``--space`` maps keys to lists of values (JSON or YAML): every combination is a trial (Tune's
 grid search). A key is a ``--set`` key of agents.train (``learning_rate``, ``n_steps``,
@@ -39,8 +39,8 @@ import esp_gym
 from agents.artifacts import checkpoint_steps
 from agents.cli import SettingsError, one_line, option_name, parse_settings, settings_parser
 from agents.common import ROOT, ConfigError, load_run_config
-from agents.sweep_results import gather
-from agents.ray_cluster import AddressError, check_address, connect, shutdown, token_auth
+from agents.distributed.sweep_results import gather
+from agents.distributed.cluster import AddressError, check_address, connect, shutdown, token_auth
 from esp_gym.tasks import TASKS
 
 #: Seeds of each trial's final evaluation (episode i: seed + i), as agents.train's references.
@@ -271,7 +271,7 @@ def sweep(spec: Spec, resuming: bool, address: Optional[str]):
 
 
 def main(argv=None):
-    ap = settings_parser(Settings, prog="python -m agents.sweep", description=__doc__.split("\n\n")[0])
+    ap = settings_parser(Settings, prog="python -m agents.distributed.sweep", description=__doc__.split("\n\n")[0])
     s, given = parse_settings(ap, Settings, argv)
     token_auth(s.address)  # before anything imports ray
     try:

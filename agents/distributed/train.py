@@ -1,14 +1,14 @@
 """Train PPO with RLlib (new API stack) on ElasticStringPendulum-v0, on this machine or a Ray cluster.
 
-    python -m agents.rllib_train --task stabilize --iterations 100
-    python -m agents.rllib_train --task transport --iterations 50 --address 10.0.0.1:6379 --set num_env_runners=8
-    python -m agents.rllib_train --task stabilize --iterations 20 --set 'env_kwargs={preset: hard}' lr=1e-4
+    python -m agents.distributed.train --task stabilize --iterations 100
+    python -m agents.distributed.train --task transport --iterations 50 --address 10.0.0.1:6379 --set num_env_runners=8
+    python -m agents.distributed.train --task stabilize --iterations 20 --set 'env_kwargs={preset: hard}' lr=1e-4
 
 Hyper-parameters come from configs/agents/rllib_ppo.yaml keyed by env id and task; ``--set
 KEY=VALUE ...`` overrides them as in agents.train (YAML values, dotted keys, unknown keys are
 errors listing the valid ones). ``num_env_runners`` env runners (Ray actors of one CPU each, placed
 by Ray anywhere on the cluster) sample ``num_envs_per_env_runner`` environments each, in one
-compiled call per runner (agents/rllib_common.py); the learner runs in this process.
+compiled call per runner (agents/distributed/rllib.py); the learner runs in this process.
 
 Without ``--address`` Ray starts on this machine (``ray.init()``); ``--address HOST:PORT`` joins the
 cluster whose head was started with ``ray start --head --port PORT``. A run directory
@@ -37,8 +37,8 @@ from agents.cli import SettingsError, one_line, parse_settings, settings_parser
 from agents.common import ROOT, ConfigError, json_default, save_learning_curve
 from agents.controllers import ZeroPolicy
 from agents.evaluate import evaluate_policy
-from agents.ray_cluster import AddressError, check_address, cluster_nodes, connect, shutdown, token_auth
-from agents.rllib_common import CONFIG_FILE, RLlibPolicy, RLlibRunConfig, load_rllib_config, ppo_config, runner_steps
+from agents.distributed.cluster import AddressError, check_address, cluster_nodes, connect, shutdown, token_auth
+from agents.distributed.rllib import CONFIG_FILE, RLlibPolicy, RLlibRunConfig, load_rllib_config, ppo_config, runner_steps
 from agents.runs import new_run_dir, write_status, write_stopped
 from esp_gym.tasks import TASKS
 
@@ -153,7 +153,7 @@ def _record_settings(s: Settings, cfg: RLlibRunConfig, run_dir: Path, argv: Opti
     args = sys.argv[1:] if argv is None else list(argv)
     (run_dir / "config.yaml").write_text(yaml.safe_dump(cfg.model_dump(), sort_keys=False))
     (run_dir / "args.json").write_text(json.dumps(dataclasses.asdict(s), indent=2, default=json_default))
-    (run_dir / "command.txt").write_text(shlex.join([sys.executable, "-m", "agents.rllib_train", *args]) + "\n")
+    (run_dir / "command.txt").write_text(shlex.join([sys.executable, "-m", "agents.distributed.train", *args]) + "\n")
     refs = {"baseline_return": evaluate_policy(None, s.task, s.reference_episodes, seed=EVAL_SEED,
                                                env_kwargs=cfg.env_kwargs)["mean_return"],
             "zero_return": evaluate_policy(ZeroPolicy(), s.task, s.reference_episodes, seed=EVAL_SEED,
@@ -209,7 +209,7 @@ def run(s: Settings, cfg: RLlibRunConfig, run_dir: Path, algo, argv: Optional[li
 def main(argv=None) -> Path:
     import torch
 
-    ap = settings_parser(Settings, prog="python -m agents.rllib_train", description=__doc__.split("\n\n")[0])
+    ap = settings_parser(Settings, prog="python -m agents.distributed.train", description=__doc__.split("\n\n")[0])
     s, _ = parse_settings(ap, Settings, argv)
     token_auth(s.address)  # before anything imports ray
     torch.set_num_threads(s.threads)

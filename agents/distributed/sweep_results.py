@@ -1,4 +1,4 @@
-"""A sweep's results in one table and one plot (agents/sweep.py): ``results.csv`` (one row per
+"""A sweep's results in one table and one plot (agents/distributed/sweep.py): ``results.csv`` (one row per
 trial: its grid point, agents/evaluate.py's metrics of its final model, steps, wall time, node,
 run directory), ``results.md`` (the configurations, seeds pooled: mean ± standard deviation over
 seeds of each trial's mean return, best first; then every trial) and ``results.png`` (each
