@@ -2,6 +2,6 @@
 training on a Ray cluster (the subpackage agents.distributed, the ``ray`` extra).
 
 Run from the repository root as modules: ``python -m agents.train``, ``python -m agents.evaluate``,
-``python -m agents.compare``, ``python -m agents.gain_search``, ``python -m agents.distributed.train``,
+``python -m agents.compare``, ``python -m agents.baselines.gain_search``, ``python -m agents.distributed.train``,
 ``python -m agents.distributed.sweep`` (``--help`` for the options of each).
 """

@@ -3,7 +3,7 @@ seeded episodes, with the paired difference policy - best baseline and its boots
 
     python -m agents.compare --task transport --preset hard --episodes 100 --json
 
-Policies: ``zero``, the baselines of agents/controllers.py ``baselines`` for the task and the
+Policies: ``zero``, the baselines of agents/baselines/registry.py ``baselines`` for the task and the
 preset's observation, and the shipped policy ``models/{task}[_{preset}]_ppo/model.zip`` (or
 ``--model``). Each runs episodes seed + i (default seed 100000: none of them is a training or
 an evaluation-during-training seed). Per policy: mean and standard deviation of the return,
@@ -23,7 +23,8 @@ import numpy as np
 
 from agents.cli import ArgumentParser
 from agents.common import ROOT
-from agents.controllers import ZeroPolicy, baselines
+from agents.baselines.pd import ZeroPolicy
+from agents.baselines.registry import baselines
 from agents.evaluate import SB3Policy, run_episodes, summarize
 from esp_gym.tasks import TASKS
 

@@ -32,7 +32,8 @@ import esp_gym
 from agents.artifacts import (ConfigurationError, ModelFileError, check_configuration, load_model, model_configuration,
                               stats_path_for)
 from agents.cli import ArgumentParser
-from agents.controllers import ZeroPolicy, baseline
+from agents.baselines.pd import ZeroPolicy
+from agents.baselines.registry import baseline
 from agents.normalization import NormalizationFileError, NormStats
 from agents.residual import base_features, residual_for
 from esp_gym.kernels.env_arrays import SENSORS
@@ -115,7 +116,7 @@ class SB3Policy:
         return action
 
 
-#: The policies --policy names besides the baselines of agents.controllers.baselines (anything
+#: The policies --policy names besides the baselines of agents.baselines.registry.baselines (anything
 #: else is the path of a model .zip).
 POLICY_NAMES = ("zero", "baseline")
 
@@ -123,14 +124,14 @@ POLICY_NAMES = ("zero", "baseline")
 def load_policy(spec: str, task: str = "stabilize", env_kwargs: Optional[dict] = None):
     """``zero``, ``baseline`` (None: the task's PD law, resolved by :func:`evaluate_policy`), a
     baseline's name for ``task`` and the options ``env_kwargs`` (``pd``, ``lqr``, ``lqr_zv``,
-    ``lqg``: agents.controllers.baselines) or an :class:`SB3Policy` from a model file; anything
+    ``lqg``: agents.baselines.registry.baselines) or an :class:`SB3Policy` from a model file; anything
     else raises ModelFileError naming the choices."""
     if spec == "zero":
         return ZeroPolicy()
     if spec == "baseline":
         return None
     if not Path(spec).exists():
-        from agents.controllers import baseline_factories
+        from agents.baselines.registry import baseline_factories
 
         known = baseline_factories(task, env_kwargs)
         if spec in known:

@@ -6,7 +6,7 @@ reads it back and adds the same baseline when it acts.
 
 ``pd`` is stateless and acts on the raw observation. ``lqg`` (hook observation) is a Kalman
 filter per environment: it is told the action actually applied (base plus network), and the
-network also sees its estimate [z; q; f] (agents/lqg.py; for ``track`` also the reference's
+network also sees its estimate [z; q; f] (agents/baselines/lqg.py; for ``track`` also the reference's
 feed-forward, velocity and displacement ahead), appended to the observation, so the
 policy starts from the filter's state rather than from raw hook readings.
 """
@@ -28,7 +28,7 @@ RESIDUAL_FILE = "residual.json"
 def base_policy(name: str, task: str, env_kwargs: Optional[dict] = None):
     """The baseline ``name`` of ``task`` under the environment options ``env_kwargs`` (one
     environment's; :class:`BatchedBase` runs it over a batch)."""
-    from agents.controllers import baseline_factories
+    from agents.baselines.registry import baseline_factories
 
     if name not in BASES:
         raise ValueError(f"residual must be one of {BASES}, got {name!r}")
@@ -41,7 +41,7 @@ def base_policy(name: str, task: str, env_kwargs: Optional[dict] = None):
 
 def base_features(base, batch: tuple = ()) -> np.ndarray:
     """What the network sees of a base beside the observation: a stateful base's ``features``
-    (its estimate, and a ``track`` design's reference context, agents/lqg.py), shape batch + (k,),
+    (its estimate, and a ``track`` design's reference context, agents/baselines/lqg.py), shape batch + (k,),
     or an empty (..., 0) array for a stateless one."""
     features = getattr(base, "features", None)
     return np.zeros(batch + (0,)) if features is None else np.asarray(features, dtype=np.float64)

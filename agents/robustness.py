@@ -19,7 +19,7 @@ import numpy as np
 
 from agents.cli import ArgumentParser
 from agents.compare import HELD_OUT_SEED, shipped_model
-from agents.controllers import baselines
+from agents.baselines.registry import baselines
 from agents.evaluate import SB3Policy, run_episodes
 from esp_gym.setup import PRESETS, make_setup
 from esp_gym.tasks import TASKS

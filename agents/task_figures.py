@@ -6,7 +6,7 @@ above and over time (docs/environment.md, "The tasks").
 writes ``task_{stabilize,transport,track}.png``: left, the top view (x, y) of the pivot's and the
 load's paths with the targets (``track``: the reference the load follows); right, over time, the
 load's distance to its target [m] and the swing angle of the string [deg]. The controller is the
-task's classical baseline (agents/controllers.py) unless ``--policy zero``; each panel notes the
+task's classical baseline (agents/baselines/pd.py) unless ``--policy zero``; each panel notes the
 return. Prints one line per task: return, final distance and final swing.
 """
 from __future__ import annotations
@@ -19,7 +19,8 @@ import numpy as np
 
 import esp_gym
 from agents.cli import ArgumentParser
-from agents.controllers import ZeroPolicy, baseline
+from agents.baselines.pd import ZeroPolicy
+from agents.baselines.registry import baseline
 from esp_gym.tasks import TASKS
 
 #: What the top view's markers and lines stand for, and their colours.

@@ -37,7 +37,7 @@ from agents.artifacts import ModelFileError, load_model
 from agents.cli import SettingsError, one_line, option_name, parse_settings, settings_parser
 from agents.common import (CONFIG_DIR, ROOT, ConfigError, RunConfig, TimeLimitCallback, TqdmCallback, json_default,
                            load_run_config, plot_learning_curve, resolve_schedules)
-from agents.controllers import ZeroPolicy
+from agents.baselines.pd import ZeroPolicy
 from agents.evaluate import evaluate_policy
 from agents.normalization import NormStats
 from agents.residual import base_policy, write_residual

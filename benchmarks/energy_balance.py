@@ -18,7 +18,7 @@ from tqdm import tqdm
 
 import esp_gym
 from esp_gym.watchdog import energy_scale
-from agents.controllers import AntiSwayPD, Hoist
+from agents.baselines.pd import AntiSwayPD, Hoist
 from benchmarks.common import arg_parser, figure, finish, machine
 
 TASKS = ("stabilize", "transport", "track", "lift", "lower")

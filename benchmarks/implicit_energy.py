@@ -21,7 +21,7 @@ import matplotlib.ticker
 import numpy as np
 
 import esp_gym
-from agents.controllers import AntiSwayPD
+from agents.baselines.pd import AntiSwayPD
 from benchmarks.common import arg_parser, figure, finish, machine
 from benchmarks.slack_switch import stiff_winch
 

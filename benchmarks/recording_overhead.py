@@ -24,7 +24,8 @@ import gymnasium as gym
 import numpy as np
 
 import esp_gym
-from agents.controllers import ZeroPolicy, baseline
+from agents.baselines.pd import ZeroPolicy
+from agents.baselines.registry import baseline
 from benchmarks.common import arg_parser, figure, finish, machine
 from esp_gym.viz.recording import RecordRerun, record_simulation
 

@@ -1,7 +1,7 @@
 """The resolution rule (``string.elements: auto``, esp_gym.choose_resolution) measured under its
 protocol, at each EA of the sweep on ``drone_load``:
 
-* accuracy: the task's baseline in closed loop (``stabilize``'s PD law, agents.controllers) plus
+* accuracy: the task's baseline in closed loop (``stabilize``'s PD law, agents.baselines.pd) plus
   uniform action noise of +-0.5 (its own seed), ``--seeds`` episodes of 4 s; the load's centre of
   mass and the pivot at every control step against a converged reference (N = 32 at an eighth of
   the rule's step, and at most a quarter of N = 32's stability bound), largest distance over the
@@ -24,7 +24,7 @@ import numpy as np
 from tqdm import tqdm
 
 import esp_gym
-from agents.controllers import AntiSwayPD
+from agents.baselines.pd import AntiSwayPD
 from benchmarks.common import arg_parser, figure, finish, machine
 
 #: The EAs of the sweep [N] (benchmarks/env_throughput.py --ea-sweep runs the same).

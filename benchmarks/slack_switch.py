@@ -20,7 +20,7 @@ from matplotlib.ticker import NullFormatter
 from tqdm.auto import tqdm
 
 import esp_gym
-from agents.controllers import AntiSwayPD, Hoist
+from agents.baselines.pd import AntiSwayPD, Hoist
 from benchmarks.common import arg_parser, figure, finish, machine
 from esp_gym.watchdog import energy_scale
 

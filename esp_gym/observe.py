@@ -71,7 +71,7 @@ class Observer:
 
     def measure(self, obs: np.ndarray, sensors: np.ndarray) -> np.ndarray:
         """The mode's fields of the step's OBSERVATION and SENSORS (..., size), noiseless, float64:
-        what a model-based controller differentiates (agents/lqg.py)."""
+        what a model-based controller differentiates (agents/baselines/lqg.py)."""
         return np.concatenate((obs, sensors), axis=-1)[..., self._index]
 
     def observe(self, obs: np.ndarray, sensors: np.ndarray, rng: np.random.Generator) -> np.ndarray:

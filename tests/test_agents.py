@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from agents.common import load_run_config
-from agents.controllers import ZeroPolicy
+from agents.baselines.pd import ZeroPolicy
 from agents.evaluate import SB3Policy, evaluate_policy
 from esp_gym.tasks import TASKS
 
@@ -90,7 +90,7 @@ def test_task_figures_rollout_is_the_evaluated_episode(tmp_path):
     """The figure's episode is the one agents.evaluate scores (same seed, same return), and the
     script writes one figure per task."""
     from agents import task_figures
-    from agents.controllers import baseline
+    from agents.baselines.registry import baseline
 
     run = task_figures.rollout("stabilize", baseline("stabilize"), seed=7, steps=10_000)
     assert run["return"] == evaluate_policy(None, task="stabilize", episodes=1, seed=7)["mean_return"]

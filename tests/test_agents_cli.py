@@ -170,8 +170,8 @@ def test_evaluate_rejects_policy_names_it_does_not_know():
      ["--policy", "task 'stabilize' (trained with 'lift')", "do not fit"]),
     ("agents.compare", ["--task", "stabilize", "--model", ROOT / "models" / "lift_ppo" / "model.zip", "--episodes", "2"],
      ["--model", "winch False (trained with True)"]),
-    ("agents.gain_search", ["--grid", '{"kq": [1]}'], ["--grid", "'kq'", "kp"]),
-    ("agents.gain_search", ["--grid", '{"kp": [1'], ["--grid", "not JSON"]),
+    ("agents.baselines.gain_search", ["--grid", '{"kq": [1]}'], ["--grid", "'kq'", "kp"]),
+    ("agents.baselines.gain_search", ["--grid", '{"kp": [1'], ["--grid", "not JSON"]),
 ])
 def test_script_errors_are_one_line(tmp_path, module, args, names):
     missing = tmp_path / "missing"  # a directory that does not exist

@@ -203,7 +203,7 @@ def test_the_architecture_doc_names_every_module_and_only_modules_that_exist():
     assert modules_not_named(doc) == []
     assert sorted(path for path in named_paths(doc) if repository_file(path) is None) == []
     # negative controls: a doc without a module's path, or naming a module that does not exist
-    assert modules_not_named(doc.replace("`agents/gain_search.py`", "tune")) == ["agents/gain_search.py"]
+    assert modules_not_named(doc.replace("`agents/baselines/gain_search.py`", "tune")) == ["agents/baselines/gain_search.py"]
     assert modules_not_named(doc.replace("kernels/switch.py", "switch.py")) == ["esp_gym/kernels/switch.py"]
     assert [path for path in named_paths(doc + " `esp_gym/kernels/gone.py`") if repository_file(path) is None] == [
         "esp_gym/kernels/gone.py"]

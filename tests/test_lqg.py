@@ -1,14 +1,16 @@
-"""The hook observation's LQG (agents/lqg.py): the delayed system is the latency, the
+"""The hook observation's LQG (agents/baselines/lqg.py): the delayed system is the latency, the
 measurement model is the observation's, the estimator and the controller close a stable loop
 on the linear model (separation principle), and the law beats the zero action in the hard
 preset."""
 import numpy as np
 import pytest
 
-from agents.controllers import LQG_TUNING, ZeroPolicy
+from agents.baselines.pd import ZeroPolicy
+
+from agents.baselines.registry import LQG_TUNING
 from agents.evaluate import evaluate_policy
-from agents.lqg import HookLQG, delayed_system, measurement_model
-from agents.lqr import REDUCED
+from agents.baselines.lqg import HookLQG, delayed_system, measurement_model
+from agents.baselines.lqr import REDUCED
 from esp_gym.kernels.env_arrays import HOOK_OBSERVATION
 from esp_gym.setup import make_setup
 
@@ -89,7 +91,7 @@ def test_scheduled_lqg_weighs_the_load(factor, index):
     import gymnasium as gym
 
     import esp_gym
-    from agents.lqg import ScheduledLQG
+    from agents.baselines.lqg import ScheduledLQG
 
     mass = make_setup().scene.body.mass
     kw = {"observation": "hook", "sensor_noise": 1.0, "randomize": {"load_mass": (factor * mass, factor * mass)}}

@@ -1,13 +1,13 @@
-"""The LQR baseline (agents/lqr.py): its model is the control step's linearisation, its closed
+"""The LQR baseline (agents/baselines/lqr.py): its model is the control step's linearisation, its closed
 loop is stable, its gains reproduce, and it beats the zero action on every task."""
 import gymnasium as gym
 import numpy as np
 import pytest
 
 import esp_gym
-from agents.controllers import ZeroPolicy
+from agents.baselines.pd import ZeroPolicy
 from agents.evaluate import evaluate_policy
-from agents.lqr import LQR, REDUCED, LQRTracker, lift, linearize, reduced_state
+from agents.baselines.lqr import LQR, REDUCED, LQRTracker, lift, linearize, reduced_state
 from esp_gym.control import ControlStep
 from esp_gym.kernels.env_arrays import TARGET
 from esp_gym.tasks import hanging_axis, hanging_depth

@@ -2,7 +2,7 @@
 action plus the network's, and the evaluated policy adds the same baseline back."""
 import numpy as np
 
-from agents.controllers import baseline
+from agents.baselines.registry import baseline
 from agents.residual import ResidualVecEnv, residual_for
 from esp_gym.sb3_vector import ElasticStringPendulumSB3VecEnv
 
@@ -53,9 +53,9 @@ def test_lqg_residual_env_with_a_zero_network_is_the_lqg():
     action) and a zero network action reproduces the LQG's own episodes on the same seeds (the
     batched and single environments are the same bit for bit); the observation carries the
     filter's features (its estimate and the reference's context: feed-forward, velocity and
-    displacement ahead, agents/lqg.py), and so do terminal observations."""
+    displacement ahead, agents/baselines/lqg.py), and so do terminal observations."""
     from agents.evaluate import run_episodes
-    from agents.lqg import REFERENCE_CONTEXT
+    from agents.baselines.lqg import REFERENCE_CONTEXT
     from agents.residual import base_policy
     from esp_gym.kernels.env_arrays import TARGET
 

@@ -97,7 +97,7 @@ def test_auto_elements_refuse_given_node_rows():
 def pd_noise_residual(scene_overrides: dict, steps: int, safety=None) -> float:
     """Largest |E - E0 - W| [J] over ``steps`` control steps of the PD law with +-0.5 uniform
     action noise (the protocol of docs/physics.md, "The string's resolution"), seed 0."""
-    from agents.controllers import AntiSwayPD
+    from agents.baselines.pd import AntiSwayPD
     env = gym.make(ENV_ID, scene_overrides=scene_overrides, safety=safety, max_episode_steps=10 ** 6)
     u = env.unwrapped
     obs, _ = env.reset(seed=0)

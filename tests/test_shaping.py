@@ -1,4 +1,4 @@
-"""Input shaping (agents/shaping.py): the shaped path leaves no residual vibration on the
+"""Input shaping (agents/baselines/shaping.py): the shaped path leaves no residual vibration on the
 linearised pendulum at the design frequency (simulated, not by the shaper's own formula), the
 formula V(w) matches the simulation off design, ZVD is flatter than ZV, and the scene's
 pendulum mode from the linearised control step is the pendulum's."""
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from agents.lqr import linearize
-from agents.shaping import Shaper, pendulum_mode
+from agents.baselines.lqr import linearize
+from agents.baselines.shaping import Shaper, pendulum_mode
 from esp_gym.setup import make_setup
 from esp_gym.tasks import hanging_depth
 
@@ -75,7 +75,7 @@ def test_bad_shaper_is_named():
 
 
 def test_shaping_script_reports_the_spread(tmp_path):
-    from agents.shaping import main
+    from agents.baselines.shaping import main
 
     result = main(["--draws", "3", "--out", str(tmp_path)])
     low, _, median, _, high = result["spread_percentiles_0_5_50_95_100"]

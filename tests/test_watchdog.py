@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 import esp_gym
 import esp_gym.stepsize
-from agents.controllers import AntiSwayPD, Hoist
+from agents.baselines.pd import AntiSwayPD, Hoist
 from esp_gym.kernels.status import BLOW_UP, ENERGY_BALANCE
 from esp_gym.watchdog import STANDARD_GRAVITY, WATCH_EVERY, energy_scale, task_constants
 

@@ -113,10 +113,11 @@ def test_a_bad_reel_action_raises_and_changes_nothing():
 
 @pytest.mark.parametrize("task", ["lift", "lower"])
 def test_the_hoist_baseline_reels_the_load_to_its_target(task):
-    """agents.controllers.Hoist (the pivot's PD law and a reel law on the depth error) beats the
+    """agents.baselines.pd.Hoist (the pivot's PD law and a reel law on the depth error) beats the
     zero action by far (10 episodes in the tuning: lift 488.9 against 285.0, lower 413.8 against
     197.0) and ends with the load near its target: 3 episodes here."""
-    from agents.controllers import ZeroPolicy, baselines
+    from agents.baselines.pd import ZeroPolicy
+    from agents.baselines.registry import baselines
     from agents.evaluate import evaluate_policy
 
     hoist = baselines(task)["pd"]
@@ -127,9 +128,9 @@ def test_the_hoist_baseline_reels_the_load_to_its_target(task):
 
 
 def test_tune_sets_the_hoists_gains():
-    """agents.gain_search reaches a Hoist's reel gain and its PD law's gains (one grid point, one episode)."""
-    from agents.controllers import Hoist
-    from agents.gain_search import gain_names, with_gains
+    """agents.baselines.gain_search reaches a Hoist's reel gain and its PD law's gains (one grid point, one episode)."""
+    from agents.baselines.pd import Hoist
+    from agents.baselines.gain_search import gain_names, with_gains
 
     law = Hoist()
     assert "k_length" in gain_names(law) and "kp" in gain_names(law)

@@ -10,7 +10,7 @@ with a *shaper*, impulses A_i at times t_i (sum A_i = 1), multiplies the residua
 which is 0 at the design frequency for ZV (two impulses, half a damped period apart) and also
 flat there (dV/dw = 0) for ZVD (three impulses), at the price of half a period more delay. The
 mode is the pendulum's: the slowest oscillatory eigenvalue pair of the linearised control step
-(agents/lqr.py) with the pivot held, so it is the scene's own, string stretch and body rocking
+(agents/baselines/lqr.py) with the pivot held, so it is the scene's own, string stretch and body rocking
 included (:func:`pendulum_mode`).
 
 The path: the pivot and the load move from where the episode starts to their targets along a
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from agents.lqr import LQR, REDUCED, preview_feedforward, preview_terms, reduced_state
+from agents.baselines.lqr import LQR, REDUCED, preview_feedforward, preview_terms, reduced_state
 
 #: Shaper names -> builders.
 SHAPERS = ("none", "zv", "zvd")
@@ -149,7 +149,7 @@ class ShapedLQR(LQR):
 def frequency_spread(setup, draws: int = 100, seed: int = 0) -> np.ndarray:
     """The pendulum frequency [rad/s] of ``draws`` episodes drawn by ``setup``'s randomiser
     (each linearised on its own scene)."""
-    from agents.lqr import linearize
+    from agents.baselines.lqr import linearize
 
     rng = np.random.default_rng(seed)
     return np.array([pendulum_mode(linearize(setup, setup.draw_episode(rng))[0], setup.control_period)[0]
@@ -162,11 +162,11 @@ def main(argv=None) -> dict:
     from pathlib import Path
 
     from agents.cli import ArgumentParser
-    from agents.lqr import linearize
+    from agents.baselines.lqr import linearize
     from esp_gym.setup import make_setup
     from esp_gym.viz.figures import new_figure, save_figure
 
-    ap = ArgumentParser(prog="python -m agents.shaping", description=main.__doc__.split(";")[0])
+    ap = ArgumentParser(prog="python -m agents.baselines.shaping", description=main.__doc__.split(";")[0])
     ap.add_argument("--draws", type=int, default=100, help="randomised episodes for the spread")
     ap.add_argument("--out", default="docs/img", help="directory for shaping.png")
     a = ap.parse_args(argv)

@@ -1,7 +1,7 @@
-"""Grid search of the classical baseline's gains (agents/controllers.py) on seeded episodes.
+"""Grid search of the classical baseline's gains (agents/baselines/pd.py) on seeded episodes.
 
-    python -m agents.gain_search --task stabilize --episodes 10
-    python -m agents.gain_search --task stabilize --episodes 20 --grid '{"kp": [3, 4, 6], "kd": [1.5, 2, 3]}'
+    python -m agents.baselines.gain_search --task stabilize --episodes 10
+    python -m agents.baselines.gain_search --task stabilize --episodes 20 --grid '{"kp": [3, 4, 6], "kd": [1.5, 2, 3]}'
 
 Every combination of the ``--grid`` values replaces those gains of the task's baseline; each is
 scored by its mean return over ``--episodes`` episodes (seeds 1000 + i). Prints the ten best as
@@ -15,7 +15,8 @@ import json
 from dataclasses import fields, replace
 
 from agents.cli import ArgumentParser
-from agents.controllers import Hoist, baseline
+from agents.baselines.pd import Hoist
+from agents.baselines.registry import baseline
 from agents.evaluate import evaluate_policy
 from esp_gym.tasks import TASKS
 
@@ -53,7 +54,7 @@ def tune(task: str, episodes: int, grid: dict, top: int = 10) -> list:
 
 
 def main(argv=None) -> list:
-    ap = ArgumentParser(prog="python -m agents.gain_search", description=__doc__.split("\n\n")[0])
+    ap = ArgumentParser(prog="python -m agents.baselines.gain_search", description=__doc__.split("\n\n")[0])
     ap.add_episode_options(TASKS, episodes=20, seed=False)
     ap.add_argument("--grid", type=str, default=None,
                     help=f"JSON object gain -> list of values (default: {json.dumps(COARSE_GRID)})")

@@ -12,7 +12,7 @@ and of its spatial angular velocity w = R Omega. The string's internal vibration
 a reduced state is *lifted* to a full one with the string straight from the pivot to the
 attachment point, its nodes at their static stretch ratios and their velocities interpolated
 (:func:`lift`), as the tasks start their episodes. The spin about the vertical is left to a
-rate damper on the body torque (agents/controllers.py's ``k_spin``).
+rate damper on the body torque (agents/baselines/pd.py's ``k_spin``).
 
 Cost: the local quadratic expansion of the reward. Each term w / (1 + (x/s)^2) is
 w - (w/s^2) x^2 + O(x^4), so maximising the reward near the target is minimising

@@ -1,4 +1,4 @@
-"""LQG: the LQR of agents/lqr.py acting on a steady-state Kalman filter's estimate, for
+"""LQG: the LQR of agents/baselines/lqr.py acting on a steady-state Kalman filter's estimate, for
 observations that do not hold the load's state (``observation="hook"``: the hook's position
 error and velocity, the string's pull on it, the load target relative to it), with the action
 latency and the sensor noise of the environment.
@@ -30,7 +30,7 @@ import dataclasses
 import numpy as np
 import scipy.linalg
 
-from agents.lqr import (LQR, REDUCED, equilibrium_target, lift, lqr_solution, plain_setup, preview_feedforward,
+from agents.baselines.lqr import (LQR, REDUCED, equilibrium_target, lift, lqr_solution, plain_setup, preview_feedforward,
                         preview_terms, reference_drift, reference_states, reward_weights)
 from esp_gym.control import ControlStep
 from esp_gym.kernels.layout import Layout

@@ -1,6 +1,7 @@
-"""Classical baselines for ElasticStringPendulum-v0, one per task, acting on the observation.
+"""The PD laws of ElasticStringPendulum-v0, one per task, acting on the observation (the
+simplest classical baselines; agents/baselines/registry.py names every baseline of a task).
 
-Both are the same structure: a PD law on the pivot position plus crane-style anti-sway
+All are the same structure: a PD law on the pivot position plus crane-style anti-sway
 feedback, and rate damping of the load's spin.
 
 * Pivot: for a pendulum of length L under a pivot acceleration a, the swing angle obeys
@@ -17,7 +18,7 @@ feedback, and rate damping of the load's spin.
   swing that hoisting and the pivot's moves excite.
 
 Gains were chosen by grid search on the mean return of seeded `stabilize` episodes (seeds
-1000+): first coarse (`python -m agents.gain_search --task stabilize --episodes 10`: kp in {1, 2, 4, 8},
+1000+): first coarse (`python -m agents.baselines.gain_search --task stabilize --episodes 10`: kp in {1, 2, 4, 8},
 kd in {1, 2, 4, 8}, k_sway in {0, 1, 2, 4, 8}, k_spin in {0, 0.01, 0.02, 0.05}; best kp 4,
 kd 2, k_sway 0, k_spin 0.02: 472.5), then refined with 20 episodes (kp in {3, 4, 6}, kd in
 {1.5, 2, 3}, k_sway in {-1, -0.5, 0, 0.5}, kp_z in {8, 16}; best kp 4, kd 2, k_sway 0,
@@ -30,7 +31,6 @@ stabilize gains on its reference-relative observation.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
 
 import numpy as np
 
@@ -71,7 +71,7 @@ class AntiSwayPD:
         return np.clip(action, -1.0, 1.0)
 
 
-BASELINES = {
+PD_LAWS = {
     "stabilize": AntiSwayPD(),
     "transport": AntiSwayPD(kp=1.0, kd=2.0, kp_z=2.0, kd_z=3.0, k_sway=2.0),
     # the observation's errors and velocities are relative to the moving reference, so the
@@ -120,60 +120,5 @@ class ZeroPolicy:
 #: The winch's tasks: mean return over 10 episodes (seeds 1000+) on a grid of k_length in {0.5, 1,
 #: 2, 4} 1/s x the stabilize or transport pivot gains: lift 488.9 at 2 (490.0 at 4, but the
 #: transport gains fail there: 318.9), lower 413.8 at 1, stabilize gains both (zero action:
-#: 285.0, 197.0); `python -m agents.gain_search --task lift --grid '{"k_length": [0.5, 1, 2, 4]}'` reruns it.
-BASELINES.update(lift=Hoist(BASELINES["stabilize"], 2.0), lower=Hoist(BASELINES["stabilize"], 1.0))
-
-
-#: The model-based designs' tuning (docs/agents.md: grids on 10 episodes, seeds 1000+). LQR:
-#: control weight over {1, 10, 100, 1e3, 1e4} per nominal task. Shaping (transport): shaper in
-#: {none, zv, zvd} x ramp in {0.1, 0.5, 1, 2, 3, 4} s. LQG (hard preset): control weight in
-#: {100, 1e3, 1e4} x state noise in {1e-4, 1e-3, 1e-2, 0.1} x force noise in {1e-4, 1e-3, 1e-2}
-#: x model error in {1, 3, 10}; one setting is among the best on every task (stabilize 268.8,
-#: transport 226.4, track 237.4).
-LQR_WEIGHT = {"stabilize": 100.0, "transport": 100.0, "track": 300.0}
-SHAPING = {"shaper": "zv", "move_time": 0.1}
-LQG_TUNING = {"control_weight": 100.0, "state_noise": 1e-3, "force_noise": 1e-4, "model_error": 3.0}
-
-
-def baseline(task: str, winch: bool = False):
-    """The PD law of ``task`` (the simplest reference); with a winch, :class:`Hoist` around it."""
-    if task not in BASELINES:
-        raise ValueError(f"no baseline for task {task!r}; known: {sorted(BASELINES)}")
-    law = BASELINES[task]
-    return Hoist(law) if winch and not isinstance(law, Hoist) else law
-
-
-def baseline_factories(task: str, env_kwargs: Optional[dict] = None) -> dict:
-    """Every classical baseline of ``task`` with the environment options ``env_kwargs``, by name,
-    as a function that builds it (some designs linearise the environment's step, which compiles
-    it on a cold cache: a name can be checked without that). With the full observation ``pd``,
-    ``lqr`` (each episode's own design: agents/lqr.py EpisodeLQR; ``track``: with the reference's
-    preview) and for ``transport`` ``lqr_zv`` (the ZV-shaped path, agents/shaping.py); with the
-    hook observation ``pd`` (pivot terms only) and ``lqg`` (a Kalman filter and LQR designed for
-    the nominal scene but for the load's mass, scheduled on the hook tension: the hook does not
-    reveal the episode's other parameters, agents/lqg.py). Stateful ones are reset per episode by
-    evaluate_policy."""
-    from agents.lqg import ScheduledLQG
-    from agents.lqr import EpisodeLQR, LQR, LQRTracker
-    from agents.shaping import ShapedLQR
-    from esp_gym.setup import make_setup
-
-    setup = make_setup(task=task, **(env_kwargs or {}))
-    out = {"pd": lambda: baseline(task, setup.winch)}
-    if setup.winch:  # the model-based designs are for a fixed length
-        return out
-    if setup.observer.mode == "hook":
-        out["lqg"] = lambda: ScheduledLQG(setup, **LQG_TUNING)
-        return out
-    weight = LQR_WEIGHT[task]
-    design = LQRTracker.design if task == "track" else LQR.design
-    out["lqr"] = lambda: EpisodeLQR(lambda s, episode: design(s, episode, weight))
-    if task == "transport":
-        out["lqr_zv"] = lambda: EpisodeLQR(lambda s, episode: ShapedLQR.design(s, episode, weight, **SHAPING))
-    return out
-
-
-def baselines(task: str, env_kwargs: Optional[dict] = None) -> dict:
-    """Every classical baseline of ``task`` with the environment options ``env_kwargs``, built, by
-    name (:func:`baseline_factories`)."""
-    return {name: build() for name, build in baseline_factories(task, env_kwargs).items()}
+#: 285.0, 197.0); `python -m agents.baselines.gain_search --task lift --grid '{"k_length": [0.5, 1, 2, 4]}'` reruns it.
+PD_LAWS.update(lift=Hoist(PD_LAWS["stabilize"], 2.0), lower=Hoist(PD_LAWS["stabilize"], 1.0))
