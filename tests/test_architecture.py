@@ -7,6 +7,7 @@ Each checker is a small function; the negative controls feed it a made-up offend
 from __future__ import annotations
 
 import ast
+import importlib
 import re
 import subprocess
 import sys
@@ -207,3 +208,54 @@ def test_the_architecture_doc_names_every_module_and_only_modules_that_exist():
     assert modules_not_named(doc.replace("kernels/switch.py", "switch.py")) == ["esp_gym/kernels/switch.py"]
     assert [path for path in named_paths(doc + " `esp_gym/kernels/gone.py`") if repository_file(path) is None] == [
         "esp_gym/kernels/gone.py"]
+
+
+#: Each layout module's offset prefixes and the layouts they index (kernels/layout.py and the
+#: owners' modules): an alias PREFIX_FIELD is the offset of FIELD in one of them.
+OFFSET_PREFIXES = {
+    "esp_gym.kernels.layout": {"D_": ("DIAG",), "B_": ("BALANCE",), "WN_": ("WINCH",), "SD_": ("STEP_DIAG",),
+                               "IN_": ("INPUTS",), "R_": ("REPORT",)},
+    "esp_gym.kernels.env_arrays": {"A_": ("ACTION", "WINCH_ACTION"), "AP_": ("ACTION_PARAMS",), "T_": ("TARGET",),
+                                   "O_": ("OBSERVATION", "WINCH_OBSERVATION"), "SN_": ("SENSORS",),
+                                   "RW_": ("REWARD",), "TP_": ("TASK_PARAMS",), "F_": ("FEATURES",)},
+    "esp_gym.kernels.disturbance": {"DP_": ("DISTURBANCE_PARAMS",), "DS_": ("DISTURBANCE",), "DR_": ("DRAWS",)},
+    "esp_gym.kernels.recording": {"S_": ("SAMPLE_HEAD",), "SW_": ("SAMPLE_WINCH",), "SI_": ("SAMPLE_INPUTS",),
+                                  "SB_": ("SAMPLE_BALANCES",)},
+}
+
+
+def misnamed_offsets(namespace: dict, prefixes: dict) -> list:
+    """The integer aliases of ``namespace`` with one of ``prefixes`` that are not PREFIX + the upper
+    case of a field of the prefix's layouts, holding that field's offset."""
+    out = []
+    for name, value in namespace.items():
+        if not name.isupper() or isinstance(value, bool) or not isinstance(value, int):
+            continue
+        prefix = max((p for p in prefixes if name.startswith(p)), key=len, default=None)
+        if prefix is None:
+            continue
+        layouts = [namespace[layout] for layout in prefixes[prefix]]
+        if not any(prefix + field.upper() == name and layout.start(field) == value
+                   for layout in layouts for field in layout.names):
+            out.append(name)
+    return out
+
+
+@pytest.mark.parametrize("module", sorted(OFFSET_PREFIXES))
+def test_offset_names_follow_from_the_fields(module):
+    """Every offset alias is its layout's field name in upper case after the layout's prefix, and
+    holds that field's offset: O_LOAD_POSITION_ERROR = OBSERVATION.start("load_position_error")."""
+    namespace = vars(importlib.import_module(module))
+    assert misnamed_offsets(namespace, OFFSET_PREFIXES[module]) == []
+    assert sum(1 for name in namespace if any(name.startswith(p) for p in OFFSET_PREFIXES[module])) >= 3
+
+
+def test_a_misnamed_offset_is_found():
+    """Negative control: an alias named after something else, and one holding another field's
+    offset, are both found; a right one is not."""
+    from esp_gym.kernels.env_arrays import OBSERVATION
+
+    namespace = {"OBSERVATION": OBSERVATION, "O_LOAD_POSITION_ERROR": OBSERVATION.start("load_position_error"),
+                 "O_PIVOT_ERROR": OBSERVATION.start("pivot_position_error"),
+                 "O_LOAD_VELOCITY": OBSERVATION.start("pivot_velocity")}
+    assert misnamed_offsets(namespace, {"O_": ("OBSERVATION",)}) == ["O_PIVOT_ERROR", "O_LOAD_VELOCITY"]

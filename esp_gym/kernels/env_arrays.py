@@ -61,7 +61,7 @@ ACTION_PARAMS = Layout(("low", ACTION_SIZE), ("high", ACTION_SIZE), ("hover_forc
                        ("torque_limit", 1), ("max_reel_speed", 1))
 AP_LOW = ACTION_PARAMS.start("low")
 AP_HIGH = ACTION_PARAMS.start("high")
-AP_HOVER = ACTION_PARAMS.start("hover_force")
+AP_HOVER_FORCE = ACTION_PARAMS.start("hover_force")
 AP_FORCE_LIMIT = ACTION_PARAMS.scalar("force_limit")
 AP_TORQUE_LIMIT = ACTION_PARAMS.scalar("torque_limit")
 AP_MAX_REEL_SPEED = ACTION_PARAMS.scalar("max_reel_speed")
@@ -93,17 +93,17 @@ T_ORIENTATION = TARGET.scalar("orientation")
 #: (stretched length / l - 1, l the current unstretched length).
 OBSERVATION = Layout(("pivot_position_error", 3), ("pivot_velocity", 3), ("load_position_error", 3),
                      ("load_velocity", 3), ("attitude_6d", 6), ("angular_velocity", 3), ("string_stretch", 1))
-O_PIVOT_ERROR = OBSERVATION.start("pivot_position_error")
+O_PIVOT_POSITION_ERROR = OBSERVATION.start("pivot_position_error")
 O_PIVOT_VELOCITY = OBSERVATION.start("pivot_velocity")
-O_LOAD_ERROR = OBSERVATION.start("load_position_error")
+O_LOAD_POSITION_ERROR = OBSERVATION.start("load_position_error")
 O_LOAD_VELOCITY = OBSERVATION.start("load_velocity")
-O_ATTITUDE = OBSERVATION.start("attitude_6d")
+O_ATTITUDE_6D = OBSERVATION.start("attitude_6d")
 O_ANGULAR_VELOCITY = OBSERVATION.start("angular_velocity")
-O_STRETCH = OBSERVATION.scalar("string_stretch")
+O_STRING_STRETCH = OBSERVATION.scalar("string_stretch")
 OBS_SIZE = OBSERVATION.size
 #: The observation of an environment with a winch: OBSERVATION, then the unstretched length [m].
 WINCH_OBSERVATION = Layout(*OBSERVATION.fields, ("unstretched_length", 1))
-O_LENGTH = WINCH_OBSERVATION.scalar("unstretched_length")
+O_UNSTRETCHED_LENGTH = WINCH_OBSERVATION.scalar("unstretched_length")
 
 #: What the compiled step measures besides the full observation: the string's pull on the
 #: pivot, the first element's force c x_0 (a load cell at the hook) [N], and the load target

@@ -17,11 +17,11 @@ from .diagnostics import diagnostics
 from .disturbance import disturb, external_potential
 from .sums import kahan_add
 from .layout import (B_WINCH_WORK, B_WORK, D_ENERGY, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE, R_STATUS,
-                     R_STEPS, R_TERMINATION, WN_LENGTH, WN_MASS_PER_LENGTH, WN_SPEED, DiagWork, LGVIParams, StateArrays,
-                     WinchArrays, Work)
-from .env_arrays import (A_BODY_TORQUE, A_PIVOT_FORCE, A_REEL_SPEED, ACTION_SIZE, AP_FORCE_LIMIT, AP_HIGH, AP_HOVER,
-                         AP_LOW, AP_MAX_REEL_SPEED, AP_TORQUE_LIMIT, O_LENGTH, SCHEME_DISTURBED, TP_ENERGY_BOUND,
-                         TP_ENERGY_ORIGIN, TP_ENERGY_WATCHDOG, TP_STRING_LENGTH)
+                     R_STEPS, R_TERMINATION, WN_LENGTH, WN_MASS_PER_LENGTH, WN_REEL_SPEED, DiagWork, LGVIParams,
+                     StateArrays, WinchArrays, Work)
+from .env_arrays import (A_BODY_TORQUE, A_PIVOT_FORCE, A_REEL_SPEED, ACTION_SIZE, AP_FORCE_LIMIT, AP_HIGH,
+                         AP_HOVER_FORCE, AP_LOW, AP_MAX_REEL_SPEED, AP_TORQUE_LIMIT, O_UNSTRETCHED_LENGTH,
+                         SCHEME_DISTURBED, TP_ENERGY_BOUND, TP_ENERGY_ORIGIN, TP_ENERGY_WATCHDOG, TP_STRING_LENGTH)
 from .status import ENERGY_BALANCE, OK
 from .env_arrays import EnvArrays
 from .loops import advance_loop_explicit, advance_loop_implicit, winch_loop_explicit, winch_loop_implicit
@@ -50,7 +50,7 @@ def action_inputs(action, ap, inputs):
     the action's pivot force [N] (spatial), body torque torque_limit x its body torque [N m],
     no spatial torque."""
     for i in range(3):
-        inputs[IN_PIVOT_FORCE + i] = ap[AP_HOVER + i] + ap[AP_FORCE_LIMIT] * action[A_PIVOT_FORCE + i]
+        inputs[IN_PIVOT_FORCE + i] = ap[AP_HOVER_FORCE + i] + ap[AP_FORCE_LIMIT] * action[A_PIVOT_FORCE + i]
         inputs[IN_BODY_TORQUE + i] = ap[AP_TORQUE_LIMIT] * action[A_BODY_TORQUE + i]
         inputs[IN_SPATIAL_TORQUE + i] = 0.0
 
@@ -157,11 +157,11 @@ def env_finish_winched(S, W, P, D, WA, E, phi, disturbed):
     the step ended at, which ends the observation."""
     status = close_balances(S, W, P, E, phi, disturbed)
     length = WA.state[WN_LENGTH]
-    winch_energy(S, P, WA, D, length, WA.state[WN_SPEED])
+    winch_energy(S, P, WA, D, length, WA.state[WN_REEL_SPEED])
     n = S.r.shape[0] - 1
     Pl = length_params(P, WA, length, WA.state[WN_MASS_PER_LENGTH] * length / n, 0 if P.first == 0 else 1, n, False)
     code = observe_and_score(S, Pl, D, E, length)
-    E.obs[O_LENGTH] = length
+    E.obs[O_UNSTRETCHED_LENGTH] = length
     E.result[R_TERMINATION] = status if status != OK else energy_watchdog(S, D, E.tp, code)
 
 
@@ -173,7 +173,7 @@ def env_reset_observe(S, P, D, WA, E, winched):
     E.tp[TP_ENERGY_ORIGIN] = D.out[D_ENERGY]
     code = observe_and_score(S, P, D, E, E.tp[TP_STRING_LENGTH])
     if winched:
-        E.obs[O_LENGTH] = WA.state[WN_LENGTH]
+        E.obs[O_UNSTRETCHED_LENGTH] = WA.state[WN_LENGTH]
     return code
 
 

@@ -170,7 +170,7 @@ B_WINCH_WORK = BALANCE.scalar("winch_work")
 WINCH = Layout(("length", 1), ("reel_speed", 1), ("mass_per_length", 1), ("EA", 1),
                ("max_stretch", 1), ("end_share", 1), ("off_share", 1), ("min_length", 1), ("max_length", 1))
 WN_LENGTH = WINCH.scalar("length")
-WN_SPEED = WINCH.scalar("reel_speed")
+WN_REEL_SPEED = WINCH.scalar("reel_speed")
 WN_MASS_PER_LENGTH = WINCH.scalar("mass_per_length")
 WN_EA = WINCH.scalar("EA")
 WN_MAX_STRETCH = WINCH.scalar("max_stretch")

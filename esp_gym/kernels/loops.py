@@ -14,7 +14,7 @@ configuration (:func:`shared_advance_loop`, :func:`shared_winch_loop`).
 from .jit import kernel
 from .diagnostics import diagnostics
 from .layout import (B_WINCH_WORK, D_ENERGY, D_ORTHOGONALITY, D_PI3, R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS,
-                     SD_ENERGY, SD_ORTHOGONALITY, SD_PI3, WN_LENGTH, WN_MAX_LENGTH, WN_MIN_LENGTH, WN_SPEED)
+                     SD_ENERGY, SD_ORTHOGONALITY, SD_PI3, WN_LENGTH, WN_MAX_LENGTH, WN_MIN_LENGTH, WN_REEL_SPEED)
 from .status import OK
 from .disturbance import kick
 from .cutback import implicit_substep, winch_implicit_substep
@@ -163,11 +163,11 @@ def winch_step(S, W, P, WA, D, inputs, speed, free, compensated, implicit):
     elif end <= st[WN_MIN_LENGTH]:
         end = st[WN_MIN_LENGTH]
         v = (end - length) / h
-    if v != st[WN_SPEED]:  # H jumps at fixed (q, p) when the reel speed changes
-        H_old, _ = winch_energy(S, P, WA, D, length, st[WN_SPEED])
+    if v != st[WN_REEL_SPEED]:  # H jumps at fixed (q, p) when the reel speed changes
+        H_old, _ = winch_energy(S, P, WA, D, length, st[WN_REEL_SPEED])
         H_new, _ = winch_energy(S, P, WA, D, length, v)
         kahan_add(S.acc, S.accc, B_WINCH_WORK, H_new - H_old)
-        st[WN_SPEED] = v
+        st[WN_REEL_SPEED] = v
     total = 0
     status = OK
     reached = 0.0

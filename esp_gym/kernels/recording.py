@@ -12,7 +12,7 @@ import math
 
 from .jit import kernel
 from .layout import (B_ANGULAR_IMPULSE_Z, B_WINCH_WORK, B_WORK, D_ENERGY, D_PI3, DIAG, IN_BODY_TORQUE, IN_PIVOT_FORCE,
-                     R_NEWTON_TOTAL, R_STEPS, WN_LENGTH, WN_SPEED, Layout)
+                     R_NEWTON_TOTAL, R_STEPS, WN_LENGTH, WN_REEL_SPEED, Layout)
 from .disturbance import DISTURBANCE
 from .env_arrays import A_BODY_TORQUE, A_PIVOT_FORCE, ACTION_SIZE, REWARD_TERMS, SENSORS, TARGET
 
@@ -48,15 +48,15 @@ S_TERMS = SAMPLE_HEAD.start("terms")
 S_INPUTS = SAMPLE_HEAD.start("inputs")
 S_BALANCES = SAMPLE_HEAD.start("balances")
 S_TARGET = SAMPLE_HEAD.start("target")
-S_ROT = SAMPLE_HEAD.start("R")
+S_R = SAMPLE_HEAD.start("R")
 S_SENSORS = SAMPLE_HEAD.start("sensors")
 S_DISTURBANCE = SAMPLE_HEAD.start("disturbance")
 S_RHO = SAMPLE_HEAD.start("rho")
 S_WINCH = SAMPLE_HEAD.start("winch")
-SW_LENGTH = SAMPLE_WINCH.scalar("unstretched_length")
-SW_SPEED = SAMPLE_WINCH.scalar("reel_speed")
-SW_WORK = SAMPLE_WINCH.scalar("winch_work")
-S_NODES = SAMPLE_HEAD.size
+SW_UNSTRETCHED_LENGTH = SAMPLE_WINCH.scalar("unstretched_length")
+SW_REEL_SPEED = SAMPLE_WINCH.scalar("reel_speed")
+SW_WINCH_WORK = SAMPLE_WINCH.scalar("winch_work")
+SAMPLE_HEAD_SIZE = SAMPLE_HEAD.size
 SI_PIVOT_FORCE = SAMPLE_INPUTS.start("pivot_force")
 SI_BODY_TORQUE = SAMPLE_INPUTS.start("body_torque")
 SB_WORK = SAMPLE_BALANCES.scalar("work")
@@ -116,16 +116,16 @@ def capture_sample(buf, i, r, R, out, strain, acc, action, terms, report, inputs
         row[S_DISTURBANCE + k] = disturbance[k]
     for c in range(3):
         row[S_RHO + c] = rho[c]
-    row[S_WINCH + SW_LENGTH] = winch[WN_LENGTH]
-    row[S_WINCH + SW_SPEED] = winch[WN_SPEED]
-    row[S_WINCH + SW_WORK] = acc[B_WINCH_WORK]
+    row[S_WINCH + SW_UNSTRETCHED_LENGTH] = winch[WN_LENGTH]
+    row[S_WINCH + SW_REEL_SPEED] = winch[WN_REEL_SPEED]
+    row[S_WINCH + SW_WINCH_WORK] = acc[B_WINCH_WORK]
     for a in range(3):
         for c in range(3):
-            row[S_ROT + 3 * a + c] = R[a, c]
+            row[S_R + 3 * a + c] = R[a, c]
     for a in range(r.shape[0]):
         for c in range(3):
-            row[S_NODES + 3 * a + c] = r[a, c]
-    base = S_NODES + 3 * r.shape[0]
+            row[SAMPLE_HEAD_SIZE + 3 * a + c] = r[a, c]
+    base = SAMPLE_HEAD_SIZE + 3 * r.shape[0]
     for k in range(strain.shape[0]):
         row[base + k] = strain[k]
     base += strain.shape[0]
@@ -145,23 +145,23 @@ def sample_geometry(buf, n, inv_strain_scale, lut, inputs_from_action, force_off
     the load's centre of mass r_N + R rho_c (n, 3) float64, with the row's own rho_c (each
     episode's)."""
     N = pts.shape[1]
-    strain0 = S_NODES + 3 * (N + 1)
+    strain0 = SAMPLE_HEAD_SIZE + 3 * (N + 1)
     for i in range(n):
         row = buf[i]
         for a in range(N):
             for c in range(3):
-                pts[i, a, 0, c] = row[S_NODES + 3 * a + c]
-                pts[i, a, 1, c] = row[S_NODES + 3 * (a + 1) + c]
+                pts[i, a, 0, c] = row[SAMPLE_HEAD_SIZE + 3 * a + c]
+                pts[i, a, 1, c] = row[SAMPLE_HEAD_SIZE + 3 * (a + 1) + c]
             x = row[strain0 + a] * inv_strain_scale
             x = min(x, 1.0) if x > 0.0 else 0.0
             colors[i * N + a] = lut[int(math.sqrt(x) * 255.0 + 0.5)]
         for c in range(3):
-            translation[i, c] = row[S_NODES + 3 * N + c]
-            pivot[i, c] = row[S_NODES + c]
-            acc = row[S_NODES + 3 * N + c]
+            translation[i, c] = row[SAMPLE_HEAD_SIZE + 3 * N + c]
+            pivot[i, c] = row[SAMPLE_HEAD_SIZE + c]
+            acc = row[SAMPLE_HEAD_SIZE + 3 * N + c]
             for k in range(3):
-                mat[i, 3 * c + k] = row[S_ROT + 3 * k + c]
-                acc += row[S_ROT + 3 * c + k] * row[S_RHO + k]
+                mat[i, 3 * c + k] = row[S_R + 3 * k + c]
+                acc += row[S_R + 3 * c + k] * row[S_RHO + k]
             load[i, c] = acc
             if inputs_from_action:
                 force = force_offset[c] + force_limit * row[S_ACTION + A_PIVOT_FORCE + c]

@@ -10,12 +10,12 @@ import math
 from .env_arrays import F_LOAD_POSITION, F_LOAD_VELOCITY, F_SPIN, F_SWING
 from .jit import kernel
 from .layout import D_STRETCHED_LENGTH
-from .env_arrays import (O_ANGULAR_VELOCITY, O_ATTITUDE, O_LOAD_ERROR, O_LOAD_VELOCITY, O_PIVOT_ERROR, O_PIVOT_VELOCITY,
-                         O_STRETCH, RW_CONTROL, RW_LOAD_POSITION, RW_LOAD_VELOCITY, RW_PIVOT_POSITION, RW_SPIN,
-                         RW_SWING, SN_HOOK_TENSION, SN_LOAD_TARGET_OFFSET, T_LOAD, T_PIVOT, T_VELOCITY,
-                         TP_MAX_STRETCHED_LENGTH, TP_SCALE_POSITION, TP_SCALE_SPIN, TP_SCALE_SWING, TP_SCALE_VELOCITY,
-                         TP_STRING_LENGTH, TP_W_CONTROL, TP_W_LOAD_POSITION, TP_W_LOAD_VELOCITY, TP_W_PIVOT_POSITION,
-                         TP_W_SPIN, TP_W_SWING, TP_WORKSPACE_RADIUS)
+from .env_arrays import (O_ANGULAR_VELOCITY, O_ATTITUDE_6D, O_LOAD_POSITION_ERROR, O_LOAD_VELOCITY,
+                         O_PIVOT_POSITION_ERROR, O_PIVOT_VELOCITY, O_STRING_STRETCH, RW_CONTROL, RW_LOAD_POSITION,
+                         RW_LOAD_VELOCITY, RW_PIVOT_POSITION, RW_SPIN, RW_SWING, SN_HOOK_TENSION, SN_LOAD_TARGET_OFFSET,
+                         T_LOAD, T_PIVOT, T_VELOCITY, TP_MAX_STRETCHED_LENGTH, TP_SCALE_POSITION, TP_SCALE_SPIN,
+                         TP_SCALE_SWING, TP_SCALE_VELOCITY, TP_STRING_LENGTH, TP_W_CONTROL, TP_W_LOAD_POSITION,
+                         TP_W_LOAD_VELOCITY, TP_W_PIVOT_POSITION, TP_W_SPIN, TP_W_SWING, TP_WORKSPACE_RADIUS)
 from .status import TERM_NONE, TERM_OVERSTRETCH, TERM_WORKSPACE
 from .tolerance import tolerance
 
@@ -77,14 +77,14 @@ def observe(S, D, E, length):
     features = E.features
     obs = E.obs
     for i in range(3):
-        obs[O_PIVOT_ERROR + i] = r[0, i] - target[T_PIVOT + i]
+        obs[O_PIVOT_POSITION_ERROR + i] = r[0, i] - target[T_PIVOT + i]
         obs[O_PIVOT_VELOCITY + i] = V[0, i] - target[T_VELOCITY + i]
-        obs[O_LOAD_ERROR + i] = features[F_LOAD_POSITION + i] - target[T_LOAD + i]
+        obs[O_LOAD_POSITION_ERROR + i] = features[F_LOAD_POSITION + i] - target[T_LOAD + i]
         obs[O_LOAD_VELOCITY + i] = features[F_LOAD_VELOCITY + i] - target[T_VELOCITY + i]  # x - 0.0 == x
-        obs[O_ATTITUDE + i] = R[i, 0]
-        obs[O_ATTITUDE + 3 + i] = R[i, 1]
+        obs[O_ATTITUDE_6D + i] = R[i, 0]
+        obs[O_ATTITUDE_6D + 3 + i] = R[i, 1]
         obs[O_ANGULAR_VELOCITY + i] = w[i]
-    obs[O_STRETCH] = D.out[D_STRETCHED_LENGTH] / length - 1.0
+    obs[O_STRING_STRETCH] = D.out[D_STRETCHED_LENGTH] / length - 1.0
 
 
 @kernel(inline="always")
@@ -109,11 +109,11 @@ def reward_terms(E):
     a2 = 0.0
     for i in range(action.shape[0]):
         a2 += action[i] * action[i]
-    terms[RW_LOAD_POSITION] = tp[TP_W_LOAD_POSITION] * tolerance(math.sqrt(squared_norm(obs, O_LOAD_ERROR)),
+    terms[RW_LOAD_POSITION] = tp[TP_W_LOAD_POSITION] * tolerance(math.sqrt(squared_norm(obs, O_LOAD_POSITION_ERROR)),
                                                                  tp[TP_SCALE_POSITION])
     terms[RW_LOAD_VELOCITY] = tp[TP_W_LOAD_VELOCITY] * tolerance(math.sqrt(squared_norm(obs, O_LOAD_VELOCITY)),
                                                                  tp[TP_SCALE_VELOCITY])
-    terms[RW_PIVOT_POSITION] = tp[TP_W_PIVOT_POSITION] * tolerance(math.sqrt(squared_norm(obs, O_PIVOT_ERROR)),
+    terms[RW_PIVOT_POSITION] = tp[TP_W_PIVOT_POSITION] * tolerance(math.sqrt(squared_norm(obs, O_PIVOT_POSITION_ERROR)),
                                                                    tp[TP_SCALE_POSITION])
     terms[RW_SWING] = tp[TP_W_SWING] * tolerance(E.features[F_SWING], tp[TP_SCALE_SWING])
     terms[RW_SPIN] = tp[TP_W_SPIN] * tolerance(E.features[F_SPIN], tp[TP_SCALE_SPIN])
@@ -128,7 +128,7 @@ def terminate(D, E, length):
     if not (D.out[D_STRETCHED_LENGTH] <= tp[TP_MAX_STRETCHED_LENGTH] * (length / tp[TP_STRING_LENGTH])):
         return TERM_OVERSTRETCH
     r2 = tp[TP_WORKSPACE_RADIUS] * tp[TP_WORKSPACE_RADIUS]
-    if not (squared_norm(E.obs, O_PIVOT_ERROR) <= r2 and squared_norm(E.obs, O_LOAD_ERROR) <= r2):
+    if not (squared_norm(E.obs, O_PIVOT_POSITION_ERROR) <= r2 and squared_norm(E.obs, O_LOAD_POSITION_ERROR) <= r2):
         return TERM_WORKSPACE
     return TERM_NONE
 

@@ -14,7 +14,8 @@ import rerun.blueprint as rrb
 from ..kernels.layout import DIAG
 from ..kernels.env_arrays import ACTION, REWARD_TERMS, SENSORS
 from ..kernels.disturbance import DISTURBANCE
-from ..kernels.recording import SB_ENERGY_RESIDUAL, SB_PI3_RESIDUAL, SB_WORK, SW_LENGTH, SW_SPEED, SW_WORK
+from ..kernels.recording import (SB_ENERGY_RESIDUAL, SB_PI3_RESIDUAL, SB_WORK, SW_REEL_SPEED, SW_UNSTRETCHED_LENGTH,
+                                SW_WINCH_WORK)
 from . import palette
 from .geometry import equivalent_box, prism_triangles, quaternion_xyzw
 
@@ -107,9 +108,10 @@ SCALARS = {
     ENV_HOOK_TENSION: Series(*_axes("sensors", SENSORS, "hook_tension"), TAB10[:3], env_only=True),
     ENV_PUSH: Series(*_axes("disturbance", DISTURBANCE, "push", "xy"), TAB10[:2], env_only=True),  # horizontal
     ENV_DRAG: Series(_LOAD_DRAG[0] + _LINE_DRAG[0], _LOAD_DRAG[1] + _LINE_DRAG[1], TAB10[:6], env_only=True),
-    WINCH_LENGTH: Series(("unstretched length",), _field("winch", [SW_LENGTH]), [TAB10[2]], winch_only=True),
-    WINCH_SPEED: Series(("reel speed",), _field("winch", [SW_SPEED]), [TAB10[0]], winch_only=True),
-    WINCH_WORK: Series(("winch work",), _field("winch", [SW_WORK]), [TAB10[1]], winch_only=True),
+    WINCH_LENGTH: Series(("unstretched length",), _field("winch", [SW_UNSTRETCHED_LENGTH]), [TAB10[2]],
+                         winch_only=True),
+    WINCH_SPEED: Series(("reel speed",), _field("winch", [SW_REEL_SPEED]), [TAB10[0]], winch_only=True),
+    WINCH_WORK: Series(("winch work",), _field("winch", [SW_WINCH_WORK]), [TAB10[1]], winch_only=True),
 }
 
 
