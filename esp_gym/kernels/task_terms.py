@@ -97,11 +97,12 @@ def squared_norm(v, start):
 
 
 @kernel(inline="always")
-def reward_terms(E):
+def reward_terms(E, pivot2, load2):
     """REWARD ``E.terms``: each weight of TASK_PARAMS times :func:`~.tolerance.tolerance` of its
-    error at its scale (the load's and the pivot's distances to their targets, the load's speed
-    against the reference, the swing, the spin), and the control cost, minus the weight times
-    the applied action's mean square (docs/environment.md, "Reward")."""
+    error at its scale (the load's and the pivot's distances to their targets, from their squares
+    ``load2``, ``pivot2`` [m^2], the load's speed against the reference, the swing, the spin),
+    and the control cost, minus the weight times the applied action's mean square
+    (docs/environment.md, "Reward")."""
     tp = E.tp
     obs = E.obs
     action = E.action
@@ -109,26 +110,25 @@ def reward_terms(E):
     a2 = 0.0
     for i in range(action.shape[0]):
         a2 += action[i] * action[i]
-    terms[RW_LOAD_POSITION] = tp[TP_W_LOAD_POSITION] * tolerance(math.sqrt(squared_norm(obs, O_LOAD_POSITION_ERROR)),
-                                                                 tp[TP_SCALE_POSITION])
+    terms[RW_LOAD_POSITION] = tp[TP_W_LOAD_POSITION] * tolerance(math.sqrt(load2), tp[TP_SCALE_POSITION])
     terms[RW_LOAD_VELOCITY] = tp[TP_W_LOAD_VELOCITY] * tolerance(math.sqrt(squared_norm(obs, O_LOAD_VELOCITY)),
                                                                  tp[TP_SCALE_VELOCITY])
-    terms[RW_PIVOT_POSITION] = tp[TP_W_PIVOT_POSITION] * tolerance(math.sqrt(squared_norm(obs, O_PIVOT_POSITION_ERROR)),
-                                                                   tp[TP_SCALE_POSITION])
+    terms[RW_PIVOT_POSITION] = tp[TP_W_PIVOT_POSITION] * tolerance(math.sqrt(pivot2), tp[TP_SCALE_POSITION])
     terms[RW_SWING] = tp[TP_W_SWING] * tolerance(E.features[F_SWING], tp[TP_SCALE_SWING])
     terms[RW_SPIN] = tp[TP_W_SPIN] * tolerance(E.features[F_SPIN], tp[TP_SCALE_SPIN])
     terms[RW_CONTROL] = -tp[TP_W_CONTROL] * a2 / action.shape[0]
 
 
 @kernel(inline="always")
-def terminate(D, E, length):
+def terminate(D, E, length, pivot2, load2):
     """The task's termination code (TERM_*): the string stretched past its limit (scaled to
-    the unstretched ``length`` [m]), or the pivot or the load outside the workspace's radius."""
+    the unstretched ``length`` [m]), or the pivot or the load outside the workspace's radius
+    (their squared distances to their targets ``pivot2``, ``load2`` [m^2])."""
     tp = E.tp
     if not (D.out[D_STRETCHED_LENGTH] <= tp[TP_MAX_STRETCHED_LENGTH] * (length / tp[TP_STRING_LENGTH])):
         return TERM_OVERSTRETCH
     r2 = tp[TP_WORKSPACE_RADIUS] * tp[TP_WORKSPACE_RADIUS]
-    if not (squared_norm(E.obs, O_PIVOT_POSITION_ERROR) <= r2 and squared_norm(E.obs, O_LOAD_POSITION_ERROR) <= r2):
+    if not (pivot2 <= r2 and load2 <= r2):
         return TERM_WORKSPACE
     return TERM_NONE
 
@@ -137,9 +137,12 @@ def terminate(D, E, length):
 def observe_and_score(S, P, D, E, length):
     """The stages in order: sensors, features, observation, reward terms; returns the
     termination code. ``D`` filled by diagnostics, ``length`` the unstretched length [m] (the
-    scene's; a winch's current one, whose constants ``P`` then holds)."""
+    scene's; a winch's current one, whose constants ``P`` then holds). The distances the reward
+    and the termination both read are squared once, from the observation."""
     env_sensors(S, P, E.target, E.sensors)
     task_features(S, P, D, E.features)
     observe(S, D, E, length)
-    reward_terms(E)
-    return terminate(D, E, length)
+    pivot2 = squared_norm(E.obs, O_PIVOT_POSITION_ERROR)
+    load2 = squared_norm(E.obs, O_LOAD_POSITION_ERROR)
+    reward_terms(E, pivot2, load2)
+    return terminate(D, E, length, pivot2, load2)
