@@ -7,7 +7,9 @@ Each case runs in a fresh process with its own new cache directory (``NUMBA_CACH
 esp_gym/kernels/jit.py keys by a hash of the kernel sources): the cold run compiles every kernel
 the case needs, the warm runs that follow load them. Reported per run: the process's wall time,
 and inside it the seconds to ``import``, to construct, and to the end of the first step (the
-clock starts when the interpreter has started, before ``import esp_gym``). ``--quick``: the
+clock starts when the interpreter has started, before ``import esp_gym``); per cold run, the
+longest kernel compiles, each kernel's own seconds (numba's ``numba:compile`` events, less the
+kernels compiled within it: ``compile_s_by_kernel``). ``--quick``: the
 simulator only, one warm run (a smoke test).
 """
 from __future__ import annotations
@@ -20,6 +22,9 @@ import tempfile
 import time
 
 from benchmarks.common import arg_parser, finish, machine
+
+#: How many of the longest kernel compiles a cold run reports.
+TOP_KERNELS = 12
 
 #: Each case: (imports, construction, first step), Python run in a fresh child process.
 CASES = {
@@ -37,6 +42,32 @@ CASES = {
 _CHILD = """import time
 t0 = time.perf_counter()
 import json
+from numba.core import event as _event
+
+
+class _OwnCompileTime(_event.Listener):
+    # seconds each kernel's compile took, less the kernels it compiled meanwhile (numba's
+    # numba:compile events nest: a caller's compile compiles its callees)
+    def __init__(self):
+        self.stack, self.own = [], {{}}
+
+    def on_start(self, ev):
+        now = time.perf_counter()
+        if self.stack:
+            self.own[self.stack[-1][0]] = self.own.get(self.stack[-1][0], 0.0) + now - self.stack[-1][1]
+        dispatcher = ev.data.get("dispatcher") if isinstance(ev.data, dict) else None
+        self.stack.append([getattr(getattr(dispatcher, "py_func", None), "__qualname__", "?"), now])
+
+    def on_end(self, ev):
+        now = time.perf_counter()
+        name, since = self.stack.pop()
+        self.own[name] = self.own.get(name, 0.0) + now - since
+        if self.stack:
+            self.stack[-1][1] = now
+
+
+_compiles = _OwnCompileTime()
+_event.register("numba:compile", _compiles)
 {imports}
 times = {{'import_s': time.perf_counter() - t0}}
 {construct}
@@ -45,6 +76,7 @@ times['construct_s'] = time.perf_counter() - t0
 times['first_step_s'] = time.perf_counter() - t0
 {after}
 times['after_s'] = time.perf_counter() - t0 if {has_after} else None
+times['compile_s_by_kernel'] = dict(sorted(_compiles.own.items(), key=lambda item: -item[1]))
 print(json.dumps(times))
 """
 
@@ -83,9 +115,17 @@ def main(argv=None) -> dict:
             for k in range(1 + repeats):
                 t = run_case(code, cache)
                 del t["after_s"]
+                by_kernel = t.pop("compile_s_by_kernel")
                 rows.append({"case": name, "cache": "cold" if k == 0 else "warm", **t})
+                if k == 0:  # the longest compiles of the cold start, rounded for reading
+                    rows[-1]["compile_s_by_kernel"] = {kernel: round(seconds, 2) for kernel, seconds
+                                                       in list(by_kernel.items())[:TOP_KERNELS]}
                 print(f"{name:16s} {rows[-1]['cache']:6s} {t['import_s']:11.2f} {t['construct_s']:14.2f} "
                       f"{t['first_step_s']:15.2f} {t['process_s']:12.2f}", flush=True)
+    print("\nthe longest compiles of the cold starts (each kernel's own seconds):")
+    for row in rows:
+        if row["cache"] == "cold":
+            print(f"{row['case']:16s} " + ", ".join(f"{k} {v:.2f}" for k, v in row["compile_s_by_kernel"].items()))
     payload = {"command": "python -m benchmarks.cold_start" + (" --quick" if args.quick else ""),
                "machine": machine("gymnasium"), "runs": rows}
     finish(args.out, "cold_start", payload, start=start)

@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from esp_gym.kernels.jit import choose_cache_dir
@@ -44,13 +45,13 @@ def test_a_writable_package_directory_needs_no_warning(tmp_path):
 def test_a_kernel_runs_when_numba_cache_dir_is_unwritable():
     """End to end: before the fallback this raised numba's "cannot cache function ... no locator
     available" at the first compiled call."""
-    code = ("import numpy as np; from esp_gym.kernels.sums import kahan_add; "
-            "x = np.zeros(1); c = np.zeros(1); kahan_add(x, c, 0, 0.5); print(x[0])")
+    code = ("import numpy as np; from esp_gym.kernels.env_step import actions_finite; "
+            "print(actions_finite(np.array([[0.5, -1.0]])))")
     env = {**os.environ, "NUMBA_CACHE_DIR": UNWRITABLE}
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, env=env,
                           timeout=600)
     assert done.returncode == 0, done.stderr[-2000:]
-    assert done.stdout.strip() == "0.5"
+    assert done.stdout.strip() == "True"
     assert "cannot write the kernel cache in NUMBA_CACHE_DIR" in done.stderr
 
 
@@ -73,8 +74,8 @@ def test_a_read_only_package_without_a_home_still_runs(tmp_path):
     if not _mount_read_only(source, mounted):
         pytest.skip("cannot make a read-only bind mount here (needs root)")
     try:
-        code = ("import numpy as np; from esp_gym.kernels.sums import kahan_add; "
-                "x = np.zeros(1); c = np.zeros(1); kahan_add(x, c, 0, 0.5); print(x[0])")
+        code = ("import numpy as np; from esp_gym.kernels.env_step import actions_finite; "
+                "print(actions_finite(np.array([[0.5, -1.0]])))")
         env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "XDG_CACHE_HOME")}
         env.update(HOME=UNWRITABLE, PYTHONPATH=str(mounted), TMPDIR=str(tmp_path))
         done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd="/", env=env,
@@ -82,7 +83,7 @@ def test_a_read_only_package_without_a_home_still_runs(tmp_path):
     finally:
         subprocess.run(["umount", str(mounted)], capture_output=True)
     assert done.returncode == 0, done.stderr[-2000:]
-    assert done.stdout.strip() == "0.5"
+    assert done.stdout.strip() == "True"
     assert f"using {tmp_path}" in done.stderr
 
 
@@ -116,7 +117,7 @@ def test_a_first_compile_says_so_once_and_a_cached_start_says_nothing(tmp_path):
     loads it from the cache and prints nothing."""
     (tmp_path / "announced_kernel.py").write_text(
         "from esp_gym.kernels.jit import announce_compile, kernel\n"
-        "@kernel\n"
+        "@kernel(entry=True)\n"
         "def double(x):\n"
         "    return 2 * x\n"
         "announce_compile(double, 'a test kernel', 3)\n")
@@ -131,3 +132,23 @@ def test_a_first_compile_says_so_once_and_a_cached_start_says_nothing(tmp_path):
         f"esp_gym: compiling a test kernel for this machine, first run only (up to about 3 s on 2 cores; cached in "
         f"{tmp_path / 'cache'}{os.sep}esp_gym-kernels-"), runs[0].stderr
     assert "esp_gym: compiling" not in runs[1].stderr
+
+
+def test_an_internal_kernel_refuses_python_and_its_callable_copy_runs():
+    """A kernel compiled without numba's Python wrapper (esp_gym/kernels/jit.py) would crash the
+    interpreter if Python called it: it raises a TypeError naming itself instead, and
+    python_callable gives a copy that runs. Negative control: an entry point is its own callable."""
+    from esp_gym.kernels.env_step import actions_finite
+    from esp_gym.kernels.jit import InternalKernel, python_callable
+    from esp_gym.kernels.sums import kahan_add
+
+    x, c = np.zeros(1), np.zeros(1)
+    assert isinstance(kahan_add, InternalKernel)
+    with pytest.raises(TypeError, match="esp_gym.kernels.sums.kahan_add is an internal kernel"):
+        kahan_add(x, c, 0, 0.5)
+    python_callable(kahan_add)(x, c, 0, 0.5)
+    assert x[0] == 0.5
+    assert not isinstance(actions_finite, InternalKernel)
+    assert python_callable(actions_finite) is actions_finite
+    with pytest.raises(TypeError, match="python_callable takes a kernel"):
+        python_callable(len)

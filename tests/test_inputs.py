@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import esp_gym
+from esp_gym.kernels.jit import python_callable
 from esp_gym.kernels.string import nodal_forces
 from conftest import drift_ratio
 
@@ -110,13 +111,17 @@ def _slack_run(h, t_final=2.0):
     return scene, esp_gym.Simulator(scene).run(t_final, record_every=int(round(1e-3 / h)), every_step=True)
 
 
+#: The string's forces, called from Python (an internal kernel: esp_gym/kernels/jit.py).
+_nodal_forces = python_callable(nodal_forces)
+
+
 def _element_pull(nodes, kappa, u, slack):
     """Axial force each element exerts on its far node, projected on the element (>0 pushes)."""
     f = np.zeros((2, 3))
     out = []
     for a in range(nodes.shape[0] - 1):
         pair = np.ascontiguousarray(nodes[a:a + 2])
-        nodal_forces(pair, kappa, u, 0.0, 0.0, 0.0, 0.0, slack, f)
+        _nodal_forces(pair, kappa, u, 0.0, 0.0, 0.0, 0.0, slack, f)
         out.append(f[1] @ (pair[1] - pair[0]))
     return np.array(out)
 

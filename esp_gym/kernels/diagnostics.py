@@ -96,7 +96,7 @@ def kinetic_energies(V, w0, w1, w2, q0, q1, q2, P):
     return ts, tb, tp
 
 
-@kernel
+@kernel(entry=True)
 def diagnostics(S, P, D):
     """Fill the :class:`~.layout.DiagWork` ``D`` (``D.out``: :data:`~.layout.DIAG`) from the state
     ``S`` (:class:`~.layout.StateArrays`)."""

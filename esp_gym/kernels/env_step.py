@@ -55,7 +55,7 @@ def action_inputs(action, ap, inputs):
         inputs[IN_SPATIAL_TORQUE + i] = 0.0
 
 
-@kernel
+@kernel(entry=True)
 def actions_finite(raw):
     """Whether every entry of the raw actions (B, ACTION) is finite (the batched envs check this
     before any sub-environment resets, so a bad call changes nothing)."""
@@ -165,7 +165,7 @@ def env_finish_winched(S, W, P, D, WA, E, phi, disturbed):
     E.result[R_TERMINATION] = status if status != OK else energy_watchdog(S, D, E.tp, code)
 
 
-@kernel
+@kernel(entry=True)
 def env_reset_observe(S, P, D, WA, E, winched):
     """Observation of a freshly set state (no step; a winch at the scene's length and at rest),
     whose energy becomes the episode's E0 (TP_ENERGY_ORIGIN). Returns the termination code."""
@@ -213,7 +213,7 @@ def _entry_points(winched: bool, implicit: bool):
     # other loops' calls); the closures hold nothing but the two bools, so numba caches them (it
     # keys a closure by its cells, and a compiled function in a cell is another key in every process).
 
-    @kernel
+    @kernel(entry=True)
     def step(s, w, p, d, wa, e, raw, scheme):
         E = EnvArrays(*e)
         reel = take_action(raw, E.ap, E.action, E.inputs)
@@ -223,7 +223,7 @@ def _entry_points(winched: bool, implicit: bool):
                      (scheme & SCHEME_DISTURBED) != 0, winched, implicit)
         return True
 
-    @kernel(parallel=True)
+    @kernel(parallel=True, entry=True)
     def batch(s, w, p, d, wa, e, raw, active, scheme):
         disturbed = (scheme & SCHEME_DISTURBED) != 0
         S = StateArrays(*s)
@@ -249,8 +249,8 @@ def _entry_points(winched: bool, implicit: bool):
 
 #: The seconds to the first step of an environment and of a vector environment on an empty cache
 #: (2 cores; docs/performance.md, "Start-up"), said when their entry points first compile.
-COLD_ENV_STEP_S = 21
-COLD_BATCH_STEP_S = 33
+COLD_ENV_STEP_S = 19
+COLD_BATCH_STEP_S = 30
 
 #: The entry points by (winched, implicit) (see :func:`_entry_points`); each compiles only for
 #: environments that use it.

@@ -35,6 +35,7 @@ import numba
 from llvmlite import ir
 from numba import njit, types
 from numba.core import cgutils, event
+from numba.core.registry import CPUDispatcher
 from numba.extending import intrinsic
 
 _HERE = Path(__file__).resolve().parent
@@ -128,13 +129,37 @@ if _CACHE_WARNING:
 if CACHE_DIR is not None:
     prune_stale_caches(CACHE_DIR)
 
-JIT_OPTIONS = dict(cache=CACHE_DIR is not None, nogil=True, fastmath=False, error_model="numpy", boundscheck=False, _nrt=False)
+JIT_OPTIONS = dict(cache=CACHE_DIR is not None, nogil=True, fastmath=False, error_model="numpy", boundscheck=False,
+                   _nrt=False, no_cfunc_wrapper=True)
 
 
-def kernel(fn=None, **extra):
+class InternalKernel(CPUDispatcher):
+    """A kernel compiled without its CPython wrapper: only kernels call it (see :func:`kernel`).
+    Called from Python it raises instead of running code that has no entry for Python."""
+
+    def __call__(self, *args, **kwargs):
+        name = f"{self.py_func.__module__}.{self.py_func.__qualname__}"
+        raise TypeError(f"{name} is an internal kernel, compiled to be called from kernels only: decorate it "
+                        f"with kernel(entry=True) to call it from Python, or call python_callable({name.rsplit('.', 1)[1]})"
+                        f"(...) in a test")
+
+
+def kernel(fn=None, entry: bool = False, **extra):
     """Compile ``fn`` as an esp_gym kernel (nopython, cached); ``extra`` adds or overrides
-    numba options."""
+    numba options.
+
+    ``entry``: Python calls it (an entry point of the compiled code). Every other kernel is
+    compiled without numba's CPython wrapper (``no_cpython_wrapper``), the code that unboxes
+    each argument from Python objects: for kernels taking the state's and parameters' named
+    tuples that wrapper was a fifth of the first start's compile (docs/performance.md,
+    "Start-up"). An internal kernel is an :class:`InternalKernel`, which refuses a call from
+    Python (:func:`python_callable` gives a test one that accepts it). ``no_cfunc_wrapper``:
+    no kernel is used as a first-class C function, so none is compiled with that wrapper."""
     options = {**JIT_OPTIONS, **extra}
+    # inlined into numba's IR, a kernel is compiled on its own only when Python calls it (a test)
+    internal = not entry and options.get("inline", "never") == "never"
+    if internal:
+        options["no_cpython_wrapper"] = True
 
     def compile_(f):
         # cache=True fixes the cache location when the function is decorated: set ours for
@@ -142,11 +167,26 @@ def kernel(fn=None, **extra):
         previous = numba.config.CACHE_DIR
         numba.config.CACHE_DIR = CACHE_DIR or previous
         try:
-            return njit(**options)(f)
+            dispatcher = njit(**options)(f)
         finally:
             numba.config.CACHE_DIR = previous
+        if internal:
+            dispatcher.__class__ = InternalKernel
+        return dispatcher
 
     return compile_ if fn is None else compile_(fn)
+
+
+def python_callable(internal):
+    """A copy of the kernel ``internal`` that Python can call, compiled with its CPython wrapper
+    and not cached (numba's cache does not key compiled code by that option, and the cached
+    internal kernel has no wrapper). For tests: each call compiles anew."""
+    if not isinstance(internal, CPUDispatcher):
+        raise TypeError(f"python_callable takes a kernel, got {internal!r}")
+    if not isinstance(internal, InternalKernel):
+        return internal
+    options = {**internal.targetoptions, "no_cpython_wrapper": False, "cache": False}
+    return njit(**options)(internal.py_func)
 
 
 # -- saying that the first start compiles ------------------------------------------------------

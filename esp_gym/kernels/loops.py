@@ -46,66 +46,85 @@ def lgvi_step(S, W, P, inputs, free, forced, coupled, compensated, implicit=Fals
     return OK, total
 
 
-@kernel
+@kernel(entry=True)
 def state_size(S):
     """Number of floats :func:`save_state` writes."""
     return 5 * S.r.size + 2 * S.R.size + 2 * S.Pi.size + 2 * S.acc.size + S.owed.size
 
 
-@kernel(inline="always")
-def _move_rows(a, buf, k, to_buf):
-    """Copy the (rows, 3) array ``a`` to ``buf[k:]`` (or back, if not ``to_buf``); returns the
-    next offset. Per-array calls with the 3 columns spelled out: a loop over a tuple of arrays
-    compiled to ~5x slower code, which cost 13 % of a composed step."""
+@kernel(forceinline=True)
+def _rows_out(a, buf, k):
+    """Copy the (rows, 3) array ``a`` to ``buf[k:]``; returns the next offset. One call per array
+    with the 3 columns spelled out: a loop over a tuple of arrays compiled to ~5x slower code,
+    which cost 13 % of a composed step. Compiled once and inlined by LLVM (``forceinline``):
+    numba-inlined, the copies were 3 s of the first start."""
     for i in range(a.shape[0]):
-        if to_buf:
-            buf[k] = a[i, 0]
-            buf[k + 1] = a[i, 1]
-            buf[k + 2] = a[i, 2]
-        else:
-            a[i, 0] = buf[k]
-            a[i, 1] = buf[k + 1]
-            a[i, 2] = buf[k + 2]
+        buf[k] = a[i, 0]
+        buf[k + 1] = a[i, 1]
+        buf[k + 2] = a[i, 2]
         k += 3
     return k
 
 
-@kernel(inline="always")
-def _move_vector(a, buf, k, to_buf):
+@kernel(forceinline=True)
+def _rows_in(a, buf, k):
+    """Inverse of :func:`_rows_out`."""
     for i in range(a.shape[0]):
-        if to_buf:
-            buf[k + i] = a[i]
-        else:
-            a[i] = buf[k + i]
+        a[i, 0] = buf[k]
+        a[i, 1] = buf[k + 1]
+        a[i, 2] = buf[k + 2]
+        k += 3
+    return k
+
+
+@kernel(forceinline=True)
+def _vector_out(a, buf, k):
+    """Copy the vector ``a`` to ``buf[k:]``; returns the next offset."""
+    for i in range(a.shape[0]):
+        buf[k + i] = a[i]
     return k + a.shape[0]
 
 
-@kernel(inline="always")
-def _move_state(S, buf, to_buf):
-    k = _move_rows(S.r, buf, 0, to_buf)
-    k = _move_rows(S.p, buf, k, to_buf)
-    k = _move_rows(S.rc, buf, k, to_buf)
-    k = _move_rows(S.pc, buf, k, to_buf)
-    k = _move_rows(S.R, buf, k, to_buf)
-    k = _move_rows(S.Rc, buf, k, to_buf)
-    k = _move_vector(S.Pi, buf, k, to_buf)
-    k = _move_vector(S.Pic, buf, k, to_buf)
-    k = _move_vector(S.acc, buf, k, to_buf)
-    k = _move_vector(S.accc, buf, k, to_buf)
-    k = _move_vector(S.owed, buf, k, to_buf)
-    _move_rows(S.f, buf, k, to_buf)
+@kernel(forceinline=True)
+def _vector_in(a, buf, k):
+    """Inverse of :func:`_vector_out`."""
+    for i in range(a.shape[0]):
+        a[i] = buf[k + i]
+    return k + a.shape[0]
 
 
 @kernel
 def save_state(S, buf):
     """Copy the whole state (with remainders, balances and the forces ``S.f``) into ``buf``."""
-    _move_state(S, buf, True)
+    k = _rows_out(S.r, buf, 0)
+    k = _rows_out(S.p, buf, k)
+    k = _rows_out(S.rc, buf, k)
+    k = _rows_out(S.pc, buf, k)
+    k = _rows_out(S.R, buf, k)
+    k = _rows_out(S.Rc, buf, k)
+    k = _vector_out(S.Pi, buf, k)
+    k = _vector_out(S.Pic, buf, k)
+    k = _vector_out(S.acc, buf, k)
+    k = _vector_out(S.accc, buf, k)
+    k = _vector_out(S.owed, buf, k)
+    _rows_out(S.f, buf, k)
 
 
 @kernel
 def restore_state(S, buf):
     """Inverse of :func:`save_state`."""
-    _move_state(S, buf, False)
+    k = _rows_in(S.r, buf, 0)
+    k = _rows_in(S.p, buf, k)
+    k = _rows_in(S.rc, buf, k)
+    k = _rows_in(S.pc, buf, k)
+    k = _rows_in(S.R, buf, k)
+    k = _rows_in(S.Rc, buf, k)
+    k = _vector_in(S.Pi, buf, k)
+    k = _vector_in(S.Pic, buf, k)
+    k = _vector_in(S.acc, buf, k)
+    k = _vector_in(S.accc, buf, k)
+    k = _vector_in(S.owed, buf, k)
+    _rows_in(S.f, buf, k)
 
 
 #: Composed steps are checkpointed every this many steps (see advance_loop).
@@ -364,14 +383,14 @@ def record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled, c
     _finish(stats, OK, k, total, most)
 
 
-@kernel
+@kernel(entry=True)
 def lgvi_advance(S, W, P, inputs, nsteps, stats):
     """The general path: :func:`advance_loop` with every term in, the pivot and the
     compensation read from ``P``."""
     advance_loop(S, W, P, inputs, nsteps, stats, P.first == 0, True, True, P.compensated)
 
 
-@kernel
+@kernel(entry=True)
 def lgvi_record(S, W, P, inputs, every, D, snap, stats):
     """The general path of :func:`record_loop`."""
     record_loop(S, W, P, inputs, every, D, snap, stats, P.first == 0, True, True, P.compensated)
@@ -394,13 +413,13 @@ winch_loop_explicit = shared_winch_loop(False)
 winch_loop_implicit = shared_winch_loop(True)
 
 
-@kernel
+@kernel(entry=True)
 def winch_advance(S, W, P, WA, D, inputs, speed, nsteps, stats):
     """:func:`winch_loop` without external forces: ``Simulator.step``'s winch (explicit string)."""
     winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, False, False)
 
 
-@kernel
+@kernel(entry=True)
 def winch_advance_implicit(S, W, P, WA, D, inputs, speed, nsteps, stats):
     """:func:`winch_advance` for the implicit string."""
     winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, False, True)

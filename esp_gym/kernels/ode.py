@@ -20,7 +20,7 @@ from .string import nodal_forces, tridiag_solve
 ODEWork = namedtuple("ODEWork", "r f X")
 
 
-@kernel
+@kernel(entry=True)
 def ode_rhs(y, P, r0, inputs, W, dy):
     """Write ``f(y)`` (the ODE of this module's docstring) into ``dy``; returns 0.
 
@@ -130,7 +130,7 @@ def ode_rhs(y, P, r0, inputs, W, dy):
     return 0
 
 
-@kernel
+@kernel(entry=True)
 def ode_rhs_columns(Y, P, r0, inputs, W, y, dy, dY):
     """:func:`ode_rhs` for each column of ``Y`` (size, k) into ``dY`` (SciPy's ``vectorized``
     form, used by the finite-difference Jacobian of Radau and BDF); ``y``, ``dy`` (size,)
@@ -143,7 +143,7 @@ def ode_rhs_columns(Y, P, r0, inputs, W, y, dy, dY):
             dY[i, c] = dy[i]
 
 
-@kernel
+@kernel(entry=True)
 def rk4_run(y, h, nsteps, every, P, r0, inputs, W, K, out):
     """Classical fixed-step RK4 on :func:`ode_rhs`: ``nsteps`` steps of ``h`` [s] from ``y``
     (advanced in place), storing the state after every ``every`` steps in ``out`` (rows 1..;

@@ -78,7 +78,7 @@ def sample_layout(n_elements: int) -> Layout:
     return Layout(*SAMPLE_HEAD.fields, ("nodes", 3 * (n_elements + 1)), ("strain", n_elements), ("diag", DIAG.size))
 
 
-@kernel
+@kernel(entry=True)
 def capture_sample(buf, i, r, R, out, strain, acc, action, terms, report, inputs, target, sensors, disturbance, rho,
                    winch, E0, pi30, step, t, episode, stepped, reward):
     """Write one sample into row ``i`` of ``buf`` from live arrays: nodes ``r``, ``R``, the
@@ -133,7 +133,7 @@ def capture_sample(buf, i, r, R, out, strain, acc, action, terms, report, inputs
         row[base + k] = out[k]
 
 
-@kernel
+@kernel(entry=True)
 def sample_geometry(buf, n, inv_strain_scale, lut, inputs_from_action, force_offset, force_limit, torque_limit,
                     force_scale, torque_scale, pts, colors, translation, mat, pivot, force_vec, torque_vec, load):
     """The 3-D columns of the first ``n`` rows of ``buf`` (float32 unless stated): element end
@@ -173,7 +173,7 @@ def sample_geometry(buf, n, inv_strain_scale, lut, inputs_from_action, force_off
             torque_vec[i, c] = torque_scale * torque
 
 
-@kernel
+@kernel(entry=True)
 def trail_points(points, episode, first_new, span, stride, offsets, out):
     """Strips through ``points`` (M, 3) for each sample k >= ``first_new``: the points
     k - stride (m - 1), ..., k - stride, k (oldest first) that lie within ``span`` samples of k

@@ -18,7 +18,7 @@ from .env_arrays import (T_AMPLITUDE, T_CENTRE, T_CLOCK, T_DEPTH, T_HARMONIC, T_
                          T_RATE, T_START, T_VELOCITY)
 
 
-@kernel
+@kernel(entry=True)
 def reference_at(target, t):
     """Put the reference at time ``t`` [s] into ``target`` (TARGET): the clock, the pivot and the
     load targets [m] and their velocity [m/s], spatial frame."""
@@ -54,7 +54,7 @@ def advance_reference(target, dt):
         reference_at(target, target[T_CLOCK] + dt)
 
 
-@kernel
+@kernel(entry=True)
 def reference_path(scratch, times, offset, velocity):
     """The reference at each of ``times`` [s]: the pivot target's offset from the centre [m] into
     ``offset`` and its velocity [m/s] into ``velocity`` (both (len(times), 3), spatial frame);

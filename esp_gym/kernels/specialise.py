@@ -8,11 +8,11 @@ def _compile_specialised(free: bool, forced: bool, coupled: bool, compensated: b
     """``(advance, record)`` compiled with the flags as constants (closure variables are
     compile-time constants in numba, and its cache keys closures by their values)."""
 
-    @kernel
+    @kernel(entry=True)
     def advance(S, W, P, inputs, nsteps, stats):
         advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, False, implicit)
 
-    @kernel
+    @kernel(entry=True)
     def record(S, W, P, inputs, every, D, snap, stats):
         record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled, compensated, implicit)
 
@@ -21,7 +21,7 @@ def _compile_specialised(free: bool, forced: bool, coupled: bool, compensated: b
 
 #: The seconds to the simulator's first step on an empty cache (2 cores; docs/performance.md,
 #: "Start-up"), said when its loops first compile.
-COLD_SIMULATOR_STEP_S = 15
+COLD_SIMULATOR_STEP_S = 12
 
 
 def announced(advance, record):
@@ -34,11 +34,11 @@ def _compile_general_implicit():
     """The general path of the implicit string: every term in, the pivot and the compensation
     read from ``P`` (as :func:`~.loops.lgvi_advance` for the explicit one)."""
 
-    @kernel
+    @kernel(entry=True)
     def advance(S, W, P, inputs, nsteps, stats):
         advance_loop(S, W, P, inputs, nsteps, stats, P.first == 0, True, True, P.compensated, False, True)
 
-    @kernel
+    @kernel(entry=True)
     def record(S, W, P, inputs, every, D, snap, stats):
         record_loop(S, W, P, inputs, every, D, snap, stats, P.first == 0, True, True, P.compensated, True)
 

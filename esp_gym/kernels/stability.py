@@ -50,7 +50,7 @@ def below_count(lam, elements, m, consistent, pivot_mass, fixed_pivot, end_mass)
     return count
 
 
-@kernel
+@kernel(entry=True)
 def largest_eigenvalue(elements, m, consistent, pivot_mass, fixed_pivot, end_mass):
     """The largest eigenvalue [1/kg] of K x = lam M x (unit element stiffness), by bisection."""
     unknowns = elements + (0 if fixed_pivot else 1)
@@ -66,7 +66,7 @@ def largest_eigenvalue(elements, m, consistent, pivot_mass, fixed_pivot, end_mas
     return high
 
 
-@kernel
+@kernel(entry=True)
 def least_effective_mass(M, rho, J):
     """The least eigenvalue [kg] of M I + M^2 hat(rho) J^-1 hat(rho), the load's translational mass
     matrix at its attachment point once its rotation is eliminated (``rho`` attachment -> centre

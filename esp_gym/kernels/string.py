@@ -169,7 +169,7 @@ def tridiag_factor(diag, off):
     return inv, cp
 
 
-@kernel
+@kernel(entry=True)
 def state_forces(S, P):
     """``S.f = nodal_forces(S.r)`` for a state just set (a reset): the explicit step recomputes
     them anyway, the implicit one takes them as its first guess (kernels/implicit.py)."""

@@ -275,7 +275,7 @@ def winch_substep(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, compens
     return status, iters
 
 
-@kernel
+@kernel(entry=True)
 def winch_forces(S, P, WA):
     """``S.f`` = the nodal forces at the winch's length (a state just set)."""
     n = S.r.shape[0] - 1
@@ -283,7 +283,7 @@ def winch_forces(S, P, WA):
     nodal_forces(S.r, Pl.kappa, Pl.u, Pl.m, Pl.M, Pl.Mp, Pl.g, Pl.slack, S.f)
 
 
-@kernel
+@kernel(entry=True)
 def winch_energy(S, P, WA, D, length, v):
     """The diagnostics ``D`` of the state at unstretched length ``length`` and reel speed ``v``,
     its energy the Hamiltonian H = T2 - T0 + V; returns ``(H, dH/dl)`` [J, J/m] (docs/physics.md,
