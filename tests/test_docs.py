@@ -1,10 +1,13 @@
 """The documentation holds together: every relative link in README.md and docs/*.md points to a
 file that exists and every anchor to a heading, no control character hides in the text, the
-start-up figures are the benchmark's output, and the README stays a guide (under 200 lines)."""
+quoted figures are their benchmarks' output files (benchmarks/quote.py), and the README stays a guide (under 200 lines)."""
+import json
 import re
 from pathlib import Path
 
 import pytest
+
+from benchmarks import quote
 
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
@@ -86,47 +89,54 @@ def test_readme_is_a_guide_under_200_lines():
 
 def cold_start_figures(path=ROOT / "docs" / "img" / "cold_start.json") -> dict:
     """(case, cache) -> the first step's seconds, from benchmarks.cold_start's output file."""
-    import json
-
     runs = json.loads(path.read_text(encoding="utf-8"))["runs"]
     return {(run["case"], run["cache"]): run["first_step_s"] for run in runs}
 
 
-def cold_start_misquotes(readme: str, performance: str, figures: dict) -> list:
-    """The cold-start figures the README and docs/performance.md should quote (one decimal) and
-    do not."""
-    f = {key: f"{value:.1f}" for key, value in figures.items()}
-    wanted = [(readme, f"{f['env', 'cold']} s / {f['env', 'warm']} s (8-env vector env: "
-                       f"{f['vector env (8)', 'cold']} s / {f['vector env (8)', 'warm']} s)")]
-    for case, row in (("simulator", "`Simulator(\"paper_example\").step(1)`"),
-                      ("env", "`gym.make(\"ElasticStringPendulum-v0\")`, reset, step"),
-                      ("vector env (8)", "`gym.make_vec(..., num_envs=8)`, reset, step")):
-        wanted.append((performance, f"| {row} | {f[case, 'cold']} | {f[case, 'warm']} |"))
-    return [text for doc, text in wanted if text not in doc]
-
-
-def test_the_cold_start_figures_are_the_benchmarks_output():
-    """The README's and docs/performance.md's start-up figures are docs/img/cold_start.json's
-    (``python -m benchmarks.cold_start --repeats 1 --out docs/img``), and the compile notices
-    announce at least the measured cold first step, and at most 30 % more."""
+def test_the_compile_notices_announce_the_measured_cold_start():
+    """The compile notices announce at least the cold first step of docs/img/cold_start.json
+    (``python -m benchmarks.cold_start --repeats 1 --out docs/img``), and at most 30 % more."""
     from esp_gym.kernels.env_step import COLD_BATCH_STEP_S, COLD_ENV_STEP_S
     from esp_gym.kernels.specialise import COLD_SIMULATOR_STEP_S
 
     figures = cold_start_figures()
-    readme = (ROOT / "README.md").read_text(encoding="utf-8")
-    performance = (ROOT / "docs" / "performance.md").read_text(encoding="utf-8")
-    assert cold_start_misquotes(readme, performance, figures) == []
     for announced, case in ((COLD_SIMULATOR_STEP_S, "simulator"), (COLD_ENV_STEP_S, "env"),
                             (COLD_BATCH_STEP_S, "vector env (8)")):
         assert figures[case, "cold"] <= announced <= 1.3 * figures[case, "cold"], (case, announced)
 
 
-def test_a_misquoted_cold_start_figure_is_found():
-    """Negative control: the output file's figures one tenth of a second off are misquotes."""
-    figures = {key: value + 0.1 for key, value in cold_start_figures().items()}
+@pytest.mark.parametrize("path", [p.relative_to(ROOT).as_posix() for p in quote.documents()])
+def test_every_quoted_figure_is_its_output_files(path):
+    """Every figure quoted between ``<!-- quote NAME -->`` and ``<!-- /quote -->`` is its
+    benchmark's output file rendered (benchmarks/quote.py; ``python -m benchmarks.quote --write``
+    after a rerun)."""
+    text = (ROOT / path).read_text(encoding="utf-8")
+    stale = quote.stale_quotes(text)
+    assert stale == [], "\n".join(f"{name}: quoted {old!r}, the file says {new!r} ({quote.QUOTES[name].command})"
+                                  for name, old, new in stale)
+
+
+def test_the_headline_figures_are_quoted():
+    """The README's figures and the performance page's tables are quotes, each at least once."""
+    text = "".join(p.read_text(encoding="utf-8") for p in quote.documents())
+    quoted = {m.group(1) for m in quote.QUOTE.finditer(text)}
+    assert set(quote.QUOTES) - quoted == set()
+
+
+def test_a_misquoted_figure_is_found():
+    """Negative controls: output files a tenth off make their quotes stale, and an unknown quote
+    name is an error that names it."""
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     performance = (ROOT / "docs" / "performance.md").read_text(encoding="utf-8")
-    assert len(cold_start_misquotes(readme, performance, figures)) == 4
+    source = quote.QUOTES["cold_start.readme"].source
+    data = json.loads((ROOT / source).read_text(encoding="utf-8"))
+    for run in data["runs"]:
+        run["first_step_s"] += 0.1
+    assert [name for name, _, _ in quote.stale_quotes(readme, data={source: data})] == ["cold_start.env",
+                                                                                    "cold_start.readme"]
+    assert [name for name, _, _ in quote.stale_quotes(performance, data={source: data})] == ["cold_start.table"]
+    with pytest.raises(KeyError, match="no_such_figure"):
+        quote.stale_quotes("<!-- quote no_such_figure -->1<!-- /quote -->")
 
 
 def heading_anchors(text: str) -> set:

@@ -1,0 +1,397 @@
+"""The figures the README and the docs quote, written from the benchmarks' output files.
+
+    python -m benchmarks.quote [--write]
+
+A quoted figure or table sits between two HTML comments that Markdown does not show::
+
+    <!-- quote step_cost.by_n -->...<!-- /quote -->
+
+:data:`QUOTES` says, for each name, which output file it reads (a benchmark's JSON under
+``docs/``, written by the command named there) and how it renders it. Without ``--write``
+this lists the quotes that differ from their files (exit 1 if any); with it, it rewrites them.
+``tests/test_docs.py`` fails while any quote differs, so a rerun benchmark and its docs move
+together.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from pathlib import Path
+from typing import Callable, NamedTuple
+
+ROOT = Path(__file__).resolve().parent.parent
+
+#: A quote: ``<!-- quote NAME -->`` content ``<!-- /quote -->`` (the content may span lines).
+QUOTE = re.compile(r"<!-- quote ([\w.]+) -->(.*?)<!-- /quote -->", re.S)
+
+
+class Quote(NamedTuple):
+    """Where a quote's figures come from and how they read."""
+
+    source: str  #: the output file, relative to the repository root
+    command: str  #: the command that writes it
+    render: Callable  #: the output file's parsed JSON -> the quoted Markdown
+
+
+# -- number formats ------------------------------------------------------------------------------
+def signed(x: float, digits: int = 1) -> str:
+    """``+1.2`` / ``−1.2`` (a typographic minus, as the prose)."""
+    return f"{x:+.{digits}f}".replace("-", "−")
+
+
+def steps_per_second(x: float) -> str:
+    """Steps per second to the nearest hundred, with thousands separators."""
+    return f"{round(x, -2):,.0f}"
+
+
+def sci(x: float, digits: int = 1) -> str:
+    """``3.5e-3`` (no zero padding of the exponent)."""
+    mantissa, exponent = f"{x:.{digits}e}".split("e")
+    return f"{mantissa}e{int(exponent)}"
+
+
+# -- cold start ----------------------------------------------------------------------------------
+def _first_steps(data: dict) -> dict:
+    return {(run["case"], run["cache"]): run["first_step_s"] for run in data["runs"]}
+
+
+def cold_start_readme(data: dict) -> str:
+    f = _first_steps(data)
+    return (f"{f['env', 'cold']:.1f} s / {f['env', 'warm']:.1f} s (8-env vector env: "
+            f"{f['vector env (8)', 'cold']:.1f} s / {f['vector env (8)', 'warm']:.1f} s)")
+
+
+def cold_start_env(data: dict) -> str:
+    f = _first_steps(data)
+    return f"about {f['env', 'cold']:.0f} s before an environment's first step on 2 cores, {f['env', 'warm']:.1f} s after"
+
+
+def cold_start_table(data: dict) -> str:
+    rows = {run["case"]: {} for run in data["runs"]}
+    for run in data["runs"]:
+        rows[run["case"]][run["cache"]] = run
+    names = {"simulator": '`Simulator("paper_example").step(1)`',
+             "env": '`gym.make("ElasticStringPendulum-v0")`, reset, step',
+             "vector env (8)": "`gym.make_vec(..., num_envs=8)`, reset, step"}
+    lines = ["| case | cold, first step [s] | warm, first step [s] | warm, whole process [s] |",
+             "|---|---|---|---|"]
+    for case, runs in rows.items():
+        lines.append(f"| {names[case]} | {runs['cold']['first_step_s']:.1f} | {runs['warm']['first_step_s']:.1f} "
+                     f"| {runs['warm']['process_s']:.1f} |")
+    return "\n".join(lines)
+
+
+# -- step cost -----------------------------------------------------------------------------------
+def _by_n(data: dict) -> dict:
+    return {row["N"]: row["us_per_step"] for row in data["step_cost"]}
+
+
+def step_cost_lgvi(data: dict) -> str:
+    return f"{_by_n(data)[20]:.2f} µs"
+
+
+def step_cost_by_n(data: dict) -> str:
+    by_n = _by_n(data)
+    return "\n".join(["| N | " + " | ".join(str(n) for n in by_n) + " |",
+                      "|---|" + "---|" * len(by_n),
+                      "| µs/step | " + " | ".join(f"{us:.2f}" for us in by_n.values()) + " |"])
+
+
+#: The specialised kernels' rows, by the benchmark's case name.
+_SPECIALISED_ROWS = {"fixed pivot, no inputs": "fixed pivot, no inputs",
+                     "fixed pivot, torques": "fixed pivot, body + spatial torques",
+                     "free pivot, no inputs": "free pivot, no inputs",
+                     "free pivot, pushed": "free pivot, pushed",
+                     "rho_c = 0, no inputs": "`rho_c = 0` (rotation decoupled), no inputs",
+                     "order 4 (Suzuki), no inputs": "order 4 (Suzuki, 5 substeps), no inputs"}
+
+
+def step_cost_specialised(data: dict) -> str:
+    lines = ["| scene (paper example, N = 20) | general [µs/step] | specialised [µs/step] | speed-up |",
+             "|---|---|---|---|"]
+    for row in data["specialised"]:
+        lines.append(f"| {_SPECIALISED_ROWS[row['case']]} | {row['general_us']:.3f} | {row['specialised_us']:.3f} "
+                     f"| {row['speedup']:.2f} |")
+    return "\n".join(lines)
+
+
+def step_cost_substep(data: dict) -> str:
+    order4 = next(row for row in data["specialised"] if row["case"].startswith("order 4"))
+    return f"{order4['specialised_us']:.3f} / 5 = {order4['specialised_us'] / 5:.3f} µs"
+
+
+def step_cost_compensation(data: dict) -> str:
+    lines = ["| scene (paper example, N = 20) | compensated [µs/step] | plain sums [µs/step] | speed-up |",
+             "|---|---|---|---|"]
+    for row in data["compensation"]:
+        lines.append(f"| {row['case']} | {row['compensated_us']:.3f} | {row['plain_us']:.3f} | {row['speedup']:.2f} |")
+    return "\n".join(lines)
+
+
+def step_cost_diagnostics(data: dict) -> str:
+    d = data["diagnostics_us_per_step"]
+    off, every100, every = d["off (step)"], d["snapshots every 100 steps"], d["every step"]
+    paper = data["paper_example"]
+    return (f"plain stepping costs {off:.3f} µs/step. Snapshots every 100 steps cost {every100:.3f} "
+            f"({every100 / off:.2f}×). Energy, π3 and orthogonality after every step cost {every:.3f} "
+            f"({every / off:.2f}×). The paper's 50,000-step example takes {paper['plain_s'] * 1e3:.0f} ms plain "
+            f"and {paper['recorded_s'] * 1e3:.0f} ms with every-step diagnostics")
+
+
+# -- environment throughput ----------------------------------------------------------------------
+def env_throughput_readme(data: dict) -> str:
+    single = data["single"]["gymnasium.make, random actions"]
+    batched = data["batched_gymnasium"]
+    return f"{steps_per_second(single)} / {steps_per_second(batched['8'])}–{steps_per_second(batched['64'])}"
+
+
+def env_throughput_table(data: dict) -> str:
+    single, gym_vec, sb3_vec = data["single"], data["batched_gymnasium"], data["batched_sb3"]
+    lines = ["| | steps/s |", "|---|---|",
+             f"| single env, `gymnasium.make` (with its wrappers) | "
+             f"{steps_per_second(single['gymnasium.make, random actions'])} |",
+             f"| single env, bare | {steps_per_second(single['bare env, random actions'])} |"]
+    for n in ("8", "16", "64"):
+        what = f"batched, {n} envs" + (" (Gymnasium VectorEnv / SB3 VecEnv)" if n == "8" else "")
+        lines.append(f"| {what} | {steps_per_second(gym_vec[n])} / {steps_per_second(sb3_vec[n])} |")
+    return "\n".join(lines)
+
+
+# -- work against precision ---------------------------------------------------------------------
+#: The table's rows: the benchmark's method names and how the page names them.
+_WORK_PRECISION_ROWS = {"LGVI (esp_gym)": "LGVI (order 2)",
+                        "LGVI o4 Suzuki 5": "LGVI, Suzuki 5-stage composition (order 4)",
+                        "LGVI o4 wide5": "LGVI, wide5 composition (order 4)",
+                        "LGVI o6 Kahan-Li 9": "LGVI, Kahan–Li 9-stage composition (order 6)",
+                        "LGVI o8 Kahan-Li 17": "LGVI, Kahan–Li 17-stage composition (order 8)",
+                        "LGVI o4 triple jump": "LGVI, triple jump (order 4)",
+                        "LGVI frontier": "**LGVI frontier**",
+                        "LGVI frontier, plain sums": "LGVI frontier, plain sums",
+                        "RK4 (numba, fixed h)": "RK4 (numba, fixed h)",
+                        "DOP853 (SciPy)": "DOP853", "RK45 (SciPy)": "RK45",
+                        "Radau (SciPy, implicit)": "Radau", "BDF (SciPy, implicit)": "BDF"}
+
+
+def milliseconds(seconds) -> str:
+    """Three significant figures of a time in ms; a dash where the level was not reached."""
+    if seconds is None:
+        return "–"
+    ms = seconds * 1e3
+    return f"{ms:#.3g}" if ms < 100 else f"{ms:.0f}"
+
+
+def time_to_error_table(data: dict, rows: dict) -> str:
+    """The ``time_to_error_s`` of a work-precision output as a table, a column per level."""
+    levels = list(data["time_to_error_s"])
+    lines = ["| [ms] | " + " | ".join(f"≤ {sci(float(level), 0)} m" for level in levels) + " |",
+             "|---|" + "---|" * len(levels)]
+    for method, name in rows.items():
+        cells = [milliseconds(data["time_to_error_s"][level].get(method)) for level in levels]
+        if name.startswith("**"):
+            cells = [f"**{c}**" if c != "–" else c for c in cells]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def work_precision_table(data: dict) -> str:
+    return time_to_error_table(data, _WORK_PRECISION_ROWS)
+
+
+def _over_frontier(data: dict, method: str, frontier: str = "LGVI frontier") -> dict:
+    """``{level: method's time / the frontier's}`` where both reached the level."""
+    ratios = {}
+    for level, times in data["time_to_error_s"].items():
+        if times.get(method) is not None and times.get(frontier) is not None:
+            ratios[level] = times[method] / times[frontier]
+    return ratios
+
+
+def work_precision_rk4(data: dict) -> str:
+    ratios = _over_frontier(data, "RK4 (numba, fixed h)")
+    return "RK4's time over the LGVI's: " + ", ".join(f"{r:.2f} at {sci(float(level), 0)} m" for level, r in ratios.items())
+
+
+def work_precision_rk4_plain(data: dict) -> str:
+    ratios = _over_frontier(data, "RK4 (numba, fixed h)", "LGVI frontier, plain sums")
+    return ", ".join(f"{r:.2f}" for r in ratios.values())
+
+
+def work_precision_dop853(data: dict) -> str:
+    ratios = _over_frontier(data, "DOP853 (SciPy)").values()
+    return f"{min(ratios):.0f}–{max(ratios):.0f}×"
+
+
+def work_precision_long_run(data: dict) -> str:
+    lgvi, rk4, dop, _ = data["long_run"]
+    return (f"the LGVI at h = 1e-4 s takes {lgvi['wall_s']:.2f} s of wall time. It keeps |E − E0| ≤ "
+            f"{sci(lgvi['max_abs_energy_error_J'])} J with no trend, π3 within {sci(lgvi['max_abs_pi3_error'], 0)} and "
+            f"orthogonality within {sci(lgvi['max_orthogonality'])}. RK4 at the same cost drains "
+            f"{abs(rk4['final_energy_error_J']):.2f} J, and the pendulum nearly stops. DOP853 needs "
+            f"{dop['wall_s'] / lgvi['wall_s']:.0f} times the time at tolerance 1e-5 and still loses "
+            f"{abs(dop['final_energy_error_J']):.3f} J")
+
+
+# -- against MuJoCo ------------------------------------------------------------------------------
+_MUJOCO_ROWS = {"LGVI (esp_gym)": "LGVI (order 2)", "LGVI o4 Suzuki 5": "LGVI, Suzuki 5-stage composition (order 4)",
+                "MuJoCo RK4": "MuJoCo RK4", "MuJoCo Euler": "MuJoCo Euler (semi-implicit)",
+                "MuJoCo implicitfast": "MuJoCo implicitfast"}
+
+
+def mujoco_chain_table(data: dict) -> str:
+    return time_to_error_table(data, _MUJOCO_ROWS)
+
+
+def _fastest(times: dict, prefix: str):
+    reached = [t for method, t in times.items() if method.startswith(prefix) and t is not None]
+    return min(reached) if reached else None
+
+
+def mujoco_chain_ratio(data: dict) -> str:
+    """The fastest MuJoCo integrator's time over the fastest LGVI's, at every level, as a range."""
+    ratios = [_fastest(times, "MuJoCo") / _fastest(times, "LGVI") for times in data["time_to_error_s"].values()]
+    return f"{min(ratios):.0f}–{max(ratios):.0f}×"
+
+
+def mujoco_chain_evaluation(data: dict) -> str:
+    cost = data["step_cost"]
+    lgvi = cost["LGVI (esp_gym)"]["us_per_evaluation"]
+    mujoco = [row["us_per_evaluation"] for name, row in cost.items() if name.startswith("MuJoCo")]
+    return (f"{lgvi:.2f} µs for the LGVI step, against {min(mujoco):.1f}–{max(mujoco):.1f} µs for one pass of "
+            f"MuJoCo's general pipeline on these 63 degrees of freedom ({cost['MuJoCo RK4']['us_per_step']:.0f} µs "
+            f"per RK4 step)")
+
+
+def mujoco_chain_stability(data: dict) -> str:
+    names = {"LGVI (esp_gym)": "LGVI", "LGVI o4 Suzuki 5": "Suzuki"}
+    parts = []
+    for row in data["stability"]:
+        name = names.get(row["integrator"], row["integrator"])
+        edge = "at least " if row["first_failing_ratio"] is None else ""
+        parts.append(f"{name} {edge}{row['largest_stable_ratio']:g}")
+    return ", ".join(parts)
+
+
+def mujoco_chain_long_run(data: dict) -> str:
+    runs = {row["label"].split(" h = ")[0]: row for row in data["long_run"] if "same cost" not in row["label"]}
+    same_cost = [row for row in data["long_run"] if "same cost" in row["label"]]
+    return (f"RK4 loses {abs(runs['MuJoCo RK4']['final_energy_error_J']):.2f} J. Euler's energy error reaches "
+            f"{runs['MuJoCo Euler']['max_abs_energy_error_J']:.2f} J and implicitfast's "
+            f"{runs['MuJoCo implicitfast']['max_abs_energy_error_J']:.2f} J. Given the same wall time, the LGVI stays "
+            "within " + ", ".join(sci(row["max_abs_energy_error_J"]) for row in same_cost)
+            + " J (at the wall time of RK4, Euler and implicitfast, in that order)")
+
+
+QUOTES = {
+    "cold_start.readme": Quote("docs/img/cold_start.json", "python -m benchmarks.cold_start --repeats 1 --out docs/img",
+                               cold_start_readme),
+    "cold_start.env": Quote("docs/img/cold_start.json", "python -m benchmarks.cold_start --repeats 1 --out docs/img",
+                            cold_start_env),
+    "cold_start.table": Quote("docs/img/cold_start.json", "python -m benchmarks.cold_start --repeats 1 --out docs/img",
+                              cold_start_table),
+    "step_cost.lgvi": Quote("docs/img/step_cost.json", "python -m benchmarks.step_cost --out docs/img",
+                            step_cost_lgvi),
+    "step_cost.by_n": Quote("docs/img/step_cost.json", "python -m benchmarks.step_cost --out docs/img",
+                            step_cost_by_n),
+    "step_cost.specialised": Quote("docs/img/step_cost.json", "python -m benchmarks.step_cost --out docs/img",
+                                   step_cost_specialised),
+    "step_cost.substep": Quote("docs/img/step_cost.json", "python -m benchmarks.step_cost --out docs/img",
+                               step_cost_substep),
+    "step_cost.compensation": Quote("docs/img/step_cost.json", "python -m benchmarks.step_cost --out docs/img",
+                                    step_cost_compensation),
+    "step_cost.diagnostics": Quote("docs/img/step_cost.json", "python -m benchmarks.step_cost --out docs/img",
+                                   step_cost_diagnostics),
+    "env_throughput.readme": Quote("docs/img/env_throughput.json", "python -m benchmarks.env_throughput --out docs/img",
+                                   env_throughput_readme),
+    "env_throughput.table": Quote("docs/img/env_throughput.json", "python -m benchmarks.env_throughput --out docs/img",
+                                  env_throughput_table),
+    "work_precision.table": Quote("docs/img/work_precision.json", "python -m benchmarks.work_precision --out docs/img",
+                                 work_precision_table),
+    "work_precision.rk4": Quote("docs/img/work_precision.json", "python -m benchmarks.work_precision --out docs/img",
+                               work_precision_rk4),
+    "work_precision.rk4_plain": Quote("docs/img/work_precision.json",
+                                     "python -m benchmarks.work_precision --out docs/img", work_precision_rk4_plain),
+    "work_precision.dop853": Quote("docs/img/work_precision.json", "python -m benchmarks.work_precision --out docs/img",
+                                  work_precision_dop853),
+    "work_precision.long_run": Quote("docs/img/work_precision.json",
+                                    "python -m benchmarks.work_precision --out docs/img", work_precision_long_run),
+    "mujoco_chain.table": Quote("docs/img/mujoco_chain.json", "python -m benchmarks.mujoco_chain --out docs/img",
+                                mujoco_chain_table),
+    "mujoco_chain.ratio": Quote("docs/img/mujoco_chain.json", "python -m benchmarks.mujoco_chain --out docs/img",
+                                mujoco_chain_ratio),
+    "mujoco_chain.evaluation": Quote("docs/img/mujoco_chain.json", "python -m benchmarks.mujoco_chain --out docs/img",
+                                     mujoco_chain_evaluation),
+    "mujoco_chain.stability": Quote("docs/img/mujoco_chain.json", "python -m benchmarks.mujoco_chain --out docs/img",
+                                    mujoco_chain_stability),
+    "mujoco_chain.long_run": Quote("docs/img/mujoco_chain.json", "python -m benchmarks.mujoco_chain --out docs/img",
+                                   mujoco_chain_long_run),
+}
+
+#: The files whose quotes are kept: the README and every page of the docs.
+DOCUMENTS = ("README.md", "docs/*.md")
+
+
+def documents(root: Path = ROOT) -> list:
+    """The Markdown files that may quote."""
+    found = []
+    for pattern in DOCUMENTS:
+        found += sorted(root.glob(pattern))
+    return found
+
+
+def rendered(name: str, root: Path = ROOT, data: dict = None) -> str:
+    """Quote ``name`` rendered from its output file (or from ``data``, that file's parsed JSON)."""
+    if name not in QUOTES:
+        raise KeyError(f"unknown quote {name!r}; the known ones are in benchmarks/quote.py's QUOTES")
+    quote = QUOTES[name]
+    if data is None:
+        data = json.loads((root / quote.source).read_text(encoding="utf-8"))
+    return quote.render(data)
+
+
+def _replacement(name: str, old: str, new: str) -> str:
+    """``new`` laid out as ``old`` was: a block quote keeps its line breaks around the content."""
+    if old.startswith("\n"):
+        new = "\n" + new + "\n"
+    return f"<!-- quote {name} -->{new}<!-- /quote -->"
+
+
+def stale_quotes(text: str, root: Path = ROOT, data: dict = None) -> list:
+    """``(name, quoted, wanted)`` of every quote in ``text`` that differs from its output file
+    (``data``: {source path: parsed JSON} to use instead of reading a file)."""
+    stale = []
+    for match in QUOTE.finditer(text):
+        name, quoted = match.group(1), match.group(2)
+        source = QUOTES[name].source if name in QUOTES else None
+        wanted = rendered(name, root, (data or {}).get(source))
+        if quoted.strip("\n") != wanted:
+            stale.append((name, quoted.strip("\n"), wanted))
+    return stale
+
+
+def rewrite(text: str, root: Path = ROOT) -> str:
+    """``text`` with every quote rendered from its output file."""
+    return QUOTE.sub(lambda m: _replacement(m.group(1), m.group(2), rendered(m.group(1), root)), text)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--write", action="store_true", help="rewrite the quotes that differ from their files")
+    args = parser.parse_args(argv)
+    differing = 0
+    for path in documents():
+        text = path.read_text(encoding="utf-8")
+        stale = stale_quotes(text)
+        for name, quoted, wanted in stale:
+            print(f"{path.relative_to(ROOT)}: {name} ({QUOTES[name].command}):\n  quoted: {quoted!r}\n  file:   {wanted!r}")
+        differing += len(stale)
+        if args.write and stale:
+            path.write_text(rewrite(text), encoding="utf-8")
+    action = "rewrote" if args.write else "differ from their files"
+    print(f"{differing} quote(s) {action}" if differing else "every quote is its output file's")
+    return 1 if differing and not args.write else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
