@@ -23,14 +23,15 @@ from typing import Callable, NamedTuple
 
 ROOT = Path(__file__).resolve().parent.parent
 
-#: A quote: ``<!-- quote NAME -->`` content ``<!-- /quote -->`` (the content may span lines).
-QUOTE = re.compile(r"<!-- quote ([\w.]+) -->(.*?)<!-- /quote -->", re.S)
+#: A quote: ``<!-- quote FILE.PART -->`` content ``<!-- /quote -->`` (the content may span lines;
+#: a name is lower case, with one dot).
+QUOTE = re.compile(r"<!-- quote ([a-z0-9_]+\.[a-z0-9_]+) -->(.*?)<!-- /quote -->", re.S)
 
 
 class Quote(NamedTuple):
     """Where a quote's figures come from and how they read."""
 
-    source: str  #: the output file, relative to the repository root
+    source: object  #: the output file relative to the repository root, or a tuple of them
     command: str  #: the command that writes it
     render: Callable  #: the output file's parsed JSON -> the quoted Markdown
 
@@ -283,6 +284,140 @@ def mujoco_chain_long_run(data: dict) -> str:
             + " J (at the wall time of RK4, Euler and implicitfast, in that order)")
 
 
+# -- trained policies against the baselines ---------------------------------------------------
+def compare_file(task: str, preset: str = None) -> str:
+    """``agents.compare``'s output file for ``task`` (and the hard preset)."""
+    return f"docs/compare/compare_{task}{'_hard' if preset == 'hard' else ''}.json"
+
+
+def _difference(result: dict, with_ci: str = "95 % CI ") -> str:
+    low, high = result["paired_ci95"]
+    return f"{signed(result['paired_diff_mean'])} ({with_ci}[{signed(low)}, {signed(high)}])"
+
+
+def compare_winch(data: dict) -> str:
+    lower, lift = data[compare_file("lower")], data[compare_file("lift")]
+    low, high = lift["paired_ci95"]
+    return f"lower {_difference(lower)}; lift {signed(lift['paired_diff_mean'])} [{signed(low)}, {signed(high)}]"
+
+
+def compare_baselines(data: dict) -> str:
+    nominal = [data[compare_file(task)] for task in ("stabilize", "transport", "track")]
+    best = {result["best_baseline"] for result in nominal}
+    diffs = sorted((result["paired_diff_mean"] for result in nominal), key=abs)
+    hard = {task: data[compare_file(task, "hard")] for task in ("stabilize", "transport", "track")}
+    winner = " and ".join(sorted(b.upper() for b in best))
+    parts = []
+    for task, result in hard.items():
+        low, high = result["paired_ci95"]
+        ci = f"95 % CI [{signed(low)}, {signed(high)}]" if task == "stabilize" else f"[{signed(low)}, {signed(high)}]"
+        parts.append(f"{task} ({signed(result['paired_diff_mean'])}, {ci})" if task == "stabilize"
+                     else f"{task} ({signed(result['paired_diff_mean'])} {ci})")
+    return (f"nominal: the {winner} wins (PPO − {winner} {signed(diffs[0])} to {signed(diffs[-1])}); hard preset: "
+            f"residual PPO on the {hard['stabilize']['best_baseline'].upper()} beats it on {parts[0]}, {parts[1]} "
+            f"and {parts[2]}")
+
+
+_COMPARE_FILES = tuple(compare_file(task, preset) for task in ("stabilize", "transport", "track")
+                       for preset in (None, "hard"))
+
+
+# -- stability, the model's own error --------------------------------------------------------
+def stability_long_run(data: dict) -> str:
+    run = data["long_run"]
+    return (f"The paper example at h = 1e-4 s ran {run['T_s']:.0f} s of simulated time in {run['wall_s']:.0f} s of "
+            f"wall time, with energy, π3 and orthogonality computed after every step. Max |E − E0| was "
+            f"{sci(run['max_abs_energy_error_J'])} J overall and {sci(run['max_abs_energy_error_second_half_J'])} J in "
+            f"the second half: no drift (the slope of the chunk means is "
+            f"{sci(run['energy_slope_of_chunk_means_J_per_s']).replace('-', '−', 1)} J/s). π3 stayed within "
+            f"{sci(run['max_abs_pi3_error'])} and orthogonality within {sci(run['max_orthogonality'])}")
+
+
+def stability_readme(data: dict) -> str:
+    run = data["long_run"]
+    return (f"max \\|E − E0\\| {sci(run['max_abs_energy_error_J'])} J, no drift; "
+            f"π3 within {sci(run['max_abs_pi3_error'], 0)}")
+
+
+def stability_bounds(data: dict) -> str:
+    by_n = {}
+    for row in data["bounds"]:
+        by_n.setdefault(row["N"], []).append(row["ratio"])
+    ratios = [f"{max(r):.{2 if max(r) > 1.005 else 3}f}" for r in by_n.values()]
+    return ", ".join(ratios[:-1]) + " and " + ratios[-1] + " times the bound $2/\\sqrt{12\\kappa/m}$ for N = " + \
+        ", ".join(str(n) for n in list(by_n)[:-1]) + f" and {list(by_n)[-1]}"
+
+
+def stability_hard_cases(data: dict) -> str:
+    """The hard cases that did not run cleanly at 0.9 of the bound, with what stopped them."""
+    failed = [row for row in data["cases"] if row["status"] != "ok" and abs(row["h_over_h_max"] - 0.9) < 0.01]
+    if not failed:
+        return "every hard case runs cleanly at 0.9 of the bound"
+    def reason(status: str) -> str:
+        if "watchdog" in status:
+            return "stopped by the energy watchdog"
+        if "Newton" in status:
+            return "Newton on the Cayley vector did not converge"
+        return status
+
+    return "; ".join(f"{row['case']}: {reason(row['status'])}" for row in failed)
+
+
+def stability_drone_load(data: dict) -> str:
+    """The tension-only drone_load's energy balance, driven like the environment, by step."""
+    rows = [row for row in data["slack_sweep"] if row["case"] == "drone_load" and row["law"] == "slack"]
+    return ", ".join(f"{sci(row['max_abs_energy_error_J'])} J at {row['h_over_h_max']:.2f}" for row in rows)
+
+
+_SPATIAL_COLUMNS = {"paper/consistent": "paper start, consistent", "paper/lumped": "paper, lumped",
+                    "linear/consistent": "linear start, consistent", "hanging/consistent": "hanging start, consistent",
+                    "hanging/lumped": "hanging, lumped"}
+
+
+def spatial_table(data: dict) -> str:
+    table = data["table"]
+    ns = table["paper/consistent"]["N"]
+    lines = ["| N [m] | " + " | ".join(_SPATIAL_COLUMNS.values()) + " |", "|---|" + "---|" * len(_SPATIAL_COLUMNS)]
+    for i, n in enumerate(ns):
+        cells = [sci(table[key]["error_m"][i]) for key in _SPATIAL_COLUMNS]
+        if n == 20:
+            cells[0] = f"**{cells[0]}**"
+        lines.append(f"| {n} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def spatial_paper(data: dict) -> str:
+    paper = data["table"]["paper/consistent"]
+    return f"{sci(paper['error_m'][paper['N'].index(20)])} m"
+
+
+# -- recording -----------------------------------------------------------------------------------
+def recording_table(data: dict) -> str:
+    names = {"zero": "zero action", "baseline": "classical baseline"}
+    lines = ["| policy | plain [µs/step] | recorded [µs/step] | overhead: loop (wall) | + setup and close "
+             "| rollout thread CPU | process CPU | file [kB/step] |", "|---|---|---|---|---|---|---|---|"]
+    for row in data["rollouts"]:
+        lines.append(f"| {names[row['policy']]} | {row['plain_us_per_step']:.1f} | {row['recorded_us_per_step']:.1f} "
+                     f"| {signed(row['overhead_loop_pct'])} % | {signed(row['overhead_total_pct'])} % "
+                     f"| {signed(row['overhead_thread_pct'])} % | {signed(row['overhead_cpu_pct'])} % "
+                     f"| {row['file_bytes'] / row['steps'] / 1e3:.2f} |")
+    return "\n".join(lines)
+
+
+def recording_readme(data: dict) -> str:
+    rows = {row["policy"]: row for row in data["rollouts"]}
+    extra = sum(row["recorded_us_per_step"] - row["plain_us_per_step"] for row in rows.values()) / len(rows)
+    return (f"about {extra:.0f} µs per step ({signed(rows['baseline']['overhead_loop_pct'], 0)} % with the baseline, "
+            f"{signed(rows['zero']['overhead_loop_pct'], 0)} % with the zero action)")
+
+
+def recording_free(data: dict) -> str:
+    free = data["free_simulation"]
+    return (f"the {free['t_final']:g} s {free['scene'].replace('_', ' ')} at {free['samples'] / free['t_final']:.0f} "
+            f"samples/s takes {free['recorded_s'] * 1e3:.0f} ms recorded, against {free['plain_s'] * 1e3:.0f} ms bare, "
+            f"and writes {free['file_bytes'] / 1e6:.2f} MB")
+
+
 QUOTES = {
     "cold_start.readme": Quote("docs/img/cold_start.json", "python -m benchmarks.cold_start --repeats 1 --out docs/img",
                                cold_start_readme),
@@ -326,6 +461,30 @@ QUOTES = {
                                     mujoco_chain_stability),
     "mujoco_chain.long_run": Quote("docs/img/mujoco_chain.json", "python -m benchmarks.mujoco_chain --out docs/img",
                                    mujoco_chain_long_run),
+    "compare.winch": Quote((compare_file("lower"), compare_file("lift")),
+                           "python -m agents.compare --task lift|lower --episodes 100", compare_winch),
+    "compare.baselines": Quote(_COMPARE_FILES, "python -m agents.compare --task T [--preset hard] --episodes 100",
+                               compare_baselines),
+    "stability.long_run": Quote("docs/img/stability.json", "python -m benchmarks.stability --out docs/img",
+                                stability_long_run),
+    "stability.readme": Quote("docs/img/stability.json", "python -m benchmarks.stability --out docs/img",
+                              stability_readme),
+    "stability.bounds": Quote("docs/img/stability.json", "python -m benchmarks.stability --out docs/img",
+                              stability_bounds),
+    "stability.hard_cases": Quote("docs/img/stability.json", "python -m benchmarks.stability --out docs/img",
+                                  stability_hard_cases),
+    "stability.drone_load": Quote("docs/img/stability.json", "python -m benchmarks.stability --out docs/img",
+                                  stability_drone_load),
+    "spatial_convergence.table": Quote("docs/img/spatial_convergence.json",
+                                       "python -m benchmarks.spatial_convergence --out docs/img", spatial_table),
+    "spatial_convergence.paper": Quote("docs/img/spatial_convergence.json",
+                                       "python -m benchmarks.spatial_convergence --out docs/img", spatial_paper),
+    "recording_overhead.table": Quote("docs/img/recording_overhead.json",
+                                      "python -m benchmarks.recording_overhead --out docs/img", recording_table),
+    "recording_overhead.readme": Quote("docs/img/recording_overhead.json",
+                                       "python -m benchmarks.recording_overhead --out docs/img", recording_readme),
+    "recording_overhead.free": Quote("docs/img/recording_overhead.json",
+                                     "python -m benchmarks.recording_overhead --out docs/img", recording_free),
 }
 
 #: The files whose quotes are kept: the README and every page of the docs.
@@ -340,14 +499,23 @@ def documents(root: Path = ROOT) -> list:
     return found
 
 
+def _read(source: str, root: Path, data: dict):
+    """The parsed output file ``source``, from ``data`` ({source: parsed JSON}) where it is there."""
+    if data and source in data:
+        return data[source]
+    return json.loads((root / source).read_text(encoding="utf-8"))
+
+
 def rendered(name: str, root: Path = ROOT, data: dict = None) -> str:
-    """Quote ``name`` rendered from its output file (or from ``data``, that file's parsed JSON)."""
+    """Quote ``name`` rendered from its output file: the file's parsed JSON, or, for a quote of
+    several files (a tuple), {file: parsed JSON}; ``data`` ({file: parsed JSON}) stands in for
+    the files it holds."""
     if name not in QUOTES:
         raise KeyError(f"unknown quote {name!r}; the known ones are in benchmarks/quote.py's QUOTES")
     quote = QUOTES[name]
-    if data is None:
-        data = json.loads((root / quote.source).read_text(encoding="utf-8"))
-    return quote.render(data)
+    if isinstance(quote.source, tuple):
+        return quote.render({source: _read(source, root, data) for source in quote.source})
+    return quote.render(_read(quote.source, root, data))
 
 
 def _replacement(name: str, old: str, new: str) -> str:
@@ -363,8 +531,7 @@ def stale_quotes(text: str, root: Path = ROOT, data: dict = None) -> list:
     stale = []
     for match in QUOTE.finditer(text):
         name, quoted = match.group(1), match.group(2)
-        source = QUOTES[name].source if name in QUOTES else None
-        wanted = rendered(name, root, (data or {}).get(source))
+        wanted = rendered(name, root, data)
         if quoted.strip("\n") != wanted:
             stale.append((name, quoted.strip("\n"), wanted))
     return stale

@@ -135,8 +135,8 @@ def test_a_misquoted_figure_is_found():
     assert [name for name, _, _ in quote.stale_quotes(readme, data={source: data})] == ["cold_start.env",
                                                                                     "cold_start.readme"]
     assert [name for name, _, _ in quote.stale_quotes(performance, data={source: data})] == ["cold_start.table"]
-    with pytest.raises(KeyError, match="no_such_figure"):
-        quote.stale_quotes("<!-- quote no_such_figure -->1<!-- /quote -->")
+    with pytest.raises(KeyError, match="no_such.figure"):
+        quote.stale_quotes("<!-- quote no_such.figure -->1<!-- /quote -->")
 
 
 def heading_anchors(text: str) -> set:
