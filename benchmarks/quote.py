@@ -418,6 +418,58 @@ def recording_free(data: dict) -> str:
             f"and writes {free['file_bytes'] / 1e6:.2f} MB")
 
 
+# -- RLlib against SB3 ---------------------------------------------------------------------------
+def ray_table(data: dict) -> str:
+    lines = ["| steps/s | 16 envs, one compiled call (`batched`) | 16 envs, one call each (`sync`) | 1 env |",
+             "|---|---|---|---|"]
+    for name, row in data["sampling"].items():
+        cells = [f"{row[k]:,.0f}" if k in row else "" for k in ("batched", "sync", "1 env")]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def ray_readme(data: dict) -> str:
+    one, two, sb3 = (data["sampling"][k]["batched"] for k in ("RLlib, 1 node", "RLlib, 2 nodes", "SB3 VecEnv, one process"))
+    return f"{one:,.0f} / {two:,.0f} against {sb3:,.0f}"
+
+
+def ray_reading(data: dict) -> str:
+    one, two, sb3 = (data["sampling"][k] for k in ("RLlib, 1 node", "RLlib, 2 nodes", "SB3 VecEnv, one process"))
+    over_sync = [100 * (node["batched"] / node["sync"] - 1) for node in (one, two)]
+    over_one = sorted(node["batched"] / node["1 env"] for node in (one, two))
+    return (f"the batched vector env samples {over_sync[0]:.0f} % faster than Gymnasium's SyncVectorEnv of the same "
+            f"16 environments on one node and {over_sync[1]:.0f} % on two, and {over_one[0]:.1f} to "
+            f"{over_one[1]:.1f} times as fast as one environment per runner; two nodes sample "
+            f"{two['batched'] / one['batched']:.1f} times as fast as one; SB3's loop in one process samples "
+            f"{sb3['batched'] / one['batched']:.1f} times as fast as one RLlib runner and "
+            f"{sb3['batched'] / two['batched']:.1f} times as fast as two")
+
+
+def ray_learning_table(data: dict) -> str:
+    learning = data["learning"]
+    lines = ["| | training wall time | whole command | final return (10 episodes) | success rate |",
+             "|---|---|---|---|---|"]
+    for key, name in (("sb3", "SB3 PPO"), ("rllib", "RLlib PPO")):
+        run = learning[key]
+        ev = run["evaluation"]
+        lines.append(f"| {name} | {run['train_wall_s']:.0f} s | {run['wall_s']:.0f} s | {ev['mean_return']:.1f} ± "
+                     f"{ev['std_return']:.1f} | {ev['success_rate']:.2f} |")
+    refs = learning["references"]
+    lines.append(f"| PD law (reference) | | | {refs['baseline_return']:.1f} | |")
+    lines.append(f"| zero action (reference) | | | {refs['zero_return']:.1f} | |")
+    return "\n".join(lines)
+
+
+def ray_learning_reading(data: dict) -> str:
+    sb3, rllib = data["learning"]["sb3"], data["learning"]["rllib"]
+    gap = sb3["evaluation"]["mean_return"] - rllib["evaluation"]["mean_return"]
+    return (f"the final policies' mean returns differ by {abs(gap):.1f} ({'SB3' if gap > 0 else 'RLlib'} ahead), "
+            f"against standard deviations of {sb3['evaluation']['std_return']:.1f} and "
+            f"{rllib['evaluation']['std_return']:.1f} over 10 episodes; SB3 trains {rllib['train_wall_s'] / sb3['train_wall_s']:.1f} "
+            f"times as fast to the same budget, and the RLlib command spends {rllib['wall_s'] - rllib['train_wall_s']:.0f} s "
+            f"outside training")
+
+
 QUOTES = {
     "cold_start.readme": Quote("docs/img/cold_start.json", "python -m benchmarks.cold_start --repeats 1 --out docs/img",
                                cold_start_readme),
@@ -485,6 +537,17 @@ QUOTES = {
                                        "python -m benchmarks.recording_overhead --out docs/img", recording_readme),
     "recording_overhead.free": Quote("docs/img/recording_overhead.json",
                                      "python -m benchmarks.recording_overhead --out docs/img", recording_free),
+    "ray_throughput.table": Quote("docs/img/ray_throughput.json", "python -m benchmarks.ray_throughput --out docs/img",
+                                  ray_table),
+    "ray_throughput.readme": Quote("docs/img/ray_throughput.json", "python -m benchmarks.ray_throughput --out docs/img",
+                                   ray_readme),
+    "ray_throughput.reading": Quote("docs/img/ray_throughput.json",
+                                    "python -m benchmarks.ray_throughput --out docs/img", ray_reading),
+    "ray_throughput.learning": Quote("docs/img/ray_throughput.json",
+                                     "python -m benchmarks.ray_throughput --out docs/img", ray_learning_table),
+    "ray_throughput.learning_reading": Quote("docs/img/ray_throughput.json",
+                                             "python -m benchmarks.ray_throughput --out docs/img",
+                                             ray_learning_reading),
 }
 
 #: The files whose quotes are kept: the README and every page of the docs.
