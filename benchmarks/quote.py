@@ -470,6 +470,25 @@ def ray_learning_reading(data: dict) -> str:
             f"outside training")
 
 
+_REALISM_ROWS = {"plain": "plain", "randomize": "`randomize=True`",
+                 "randomize, hook, noise": "`randomize=True`, `observation=\"hook\"`, `sensor_noise=1`",
+                 "randomize, wind, hook": "`randomize=True`, wind, `observation=\"hook\"` (the 0.8× bar)",
+                 "preset hard": "`preset=\"hard\"` (all of it, with noise and latency)"}
+
+
+def env_throughput_realism(data: dict) -> str:
+    table = data["table"]
+    plain = table["plain"]
+    lines = ["| options | one env [steps/s] | ratio | 8 batched [steps/s] | ratio | reset [µs] |",
+             "|---|---|---|---|---|---|"]
+    for key, name in _REALISM_ROWS.items():
+        row = table[key]
+        lines.append(f"| {name} | {steps_per_second(row['single'])} | {row['single'] / plain['single']:.2f} "
+                     f"| {steps_per_second(row['batched'])} | {row['batched'] / plain['batched']:.2f} "
+                     f"| {row['reset_us']:.0f} |")
+    return "\n".join(lines)
+
+
 QUOTES = {
     "cold_start.readme": Quote("docs/img/cold_start.json", "python -m benchmarks.cold_start --repeats 1 --out docs/img",
                                cold_start_readme),
@@ -548,6 +567,9 @@ QUOTES = {
     "ray_throughput.learning_reading": Quote("docs/img/ray_throughput.json",
                                              "python -m benchmarks.ray_throughput --out docs/img",
                                              ray_learning_reading),
+    "env_throughput.realism": Quote("docs/img/env_throughput_realism.json",
+                                    "python -m benchmarks.env_throughput --realism --repeats 5 --out docs/img",
+                                    env_throughput_realism),
 }
 
 #: The files whose quotes are kept: the README and every page of the docs.
