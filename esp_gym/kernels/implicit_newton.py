@@ -30,6 +30,94 @@ MAX_HALVINGS = 8
 LINE_SEARCH_FLOOR = 1e-8
 
 
+#: A 3x3 block of zeros (9, row-major).
+ZERO_BLOCK = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+@kernel(inline="always")
+def residual_row(p, Y, rhs, a, n, h, diag_a, band, ta, tp, grav, reeling):
+    """Row a of -G without the pivot's force and the body's pull [kg m]: h p_a + h^2/2 (f~_a +
+    f_g,a) - (M y)_a, the mass matrix's row ``diag_a`` and ``band`` = (A_{a,a-1}, A_{a,a+1});
+    ``ta``, ``tp`` the forces of the elements below and above node a [N], ``grav`` its weight
+    [N]. While ``reeling``, ``rhs[a]`` is the constant part (h p_a + h^2/2 f_g,a at the moving
+    masses)."""
+    lo, hi = band
+    h2 = 0.5 * h * h
+    my0 = diag_a * Y[a, 0]
+    my1 = diag_a * Y[a, 1]
+    my2 = diag_a * Y[a, 2]
+    if a > 0:
+        my0 += lo * Y[a - 1, 0]
+        my1 += lo * Y[a - 1, 1]
+        my2 += lo * Y[a - 1, 2]
+    if a < n:
+        my0 += hi * Y[a + 1, 0]
+        my1 += hi * Y[a + 1, 1]
+        my2 += hi * Y[a + 1, 2]
+    if reeling:
+        return ((rhs[a, 0] + h2 * (ta[0] - tp[0])) - my0, (rhs[a, 1] + h2 * (ta[1] - tp[1])) - my1,
+                (rhs[a, 2] + h2 * (ta[2] - tp[2])) - my2)
+    return ((h * p[a, 0] + h2 * (ta[0] - tp[0])) - my0, (h * p[a, 1] + h2 * (ta[1] - tp[1])) - my1,
+            (h * p[a, 2] + h2 * ((ta[2] - tp[2]) + grav)) - my2)
+
+
+@kernel(inline="always")
+def diagonal_block(d, q4, k, l):
+    """A_aa = d I + h^2/4 (k_{a-1} + k_a) (9, row-major; ``q4`` = h^2/4)."""
+    return (d + q4 * (k[0] + l[0]), q4 * (k[1] + l[1]), q4 * (k[2] + l[2]),
+            q4 * (k[3] + l[3]), d + q4 * (k[4] + l[4]), q4 * (k[5] + l[5]),
+            q4 * (k[6] + l[6]), q4 * (k[7] + l[7]), d + q4 * (k[8] + l[8]))
+
+
+@kernel(inline="always")
+def eliminate_previous(s, r, o, e, z):
+    """The previous row eliminated: S_a - O E_{a-1} and rhs_a - O z_{a-1}, O = A_{a,a-1}."""
+    return ((s[0] - (o[0] * e[0] + o[1] * e[3] + o[2] * e[6]), s[1] - (o[0] * e[1] + o[1] * e[4] + o[2] * e[7]),
+             s[2] - (o[0] * e[2] + o[1] * e[5] + o[2] * e[8]), s[3] - (o[3] * e[0] + o[4] * e[3] + o[5] * e[6]),
+             s[4] - (o[3] * e[1] + o[4] * e[4] + o[5] * e[7]), s[5] - (o[3] * e[2] + o[4] * e[5] + o[5] * e[8]),
+             s[6] - (o[6] * e[0] + o[7] * e[3] + o[8] * e[6]), s[7] - (o[6] * e[1] + o[7] * e[4] + o[8] * e[7]),
+             s[8] - (o[6] * e[2] + o[7] * e[5] + o[8] * e[8])),
+            (r[0] - (o[0] * z[0] + o[1] * z[1] + o[2] * z[2]), r[1] - (o[3] * z[0] + o[4] * z[1] + o[5] * z[2]),
+             r[2] - (o[6] * z[0] + o[7] * z[1] + o[8] * z[2])))
+
+
+@kernel(inline="always")
+def forward_row(s, r, o):
+    """E_a = S_a^-1 O and z_a = S_a^-1 rhs_a, O = A_{a,a+1} (9 and 3 scalars)."""
+    i00, i01, i02, i10, i11, i12, i20, i21, i22 = inverse3(s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7], s[8])
+    e = (i00 * o[0] + i01 * o[3] + i02 * o[6], i00 * o[1] + i01 * o[4] + i02 * o[7],
+         i00 * o[2] + i01 * o[5] + i02 * o[8], i10 * o[0] + i11 * o[3] + i12 * o[6],
+         i10 * o[1] + i11 * o[4] + i12 * o[7], i10 * o[2] + i11 * o[5] + i12 * o[8],
+         i20 * o[0] + i21 * o[3] + i22 * o[6], i20 * o[1] + i21 * o[4] + i22 * o[7],
+         i20 * o[2] + i21 * o[5] + i22 * o[8])
+    z = (i00 * r[0] + i01 * r[1] + i02 * r[2], i10 * r[0] + i11 * r[1] + i12 * r[2],
+         i20 * r[0] + i21 * r[1] + i22 * r[2])
+    return e, z
+
+
+@kernel(inline="always")
+def off_diagonal_block(off, q4, k):
+    """:func:`coupling_block` of the element block ``k`` (9): off I - h^2/4 k."""
+    return coupling_block(off, q4, k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7], k[8])
+
+
+@kernel(inline="always")
+def store_row(E, dy, a, e, z):
+    """E_a into ``E[a]`` (3, 3) and z_a into ``dy[a]``."""
+    for i in range(3):
+        for j in range(3):
+            E[a, i, j] = e[3 * i + j]
+        dy[a, i] = z[i]
+
+
+@kernel(inline="always")
+def element_row(r, Y, a, kappa, lengths, slack, gradient):
+    """:func:`element_block` of element ``a`` as (its force on node a (3) [N], its k (9) [N/m])."""
+    u0, u1 = lengths
+    t0, t1, t2, k00, k01, k02, k10, k11, k12, k20, k21, k22 = element_block(r, Y, a, kappa, u0, u1, slack, gradient)
+    return (t0, t1, t2), (k00, k01, k02, k10, k11, k12, k20, k21, k22)
+
+
 @kernel(inline="always")
 def string_elimination(S, W, P, h, mass, lengths, up, q, flags):
     """The string's residual -G at the iterate ``W.Y`` and the forward elimination of its
@@ -43,154 +131,62 @@ def string_elimination(S, W, P, h, mass, lengths, up, q, flags):
     (otherwise the diagonal only, off-diagonals P.off, the constant part h p_k + h^2/2 f_g);
     ``lengths`` = (u0, u1) the rest lengths at the two ends; ``up`` the pivot force [N];
     ``q`` = R_k (F - I) rho_c at this iterate (the body's pull on the attachment row) [m];
-    ``flags`` = (free, forced, reeling)."""
+    ``flags`` = (free, forced, reeling). Per node: :func:`residual_row`, :func:`diagonal_block`,
+    :func:`eliminate_previous`, :func:`forward_row`."""
     r = S.r
-    p = S.p
     Y = W.Y
-    dy = W.dy
-    E = W.elim
     taut = W.taut
     diag, lower, upper, rhs = mass
-    u0, u1 = lengths
-    up0, up1, up2 = up
-    q0, q1, q2 = q
     free, forced, reeling = flags
     n = r.shape[0] - 1
     first = 0 if free else 1
-    kappa = P.kappa
-    slack = P.slack
-    gradient = P.gradient
-    off = P.off
-    M = P.M
     q4 = 0.25 * h * h
     h2 = 0.5 * h * h
     # gravity forces of the nodes (along +e3): (m/2 + Mp) g, m g, ..., (m/2 + M) g
     g_end0 = (0.5 * P.m + P.Mp) * P.g
     g_mid = P.m * P.g
-    g_endn = (0.5 * P.m + M) * P.g
+    g_endn = (0.5 * P.m + P.M) * P.g
     merit = 0.0
-    tp0 = tp1 = tp2 = 0.0  # the element above node a: T n_k, and k
-    k00 = k01 = k02 = k10 = k11 = k12 = k20 = k21 = k22 = 0.0
+    tp = (0.0, 0.0, 0.0)  # the element above node a: its force on node a - 1, and its k
+    k = ZERO_BLOCK
     if not free:
-        tp0, tp1, tp2, k00, k01, k02, k10, k11, k12, k20, k21, k22 = element_block(
-            r, Y, 0, kappa, u0, u1, slack and taut[0] == 0.0, gradient)
-    e00 = e01 = e02 = e10 = e11 = e12 = e20 = e21 = e22 = 0.0  # E_{a-1}
-    z0 = z1 = z2 = 0.0  # z_{a-1}
-    s00 = s01 = s02 = s10 = s11 = s12 = s20 = s21 = s22 = 0.0
-    r0 = r1 = r2 = 0.0
+        tp, k = element_row(r, Y, 0, P.kappa, lengths, P.slack and taut[0] == 0.0, P.gradient)
+    e = ZERO_BLOCK  # E_{a-1}
+    z = (0.0, 0.0, 0.0)  # z_{a-1}
+    s = ZERO_BLOCK
+    rr = (0.0, 0.0, 0.0)
     for a in range(first, n + 1):
-        ta0 = ta1 = ta2 = 0.0
-        l00 = l01 = l02 = l10 = l11 = l12 = l20 = l21 = l22 = 0.0
+        ta = (0.0, 0.0, 0.0)
+        l = ZERO_BLOCK
         if a < n:
-            ta0, ta1, ta2, l00, l01, l02, l10, l11, l12, l20, l21, l22 = element_block(
-                r, Y, a, kappa, u0, u1, slack and taut[a] == 0.0, gradient)
+            ta, l = element_row(r, Y, a, P.kappa, lengths, P.slack and taut[a] == 0.0, P.gradient)
         grav = g_mid
         if a == 0:
             grav = g_end0
         elif a == n:
             grav = g_endn
-        lo = off  # the mass matrix's row a: A_{a,a-1}, A_{a,a+1}
-        hi = off
-        if reeling:
-            lo = lower[a]
-            hi = upper[a]
-        my0 = diag[a] * Y[a, 0]
-        my1 = diag[a] * Y[a, 1]
-        my2 = diag[a] * Y[a, 2]
-        if a > 0:
-            my0 += lo * Y[a - 1, 0]
-            my1 += lo * Y[a - 1, 1]
-            my2 += lo * Y[a - 1, 2]
-        if a < n:
-            my0 += hi * Y[a + 1, 0]
-            my1 += hi * Y[a + 1, 1]
-            my2 += hi * Y[a + 1, 2]
-        # -G_a = h p_a + h^2/2 (f~_a + f_g,a) (+ h^2/2 u_p) - (M_tot y)_a  [- M q at the attachment]
-        if reeling:
-            r0 = (rhs[a, 0] + h2 * (ta0 - tp0)) - my0
-            r1 = (rhs[a, 1] + h2 * (ta1 - tp1)) - my1
-            r2 = (rhs[a, 2] + h2 * (ta2 - tp2)) - my2
-        else:
-            r0 = (h * p[a, 0] + h2 * (ta0 - tp0)) - my0
-            r1 = (h * p[a, 1] + h2 * (ta1 - tp1)) - my1
-            r2 = (h * p[a, 2] + h2 * ((ta2 - tp2) + grav)) - my2
+        band = (lower[a], upper[a]) if reeling else (P.off, P.off)  # the mass matrix's row a
+        r0, r1, r2 = residual_row(S.p, Y, rhs, a, n, h, diag[a], band, ta, tp, grav, reeling)
         if free and forced and a == 0:
-            r0 += h2 * up0
-            r1 += h2 * up1
-            r2 += h2 * up2
+            r0 += h2 * up[0]
+            r1 += h2 * up[1]
+            r2 += h2 * up[2]
         if a == n:
-            r0 -= M * q0
-            r1 -= M * q1
-            r2 -= M * q2
+            r0 -= P.M * q[0]
+            r1 -= P.M * q[1]
+            r2 -= P.M * q[2]
         inv_m = 1.0 / diag[a]
         merit += (r0 * r0 + r1 * r1 + r2 * r2) * inv_m * inv_m
-        s00 = diag[a] + q4 * (k00 + l00)
-        s01 = q4 * (k01 + l01)
-        s02 = q4 * (k02 + l02)
-        s10 = q4 * (k10 + l10)
-        s11 = diag[a] + q4 * (k11 + l11)
-        s12 = q4 * (k12 + l12)
-        s20 = q4 * (k20 + l20)
-        s21 = q4 * (k21 + l21)
-        s22 = diag[a] + q4 * (k22 + l22)
+        s = diagonal_block(diag[a], q4, k, l)
+        rr = (r0, r1, r2)
         if a > first:
-            # O = A_{a,a-1} = lo I - h^2/4 k_{a-1}: S_a = A_aa - O E_{a-1}, rhs_a -= O z_{a-1}
-            o00, o01, o02, o10, o11, o12, o20, o21, o22 = coupling_block(lo, q4, k00, k01, k02, k10, k11, k12,
-                                                                         k20, k21, k22)
-            s00 -= o00 * e00 + o01 * e10 + o02 * e20
-            s01 -= o00 * e01 + o01 * e11 + o02 * e21
-            s02 -= o00 * e02 + o01 * e12 + o02 * e22
-            s10 -= o10 * e00 + o11 * e10 + o12 * e20
-            s11 -= o10 * e01 + o11 * e11 + o12 * e21
-            s12 -= o10 * e02 + o11 * e12 + o12 * e22
-            s20 -= o20 * e00 + o21 * e10 + o22 * e20
-            s21 -= o20 * e01 + o21 * e11 + o22 * e21
-            s22 -= o20 * e02 + o21 * e12 + o22 * e22
-            r0 -= o00 * z0 + o01 * z1 + o02 * z2
-            r1 -= o10 * z0 + o11 * z1 + o12 * z2
-            r2 -= o20 * z0 + o21 * z1 + o22 * z2
+            s, rr = eliminate_previous(s, rr, off_diagonal_block(band[0], q4, k), e, z)
         if a < n:
-            i00, i01, i02, i10, i11, i12, i20, i21, i22 = inverse3(s00, s01, s02, s10, s11, s12, s20, s21, s22)
-            # E_a = S_a^-1 A_{a,a+1}, A_{a,a+1} = hi I - h^2/4 k_a; z_a = S_a^-1 rhs_a
-            o00, o01, o02, o10, o11, o12, o20, o21, o22 = coupling_block(hi, q4, l00, l01, l02, l10, l11, l12,
-                                                                         l20, l21, l22)
-            e00 = i00 * o00 + i01 * o10 + i02 * o20
-            e01 = i00 * o01 + i01 * o11 + i02 * o21
-            e02 = i00 * o02 + i01 * o12 + i02 * o22
-            e10 = i10 * o00 + i11 * o10 + i12 * o20
-            e11 = i10 * o01 + i11 * o11 + i12 * o21
-            e12 = i10 * o02 + i11 * o12 + i12 * o22
-            e20 = i20 * o00 + i21 * o10 + i22 * o20
-            e21 = i20 * o01 + i21 * o11 + i22 * o21
-            e22 = i20 * o02 + i21 * o12 + i22 * o22
-            E[a, 0, 0] = e00
-            E[a, 0, 1] = e01
-            E[a, 0, 2] = e02
-            E[a, 1, 0] = e10
-            E[a, 1, 1] = e11
-            E[a, 1, 2] = e12
-            E[a, 2, 0] = e20
-            E[a, 2, 1] = e21
-            E[a, 2, 2] = e22
-            z0 = i00 * r0 + i01 * r1 + i02 * r2
-            z1 = i10 * r0 + i11 * r1 + i12 * r2
-            z2 = i20 * r0 + i21 * r1 + i22 * r2
-            dy[a, 0] = z0
-            dy[a, 1] = z1
-            dy[a, 2] = z2
-        tp0 = ta0
-        tp1 = ta1
-        tp2 = ta2
-        k00 = l00
-        k01 = l01
-        k02 = l02
-        k10 = l10
-        k11 = l11
-        k12 = l12
-        k20 = l20
-        k21 = l21
-        k22 = l22
-    return merit, (s00, s01, s02, s10, s11, s12, s20, s21, s22), (r0, r1, r2)
+            e, z = forward_row(s, rr, off_diagonal_block(band[1], q4, l))
+            store_row(W.elim, W.dy, a, e, z)
+        tp = ta
+        k = l
+    return merit, s, rr
 
 
 @kernel(inline="always")
