@@ -35,10 +35,10 @@ ZERO_BLOCK = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 @kernel(inline="always")
-def residual_row(p, Y, rhs, a, n, h, diag_a, band, ta, tp, grav, reeling):
+def residual_row(p, Y, rhs, a, n, h, diag_a, band, t_below, t_above, grav, reeling):
     """Row a of -G without the pivot's force and the body's pull [kg m]: h p_a + h^2/2 (f~_a +
     f_g,a) - (M y)_a, the mass matrix's row ``diag_a`` and ``band`` = (A_{a,a-1}, A_{a,a+1});
-    ``ta``, ``tp`` the forces of the elements below and above node a [N], ``grav`` its weight
+    ``t_below``, ``t_above`` the forces of the elements below and above node a [N], ``grav`` its weight
     [N]. While ``reeling``, ``rhs[a]`` is the constant part (h p_a + h^2/2 f_g,a at the moving
     masses)."""
     lo, hi = band
@@ -55,10 +55,10 @@ def residual_row(p, Y, rhs, a, n, h, diag_a, band, ta, tp, grav, reeling):
         my1 += hi * Y[a + 1, 1]
         my2 += hi * Y[a + 1, 2]
     if reeling:
-        return ((rhs[a, 0] + h2 * (ta[0] - tp[0])) - my0, (rhs[a, 1] + h2 * (ta[1] - tp[1])) - my1,
-                (rhs[a, 2] + h2 * (ta[2] - tp[2])) - my2)
-    return ((h * p[a, 0] + h2 * (ta[0] - tp[0])) - my0, (h * p[a, 1] + h2 * (ta[1] - tp[1])) - my1,
-            (h * p[a, 2] + h2 * ((ta[2] - tp[2]) + grav)) - my2)
+        return ((rhs[a, 0] + h2 * (t_below[0] - t_above[0])) - my0, (rhs[a, 1] + h2 * (t_below[1] - t_above[1])) - my1,
+                (rhs[a, 2] + h2 * (t_below[2] - t_above[2])) - my2)
+    return ((h * p[a, 0] + h2 * (t_below[0] - t_above[0])) - my0, (h * p[a, 1] + h2 * (t_below[1] - t_above[1])) - my1,
+            (h * p[a, 2] + h2 * ((t_below[2] - t_above[2]) + grav)) - my2)
 
 
 @kernel(inline="always")
@@ -147,26 +147,26 @@ def string_elimination(S, W, P, h, mass, lengths, up, q, flags):
     g_mid = P.m * P.g
     g_endn = (0.5 * P.m + P.M) * P.g
     merit = 0.0
-    tp = (0.0, 0.0, 0.0)  # the element above node a: its force on node a - 1, and its k
+    t_above = (0.0, 0.0, 0.0)  # the element above node a: its force on node a - 1, and its k
     k = ZERO_BLOCK
     if not free:
-        tp, k = element_row(r, Y, 0, P.kappa, lengths, P.slack and taut[0] == 0.0, P.gradient)
+        t_above, k = element_row(r, Y, 0, P.kappa, lengths, P.slack and taut[0] == 0.0, P.gradient)
     e = ZERO_BLOCK  # E_{a-1}
     z = (0.0, 0.0, 0.0)  # z_{a-1}
     s = ZERO_BLOCK
     rr = (0.0, 0.0, 0.0)
     for a in range(first, n + 1):
-        ta = (0.0, 0.0, 0.0)
+        t_below = (0.0, 0.0, 0.0)
         l = ZERO_BLOCK
         if a < n:
-            ta, l = element_row(r, Y, a, P.kappa, lengths, P.slack and taut[a] == 0.0, P.gradient)
+            t_below, l = element_row(r, Y, a, P.kappa, lengths, P.slack and taut[a] == 0.0, P.gradient)
         grav = g_mid
         if a == 0:
             grav = g_end0
         elif a == n:
             grav = g_endn
         band = (lower[a], upper[a]) if reeling else (P.off, P.off)  # the mass matrix's row a
-        r0, r1, r2 = residual_row(S.p, Y, rhs, a, n, h, diag[a], band, ta, tp, grav, reeling)
+        r0, r1, r2 = residual_row(S.p, Y, rhs, a, n, h, diag[a], band, t_below, t_above, grav, reeling)
         if free and forced and a == 0:
             r0 += h2 * up[0]
             r1 += h2 * up[1]
@@ -184,7 +184,7 @@ def string_elimination(S, W, P, h, mass, lengths, up, q, flags):
         if a < n:
             e, z = forward_row(s, rr, off_diagonal_block(band[1], q4, l))
             store_row(W.elim, W.dy, a, e, z)
-        tp = ta
+        t_above = t_below
         k = l
     return merit, s, rr
 
