@@ -9,6 +9,7 @@ come from the array shapes. Explicit loops throughout: the kernels compile witho
 runtime (``jit.py``), so there is no slice assignment.
 """
 import math
+from collections import namedtuple
 
 from .jit import kernel
 from .layout import (B_ANGULAR_IMPULSE_Z, B_WINCH_WORK, B_WORK, D_ENERGY, D_PI3, DIAG, IN_BODY_TORQUE, IN_PIVOT_FORCE,
@@ -78,18 +79,30 @@ def sample_layout(n_elements: int) -> Layout:
     return Layout(*SAMPLE_HEAD.fields, ("nodes", 3 * (n_elements + 1)), ("strain", n_elements), ("diag", DIAG.size))
 
 
+#: The live arrays a sample is copied from: nodes ``r``, ``R``, the diagnostics ``out`` (DIAG) and
+#: ``strain`` energies (current), the balances ``acc`` (BALANCE), the applied ``action`` (ACTION)
+#: and reward ``terms`` (REWARD), the step ``report`` (REPORT), the ``inputs`` (INPUTS: pivot
+#: force, body torque), the ``target`` (TARGET; NaN when not an episode's reset), the
+#: ``sensors`` (SENSORS), the ``disturbance`` (DISTURBANCE), the episode's ``rho`` (rho_c, body
+#: frame [m]) and the ``winch`` state (WINCH).
+SampleSources = namedtuple("SampleSources", "r R out strain acc action terms report inputs target sensors "
+                                            "disturbance rho winch")
+#: Where a sample stands: the balances' origins ``E0`` [J] and ``pi30`` [kg m^2/s], and the
+#: timelines and scalars: ``step``, ``t`` [s], ``episode``, ``stepped`` (1 after a step, 0 after a
+#: reset) and the step's ``reward``.
+SampleClock = namedtuple("SampleClock", "E0 pi30 step t episode stepped reward")
+
+
 @kernel(entry=True)
-def capture_sample(buf, i, r, R, out, strain, acc, action, terms, report, inputs, target, sensors, disturbance, rho,
-                   winch, E0, pi30, step, t, episode, stepped, reward):
-    """Write one sample into row ``i`` of ``buf`` from live arrays: nodes ``r``, ``R``, the
-    diagnostics ``out`` (DIAG) and ``strain`` energies (current), the balances ``acc``
-    (BALANCE), the applied ``action`` (ACTION) and reward ``terms`` (REWARD), the step
-    ``report`` (REPORT: the Newton column is newton_total / steps, NaN without steps), the
-    ``inputs`` (INPUTS: pivot force, body torque), ``target`` (TARGET; NaN when not an
-    episode's reset), the ``sensors`` (SENSORS), the ``disturbance`` (DISTURBANCE) and the
-    episode's ``rho`` (rho_c, body frame [m]), and the ``winch`` state (WINCH; its length and
-    speed, with the winch's work from ``acc``). The balance residuals are computed as in
-    ``Simulator.diagnostics`` (same operations, same order, so the same bits)."""
+def capture_sample(buf, i, sources, clock):
+    """Write one sample into row ``i`` of ``buf`` from the live arrays ``sources`` and the scalars
+    ``clock``, the fields of :class:`SampleSources` and :class:`SampleClock` as plain tuples
+    (numba types those faster). The Newton column is newton_total / steps (NaN without steps);
+    the winch's columns are its length and speed, with the winch's work from the balances. The
+    balance residuals are computed as in ``Simulator.diagnostics`` (same operations, same order,
+    so the same bits)."""
+    r, R, out, strain, acc, action, terms, report, inputs, target, sensors, disturbance, rho, winch = sources
+    E0, pi30, step, t, episode, stepped, reward = clock
     row = buf[i]
     row[S_STEP] = step
     row[S_TIME] = t
@@ -133,17 +146,31 @@ def capture_sample(buf, i, r, R, out, strain, acc, action, terms, report, inputs
         row[base + k] = out[k]
 
 
+#: How the 3-D columns are drawn: ``inv_strain_scale`` [1/J] and the colour ``lut`` of the strain,
+#: whether the arrows' inputs come from the action (``inputs_from_action``) or the input columns,
+#: the hover ``force_offset`` (3) [N], the action's ``force_limit`` [N] and ``torque_limit``
+#: [N m], and the arrows' lengths per unit, ``force_scale`` [m/N] and ``torque_scale`` [m/(N m)].
+GeometryStyle = namedtuple("GeometryStyle", "inv_strain_scale lut inputs_from_action force_offset force_limit "
+                                            "torque_limit force_scale torque_scale")
+#: The 3-D columns (float32 unless stated): element end points ``pts`` (n, N, 2, 3), strain
+#: ``colors`` (n N,) uint32, the attachment point ``translation`` (n, 3) and R column-major
+#: ``mat`` (n, 9) (Rerun's layout), the ``pivot`` (n, 3), the arrows ``force_vec`` and
+#: ``torque_vec`` (n, 3), and the load's centre of mass ``load`` (n, 3) float64.
+GeometryColumns = namedtuple("GeometryColumns", "pts colors translation mat pivot force_vec torque_vec load")
+
+
 @kernel(entry=True)
-def sample_geometry(buf, n, inv_strain_scale, lut, inputs_from_action, force_offset, force_limit, torque_limit,
-                    force_scale, torque_scale, pts, colors, translation, mat, pivot, force_vec, torque_vec, load):
-    """The 3-D columns of the first ``n`` rows of ``buf`` (float32 unless stated): element end
-    points ``pts`` (n, N, 2, 3); strain colours (n N,) uint32 from ``lut`` at sqrt(E / scale)
-    clipped to [0, 1] (NaN -> 0); the attachment point ``translation`` and R column-major
-    ``mat`` (n, 9) (Rerun's layout); the pivot; the arrows ``force_scale`` x (pivot force -
-    force_offset) and ``torque_scale`` x body torque, with the inputs taken from the action
-    (force_offset + force_limit a_force, torque_limit a_torque) or from the input columns; and
-    the load's centre of mass r_N + R rho_c (n, 3) float64, with the row's own rho_c (each
+def sample_geometry(buf, n, style, columns):
+    """The 3-D columns (:class:`GeometryColumns`, a plain tuple of its fields) of the first ``n``
+    rows of ``buf``, drawn as ``style`` says (:class:`GeometryStyle`, likewise): strain colours
+    from the ``lut`` at sqrt(E / scale) clipped to [0, 1] (NaN -> 0); the arrows force_scale x
+    (pivot force - force_offset) and torque_scale x body torque, with the inputs taken from the
+    action (force_offset + force_limit a_force, torque_limit a_torque) or from the input
+    columns; and the load's centre of mass r_N + R rho_c, with the row's own rho_c (each
     episode's)."""
+    (inv_strain_scale, lut, inputs_from_action, force_offset, force_limit, torque_limit, force_scale,
+     torque_scale) = style
+    pts, colors, translation, mat, pivot, force_vec, torque_vec, load = columns
     N = pts.shape[1]
     strain0 = SAMPLE_HEAD_SIZE + 3 * (N + 1)
     for i in range(n):
