@@ -185,7 +185,8 @@ def python_callable(internal):
         raise TypeError(f"python_callable takes a kernel, got {internal!r}")
     if not isinstance(internal, InternalKernel):
         return internal
-    options = {**internal.targetoptions, "no_cpython_wrapper": False, "cache": False}
+    options = {key: value for key, value in internal.targetoptions.items() if key != "nopython"}
+    options.update(no_cpython_wrapper=False, cache=False)
     return njit(**options)(internal.py_func)
 
 

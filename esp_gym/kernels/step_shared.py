@@ -146,28 +146,14 @@ def next_attitude(R, Rc, FmI, RF, Rn, compensated):
 
 
 @kernel(inline="always")
-def body_momentum_increment(Pi, FmI, P, h, t, n, e, forced, coupled):
-    """dPi of (4) in increment form [kg m^2/s], from the left total torque ``t`` = tau_g(R_k) +
-    tau^-, the right one ``n`` = tau_g(R_{k+1}) + tau^+ (body frame) and ``e`` = R_k^T dr_{N+1}.
-
-    By (2), u := Pi_k + h/2 t - (M/h) rho_c x e equals (1/h)(F J_d - J_d F^T)^vee, so (4) reads
-    Pi_{k+1} = F^T u + (M/h) rho_c x (R_{k+1}^T dr_{N+1}) + h/2 n, i.e.
-    dPi = h/2 (t + n) + (F - I)^T u + (M/h) rho_c x ((F - I)^T e). Every term is O(h) and
-    vanishes exactly where it should (a steady spin about a principal axis), and R_{k+1}
-    Pi_{k+1} = R_k u + ... uses the same F, so the Newton round-off does not leak into pi3."""
+def free_body_increment(Pi, FmI, h, t, n, forced):
+    """dPi of (4) for a body no string pulls on (rho = 0 at its end) [kg m^2/s]: h/2 (t + n) +
+    (F - I)^T (Pi_k + h/2 t) with the left and right torques ``t``, ``n`` (body frame) when
+    ``forced``, else (F - I)^T Pi_k. The load's uncoupled case and a drone's rotation."""
     hh = 0.5 * h
-    Mh = P.M / h
-    rho0 = P.rho[0]
-    rho1 = P.rho[1]
-    rho2 = P.rho[2]
     t0, t1, t2 = t
     n0, n1, n2 = n
-    e0, e1, e2 = e
-    if coupled:
-        u0 = Pi[0] + hh * t0 - Mh * (rho1 * e2 - rho2 * e1)
-        u1 = Pi[1] + hh * t1 - Mh * (rho2 * e0 - rho0 * e2)
-        u2 = Pi[2] + hh * t2 - Mh * (rho0 * e1 - rho1 * e0)
-    elif forced:
+    if forced:
         u0 = Pi[0] + hh * t0
         u1 = Pi[1] + hh * t1
         u2 = Pi[2] + hh * t2
@@ -178,17 +164,45 @@ def body_momentum_increment(Pi, FmI, P, h, t, n, e, forced, coupled):
     dP0 = FmI[0, 0] * u0 + FmI[1, 0] * u1 + FmI[2, 0] * u2  # (F - I)^T u
     dP1 = FmI[0, 1] * u0 + FmI[1, 1] * u1 + FmI[2, 1] * u2
     dP2 = FmI[0, 2] * u0 + FmI[1, 2] * u1 + FmI[2, 2] * u2
-    if coupled:
-        a0 = FmI[0, 0] * e0 + FmI[1, 0] * e1 + FmI[2, 0] * e2  # (F - I)^T R_k^T dr_{N+1}
-        a1 = FmI[0, 1] * e0 + FmI[1, 1] * e1 + FmI[2, 1] * e2
-        a2 = FmI[0, 2] * e0 + FmI[1, 2] * e1 + FmI[2, 2] * e2
-        dP0 = hh * (t0 + n0) + dP0 + Mh * (rho1 * a2 - rho2 * a1)
-        dP1 = hh * (t1 + n1) + dP1 + Mh * (rho2 * a0 - rho0 * a2)
-        dP2 = hh * (t2 + n2) + dP2 + Mh * (rho0 * a1 - rho1 * a0)
-    elif forced:
+    if forced:
         dP0 = hh * (t0 + n0) + dP0
         dP1 = hh * (t1 + n1) + dP1
         dP2 = hh * (t2 + n2) + dP2
+    return dP0, dP1, dP2
+
+
+@kernel(inline="always")
+def body_momentum_increment(Pi, FmI, P, h, t, n, e, forced, coupled):
+    """dPi of (4) in increment form [kg m^2/s], from the left total torque ``t`` = tau_g(R_k) +
+    tau^-, the right one ``n`` = tau_g(R_{k+1}) + tau^+ (body frame) and ``e`` = R_k^T dr_{N+1}.
+
+    By (2), u := Pi_k + h/2 t - (M/h) rho_c x e equals (1/h)(F J_d - J_d F^T)^vee, so (4) reads
+    Pi_{k+1} = F^T u + (M/h) rho_c x (R_{k+1}^T dr_{N+1}) + h/2 n, i.e.
+    dPi = h/2 (t + n) + (F - I)^T u + (M/h) rho_c x ((F - I)^T e). Every term is O(h) and
+    vanishes exactly where it should (a steady spin about a principal axis), and R_{k+1}
+    Pi_{k+1} = R_k u + ... uses the same F, so the Newton round-off does not leak into pi3."""
+    if not coupled:
+        return free_body_increment(Pi, FmI, h, t, n, forced)
+    hh = 0.5 * h
+    Mh = P.M / h
+    rho0 = P.rho[0]
+    rho1 = P.rho[1]
+    rho2 = P.rho[2]
+    t0, t1, t2 = t
+    n0, n1, n2 = n
+    e0, e1, e2 = e
+    u0 = Pi[0] + hh * t0 - Mh * (rho1 * e2 - rho2 * e1)
+    u1 = Pi[1] + hh * t1 - Mh * (rho2 * e0 - rho0 * e2)
+    u2 = Pi[2] + hh * t2 - Mh * (rho0 * e1 - rho1 * e0)
+    dP0 = FmI[0, 0] * u0 + FmI[1, 0] * u1 + FmI[2, 0] * u2  # (F - I)^T u
+    dP1 = FmI[0, 1] * u0 + FmI[1, 1] * u1 + FmI[2, 1] * u2
+    dP2 = FmI[0, 2] * u0 + FmI[1, 2] * u1 + FmI[2, 2] * u2
+    a0 = FmI[0, 0] * e0 + FmI[1, 0] * e1 + FmI[2, 0] * e2  # (F - I)^T R_k^T dr_{N+1}
+    a1 = FmI[0, 1] * e0 + FmI[1, 1] * e1 + FmI[2, 1] * e2
+    a2 = FmI[0, 2] * e0 + FmI[1, 2] * e1 + FmI[2, 2] * e2
+    dP0 = hh * (t0 + n0) + dP0 + Mh * (rho1 * a2 - rho2 * a1)
+    dP1 = hh * (t1 + n1) + dP1 + Mh * (rho2 * a0 - rho0 * a2)
+    dP2 = hh * (t2 + n2) + dP2 + Mh * (rho0 * a1 - rho1 * a0)
     return dP0, dP1, dP2
 
 
@@ -254,24 +268,28 @@ def commit_string(S, W, h, held, fl, fr, free, forced, compensated):
 
 
 @kernel(inline="always")
-def commit_body(S, Rn, RF, dP, compensated):
-    """R <- R_{k+1} and Pi <- Pi_k + dPi, compensated (remainders in S.Rc, S.Pic) or plain."""
-    R = S.R
-    Rc = S.Rc
-    Pi = S.Pi
+def commit_rotation(R, Rc, Pi, Pic, Rn, RF, dP, compensated):
+    """R <- R_{k+1} and Pi <- Pi_k + dPi, compensated (remainders in Rc, Pic) or plain: the
+    load's (:func:`commit_body`) and a drone's (kernels/drone.py)."""
     for i in range(3):
         for j in range(3):
             if compensated:
                 Rc[i, j] = (R[i, j] - Rn[i, j]) + RF[i, j]
             R[i, j] = Rn[i, j]
     if compensated:
-        kahan_add(Pi, S.Pic, 0, dP[0])
-        kahan_add(Pi, S.Pic, 1, dP[1])
-        kahan_add(Pi, S.Pic, 2, dP[2])
+        kahan_add(Pi, Pic, 0, dP[0])
+        kahan_add(Pi, Pic, 1, dP[1])
+        kahan_add(Pi, Pic, 2, dP[2])
     else:
         Pi[0] += dP[0]
         Pi[1] += dP[1]
         Pi[2] += dP[2]
+
+
+@kernel(inline="always")
+def commit_body(S, Rn, RF, dP, compensated):
+    """R <- R_{k+1} and Pi <- Pi_k + dPi, compensated (remainders in S.Rc, S.Pic) or plain."""
+    commit_rotation(S.R, S.Rc, S.Pi, S.Pic, Rn, RF, dP, compensated)
 
 
 # LLVM-inlined, not numba-IR-inlined: compiled once per signature instead of deep-copied
