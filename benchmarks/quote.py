@@ -69,6 +69,32 @@ def cold_start_env(data: dict) -> str:
     return f"about {f['env', 'cold']:.0f} s before an environment's first step on 2 cores, {f['env', 'warm']:.1f} s after"
 
 
+#: How the docs name the kernels of a cold start's longest compiles.
+_KERNEL_NAMES = {"_entry_points.<locals>.step": "the entry point `step`",
+                 "_entry_points.<locals>.batch": "the batched entry point",
+                 "shared_advance_loop.<locals>.advance_loop_shared": "the explicit loop",
+                 "commit_step": "the step's commit stage", "lgvi_substep": "the LGVI substep",
+                 "settle_switches": "the slack switch's settlement", "diagnostics": "the diagnostics",
+                 "observe_and_score": "the observation and reward", "env_finish": "the end of the control step",
+                 "disturb": "wind and pushes", "kick": "the wind's kicks", "env_reset_observe": "the reset's observation",
+                 "save_state": "the checkpoint's save", "rigid_increments": "the body's Newton",
+                 "cayley_newton": "the Cayley Newton"}
+
+
+def _compiles(data: dict, case: str, count: int) -> str:
+    run = next(r for r in data["runs"] if r["case"] == case and r["cache"] == "cold")
+    items = list(run["compile_s_by_kernel"].items())[:count]
+    return ", ".join(f"{_KERNEL_NAMES.get(name, name)} {seconds:.1f} s" for name, seconds in items)
+
+
+def cold_start_env_compiles(data: dict) -> str:
+    return _compiles(data, "env", 8)
+
+
+def cold_start_vector_compiles(data: dict) -> str:
+    return _compiles(data, "vector env (8)", 1)
+
+
 def cold_start_table(data: dict) -> str:
     rows = {run["case"]: {} for run in data["runs"]}
     for run in data["runs"]:
@@ -494,6 +520,12 @@ QUOTES = {
                                cold_start_readme),
     "cold_start.env": Quote("docs/img/cold_start.json", "python -m benchmarks.cold_start --repeats 1 --out docs/img",
                             cold_start_env),
+    "cold_start.env_compiles": Quote("docs/img/cold_start.json",
+                                     "python -m benchmarks.cold_start --repeats 1 --out docs/img",
+                                     cold_start_env_compiles),
+    "cold_start.vector_compiles": Quote("docs/img/cold_start.json",
+                                        "python -m benchmarks.cold_start --repeats 1 --out docs/img",
+                                        cold_start_vector_compiles),
     "cold_start.table": Quote("docs/img/cold_start.json", "python -m benchmarks.cold_start --repeats 1 --out docs/img",
                               cold_start_table),
     "step_cost.lgvi": Quote("docs/img/step_cost.json", "python -m benchmarks.step_cost --out docs/img",

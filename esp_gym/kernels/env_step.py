@@ -250,7 +250,7 @@ def _entry_points(winched: bool, implicit: bool):
 #: The seconds to the first step of an environment and of a vector environment on an empty cache
 #: (2 cores; docs/performance.md, "Start-up"), said when their entry points first compile.
 COLD_ENV_STEP_S = 19
-COLD_BATCH_STEP_S = 30
+COLD_BATCH_STEP_S = 28
 
 #: The entry points by (winched, implicit) (see :func:`_entry_points`); each compiles only for
 #: environments that use it.

@@ -21,7 +21,7 @@ def _compile_specialised(free: bool, forced: bool, coupled: bool, compensated: b
 
 #: The seconds to the simulator's first step on an empty cache (2 cores; docs/performance.md,
 #: "Start-up"), said when its loops first compile.
-COLD_SIMULATOR_STEP_S = 12
+COLD_SIMULATOR_STEP_S = 11
 
 
 def announced(advance, record):
