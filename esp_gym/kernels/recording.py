@@ -101,49 +101,49 @@ def capture_sample(buf, i, sources, clock):
     the winch's columns are its length and speed, with the winch's work from the balances. The
     balance residuals are computed as in ``Simulator.diagnostics`` (same operations, same order,
     so the same bits)."""
-    r, R, out, strain, acc, action, terms, report, inputs, target, sensors, disturbance, rho, winch = sources
-    E0, pi30, step, t, episode, stepped, reward = clock
+    src = SampleSources(*sources)
+    clk = SampleClock(*clock)
     row = buf[i]
-    row[S_STEP] = step
-    row[S_TIME] = t
-    row[S_EPISODE] = episode
-    row[S_STEPPED] = stepped
-    row[S_NEWTON] = report[R_NEWTON_TOTAL] / report[R_STEPS] if report[R_STEPS] > 0 else math.nan
-    row[S_REWARD] = reward
+    row[S_STEP] = clk.step
+    row[S_TIME] = clk.t
+    row[S_EPISODE] = clk.episode
+    row[S_STEPPED] = clk.stepped
+    row[S_NEWTON] = src.report[R_NEWTON_TOTAL] / src.report[R_STEPS] if src.report[R_STEPS] > 0 else math.nan
+    row[S_REWARD] = clk.reward
     for k in range(N_ACTION):
-        row[S_ACTION + k] = action[k]
+        row[S_ACTION + k] = src.action[k]
     for k in range(N_TERMS):
-        row[S_TERMS + k] = terms[k]
+        row[S_TERMS + k] = src.terms[k]
     for c in range(3):
-        row[S_INPUTS + SI_PIVOT_FORCE + c] = inputs[IN_PIVOT_FORCE + c]
-        row[S_INPUTS + SI_BODY_TORQUE + c] = inputs[IN_BODY_TORQUE + c]
-    row[S_BALANCES + SB_WORK] = acc[B_WORK]
-    row[S_BALANCES + SB_ENERGY_RESIDUAL] = out[D_ENERGY] - E0 - acc[B_WORK] - acc[B_WINCH_WORK]
-    row[S_BALANCES + SB_ANGULAR_IMPULSE] = acc[B_ANGULAR_IMPULSE_Z]
-    row[S_BALANCES + SB_PI3_RESIDUAL] = out[D_PI3] - pi30 - acc[B_ANGULAR_IMPULSE_Z]
+        row[S_INPUTS + SI_PIVOT_FORCE + c] = src.inputs[IN_PIVOT_FORCE + c]
+        row[S_INPUTS + SI_BODY_TORQUE + c] = src.inputs[IN_BODY_TORQUE + c]
+    row[S_BALANCES + SB_WORK] = src.acc[B_WORK]
+    row[S_BALANCES + SB_ENERGY_RESIDUAL] = src.out[D_ENERGY] - clk.E0 - src.acc[B_WORK] - src.acc[B_WINCH_WORK]
+    row[S_BALANCES + SB_ANGULAR_IMPULSE] = src.acc[B_ANGULAR_IMPULSE_Z]
+    row[S_BALANCES + SB_PI3_RESIDUAL] = src.out[D_PI3] - clk.pi30 - src.acc[B_ANGULAR_IMPULSE_Z]
     for k in range(N_TARGET):
-        row[S_TARGET + k] = target[k]
+        row[S_TARGET + k] = src.target[k]
     for k in range(N_SENSORS):
-        row[S_SENSORS + k] = sensors[k]
+        row[S_SENSORS + k] = src.sensors[k]
     for k in range(N_DISTURBANCE):
-        row[S_DISTURBANCE + k] = disturbance[k]
+        row[S_DISTURBANCE + k] = src.disturbance[k]
     for c in range(3):
-        row[S_RHO + c] = rho[c]
-    row[S_WINCH + SW_UNSTRETCHED_LENGTH] = winch[WN_LENGTH]
-    row[S_WINCH + SW_REEL_SPEED] = winch[WN_REEL_SPEED]
-    row[S_WINCH + SW_WINCH_WORK] = acc[B_WINCH_WORK]
+        row[S_RHO + c] = src.rho[c]
+    row[S_WINCH + SW_UNSTRETCHED_LENGTH] = src.winch[WN_LENGTH]
+    row[S_WINCH + SW_REEL_SPEED] = src.winch[WN_REEL_SPEED]
+    row[S_WINCH + SW_WINCH_WORK] = src.acc[B_WINCH_WORK]
     for a in range(3):
         for c in range(3):
-            row[S_R + 3 * a + c] = R[a, c]
-    for a in range(r.shape[0]):
+            row[S_R + 3 * a + c] = src.R[a, c]
+    for a in range(src.r.shape[0]):
         for c in range(3):
-            row[SAMPLE_HEAD_SIZE + 3 * a + c] = r[a, c]
-    base = SAMPLE_HEAD_SIZE + 3 * r.shape[0]
-    for k in range(strain.shape[0]):
-        row[base + k] = strain[k]
-    base += strain.shape[0]
-    for k in range(out.shape[0]):
-        row[base + k] = out[k]
+            row[SAMPLE_HEAD_SIZE + 3 * a + c] = src.r[a, c]
+    base = SAMPLE_HEAD_SIZE + 3 * src.r.shape[0]
+    for k in range(src.strain.shape[0]):
+        row[base + k] = src.strain[k]
+    base += src.strain.shape[0]
+    for k in range(src.out.shape[0]):
+        row[base + k] = src.out[k]
 
 
 #: How the 3-D columns are drawn: ``inv_strain_scale`` [1/J] and the colour ``lut`` of the strain,
