@@ -222,6 +222,7 @@ class Simulator:
         if not self.scene.pivot.is_free and np.any(up != 0):
             raise ValueError("pivot_force needs a free pivot (this scene's pivot.kind is 'fixed')")
         self._inputs[INPUTS["pivot_force"]] = up
+        self._inputs[INPUTS["pivot_force_end"]] = up  # held over the step
         self._inputs[INPUTS["body_torque"]] = tb
         self._inputs[INPUTS["spatial_torque"]] = ts
         self._forced = bool(np.any(self._inputs != 0.0))

@@ -53,7 +53,7 @@ import numpy as np
 import pytest
 
 import esp_gym
-from esp_gym.kernels.layout import INPUTS
+from esp_gym.kernels.layout import Layout
 
 from discrete_lagrangian import (
     GEOMETRIC_OVERRIDES, discrete_lagrangian, expm, left_perturbed, random_nodes, random_rotation,
@@ -78,7 +78,7 @@ def discrete_forces(scene, R0, R1, inputs, rule="split"):
     = (u_p [N], tau [N m] body frame, T [N m] spatial): ``((f^- nodes (N+1, 3), tau^- (3,)),
     (f^+ nodes, tau^+))`` [kg m/s], [kg m^2/s] (body frame), per ``rule`` (FORCE_RULES)."""
     h, n = scene.h, scene.string.elements
-    up, tau, T = (inputs[INPUTS[name]] for name in ("pivot_force", "body_torque", "spatial_torque"))
+    up, tau, T = (inputs[STEP_INPUTS[name]] for name in STEP_INPUTS.names)
     nodes = np.zeros((n + 1, 3))
     nodes[0] = 0.5 * h * up
     left = (nodes, 0.5 * h * (tau + R0.T @ T))
@@ -177,7 +177,7 @@ def kernel_run(scene, state, inputs):
     sim.set_state(state)
     states = [sim.state]
     for u in inputs:
-        sim.step(1, **{name: u[INPUTS[name]] for name in INPUTS.names})
+        sim.step(1, **{name: u[STEP_INPUTS[name]] for name in STEP_INPUTS.names})
         states.append(sim.state)
     return states
 
@@ -222,6 +222,8 @@ def forced_defects(scene, states, inputs, derivs, rule="split"):
 
 # -- the runs ------------------------------------------------------------------------------------------
 STEPS = 20
+#: The held inputs of a run's steps, as Simulator.step takes them.
+STEP_INPUTS = Layout(("pivot_force", 3), ("body_torque", 3), ("spatial_torque", 3))
 #: Constant inputs (u_p [N] spatial, tau [N m] body, T [N m] spatial): a push of the 0.5 kg pivot
 #: against part of its weight, and torques that change the paper body's spin (J ~ 0.4 kg m^2) by
 #: O(1) rad/s^2; the geometric body (J ~ 1e-3 kg m^2) gets torques 1/30 of those.

@@ -16,7 +16,8 @@ from .jit import announce_compile, kernel
 from .diagnostics import diagnostics
 from .disturbance import disturb, external_potential
 from .sums import kahan_add
-from .layout import (B_WINCH_WORK, B_WORK, D_ENERGY, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE, R_STATUS,
+from .layout import (B_WINCH_WORK, B_WORK, D_ENERGY, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_PIVOT_FORCE_END,
+                     IN_SPATIAL_TORQUE, R_STATUS,
                      R_STEPS, R_TERMINATION, WN_LENGTH, WN_MASS_PER_LENGTH, WN_REEL_SPEED, DiagWork, LGVIParams,
                      StateArrays, WinchArrays, Work)
 from .env_arrays import (A_BODY_TORQUE, A_PIVOT_FORCE, A_REEL_SPEED, ACTION_SIZE, AP_FORCE_LIMIT, AP_HIGH,
@@ -51,6 +52,7 @@ def action_inputs(action, ap, inputs):
     no spatial torque."""
     for i in range(3):
         inputs[IN_PIVOT_FORCE + i] = ap[AP_HOVER_FORCE + i] + ap[AP_FORCE_LIMIT] * action[A_PIVOT_FORCE + i]
+        inputs[IN_PIVOT_FORCE_END + i] = inputs[IN_PIVOT_FORCE + i]  # held over the step
         inputs[IN_BODY_TORQUE + i] = ap[AP_TORQUE_LIMIT] * action[A_BODY_TORQUE + i]
         inputs[IN_SPATIAL_TORQUE + i] = 0.0
 

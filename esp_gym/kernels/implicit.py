@@ -91,7 +91,8 @@ def implicit_step_once(S, W, P, inputs, h, free, forced, coupled, compensated, b
     on failure, and (``bounded``, variational form) where its largest tension breaks the transverse limit
     (status ``TOO_TENSE``). Returns ``(status, newton_iterations)``."""
     first = 0 if free else 1
-    up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2 = held_inputs(inputs, forced)
+    held = held_inputs(inputs, forced)
+    up0, up1, up2, _, _, _, tb0, tb1, tb2, ts0, ts1, ts2 = held
     l0, l1, l2, t0, t1, t2 = left_torque(S.R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
     c0, c1, c2 = explicit_start(S, W, P, h, t0, t1, t2, up0, up1, up2, free, forced, coupled)
     c0, c1, c2, iters, status = implicit_newton(S, W, P, h, (t0, t1, t2), (up0, up1, up2), (c0, c1, c2),
@@ -105,6 +106,6 @@ def implicit_step_once(S, W, P, inputs, h, free, forced, coupled, compensated, b
         return TOO_TENSE, iters
     e0, e1, e2, dr00, dr01, dr02 = implicit_positions(S, W, c0, c1, c2, first, compensated)
     status = commit_step(S, W, P, h, (c0, c1, c2), (e0, e1, e2), (dr00, dr01, dr02), (l0, l1, l2, t0, t1, t2),
-                         (up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2), (W.fl, W.fr),
+                         held, (W.fl, W.fr),
                          (free, forced, coupled, compensated))
     return status, iters

@@ -185,10 +185,12 @@ SD_ENERGY = STEP_DIAG.scalar("energy")
 SD_PI3 = STEP_DIAG.scalar("pi3")
 SD_ORTHOGONALITY = STEP_DIAG.scalar("orthogonality")
 
-#: Inputs held over a step: pivot force (spatial) [N], body torque (body frame) [N m], spatial
-#: torque [N m].
-INPUTS = Layout(("pivot_force", 3), ("body_torque", 3), ("spatial_torque", 3))
+#: Inputs of a step: the pivot force at the step's start and at its end (spatial) [N] (equal
+#: for a force held over the step; a drone's thrust turns with it: kernels/drone.py), body
+#: torque (body frame) [N m], spatial torque [N m], held over the step.
+INPUTS = Layout(("pivot_force", 3), ("pivot_force_end", 3), ("body_torque", 3), ("spatial_torque", 3))
 IN_PIVOT_FORCE = INPUTS.start("pivot_force")
+IN_PIVOT_FORCE_END = INPUTS.start("pivot_force_end")
 IN_BODY_TORQUE = INPUTS.start("body_torque")
 IN_SPATIAL_TORQUE = INPUTS.start("spatial_torque")
 

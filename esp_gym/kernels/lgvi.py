@@ -163,7 +163,8 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
     """
     R = S.R
     first = 0 if free else 1
-    up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2 = held_inputs(inputs, forced)
+    held = held_inputs(inputs, forced)
+    up0, up1, up2, _, _, _, tb0, tb1, tb2, ts0, ts1, ts2 = held
     l0, l1, l2, t0, t1, t2 = left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
     c0, c1, c2, e0, e1, e2, dr00, dr01, dr02, iters, status = explicit_increments(
         S, W, P, h, up0, up1, up2, t0, t1, t2, free, forced, coupled)
@@ -174,7 +175,7 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
     if P.settle:  # the slack switches of the step (kernels/switch.py)
         unsettled = switch_errors(S.r, W.X, P.kappa, P.u, P.kappa, P.u, 0.0, S.owed, W.switch)
     status = commit_step(S, W, P, h, (c0, c1, c2), (e0, e1, e2), (dr00, dr01, dr02), (l0, l1, l2, t0, t1, t2),
-                         (up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2), (S.f, W.fn),
+                         held, (S.f, W.fn),
                          (free, forced, coupled, compensated))
     if status == OK and unsettled > 0:
         settle_switches(S, P, h, S.p, W.switch, S.owed, W.dy, W.fr)

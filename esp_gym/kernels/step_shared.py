@@ -7,7 +7,7 @@ kernels/lgvi.py's docstring; docs/physics.md).
 
 The commit takes the step's increments grouped as the physics groups them: the Cayley vector c,
 e = R_k^T dr_{N+1} and the pivot's displacement dr_0, the left torques (l, t), the held inputs
-(u_p, tau, T), the two forces whose mean is the string's impulse, and the scheme's flags
+(u_k, u_{k+1}, tau, T), the two forces whose mean is the string's impulse, and the scheme's flags
 (free, forced, coupled, compensated).
 """
 import math
@@ -16,7 +16,7 @@ import numpy as np
 
 from .jit import kernel
 from .layout import (B_ANGULAR_IMPULSE_Z, B_GRAVITY_IMPULSE, B_PIVOT_IMPULSE, B_WORK, IN_BODY_TORQUE, IN_PIVOT_FORCE,
-                     IN_SPATIAL_TORQUE)
+                     IN_PIVOT_FORCE_END, IN_SPATIAL_TORQUE)
 from .status import BLOW_UP, NON_FINITE, OK
 from .string import nodal_forces
 from .sums import kahan_add
@@ -49,20 +49,24 @@ def commit_node(r, p, rc, pc, f, fnext, fl, fr, X, Y, a, i, impulse, hh, compens
 
 @kernel(inline="always")
 def held_inputs(inputs, forced):
-    """The inputs held over a step (INPUTS), or zeros when not ``forced``: pivot force u_p
-    (spatial) [N], body torque tau (body frame) [N m], spatial torque T [N m], as 9 scalars."""
-    up0 = up1 = up2 = tb0 = tb1 = tb2 = ts0 = ts1 = ts2 = 0.0
+    """The inputs of a step (INPUTS), or zeros when not ``forced``: the pivot force at the step's
+    start u_k and at its end u_{k+1} (spatial) [N] (equal for a held force; a drone's thrust
+    turns with it), body torque tau (body frame) [N m], spatial torque T [N m], as 12 scalars."""
+    up0 = up1 = up2 = ue0 = ue1 = ue2 = tb0 = tb1 = tb2 = ts0 = ts1 = ts2 = 0.0
     if forced:
         up0 = inputs[IN_PIVOT_FORCE]
         up1 = inputs[IN_PIVOT_FORCE + 1]
         up2 = inputs[IN_PIVOT_FORCE + 2]
+        ue0 = inputs[IN_PIVOT_FORCE_END]
+        ue1 = inputs[IN_PIVOT_FORCE_END + 1]
+        ue2 = inputs[IN_PIVOT_FORCE_END + 2]
         tb0 = inputs[IN_BODY_TORQUE]
         tb1 = inputs[IN_BODY_TORQUE + 1]
         tb2 = inputs[IN_BODY_TORQUE + 2]
         ts0 = inputs[IN_SPATIAL_TORQUE]
         ts1 = inputs[IN_SPATIAL_TORQUE + 1]
         ts2 = inputs[IN_SPATIAL_TORQUE + 2]
-    return up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2
+    return up0, up1, up2, ue0, ue1, ue2, tb0, tb1, tb2, ts0, ts1, ts2
 
 
 @kernel(inline="always")
@@ -209,10 +213,13 @@ def body_momentum_increment(Pi, FmI, P, h, t, n, e, forced, coupled):
 @kernel(inline="always")
 def input_balances(S, P, R, Rn, h, c, left, right, held, dr0, free, forced):
     """The inputs' balances over the step, before r and R move: the discrete work
-    u_p . dr_0 + tau_avg . theta (theta the rotation vector of F from the Cayley vector ``c``,
-    tau_avg = (tau^- + tau^+)/2 from the inputs' shares ``left`` and ``right``), the angular
-    impulse about e3, e3 . [h/2 (r_0k + r_0k+1) x u_p + h/2 (R_k tau + R_{k+1} tau) + h T], the
-    pivot's impulse; and the weight's impulse along +e3 [J, N m s, N s]."""
+    u_bar . dr_0 + tau_avg . theta (u_bar = (u_k + u_{k+1})/2 the pivot force's mean, theta the
+    rotation vector of F from the Cayley vector ``c``, tau_avg = (tau^- + tau^+)/2 from the
+    inputs' shares ``left`` and ``right``), the angular impulse about e3,
+    e3 . [h/2 (r_0k x u_k + r_0k+1 x u_{k+1}) + h/2 (R_k tau + R_{k+1} tau) + h T], the pivot's
+    impulse h u_bar; and the weight's impulse along +e3 [J, N m s, N s]. A held pivot force
+    (u_k = u_{k+1}) gives the bits of u . dr_0 and h/2 (r_0k + r_0k+1) x u: the mean is exact
+    and the turning term an exact zero."""
     acc = S.acc
     accc = S.accc
     r = S.r
@@ -222,18 +229,23 @@ def input_balances(S, P, R, Rn, h, c, left, right, held, dr0, free, forced):
         c0, c1, c2 = c
         l0, l1, l2 = left
         m0, m1, m2 = right
-        up0, up1, up2, tb0, tb1, tb2, _, _, ts2 = held
+        up0, up1, up2, ue0, ue1, ue2, tb0, tb1, tb2, _, _, ts2 = held
         ff = c0 * c0 + c1 * c1 + c2 * c2
         th = 2.0 if ff == 0.0 else 2.0 * math.atan(math.sqrt(ff)) / math.sqrt(ff)
         work = 0.5 * th * ((l0 + m0) * c0 + (l1 + m1) * c1 + (l2 + m2) * c2)
         ang = hh * ((R[2, 0] + Rn[2, 0]) * tb0 + (R[2, 1] + Rn[2, 1]) * tb1 + (R[2, 2] + Rn[2, 2]) * tb2) + h * ts2
         if free:
             dr00, dr01, dr02 = dr0
-            work += up0 * dr00 + up1 * dr01 + up2 * dr02
-            ang += hh * ((2.0 * r[0, 0] + dr00) * up1 - (2.0 * r[0, 1] + dr01) * up0)
-            kahan_add(acc, accc, B_PIVOT_IMPULSE, h * up0)
-            kahan_add(acc, accc, B_PIVOT_IMPULSE + 1, h * up1)
-            kahan_add(acc, accc, B_PIVOT_IMPULSE + 2, h * up2)
+            u0 = 0.5 * (up0 + ue0)  # the mean force: u itself, bit for bit, when held
+            u1 = 0.5 * (up1 + ue1)
+            u2 = 0.5 * (up2 + ue2)
+            work += u0 * dr00 + u1 * dr01 + u2 * dr02
+            # h/2 (r_k x u_k + r_{k+1} x u_{k+1}) = h/2 ((2 r_k + dr) x u_bar + 1/2 dr x (u_{k+1} - u_k))
+            turning = 0.5 * (dr00 * (ue1 - up1) - dr01 * (ue0 - up0))
+            ang += hh * (((2.0 * r[0, 0] + dr00) * u1 - (2.0 * r[0, 1] + dr01) * u0) + turning)
+            kahan_add(acc, accc, B_PIVOT_IMPULSE, h * u0)
+            kahan_add(acc, accc, B_PIVOT_IMPULSE + 1, h * u1)
+            kahan_add(acc, accc, B_PIVOT_IMPULSE + 2, h * u2)
         kahan_add(acc, accc, B_WORK, work)
         kahan_add(acc, accc, B_ANGULAR_IMPULSE_Z, ang)
     kahan_add(acc, accc, B_GRAVITY_IMPULSE + 2, h * P.g * (P.M + P.Mp + n * P.m))  # weight along +e3
@@ -242,8 +254,9 @@ def input_balances(S, P, R, Rn, h, c, left, right, held, dr0, free, forced):
 @kernel(inline="always")
 def commit_string(S, W, h, held, fl, fr, free, forced, compensated):
     """Write the nodes' new positions and momenta (:func:`commit_node`) with the impulse
-    h/2 (fl + fr), the free pivot's row with its input impulse h u_p in the same compensated
-    sum; ``S.f`` becomes ``fr`` (the implicit step's first guess for the next)."""
+    h/2 (fl + fr), the free pivot's row with its input impulse h/2 (u_k + u_{k+1}) (h u, bit for
+    bit, for a held force) in the same compensated sum; ``S.f`` becomes ``fr`` (the implicit
+    step's first guess for the next)."""
     r = S.r
     p = S.p
     f = S.f
@@ -253,10 +266,10 @@ def commit_string(S, W, h, held, fl, fr, free, forced, compensated):
     fnext = fr
     start = first
     if free and forced:
-        up0, up1, up2 = held[0], held[1], held[2]
-        commit_node(r, p, S.rc, S.pc, f, fnext, fl, fr, W.X, W.Y, 0, 0, h * up0, hh, compensated)
-        commit_node(r, p, S.rc, S.pc, f, fnext, fl, fr, W.X, W.Y, 0, 1, h * up1, hh, compensated)
-        commit_node(r, p, S.rc, S.pc, f, fnext, fl, fr, W.X, W.Y, 0, 2, h * up2, hh, compensated)
+        up0, up1, up2, ue0, ue1, ue2, _, _, _, _, _, _ = held
+        commit_node(r, p, S.rc, S.pc, f, fnext, fl, fr, W.X, W.Y, 0, 0, hh * (up0 + ue0), hh, compensated)
+        commit_node(r, p, S.rc, S.pc, f, fnext, fl, fr, W.X, W.Y, 0, 1, hh * (up1 + ue1), hh, compensated)
+        commit_node(r, p, S.rc, S.pc, f, fnext, fl, fr, W.X, W.Y, 0, 2, hh * (up2 + ue2), hh, compensated)
         start = 1
     for a in range(start, n + 1):
         for i in range(3):
@@ -303,7 +316,7 @@ def commit_step(S, W, P, h, c, e, dr0, left, held, impulse, flags):
     On entry ``W.X`` holds the new positions, ``W.Y`` the increments dr (+ the remainders
     S.rc, when compensated), ``W.FmI`` = F_k - I for the Cayley vector ``c``; ``e`` = R_k^T
     dr_{N+1}, ``dr0`` the pivot's displacement (read when free and forced), ``left`` =
-    :func:`left_torque`'s (l, t) at R_k, ``held`` = :func:`held_inputs`'s (u_p, tau, T).
+    :func:`left_torque`'s (l, t) at R_k, ``held`` = :func:`held_inputs`'s (u_k, u_{k+1}, tau, T).
     ``impulse`` = (fl, fr), the forces whose mean times h is the string's impulse: (S.f, W.fn)
     for the explicit string, h/2 (f_k + f_{k+1}), with W.fn filled here; the step's own for the
     implicit string (its tensions at both ends) and the winch (with grad T0 and the convective
@@ -316,8 +329,8 @@ def commit_step(S, W, P, h, c, e, dr0, left, held, impulse, flags):
         return status
     next_attitude(S.R, S.Rc, W.FmI, W.RF, W.Rn, compensated)
     # the torque at the right end, tau_g(R_{k+1}) + tau^+ with tau^+ = tau + R_{k+1}^T T
-    m0, m1, m2, n0, n1, n2 = left_torque(W.Rn, P, held[3], held[4], held[5], held[6], held[7], held[8], forced,
-                                         coupled)
+    _, _, _, _, _, _, tb0, tb1, tb2, ts0, ts1, ts2 = held
+    m0, m1, m2, n0, n1, n2 = left_torque(W.Rn, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
     dP = body_momentum_increment(S.Pi, W.FmI, P, h, (left[3], left[4], left[5]), (n0, n1, n2), e, forced, coupled)
     if not np.isfinite(dP[0] + dP[1] + dP[2]):
         return NON_FINITE

@@ -247,7 +247,8 @@ def winch_substep(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, compens
         add_convective_forces(S.r, WA.coef, mu * v * v / (n * l0), fl, first)
     factor_tridiagonal(P, WA, m_mean, 0.5 * h * c, first, n, WA.inv, WA.cp, WA.w, WA.jeff, WA.lower, WA.upper,
                        WA.diag)
-    up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2 = held_inputs(inputs, forced)
+    held = held_inputs(inputs, forced)
+    up0, up1, up2, _, _, _, tb0, tb1, tb2, ts0, ts1, ts2 = held
     l_0, l_1, l_2, t0, t1, t2 = left_torque(S.R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
     step_solve(S, W, WA, c, hh, up0, up1, up2, free and forced, first, n)
     c0, c1, c2, e0, e1, e2, dr00, dr01, dr02, iters, status = rigid_increments(
@@ -266,7 +267,7 @@ def winch_substep(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, compens
         unsettled = switch_errors(S.r, W.X, st[WN_EA] / u0, u0, P1.kappa, P1.u, (l1 - l0) * st[WN_EA] / n, S.owed,
                                   W.switch)
     status = commit_step(S, W, P1, h, (c0, c1, c2), (e0, e1, e2), (dr00, dr01, dr02), (l_0, l_1, l_2, t0, t1, t2),
-                         (up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2), (fl, W.fn),
+                         held, (fl, W.fn),
                          (free, forced, coupled, compensated))
     if status == OK and unsettled > 0:
         settle_reeling_switches(S, P, WA, W, h, l1, c, first, n)

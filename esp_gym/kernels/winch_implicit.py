@@ -63,7 +63,8 @@ def winch_implicit_once(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, c
     u1 = l1 / n
     Pm = length_params(P, WA, 0.5 * (l0 + l1), m_mean, first, n, False)  # kappa = EA/ubar, u = ubar
     factor_tridiagonal(P, WA, m_mean, hh * c, first, n, WA.inv, WA.cp, WA.w, WA.jeff, WA.lower, WA.upper, WA.diag)
-    up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2 = held_inputs(inputs, forced)
+    held = held_inputs(inputs, forced)
+    up0, up1, up2, _, _, _, tb0, tb1, tb2, ts0, ts1, ts2 = held
     l_0, l_1, l_2, t0, t1, t2 = left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
     # the first guess: the explicit winch step (1w) with the last step's right forces
     theta0 = mu * v * v / (n * l0)
@@ -108,7 +109,7 @@ def winch_implicit_once(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, c
         add_convective_impulse(X, Y, coef, mu * v * v / (n * l1), c, h, fl, first)
     P1 = length_params(P, WA, l1, m_mean, first, n, False)
     status = commit_step(S, W, P1, h, (c0, c1, c2), (e0, e1, e2), (dr00, dr01, dr02), (l_0, l_1, l_2, t0, t1, t2),
-                         (up0, up1, up2, tb0, tb1, tb2, ts0, ts1, ts2), (W.fl, W.fr),
+                         held, (W.fl, W.fr),
                          (free, forced, coupled, compensated))
     if status == OK:  # the commit counted the weight at l1; the step's is at the mean length
         kahan_add(S.acc, S.accc, B_GRAVITY_IMPULSE + 2, h * P.g * n * (m_mean - P1.m))

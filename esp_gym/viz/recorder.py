@@ -239,6 +239,7 @@ class Recorder:
         self._last_newton = (total, steps)
         inputs = np.zeros(INPUTS.size)
         inputs[INPUTS["pivot_force"]] = 0.0 if pivot_force is None else pivot_force
+        inputs[INPUTS["pivot_force_end"]] = inputs[INPUTS["pivot_force"]]
         inputs[INPUTS["body_torque"]] = 0.0 if body_torque is None else body_torque
         state, _, _, diag = sim.buffers
         self.add_sample(state, diag, report=read_only(report), step=sim.step_count if step is None else step,
