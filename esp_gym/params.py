@@ -18,6 +18,7 @@ from typing import Any, Literal, Optional
 import numpy as np
 from pydantic import Field, ValidationError, field_validator, model_validator
 
+from .pivot_params import DroneParams, PivotParams  # noqa: F401  (re-exported)
 from .compositions import COMPOSITIONS, DEFAULT_FOR_ORDER, Composition
 from .scene_input import (ALIASES, BOUNDS, Count, Flag, Frozen as _Frozen, Real, SceneError, bounded,  # noqa: F401
                           is_yaml_path, matrix, merge_overrides, read_scene_file, validation_message, vector)
@@ -133,29 +134,6 @@ class BodyParams(_Frozen):
         if self.inertia is not None:
             return np.array(self.inertia, dtype=float)
         return attachment_inertia(float(self.mass), tuple(map(float, self.rho_c)), self.shape).copy()
-
-
-class PivotParams(_Frozen):
-    """Where the string is held. ``fixed``: the paper's pivot at ``position``. ``free``: node 1
-    is a point mass ``mass`` [kg] free in 3-D (a crane hook, a drone), starting at ``position``
-    with ``velocity`` [m/s], pushed by the pivot force input."""
-
-    kind: Literal["fixed", "free"] = "fixed"
-    position: Point3 = (0.0, 0.0, 0.0)
-    mass: Optional[Real] = bounded("mass", default=None, description="point mass of a free pivot [kg]")
-    velocity: Velocity3 = (0.0, 0.0, 0.0)
-
-    @model_validator(mode="after")
-    def _mass_iff_free(self) -> "PivotParams":
-        if self.kind == "free" and self.mass is None:
-            raise ValueError("a free pivot needs its point mass (pivot.mass > 0)")
-        if self.kind == "fixed" and (self.mass is not None or any(self.velocity)):
-            raise ValueError("pivot.mass and pivot.velocity belong to a free pivot (kind: free)")
-        return self
-
-    @property
-    def is_free(self) -> bool:
-        return self.kind == "free"
 
 
 class WinchParams(_Frozen):

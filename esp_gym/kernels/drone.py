@@ -1,37 +1,198 @@
-"""A drone's rotation at the default hook (docs/physics.md, "A drone at the pivot"): with the
-hook at the centre of mass the string exerts no torque on the drone, and its rotation is a free
-rigid body under the rotors' torque, stepped by the LGVI's own stages (the Cayley Newton of
-kernels/so3.py, the attitude and momentum updates of kernels/step_shared.py). The translation is
-the free pivot's, pushed by the thrust's impulses; this module is the rotation's half.
+"""A drone at the pivot (docs/physics.md, "A drone at the pivot"): its arrays (:class:`DroneArrays`,
+the constants :data:`DRONE`, the diagnostics :data:`DRONE_DIAG`), its step and its diagnostics.
+
+With the hook at the centre of mass the string exerts no torque on the drone, and its rotation
+is a free rigid body under the rotors' torque, stepped by the LGVI's own stages (the Cayley
+Newton of kernels/so3.py, the attitude and momentum updates of kernels/step_shared.py). Its
+translation is the free pivot's (node 0, of mass M_p = the drone's), pushed by the thrust
+-f R_q e3 taken at each end of the step. A step (:func:`drone_substep`): the rotors' lag over
+the step (kernels/rotors.py), their wrench at both ends, the rotation's solve, the string's
+step with the thrust pair, then the rotation's commit; a failure anywhere leaves all of it
+untouched.
 """
+from collections import namedtuple
+
+import math
+
 from .jit import kernel
+from .layout import B_ANGULAR_IMPULSE_Z, B_WORK, D_ENERGY, D_PI3, IN_PIVOT_FORCE, IN_PIVOT_FORCE_END, Layout
+from .loops import finish
+from .lgvi import lgvi_substep
+from .rotors import motor_lag, rotor_wrench
 from .so3 import cayley_minus_identity, cayley_newton
 from .status import NEWTON_FAILED, OK
-from .step_shared import commit_rotation, free_body_increment, next_attitude
+from .step_shared import commit_rotation, free_body_increment, next_attitude, torque_work
+from .string import nodal_forces
+from .sums import kahan_add
+
+#: The drone's constants: k_f [N s^2/rad^2], the motor lag's decays over a step e^(-h/t_up) and
+#: e^(-h/t_down) (0 for no lag), the largest rotor speed [rad/s] and the rate controller's gain
+#: K_Omega (3) [1/s].
+DRONE = Layout(("thrust_coefficient", 1), ("decay_up", 1), ("decay_down", 1), ("max_rotor_speed", 1),
+               ("rate_gain", 3))
+Q_THRUST_COEFFICIENT = DRONE.scalar("thrust_coefficient")
+Q_DECAY_UP = DRONE.scalar("decay_up")
+Q_DECAY_DOWN = DRONE.scalar("decay_down")
+Q_MAX_ROTOR_SPEED = DRONE.scalar("max_rotor_speed")
+Q_RATE_GAIN = DRONE.start("rate_gain")
+
+#: The drone's diagnostics (:func:`drone_diagnostics`): its rotational kinetic energy [J], its
+#: angular momentum about e3, e3 . R_q Pi_q [kg m^2/s], ||I - R_q^T R_q||_F, its body rates
+#: Omega_q (3) [rad/s], and the rotors' collective thrust [N] and body torque (3) [N m].
+DRONE_DIAG = Layout(("kinetic", 1), ("pi3", 1), ("orthogonality", 1), ("rates", 3), ("thrust", 1), ("torque", 3))
+QD_KINETIC = DRONE_DIAG.scalar("kinetic")
+QD_PI3 = DRONE_DIAG.scalar("pi3")
+QD_ORTHOGONALITY = DRONE_DIAG.scalar("orthogonality")
+QD_RATES = DRONE_DIAG.start("rates")
+QD_THRUST = DRONE_DIAG.scalar("thrust")
+QD_TORQUE = DRONE_DIAG.start("torque")
+
+#: A drone's arrays: attitude ``R`` (3, 3) and body angular momentum ``Pi`` (3,) [kg m^2/s]
+#: with their compensated-summation remainders ``Rc``, ``Pic``; the rotor speeds ``speed`` (4,)
+#: [rad/s] (state) and the motor commands ``command`` (4,) [rad/s], held over a step; the
+#: constants ``consts`` (:data:`DRONE`), ``inertia`` J_q and its inverse ``inertia_inv`` (3, 3)
+#: [kg m^2] about the hook, the mixer ``mixer`` A and ``allocation`` A^-1 (4, 4)
+#: (esp_gym/rotors.py); scratch: ``next_speed`` (4,), ``wrench`` (2, 4), the wrench (f, tau) at
+#: the step's start and end, ``scratch`` (4, 3, 3), Newton's Jacobian, F - I, R_k (F - I) and
+#: R_{k+1}; and ``diag`` (:data:`DRONE_DIAG`).
+DroneArrays = namedtuple("DroneArrays", "R Rc Pi Pic speed command consts inertia inertia_inv mixer allocation "
+                                        "next_speed wrench scratch diag")
 
 
 @kernel(forceinline=True)
-def attitude_step(body, inertia, h, torques, scratch, solver, compensated):
-    """One step of length ``h`` [s] of the drone's rotation: ``body`` = (R_q (3, 3), its
-    remainder Rc, Pi_q (3) [kg m^2/s], its remainder Pic), updated in place; ``inertia`` J_q
-    (3, 3) about the hook [kg m^2]; ``torques`` = (tau^-, tau^+), the left and right body torques
-    of the step (3 each, body frame [N m]: the rotors' torque from their speeds at k and at k+1,
-    docs/physics.md); ``scratch`` = (jac, FmI, RF, Rn), four 3x3 arrays; ``solver`` = (Newton's
-    relative tolerance, its iteration cap). Solves (F K - K F^T)^vee = h Pi_k + h^2/2 tau^-
-    (K = J_d, so J_eff = J_q) for F = cay(f), then R_{k+1} = R_k F and Pi_{k+1} by (4) in
-    increment form, compensated or plain. Returns ``(status, newton_iterations)``; a failed
-    Newton leaves the body untouched."""
-    R, Rc, Pi, Pic = body
+def attitude_solve(R, Rc, Pi, inertia, h, torques, scratch, solver, compensated):
+    """The rotation's half of a step, nothing committed: Newton on (F K - K F^T)^vee = h Pi_k +
+    h^2/2 tau^- (K = J_d, so J_eff = ``inertia`` J_q (3, 3) [kg m^2]) for F = cay(c), then
+    ``scratch`` = (jac, F - I, R_k (F - I) (+ Rc when ``compensated``), R_{k+1}) and dPi of (4)
+    in increment form. ``torques`` = (tau^-, tau^+), the left and right body torques (3 each,
+    body frame [N m]); ``solver`` = (Newton's relative tolerance, its iteration cap). Returns
+    ``(status, iterations, dPi, c)``."""
     left, right = torques
     jac, FmI, RF, Rn = scratch
     tol, max_iter = solver
     hh = 0.5 * h
-    f0, f1, f2, iterations, converged = cayley_newton(h * (Pi[0] + hh * left[0]), h * (Pi[1] + hh * left[1]),
+    c0, c1, c2, iterations, converged = cayley_newton(h * (Pi[0] + hh * left[0]), h * (Pi[1] + hh * left[1]),
                                                       h * (Pi[2] + hh * left[2]), inertia, tol, max_iter, jac)
     if not converged:
-        return NEWTON_FAILED, iterations
-    cayley_minus_identity(f0, f1, f2, FmI)
+        return NEWTON_FAILED, iterations, (0.0, 0.0, 0.0), (c0, c1, c2)
+    cayley_minus_identity(c0, c1, c2, FmI)
     next_attitude(R, Rc, FmI, RF, Rn, compensated)
     dP = free_body_increment(Pi, FmI, h, left, right, True)
-    commit_rotation(R, Rc, Pi, Pic, Rn, RF, dP, compensated)
-    return OK, iterations
+    return OK, iterations, dP, (c0, c1, c2)
+
+
+@kernel(forceinline=True)
+def attitude_step(body, inertia, h, torques, scratch, solver, compensated):
+    """One step of length ``h`` [s] of the drone's rotation alone: ``body`` = (R_q (3, 3), its
+    remainder Rc, Pi_q (3) [kg m^2/s], its remainder Pic), updated in place by
+    :func:`attitude_solve` and the commit, compensated or plain. Returns ``(status,
+    newton_iterations)``; a failed Newton leaves the body untouched."""
+    R, Rc, Pi, Pic = body
+    status, iterations, dP, _ = attitude_solve(R, Rc, Pi, inertia, h, torques, scratch, solver, compensated)
+    if status == OK:
+        _, _, RF, Rn = scratch
+        commit_rotation(R, Rc, Pi, Pic, Rn, RF, dP, compensated)
+    return status, iterations
+
+
+@kernel(inline="always")
+def rotor_ends(DR):
+    """The rotors over a step: ``DR.wrench[0]`` = (f, tau) at the state's speeds, ``DR.next_speed``
+    = the speeds one step later under the held commands (the exact lag), ``DR.wrench[1]`` at
+    those."""
+    consts = DR.consts
+    kf = consts[Q_THRUST_COEFFICIENT]
+    rotor_wrench(DR.speed, kf, DR.mixer, DR.wrench[0])
+    for i in range(4):
+        DR.next_speed[i] = motor_lag(DR.speed[i], DR.command[i], consts[Q_DECAY_UP], consts[Q_DECAY_DOWN])
+    rotor_wrench(DR.next_speed, kf, DR.mixer, DR.wrench[1])
+
+
+@kernel(inline="always")
+def drone_balances(S, R, Rn, h, c, left, right):
+    """The rotors' torque in the balances (``S.acc``): its work tau_avg . theta on the drone's
+    rotation (Cayley vector ``c``) and its angular impulse about e3,
+    e3 . h/2 (R_k tau^- + R_{k+1} tau^+) [J, kg m^2/s]; the thrust's are the pivot force's."""
+    kahan_add(S.acc, S.accc, B_WORK, torque_work(c, left, right))
+    hh = 0.5 * h
+    ang = hh * ((R[2, 0] * left[0] + R[2, 1] * left[1] + R[2, 2] * left[2])
+                + (Rn[2, 0] * right[0] + Rn[2, 1] * right[1] + Rn[2, 2] * right[2]))
+    kahan_add(S.acc, S.accc, B_ANGULAR_IMPULSE_Z, ang)
+
+
+@kernel(forceinline=True)
+def drone_substep(S, W, P, DR, inputs, h, coupled, compensated):
+    """One step of length ``h`` of the string, the load and the drone (module docstring), the motor
+    commands ``DR.command`` held; ``inputs`` (INPUTS) receives the thrust pair
+    u_k = -f_k R_{q,k} e3, u_{k+1} = -f_{k+1} R_{q,k+1} e3 (its torques are left as they are).
+    Returns ``(status, newton_iterations)``; on failure nothing has moved."""
+    rotor_ends(DR)
+    wl = DR.wrench[0]
+    wr = DR.wrench[1]
+    left = (wl[1], wl[2], wl[3])
+    right = (wr[1], wr[2], wr[3])
+    R = DR.R
+    status, iters, dP, c = attitude_solve(R, DR.Rc, DR.Pi, DR.inertia, h, (left, right), DR.scratch,
+                                          (P.tol, P.max_iter), compensated)
+    if status != OK:
+        return status, iters
+    Rn = DR.scratch[3]
+    for i in range(3):  # the thrust along -b3 at either end
+        inputs[IN_PIVOT_FORCE + i] = -wl[0] * R[i, 2]
+        inputs[IN_PIVOT_FORCE_END + i] = -wr[0] * Rn[i, 2]
+    status, string_iters = lgvi_substep(S, W, P, inputs, h, True, True, coupled, compensated)
+    if status != OK:
+        return status, iters + string_iters
+    drone_balances(S, R, Rn, h, c, left, right)
+    commit_rotation(R, DR.Rc, DR.Pi, DR.Pic, Rn, DR.scratch[2], dP, compensated)
+    for i in range(4):
+        DR.speed[i] = DR.next_speed[i]
+    return OK, iters + string_iters
+
+
+@kernel(entry=True)
+def drone_advance(S, W, P, DR, inputs, nsteps, stats, coupled):
+    """Take up to ``nsteps`` :func:`drone_substep` s of length ``P.h`` with the motor commands held;
+    stop at the first failure with the last good state. ``stats`` (int64, REPORT's first four):
+    status, steps taken, total and largest Newton iterations per step (the drone's and the
+    load's together)."""
+    nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
+    total = 0
+    most = 0
+    for k in range(nsteps):
+        status, iters = drone_substep(S, W, P, DR, inputs, P.h, coupled, P.compensated)
+        total += iters
+        most = max(most, iters)
+        if status != OK:
+            finish(stats, status, k, total, most)
+            return
+    finish(stats, OK, nsteps, total, most)
+
+
+@kernel(entry=True)
+def drone_diagnostics(DR, out):
+    """``DR.diag`` (:data:`DRONE_DIAG`) of the drone's state, and its share of the system's
+    diagnostics ``out`` (DIAG, the string's and the load's on entry): its rotational kinetic
+    energy 1/2 Pi_q . J_q^-1 Pi_q joins the energy, e3 . R_q Pi_q joins pi3."""
+    Pi = DR.Pi
+    R = DR.R
+    Ji = DR.inertia_inv
+    d = DR.diag
+    kinetic = 0.0
+    for i in range(3):
+        d[QD_RATES + i] = Ji[i, 0] * Pi[0] + Ji[i, 1] * Pi[1] + Ji[i, 2] * Pi[2]
+        kinetic += 0.5 * Pi[i] * d[QD_RATES + i]
+    orth = 0.0
+    for i in range(3):
+        for j in range(3):
+            s = R[0, i] * R[0, j] + R[1, i] * R[1, j] + R[2, i] * R[2, j] - (1.0 if i == j else 0.0)
+            orth += s * s
+    d[QD_KINETIC] = kinetic
+    d[QD_PI3] = R[2, 0] * Pi[0] + R[2, 1] * Pi[1] + R[2, 2] * Pi[2]
+    d[QD_ORTHOGONALITY] = math.sqrt(orth)
+    rotor_wrench(DR.speed, DR.consts[Q_THRUST_COEFFICIENT], DR.mixer, DR.wrench[0])
+    d[QD_THRUST] = DR.wrench[0, 0]
+    for i in range(3):
+        d[QD_TORQUE + i] = DR.wrench[0, 1 + i]
+    out[D_ENERGY] += kinetic
+    out[D_PI3] += d[QD_PI3]

@@ -1,13 +1,15 @@
 """The :class:`Layout` of a packed vector, and the physics' arrays by name: the stepper's
 structs and packed vectors. Every other owner keeps its own next to its code: the environment's
 (the action, targets, observation, reward terms, task parameters: kernels/env_arrays.py), the
-wind's (kernels/disturbance.py), a recording sample's (kernels/recording.py); the status and
-termination codes are kernels/status.py's.
+wind's (kernels/disturbance.py), a recording sample's (kernels/recording.py), a drone's
+(DroneArrays, its constants and diagnostics: kernels/drone.py); the status and termination codes
+are kernels/status.py's.
 
 Two kinds of structure cross the boundary between the compiled kernels and Python:
 
 * **namedtuples of arrays** (:class:`StateArrays`, :class:`Work`, :class:`LGVIParams`,
-  :class:`DiagWork`, :class:`WinchArrays`, :class:`Snapshots`; the environment's EnvArrays):
+  :class:`DiagWork`, :class:`WinchArrays`, :class:`Snapshots`; the environment's EnvArrays, a
+  drone's DroneArrays):
   numba types their fields by name;
 * **packed vectors** (here the diagnostics, the input balances, the winch's state, the inputs
   and the step report): each is a :class:`Layout` of named fields. Python reads them with

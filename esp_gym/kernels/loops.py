@@ -132,7 +132,7 @@ CHECKPOINT = 64
 
 
 @kernel
-def _finish(stats, status, steps, total, most):
+def finish(stats, status, steps, total, most):
     stats[R_STATUS] = status
     stats[R_STEPS] = steps
     stats[R_NEWTON_TOTAL] = total
@@ -257,7 +257,7 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
             if failed != OK or not composed:  # (a replayed step cannot fail: it did not before)
                 if disturbed:
                     kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, -hh, first)
-                _finish(stats, status, k, total, most)
+                finish(stats, status, k, total, most)
                 return
             failed = status
             target = k
@@ -269,7 +269,7 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
             kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, P.h if k < target else hh, first)
     if disturbed and failed != OK and target == k0:  # rewound to a checkpoint, no step to replay
         kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, -hh, first)
-    _finish(stats, failed, target, total, most)
+    finish(stats, failed, target, total, most)
 
 
 @kernel(inline="always")
@@ -306,11 +306,11 @@ def winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed, implicit
                 _rewind(S, W, WA, True)
             if disturbed:  # take the pending half kick back
                 kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, -hh, first)
-            _finish(stats, status, k, total, most)
+            finish(stats, status, k, total, most)
             return
         if disturbed:
             kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, P.h if k + 1 < nsteps else hh, first)
-    _finish(stats, OK, nsteps, total, most)
+    finish(stats, OK, nsteps, total, most)
 
 
 def shared_advance_loop(implicit: bool):
@@ -356,7 +356,7 @@ def record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled, c
             total += stats[R_NEWTON_TOTAL]
             most = max(most, stats[R_NEWTON_MAX])
             if stats[R_STATUS] != OK:
-                _finish(stats, stats[R_STATUS], k + stats[R_STEPS], total, most)
+                finish(stats, stats[R_STATUS], k + stats[R_STEPS], total, most)
                 return
             k += chunk
             if per_step:
@@ -380,7 +380,7 @@ def record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled, c
             snap.strain[j, i] = D.strain[i]
         for i in range(S.acc.shape[0]):
             snap.acc[j, i] = S.acc[i]
-    _finish(stats, OK, k, total, most)
+    finish(stats, OK, k, total, most)
 
 
 @kernel(entry=True)

@@ -211,6 +211,19 @@ def body_momentum_increment(Pi, FmI, P, h, t, n, e, forced, coupled):
 
 
 @kernel(inline="always")
+def torque_work(c, left, right):
+    """The discrete work tau_avg . theta [J] of a body torque over a step: theta the rotation
+    vector of F = cay(c) from the Cayley vector ``c``, tau_avg = (tau^- + tau^+)/2 from the
+    torques ``left`` and ``right`` (body frame [N m])."""
+    c0, c1, c2 = c
+    l0, l1, l2 = left
+    m0, m1, m2 = right
+    ff = c0 * c0 + c1 * c1 + c2 * c2
+    th = 2.0 if ff == 0.0 else 2.0 * math.atan(math.sqrt(ff)) / math.sqrt(ff)
+    return 0.5 * th * ((l0 + m0) * c0 + (l1 + m1) * c1 + (l2 + m2) * c2)
+
+
+@kernel(inline="always")
 def input_balances(S, P, R, Rn, h, c, left, right, held, dr0, free, forced):
     """The inputs' balances over the step, before r and R move: the discrete work
     u_bar . dr_0 + tau_avg . theta (u_bar = (u_k + u_{k+1})/2 the pivot force's mean, theta the
@@ -226,13 +239,8 @@ def input_balances(S, P, R, Rn, h, c, left, right, held, dr0, free, forced):
     hh = 0.5 * h
     n = r.shape[0] - 1
     if forced:
-        c0, c1, c2 = c
-        l0, l1, l2 = left
-        m0, m1, m2 = right
         up0, up1, up2, ue0, ue1, ue2, tb0, tb1, tb2, _, _, ts2 = held
-        ff = c0 * c0 + c1 * c1 + c2 * c2
-        th = 2.0 if ff == 0.0 else 2.0 * math.atan(math.sqrt(ff)) / math.sqrt(ff)
-        work = 0.5 * th * ((l0 + m0) * c0 + (l1 + m1) * c1 + (l2 + m2) * c2)
+        work = torque_work(c, left, right)
         ang = hh * ((R[2, 0] + Rn[2, 0]) * tb0 + (R[2, 1] + Rn[2, 1]) * tb1 + (R[2, 2] + Rn[2, 2]) * tb2) + h * ts2
         if free:
             dr00, dr01, dr02 = dr0

@@ -1,0 +1,162 @@
+"""A drone at the pivot, the Python face: :class:`DroneSimulator` steps a scene whose ``pivot.kind``
+is ``drone`` (esp_gym/pivot_params.py) with the compiled step of esp_gym/kernels/drone.py, the
+rotors driven by motor commands or a wrench (docs/physics.md, "A drone at the pivot").
+
+The drone's hook is its centre of mass; the string is explicit, of order 2, at a fixed length.
+"""
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+
+from .kernels.drone import DRONE, DRONE_DIAG, DroneArrays, drone_advance, drone_diagnostics
+from .kernels.layout import DIAG
+from .model import ROTATION_TOL, Simulator
+from .params import Scene, check_rotation
+
+#: The drone's state: attitude R_q (3, 3) (body to spatial), body angular momentum Pi_q (3,)
+#: [kg m^2/s] about the hook, and the rotor speeds (4,) [rad/s].
+DroneState = namedtuple("DroneState", "R Pi rotor_speeds")
+
+
+def drone_arrays(scene: Scene) -> DroneArrays:
+    """A :class:`DroneArrays` for ``scene``'s drone, level (R_q = I), not turning, its rotors and
+    their commands at the speed whose thrust carries the whole rig (drone, string and load)."""
+    drone = scene.pivot.drone
+    J = drone.inertia_matrix()
+    consts = np.zeros(DRONE.size)
+    consts[DRONE.scalar("thrust_coefficient")] = drone.thrust_coefficient
+    consts[DRONE.scalar("decay_up")], consts[DRONE.scalar("decay_down")] = drone.decays(scene.h)
+    consts[DRONE.scalar("max_rotor_speed")] = drone.max_rotor_speed
+    consts[DRONE["rate_gain"]] = drone.rate_gain
+    hover = drone.rotor_speed_for(scene.gravity * carried_mass(scene))
+    z = np.zeros
+    return DroneArrays(R=np.eye(3), Rc=z((3, 3)), Pi=z(3), Pic=z(3), speed=np.full(4, hover),
+                       command=np.full(4, hover), consts=consts, inertia=J, inertia_inv=np.linalg.inv(J),
+                       mixer=drone.mixer(), allocation=drone.allocation(), next_speed=z(4), wrench=z((2, 4)),
+                       scratch=z((4, 3, 3)), diag=z(DRONE_DIAG.size))
+
+
+def carried_mass(scene: Scene) -> float:
+    """The rig's mass [kg]: the drone (``pivot.mass``), the string and the load."""
+    return float(scene.pivot.mass + scene.string.mass_per_length * scene.string.length + scene.body.mass)
+
+
+class DroneSimulator(Simulator):
+    """A :class:`~esp_gym.model.Simulator` whose pivot is a drone (``pivot.kind: drone``).
+
+    >>> sim = DroneSimulator(load_scene("quadrotor_load"))
+    >>> sim.step(100)                             # hover: the rotors at the rig's hover speed
+    >>> sim.step(100, rotor_commands=[...])       # four motor commands [rad/s]
+    >>> sim.step(100, thrust=20.0, torque=[0, 0.01, 0])  # a wrench, through A^-1
+    >>> sim.diagnostics()["orthogonality_drone"]
+    """
+
+    def __init__(self, scene: Scene, specialise: bool = True):
+        if not scene.pivot.is_drone:
+            raise ValueError(f"DroneSimulator needs pivot.kind: drone; scene {scene.name!r} has "
+                             f"{scene.pivot.kind!r} (use Simulator)")
+        if scene.solver.string != "explicit" or scene.solver.scheme.order != 2:
+            raise ValueError(f"a drone's scene takes the explicit string of order 2 for now; scene {scene.name!r} "
+                             f"has solver.string {scene.solver.string!r} of order {scene.solver.scheme.order}")
+        #: The drone's arrays (esp_gym/kernels/drone.py), advanced by the compiled step.
+        self.drone = drone_arrays(scene)
+        super().__init__(scene, specialise)
+        self._coupled = bool(np.any(self.params.rho != 0.0))
+
+    # -- state ------------------------------------------------------------------------------
+    @property
+    def drone_state(self) -> DroneState:
+        """A copy of the drone's state (:data:`DroneState`)."""
+        d = self.drone
+        return DroneState(d.R.copy(), d.Pi.copy(), d.speed.copy())
+
+    def set_drone_state(self, R=None, Pi=None, rotor_speeds=None) -> None:
+        """Replace parts of the drone's state (``None`` keeps a part): R_q a rotation to
+        ``ROTATION_TOL``, Pi_q (3,) [kg m^2/s], rotor speeds (4,) in [0, max_rotor_speed]
+        [rad/s]; the remainders are cleared and the balances restart."""
+        d = self.drone
+        if R is not None:
+            R = self._finite("R", R, (3, 3))
+            check_rotation("R", R, ROTATION_TOL)
+            d.R[...] = R
+            d.Rc[...] = 0.0
+        if Pi is not None:
+            d.Pi[...] = self._finite("Pi", Pi, (3,))
+            d.Pic[...] = 0.0
+        if rotor_speeds is not None:
+            d.speed[...] = self._speeds("rotor_speeds", rotor_speeds)
+        self.reset_balances()
+
+    @staticmethod
+    def _finite(name: str, value, shape: tuple) -> np.ndarray:
+        arr = np.asarray(value, dtype=np.float64)
+        if arr.shape != shape or not np.all(np.isfinite(arr)):
+            raise ValueError(f"{name} must be finite of shape {shape}, got {value!r}")
+        return arr
+
+    def _speeds(self, name: str, value) -> np.ndarray:
+        speeds = self._finite(name, value, (4,))
+        top = self.scene.pivot.drone.max_rotor_speed
+        if np.any(speeds < 0.0) or np.any(speeds > top):
+            raise ValueError(f"{name} must lie in [0, max_rotor_speed = {top:g}] rad/s, got {speeds.tolist()}")
+        return speeds
+
+    def commands_for(self, thrust: float, torque=(0.0, 0.0, 0.0)) -> np.ndarray:
+        """The motor commands [rad/s] whose rotor thrusts A^-1 (f, tau), clipped to [0, k_f
+        omega_max^2], make the collective ``thrust`` [N] and body ``torque`` [N m]."""
+        wrench = np.concatenate([[float(thrust)], self._finite("torque", torque, (3,))])
+        drone = self.scene.pivot.drone
+        thrusts = np.clip(self.drone.allocation @ wrench, 0.0, drone.thrust_coefficient * drone.max_rotor_speed ** 2)
+        return np.sqrt(thrusts / drone.thrust_coefficient)
+
+    # -- stepping ---------------------------------------------------------------------------
+    def step(self, n: int = 1, rotor_commands=None, thrust=None, torque=None) -> None:
+        """Advance ``n`` steps with the motor commands held: ``rotor_commands`` (4,) [rad/s] in
+        [0, max_rotor_speed], or a wrench, ``thrust`` [N] and ``torque`` (3,) [N m] (body frame),
+        made by :meth:`commands_for`; neither keeps the commands of the last call (at first the
+        rig's hover). Raises :class:`~esp_gym.errors.SimulationError` on failure (the simulator
+        then holds the last good state)."""
+        n = int(n)
+        if n < 0:
+            raise ValueError(f"n must be >= 0, got {n}")
+        if rotor_commands is not None and (thrust is not None or torque is not None):
+            raise ValueError("give rotor_commands or a wrench (thrust, torque), not both")
+        if rotor_commands is not None:
+            self.drone.command[...] = self._speeds("rotor_commands", rotor_commands)
+        elif thrust is not None or torque is not None:
+            self.drone.command[...] = self.commands_for(0.0 if thrust is None else thrust,
+                                                        (0.0, 0.0, 0.0) if torque is None else torque)
+        while n > 0:
+            k = min(n, self.steps_per_call)
+            n -= k
+            self._timed(drone_advance, (self._arrays, self._work, self.params, self.drone, self._inputs, k,
+                                        self._stats, self._coupled), k)
+
+    def run(self, *args, **kwargs):
+        raise NotImplementedError("DroneSimulator records no trajectory yet: call step() and diagnostics()")
+
+    # -- diagnostics ------------------------------------------------------------------------
+    def _update_diag(self) -> float:
+        super()._update_diag()
+        drone_diagnostics(self.drone, self._diag.out)
+        return float(self._diag.out[DIAG.scalar("energy")])
+
+    def diagnostics(self) -> dict:
+        """:meth:`Simulator.diagnostics` of the whole rig (energy and pi3 include the drone's
+        rotation; work, the angular impulse and the pivot impulse the rotors' thrust and torque),
+        plus the drone's: kinetic_drone [J], pi3_drone [kg m^2/s], orthogonality_drone, thrust [N];
+        vectors drone_rates (body frame) [rad/s], drone_torque [N m], rotor_speeds (4,) [rad/s],
+        and drone_attitude R_q (3, 3)."""
+        out = super().diagnostics()
+        d = self.drone.diag
+        for name in ("kinetic", "pi3", "orthogonality"):
+            out[f"{name}_drone"] = float(d[DRONE_DIAG.scalar(name)])
+        out["thrust"] = float(d[DRONE_DIAG.scalar("thrust")])
+        out["drone_rates"] = d[DRONE_DIAG["rates"]].copy()
+        out["drone_torque"] = d[DRONE_DIAG["torque"]].copy()
+        out["rotor_speeds"] = self.drone.speed.copy()
+        out["drone_attitude"] = self.drone.R.copy()
+        return out
+

@@ -1,0 +1,113 @@
+"""The pivot's scene section (``pivot``): a fixed point, a free point mass, or a drone, whose own
+parameters are ``pivot.drone`` (docs/physics.md, "The pivot" and "A drone at the pivot";
+docs/scenes.md). A drone's mass is ``pivot.mass``; its hook is its centre of mass; its rotors are
+an X layout (esp_gym/rotors.py).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from typing import Literal, Optional
+
+from pydantic import Field, model_validator
+
+from .rotors import X_SPINS, allocation, mixer, x_layout
+from .scene_input import Frozen, Real, bounded, vector
+
+#: Positive per-axis values (principal inertias [kg m^2], rate gains [1/s]).
+Positive3 = vector()
+Point3 = vector("coordinate")
+Velocity3 = vector("speed")
+
+
+class DroneParams(Frozen):
+    """A quadrotor at the pivot: body, rotors, motors and the onboard rate controller, SI units.
+    Rotor i pushes with k_f omega_i^2 [N] along -b3 and twists the body with k_m omega_i^2
+    [N m] about b3; its motor follows the commanded speed with the first-order lag t_up
+    (spinning up) or t_down (spinning down); 0 makes the speed the command."""
+
+    inertia: Positive3 = Field(description="principal moments of inertia about the centre of mass, body axes "
+                                           "b1 (forward), b2 (right), b3 (down) [kg m^2]")
+    arm_length: Real = Field(gt=0.0, le=1e3, description="centre of mass -> rotor axis [m] (X layout)")
+    thrust_coefficient: Real = Field(gt=0.0, le=1e3, description="k_f: rotor thrust / omega^2 [N s^2/rad^2]")
+    torque_coefficient: Real = Field(gt=0.0, le=1e3, description="k_m: rotor drag torque / omega^2 [N m s^2/rad^2]")
+    max_rotor_speed: Real = Field(gt=0.0, le=1e6, description="largest rotor speed [rad/s]")
+    motor_time_constant_up: Real = Field(0.0, ge=0.0, le=1e3, description="motor lag spinning up [s]")
+    motor_time_constant_down: Real = Field(0.0, ge=0.0, le=1e3, description="motor lag spinning down [s]")
+    rate_gain: Positive3 = Field((20.0, 20.0, 10.0), description="the rate controller's K_Omega per body axis "
+                                                                 "[1/s] (docs/physics.md, 'Actuation and the "
+                                                                 "rate controller')")
+
+    @model_validator(mode="after")
+    def _a_rigid_body_with_invertible_rotors(self) -> "DroneParams":
+        for name in ("inertia", "rate_gain"):
+            value = getattr(self, name)
+            if not all(v > 0.0 for v in value):
+                raise ValueError(f"pivot.drone.{name} must be three values > 0, got {list(value)}")
+        J = self.inertia
+        if not (J[0] + J[1] >= J[2] and J[1] + J[2] >= J[0] and J[2] + J[0] >= J[1]):
+            raise ValueError(f"pivot.drone.inertia {list(J)} breaks the triangle inequality of principal "
+                             "moments: no rigid body has it")
+        self.mixer()  # an invertible layout, or ValueError naming it
+        return self
+
+    def inertia_matrix(self) -> np.ndarray:
+        """J_q (3, 3) about the centre of mass (the hook) [kg m^2]."""
+        return np.diag(np.asarray(self.inertia, dtype=np.float64))
+
+    def mixer(self) -> np.ndarray:
+        """A (4, 4): (f [N], tau [N m]) = A (T_1..T_4) for the X layout (esp_gym/rotors.py)."""
+        return mixer(x_layout(self.arm_length), X_SPINS, self.torque_coefficient / self.thrust_coefficient)
+
+    def allocation(self) -> np.ndarray:
+        """A^-1 (4, 4): the rotor thrusts [N] of a wrench (f [N], tau [N m])."""
+        return allocation(self.mixer())
+
+    @property
+    def max_thrust(self) -> float:
+        """The collective thrust of all four rotors at full speed [N]."""
+        return 4.0 * self.thrust_coefficient * self.max_rotor_speed ** 2
+
+    def rotor_speed_for(self, thrust: float) -> float:
+        """The common rotor speed [rad/s] whose four rotors push with ``thrust`` [N] together."""
+        return math.sqrt(max(thrust, 0.0) / (4.0 * self.thrust_coefficient))
+
+    def decays(self, h: float) -> tuple:
+        """(e^(-h/t_up), e^(-h/t_down)) of the motor lag over a step ``h`` [s] (0 for t = 0)."""
+        return tuple(0.0 if t == 0.0 else math.exp(-h / t)
+                     for t in (self.motor_time_constant_up, self.motor_time_constant_down))
+
+
+class PivotParams(Frozen):
+    """Where the string is held. ``fixed``: the paper's pivot at ``position``. ``free``: node 1
+    is a point mass ``mass`` [kg] free in 3-D (a crane hook, a drone), starting at ``position``
+    with ``velocity`` [m/s], pushed by the pivot force input. ``drone``: node 1 is a quadrotor's
+    hook at its centre of mass, of mass ``mass``, flown by its rotors (``drone``:
+    esp_gym/drone_params.py; docs/physics.md, "A drone at the pivot")."""
+
+    kind: Literal["fixed", "free", "drone"] = "fixed"
+    position: Point3 = (0.0, 0.0, 0.0)
+    mass: Optional[Real] = bounded("mass", default=None, description="point mass of a free pivot [kg]")
+    velocity: Velocity3 = (0.0, 0.0, 0.0)
+    drone: Optional[DroneParams] = None
+
+    @model_validator(mode="after")
+    def _mass_iff_free(self) -> "PivotParams":
+        if self.kind != "fixed" and self.mass is None:
+            raise ValueError(f"a {self.kind} pivot needs its mass (pivot.mass > 0)")
+        if self.kind == "fixed" and (self.mass is not None or any(self.velocity)):
+            raise ValueError("pivot.mass and pivot.velocity belong to a free pivot (kind: free or drone)")
+        if (self.kind == "drone") != (self.drone is not None):
+            raise ValueError("pivot.drone (the quadrotor's parameters) belongs to pivot.kind: drone, and it needs "
+                             f"them; got kind {self.kind!r} with{'' if self.drone is not None else 'out'} pivot.drone")
+        return self
+
+    @property
+    def is_free(self) -> bool:
+        """Node 1 moves: a point mass or a drone."""
+        return self.kind != "fixed"
+
+    @property
+    def is_drone(self) -> bool:
+        return self.kind == "drone"
