@@ -29,6 +29,8 @@ from .kernels.disturbance import DISTURBANCE, DISTURBANCE_PARAMS, DRAWS
 from .kernels.string import state_forces
 from .kernels.env_arrays import FEATURES, EnvArrays
 from .kernels.env_step import ENTRY_POINTS, actions_finite, env_reset_observe
+from .kernels.drone_env import DRONE_ENTRY_POINTS, DRONE_SENSORS, drone_reset_observe
+from .drone import DroneSimulator, hover_at_rest, use_drone_scene
 from .model import Simulator
 from .options import check_count
 from .setup import Episode, EnvSetup
@@ -95,16 +97,21 @@ class ControlStep:
         self.num_envs = None if num_envs is None else check_count("num_envs", num_envs)
         batch = () if self.num_envs is None else (self.num_envs,)
         check_memory(setup.scene.string.elements, self.num_envs)
-        #: The simulator stepped in place (one environment), or the template of the batch's arrays.
-        self.sim = Simulator(setup.scene)
+        #: The simulator stepped in place (one environment), or the template of the batch's arrays;
+        #: a :class:`~esp_gym.drone.DroneSimulator` with a drone at the pivot.
+        self.sim = DroneSimulator(setup.scene) if setup.drone else Simulator(setup.scene)
         state, work, params, diag = self.sim.buffers
         winch = self.sim.winch.arrays  # the winch's (read only with winch=True)
+        #: The drone's arrays (kernels/drone.py; a batch's stacked), or None without a drone.
+        self._drone = self.sim.drone if setup.drone else None
         nominal = setup.nominal_episode
         if batch:
             def stack(t):
                 return type(t)(*(np.zeros(batch + a.shape) for a in t))
 
             state, work, diag, winch = stack(state), stack(work), stack(diag), stack(winch)
+            if setup.drone:  # its constants in every row, as the template's
+                self._drone = type(self._drone)(*(np.repeat(a[None], self.num_envs, axis=0) for a in self._drone))
             winch.coef[...] = self.sim.winch.arrays.coef
             # every constant per sub-environment (scalars become (num_envs,) arrays of their type)
             params = LGVIParams(*(np.repeat(np.asarray(v)[None], self.num_envs, axis=0) for v in params))
@@ -120,7 +127,7 @@ class ControlStep:
         self._obs = z(batch + ((WINCH_OBSERVATION if setup.winch else OBSERVATION).size,))
         self._terms = z(batch + (REWARD.size,))
         self._report = z(batch + (REPORT.size,), dtype=np.int64)
-        self._sensors = z(batch + (SENSORS.size,))
+        self._sensors = z(batch + ((DRONE_SENSORS if setup.drone else SENSORS).size,))
         self._features = z(batch + (FEATURES.size,))
         # actions on their way (oldest first): each step applies the oldest and queues the new one
         self._pending = z(batch + (setup.action_latency, setup.action_size))
@@ -139,7 +146,8 @@ class ControlStep:
         self._rngs = [None] * (self.num_envs or 1)  # each (sub-)environment's generator, for more draws
         self._windy = setup.wind is not None
         #: the compiled step and batched step (kernels/env_step.py), and their ``scheme``
-        self._step_kernel, self._batch_kernel = ENTRY_POINTS[(bool(setup.winch), bool(self.sim.implicit))]
+        self._step_kernel, self._batch_kernel = (DRONE_ENTRY_POINTS if setup.drone
+                                                 else ENTRY_POINTS[(bool(setup.winch), bool(self.sim.implicit))])
         self._scheme = SCHEME_DISTURBED if self._windy else 0
         self._was_reset = z(batch, dtype=bool)  # stepping a state that was never set is an error
         self._ready = False  # all of _was_reset, kept as a bool: step checks it every call
@@ -156,6 +164,7 @@ class ControlStep:
         # plain tuples: numba's dispatcher types them ~2x faster than namedtuples (kernels/env_step.py)
         self._kernel_tuples = (tuple(self._state), tuple(self._work), tuple(self._params), tuple(self._diag),
                                tuple(self._winch), tuple(self._env_arrays()))
+        self._drone_tuple = None if self._drone is None else tuple(self._drone)
         self.observation = read_only(self._obs)
         self.reward_terms = read_only(self._terms)
         self.action = read_only(self._action)
@@ -168,7 +177,7 @@ class ControlStep:
         self.disturbance = read_only(self._disturbance)
 
     # a pickled view would come back as a copy: pickle the arrays, rebuild the views
-    _VIEWS = ("_kernel_tuples", "observation", "reward_terms", "action", "inputs", "target", "report", "sensors",
+    _VIEWS = ("_kernel_tuples", "_drone_tuple", "observation", "reward_terms", "action", "inputs", "target", "report", "sensors",
               "features", "scene_params", "disturbance")
 
     def __getstate__(self) -> dict:
@@ -217,6 +226,8 @@ class ControlStep:
         else:
             for stacked, value in zip(self._params, episode.params):
                 stacked[index] = value
+            if self._drone is not None:
+                use_drone_scene(type(self._drone)(*(a[index] for a in self._drone)), episode.scene)
             self.scenes[index] = episode.scene
             self._substeps[index] = episode.substeps
         row = () if index is None else index
@@ -233,6 +244,10 @@ class ControlStep:
             raise ValueError("index is for batches (num_envs given), and a batch needs it")
         if episode is not None:
             self._use_episode(episode, None if index is None else int(index))
+        DR = None
+        if self._drone is not None:  # before the state: the simulator's balances start with it
+            DR = self._drone if index is None else type(self._drone)(*(a[int(index)] for a in self._drone))
+            hover_at_rest(DR, self.sim.scene if index is None else self.scenes[int(index)])
         if self.num_envs is None:
             self.sim.set_state(state, check=False)  # built for this scene, as the batch's rows below
             S, D, P, E = self._state, self._diag, self._params, self._env_arrays()
@@ -254,6 +269,8 @@ class ControlStep:
         if not self._ready:
             self._was_reset[() if index is None else int(index)] = True
             self._ready = bool(self._was_reset.all())
+        if DR is not None:
+            return int(drone_reset_observe(S, P, D, DR, E))
         WA = self.sim.winch.arrays if index is None else type(self._winch)(*(a[int(index)] for a in self._winch))
         return int(env_reset_observe(S, P, D, WA, E, self.setup.winch))
 
@@ -277,7 +294,9 @@ class ControlStep:
             if self._windy and self._drawn[0] == BLOCK:
                 self._draws[...] = Wind.draws(self._rngs[0])
                 self._drawn[0] = 0
-            if not self._step_kernel(s, w, p, d, wa, e, raw, self._scheme):
+            q = self._drone_tuple
+            if not (self._step_kernel(s, w, p, d, wa, e, raw, self._scheme) if q is None
+                    else self._step_kernel(s, w, p, d, e, q, raw, self._scheme)):
                 raise ValueError(f"action must be finite, got {raw.tolist()}")
             self.sim.count_steps(self._report)
             return
@@ -294,7 +313,10 @@ class ControlStep:
             for i in np.flatnonzero(self._drawn[:, 0] == BLOCK):
                 self._draws[i] = Wind.draws(self._rngs[i])
                 self._drawn[i] = 0
-        self._batch_kernel(s, w, p, d, wa, e, raw, active, self._scheme)
+        if self._drone_tuple is None:
+            self._batch_kernel(s, w, p, d, wa, e, raw, active, self._scheme)
+        else:
+            self._batch_kernel(s, w, p, d, e, self._drone_tuple, raw, active, self._scheme)
 
     @staticmethod
     def _delay(raw: np.ndarray, pending: np.ndarray) -> np.ndarray:

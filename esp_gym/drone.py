@@ -21,21 +21,44 @@ DroneState = namedtuple("DroneState", "R Pi rotor_speeds")
 
 
 def drone_arrays(scene: Scene) -> DroneArrays:
-    """A :class:`DroneArrays` for ``scene``'s drone, level (R_q = I), not turning, its rotors and
-    their commands at the speed whose thrust carries the whole rig (drone, string and load)."""
+    """A :class:`DroneArrays` for ``scene``'s drone (:func:`use_drone_scene`), at rest
+    (:func:`hover_at_rest`)."""
+    z = np.zeros
+    arrays = DroneArrays(R=z((3, 3)), Rc=z((3, 3)), Pi=z(3), Pic=z(3), speed=z(4), command=z(4), setpoint=z(4),
+                         consts=z(DRONE.size), inertia=z((3, 3)), inertia_inv=z((3, 3)), mixer=z((4, 4)),
+                         allocation=z((4, 4)), next_speed=z(4), wrench=z((2, 4)), scratch=z((4, 3, 3)),
+                         diag=z(DRONE_DIAG.size))
+    use_drone_scene(arrays, scene)
+    hover_at_rest(arrays, scene)
+    return arrays
+
+
+def use_drone_scene(arrays: DroneArrays, scene: Scene) -> None:
+    """Write ``scene``'s drone into the constants of ``arrays`` (:data:`DRONE` with the motor lag's
+    decays over ``scene.h``, J_q and its inverse, the mixer and its inverse)."""
     drone = scene.pivot.drone
     J = drone.inertia_matrix()
-    consts = np.zeros(DRONE.size)
+    consts = arrays.consts
     consts[DRONE.scalar("thrust_coefficient")] = drone.thrust_coefficient
     consts[DRONE.scalar("decay_up")], consts[DRONE.scalar("decay_down")] = drone.decays(scene.h)
     consts[DRONE.scalar("max_rotor_speed")] = drone.max_rotor_speed
     consts[DRONE["rate_gain"]] = drone.rate_gain
-    hover = drone.rotor_speed_for(scene.gravity * carried_mass(scene))
-    z = np.zeros
-    return DroneArrays(R=np.eye(3), Rc=z((3, 3)), Pi=z(3), Pic=z(3), speed=np.full(4, hover),
-                       command=np.full(4, hover), consts=consts, inertia=J, inertia_inv=np.linalg.inv(J),
-                       mixer=drone.mixer(), allocation=drone.allocation(), next_speed=z(4), wrench=z((2, 4)),
-                       scratch=z((4, 3, 3)), diag=z(DRONE_DIAG.size))
+    arrays.inertia[...] = J
+    arrays.inertia_inv[...] = np.linalg.inv(J)
+    arrays.mixer[...] = drone.mixer()
+    arrays.allocation[...] = drone.allocation()
+
+
+def hover_at_rest(arrays: DroneArrays, scene: Scene) -> None:
+    """The drone level (R_q = I) and not turning, its remainders cleared, its rotors and their
+    commands at the speed whose thrust carries the whole rig (drone, string and load), the
+    setpoint cleared."""
+    hover = scene.pivot.drone.rotor_speed_for(scene.gravity * carried_mass(scene))
+    arrays.R[...] = np.eye(3)
+    for a in (arrays.Rc, arrays.Pi, arrays.Pic, arrays.setpoint):
+        a[...] = 0.0
+    arrays.speed[...] = hover
+    arrays.command[...] = hover
 
 
 def carried_mass(scene: Scene) -> float:
@@ -64,6 +87,13 @@ class DroneSimulator(Simulator):
         self.drone = drone_arrays(scene)
         super().__init__(scene, specialise)
         self._coupled = bool(np.any(self.params.rho != 0.0))
+
+    def use_scene(self, scene: Scene, params=None) -> None:
+        """:meth:`Simulator.use_scene`, the drone's constants too (its motor lag over the new h)."""
+        if not scene.pivot.is_drone:
+            raise ValueError(f"use_scene: pivot.kind must stay 'drone', got {scene.pivot.kind!r}")
+        super().use_scene(scene, params)
+        use_drone_scene(self.drone, scene)
 
     # -- state ------------------------------------------------------------------------------
     @property

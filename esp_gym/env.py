@@ -136,11 +136,12 @@ class ElasticStringPendulumEnv(gym.Env):
                  scene_overrides: Optional[dict] = None, render_mode: Optional[str] = None,
                  randomize: Union[bool, dict, None] = None, observation: Optional[str] = None,
                  sensor_noise: Union[float, dict, None] = None, action_latency: Optional[int] = None,
-                 wind: Union[float, dict, None] = None, preset: Optional[str] = None, winch: Optional[bool] = None):
+                 wind: Union[float, dict, None] = None, preset: Optional[str] = None, winch: Optional[bool] = None,
+                 actuation: Optional[str] = None):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.setup = make_setup(scene, task, control_period, h, safety, force_limit, torque_limit, scene_overrides,
-                                randomize, observation, sensor_noise, action_latency, wind, preset, winch)
+                                randomize, observation, sensor_noise, action_latency, wind, preset, winch, actuation)
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.setup.control_period))}
         self.observation_space = self.setup.observation_space

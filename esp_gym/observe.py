@@ -6,7 +6,8 @@
   relative to it, no load state.
 
 Both are gathered by name from the step's OBSERVATION and SENSORS vectors; with a winch
-(``winch=True``) each ends with the unstretched length (WINCH_OBSERVATION). ``sensor_noise`` adds
+(``winch=True``) each ends with the unstretched length (WINCH_OBSERVATION), and with a drone at the
+pivot with the drone's attitude and body rates (DRONE_SENSORS: kernels/drone_env.py). ``sensor_noise`` adds
 Gaussian noise drawn from the environment's ``np_random`` after every reset and step: a float s
 gives each field s times its :data:`UNIT_NOISE` standard deviation, a mapping field -> standard
 deviation (in the field's unit) sets fields of its own (the others noiseless).
@@ -19,6 +20,7 @@ from typing import Any, Mapping, Union
 import numpy as np
 
 from .kernels.layout import Layout
+from .kernels.drone_env import DRONE_SENSORS
 from .kernels.env_arrays import HOOK_OBSERVATION, OBSERVATION, SENSORS, WINCH_OBSERVATION
 
 #: The observation layout of each mode.
@@ -29,29 +31,36 @@ MODES = {"full": OBSERVATION, "hook": HOOK_OBSERVATION}
 UNIT_NOISE = {
     "pivot_position_error": 0.01, "pivot_velocity": 0.05, "load_position_error": 0.01, "load_velocity": 0.05,
     "attitude_6d": 0.01, "angular_velocity": 0.05, "string_stretch": 1e-3, "hook_tension": 0.1,
-    "load_target_offset": 0.01, "unstretched_length": 0.005,
+    "load_target_offset": 0.01, "unstretched_length": 0.005, "drone_attitude_6d": 0.01, "drone_rates": 0.05,
 }
 
 #: The largest sensor_noise, a level or a standard deviation (every field's unit noise is at most
 #: 0.1): noise far past any sensor, and float32 observations stay finite.
 MAX_NOISE = 1e6
 
-#: The step's measured vector: OBSERVATION then SENSORS; with a winch, WINCH_OBSERVATION then SENSORS.
-MEASURED = {False: Layout(*OBSERVATION.fields, *SENSORS.fields), True: Layout(*WINCH_OBSERVATION.fields, *SENSORS.fields)}
+#: The step's measured vector by (winch, drone): OBSERVATION (WINCH_OBSERVATION with a winch), then
+#: SENSORS (DRONE_SENSORS with a drone).
+MEASURED = {(winch, drone): Layout(*(WINCH_OBSERVATION if winch else OBSERVATION).fields,
+                                   *(DRONE_SENSORS if drone else SENSORS).fields)
+            for winch in (False, True) for drone in (False, True)}
 #: The winch's field of an observation (esp_gym/winch.py).
 WINCH_FIELD = ("unstretched_length", 1)
+#: A drone's fields, at the end of either mode's observation (kernels/drone_env.py).
+DRONE_FIELDS = DRONE_SENSORS.fields[len(SENSORS.fields):]
 
 
 class Observer:
     """Turns the step's OBSERVATION and SENSORS into the mode's float32 observation."""
 
-    def __init__(self, mode: str = "full", sensor_noise: Union[float, Mapping[str, Any]] = 0.0, winch: bool = False):
+    def __init__(self, mode: str = "full", sensor_noise: Union[float, Mapping[str, Any]] = 0.0, winch: bool = False,
+                 drone: bool = False):
         if mode not in MODES:
             raise ValueError(f"observation must be one of {sorted(MODES)}, got {mode!r}")
         self.mode = mode
         self.winch = bool(winch)
-        self.layout = Layout(*MODES[mode].fields, WINCH_FIELD) if winch else MODES[mode]
-        measured = MEASURED[self.winch]
+        self.drone = bool(drone)
+        self.layout = Layout(*MODES[mode].fields, *((WINCH_FIELD,) if winch else ()), *(DRONE_FIELDS if drone else ()))
+        measured = MEASURED[(self.winch, self.drone)]
         self._index = np.concatenate([np.arange(measured.size)[measured[name]] for name in self.layout.names])
         std = np.zeros(self.layout.size)
         if isinstance(sensor_noise, Mapping):
@@ -67,7 +76,7 @@ class Observer:
         #: Standard deviation of each entry's noise (its unit).
         self.noise_std = std
         self.noisy = bool(np.any(std > 0.0))
-        self.plain = mode == "full" and not self.noisy
+        self.plain = mode == "full" and not self.noisy and not self.drone
 
     def measure(self, obs: np.ndarray, sensors: np.ndarray) -> np.ndarray:
         """The mode's fields of the step's OBSERVATION and SENSORS (..., size), noiseless, float64:

@@ -52,6 +52,8 @@ class EnvOptions(BaseModel):
     preset: Optional[Literal["hard"]] = None
     #: None: as the task needs (lift, lower)
     winch: Optional[Flag] = None
+    #: None: the scene's pivot's ("force" for a free point mass, "thrust_rates" for a drone)
+    actuation: Optional[Literal["force", "thrust_torque", "thrust_rates", "motors"]] = None
 
 
 def validation_message(error: ValidationError, what: str) -> str:

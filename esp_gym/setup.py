@@ -11,10 +11,14 @@ from functools import cached_property
 from pathlib import Path
 from typing import Optional, Union
 
+import math
+
 import numpy as np
 from gymnasium import spaces
 
 from .kernels.layout import LGVIParams
+from .kernels.drone import ACTUATIONS
+from .kernels.drone_env import DRONE_ACTION_PARAMS, DRONE_ACTION_SIZE
 from .kernels.env_arrays import ACTION_PARAMS, ACTION_SIZE, SCENE_PARAMS, WINCH_ACTION
 from .observe import Observer
 from .options import MAX_SUBSTEPS, env_options
@@ -69,6 +73,34 @@ def action_params(hover: np.ndarray, force_limit: float, torque_limit: float, ma
     return ap
 
 
+#: The body rates at |action| = 1 of ``thrust_rates`` (roll, pitch, yaw) [rad/s].
+DRONE_RATE_LIMIT = (4.0, 4.0, 2.0)
+#: The drone has flipped when its body axis b3 tilts this far from the downward vertical [deg]:
+#: past the horizontal, its thrust no longer holds anything up (``info["termination_reason"]``
+#: "drone_flipped").
+DRONE_FLIP_TILT = 90.0
+
+
+def drone_action_params(scene: Scene, actuation: str) -> np.ndarray:
+    """The drone's action path (:data:`~esp_gym.kernels.drone_env.DRONE_ACTION_PARAMS`) for
+    ``scene``: the actuation's code, the hover thrust (the rig's weight, :func:`total_weight`) and
+    the rotors' largest [N], the torque limit per axis [N m] (a quarter of the hover thrust across
+    the arm for roll and pitch, times k_m/k_f for yaw), :data:`DRONE_RATE_LIMIT` and the flip's
+    cosine."""
+    drone = scene.pivot.drone
+    hover = total_weight(scene)
+    qa = np.zeros(DRONE_ACTION_PARAMS.size)
+    qa[DRONE_ACTION_PARAMS.scalar("actuation")] = ACTUATIONS.index(actuation)
+    qa[DRONE_ACTION_PARAMS.scalar("hover_thrust")] = hover
+    qa[DRONE_ACTION_PARAMS.scalar("max_thrust")] = drone.max_thrust
+    arm = 0.25 * hover * drone.arm_length
+    qa[DRONE_ACTION_PARAMS["torque_limit"]] = (arm, arm, 0.25 * hover * drone.torque_coefficient
+                                               / drone.thrust_coefficient)
+    qa[DRONE_ACTION_PARAMS["rate_limit"]] = DRONE_RATE_LIMIT
+    qa[DRONE_ACTION_PARAMS.scalar("flip_cosine")] = math.cos(math.radians(DRONE_FLIP_TILT))
+    return qa
+
+
 @dataclass(frozen=True)
 class Episode:
     """The run-time physics of one episode: its scene's values (SCENE_PARAMS order), the scene
@@ -102,6 +134,13 @@ class EnvSetup:
     action_latency: int = 0  #: control steps between an action and its application
     wind: Optional[Wind] = None  #: the wind and pushes (esp_gym/wind.py), or None: still air
     winch: bool = False  #: the winch's reel speed is the 7th action (kernels/winch.py)
+    #: how the action moves the pivot: "force" (a point mass), or a drone's (kernels/drone.py ACTUATIONS)
+    actuation: str = "force"
+
+    @property
+    def drone(self) -> bool:
+        """The pivot is a drone, flown in :attr:`actuation`."""
+        return self.actuation != "force"
 
     @property
     def param_names(self) -> tuple:
@@ -119,7 +158,9 @@ class EnvSetup:
 
     @property
     def action_size(self) -> int:
-        """ACTION's size, or WINCH_ACTION's with the winch."""
+        """ACTION's size, WINCH_ACTION's with the winch, or a drone's 4."""
+        if self.drone:
+            return DRONE_ACTION_SIZE
         return WINCH_ACTION.size if self.winch else ACTION_SIZE
 
     @property
@@ -128,7 +169,9 @@ class EnvSetup:
 
     @cached_property
     def action_params(self) -> np.ndarray:
-        """The nominal scene's action constants (:func:`action_params`)."""
+        """The nominal scene's action constants (:func:`action_params`, :func:`drone_action_params`)."""
+        if self.drone:
+            return drone_action_params(self.scene, self.actuation)
         return action_params(self.hover, self.force_limit, self.torque_limit, self.scene.winch.max_speed)
 
     @cached_property
@@ -146,8 +189,9 @@ class EnvSetup:
         nominal = nominal_values(scene)
         values = np.array([nominal[k] for k in SCENE_PARAMS.names])
         hover = np.array([0.0, 0.0, -total_weight(scene)])
-        return Episode(values, scene, build_params(scene), substeps, self.task.params(scene),
-                       action_params(hover, self.force_limit, self.torque_limit, scene.winch.max_speed))
+        ap = (drone_action_params(scene, self.actuation) if self.drone
+              else action_params(hover, self.force_limit, self.torque_limit, scene.winch.max_speed))
+        return Episode(values, scene, build_params(scene), substeps, self.task.params(scene), ap)
 
     def draw_episode(self, rng: np.random.Generator) -> Episode:
         """The next episode's physics: the nominal one, or (``randomizer``) one drawn from
@@ -170,7 +214,8 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
                scene_overrides: Optional[dict] = None, randomize: Union[bool, dict, None] = None,
                observation: Optional[str] = None, sensor_noise: Union[float, dict, None] = None,
                action_latency: Optional[int] = None, wind: Union[float, dict, None] = None,
-               preset: Optional[str] = None, winch: Optional[bool] = None) -> EnvSetup:
+               preset: Optional[str] = None, winch: Optional[bool] = None,
+               actuation: Optional[str] = None) -> EnvSetup:
     """Resolve the environment's arguments (see :class:`~esp_gym.env.ElasticStringPendulumEnv`),
     validated by :class:`~esp_gym.options.EnvOptions` (ValueError naming each bad one). The
     options a preset sets take, in this order: the value given (None: not given), the preset's,
@@ -180,7 +225,7 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
                                                  wind=wind).items() if value is not None}
     o = env_options(scene=scene, task=task, control_period=control_period, h=h, safety=safety,
                     force_limit=force_limit, torque_limit=torque_limit, scene_overrides=scene_overrides,
-                    preset=preset, winch=winch, **given)
+                    preset=preset, winch=winch, actuation=actuation, **given)
     if o.preset is not None:
         o = o.model_copy(update={name: value for name, value in PRESETS[o.preset].items() if name not in given})
     control_period, h, safety = o.control_period, o.h, o.safety
@@ -192,9 +237,19 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
     # a Scene object takes the same overrides as a file (aliases, dotted paths, merged sections)
     resolved = override_scene(o.scene, overrides) if isinstance(o.scene, Scene) else load_scene(o.scene, **overrides)
     if not resolved.pivot.is_free:
-        raise ValueError(f"ElasticStringPendulum-v0 pushes the pivot: scene {resolved.name!r} needs pivot.kind: free")
+        raise ValueError(f"ElasticStringPendulum-v0 moves the pivot: scene {resolved.name!r} needs pivot.kind: free "
+                         "or drone")
     t = get_task(o.task)
     winch = t.needs_winch if o.winch is None else o.winch
+    actuation = o.actuation or ("thrust_rates" if resolved.pivot.is_drone else "force")
+    if resolved.pivot.is_drone != (actuation != "force"):
+        wanted = "one of " + ", ".join(map(repr, ACTUATIONS)) if resolved.pivot.is_drone else "'force'"
+        raise ValueError(f"ElasticStringPendulum-v0: actuation={actuation!r} does not fly scene {resolved.name!r}'s "
+                         f"{resolved.pivot.kind} pivot: it takes {wanted}")
+    if resolved.pivot.is_drone and (winch or resolved.solver.string != "explicit" or resolved.solver.order != 2):
+        raise ValueError(f"ElasticStringPendulum-v0: a drone at the pivot flies the explicit string of order 2 "
+                         f"without a winch for now (scene {resolved.name!r}: solver.string "
+                         f"{resolved.solver.string!r}, order {resolved.solver.order}, winch {bool(winch)})")
     if t.needs_winch and not winch:
         raise ValueError(f"ElasticStringPendulum-v0: task={o.task!r} reels the string: it needs winch=True")
     randomizer = None if o.randomize is False else Randomizer(resolved, o.randomize)
@@ -247,5 +302,6 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
     return EnvSetup(scene=resolved, task=t, task_params=t.params(resolved), control_period=float(control_period),
                     substeps=substeps, hover=np.array([0.0, 0.0, -weight]), force_limit=float(force_limit),
                     torque_limit=float(o.torque_limit), safety=float(safety), fixed_h=h, randomizer=randomizer,
-                    observer=Observer(o.observation, o.sensor_noise, winch), action_latency=o.action_latency,
-                    wind=None if wind_given is None else Wind(wind_given, control_period), winch=winch)
+                    observer=Observer(o.observation, o.sensor_noise, winch, actuation != "force"),
+                    action_latency=o.action_latency, wind=None if wind_given is None else Wind(wind_given, control_period),
+                    winch=winch, actuation=actuation)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from esp_gym.kernels.rotors import motor_lag, rate_command, rotor_wrench
+from esp_gym.kernels.rotors import motor_lag, rate_command, rotor_wrench, wrench_command
 from esp_gym.rotors import X_SPINS, allocation, mixer, x_layout
 
 #: A Crazyflie-class rotor: k_f [N s^2/rad^2] (3.16e-10 N/rpm^2), k_m/k_f [m], arm [m].
@@ -129,3 +129,33 @@ def test_the_rate_controllers_commands_stay_in_the_motors_range():
     assert np.all(np.isfinite(commands))
     assert np.all(commands >= 0.0) and np.all(commands <= np.sqrt(max_thrust / KF) * (1 + 1e-15))
     assert np.any(commands == 0.0) and np.any(commands == np.sqrt(max_thrust / KF))
+
+
+def wrench_of(commands, A):
+    """The wrench (f, tau) [N, N m] the rotors make at speeds ``commands``."""
+    out = np.zeros(4)
+    rotor_wrench(np.asarray(commands), KF, A, out)
+    return out
+
+
+def test_saturated_rotors_give_up_yaw_first_then_tilt_never_the_thrust():
+    """An X Crazyflie at hover asked for a yaw torque no rotor split can make: the thrust and the
+    roll-pitch torque come out exact (1e-12) and the yaw takes what is left, in range; asked
+    for too much roll as well, roll and pitch shrink together (their ratio kept) and yaw gets
+    nothing. Negative control: clipping each rotor alone loses the roll torque."""
+    A = mixer(x_layout(ARM), X_SPINS, TORQUE_RATIO)
+    Ainv = allocation(A)
+    top = 0.15  # [N] per rotor
+    commands = np.zeros(4)
+    thrust, roll = 0.3, 2e-3
+    wrench_command(thrust, (roll, 0.0, 0.05), Ainv, top, KF, commands)
+    made = wrench_of(commands, A)
+    np.testing.assert_allclose(made[:3], [thrust, roll, 0.0], rtol=1e-12, atol=1e-15)
+    assert 0.0 < made[3] < 0.05
+    assert np.all(KF * commands ** 2 <= top * (1 + 1e-12))
+    wrench_command(thrust, (0.02, -0.01, 0.05), Ainv, top, KF, commands)
+    made = wrench_of(commands, A)
+    assert made[0] == pytest.approx(thrust, rel=1e-12)
+    assert made[1] / made[2] == pytest.approx(-2.0, rel=1e-12) and abs(made[3]) <= 1e-15
+    naive = np.sqrt(np.clip(Ainv @ [thrust, roll, 0.0, 0.05], 0.0, top) / KF)
+    assert abs(wrench_of(naive, A)[1] - roll) > 0.5 * roll

@@ -18,7 +18,7 @@ from .jit import kernel
 from .layout import B_ANGULAR_IMPULSE_Z, B_WORK, D_ENERGY, D_PI3, IN_PIVOT_FORCE, IN_PIVOT_FORCE_END, Layout
 from .loops import finish
 from .lgvi import lgvi_substep
-from .rotors import motor_lag, rotor_wrench
+from .rotors import motor_lag, rate_command, rotor_wrench, wrench_command
 from .so3 import cayley_minus_identity, cayley_newton
 from .status import NEWTON_FAILED, OK
 from .step_shared import commit_rotation, free_body_increment, next_attitude, torque_work
@@ -50,13 +50,20 @@ QD_TORQUE = DRONE_DIAG.start("torque")
 #: A drone's arrays: attitude ``R`` (3, 3) and body angular momentum ``Pi`` (3,) [kg m^2/s]
 #: with their compensated-summation remainders ``Rc``, ``Pic``; the rotor speeds ``speed`` (4,)
 #: [rad/s] (state) and the motor commands ``command`` (4,) [rad/s], held over a step; the
-#: constants ``consts`` (:data:`DRONE`), ``inertia`` J_q and its inverse ``inertia_inv`` (3, 3)
+#: actuation's ``setpoint`` (4,): the collective thrust [N], then the body torque [N m] or
+#: the body rates [rad/s] (:func:`actuate`); the constants ``consts`` (:data:`DRONE`), ``inertia`` J_q and its inverse ``inertia_inv`` (3, 3)
 #: [kg m^2] about the hook, the mixer ``mixer`` A and ``allocation`` A^-1 (4, 4)
 #: (esp_gym/rotors.py); scratch: ``next_speed`` (4,), ``wrench`` (2, 4), the wrench (f, tau) at
 #: the step's start and end, ``scratch`` (4, 3, 3), Newton's Jacobian, F - I, R_k (F - I) and
 #: R_{k+1}; and ``diag`` (:data:`DRONE_DIAG`).
-DroneArrays = namedtuple("DroneArrays", "R Rc Pi Pic speed command consts inertia inertia_inv mixer allocation "
-                                        "next_speed wrench scratch diag")
+DroneArrays = namedtuple("DroneArrays", "R Rc Pi Pic speed command setpoint consts inertia inertia_inv mixer "
+                                        "allocation next_speed wrench scratch diag")
+
+#: How the environment's action drives the rotors (docs/environment.md, "Drone actuation"): its
+#: code is the index. ``thrust_torque``: the setpoint's wrench through A^-1; ``thrust_rates``:
+#: the rate controller at every physics step; ``motors``: the motor commands themselves.
+ACTUATIONS = ("thrust_torque", "thrust_rates", "motors")
+THRUST_TORQUE, THRUST_RATES, MOTORS = range(3)
 
 
 @kernel(forceinline=True)
@@ -106,6 +113,32 @@ def rotor_ends(DR):
     for i in range(4):
         DR.next_speed[i] = motor_lag(DR.speed[i], DR.command[i], consts[Q_DECAY_UP], consts[Q_DECAY_DOWN])
     rotor_wrench(DR.next_speed, kf, DR.mixer, DR.wrench[1])
+
+
+@kernel(inline="always")
+def max_rotor_thrust(DR):
+    """A rotor's largest thrust, k_f omega_max^2 [N]."""
+    top = DR.consts[Q_MAX_ROTOR_SPEED]
+    return DR.consts[Q_THRUST_COEFFICIENT] * top * top
+
+
+@kernel(inline="always")
+def actuate(DR, mode):
+    """``DR.command`` from ``DR.setpoint`` for the actuation ``mode`` (:data:`ACTUATIONS`): the
+    wrench's commands (THRUST_TORQUE), the rate controller's at the state's rates Omega_q =
+    J_q^-1 Pi_q (THRUST_RATES; kernels/rotors.py); MOTORS leaves the commands as set."""
+    sp = DR.setpoint
+    kf = DR.consts[Q_THRUST_COEFFICIENT]
+    if mode == THRUST_TORQUE:
+        wrench_command(sp[0], (sp[1], sp[2], sp[3]), DR.allocation, max_rotor_thrust(DR), kf, DR.command)
+    elif mode == THRUST_RATES:
+        Ji = DR.inertia_inv
+        Pi = DR.Pi
+        rates = (Ji[0, 0] * Pi[0] + Ji[0, 1] * Pi[1] + Ji[0, 2] * Pi[2],
+                 Ji[1, 0] * Pi[0] + Ji[1, 1] * Pi[1] + Ji[1, 2] * Pi[2],
+                 Ji[2, 0] * Pi[0] + Ji[2, 1] * Pi[1] + Ji[2, 2] * Pi[2])
+        rate_command(rates, (sp[1], sp[2], sp[3]), sp[0], DR.inertia, DR.consts[Q_RATE_GAIN:Q_RATE_GAIN + 3],
+                     DR.allocation, max_rotor_thrust(DR), kf, DR.command)
 
 
 @kernel(inline="always")

@@ -1,6 +1,7 @@
 """A drone's rotors (docs/physics.md, "Rotors" and "Actuation and the rate controller"): the
-motors' first-order lag, stepped exactly; the wrench the mixer makes of the rotor speeds; and
-the rate controller that turns a collective thrust and body rates into motor commands.
+motors' first-order lag, stepped exactly; the wrench the mixer makes of the rotor speeds; the
+motor commands of a wrench; and the rate controller that turns a collective thrust and body rates
+into motor commands.
 
 Rotor i turns at omega_i [rad/s] and pushes with T_i = k_f omega_i^2 [N] along the body's -b3;
 the mixer A (4, 4) maps the thrusts to the wrench (f [N], tau [N m], body frame), and its
@@ -52,7 +53,40 @@ def rate_command(rates, target_rates, thrust, inertia, gain, allocation, max_thr
     t0 = inertia[0, 0] * e0 + inertia[0, 1] * e1 + inertia[0, 2] * e2 + (rates[1] * j2 - rates[2] * j1)
     t1 = inertia[1, 0] * e0 + inertia[1, 1] * e1 + inertia[1, 2] * e2 + (rates[2] * j0 - rates[0] * j2)
     t2 = inertia[2, 0] * e0 + inertia[2, 1] * e1 + inertia[2, 2] * e2 + (rates[0] * j1 - rates[1] * j0)
+    wrench_command(thrust, (t0, t1, t2), allocation, max_thrust, kf, commands)
+
+
+@kernel(inline="always")
+def largest_share(allocation, base, extra, top):
+    """The largest alpha in [0, 1] with 0 <= (A^-1 base)_i + alpha (A^-1 extra)_i <= ``top`` [N] for
+    every rotor i (``allocation`` A^-1; ``base``, ``extra``: wrenches (f, tau), 4-tuples)."""
+    share = 1.0
     for i in range(4):
-        t = allocation[i, 0] * thrust + allocation[i, 1] * t0 + allocation[i, 2] * t1 + allocation[i, 3] * t2
+        b = allocation[i, 0] * base[0] + allocation[i, 1] * base[1] + allocation[i, 2] * base[2] + \
+            allocation[i, 3] * base[3]
+        e = allocation[i, 0] * extra[0] + allocation[i, 1] * extra[1] + allocation[i, 2] * extra[2] + \
+            allocation[i, 3] * extra[3]
+        if b + e > top and e > 0.0:
+            share = min(share, (top - b) / e)
+        elif b + e < 0.0 and e < 0.0:
+            share = min(share, -b / e)
+    return max(share, 0.0)
+
+
+@kernel(inline="always")
+def wrench_command(thrust, torque, allocation, max_thrust, kf, commands):
+    """Motor commands [rad/s] into ``commands`` (4) for the wrench (``thrust`` [N], ``torque`` (3)
+    [N m], body frame): the rotor thrusts A^-1 (f, tau) (``allocation`` A^-1 (4, 4)), each in
+    [0, ``max_thrust``] [N], and omega_c = sqrt(T / k_f) (``kf`` [N s^2/rad^2]). Where the rotors
+    would saturate, the yaw torque gives way first, then roll and pitch together, never the
+    collective thrust (docs/physics.md, "Actuation and the rate controller"): each is scaled by
+    :func:`largest_share`; unsaturated, both shares are 1 and T = A^-1 (f, tau) bit for bit."""
+    t0, t1, t2 = torque
+    tilt = largest_share(allocation, (thrust, 0.0, 0.0, 0.0), (0.0, t0, t1, 0.0), max_thrust)
+    r0 = tilt * t0
+    r1 = tilt * t1
+    yaw = largest_share(allocation, (thrust, r0, r1, 0.0), (0.0, 0.0, 0.0, t2), max_thrust) * t2
+    for i in range(4):
+        t = allocation[i, 0] * thrust + allocation[i, 1] * r0 + allocation[i, 2] * r1 + allocation[i, 3] * yaw
         t = min(max(t, 0.0), max_thrust)
         commands[i] = math.sqrt(t / kf)

@@ -17,6 +17,7 @@ STATUS = {
                          "(the step is blowing up)", None),
     6: Status("energy_balance", "the energy balance |E - E0 - W| passed the watchdog's bound (the step is "
                                 "gaining energy)", "energy_balance"),
+    7: Status("drone_flipped", "the drone tilted past the flip limit", "drone_flipped"),
 }
 OK = 0
 #: A control step that does not end the episode.
@@ -30,6 +31,9 @@ TERM_WORKSPACE = 4
 BLOW_UP = 5
 #: The energy watchdog (esp_gym/watchdog.py) ended a finite state that gains energy.
 ENERGY_BALANCE = 6
+#: A drone's body axis b3 tilted from the vertical past the environment's limit
+#: (kernels/drone_env.py).
+TERM_DRONE_FLIPPED = 7
 #: Codes of the physics (failures of a step); the others are the environment's terminations.
 PHYSICS_FAILURES = (NEWTON_FAILED, NON_FINITE, BLOW_UP)
 

@@ -1,0 +1,100 @@
+"""ElasticStringPendulum-v0 with a drone at the pivot (kernels/drone_env.py; docs/environment.md,
+"A drone at the pivot"): the spaces and checkers in every actuation, a zero action that hovers,
+the flip's termination, the energy balance with the drone's rotation, the drone's observation
+fields against its state, and clear errors. The batched environments' equality with the single
+one is tests/test_env.py's (its VECTOR_OPTIONS include the drone)."""
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env as gym_check_env
+from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+import esp_gym  # noqa: F401  (registers the environment)
+from esp_gym.drone import DroneSimulator
+from esp_gym.kernels.drone import ACTUATIONS
+
+ENV_ID = "ElasticStringPendulum-v0"
+SCENE = "quadrotor_load"
+
+
+@pytest.mark.parametrize("actuation", ACTUATIONS)
+def test_both_env_checkers_pass_in_every_actuation(actuation):
+    env = gym.make(ENV_ID, scene=SCENE, actuation=actuation)
+    assert env.action_space == gym.spaces.Box(-1.0, 1.0, (4,), np.float32)
+    assert isinstance(env.unwrapped.sim, DroneSimulator)
+    gym_check_env(env.unwrapped, skip_render_check=True)
+    sb3_check_env(gym.make(ENV_ID, scene=SCENE, actuation=actuation).unwrapped, warn=True)
+
+
+@pytest.mark.parametrize("actuation", ACTUATIONS)
+def test_a_zero_action_hovers_level(actuation):
+    """From rest (the stabilize task's start, its velocities zeroed), 50 steps of a zero action: the
+    drone stays level (R_q = I to 1e-12: the hook at its centre of mass, no torque), its rotors at
+    the rig's hover thrust, and the rig's vertical momentum moves only by the string's settling
+    (below 2 % of the weight's impulse over the second)."""
+    env = gym.make(ENV_ID, scene=SCENE, actuation=actuation).unwrapped
+    env.reset(seed=0)
+    for _ in range(50):
+        env.step(np.zeros(4))
+    d = env.sim.diagnostics()
+    assert np.abs(d["drone_attitude"] - np.eye(3)).max() <= 1e-12
+    assert d["thrust"] == pytest.approx(env.setup.action_params[1], rel=1e-12)  # the hover thrust
+    weight_impulse = abs(d["gravity_impulse"][2])
+    assert abs(d["momentum_balance_residual"]).max() <= 1e-12 * weight_impulse
+    assert abs(d["linear_momentum"][2]) <= 0.02 * weight_impulse + 0.05
+
+
+def test_rolling_on_flips_the_drone_and_ends_the_episode():
+    """Full roll rate (4 rad/s) flips the drone past the horizontal within half a second."""
+    env = gym.make(ENV_ID, scene=SCENE, actuation="thrust_rates")
+    env.reset(seed=0)
+    for k in range(40):
+        _, _, terminated, _, info = env.step(np.array([0.0, 1.0, 0.0, 0.0]))
+        if terminated:
+            break
+    assert terminated and info["termination_reason"] == "drone_flipped"
+    assert env.unwrapped.sim.diagnostics()["drone_attitude"][2, 2] < 0.0
+    assert 0.3 <= (k + 1) * 0.02 <= 0.5  # pi/2 at 4 rad/s after the rate controller's lag
+
+
+def test_the_energy_balance_holds_the_drones_rotation_and_the_watchdog_stays_quiet():
+    """200 steps of random rates and thrust: E - E0 - W (E with the drone's rotational energy, W
+    the thrust's and the rotors' torques' work) stays below 1e-4 of the work; leaving the
+    drone's rotation out of E would miss by its kinetic energy (the negative control)."""
+    env = gym.make(ENV_ID, scene=SCENE, actuation="thrust_rates").unwrapped
+    env.reset(seed=4)
+    rng = np.random.default_rng(1)
+    for _ in range(200):
+        _, _, terminated, _, info = env.step(rng.uniform(-0.2, 0.2, 4))
+        assert info.get("termination_reason") != "energy_balance"
+        if terminated:
+            break
+    d = env.sim.diagnostics()
+    assert abs(d["energy_balance_residual"]) <= 1e-4 * abs(d["work"])
+    assert d["kinetic_drone"] > 1e3 * abs(d["energy_balance_residual"])
+
+
+@pytest.mark.parametrize("observation", ["full", "hook"])
+def test_the_drones_observation_fields_hold_its_attitude_and_rates(observation):
+    env = gym.make(ENV_ID, scene=SCENE, observation=observation).unwrapped
+    env.reset(seed=2)
+    obs, *_ = env.step(np.array([0.1, 0.3, -0.2, 0.4]))
+    structure = env.observation_structure
+    assert list(structure)[-2:] == ["drone_attitude_6d", "drone_rates"]
+    d = env.sim.diagnostics()
+    R = d["drone_attitude"]
+    np.testing.assert_allclose(obs[structure["drone_attitude_6d"]], np.concatenate([R[:, 0], R[:, 1]]), rtol=1e-6,
+                               atol=1e-7)
+    np.testing.assert_allclose(obs[structure["drone_rates"]], d["drone_rates"], rtol=1e-6, atol=1e-7)
+    assert np.abs(d["drone_rates"]).max() > 0.05  # it did turn
+
+
+@pytest.mark.parametrize("options, message", [
+    ({"scene": SCENE, "actuation": "force"}, "does not fly scene 'quadrotor_load'"),
+    ({"actuation": "thrust_rates"}, "does not fly scene 'drone_load'"),
+    ({"scene": SCENE, "winch": True}, "without a winch for now"),
+    ({"scene": SCENE, "actuation": "rates"}, "actuation"),
+])
+def test_a_mismatched_actuation_or_option_is_refused_by_name(options, message):
+    with pytest.raises(ValueError, match=message):
+        gym.make(ENV_ID, **options)
