@@ -12,6 +12,9 @@ Prints a table and writes ``OUT/env_throughput.json`` and ``OUT/env_throughput.p
   (``string.elements: auto``), with the scene's 8 elements at the environment's step, and with the
   implicit string asked for (``solver.string: implicit``), the runs of one repeat interleaved;
   writes ``OUT/env_throughput_ea.json`` and ``.png``;
+* ``--drone`` (alone): quadrotor_load's drone in each actuation against the same rig with a
+  point-mass pivot, single and 8 batched, random actions of amplitude 0.2, interleaved; writes
+  ``OUT/env_throughput_drone.json``;
 * ``--realism`` (alone): the plain environment against the realism options (``randomize=True``,
   then with the ``hook`` observation and sensor noise too, then randomisation, the hard preset's
   wind and pushes and the ``hook`` observation (the issue's bar), then ``preset="hard"``),
@@ -19,7 +22,7 @@ Prints a table and writes ``OUT/env_throughput.json`` and ``OUT/env_throughput.p
   starting an episode); writes ``OUT/env_throughput_realism.json``.
 
 Each figure is the median of ``--repeats`` timed runs after a warm-up (compilation excluded).
-Usage: ``python -m benchmarks.env_throughput [--quick] [--ea-sweep | --realism] [--out DIR]``.
+Usage: ``python -m benchmarks.env_throughput [--quick] [--ea-sweep | --realism | --drone] [--out DIR]``.
 """
 from __future__ import annotations
 
@@ -37,11 +40,13 @@ def _rate(fn, steps: int, repeats: int) -> float:
     return float(np.median([steps / wall for wall in wall_times(fn, repeats)]))
 
 
-def single(make, steps, random_actions, repeats):
+def single(make, steps, random_actions, repeats, amplitude=1.0):
     env = make()
     env.reset(seed=0)
     rng = np.random.default_rng(0)
-    acts = rng.uniform(-1, 1, (steps, 6)).astype(np.float32) if random_actions else np.zeros((steps, 6), np.float32)
+    shape = (steps,) + env.action_space.shape
+    acts = (rng.uniform(-amplitude, amplitude, shape).astype(np.float32) if random_actions
+            else np.zeros(shape, np.float32))
     env.step(acts[0])
 
     def run():
@@ -53,10 +58,11 @@ def single(make, steps, random_actions, repeats):
     return _rate(run, steps, repeats)
 
 
-def batched(make, num_envs, steps, repeats, sb3):
+def batched(make, num_envs, steps, repeats, sb3, amplitude=1.0):
     venv = make(num_envs)
     venv.reset() if sb3 else venv.reset(seed=0)
-    acts = np.random.default_rng(0).uniform(-1, 1, (num_envs, 6)).astype(np.float32)
+    size = (venv.action_space.shape[-1],)
+    acts = np.random.default_rng(0).uniform(-amplitude, amplitude, (num_envs,) + size).astype(np.float32)
     venv.step(acts)
     n = max(20, steps // num_envs)
 
@@ -73,11 +79,15 @@ def main(argv=None) -> dict:
     ap.add_argument("--ea-sweep", action="store_true", help="only the sweep over the string's EA")
     ap.add_argument("--realism", action="store_true",
                     help="only the realism options (randomize, ...) against the plain environment")
+    ap.add_argument("--drone", action="store_true",
+                    help="only a drone at the pivot against the same rig with a point-mass pivot")
     args = ap.parse_args(argv)
     if args.ea_sweep:
         return ea_sweep(args)
     if args.realism:
         return realism(args)
+    if args.drone:
+        return drone(args)
     steps = 2_000 if args.quick else 20_000
     repeats = 1 if args.quick else args.repeats
     counts = [1, 4] if args.quick else [1, 2, 4, 8, 16, 32, 64]
@@ -195,6 +205,48 @@ def realism(args) -> dict:
     finish(args.out, "env_throughput_realism", {"table": table, "options": {k: repr(v) for k, v in REALISM.items()},
                                                 "steps": steps, "repeats": repeats,
                                                 "machine": machine("gymnasium")}, {})
+    return {"table": table}
+
+
+#: The drone comparison: quadrotor_load's rig with its drone in each actuation, and with a point
+#: mass of the drone's mass at the pivot instead (``force``), the reference of the ratios.
+DRONE = {"point pivot (force)": {"scene": "quadrotor_load", "scene_overrides": {"pivot": {"kind": "free",
+                                                                                         "drone": None}}},
+         "drone, thrust_rates": {"scene": "quadrotor_load", "actuation": "thrust_rates"},
+         "drone, thrust_torque": {"scene": "quadrotor_load", "actuation": "thrust_torque"},
+         "drone, motors": {"scene": "quadrotor_load", "actuation": "motors"}}
+#: Random actions' amplitude in the drone comparison (at 1, a drone flips within ten steps and
+#: resets would dominate).
+DRONE_AMPLITUDE = 0.2
+
+
+def drone(args) -> dict:
+    """Steps/s of each of DRONE, single (random actions of DRONE_AMPLITUDE, resets included) and
+    batched (``make_vec``, REALISM_BATCH environments), the runs of one repeat interleaved; the
+    ratios to the point pivot's."""
+    steps = 500 if args.quick else 10_000
+    repeats = 1 if args.quick else args.repeats
+    rates = {(name, kind): [] for name in DRONE for kind in ("single", "batched")}
+    for _ in range(repeats):
+        for name, options in DRONE.items():
+            rates[(name, "single")].append(single(lambda o=options: gym.make(esp_gym.ENV_ID, **o).unwrapped, steps,
+                                                  True, 1, DRONE_AMPLITUDE))
+            rates[(name, "batched")].append(batched(lambda n, o=options: gym.make_vec(esp_gym.ENV_ID, num_envs=n, **o),
+                                                    REALISM_BATCH, 4 * steps, 1, False, DRONE_AMPLITUDE))
+    table = {name: {kind: float(np.median(rates[(name, kind)])) for kind in ("single", "batched")} for name in DRONE}
+    base = table["point pivot (force)"]
+    for row in table.values():
+        row["single_ratio"] = row["single"] / base["single"]
+        row["batched_ratio"] = row["batched"] / base["batched"]
+    substeps = gym.make(esp_gym.ENV_ID, **DRONE["drone, thrust_rates"]).unwrapped.setup.substeps
+    print(f"quadrotor_load, {substeps} physics steps per control step, random actions in +-{DRONE_AMPLITUDE}")
+    print(f"{'pivot':24s} single [steps/s]  ratio   batched x{REALISM_BATCH} [steps/s]  ratio")
+    for name, row in table.items():
+        print(f"{name:24s} {row['single']:15,.0f}  {row['single_ratio']:5.2f}   {row['batched']:19,.0f}  "
+              f"{row['batched_ratio']:5.2f}")
+    finish(args.out, "env_throughput_drone", {"table": table, "substeps": substeps, "steps": steps,
+                                              "repeats": repeats, "amplitude": DRONE_AMPLITUDE,
+                                              "machine": machine("gymnasium")}, {})
     return {"table": table}
 
 

@@ -1,7 +1,8 @@
 """Compiling the environment's configurations ahead of use (``esp-gym compile``).
 
 Each configuration of the environment's compiled step (with or without the winch, on the
-explicit or the implicit string, single or batched: ``ENTRY_POINTS`` in esp_gym/kernels/env_step.py)
+explicit or the implicit string, single or batched: ``ENTRY_POINTS`` in esp_gym/kernels/env_step.py;
+with a drone at the pivot, single or batched: ``DRONE_ENTRY_POINTS`` in esp_gym/kernels/drone_env.py)
 compiles on its first step and is cached on disk (docs/performance.md, "Start-up"). This takes
 them all in worker processes, so that a machine (a container image, a CI run, a cluster's nodes)
 pays the compile once, in parallel, instead of at the first step of each.
@@ -21,15 +22,18 @@ class Configuration:
     winch: bool
     implicit: bool
     batched: bool
+    drone: bool = False
 
     @property
     def name(self) -> str:
-        return "-".join(("winch" if self.winch else "fixed", "implicit" if self.implicit else "explicit",
-                         "batched" if self.batched else "single"))
+        return "-".join(("drone" if self.drone else "winch" if self.winch else "fixed",
+                         "implicit" if self.implicit else "explicit", "batched" if self.batched else "single"))
 
 
-#: Every configuration, the first environment's (no winch, explicit, single) first.
-CONFIGURATIONS = tuple(Configuration(w, i, b) for w in (False, True) for i in (False, True) for b in (False, True))
+#: Every configuration, the first environment's (no winch, explicit, single) first; a drone's
+#: (explicit, no winch) last.
+CONFIGURATIONS = (tuple(Configuration(w, i, b) for w in (False, True) for i in (False, True) for b in (False, True))
+                  + (Configuration(False, False, False, True), Configuration(False, False, True, True)))
 
 
 def compile_configuration(config: Configuration) -> float:
@@ -43,6 +47,8 @@ def compile_configuration(config: Configuration) -> float:
 
     jit.COMPILE_NOTICE = False  # the command reports its own progress
     options = {"task": "lift" if config.winch else "stabilize"}
+    if config.drone:
+        options["scene"] = "quadrotor_load"
     if config.implicit:
         options["scene_overrides"] = {"solver": {"string": "implicit"}}
     if config.batched:

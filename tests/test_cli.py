@@ -111,6 +111,13 @@ def test_env_throughput_realism_quick_runs(tmp_path):
     assert all(row["single"] > 0 and row["batched"] > 0 for row in table.values())
 
 
+def test_env_throughput_drone_quick_runs(tmp_path):
+    table = quick_benchmark("env_throughput", tmp_path, "env_throughput_drone", "--drone")["table"]
+    assert set(table) == {"point pivot (force)", "drone, thrust_rates", "drone, thrust_torque", "drone, motors"}
+    assert all(row["single"] > 0 and row["batched"] > 0 for row in table.values())
+    assert table["point pivot (force)"]["single_ratio"] == 1.0
+
+
 def test_env_throughput_ea_sweep_quick_runs(tmp_path):
     sweep = quick_benchmark("env_throughput", tmp_path, "env_throughput_ea", "--ea-sweep")["sweep"]
     assert [row["elements auto"]["elements"] for row in sweep] == [1, 1]
@@ -281,7 +288,7 @@ def test_slack_switch_quick_runs(tmp_path):
 
 
 def test_compile_takes_every_configuration_of_the_environment(tmp_path):
-    """``esp-gym compile`` builds, resets and steps an environment of each of the eight
+    """``esp-gym compile`` builds, resets and steps an environment of each of the ten
     configurations of the compiled step (here from the cache `make test` filled) and prints their
     seconds as one JSON line; a bad --jobs is one line with exit code 2."""
     from esp_gym.precompile import CONFIGURATIONS
@@ -289,7 +296,7 @@ def test_compile_takes_every_configuration_of_the_environment(tmp_path):
                           capture_output=True, text=True, timeout=1200, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-2000:]
     seconds = json.loads(proc.stdout)["seconds"]
-    assert sorted(seconds) == sorted(c.name for c in CONFIGURATIONS) and len(seconds) == 8
+    assert sorted(seconds) == sorted(c.name for c in CONFIGURATIONS) and len(seconds) == 10
     assert all(t >= 0 for t in seconds.values())
     bad = subprocess.run([sys.executable, "-m", "esp_gym.cli", "compile", "--jobs", "0"], capture_output=True,
                          text=True, timeout=600, cwd=tmp_path)

@@ -103,16 +103,21 @@ def attitude_step(body, inertia, h, torques, scratch, solver, compensated):
 
 
 @kernel(inline="always")
+def start_wrench(DR):
+    """``DR.wrench[0]`` = (f, tau) at the state's rotor speeds: at the start of a run of steps,
+    each of which then carries its end's wrench over to the next (:func:`drone_substep`)."""
+    rotor_wrench(DR.speed, DR.consts[Q_THRUST_COEFFICIENT], DR.mixer, DR.wrench[0])
+
+
+@kernel(inline="always")
 def rotor_ends(DR):
-    """The rotors over a step: ``DR.wrench[0]`` = (f, tau) at the state's speeds, ``DR.next_speed``
-    = the speeds one step later under the held commands (the exact lag), ``DR.wrench[1]`` at
-    those."""
+    """The rotors over a step (``DR.wrench[0]`` holding the wrench at the state's speeds):
+    ``DR.next_speed`` = the speeds one step later under the held commands (the exact lag) and
+    ``DR.wrench[1]`` at those."""
     consts = DR.consts
-    kf = consts[Q_THRUST_COEFFICIENT]
-    rotor_wrench(DR.speed, kf, DR.mixer, DR.wrench[0])
     for i in range(4):
         DR.next_speed[i] = motor_lag(DR.speed[i], DR.command[i], consts[Q_DECAY_UP], consts[Q_DECAY_DOWN])
-    rotor_wrench(DR.next_speed, kf, DR.mixer, DR.wrench[1])
+    rotor_wrench(DR.next_speed, consts[Q_THRUST_COEFFICIENT], DR.mixer, DR.wrench[1])
 
 
 @kernel(inline="always")
@@ -156,7 +161,9 @@ def drone_balances(S, R, Rn, h, c, left, right):
 @kernel(forceinline=True)
 def drone_substep(S, W, P, DR, inputs, h, coupled, compensated):
     """One step of length ``h`` of the string, the load and the drone (module docstring), the motor
-    commands ``DR.command`` held; ``inputs`` (INPUTS) receives the thrust pair
+    commands ``DR.command`` held, ``DR.wrench[0]`` the wrench at the state's rotor speeds
+    (:func:`start_wrench`; on success it becomes the end's, the next step's start, the same bits
+    as computing it anew); ``inputs`` (INPUTS) receives the thrust pair
     u_k = -f_k R_{q,k} e3, u_{k+1} = -f_{k+1} R_{q,k+1} e3 (its torques are left as they are).
     Returns ``(status, newton_iterations)``; on failure nothing has moved."""
     rotor_ends(DR)
@@ -180,6 +187,7 @@ def drone_substep(S, W, P, DR, inputs, h, coupled, compensated):
     commit_rotation(R, DR.Rc, DR.Pi, DR.Pic, Rn, DR.scratch[2], dP, compensated)
     for i in range(4):
         DR.speed[i] = DR.next_speed[i]
+        wl[i] = wr[i]
     return OK, iters + string_iters
 
 
@@ -190,6 +198,7 @@ def drone_advance(S, W, P, DR, inputs, nsteps, stats, coupled):
     status, steps taken, total and largest Newton iterations per step (the drone's and the
     load's together)."""
     nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
+    start_wrench(DR)
     total = 0
     most = 0
     for k in range(nsteps):

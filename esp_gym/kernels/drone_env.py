@@ -17,7 +17,7 @@ from numba import prange
 from .diagnostics import diagnostics
 from .disturbance import kick
 from .drone import (MOTORS, THRUST_RATES, THRUST_TORQUE, DroneArrays, actuate, drone_diagnostics, drone_substep,
-                    max_rotor_thrust, Q_THRUST_COEFFICIENT, QD_RATES)
+                    max_rotor_thrust, start_wrench, Q_THRUST_COEFFICIENT, QD_RATES)
 from .env_arrays import SCHEME_DISTURBED, SENSORS, TP_ENERGY_ORIGIN, TP_STRING_LENGTH, EnvArrays
 from .env_step import (COLD_BATCH_STEP_S, COLD_ENV_STEP_S, close_balances, diag_row, energy_watchdog, env_prepare,
                        env_row, params_row, state_row, work_row)
@@ -93,6 +93,7 @@ def drone_loop(S, W, P, DR, E, coupled, disturbed):
     rates = int(E.ap[QA_ACTUATION]) == THRUST_RATES
     if disturbed and nsub > 0:
         kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, hh, first)
+    start_wrench(DR)
     total = 0
     most = 0
     for k in range(nsub):
