@@ -515,6 +515,15 @@ def env_throughput_realism(data: dict) -> str:
     return "\n".join(lines)
 
 
+def env_throughput_drone(data: dict) -> str:
+    lines = [f"| pivot ({data['substeps']} physics steps per control step) | one env [steps/s] | ratio "
+             "| 8 batched [steps/s] | ratio |", "|---|---|---|---|---|"]
+    for name, row in data["table"].items():
+        lines.append(f"| {name} | {steps_per_second(row['single'])} | {row['single_ratio']:.2f} "
+                     f"| {steps_per_second(row['batched'])} | {row['batched_ratio']:.2f} |")
+    return "\n".join(lines)
+
+
 QUOTES = {
     "cold_start.readme": Quote("docs/img/cold_start.json", "python -m benchmarks.cold_start --repeats 1 --out docs/img",
                                cold_start_readme),
@@ -602,6 +611,9 @@ QUOTES = {
     "env_throughput.realism": Quote("docs/img/env_throughput_realism.json",
                                     "python -m benchmarks.env_throughput --realism --repeats 5 --out docs/img",
                                     env_throughput_realism),
+    "env_throughput.drone": Quote("docs/img/env_throughput_drone.json",
+                                  "python -m benchmarks.env_throughput --drone --repeats 5 --out docs/img",
+                                  env_throughput_drone),
 }
 
 #: The files whose quotes are kept: the README and every page of the docs.

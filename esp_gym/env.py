@@ -38,6 +38,12 @@ class ElasticStringPendulumEnv(gym.Env):
     index 6 is the reel speed, x `scene.winch.max_speed` [m/s] (default 1), > 0 pays the string
     out (docs/physics.md, "The winch").
 
+    With a drone at the pivot (`pivot.kind: drone`, e.g. `scene="quadrotor_load"`) the action is
+    `Box(-1, 1, (4,))` in every `actuation`, 0 hovering: `"thrust_rates"` (the default) collective
+    thrust W (1 + a_0) and body rates (4, 4, 2) rad/s x a_1..3 through the onboard rate
+    controller; `"thrust_torque"` the thrust and body torques; `"motors"` each rotor's thrust
+    W/4 (1 + a_i) (docs/environment.md, "A drone at the pivot").
+
     ## Observation Space
     `Box(-inf, inf, (22,), float32)`, spatial frame unless stated; `env.observation_structure`
     maps each name below to its slice (esp_gym/kernels/env_arrays.py OBSERVATION):
@@ -57,7 +63,8 @@ class ElasticStringPendulumEnv(gym.Env):
     (6-8): the string's pull on the pivot, the first element's force [N], `load_target_offset`
     (9-11): load target - pivot position [m]. `sensor_noise` adds Gaussian noise from
     `np_random` to either mode (esp_gym/observe.py `UNIT_NOISE`, docs/environment.md). With
-    `winch=True` either mode ends with `unstretched_length`, the string's current length [m]
+    `winch=True` either mode ends with `unstretched_length`, the string's current length [m];
+    with a drone, with `drone_attitude_6d` (R_q's first two columns) and `drone_rates` [rad/s]
     (`string_stretch` is then relative to it).
 
     ## Rewards
@@ -122,6 +129,7 @@ class ElasticStringPendulumEnv(gym.Env):
     | `wind` | None | None: the preset's, else 0. The mean wind speed [m/s] (gusts of 0.2 x it, direction drawn per episode), or a dict of esp_gym/wind.py `WindOptions` (speed, direction, gust_std, gust_time, drag coefficients, line_diameter, push_rate, push_speed): drag on the line and the load, pushes on the load |
     | `preset` | None | `"hard"`: randomize, wind 6 m/s with 1.5 m/s gusts and a push every 5 s on average, the hook observation with sensor noise 1 and a latency of 1 step (docs/environment.md). An option given explicitly (even at its usual default) replaces the preset's: `preset="hard", observation="full"` is the hard preset with the full observation |
     | `winch` | None | True: a winch at the pivot, its reel speed the 7th action, the length the last observation; h is chosen for the shortest string it reaches (`scene.winch`). None: as the task needs (True for `lift` and `lower`) |
+    | `actuation` | None | how the action moves the pivot: `"force"` (a free point mass: its only one), or for a drone `"thrust_rates"` (None's choice), `"thrust_torque"`, `"motors"` |
     | `render_mode` | None | `"rgb_array"`: uint8 frames, front and side views |
 
     ## Version History
