@@ -63,9 +63,9 @@ class ElasticStringPendulumEnv(gym.Env):
     (6-8): the string's pull on the pivot, the first element's force [N], `load_target_offset`
     (9-11): load target - pivot position [m]. `sensor_noise` adds Gaussian noise from
     `np_random` to either mode (esp_gym/observe.py `UNIT_NOISE`, docs/environment.md). With
-    `winch=True` either mode ends with `unstretched_length`, the string's current length [m];
-    with a drone, with `drone_attitude_6d` (R_q's first two columns) and `drone_rates` [rad/s]
-    (`string_stretch` is then relative to it).
+    `winch=True` either mode ends with `unstretched_length`, the string's current length [m]
+    (`string_stretch` is then relative to it); with a drone, with `drone_attitude_6d` (R_q's
+    first two columns) and `drone_rates` [rad/s].
 
     ## Rewards
     `reward = sum of info["reward_<term>"]` with, for x >= 0, `tol(x, s) = 1 / (1 + (x/s)^2)`:
