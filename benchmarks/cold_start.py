@@ -1,5 +1,6 @@
 """Start-up time: from a fresh Python process to the first step of the simulator, the env and the
-vector env, with an empty numba cache (cold) and then with the cache that run filled (warm).
+vector env, and the env and the vector env with a drone at the pivot, with an empty numba cache
+(cold) and then with the cache that run filled (warm).
 
     python -m benchmarks.cold_start [--quick] [--repeats K] [--out DIR]
 
@@ -37,6 +38,13 @@ CASES = {
     "vector env (8)": ("import gymnasium as gym, esp_gym",
                        "env = gym.make_vec('ElasticStringPendulum-v0', num_envs=8); env.reset(seed=0)",
                        "env.step(env.action_space.sample())"),
+    "drone env": ("import gymnasium as gym, esp_gym",
+                  "env = gym.make('ElasticStringPendulum-v0', scene='quadrotor_load'); env.reset(seed=0)",
+                  "env.step(env.action_space.sample())"),
+    "drone vector env (8)": ("import gymnasium as gym, esp_gym",
+                             "env = gym.make_vec('ElasticStringPendulum-v0', num_envs=8, scene='quadrotor_load'); "
+                             "env.reset(seed=0)",
+                             "env.step(env.action_space.sample())"),
 }
 
 _CHILD = """import time

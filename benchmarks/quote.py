@@ -101,7 +101,9 @@ def cold_start_table(data: dict) -> str:
         rows[run["case"]][run["cache"]] = run
     names = {"simulator": '`Simulator("paper_example").step(1)`',
              "env": '`gym.make("ElasticStringPendulum-v0")`, reset, step',
-             "vector env (8)": "`gym.make_vec(..., num_envs=8)`, reset, step"}
+             "vector env (8)": "`gym.make_vec(..., num_envs=8)`, reset, step",
+             "drone env": '`gym.make(..., scene="quadrotor_load")`, reset, step',
+             "drone vector env (8)": '`gym.make_vec(..., num_envs=8, scene="quadrotor_load")`, reset, step'}
     lines = ["| case | cold, first step [s] | warm, first step [s] | warm, whole process [s] |",
              "|---|---|---|---|"]
     for case, runs in rows.items():

@@ -19,7 +19,7 @@ from .disturbance import kick
 from .drone import (MOTORS, THRUST_RATES, THRUST_TORQUE, DroneArrays, actuate, drone_diagnostics, drone_substep,
                     max_rotor_thrust, start_wrench, Q_THRUST_COEFFICIENT, QD_RATES)
 from .env_arrays import SCHEME_DISTURBED, SENSORS, TP_ENERGY_ORIGIN, TP_STRING_LENGTH, EnvArrays
-from .env_step import (COLD_BATCH_STEP_S, COLD_ENV_STEP_S, close_balances, diag_row, energy_watchdog, env_prepare,
+from .env_step import (close_balances, diag_row, energy_watchdog, env_prepare,
                        env_row, params_row, state_row, work_row)
 from .jit import announce_compile, kernel
 from .layout import D_ENERGY, R_TERMINATION, DiagWork, Layout, LGVIParams, StateArrays, Work
@@ -193,8 +193,15 @@ def _drone_entry_points():
                     drone_control_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), DRb, Eb,
                                        disturbed)
 
-    return (announce_compile(step, "the environment's step with a drone", COLD_ENV_STEP_S),
-            announce_compile(batch, "the batched environment's step with a drone", COLD_BATCH_STEP_S))
+    return (announce_compile(step, "the environment's step with a drone", COLD_DRONE_ENV_STEP_S),
+            announce_compile(batch, "the batched environment's step with a drone", COLD_DRONE_BATCH_STEP_S))
+
+
+#: The seconds to the first step of an environment and of a vector environment with a drone on an
+#: empty cache (2 cores; docs/performance.md, "Start-up"; its own kernels on top of the point
+#: pivot's), said when their entry points first compile.
+COLD_DRONE_ENV_STEP_S = 25
+COLD_DRONE_BATCH_STEP_S = 35
 
 
 #: The drone environment's (step, batch) entry points (compiled when first asked for).
