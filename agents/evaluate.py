@@ -164,7 +164,8 @@ def run_episodes(policy, task: str = "stabilize", episodes: int = 50, seed: int 
     and return their :class:`EpisodeResult`; ``record``: a ``.rrd`` path for a Rerun recording
     of the first episode. A policy with ``reset(env)`` is reset after each env reset."""
     if policy is None:
-        policy = baseline(task, make_setup(task=task, **(env_kwargs or {})).winch)
+        setup = make_setup(task=task, **(env_kwargs or {}))
+        policy = baseline(task, setup.winch, setup.drone)
     if isinstance(policy, SB3Policy):
         policy.check(task, env_kwargs)
     out = []
@@ -231,9 +232,19 @@ def main(argv=None) -> dict:
     ap.add_episode_options(TASKS, episodes=50, preset=True)
     ap.add_argument("--record", metavar="FILE.rrd", default=None,
                     help="write a Rerun recording of the first episode to FILE.rrd")
+    ap.add_argument("--scene", default=None, help="the environment's scene (default: drone_load)")
+    ap.add_argument("--actuation", default=None, choices=["force", "thrust_torque", "thrust_rates", "motors"],
+                    help="how the action moves the pivot (default: the scene's pivot's)")
     args = ap.parse_args(argv)
     ap.check_new_file("--record", args.record)
     env_kwargs = {"preset": args.preset} if args.preset else {}
+    env_kwargs.update({name: value for name, value in (("scene", args.scene), ("actuation", args.actuation))
+                       if value is not None})
+    if env_kwargs.get("scene") is not None or env_kwargs.get("actuation") is not None:
+        try:
+            make_setup(task=args.task, **env_kwargs)
+        except ValueError as err:
+            ap.error(f"argument --scene/--actuation: {err}")
     try:
         policy = load_policy(args.policy, args.task, env_kwargs)
     except ValueError as err:  # ModelFileError, NormalizationFileError
@@ -245,6 +256,7 @@ def main(argv=None) -> dict:
         ap.error(f"argument --policy: {err}")
     stats["preset"] = args.preset
     stats["policy"] = args.policy
+    stats.update({name: env_kwargs[name] for name in ("scene", "actuation") if name in env_kwargs})
     print(json.dumps(stats))
     return stats
 

@@ -1,6 +1,7 @@
 """The agent scripts' arguments and files: ``--set`` (repeatable, dotted keys, YAML values,
 checked keys), errors that are one line naming the argument and write nothing, model files named
 when they cannot be loaded, and normalisation statistics read as data, never unpickled."""
+import json
 import pickle
 import re
 import shutil
@@ -148,6 +149,20 @@ def test_train_errors_are_one_line_and_write_nothing(tmp_path, case):
     before = tree(tmp_path)
     assert_usage_error(cli("agents.train", *args), *names)
     assert tree(tmp_path) == before
+
+
+def test_evaluate_flies_the_drone_with_the_geometric_controller():
+    """The drone's interface (issue 34): ``--policy geometric --scene quadrotor_load --actuation
+    thrust_rates`` runs and reports its configuration; a point pivot has no geometric controller."""
+    proc = cli("agents.evaluate", "--policy", "geometric", "--scene", "quadrotor_load", "--actuation", "thrust_rates",
+               "--task", "stabilize", "--episodes", "1")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    stats = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert (stats["policy"], stats["scene"], stats["actuation"]) == ("geometric", "quadrotor_load", "thrust_rates")
+    assert stats["mean_return"] > 300.0
+    assert_usage_error(cli("agents.evaluate", "--policy", "geometric", "--episodes", "1"), "--policy", "'geometric'")
+    assert_usage_error(cli("agents.evaluate", "--scene", "quadrotor_load", "--actuation", "force", "--episodes", "1"),
+                       "--scene/--actuation", "does not fly")
 
 
 def test_evaluate_rejects_policy_names_it_does_not_know():

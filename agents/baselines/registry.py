@@ -20,11 +20,18 @@ SHAPING = {"shaper": "zv", "move_time": 0.1}
 LQG_TUNING = {"control_weight": 100.0, "state_noise": 1e-3, "force_noise": 1e-4, "model_error": 3.0}
 
 
-def baseline(task: str, winch: bool = False):
-    """The PD law of ``task`` (the simplest reference); with a winch, :class:`Hoist` around it."""
+def baseline(task: str, winch: bool = False, drone: bool = False):
+    """The PD law of ``task`` (the simplest reference); with a winch, :class:`Hoist` around it;
+    with a drone at the pivot, the same gains flying the drone (agents/baselines/geometric.py
+    DronePD)."""
     if task not in PD_LAWS:
         raise ValueError(f"no baseline for task {task!r}; known: {sorted(PD_LAWS)}")
     law = PD_LAWS[task]
+    if drone:
+        from agents.baselines.geometric import DronePD
+
+        law = law.pd if isinstance(law, Hoist) else law
+        return DronePD(kp=law.kp, kd=law.kd, kp_z=law.kp_z, kd_z=law.kd_z, k_sway=law.k_sway)
     return Hoist(law) if winch and not isinstance(law, Hoist) else law
 
 
@@ -44,7 +51,13 @@ def baseline_factories(task: str, env_kwargs: Optional[dict] = None) -> dict:
     from esp_gym.setup import make_setup
 
     setup = make_setup(task=task, **(env_kwargs or {}))
-    out = {"pd": lambda: baseline(task, setup.winch)}
+    out = {"pd": lambda: baseline(task, setup.winch, setup.drone)}
+    if setup.drone:  # the drone's cascades (agents/baselines/geometric.py)
+        if setup.observer.mode == "full":
+            from agents.baselines.geometric import geometric_controller
+
+            out["geometric"] = lambda: geometric_controller(task)
+        return out
     if setup.winch:  # the model-based designs are for a fixed length
         return out
     if setup.observer.mode == "hook":
