@@ -108,11 +108,12 @@ class DronePD:
         layout = setup.observer.layout
         e_p = obs[layout["pivot_position_error"]]
         v_p = obs[layout["pivot_velocity"]]
+        horizontal, vertical = slice(0, 2), 2  # x, y and z of a spatial vector
         acc = np.empty(3)
-        acc[:2] = -self.kp * e_p[:2] - self.kd * v_p[:2]
+        acc[horizontal] = -self.kp * e_p[horizontal] - self.kd * v_p[horizontal]
         if "load_velocity" in layout:
-            acc[:2] += self.k_sway * (obs[layout["load_velocity"]] - v_p)[:2]
-        acc[2] = -self.kp_z * e_p[2] - self.kd_z * v_p[2]
+            acc[horizontal] += self.k_sway * (obs[layout["load_velocity"]] - v_p)[horizontal]
+        acc[vertical] = -self.kp_z * e_p[vertical] - self.kd_z * v_p[vertical]
         weight = -setup.hover[2]
         return drone_action(-weight * E3 + weight / setup.scene.gravity * acc, obs, setup, self.inner)
 
