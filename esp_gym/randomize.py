@@ -16,6 +16,22 @@ name                        unit   draw         default range (of the nominal sc
 ``pivot_mass``              kg     log-uniform  x [0.5, 2]
 =========================  =====  ===========  ==========================================
 
+With a drone at the pivot, :data:`~esp_gym.kernels.env_arrays.DRONE_SCENE_PARAMS` follow, drawn
+after the others (so the draws above are the same with and without a drone), each a scale of
+the scene's value (1):
+
+===========================  ===========  ==================================================
+name                          draw         default range
+===========================  ===========  ==================================================
+``drone_inertia_scale``       log-uniform  [0.75, 4/3]: the drone's principal inertias
+``rotor_coefficient_scale``   uniform      [0.9, 1.1]: k_f and k_m together
+``motor_lag_scale``           log-uniform  [0.5, 2]: both motor time constants
+===========================  ===========  ==================================================
+
+A drone's ``pivot_mass`` ranges over x [0.8, 1.25] by default (a payload or a battery's
+difference, not another drone), and the environment refuses ranges whose heaviest rig the
+weakest rotors cannot lift with a margin (esp_gym/setup.py, ``check_lift``).
+
 The attachment offsets are rho_c's x and y (attachment point -> centre of mass, body frame);
 rho_c's z scales with the box's height, so the attachment stays on the same face. A load given
 by its inertia instead of a shape keeps its geometry: its inertia scales with its mass. N, the
@@ -35,11 +51,20 @@ from typing import Any, Mapping, Optional, Union
 
 import numpy as np
 
-from .kernels.env_arrays import SCENE_PARAMS
+from .kernels.env_arrays import DRONE_SCENE_PARAMS, SCENE_PARAMS
 from .params import Box, Scene, scene_from_dict
 
 #: The names drawn on a log scale (scale parameters); the others are uniform.
-LOG_UNIFORM = frozenset({"EA", "mass_per_length", "load_mass", "pivot_mass"})
+LOG_UNIFORM = frozenset({"EA", "mass_per_length", "load_mass", "pivot_mass", "drone_inertia_scale",
+                         "motor_lag_scale"})
+#: The drone's scales' default ranges.
+DRONE_RANGES = {"drone_inertia_scale": (0.75, 4.0 / 3.0), "rotor_coefficient_scale": (0.9, 1.1),
+                "motor_lag_scale": (0.5, 2.0)}
+
+
+def episode_param_names(scene: Scene) -> tuple:
+    """The names of an episode's parameters: SCENE_PARAMS, then DRONE_SCENE_PARAMS with a drone."""
+    return SCENE_PARAMS.names + (DRONE_SCENE_PARAMS.names if scene.pivot.is_drone else ())
 #: Names that may take values <= 0.
 SIGNED = frozenset({"attachment_offset_x", "attachment_offset_y"})
 #: Names that need a box-shaped load.
@@ -47,7 +72,8 @@ BOX_ONLY = frozenset({"load_size_x", "load_size_y", "load_size_z", "attachment_o
 
 
 def nominal_values(scene: Scene) -> dict:
-    """The scene's own values of :data:`SCENE_PARAMS` (box-only names: NaN for other loads)."""
+    """The scene's own values of :func:`episode_param_names` (box-only names: NaN for other loads;
+    the drone's scales 1)."""
     body = scene.body
     box = isinstance(body.shape, Box) and body.inertia is None
     size = body.shape.size if box else (math.nan,) * 3
@@ -56,8 +82,9 @@ def nominal_values(scene: Scene) -> dict:
                   mass_per_length=scene.string.mass_per_length, load_mass=body.mass,
                   load_size_x=size[0], load_size_y=size[1], load_size_z=size[2],
                   attachment_offset_x=rho[0] if box else math.nan, attachment_offset_y=rho[1] if box else math.nan,
-                  pivot_mass=scene.pivot.mass or 0.0)
-    return {name: float(values[name]) for name in SCENE_PARAMS.names}
+                  pivot_mass=scene.pivot.mass or 0.0, drone_inertia_scale=1.0, rotor_coefficient_scale=1.0,
+                  motor_lag_scale=1.0)
+    return {name: float(values[name]) for name in episode_param_names(scene)}
 
 
 def default_ranges(scene: Scene) -> dict:
@@ -65,10 +92,14 @@ def default_ranges(scene: Scene) -> dict:
     left out for other loads."""
     v = nominal_values(scene)
     out = {}
-    for name in SCENE_PARAMS.names:
+    for name in episode_param_names(scene):
         if math.isnan(v[name]):
             continue
-        if name in LOG_UNIFORM:
+        if name in DRONE_RANGES:
+            out[name] = DRONE_RANGES[name]
+        elif name == "pivot_mass" and scene.pivot.is_drone:  # a drone's payload and battery, not a new drone
+            out[name] = (0.8 * v[name], 1.25 * v[name])
+        elif name in LOG_UNIFORM:
             out[name] = (0.5 * v[name], 2.0 * v[name])
         elif name.startswith("attachment_offset"):
             half = 0.25 * v["load_size_" + name[-1]]
@@ -107,11 +138,13 @@ class Randomizer:
 
     def __init__(self, scene: Scene, spec: Union[bool, Mapping[str, Any]] = True):
         self.nominal = scene
+        #: The names of an episode's values, in their order (:func:`episode_param_names`).
+        self.names = episode_param_names(scene)
         ranges = default_ranges(scene)
         if isinstance(spec, Mapping):
             for name, given in spec.items():
-                if name not in SCENE_PARAMS:
-                    raise ValueError(f"randomize: unknown parameter {name!r}; choose from {list(SCENE_PARAMS.names)}")
+                if name not in self.names:
+                    raise ValueError(f"randomize: unknown parameter {name!r}; choose from {list(self.names)}")
                 if name in BOX_ONLY and name not in ranges:
                     raise ValueError(f"randomize: {name} needs a box-shaped load given by its shape "
                                      f"(scene {scene.name!r} has {scene.body.shape!r})")
@@ -121,18 +154,18 @@ class Randomizer:
         #: name -> (low, high), SI; names without a range keep the nominal value
         self.ranges = ranges
         nominal = nominal_values(scene)
-        self._low = np.array([ranges.get(k, (nominal[k], nominal[k]))[0] for k in SCENE_PARAMS.names])
-        self._high = np.array([ranges.get(k, (nominal[k], nominal[k]))[1] for k in SCENE_PARAMS.names])
-        self._log = np.array([k in LOG_UNIFORM and k in ranges for k in SCENE_PARAMS.names])
+        self._low = np.array([ranges.get(k, (nominal[k], nominal[k]))[0] for k in self.names])
+        self._high = np.array([ranges.get(k, (nominal[k], nominal[k]))[1] for k in self.names])
+        self._log = np.array([k in LOG_UNIFORM and k in ranges for k in self.names])
         self._check_corners()
 
     def stiffest(self) -> list:
-        """The values (SCENE_PARAMS order) of the episodes that need the smallest step, the others
+        """The values (:attr:`names` order) of the episodes that need the smallest step, the others
         nominal: the shortest, lightest, stiffest string with the lightest pivot and load, the
         smallest box and the largest offsets (the explicit string's bound: least mass at the
         chain's ends, esp_gym/stability.py), and the same string under the heaviest load (the
         implicit string's transverse bound grows with the tension)."""
-        names = SCENE_PARAMS.names
+        names = self.names
         light = np.array([nominal_values(self.nominal)[k] for k in names])
         for i, k in enumerate(names):
             if k in ("string_length", "mass_per_length", "load_mass", "pivot_mass") or k.startswith("load_size"):
@@ -146,10 +179,10 @@ class Randomizer:
         return [light, heavy]
 
     def draw(self, rng: np.random.Generator) -> np.ndarray:
-        """One episode's values (SCENE_PARAMS order), one uniform draw per name."""
-        unit = rng.random(SCENE_PARAMS.size)
-        out = np.empty(SCENE_PARAMS.size)
-        for i in range(SCENE_PARAMS.size):
+        """One episode's values (:attr:`names` order), one uniform draw per name."""
+        unit = rng.random(len(self.names))
+        out = np.empty(len(self.names))
+        for i in range(len(self.names)):
             lo, hi = self._low[i], self._high[i]
             if self._log[i]:
                 out[i] = math.exp(math.log(lo) + unit[i] * (math.log(hi) - math.log(lo))) if hi > lo else lo
@@ -158,9 +191,9 @@ class Randomizer:
         return out
 
     def scene(self, values: np.ndarray, h: Optional[float] = None) -> Scene:
-        """The nominal scene with ``values`` (SCENE_PARAMS order) and step ``h``: copies of its
+        """The nominal scene with ``values`` (:attr:`names` order) and step ``h``: copies of its
         sections, not validated again (the ranges' corners were)."""
-        v = dict(zip(SCENE_PARAMS.names, values.tolist()))
+        v = dict(zip(self.names, values.tolist()))
         base = self.nominal
         body = base.body
         update: dict = {"mass": v["load_mass"]}
@@ -177,6 +210,15 @@ class Randomizer:
         sections = {"string": string, "body": body.model_copy(update=update)}
         if base.pivot.is_free:
             sections["pivot"] = base.pivot.model_copy(update={"mass": v["pivot_mass"]})
+        if base.pivot.is_drone:
+            drone = base.pivot.drone
+            rotor, lag = v["rotor_coefficient_scale"], v["motor_lag_scale"]
+            sections["pivot"] = sections["pivot"].model_copy(update={"drone": drone.model_copy(update={
+                "inertia": tuple(v["drone_inertia_scale"] * x for x in drone.inertia),
+                "thrust_coefficient": rotor * drone.thrust_coefficient,
+                "torque_coefficient": rotor * drone.torque_coefficient,
+                "motor_time_constant_up": lag * drone.motor_time_constant_up,
+                "motor_time_constant_down": lag * drone.motor_time_constant_down})})
         if h is not None:
             sections["h"] = float(h)
         return base.model_copy(update=sections)
@@ -186,12 +228,12 @@ class Randomizer:
         and the largest offsets (where the body's inertia is least well conditioned)."""
         lows, highs = self._low.copy(), self._high.copy()
         thin = highs.copy()
-        for i, name in enumerate(SCENE_PARAMS.names):
+        for i, name in enumerate(self.names):
             if name.startswith("load_size"):
                 thin[i] = lows[i]
             elif name.startswith("attachment_offset"):
                 thin[i] = lows[i] if abs(lows[i]) > abs(highs[i]) else highs[i]
-        names = SCENE_PARAMS.names
+        names = self.names
         for axis in "xy" if "attachment_offset_x" in self.ranges or "attachment_offset_y" in self.ranges else "":
             offset, half = abs(thin[names.index("attachment_offset_" + axis)]), thin[names.index("load_size_" + axis)] / 2
             if offset > half:

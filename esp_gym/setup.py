@@ -19,11 +19,11 @@ from gymnasium import spaces
 from .kernels.layout import LGVIParams
 from .kernels.drone import ACTUATIONS
 from .kernels.drone_env import DRONE_ACTION_PARAMS, DRONE_ACTION_SIZE
-from .kernels.env_arrays import ACTION_PARAMS, ACTION_SIZE, SCENE_PARAMS, WINCH_ACTION
+from .kernels.env_arrays import ACTION_PARAMS, ACTION_SIZE, WINCH_ACTION
 from .observe import Observer
 from .options import MAX_SUBSTEPS, env_options
 from .params import Scene, load_scene, override_scene, scene_from_dict
-from .randomize import Randomizer, nominal_values
+from .randomize import Randomizer, episode_param_names, nominal_values
 from .state import build_params
 from .stepsize import auto_elements, resolution_safety, scheme_substeps, shortest
 from .tasks import Task, get_task
@@ -58,6 +58,27 @@ def check_hanging(scene: Scene, task: Task, randomizer: Optional[Randomizer]) ->
                          f"string (EA = {low['EA']:.4g} N) by {stretch:.3g} of its length{where}, past {allowed:g} "
                          f"(half of the {task.max_stretch - 1.0:g} at which task {task.name!r} ends an episode); "
                          f"raise EA or lighten the load or the string")
+
+
+#: The least thrust-to-weight a drone needs at the randomize ranges' worst corner: below it a
+#: controller has no authority left to steer (at 1 it could only hover).
+MIN_THRUST_TO_WEIGHT = 1.2
+
+
+def check_lift(scene: Scene, randomizer: Optional[Randomizer]) -> None:
+    """ValueError unless the drone's rotors lift the rig with :data:`MIN_THRUST_TO_WEIGHT` to spare:
+    at the ranges' heaviest drone, load and string under the weakest rotors with ``randomizer``."""
+    nominal = nominal_values(scene)
+    ranges = {} if randomizer is None else randomizer.ranges
+    high = {k: ranges.get(k, (v, v))[1] for k, v in nominal.items()}
+    weakest = ranges.get("rotor_coefficient_scale", (1.0, 1.0))[0]
+    weight = scene.gravity * (high["pivot_mass"] + high["load_mass"] + high["mass_per_length"] * high["string_length"])
+    thrust = weakest * scene.pivot.drone.max_thrust
+    if thrust < MIN_THRUST_TO_WEIGHT * weight:
+        where = " at the randomize ranges' heaviest, weakest corner" if randomizer is not None else ""
+        raise ValueError(f"ElasticStringPendulum-v0: the drone cannot carry the rig: its rotors push {thrust:.4g} N "
+                         f"against a weight of {weight:.4g} N{where}, under the {MIN_THRUST_TO_WEIGHT:g} times the "
+                         f"weight a controller needs; lighten the rig or narrow the ranges")
 
 
 def action_params(hover: np.ndarray, force_limit: float, torque_limit: float, max_reel_speed: float) -> np.ndarray:
@@ -103,7 +124,7 @@ def drone_action_params(scene: Scene, actuation: str) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Episode:
-    """The run-time physics of one episode: its scene's values (SCENE_PARAMS order), the scene
+    """The run-time physics of one episode: its scene's values (episode_param_names order), the scene
     with its step, the stepper's constants, physics steps per control step, the task's and the
     action path's constants (the hover force holds this episode's weight up)."""
 
@@ -144,8 +165,9 @@ class EnvSetup:
 
     @property
     def param_names(self) -> tuple:
-        """The names of the reset info's ``"scene_params"``: SCENE_PARAMS, then WIND_INFO with wind."""
-        return SCENE_PARAMS.names + (WIND_INFO if self.wind is not None else ())
+        """The names of the reset info's ``"scene_params"``: SCENE_PARAMS (DRONE_SCENE_PARAMS after
+        them with a drone: esp_gym/randomize.py), then WIND_INFO with wind."""
+        return episode_param_names(self.scene) + (WIND_INFO if self.wind is not None else ())
 
     @property
     def observation_structure(self) -> dict:
@@ -176,7 +198,7 @@ class EnvSetup:
 
     @cached_property
     def nominal_episode(self) -> Episode:
-        return Episode(np.array([nominal_values(self.scene)[k] for k in SCENE_PARAMS.names]), self.scene,
+        return Episode(np.array([nominal_values(self.scene)[k] for k in episode_param_names(self.scene)]), self.scene,
                        build_params(self.scene), self.substeps, self.task_params, self.action_params)
 
     def episode_for(self, scene: Scene) -> Episode:
@@ -187,7 +209,7 @@ class EnvSetup:
             raise ValueError(f"scene {scene.name!r}: h = {scene.h} s does not divide the control period "
                              f"{self.control_period} s")
         nominal = nominal_values(scene)
-        values = np.array([nominal[k] for k in SCENE_PARAMS.names])
+        values = np.array([nominal[k] for k in episode_param_names(scene)])
         hover = np.array([0.0, 0.0, -total_weight(scene)])
         ap = (drone_action_params(scene, self.actuation) if self.drone
               else action_params(hover, self.force_limit, self.torque_limit, scene.winch.max_speed))
@@ -254,6 +276,8 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
         raise ValueError(f"ElasticStringPendulum-v0: task={o.task!r} reels the string: it needs winch=True")
     randomizer = None if o.randomize is False else Randomizer(resolved, o.randomize)
     check_hanging(resolved, t, randomizer)
+    if resolved.pivot.is_drone:
+        check_lift(resolved, randomizer)
     if resolved.string.auto and resolved.solver.string == "explicit":
         # the resolution rule (docs/physics.md, "The string's resolution"): N for the nominal scene
         # (every episode keeps the arrays' shape), each episode's step for its own draw

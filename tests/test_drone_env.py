@@ -11,7 +11,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import esp_gym  # noqa: F401  (registers the environment)
 from esp_gym.drone import DroneSimulator
-from esp_gym.kernels.drone import ACTUATIONS
+from esp_gym.kernels.drone import ACTUATIONS, DRONE
 
 ENV_ID = "ElasticStringPendulum-v0"
 SCENE = "quadrotor_load"
@@ -98,3 +98,40 @@ def test_the_drones_observation_fields_hold_its_attitude_and_rates(observation):
 def test_a_mismatched_actuation_or_option_is_refused_by_name(options, message):
     with pytest.raises(ValueError, match=message):
         gym.make(ENV_ID, **options)
+
+
+def test_the_hard_preset_draws_the_drone_and_the_step_flies_the_drawn_one():
+    """With randomize, each episode draws the drone's inertia, rotor coefficients and motor lag
+    (after the tether's and the load's draws, which stay the point pivot's stream); the compiled
+    step's constants are the episode's: k_f, the lag's decays over the episode's h, J_q."""
+    env = gym.make(ENV_ID, scene=SCENE, preset="hard").unwrapped
+    seen = []
+    for seed in range(3):
+        _, info = env.reset(seed=seed)
+        scales = info["scene_params"]
+        drone = env.scene.pivot.drone
+        nominal = env.setup.scene.pivot.drone
+        assert 0.75 <= scales["drone_inertia_scale"] <= 4 / 3 and 0.9 <= scales["rotor_coefficient_scale"] <= 1.1
+        assert 0.5 <= scales["motor_lag_scale"] <= 2.0
+        assert drone.thrust_coefficient == pytest.approx(scales["rotor_coefficient_scale"] * nominal.thrust_coefficient)
+        consts = env.sim.drone.consts
+        assert consts[DRONE.scalar("thrust_coefficient")] == drone.thrust_coefficient
+        assert consts[DRONE.scalar("decay_up")] == pytest.approx(np.exp(-env.scene.h / drone.motor_time_constant_up), rel=1e-14)
+        np.testing.assert_array_equal(env.sim.drone.inertia, drone.inertia_matrix())
+        seen.append(scales["drone_inertia_scale"])
+    assert len(set(seen)) == 3
+    # the same rig with a point mass at the pivot draws the same tether and load
+    point = gym.make(ENV_ID, scene=SCENE, preset="hard", scene_overrides={"pivot": {"kind": "free", "drone": None}})
+    _, point_info = point.unwrapped.reset(seed=0)
+    _, drone_info = env.reset(seed=0)
+    tether_and_load = [k for k in point_info["scene_params"] if k not in ("pivot_mass",) and not k.startswith("wind")]
+    assert len(tether_and_load) == 9
+    assert [point_info["scene_params"][k] for k in tether_and_load] == [drone_info["scene_params"][k]
+                                                                        for k in tether_and_load]
+
+
+def test_a_drone_that_cannot_carry_its_rig_is_refused():
+    with pytest.raises(ValueError, match="the drone cannot carry the rig"):
+        gym.make(ENV_ID, scene=SCENE, scene_overrides={"body.mass": 12.0, "EA": 5e4})
+    with pytest.raises(ValueError, match="heaviest, weakest corner"):
+        gym.make(ENV_ID, scene=SCENE, randomize={"pivot_mass": (1.5, 3.0)})

@@ -160,6 +160,11 @@ SCENE_PARAMS = Layout(*((name, 1) for name in (
     "string_length", "EA", "mass_per_length", "load_mass", "load_size_x", "load_size_y", "load_size_z",
     "attachment_offset_x", "attachment_offset_y", "pivot_mass")))
 
+#: A drone's episode parameters, after SCENE_PARAMS with a drone at the pivot (esp_gym/randomize.py):
+#: scales of its inertia, of its rotors' thrust and drag coefficients (together: the mixer's
+#: ratio stays), and of its motors' time constants (1: the scene's).
+DRONE_SCENE_PARAMS = Layout(("drone_inertia_scale", 1), ("rotor_coefficient_scale", 1), ("motor_lag_scale", 1))
+
 #: The environment step's ``scheme`` (kernels/env_step.py): a bit for wind and pushes (an int, so that
 #: a later run-time option is a bit, not an argument: each costs numba's dispatcher about 0.09 us
 #: per call).
