@@ -1,9 +1,11 @@
 """One figure per task of ElasticStringPendulum-v0: a seeded episode under a controller, seen from
 above and over time (docs/environment.md, "The tasks").
 
-    python -m agents.task_figures --out docs/img [--seed 3] [--steps 500] [--policy baseline]
+    python -m agents.task_figures --out docs/img [--seed 3] [--steps 500] [--policy baseline] [--drone]
 
-writes ``task_{stabilize,transport,track}.png``: left, the top view (x, y) of the pivot's and the
+writes ``task_{stabilize,transport,track}.png`` (with ``--drone``: ``drone_transport.png``, a
+``transport`` episode of ``quadrotor_load`` under the geometric cascade, ``thrust_rates``, the
+drone's roll, pitch and yaw over time below the load's distance): left, the top view (x, y) of the pivot's and the
 load's paths with the targets (``track``: the reference the load follows); right, over time, the
 load's distance to its target [m] and the swing angle of the string [deg]. The controller is the
 task's classical baseline (agents/baselines/pd.py) unless ``--policy zero``; each panel notes the
@@ -34,8 +36,11 @@ def rollout(task: str, policy, seed: int, steps: int, env_kwargs=None) -> dict:
     env = gym.make(esp_gym.ENV_ID, task=task, **(env_kwargs or {}))
     u = env.unwrapped
     obs, _ = env.reset(seed=seed)
+    if hasattr(policy, "reset"):
+        policy.reset(u)
     pivot, load, targets, swing = [u.pivot_position().copy()], [u.load_position().copy()], [u.target], \
         [u.swing_angle()]
+    attitude = [u.sim.drone.R.copy()] if u.setup.drone else None
     total, done, k = 0.0, False, 0
     while not done and k < steps:
         obs, reward, terminated, truncated, _ = env.step(policy.act(obs, u.setup))
@@ -46,10 +51,17 @@ def rollout(task: str, policy, seed: int, steps: int, env_kwargs=None) -> dict:
         load.append(u.load_position().copy())
         targets.append(u.target)
         swing.append(u.swing_angle())
+        if attitude is not None:
+            attitude.append(u.sim.drone.R.copy())
     targets = np.array(targets)
-    return {"time": u.setup.control_period * np.arange(k + 1), "pivot": np.array(pivot), "load": np.array(load),
-            "pivot_target": targets[:, :3], "load_target": targets[:, 3:], "swing": np.array(swing),
-            "return": total}
+    run = {"time": u.setup.control_period * np.arange(k + 1), "pivot": np.array(pivot), "load": np.array(load),
+           "pivot_target": targets[:, :3], "load_target": targets[:, 3:], "swing": np.array(swing),
+           "return": total}
+    if attitude is not None:  # the drone's roll, pitch and yaw [rad] (body x-y-z, extrinsic)
+        from scipy.spatial.transform import Rotation
+
+        run["attitude"] = Rotation.from_matrix(np.array(attitude)).as_euler("xyz")
+    return run
 
 
 def plot_task(run: dict, task: str, path, title: str) -> Path:
@@ -81,12 +93,20 @@ def plot_task(run: dict, task: str, path, title: str) -> Path:
     distance_ax.plot(t, np.linalg.norm(run["load"] - run["load_target"], axis=1), color=COLOURS["load"])
     distance_ax.set_ylabel("load to target [m]")
     distance_ax.set_title(f"return {run['return']:.1f} over {len(t) - 1} steps")
-    swing_ax.plot(t, np.degrees(run["swing"]), color="tab:green")
-    swing_ax.set_ylabel("swing [deg]")
+    if "attitude" in run:  # the drone's attitude instead of the swing
+        for i, name in enumerate(("roll", "pitch", "yaw")):
+            swing_ax.plot(t, np.degrees(run["attitude"][:, i]), lw=1.2, label=name)
+        swing_ax.set_ylabel("drone attitude [deg]")
+        swing_ax.legend(loc="best", ncol=3)
+    else:
+        swing_ax.plot(t, np.degrees(run["swing"]), color="tab:green")
+        swing_ax.set_ylabel("swing [deg]")
     swing_ax.set_xlabel("time [s]")
     for ax in (distance_ax, swing_ax):
         ax.grid(True, alpha=0.3)
-        ax.set_ylim(bottom=0.0)
+    distance_ax.set_ylim(bottom=0.0)
+    if "attitude" not in run:
+        swing_ax.set_ylim(bottom=0.0)
     fig.suptitle(title)
     fig.tight_layout()
     return save_figure(fig, path)
@@ -98,12 +118,28 @@ def main(argv=None) -> dict:
     ap.add_argument("--seed", type=int, default=3, help="the episode's seed (>= 0)")
     ap.add_argument("--steps", type=int, default=500, help="control steps at most (>= 1)")
     ap.add_argument("--policy", choices=("baseline", "zero"), default="baseline")
+    ap.add_argument("--drone", action="store_true",
+                    help="only drone_transport.png: quadrotor_load's transport under the geometric cascade")
     ap.minimums = {"seed": 0, "steps": 1}
     a = ap.parse_args(argv)
     ap.check_out_dir("--out", a.out)  # as compare's and robustness's: a new directory in an existing one
     out = Path(a.out)
     out.mkdir(exist_ok=True)
     results = {}
+    if a.drone:
+        from agents.baselines.geometric import geometric_controller
+
+        policy = ZeroPolicy() if a.policy == "zero" else geometric_controller("transport")
+        run = rollout("transport", policy, a.seed, a.steps, {"scene": "quadrotor_load", "actuation": "thrust_rates"})
+        name = "zero action" if a.policy == "zero" else "geometric cascade"
+        path = plot_task(run, "transport", out / "drone_transport.png",
+                         f"quadrotor_load, task='transport', thrust_rates, {name}, seed {a.seed}")
+        final = float(np.linalg.norm(run["load"][-1] - run["load_target"][-1]))
+        results["drone_transport"] = {"return": run["return"], "final_distance_m": final, "figure": str(path),
+                                      "largest_tilt_deg": float(np.degrees(np.abs(run["attitude"][:, :2]).max()))}
+        print(f"drone transport return {run['return']:7.1f}  final distance {final:.3f} m  largest roll or pitch "
+              f"{results['drone_transport']['largest_tilt_deg']:.1f} deg  -> {path}")
+        return results
     for task in sorted(TASKS):
         policy = ZeroPolicy() if a.policy == "zero" else baseline(task)
         run = rollout(task, policy, a.seed, a.steps)

@@ -101,6 +101,21 @@ def test_task_figures_rollout_is_the_evaluated_episode(tmp_path):
         assert (tmp_path / f"task_{task}.png").stat().st_size > 10_000
 
 
+def test_the_drone_figure_is_the_geometric_cascades_evaluated_episode(tmp_path):
+    """``--drone``: quadrotor_load's transport under the geometric cascade, the episode
+    agents.evaluate scores, with the drone's attitude recorded at every step."""
+    from agents import task_figures
+    from agents.baselines.geometric import geometric_controller
+
+    kw = {"scene": "quadrotor_load", "actuation": "thrust_rates"}
+    run = task_figures.rollout("transport", geometric_controller("transport"), seed=3, steps=10_000, env_kwargs=kw)
+    assert run["return"] == evaluate_policy(geometric_controller("transport"), task="transport", episodes=1, seed=3,
+                                            env_kwargs=kw)["mean_return"]
+    assert run["attitude"].shape == (len(run["time"]), 3)
+    results = task_figures.main(["--out", str(tmp_path), "--steps", "5", "--drone"])
+    assert list(results) == ["drone_transport"] and (tmp_path / "drone_transport.png").stat().st_size > 10_000
+
+
 SHIPPED_POLICIES = sorted(p.parent for p in (ROOT / "models").glob("*_ppo/model.zip"))
 
 
