@@ -12,6 +12,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 import esp_gym  # noqa: F401  (registers the environment)
 from esp_gym.drone import DroneSimulator
 from esp_gym.kernels.drone import ACTUATIONS, DRONE
+from esp_gym.viz.render import FrameRenderer
 
 ENV_ID = "ElasticStringPendulum-v0"
 SCENE = "quadrotor_load"
@@ -135,3 +136,22 @@ def test_a_drone_that_cannot_carry_its_rig_is_refused():
         gym.make(ENV_ID, scene=SCENE, scene_overrides={"body.mass": 12.0, "EA": 5e4})
     with pytest.raises(ValueError, match="heaviest, weakest corner"):
         gym.make(ENV_ID, scene=SCENE, randomize={"pivot_mass": (1.5, 3.0)})
+
+
+def test_the_frames_draw_the_drone_as_it_turns():
+    """rgb_array frames draw the drone's arms and rotors at its attitude: rolling it changes the
+    pixels around the pivot, and the same state drawn with the point pivot's icon differs there."""
+    env = gym.make(ENV_ID, scene=SCENE, render_mode="rgb_array")
+    env.reset(seed=0)
+    level = env.render()
+    for _ in range(8):
+        env.step(np.array([0.0, 0.8, 0.0, 0.0]))
+    rolled = env.render()
+    u = env.unwrapped
+    st = u.sim.state
+    renderer = FrameRenderer(u.scene.body.shape, u.scene.body.rho_c, u.scene.string.length)
+    icon = renderer.render(st.r, st.R, u.sim.diagnostics()["strain_energy"])
+    top = slice(60, 160)  # the rows around the pivot (it starts at the origin, drawn near y = 120)
+    assert level.dtype == np.uint8 and level.shape == rolled.shape
+    assert np.abs(level[top].astype(int) - rolled[top].astype(int)).sum() > 0
+    assert np.abs(icon[top].astype(int) - rolled[top].astype(int)).sum() > 0

@@ -235,7 +235,8 @@ class FrameRenderer:
         e = m.edges[drawn]
         draw_lines(view, pix[e[:, 0]], pix[e[:, 1]], outline, 1.0)
 
-    def render(self, nodes, R, strain_energy, pivot_force=None, target_pivot=None, target_load=None) -> np.ndarray:
+    def render(self, nodes, R, strain_energy, pivot_force=None, target_pivot=None, target_load=None,
+               drone=None) -> np.ndarray:
         """One frame, uint8 (height, width, 3).
 
         nodes: (N+1, 3) node positions, spatial frame [m]; row 0 the pivot, row N the attachment
@@ -243,6 +244,8 @@ class FrameRenderer:
         strain_energy: (N,) per element [J]. pivot_force: (3,) [N], drawn from the pivot as an
         arrow ``force_scale`` m/N long. target_pivot, target_load: (3,) [m], where the pivot and
         the load's centre of mass should be. Any of the last three may be None (not drawn).
+        drone: None (the pivot's icon) or (R_q (3, 3), rotor positions (4, 3) in its body frame
+        [m]): the drone drawn at the pivot, its arms to its rotors' rings, as it is turned.
         """
         nodes = np.asarray(nodes, dtype=float).reshape(-1, 3)
         R = np.asarray(R, dtype=float).reshape(3, 3)
@@ -273,7 +276,15 @@ class FrameRenderer:
                     self._marker(view, np.asarray(target_pivot, float) @ panel.proj + panel.offset, "ring")
                 if target_load is not None:
                     self._marker(view, np.asarray(target_load, float) @ panel.proj + panel.offset, "cross")
-                self._marker(view, pix[0], "drone")
+                if drone is None:
+                    self._marker(view, pix[0], "drone")
+                else:
+                    rotors = (nodes[0] + np.asarray(drone[1], float) @ np.asarray(drone[0], float).T) @ panel.proj \
+                        + panel.offset
+                    draw_lines(view, np.repeat(pix[:1], len(rotors), axis=0), rotors, PIVOT, px(2))
+                    draw_discs(view, rotors, px(5), PIVOT, inner=px(3.5))
+                    fill_convex_polygons(view, pix[0] + np.array([(-1, -1), (1, -1), (1, 1), (-1, 1)]) * px(3),
+                                         PIVOT)
                 if pivot_force is not None and np.isfinite(pix[0]).all():
                     tip = pix[0] + self.force_scale * (np.asarray(pivot_force, float) @ panel.proj)
                     self._arrows(view, pix[:1], tip[None], FORCE, px(2), px(9))
