@@ -2,11 +2,15 @@
 
     python -m agents.baselines.gain_search --task stabilize --episodes 10
     python -m agents.baselines.gain_search --task stabilize --episodes 20 --grid '{"kp": [3, 4, 6], "kd": [1.5, 2, 3]}'
+    python -m agents.baselines.gain_search --controller geometric --scene quadrotor_load --task track \
+        --grid '{"k_load": [2, 4, 6], "k_drone_d": [2, 4, 8]}'
 
 Every combination of the ``--grid`` values replaces those gains of the task's baseline; each is
 scored by its mean return over ``--episodes`` episodes (seeds 1000 + i). Prints the ten best as
 JSON lines, best first. The winch's tasks (lift, lower) tune their Hoist: the PD law's gains and
-``k_length``.
+``k_length``. ``--controller geometric`` tunes the drone's load-led cascade
+(agents/baselines/geometric.py) on ``--scene`` (a drone's) in ``--actuation``; ``--controller pd``
+with a drone's scene, the PD law flying it.
 """
 from __future__ import annotations
 
@@ -25,10 +29,26 @@ COARSE_GRID = dict(kp=[1, 2, 4, 8], kd=[1, 2, 4, 8], k_sway=[0, 1, 2, 4, 8], k_s
 
 
 def gain_names(law) -> list:
-    """The gains ``--grid`` may set: the PD law's, and a Hoist's ``k_length`` besides its PD's."""
+    """The gains ``--grid`` may set: the PD law's, and a Hoist's ``k_length`` besides its PD's (the
+    numbers among a controller's fields: not its inner loops or its episode's record)."""
     if isinstance(law, Hoist):
         return sorted([f.name for f in fields(law.pd)] + ["k_length"])
-    return sorted(f.name for f in fields(law))
+    return sorted(f.name for f in fields(law) if f.type in ("float", float) and not f.name.startswith("_"))
+
+
+def controller(name: str, task: str, env_kwargs: dict):
+    """The task's controller to tune: ``pd`` (the PD law, flying the drone with a drone's scene) or
+    ``geometric`` (the drone's load-led cascade)."""
+    from esp_gym.setup import make_setup
+
+    setup = make_setup(task=task, **env_kwargs)
+    if name == "geometric":
+        if not setup.drone:
+            raise ValueError("the geometric cascade flies a drone: give a drone's --scene (quadrotor_load)")
+        from agents.baselines.geometric import geometric_controller
+
+        return geometric_controller(task)
+    return baseline(task, setup.winch, setup.drone)
 
 
 def with_gains(law, gains: dict):
@@ -39,13 +59,16 @@ def with_gains(law, gains: dict):
     return replace(law, **gains)
 
 
-def tune(task: str, episodes: int, grid: dict, top: int = 10) -> list:
-    """``(mean return, gains)`` of every grid point, best first; prints the ``top`` best as JSON lines."""
+def tune(task: str, episodes: int, grid: dict, top: int = 10, base=None, env_kwargs=None) -> list:
+    """``(mean return, gains)`` of every grid point, best first; prints the ``top`` best as JSON lines.
+    ``base``: the controller whose gains the grid replaces (default the task's PD law);
+    ``env_kwargs``: the environment's options (a drone's scene and actuation)."""
     results = []
-    base = baseline(task)
+    base = baseline(task) if base is None else base
     for values in itertools.product(*grid.values()):
         gains = dict(zip(grid, values))
-        stats = evaluate_policy(with_gains(base, gains), task=task, episodes=episodes, seed=1000)
+        stats = evaluate_policy(with_gains(base, gains), task=task, episodes=episodes, seed=1000,
+                                env_kwargs=env_kwargs)
         results.append((stats["mean_return"], gains))
     results.sort(key=lambda x: -x[0])
     for ret, gains in results[:top]:
@@ -57,20 +80,32 @@ def main(argv=None) -> list:
     ap = ArgumentParser(prog="python -m agents.baselines.gain_search", description=__doc__.split("\n\n")[0])
     ap.add_episode_options(TASKS, episodes=20, seed=False)
     ap.add_argument("--grid", type=str, default=None,
-                    help=f"JSON object gain -> list of values (default: {json.dumps(COARSE_GRID)})")
+                    help=f"JSON object gain -> list of values (default: {json.dumps(COARSE_GRID)}; "
+                         "required with --controller geometric)")
+    ap.add_argument("--controller", choices=("pd", "geometric"), default="pd")
+    ap.add_argument("--scene", default=None, help="the environment's scene (default: drone_load)")
+    ap.add_argument("--actuation", default=None, choices=["force", "thrust_torque", "thrust_rates", "motors"])
     a = ap.parse_args(argv)
+    env_kwargs = {name: value for name, value in (("scene", a.scene), ("actuation", a.actuation)) if value is not None}
     try:
-        grid = COARSE_GRID if a.grid is None else checked_grid(json.loads(a.grid), a.task)
+        base = controller(a.controller, a.task, env_kwargs)
+    except ValueError as err:
+        ap.error(f"argument --controller/--scene/--actuation: {err}")
+    if a.grid is None and a.controller == "geometric":
+        ap.error("argument --grid: the geometric cascade has no default grid; give one")
+    try:
+        grid = COARSE_GRID if a.grid is None else checked_grid(json.loads(a.grid), a.task, base)
     except json.JSONDecodeError as err:
         ap.error(f"argument --grid: not JSON ({err})")
     except ValueError as err:
         ap.error(f"argument --grid: {err}")
-    return tune(a.task, a.episodes, grid)
+    return tune(a.task, a.episodes, grid, base=base, env_kwargs=env_kwargs)
 
 
-def checked_grid(grid, task: str) -> dict:
-    """``grid`` if it maps gains of the task's baseline to non-empty lists of numbers."""
-    gains = gain_names(baseline(task))
+def checked_grid(grid, task: str, base=None) -> dict:
+    """``grid`` if it maps gains of ``base`` (default the task's baseline) to non-empty lists of
+    numbers."""
+    gains = gain_names(baseline(task) if base is None else base)
     if not isinstance(grid, dict) or not grid:
         raise ValueError(f"expected a JSON object of gain -> list of values, got {grid!r}")
     for name, values in grid.items():
