@@ -187,6 +187,12 @@ def test_evaluate_rejects_policy_names_it_does_not_know():
      ["--model", "winch False (trained with True)"]),
     ("agents.baselines.gain_search", ["--grid", '{"kq": [1]}'], ["--grid", "'kq'", "kp"]),
     ("agents.baselines.gain_search", ["--grid", '{"kp": [1'], ["--grid", "not JSON"]),
+    ("agents.baselines.gain_search", ["--controller", "geometric", "--grid", '{"k_load": [1]}'],
+     ["--controller/--scene/--actuation", "flies a drone"]),
+    ("agents.baselines.gain_search", ["--controller", "geometric", "--scene", "quadrotor_load"],
+     ["--grid", "no default grid"]),
+    ("agents.baselines.gain_search", ["--controller", "geometric", "--scene", "quadrotor_load", "--grid",
+                                      '{"kp": [1]}'], ["--grid", "'kp'", "k_load"]),
 ])
 def test_script_errors_are_one_line(tmp_path, module, args, names):
     missing = tmp_path / "missing"  # a directory that does not exist

@@ -47,7 +47,7 @@ def controller(name: str, task: str, env_kwargs: dict):
             raise ValueError("the geometric cascade flies a drone: give a drone's --scene (quadrotor_load)")
         from agents.baselines.geometric import geometric_controller
 
-        return geometric_controller(task)
+        return geometric_controller(task, setup.actuation)
     return baseline(task, setup.winch, setup.drone)
 
 

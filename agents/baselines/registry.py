@@ -56,7 +56,7 @@ def baseline_factories(task: str, env_kwargs: Optional[dict] = None) -> dict:
         if setup.observer.mode == "full":
             from agents.baselines.geometric import geometric_controller
 
-            out["geometric"] = lambda: geometric_controller(task)
+            out["geometric"] = lambda: geometric_controller(task, setup.actuation)
         return out
     if setup.winch:  # the model-based designs are for a fixed length
         return out
