@@ -393,3 +393,39 @@ def test_env_recording_holds_the_winch(tmp_path):
     env.step(np.zeros(6))
     env.close()
     assert not {e for e in entities(plain) if e.startswith("/winch")}
+
+
+def test_env_recording_holds_the_drone(tmp_path):
+    """A drone rollout: the recording's drone frame is at the pivot, turned by R_q, at every
+    sample (float32 of the simulator's), its rates and rotor speeds are the simulator's (float64,
+    the same bits), and the action series holds the drone's four entries. Negative control: a
+    point pivot's recording has no /drone entities."""
+    path = tmp_path / "drone.rrd"
+    env = RecordRerun(gym.make("ElasticStringPendulum-v0", scene="quadrotor_load"), path)
+    env.reset(seed=0)
+    sim = env.unwrapped.sim
+    reported = [sim.diagnostics()]
+    for _ in range(20):
+        env.step(np.array([0.1, 0.5, -0.3, 0.2]))
+        reported.append(sim.diagnostics())
+    env.close()
+    rows = read(path, R.DRONE)
+    f32 = lambda a: np.asarray(a, dtype=np.float32)  # noqa: E731
+    assert len(rows["step"]) == 21
+    for k, d in enumerate(reported):
+        assert np.array_equal(f32(rows["Transform3D:mat3x3"][k][0]), f32(d["drone_attitude"].T.reshape(-1)))
+        assert np.array_equal(f32(rows["Transform3D:translation"][k][0]), f32(d["pivot_position"]))
+    assert np.abs(reported[-1]["drone_attitude"] - np.eye(3)).max() > 0.05  # it did turn
+    _, rates = values(path, R.DRONE_RATES)
+    _, speeds = values(path, R.DRONE_ROTORS)
+    assert np.array_equal(rates, [d["drone_rates"] for d in reported])
+    assert np.array_equal(speeds, [d["rotor_speeds"] for d in reported])
+    _, actions = values(path, "/rl/action")
+    assert np.allclose(actions[-1], [0.1, 0.5, -0.3, 0.2], rtol=0, atol=1e-7)
+    assert R.DRONE_FRAME in {c.entity_path for c in RrdReader(path).stream() if c.is_static}
+    plain = tmp_path / "plain.rrd"
+    env = RecordRerun(gym.make("ElasticStringPendulum-v0"), plain)
+    env.reset(seed=0)
+    env.step(np.zeros(6))
+    env.close()
+    assert not {e for e in entities(plain) if "drone" in e}

@@ -48,6 +48,12 @@ ENV_DRAG = "/env/drag"
 WINCH_LENGTH = "/winch/unstretched_length"
 WINCH_SPEED = "/winch/reel_speed"
 WINCH_WORK = "/winch/work"
+#: With a drone at the pivot: its frame (a transform at the pivot, turned by R_q), its arms and
+#: rotors drawn in it, and the series of its body rates [rad/s] and rotor speeds [rad/s].
+DRONE = "/world/drone"
+DRONE_FRAME = "/world/drone/frame"
+DRONE_RATES = "/drone/rates"
+DRONE_ROTORS = "/drone/rotor_speeds"
 
 ENERGY_PARTS = ("kinetic_string", "kinetic_body", "kinetic_pivot", "potential_gravity", "potential_elastic")
 ACTION_NAMES = ("force_x", "force_y", "force_z", "torque_x", "torque_y", "torque_z")
@@ -115,9 +121,37 @@ SCALARS = {
 }
 
 
-def default_blueprint(env: bool, winch: bool = False) -> rrb.Blueprint:
+#: A drone's action by actuation: the names of its four entries (the action series' names).
+DRONE_ACTION_NAMES = {"thrust_rates": ("thrust", "rate_x", "rate_y", "rate_z"),
+                      "thrust_torque": ("thrust", "torque_x", "torque_y", "torque_z"),
+                      "motors": ("motor_1", "motor_2", "motor_3", "motor_4")}
+
+
+def scalar_series(actuation: str = "force") -> dict:
+    """:data:`SCALARS`, with a drone's four action entries named for its ``actuation`` in place
+    of the pivot force's and body torque's six."""
+    if actuation == "force":
+        return SCALARS
+    names = DRONE_ACTION_NAMES[actuation]
+    return {**SCALARS, "/rl/action": Series(names, _field("action", range(len(names))), TAB10[:len(names)], True,
+                                            True)}
+
+
+def drone_frame(rotors: np.ndarray) -> rr.LineStrips3D:
+    """The drone in its body frame: an arm from the centre to each rotor at ``rotors`` (4, 3) [m],
+    and a ring around each, a third of the arm across."""
+    rotors = np.asarray(rotors, dtype=float)
+    arm = float(np.linalg.norm(rotors[0]))
+    angle = np.linspace(0.0, 2.0 * np.pi, 17)
+    ring = 0.35 * arm * np.column_stack([np.cos(angle), np.sin(angle), np.zeros_like(angle)])
+    strips = [np.array([np.zeros(3), r]) for r in rotors] + [r + ring for r in rotors]
+    return rr.LineStrips3D(strips, radii=0.004, colors=[palette.PIVOT])
+
+
+def default_blueprint(env: bool, winch: bool = False, drone: bool = False) -> rrb.Blueprint:
     """The 3-D view beside the diagnostics (and, for env rollouts, reward and action, and wind
-    and forces; with a winch, its length, speed and work) panels."""
+    and forces; with a winch, its length, speed and work; with a drone, its rates and rotor
+    speeds) panels."""
     ts = rrb.TimeSeriesView
     panels = [
         ts(origin="/diag/energy", name="energy [J]"),
@@ -134,6 +168,9 @@ def default_blueprint(env: bool, winch: bool = False) -> rrb.Blueprint:
         panels.append(rrb.Tabs(ts(origin=ENV_WIND, name="wind [m/s]"),
                                ts(origin=ENV_HOOK_TENSION, name="hook tension [N]"),
                                ts(origin=ENV_PUSH, name="push [N]"), ts(origin=ENV_DRAG, name="drag [N]")))
+    if drone:
+        panels.append(rrb.Tabs(ts(origin=DRONE_RATES, name="drone rates [rad/s]"),
+                               ts(origin=DRONE_ROTORS, name="rotor speeds [rad/s]")))
     if winch:
         panels.append(rrb.Tabs(ts(origin=WINCH_LENGTH, name="unstretched length [m]"),
                                ts(origin=WINCH_SPEED, name="reel speed [m/s]"),

@@ -11,7 +11,8 @@ import gymnasium as gym
 import numpy as np
 
 from ..control import ControlStep, read_only
-from ..kernels.env_arrays import TARGET
+from ..kernels.drone import DRONE_DIAG
+from ..kernels.env_arrays import ACTION, TARGET
 from .recorder import Recorder
 
 
@@ -53,9 +54,16 @@ class RecordRerun(gym.Wrapper):
         self.control = control
         setup = control.setup
         self.flush_on_episode_end = bool(flush_on_episode_end)
+        drone = None
+        #: a drone's action, padded to the point pivot's size (the sample row's action field)
+        self._drone_action = np.zeros(ACTION.size) if setup.drone else None
+        if setup.drone:
+            from ..rotors import x_layout
+
+            drone = (setup.actuation, np.column_stack([x_layout(setup.scene.pivot.drone.arm_length), np.zeros(4)]))
         self.recorder = Recorder(path, setup.scene, env=True, winch=setup.winch, sample_period=setup.control_period,
                                  force_offset=setup.hover, action_scale=(setup.force_limit, setup.torque_limit),
-                                 **recorder_kwargs)
+                                 drone=drone, **recorder_kwargs)
         self._live = None  # the simulator's live (StateArrays, DiagWork), from the first reset on
         self._rho = None  # the episode's rho_c (body frame [m]), read-only float64 (one compiled signature)
         self._episode = -1
@@ -92,8 +100,14 @@ class RecordRerun(gym.Wrapper):
     def _add(self, **sample) -> None:
         control, rec = self.control, self.recorder
         state, diag = self._live
+        action = control.action
+        if self._drone_action is not None:  # four entries, in the row's six
+            self._drone_action[:action.size] = action
+            action = read_only(self._drone_action)
+            drone = control.sim.drone
+            rec.add_drone(drone.R, drone.diag[DRONE_DIAG["rates"]], drone.speed)
         rec.add_sample(state, diag, report=control.report, step=self._step, time=self._step * rec.sample_period,
-                       episode=self._episode, action=control.action, terms=control.reward_terms,
+                       episode=self._episode, action=action, terms=control.reward_terms,
                        sensors=control.sensors, disturbance=control.disturbance, rho=self._rho,
                        winch=control.sim.winch.vector, **sample)
 

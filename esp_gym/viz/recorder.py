@@ -21,9 +21,10 @@ from ..control import read_only
 from ..kernels.recording import (GeometryColumns, GeometryStyle, capture_sample, sample_geometry, sample_layout,
                                  trail_points)
 from . import arrow, lifecycle, palette
+from .drone_track import DroneTrack
 from .entities import (BLACK, BODY, BODY_COM, BODY_SHAPE, BODY_TORQUE, HOOK_TENSION, LOAD_TRAIL, PIVOT,
-                       PIVOT_FORCE, PUSH, RETURN, SCALARS, STRING, TARGET_LOAD, TARGET_PIVOT, WIND, WORLD, body_shape,
-                       default_blueprint, default_strain_scale)
+                       PIVOT_FORCE, PUSH, RETURN, STRING, TARGET_LOAD, TARGET_PIVOT, WIND, WORLD, body_shape,
+                       default_blueprint, default_strain_scale, scalar_series)
 
 
 class Recorder:
@@ -45,6 +46,7 @@ class Recorder:
     | `force_offset` | 0 | subtracted from the pivot force before drawing (env: the hover force) |
     | `torque_scale` | 10 | body-torque arrow length per N m [m/(N m)] |
     | `action_scale` | None | env: (force_limit, torque_limit); inputs = (force_offset + force_limit a[:3], torque_limit a[3:]) |
+    | `drone` | None | env with a drone: (its actuation, its rotors' positions (4, 3) [m] in its body frame): its frame, rates and rotor speeds (:meth:`add_drone`); the arrows from the inputs |
     | `trail_seconds` | 1.0 | length of the load's trail |
     | `trail_spacing` | 0.1 | time between the trail's points (a multiple of the sample period) |
     | `flush_every` | 2000 | samples buffered before they are written |
@@ -68,7 +70,7 @@ class Recorder:
                  force_offset=None, torque_scale: float = 10.0, action_scale: Optional[tuple] = None,
                  trail_seconds: float = 1.0, trail_spacing: float = 0.1, flush_every: int = 2000,
                  flush_seconds: float = 5.0, write_timeout: float = 5.0, application_id: str = "esp_gym",
-                 recording_id: Optional[str] = None):
+                 recording_id: Optional[str] = None, drone: Optional[tuple] = None):
         if flush_every < 1 or not flush_seconds > 0 or not write_timeout > 0:
             raise ValueError("flush_every must be >= 1, flush_seconds and write_timeout > 0")
         if not (sample_period > 0 and trail_seconds >= 0 and trail_spacing > 0 and force_scale >= 0
@@ -101,8 +103,12 @@ class Recorder:
 
         self.n_elements = n = scene.string.elements
         self.layout = sample_layout(n)  #: the layout of a buffered sample row
-        self._columns = {path: [self.layout.start(f) + k for f, k in s.sources] for path, s in SCALARS.items()}
+        #: the scalar series (a drone's action named for its actuation)
+        self.scalars = scalar_series("force" if drone is None else drone[0])
+        self._columns = {path: [self.layout.start(f) + k for f, k in s.sources] for path, s in self.scalars.items()}
         self._buf = np.zeros((self.flush_every, self.layout.size))
+        #: the drone's samples (esp_gym/viz/drone_track.py), or None without a drone
+        self.drone = None if drone is None else DroneTrack(drone[1], self.flush_every)
         self._n = 0  # rows buffered
         # read-only like the environment's views, so every caller hits one compiled signature
         self._zeros = read_only(np.zeros(max(ACTION.size, len(REWARD_TERMS), INPUTS.size, SENSORS.size,
@@ -121,7 +127,7 @@ class Recorder:
         self.rec = rr.RecordingStream(application_id, recording_id=recording_id)
         self.rec.set_log_time_enabled(False)
         self.rec.set_log_tick_enabled(False)
-        self._file.attach(self.rec, default_blueprint(self.env, self.winch))
+        self._file.attach(self.rec, default_blueprint(self.env, self.winch, self.drone is not None))
         self._log_static()
         lifecycle.track(self)
 
@@ -146,9 +152,11 @@ class Recorder:
                 static=True)
             log(BODY_COM, _com(rho), static=True)
             log(BODY_SHAPE, body_shape(self.scene.body, rho), static=True)
-        for path, series in SCALARS.items():
+        for path, series in self.scalars.items():
             if (self.env or not series.env_only) and (self.winch or not series.winch_only):
                 log(path, rr.SeriesLines(names=list(series.names), colors=series.colors), static=True)
+        if self.drone is not None:
+            self.drone.log_static(log)
         if self.env:
             log(RETURN, rr.SeriesLines(names="return", colors=[BLACK]), static=True)
 
@@ -217,6 +225,12 @@ class Recorder:
         clock = (self.E0, self.pi3_0, float(step), float(time), float(episode), 1.0 if stepped else 0.0, float(reward))
         capture_sample(self._buf, self._n, sources, clock)
         self._commit()
+
+    def add_drone(self, R, rates, rotor_speeds) -> None:
+        """The drone's attitude R_q (3, 3), body rates (3) and rotor speeds (4) [rad/s] of the
+        sample :meth:`add_sample` adds next."""
+        if not self.closed:
+            self.drone.set(self._n, R, rates, rotor_speeds)
 
     def sample(self, sim, *, pivot_force=None, body_torque=None, step: Optional[int] = None,
                time: Optional[float] = None) -> None:
@@ -327,7 +341,7 @@ class Recorder:
         pivot, force_vec, torque_vec, load = f32(n, 3), f32(n, 3), f32(n, 3), np.empty((n, 3))
         force_limit, torque_limit = self.action_scale if self.env else (0.0, 0.0)
         style = GeometryStyle(inv_strain_scale=1.0 / self.strain_scale, lut=palette.STRAIN_RGBA,
-                              inputs_from_action=self.env, force_offset=self.force_offset,
+                              inputs_from_action=self.env and self.drone is None, force_offset=self.force_offset,
                               force_limit=float(force_limit), torque_limit=float(torque_limit),
                               force_scale=self.force_scale, torque_scale=self.torque_scale)
         columns = GeometryColumns(pts=pts, colors=colors, translation=translation, mat=mat, pivot=pivot,
@@ -351,7 +365,9 @@ class Recorder:
             cols += self._disturbance_arrows(b, pivot, load, each)
         scalar = rr.Scalars.descriptor_scalars()
         missing = ~stepped  # reset samples have no step: no Newton count, reward or action
-        for path, series in SCALARS.items():
+        if self.drone is not None:
+            cols += self.drone.columns(n, pivot, each)
+        for path, series in self.scalars.items():
             if (series.env_only and not self.env) or (series.winch_only and not self.winch):
                 continue
             columns = self._columns[path]

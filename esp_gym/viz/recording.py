@@ -61,7 +61,16 @@ Entities (SI units; spatial frame unless stated; gravity along +z, the 3-D view 
 ``/winch/reel_speed``           ... the reel speed of the last step [m/s] (the reel action times
                                 ``winch.max_speed``, 0 once the winch stops at its range)
 ``/winch/work``                 ... and the winch's work since the episode's start [J]
+``/world/drone``                with a drone at the pivot: Transform3D, translation = the pivot,
+                                mat3x3 = R_q (the drone's body to spatial)
+``/world/drone/frame``          static: its arms and rotor rings in its body frame
+``/drone/rates``                its body rates Omega_q [rad/s]
+``/drone/rotor_speeds``         its four rotor speeds [rad/s]
 ==============================  =====================================================================
+
+With a drone the ``/rl/action`` series are its four entries, named for its actuation
+(``thrust, rate_x, ...``), and the pivot-force arrow is the inputs' thrust at the last physics
+step's start less the hover force (drone_track.py keeps the drone's samples).
 
 A sample holds the state after a step (or a reset, or the start of a free simulation) and its
 diagnostics; for env rollouts also what that ``env.step`` returned and applied (reward, terms,
@@ -95,7 +104,7 @@ and the file, cut back to the end of its last complete flush, stays readable. A 
 file ends when it has not grown for ``write_timeout`` (a failure, ``errno.ETIMEDOUT``).
 
 Modules: entities.py (the entity paths and series, the blueprint, the body's shape), recorder.py
-(:class:`Recorder`), record_env.py (:class:`RecordRerun`, :func:`record_simulation`), arrow.py
+(:class:`Recorder`), drone_track.py (a drone's samples), record_env.py (:class:`RecordRerun`, :func:`record_simulation`), arrow.py
 (the record batches), lifecycle.py (exit and signals), geometry.py and palette.py (shared with
 the rgb_array renderer), esp_gym/kernels/recording.py (the compiled sample, geometry and trail
 kernels). This module is their public face.
@@ -103,8 +112,8 @@ kernels). This module is their public face.
 from ..kernels.env_arrays import REWARD_TERMS
 from .geometry import equivalent_box, prism_triangles, quaternion_xyzw
 from .lifecycle import RecordingError
-from .entities import (BODY, BODY_COM, BODY_SHAPE, BODY_TORQUE, ENV_DRAG, ENV_HOOK_TENSION, ENV_PUSH, ENV_WIND,
-                       HOOK_TENSION, LOAD_TRAIL, NEWTON, PIVOT, PIVOT_FORCE, PUSH, RETURN, SCALARS, STRING,
+from .entities import (BODY, BODY_COM, BODY_SHAPE, BODY_TORQUE, DRONE, DRONE_FRAME, DRONE_RATES, DRONE_ROTORS,
+                       ENV_DRAG, ENV_HOOK_TENSION, ENV_PUSH, ENV_WIND, HOOK_TENSION, LOAD_TRAIL, NEWTON, PIVOT, PIVOT_FORCE, PUSH, RETURN, SCALARS, STRING,
                        TARGET_LOAD, TARGET_PIVOT, WIND, WINCH_LENGTH, WINCH_SPEED, WINCH_WORK, WORLD, default_blueprint,
                        default_strain_scale)
 from .record_env import RecordRerun, default_record_every, record_simulation
@@ -116,4 +125,5 @@ __all__ = [
     "REWARD_TERMS", "SCALARS", "WORLD", "STRING", "BODY", "BODY_SHAPE", "BODY_COM", "BODY_TORQUE", "PIVOT",
     "PIVOT_FORCE", "LOAD_TRAIL", "TARGET_PIVOT", "TARGET_LOAD", "NEWTON", "RETURN", "WIND", "PUSH", "HOOK_TENSION",
     "ENV_WIND", "ENV_HOOK_TENSION", "ENV_PUSH", "ENV_DRAG", "WINCH_LENGTH", "WINCH_SPEED", "WINCH_WORK",
+    "DRONE", "DRONE_FRAME", "DRONE_RATES", "DRONE_ROTORS",
 ]
