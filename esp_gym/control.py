@@ -146,7 +146,7 @@ class ControlStep:
         self._rngs = [None] * (self.num_envs or 1)  # each (sub-)environment's generator, for more draws
         self._windy = setup.wind is not None
         #: the compiled step and batched step (kernels/env_step.py), and their ``scheme``
-        self._step_kernel, self._batch_kernel = (DRONE_ENTRY_POINTS if setup.drone
+        self._step_kernel, self._batch_kernel = (DRONE_ENTRY_POINTS[bool(setup.winch)] if setup.drone
                                                  else ENTRY_POINTS[(bool(setup.winch), bool(self.sim.implicit))])
         self._scheme = SCHEME_DISTURBED if self._windy else 0
         self._was_reset = z(batch, dtype=bool)  # stepping a state that was never set is an error
@@ -269,9 +269,9 @@ class ControlStep:
         if not self._ready:
             self._was_reset[() if index is None else int(index)] = True
             self._ready = bool(self._was_reset.all())
-        if DR is not None:
-            return int(drone_reset_observe(S, P, D, DR, E))
         WA = self.sim.winch.arrays if index is None else type(self._winch)(*(a[int(index)] for a in self._winch))
+        if DR is not None:
+            return int(drone_reset_observe(S, P, D, WA, DR, E, self.setup.winch))
         return int(env_reset_observe(S, P, D, WA, E, self.setup.winch))
 
     # -- step -------------------------------------------------------------------------------------
@@ -295,8 +295,13 @@ class ControlStep:
                 self._draws[...] = Wind.draws(self._rngs[0])
                 self._drawn[0] = 0
             q = self._drone_tuple
-            if not (self._step_kernel(s, w, p, d, wa, e, raw, self._scheme) if q is None
-                    else self._step_kernel(s, w, p, d, e, q, raw, self._scheme)):
+            if q is None:
+                done = self._step_kernel(s, w, p, d, wa, e, raw, self._scheme)
+            elif self.setup.winch:
+                done = self._step_kernel(s, w, p, d, wa, e, q, raw, self._scheme)
+            else:
+                done = self._step_kernel(s, w, p, d, e, q, raw, self._scheme)
+            if not done:
                 raise ValueError(f"action must be finite, got {raw.tolist()}")
             self.sim.count_steps(self._report)
             return
@@ -315,6 +320,8 @@ class ControlStep:
                 self._drawn[i] = 0
         if self._drone_tuple is None:
             self._batch_kernel(s, w, p, d, wa, e, raw, active, self._scheme)
+        elif self.setup.winch:
+            self._batch_kernel(s, w, p, d, wa, e, self._drone_tuple, raw, active, self._scheme)
         else:
             self._batch_kernel(s, w, p, d, e, self._drone_tuple, raw, active, self._scheme)
 

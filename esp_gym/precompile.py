@@ -26,14 +26,14 @@ class Configuration:
 
     @property
     def name(self) -> str:
-        return "-".join(("drone" if self.drone else "winch" if self.winch else "fixed",
-                         "implicit" if self.implicit else "explicit", "batched" if self.batched else "single"))
+        kind = ("drone-winch" if self.winch else "drone") if self.drone else "winch" if self.winch else "fixed"
+        return "-".join((kind, "implicit" if self.implicit else "explicit", "batched" if self.batched else "single"))
 
 
 #: Every configuration, the first environment's (no winch, explicit, single) first; a drone's
-#: (explicit, no winch) last.
+#: (explicit, with or without the winch) last.
 CONFIGURATIONS = (tuple(Configuration(w, i, b) for w in (False, True) for i in (False, True) for b in (False, True))
-                  + (Configuration(False, False, False, True), Configuration(False, False, True, True)))
+                  + tuple(Configuration(w, False, b, True) for w in (False, True) for b in (False, True)))
 
 
 def compile_configuration(config: Configuration) -> float:

@@ -18,7 +18,7 @@ from gymnasium import spaces
 
 from .kernels.layout import LGVIParams
 from .kernels.drone import ACTUATIONS
-from .kernels.drone_env import DRONE_ACTION_PARAMS, DRONE_ACTION_SIZE
+from .kernels.drone_env import DRONE_ACTION_PARAMS, DRONE_ACTION_SIZE, DRONE_WINCH_ACTION_SIZE
 from .kernels.env_arrays import ACTION_PARAMS, ACTION_SIZE, WINCH_ACTION
 from .observe import Observer
 from .options import MAX_SUBSTEPS, env_options
@@ -106,8 +106,8 @@ def drone_action_params(scene: Scene, actuation: str) -> np.ndarray:
     """The drone's action path (:data:`~esp_gym.kernels.drone_env.DRONE_ACTION_PARAMS`) for
     ``scene``: the actuation's code, the hover thrust (the rig's weight, :func:`total_weight`) and
     the rotors' largest [N], the torque limit per axis [N m] (a quarter of the hover thrust across
-    the arm for roll and pitch, times k_m/k_f for yaw), :data:`DRONE_RATE_LIMIT` and the flip's
-    cosine."""
+    the arm for roll and pitch, times k_m/k_f for yaw), :data:`DRONE_RATE_LIMIT`, the flip's
+    cosine and the winch's largest reel speed [m/s]."""
     drone = scene.pivot.drone
     hover = total_weight(scene)
     qa = np.zeros(DRONE_ACTION_PARAMS.size)
@@ -119,6 +119,7 @@ def drone_action_params(scene: Scene, actuation: str) -> np.ndarray:
                                                / drone.thrust_coefficient)
     qa[DRONE_ACTION_PARAMS["rate_limit"]] = DRONE_RATE_LIMIT
     qa[DRONE_ACTION_PARAMS.scalar("flip_cosine")] = math.cos(math.radians(DRONE_FLIP_TILT))
+    qa[DRONE_ACTION_PARAMS.scalar("max_reel_speed")] = scene.winch.max_speed
     return qa
 
 
@@ -180,9 +181,9 @@ class EnvSetup:
 
     @property
     def action_size(self) -> int:
-        """ACTION's size, WINCH_ACTION's with the winch, or a drone's 4."""
+        """ACTION's size, WINCH_ACTION's with the winch, or a drone's 4 (5 with the winch)."""
         if self.drone:
-            return DRONE_ACTION_SIZE
+            return DRONE_WINCH_ACTION_SIZE if self.winch else DRONE_ACTION_SIZE
         return WINCH_ACTION.size if self.winch else ACTION_SIZE
 
     @property
@@ -268,10 +269,10 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
         wanted = "one of " + ", ".join(map(repr, ACTUATIONS)) if resolved.pivot.is_drone else "'force'"
         raise ValueError(f"ElasticStringPendulum-v0: actuation={actuation!r} does not fly scene {resolved.name!r}'s "
                          f"{resolved.pivot.kind} pivot: it takes {wanted}")
-    if resolved.pivot.is_drone and (winch or resolved.solver.string != "explicit" or resolved.solver.order != 2):
+    if resolved.pivot.is_drone and (resolved.solver.string != "explicit" or resolved.solver.order != 2):
         raise ValueError(f"ElasticStringPendulum-v0: a drone at the pivot flies the explicit string of order 2 "
-                         f"without a winch for now (scene {resolved.name!r}: solver.string "
-                         f"{resolved.solver.string!r}, order {resolved.solver.order}, winch {bool(winch)})")
+                         f"for now (scene {resolved.name!r}: solver.string {resolved.solver.string!r}, order "
+                         f"{resolved.solver.order})")
     if t.needs_winch and not winch:
         raise ValueError(f"ElasticStringPendulum-v0: task={o.task!r} reels the string: it needs winch=True")
     randomizer = None if o.randomize is False else Randomizer(resolved, o.randomize)

@@ -90,10 +90,38 @@ def test_the_drones_observation_fields_hold_its_attitude_and_rates(observation):
     assert np.abs(d["drone_rates"]).max() > 0.05  # it did turn
 
 
+@pytest.mark.parametrize("task", ["lift", "lower"])
+def test_the_drone_reels_with_the_winch(task):
+    """``lift`` and ``lower`` fly the drone with the winch: a (5,) action (the reel speed last),
+    the observation's unstretched length before the drone's fields; the drone's hoist (its PD
+    law with the reel law) ends 5 episodes (seeds 0-4) far above the zero action (measured 450.8
+    against 281.2 on lift, 349.2 against 190.9 on lower), and the energy balance, the winch's work
+    in it, holds to 1e-3 of the work done (the inputs' and the winch's; measured 1.7e-4 on lift,
+    as the point pivot's winch: an O(h^2) residual)."""
+    from agents.baselines.pd import ZeroPolicy
+    from agents.baselines.registry import baseline
+    from agents.evaluate import run_episodes
+
+    kw = {"scene": SCENE}
+    env = gym.make(ENV_ID, task=task, **kw).unwrapped
+    assert env.action_space.shape == (5,)
+    assert list(env.observation_structure)[-3:] == ["unstretched_length", "drone_attitude_6d", "drone_rates"]
+    hoist = [r.ret for r in run_episodes(baseline(task, True, True), task, 5, 0, env_kwargs=kw)]
+    zero = [r.ret for r in run_episodes(ZeroPolicy(), task, 5, 0, env_kwargs=kw)]
+    assert np.mean(hoist) > np.mean(zero) + 100.0
+    obs, _ = env.reset(seed=1)
+    policy = baseline(task, True, True)
+    for _ in range(100):
+        obs, *_ = env.step(policy.act(obs, env.setup))
+    d = env.sim.diagnostics()
+    done = abs(d["work"]) + abs(d["winch_work"])
+    assert abs(d["winch_work"]) > 0.1 and abs(d["energy_balance_residual"]) <= 1e-3 * done
+
+
 @pytest.mark.parametrize("options, message", [
     ({"scene": SCENE, "actuation": "force"}, "does not fly scene 'quadrotor_load'"),
     ({"actuation": "thrust_rates"}, "does not fly scene 'drone_load'"),
-    ({"scene": SCENE, "winch": True}, "without a winch for now"),
+    ({"scene": SCENE, "scene_overrides": {"solver": {"string": "implicit"}}}, "explicit string of order 2"),
     ({"scene": SCENE, "actuation": "rates"}, "actuation"),
 ])
 def test_a_mismatched_actuation_or_option_is_refused_by_name(options, message):

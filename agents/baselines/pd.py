@@ -88,13 +88,14 @@ class Hoist:
     load's depth error, v = -k_length e_depth [m/s] (k_length [1/s]). The full observation gives
     e_depth as the load's position error along z; the hook observation estimates the load's depth
     as the string's length plus the nominal hanging depth's excess over it (its static stretch
-    and the attachment offset)."""
+    and the attachment offset). ``pd`` may be a drone's PD law (agents/baselines/geometric.py
+    DronePD): the reel speed follows its action."""
 
     pd: AntiSwayPD = AntiSwayPD()
     k_length: float = 1.0
 
     def act(self, obs: np.ndarray, setup) -> np.ndarray:
-        """Action in [-1, 1]^7 (WINCH_ACTION) for one observation or a batch."""
+        """Action in [-1, 1]^7 (WINCH_ACTION; a drone's 5) for one observation or a batch."""
         from esp_gym.tasks import hanging_depth
 
         obs = np.asarray(obs, dtype=np.float64)
@@ -104,9 +105,13 @@ class Hoist:
         else:  # the hook: depth ~ length + (nominal hanging depth - nominal length)
             excess = hanging_depth(setup.scene) - setup.scene.string.length
             e_depth = obs[..., layout["unstretched_length"]][..., 0] + excess - obs[..., layout["load_target_offset"]][..., 2]
-        action = np.empty(obs.shape[:-1] + (WINCH_ACTION.size,))
-        action[..., :ACTION.size] = self.pd.act(obs, setup)
-        action[..., WINCH_ACTION["reel_speed"]] = (-self.k_length / setup.scene.winch.max_speed * e_depth)[..., None]
+        from esp_gym.kernels.drone_env import DRONE_WINCH_ACTION
+
+        layout = DRONE_WINCH_ACTION if setup.drone else WINCH_ACTION
+        reel = layout["reel_speed"]
+        action = np.empty(obs.shape[:-1] + (layout.size,))
+        action[..., :reel.start] = self.pd.act(obs, setup)
+        action[..., reel] = (-self.k_length / setup.scene.winch.max_speed * e_depth)[..., None]
         return np.clip(action, -1.0, 1.0)
 
 

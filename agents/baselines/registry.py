@@ -30,8 +30,11 @@ def baseline(task: str, winch: bool = False, drone: bool = False):
     if drone:
         from agents.baselines.geometric import DronePD
 
-        law = law.pd if isinstance(law, Hoist) else law
-        return DronePD(kp=law.kp, kd=law.kd, kp_z=law.kp_z, kd_z=law.kd_z, k_sway=law.k_sway)
+        pd = law.pd if isinstance(law, Hoist) else law
+        drone_pd = DronePD(kp=pd.kp, kd=pd.kd, kp_z=pd.kp_z, kd_z=pd.kd_z, k_sway=pd.k_sway)
+        if winch:
+            return Hoist(drone_pd, law.k_length if isinstance(law, Hoist) else 1.0)
+        return drone_pd
     return Hoist(law) if winch and not isinstance(law, Hoist) else law
 
 

@@ -16,7 +16,7 @@ import math
 
 from .jit import kernel
 from .layout import B_ANGULAR_IMPULSE_Z, B_WORK, D_ENERGY, D_PI3, IN_PIVOT_FORCE, IN_PIVOT_FORCE_END, Layout
-from .loops import finish
+from .loops import finish, winch_step
 from .lgvi import lgvi_substep
 from .rotors import motor_lag, rate_command, rotor_wrench, wrench_command
 from .so3 import cayley_minus_identity, cayley_newton
@@ -158,37 +158,69 @@ def drone_balances(S, R, Rn, h, c, left, right):
     kahan_add(S.acc, S.accc, B_ANGULAR_IMPULSE_Z, ang)
 
 
+@kernel(inline="always")
+def drone_start(DR, P, inputs, h, compensated):
+    """The drone's half of a step before the string's (:func:`drone_substep`): the rotors over the
+    step, the rotation solved (not committed), and the thrust pair u_k = -f_k R_{q,k} e3,
+    u_{k+1} = -f_{k+1} R_{q,k+1} e3 into ``inputs`` (INPUTS). Returns ``(status, iterations,
+    dPi, c)``."""
+    rotor_ends(DR)
+    wl = DR.wrench[0]
+    wr = DR.wrench[1]
+    R = DR.R
+    status, iters, dP, c = attitude_solve(R, DR.Rc, DR.Pi, DR.inertia, h, ((wl[1], wl[2], wl[3]),
+                                                                            (wr[1], wr[2], wr[3])),
+                                          DR.scratch, (P.tol, P.max_iter), compensated)
+    if status == OK:
+        Rn = DR.scratch[3]
+        for i in range(3):  # the thrust along -b3 at either end
+            inputs[IN_PIVOT_FORCE + i] = -wl[0] * R[i, 2]
+            inputs[IN_PIVOT_FORCE_END + i] = -wr[0] * Rn[i, 2]
+    return status, iters, dP, c
+
+
+@kernel(inline="always")
+def drone_finish(S, DR, h, dP, c, compensated):
+    """The drone's half after the string's step succeeded: the rotors' torque in the balances, the
+    rotation committed, the rotor speeds advanced, the end's wrench carried over to the next step."""
+    wl = DR.wrench[0]
+    wr = DR.wrench[1]
+    R = DR.R
+    drone_balances(S, R, DR.scratch[3], h, c, (wl[1], wl[2], wl[3]), (wr[1], wr[2], wr[3]))
+    commit_rotation(R, DR.Rc, DR.Pi, DR.Pic, DR.scratch[3], DR.scratch[2], dP, compensated)
+    for i in range(4):
+        DR.speed[i] = DR.next_speed[i]
+        wl[i] = wr[i]
+
+
 @kernel(forceinline=True)
 def drone_substep(S, W, P, DR, inputs, h, coupled, compensated):
     """One step of length ``h`` of the string, the load and the drone (module docstring), the motor
     commands ``DR.command`` held, ``DR.wrench[0]`` the wrench at the state's rotor speeds
     (:func:`start_wrench`; on success it becomes the end's, the next step's start, the same bits
-    as computing it anew); ``inputs`` (INPUTS) receives the thrust pair
-    u_k = -f_k R_{q,k} e3, u_{k+1} = -f_{k+1} R_{q,k+1} e3 (its torques are left as they are).
-    Returns ``(status, newton_iterations)``; on failure nothing has moved."""
-    rotor_ends(DR)
-    wl = DR.wrench[0]
-    wr = DR.wrench[1]
-    left = (wl[1], wl[2], wl[3])
-    right = (wr[1], wr[2], wr[3])
-    R = DR.R
-    status, iters, dP, c = attitude_solve(R, DR.Rc, DR.Pi, DR.inertia, h, (left, right), DR.scratch,
-                                          (P.tol, P.max_iter), compensated)
+    as computing it anew); ``inputs`` (INPUTS) receives the thrust pair (its torques are left as
+    they are). Returns ``(status, newton_iterations)``; on failure nothing has moved."""
+    status, iters, dP, c = drone_start(DR, P, inputs, h, compensated)
     if status != OK:
         return status, iters
-    Rn = DR.scratch[3]
-    for i in range(3):  # the thrust along -b3 at either end
-        inputs[IN_PIVOT_FORCE + i] = -wl[0] * R[i, 2]
-        inputs[IN_PIVOT_FORCE_END + i] = -wr[0] * Rn[i, 2]
     status, string_iters = lgvi_substep(S, W, P, inputs, h, True, True, coupled, compensated)
+    if status == OK:
+        drone_finish(S, DR, h, dP, c, compensated)
+    return status, iters + string_iters
+
+
+@kernel(forceinline=True)
+def drone_winch_step(S, W, P, WA, D, DR, inputs, speed, compensated):
+    """:func:`drone_substep` while the winch reels at ``speed`` [m/s]: the string's step is the
+    winch's (kernels/loops.py ``winch_step``, the explicit string of order 2: one substep of
+    ``P.h``); the drone is committed only when it succeeds."""
+    status, iters, dP, c = drone_start(DR, P, inputs, P.h, compensated)
     if status != OK:
-        return status, iters + string_iters
-    drone_balances(S, R, Rn, h, c, left, right)
-    commit_rotation(R, DR.Rc, DR.Pi, DR.Pic, Rn, DR.scratch[2], dP, compensated)
-    for i in range(4):
-        DR.speed[i] = DR.next_speed[i]
-        wl[i] = wr[i]
-    return OK, iters + string_iters
+        return status, iters
+    status, string_iters = winch_step(S, W, P, WA, D, inputs, speed, True, compensated, False)
+    if status == OK:
+        drone_finish(S, DR, P.h, dP, c, compensated)
+    return status, iters + string_iters
 
 
 @kernel(entry=True)

@@ -17,31 +17,38 @@ from numba import prange
 from .diagnostics import diagnostics
 from .disturbance import kick
 from .drone import (MOTORS, THRUST_RATES, THRUST_TORQUE, DroneArrays, actuate, drone_diagnostics, drone_substep,
+                    drone_winch_step,
                     max_rotor_thrust, start_wrench, Q_THRUST_COEFFICIENT, QD_RATES)
-from .env_arrays import SCHEME_DISTURBED, SENSORS, TP_ENERGY_ORIGIN, TP_STRING_LENGTH, EnvArrays
+from .env_arrays import O_UNSTRETCHED_LENGTH, SCHEME_DISTURBED, SENSORS, TP_ENERGY_ORIGIN, TP_STRING_LENGTH, EnvArrays
 from .env_step import (close_balances, diag_row, energy_watchdog, env_prepare,
-                       env_row, params_row, state_row, work_row)
+                       env_row, params_row, state_row, winch_row, work_row)
 from .jit import announce_compile, kernel
-from .layout import D_ENERGY, R_TERMINATION, DiagWork, Layout, LGVIParams, StateArrays, Work
+from .layout import (D_ENERGY, R_TERMINATION, WN_LENGTH, WN_MASS_PER_LENGTH, WN_REEL_SPEED, DiagWork, Layout,
+                     LGVIParams, StateArrays, WinchArrays, Work)
 from .loops import finish
 from .rows import row_function
 from .status import OK, TERM_DRONE_FLIPPED
 from .task_terms import observe_and_score
+from .winch import length_params, winch_energy
 
 #: The drone's action path: the actuation's code (:data:`~.drone.ACTUATIONS`), the collective
 #: thrust at action 0, the rig's weight [N], and the largest [N]; the body torque [N m] and the
 #: body rates [rad/s] at |action| = 1 per axis; cos of the tilt past which the drone has flipped.
 DRONE_ACTION_PARAMS = Layout(("actuation", 1), ("hover_thrust", 1), ("max_thrust", 1), ("torque_limit", 3),
-                             ("rate_limit", 3), ("flip_cosine", 1))
+                             ("rate_limit", 3), ("flip_cosine", 1), ("max_reel_speed", 1))
 QA_ACTUATION = DRONE_ACTION_PARAMS.scalar("actuation")
 QA_HOVER_THRUST = DRONE_ACTION_PARAMS.scalar("hover_thrust")
 QA_MAX_THRUST = DRONE_ACTION_PARAMS.scalar("max_thrust")
 QA_TORQUE_LIMIT = DRONE_ACTION_PARAMS.start("torque_limit")
 QA_RATE_LIMIT = DRONE_ACTION_PARAMS.start("rate_limit")
 QA_FLIP_COSINE = DRONE_ACTION_PARAMS.scalar("flip_cosine")
+QA_MAX_REEL_SPEED = DRONE_ACTION_PARAMS.scalar("max_reel_speed")
 
-#: The action's size in every actuation: thrust and three body torques or rates, or four motors.
+#: The action's size in every actuation: thrust and three body torques or rates, or four motors;
+#: with a winch, the reel speed after them (x the winch's largest [m/s]; > 0 reels out).
 DRONE_ACTION_SIZE = 4
+DRONE_WINCH_ACTION = Layout(("drone", DRONE_ACTION_SIZE), ("reel_speed", 1))
+DRONE_WINCH_ACTION_SIZE = DRONE_WINCH_ACTION.size
 
 #: What the step measures with a drone: SENSORS, then the drone's attitude (R_q's first two
 #: columns, the body's forward and right axes in the spatial frame) and its body rates [rad/s].
@@ -57,13 +64,16 @@ def drone_take_action(raw, qa, action, DR):
     """Check and clip a raw action (4) into ``action`` and set the drone's setpoint from it
     (``qa``: DRONE_ACTION_PARAMS): f = clip(f_hover (1 + a_0), 0, f_max) and the torque
     tau_lim a_1..3 or the rates Omega_lim a_1..3; with ``motors`` each rotor's thrust
-    clip(f_hover/4 (1 + a_i), 0, k_f omega_max^2), whose speed is its command. False, touching
-    nothing, if an entry is not finite."""
-    for i in range(DRONE_ACTION_SIZE):
+    clip(f_hover/4 (1 + a_i), 0, k_f omega_max^2), whose speed is its command. Returns the reel
+    speed [m/s] (with a winch: ``action``'s fifth entry; else 0), or -inf, touching nothing, if an
+    entry is not finite."""
+    size = action.shape[0]
+    for i in range(size):
         if not np.isfinite(raw[i]):
-            return False
-    for i in range(DRONE_ACTION_SIZE):
+            return -np.inf
+    for i in range(size):
         action[i] = min(max(raw[i], -1.0), 1.0)
+    reel = 0.0 if size == DRONE_ACTION_SIZE else qa[QA_MAX_REEL_SPEED] * action[DRONE_ACTION_SIZE]
     mode = int(qa[QA_ACTUATION])
     hover = qa[QA_HOVER_THRUST]
     if mode == MOTORS:
@@ -71,22 +81,23 @@ def drone_take_action(raw, qa, action, DR):
         for i in range(4):
             thrust = min(max(0.25 * hover * (1.0 + action[i]), 0.0), top)
             DR.command[i] = math.sqrt(thrust / DR.consts[Q_THRUST_COEFFICIENT])
-        return True
+        return reel
     DR.setpoint[0] = min(max(hover * (1.0 + action[0]), 0.0), qa[QA_MAX_THRUST])
     limit = QA_TORQUE_LIMIT if mode == THRUST_TORQUE else QA_RATE_LIMIT
     for i in range(3):
         DR.setpoint[1 + i] = qa[limit + i] * action[1 + i]
     if mode == THRUST_TORQUE:
         actuate(DR, THRUST_TORQUE)
-    return True
+    return reel
 
 
-@kernel
-def drone_loop(S, W, P, DR, E, coupled, disturbed):
-    """``E.nsub[0]`` steps of :func:`~.drone.drone_substep`, the rate controller before each in
-    ``thrust_rates``; the held external forces (``disturbed``) as kicks of h/2 on both sides of
-    each step, as kernels/loops.py does. A failed step leaves the state after the last good one
-    (its pending half kick taken back). Fills ``E.result``'s first four entries."""
+@kernel(inline="always")
+def drone_steps(S, W, P, WA, D, DR, E, reel, coupled, disturbed, winched):
+    """``E.nsub[0]`` steps of :func:`~.drone.drone_substep` (``winched``: of
+    :func:`~.drone.drone_winch_step`, reeling at ``reel`` [m/s]), the rate controller before each
+    in ``thrust_rates``; the held external forces (``disturbed``) as kicks of h/2 on both sides
+    of each step, as kernels/loops.py does. A failed step leaves the state after the last good
+    one (its pending half kick taken back). Fills ``E.result``'s first four entries."""
     first = 0 if P.first == 0 else 1
     hh = 0.5 * P.h
     nsub = E.nsub[0]
@@ -99,7 +110,10 @@ def drone_loop(S, W, P, DR, E, coupled, disturbed):
     for k in range(nsub):
         if rates:
             actuate(DR, THRUST_RATES)
-        status, iters = drone_substep(S, W, P, DR, E.inputs, P.h, coupled, P.compensated)
+        if winched:
+            status, iters = drone_winch_step(S, W, P, WA, D, DR, E.inputs, reel, P.compensated)
+        else:
+            status, iters = drone_substep(S, W, P, DR, E.inputs, P.h, coupled, P.compensated)
         total += iters
         most = max(most, iters)
         if status != OK:
@@ -112,6 +126,18 @@ def drone_loop(S, W, P, DR, E, coupled, disturbed):
     finish(E.result, OK, nsub, total, most)
 
 
+@kernel
+def drone_loop(S, W, P, D, DR, E, coupled, disturbed):
+    """:func:`drone_steps` without a winch."""
+    drone_steps(S, W, P, None, D, DR, E, 0.0, coupled, disturbed, False)
+
+
+@kernel
+def drone_winch_loop(S, W, P, WA, D, DR, E, reel, coupled, disturbed):
+    """:func:`drone_steps` with the winch reeling at ``reel`` [m/s]."""
+    drone_steps(S, W, P, WA, D, DR, E, reel, coupled, disturbed, True)
+
+
 @kernel(inline="always")
 def drone_sensors(DR, sensors):
     """The drone's fields of DRONE_SENSORS: R_q's first two columns and Omega_q = J_q^-1 Pi_q
@@ -122,38 +148,69 @@ def drone_sensors(DR, sensors):
         sensors[QS_DRONE_RATES + i] = DR.diag[QD_RATES + i]
 
 
-@kernel
-def drone_observe(S, P, D, DR, E):
-    """The diagnostics with the drone's share, the tasks' stages, the drone's sensors; returns the
-    task's termination code, or TERM_DRONE_FLIPPED when the drone's b3 is tilted from e3 past
-    the limit (R_q[2, 2] below its cosine)."""
-    diagnostics(S, P, D)
-    drone_diagnostics(DR, D.out)
-    code = observe_and_score(S, P, D, E, E.tp[TP_STRING_LENGTH])
+@kernel(inline="always")
+def drone_observe_stages(S, P, D, WA, DR, E, winched):
+    """The diagnostics with the drone's share (``winched``: at the winch's length and reel speed,
+    the energy the Hamiltonian, as kernels/env_step.py's ``env_finish_winched``), the tasks'
+    stages, the drone's sensors; returns the task's termination code, or TERM_DRONE_FLIPPED when
+    the drone's b3 is tilted from e3 past the limit (R_q[2, 2] below its cosine)."""
+    if winched:
+        length = WA.state[WN_LENGTH]
+        winch_energy(S, P, WA, D, length, WA.state[WN_REEL_SPEED])
+        drone_diagnostics(DR, D.out)
+        n = S.r.shape[0] - 1
+        Pl = length_params(P, WA, length, WA.state[WN_MASS_PER_LENGTH] * length / n, 0 if P.first == 0 else 1, n,
+                           False)
+        code = observe_and_score(S, Pl, D, E, length)
+        E.obs[O_UNSTRETCHED_LENGTH] = length
+    else:
+        diagnostics(S, P, D)
+        drone_diagnostics(DR, D.out)
+        code = observe_and_score(S, P, D, E, E.tp[TP_STRING_LENGTH])
     drone_sensors(DR, E.sensors)
     if code == OK and not (DR.R[2, 2] >= E.ap[QA_FLIP_COSINE]):
         return TERM_DRONE_FLIPPED
     return code
 
 
+@kernel
+def drone_observe(S, P, D, DR, E):
+    """:func:`drone_observe_stages` without a winch."""
+    return drone_observe_stages(S, P, D, None, DR, E, False)
+
+
+@kernel
+def drone_winch_observe(S, P, D, WA, DR, E):
+    """:func:`drone_observe_stages` with a winch."""
+    return drone_observe_stages(S, P, D, WA, DR, E, True)
+
+
 @kernel(inline="always")
-def drone_control_step(S, W, P, D, DR, E, disturbed):
+def drone_control_step(S, W, P, D, WA, DR, E, reel, disturbed, winched):
     """One control step of one environment with a drone (the setpoint already taken from the
-    action): wind and pushes, the physics steps, the balances closed, the observation, reward
-    terms and termination code (a physics failure's status, else the watchdog's, else the
-    task's or the flip)."""
+    action; ``reel`` the reel speed [m/s] with a winch): wind and pushes, the physics steps, the
+    balances closed, the observation, reward terms and termination code (a physics failure's
+    status, else the watchdog's, else the task's or the flip)."""
     phi = env_prepare(S, W, P, D, E, disturbed)
-    drone_loop(S, W, P, DR, E, P.rho[0] != 0.0 or P.rho[1] != 0.0 or P.rho[2] != 0.0, disturbed)
+    coupled = P.rho[0] != 0.0 or P.rho[1] != 0.0 or P.rho[2] != 0.0
+    if winched:
+        drone_winch_loop(S, W, P, WA, D, DR, E, reel, coupled, disturbed)
+    else:
+        drone_loop(S, W, P, D, DR, E, coupled, disturbed)
     status = close_balances(S, W, P, E, phi, disturbed)
-    code = drone_observe(S, P, D, DR, E)
+    if winched:
+        code = drone_winch_observe(S, P, D, WA, DR, E)
+    else:
+        code = drone_observe(S, P, D, DR, E)
     E.result[R_TERMINATION] = status if status != OK else energy_watchdog(S, D, E.tp, code)
 
 
 @kernel(entry=True)
-def drone_reset_observe(S, P, D, DR, E):
-    """Observation of a freshly set state with its drone (no step), whose energy, the drone's
-    rotation in it, becomes the episode's E0. Returns the termination code."""
-    code = drone_observe(S, P, D, DR, E)
+def drone_reset_observe(S, P, D, WA, DR, E, winched):
+    """Observation of a freshly set state with its drone (no step; a winch at the scene's length
+    and at rest), whose energy, the drone's rotation in it, becomes the episode's E0. Returns the
+    termination code."""
+    code = drone_winch_observe(S, P, D, WA, DR, E) if winched else drone_observe(S, P, D, DR, E)
     E.tp[TP_ENERGY_ORIGIN] = D.out[D_ENERGY]
     return code
 
@@ -161,19 +218,34 @@ def drone_reset_observe(S, P, D, DR, E):
 drone_row = row_function(DroneArrays)
 
 
-def _drone_entry_points():
-    """``(step, batch)``: kernels/env_step.py's entry points for an environment with a drone, which
-    take the drone's arrays after the environment's: ``step(s, w, p, d, e, q, raw, scheme)`` and
-    ``batch(s, w, p, d, e, q, raw, active, scheme)`` (plain tuples of StateArrays, Work,
-    LGVIParams, DiagWork, EnvArrays and DroneArrays, as there)."""
+def _drone_entry_points(winched: bool):
+    """``(step, batch)``: kernels/env_step.py's entry points for an environment with a drone
+    (``winched``: and a winch, a closure constant), which take the drone's arrays after the
+    environment's: ``step(s, w, p, d, e, q, raw, scheme)`` and ``batch(s, w, p, d, e, q, raw,
+    active, scheme)`` (plain tuples of StateArrays, Work, LGVIParams, DiagWork, EnvArrays and
+    DroneArrays, as there); with a winch the WinchArrays ``wa`` come after ``d`` (without one they
+    are not passed: a tuple more costs every call the dispatcher's typing of it)."""
 
     @kernel(entry=True)
     def step(s, w, p, d, e, q, raw, scheme):
         E = EnvArrays(*e)
         DR = DroneArrays(*q)
-        if not drone_take_action(raw, E.ap, E.action, DR):
+        reel = drone_take_action(raw, E.ap, E.action, DR)
+        if reel == -np.inf:
             return False
-        drone_control_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), DR, E, (scheme & SCHEME_DISTURBED) != 0)
+        drone_control_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), None, DR, E, reel,
+                           (scheme & SCHEME_DISTURBED) != 0, False)
+        return True
+
+    @kernel(entry=True)
+    def winch_step(s, w, p, d, wa, e, q, raw, scheme):
+        E = EnvArrays(*e)
+        DR = DroneArrays(*q)
+        reel = drone_take_action(raw, E.ap, E.action, DR)
+        if reel == -np.inf:
+            return False
+        drone_control_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), DR, E, reel,
+                           (scheme & SCHEME_DISTURBED) != 0, True)
         return True
 
     @kernel(parallel=True, entry=True)
@@ -189,12 +261,36 @@ def _drone_entry_points():
             if active[b]:
                 Eb = env_row(E, b)
                 DRb = drone_row(Q, b)
-                if drone_take_action(raw[b], Eb.ap, Eb.action, DRb):
-                    drone_control_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), DRb, Eb,
-                                       disturbed)
+                reel = drone_take_action(raw[b], Eb.ap, Eb.action, DRb)
+                if reel != -np.inf:
+                    drone_control_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), None, DRb,
+                                       Eb, reel, disturbed, False)
 
-    return (announce_compile(step, "the environment's step with a drone", COLD_DRONE_ENV_STEP_S),
-            announce_compile(batch, "the batched environment's step with a drone", COLD_DRONE_BATCH_STEP_S))
+    @kernel(parallel=True, entry=True)
+    def winch_batch(s, w, p, d, wa, e, q, raw, active, scheme):
+        disturbed = (scheme & SCHEME_DISTURBED) != 0
+        S = StateArrays(*s)
+        W = Work(*w)
+        D = DiagWork(*d)
+        P = LGVIParams(*p)
+        WA = WinchArrays(*wa)
+        E = EnvArrays(*e)
+        Q = DroneArrays(*q)
+        for b in prange(raw.shape[0]):
+            if active[b]:
+                Eb = env_row(E, b)
+                DRb = drone_row(Q, b)
+                reel = drone_take_action(raw[b], Eb.ap, Eb.action, DRb)
+                if reel != -np.inf:
+                    drone_control_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b),
+                                       winch_row(WA, b), DRb, Eb, reel, disturbed, True)
+
+    which = "the environment's step with a drone" + (" and the winch" if winched else "")
+    if winched:
+        return (announce_compile(winch_step, which, COLD_DRONE_ENV_STEP_S),
+                announce_compile(winch_batch, "the batched " + which[4:], COLD_DRONE_BATCH_STEP_S))
+    return (announce_compile(step, which, COLD_DRONE_ENV_STEP_S),
+            announce_compile(batch, "the batched " + which[4:], COLD_DRONE_BATCH_STEP_S))
 
 
 #: The seconds to the first step of an environment and of a vector environment with a drone on an
@@ -203,6 +299,6 @@ def _drone_entry_points():
 COLD_DRONE_ENV_STEP_S = 25
 COLD_DRONE_BATCH_STEP_S = 35
 
-
-#: The drone environment's (step, batch) entry points (compiled when first asked for).
-DRONE_ENTRY_POINTS = _drone_entry_points()
+#: The drone environment's (step, batch) entry points by ``winched`` (each compiled when first
+#: asked for).
+DRONE_ENTRY_POINTS = {winched: _drone_entry_points(winched) for winched in (False, True)}
