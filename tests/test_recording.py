@@ -429,3 +429,27 @@ def test_env_recording_holds_the_drone(tmp_path):
     env.step(np.zeros(6))
     env.close()
     assert not {e for e in entities(plain) if "drone" in e}
+
+
+def _off_axis_deg(position, target, point):
+    """The angle [deg] between the eye's view direction and the direction to ``point``."""
+    view, to = np.asarray(target) - position, np.asarray(point) - position
+    return np.degrees(np.arccos(view @ to / np.linalg.norm(view) / np.linalg.norm(to)))
+
+
+@pytest.mark.parametrize("scene", ["quadrotor_load", "drone_load", "paper_example", "short_stiff"])
+def test_the_default_view_frames_the_whole_rig(scene):
+    """The recording's 3-D eye (entities.rig_eye) sees the pivot, a drone's rotors on it and the
+    load at rest within 20 degrees of its view direction (a viewer's field of view is wider).
+    Negative control: an eye 0.5 m from the load, looking at it, has the pivot out of that cone."""
+    from esp_gym.tasks import hanging_depth
+    from esp_gym.viz.entities import rig_eye
+
+    s = esp_gym.load_scene(scene)
+    position, target = rig_eye(s)
+    pivot = np.asarray(s.pivot.position, dtype=float)
+    load = pivot + np.array([0.0, 0.0, hanging_depth(s)])
+    rotors = [pivot + np.array([0.3, 0.3, 0.0]), pivot - np.array([0.3, 0.3, 0.0])]
+    assert max(_off_axis_deg(position, target, p) for p in [pivot, load] + rotors) < 20.0
+    close = load + np.array([0.5, 0.0, 0.0])
+    assert _off_axis_deg(close, load, pivot) > 20.0

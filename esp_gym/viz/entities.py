@@ -148,10 +148,28 @@ def drone_frame(rotors: np.ndarray) -> rr.LineStrips3D:
     return rr.LineStrips3D(strips, radii=0.004, colors=[palette.PIVOT])
 
 
-def default_blueprint(env: bool, winch: bool = False, drone: bool = False) -> rrb.Blueprint:
+#: The 3-D view's eye: this many rig lengths from the rig's middle, looking at it from the front,
+#: the right and above (z down), so the pivot, a drone on it, and the load are all in view.
+EYE_DISTANCE = 2.5
+EYE_DIRECTION = np.array([1.0, -1.0, -0.6]) / np.linalg.norm([1.0, -1.0, -0.6])
+
+
+def rig_eye(scene):
+    """``(position, look_target)`` [m] of the 3-D view's eye for ``scene``: it looks at the middle
+    of the hanging rig, from the pivot down to the load's centre of mass at rest, from
+    :data:`EYE_DISTANCE` times the rig's length (at least 1 m) along :data:`EYE_DIRECTION`."""
+    from ..tasks import hanging_depth
+
+    depth = hanging_depth(scene)
+    target = np.asarray(scene.pivot.position, dtype=float) + np.array([0.0, 0.0, 0.5 * depth])
+    return target + EYE_DISTANCE * max(depth, 1.0) * EYE_DIRECTION, target
+
+
+def default_blueprint(env: bool, winch: bool = False, drone: bool = False, eye=None) -> rrb.Blueprint:
     """The 3-D view beside the diagnostics (and, for env rollouts, reward and action, and wind
     and forces; with a winch, its length, speed and work; with a drone, its rates and rotor
-    speeds) panels."""
+    speeds) panels; ``eye``: the 3-D view's ``(position, look_target)`` (:func:`rig_eye`; None:
+    Rerun's own choice, which can leave the pivot out of the web viewer's first frame)."""
     ts = rrb.TimeSeriesView
     panels = [
         ts(origin="/diag/energy", name="energy [J]"),
@@ -175,9 +193,10 @@ def default_blueprint(env: bool, winch: bool = False, drone: bool = False) -> rr
         panels.append(rrb.Tabs(ts(origin=WINCH_LENGTH, name="unstretched length [m]"),
                                ts(origin=WINCH_SPEED, name="reel speed [m/s]"),
                                ts(origin=WINCH_WORK, name="winch work [J]")))
-    return rrb.Blueprint(
-        rrb.Horizontal(rrb.Spatial3DView(origin=WORLD, name="3-D"), rrb.Vertical(*panels), column_shares=[3, 2]),
-        collapse_panels=True)
+    controls = None if eye is None else rrb.EyeControls3D(kind=rrb.Eye3DKind.Orbital, position=eye[0],
+                                                          look_target=eye[1], eye_up=[0.0, 0.0, -1.0])
+    view = rrb.Spatial3DView(origin=WORLD, name="3-D", eye_controls=controls)
+    return rrb.Blueprint(rrb.Horizontal(view, rrb.Vertical(*panels), column_shares=[3, 2]), collapse_panels=True)
 
 
 def default_strain_scale(scene) -> float:

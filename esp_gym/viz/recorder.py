@@ -24,7 +24,7 @@ from . import arrow, lifecycle, palette
 from .drone_track import DroneTrack
 from .entities import (BLACK, BODY, BODY_COM, BODY_SHAPE, BODY_TORQUE, HOOK_TENSION, LOAD_TRAIL, PIVOT,
                        PIVOT_FORCE, PUSH, RETURN, STRING, TARGET_LOAD, TARGET_PIVOT, WIND, WORLD, body_shape,
-                       default_blueprint, default_strain_scale, scalar_series)
+                       default_blueprint, default_strain_scale, rig_eye, scalar_series)
 
 
 class Recorder:
@@ -127,7 +127,7 @@ class Recorder:
         self.rec = rr.RecordingStream(application_id, recording_id=recording_id)
         self.rec.set_log_time_enabled(False)
         self.rec.set_log_tick_enabled(False)
-        self._file.attach(self.rec, default_blueprint(self.env, self.winch, self.drone is not None))
+        self._file.attach(self.rec, default_blueprint(self.env, self.winch, self.drone is not None, rig_eye(scene)))
         self._log_static()
         lifecycle.track(self)
 
