@@ -145,6 +145,8 @@ class ControlStep:
         self._drawn = z(batch + (1,), dtype=np.int64)
         self._rngs = [None] * (self.num_envs or 1)  # each (sub-)environment's generator, for more draws
         self._windy = setup.wind is not None
+        #: a drone's rotors draw their thrust noise before every control step (setup.thrust_noise)
+        self._noisy_thrust = setup.drone and setup.thrust_noise > 0.0
         #: the compiled step and batched step (kernels/env_step.py), and their ``scheme``
         self._step_kernel, self._batch_kernel = (DRONE_ENTRY_POINTS[bool(setup.winch)] if setup.drone
                                                  else ENTRY_POINTS[(bool(setup.winch), bool(self.sim.implicit))])
@@ -201,11 +203,11 @@ class ControlStep:
         episode = self.setup.draw_episode(rng)
         state, target = sample_episode(self.setup.task, episode.scene, rng)
         wind = self.setup.wind
+        self._rngs[0 if index is None else int(index)] = rng  # the wind's and the thrust noise's draws
         if wind is None:
             self.reset(state, target, index, episode)
             return episode.values
         row = () if index is None else int(index)
-        self._rngs[0 if index is None else int(index)] = rng
         params, start, draws, info = wind.episode(episode.scene, rng)
         self._wind_params[row], self._disturbance[row], self._draws[row] = params, start, draws
         self._drawn[row] = 0
@@ -294,6 +296,10 @@ class ControlStep:
             if self._windy and self._drawn[0] == BLOCK:
                 self._draws[...] = Wind.draws(self._rngs[0])
                 self._drawn[0] = 0
+            if self._noisy_thrust:  # a bad action must leave the generator alone: checked first
+                if not actions_finite(raw[None]):
+                    raise ValueError(f"action must be finite, got {raw.tolist()}")
+                self._drone.thrust_scale[...] = 1.0 + self.setup.thrust_noise * self._rngs[0].standard_normal(4)
             q = self._drone_tuple
             if q is None:
                 done = self._step_kernel(s, w, p, d, wa, e, raw, self._scheme)
@@ -318,6 +324,9 @@ class ControlStep:
             for i in np.flatnonzero(self._drawn[:, 0] == BLOCK):
                 self._draws[i] = Wind.draws(self._rngs[i])
                 self._drawn[i] = 0
+        if self._noisy_thrust:  # each sub-environment's own draws, in the single environment's order
+            for i in np.flatnonzero(active):
+                self._drone.thrust_scale[i] = 1.0 + self.setup.thrust_noise * self._rngs[i].standard_normal(4)
         if self._drone_tuple is None:
             self._batch_kernel(s, w, p, d, wa, e, raw, active, self._scheme)
         elif self.setup.winch:

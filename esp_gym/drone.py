@@ -25,7 +25,7 @@ def drone_arrays(scene: Scene) -> DroneArrays:
     (:func:`hover_at_rest`)."""
     z = np.zeros
     arrays = DroneArrays(R=z((3, 3)), Rc=z((3, 3)), Pi=z(3), Pic=z(3), speed=z(4), command=z(4), setpoint=z(4),
-                         consts=z(DRONE.size), inertia=z((3, 3)), inertia_inv=z((3, 3)), mixer=z((4, 4)),
+                         thrust_scale=np.ones(4), consts=z(DRONE.size), inertia=z((3, 3)), inertia_inv=z((3, 3)), mixer=z((4, 4)),
                          allocation=z((4, 4)), next_speed=z(4), wrench=z((2, 4)), scratch=z((4, 3, 3)),
                          diag=z(DRONE_DIAG.size))
     use_drone_scene(arrays, scene)
@@ -52,13 +52,14 @@ def use_drone_scene(arrays: DroneArrays, scene: Scene) -> None:
 def hover_at_rest(arrays: DroneArrays, scene: Scene) -> None:
     """The drone level (R_q = I) and not turning, its remainders cleared, its rotors and their
     commands at the speed whose thrust carries the whole rig (drone, string and load), the
-    setpoint cleared."""
+    setpoint cleared, the thrust noise off."""
     hover = scene.pivot.drone.rotor_speed_for(scene.gravity * carried_mass(scene))
     arrays.R[...] = np.eye(3)
     for a in (arrays.Rc, arrays.Pi, arrays.Pic, arrays.setpoint):
         a[...] = 0.0
     arrays.speed[...] = hover
     arrays.command[...] = hover
+    arrays.thrust_scale[...] = 1.0
 
 
 def carried_mass(scene: Scene) -> float:

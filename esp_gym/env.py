@@ -130,6 +130,7 @@ class ElasticStringPendulumEnv(gym.Env):
     | `preset` | None | `"hard"`: randomize, wind 6 m/s with 1.5 m/s gusts and a push every 5 s on average, the hook observation with sensor noise 1 and a latency of 1 step (docs/environment.md). An option given explicitly (even at its usual default) replaces the preset's: `preset="hard", observation="full"` is the hard preset with the full observation |
     | `winch` | None | True: a winch at the pivot, its reel speed the 7th action, the length the last observation; h is chosen for the shortest string it reaches (`scene.winch`). None: as the task needs (True for `lift` and `lower`) |
     | `actuation` | None | how the action moves the pivot: `"force"` (a free point mass: its only one), or for a drone `"thrust_rates"` (None's choice), `"thrust_torque"`, `"motors"` |
+    | `thrust_noise` | None | a drone's: each rotor's thrust times 1 + s N(0, 1), drawn from `np_random` at every step (0-0.5); None: the preset's (hard: 0.05, a point pivot ignores it), else 0 |
     | `render_mode` | None | `"rgb_array"`: uint8 frames, front and side views |
 
     ## Version History
@@ -145,11 +146,12 @@ class ElasticStringPendulumEnv(gym.Env):
                  randomize: Union[bool, dict, None] = None, observation: Optional[str] = None,
                  sensor_noise: Union[float, dict, None] = None, action_latency: Optional[int] = None,
                  wind: Union[float, dict, None] = None, preset: Optional[str] = None, winch: Optional[bool] = None,
-                 actuation: Optional[str] = None):
+                 actuation: Optional[str] = None, thrust_noise: Optional[float] = None):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.setup = make_setup(scene, task, control_period, h, safety, force_limit, torque_limit, scene_overrides,
-                                randomize, observation, sensor_noise, action_latency, wind, preset, winch, actuation)
+                                randomize, observation, sensor_noise, action_latency, wind, preset, winch, actuation,
+                                thrust_noise)
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.setup.control_period))}
         self.observation_space = self.setup.observation_space

@@ -54,6 +54,8 @@ class EnvOptions(BaseModel):
     winch: Optional[Flag] = None
     #: None: the scene's pivot's ("force" for a free point mass, "thrust_rates" for a drone)
     actuation: Optional[Literal["force", "thrust_torque", "thrust_rates", "motors"]] = None
+    #: a drone's: each rotor's thrust times 1 + this x N(0, 1), drawn per control step
+    thrust_noise: Real = Field(0.0, ge=0, le=0.5, allow_inf_nan=False, description="relative")
 
 
 def validation_message(error: ValidationError, what: str) -> str:

@@ -32,7 +32,8 @@ from .wind import WIND_INFO, Wind, drag_areas, wind_options
 #: The arguments each preset sets (docs/environment.md, "The hard preset"): ``hard`` is every
 #: realism option on, for benchmarks that cite one string.
 PRESETS = {"hard": {"randomize": True, "observation": "hook", "sensor_noise": 1.0, "action_latency": 1,
-                    "wind": {"speed": 6.0, "gust_std": 1.5, "push_rate": 0.2, "push_speed": 0.5}}}
+                    "wind": {"speed": 6.0, "gust_std": 1.5, "push_rate": 0.2, "push_speed": 0.5},
+                    "thrust_noise": 0.05}}
 
 
 def total_weight(scene: Scene) -> float:
@@ -158,6 +159,8 @@ class EnvSetup:
     winch: bool = False  #: the winch's reel speed is the 7th action (kernels/winch.py)
     #: how the action moves the pivot: "force" (a point mass), or a drone's (kernels/drone.py ACTUATIONS)
     actuation: str = "force"
+    #: a drone's thrust noise: each rotor's thrust times 1 + this x N(0, 1), drawn per control step
+    thrust_noise: float = 0.0
 
     @property
     def drone(self) -> bool:
@@ -238,14 +241,14 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
                observation: Optional[str] = None, sensor_noise: Union[float, dict, None] = None,
                action_latency: Optional[int] = None, wind: Union[float, dict, None] = None,
                preset: Optional[str] = None, winch: Optional[bool] = None,
-               actuation: Optional[str] = None) -> EnvSetup:
+               actuation: Optional[str] = None, thrust_noise: Optional[float] = None) -> EnvSetup:
     """Resolve the environment's arguments (see :class:`~esp_gym.env.ElasticStringPendulumEnv`),
     validated by :class:`~esp_gym.options.EnvOptions` (ValueError naming each bad one). The
     options a preset sets take, in this order: the value given (None: not given), the preset's,
     EnvOptions' default."""
     given = {name: value for name, value in dict(randomize=randomize, observation=observation,
                                                  sensor_noise=sensor_noise, action_latency=action_latency,
-                                                 wind=wind).items() if value is not None}
+                                                 wind=wind, thrust_noise=thrust_noise).items() if value is not None}
     o = env_options(scene=scene, task=task, control_period=control_period, h=h, safety=safety,
                     force_limit=force_limit, torque_limit=torque_limit, scene_overrides=scene_overrides,
                     preset=preset, winch=winch, actuation=actuation, **given)
@@ -269,6 +272,9 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
         wanted = "one of " + ", ".join(map(repr, ACTUATIONS)) if resolved.pivot.is_drone else "'force'"
         raise ValueError(f"ElasticStringPendulum-v0: actuation={actuation!r} does not fly scene {resolved.name!r}'s "
                          f"{resolved.pivot.kind} pivot: it takes {wanted}")
+    if "thrust_noise" in given and given["thrust_noise"] != 0 and not resolved.pivot.is_drone:
+        raise ValueError(f"ElasticStringPendulum-v0: thrust_noise={given['thrust_noise']!r} is a drone's rotors' noise: "
+                         f"scene {resolved.name!r}'s pivot is {resolved.pivot.kind!r}")
     if resolved.pivot.is_drone and (resolved.solver.string != "explicit" or resolved.solver.order != 2):
         raise ValueError(f"ElasticStringPendulum-v0: a drone at the pivot flies the explicit string of order 2 "
                          f"for now (scene {resolved.name!r}: solver.string {resolved.solver.string!r}, order "
@@ -329,4 +335,5 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
                     torque_limit=float(o.torque_limit), safety=float(safety), fixed_h=h, randomizer=randomizer,
                     observer=Observer(o.observation, o.sensor_noise, winch, actuation != "force"),
                     action_latency=o.action_latency, wind=None if wind_given is None else Wind(wind_given, control_period),
-                    winch=winch, actuation=actuation)
+                    winch=winch, actuation=actuation,
+                    thrust_noise=float(o.thrust_noise) if resolved.pivot.is_drone else 0.0)

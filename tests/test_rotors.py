@@ -66,7 +66,7 @@ def test_the_x_mixer_makes_the_documented_wrench():
     np.testing.assert_allclose(allocation(A) @ A, np.eye(4), atol=1e-12)
     wrench = np.empty(4)
     speeds = np.array([1500.0, 1600.0, 1700.0, 1800.0])
-    rotor_wrench(speeds, KF, A, wrench)
+    rotor_wrench(speeds, KF, np.ones(4), A, wrench)
     np.testing.assert_allclose(wrench, A @ (KF * speeds ** 2), rtol=1e-14)
 
 
@@ -94,7 +94,7 @@ def _closed_loop_rates(inertia, gain, target, rates0, thrust, feedforward=True, 
 
     def rhs(_, w):
         rate_command(w, target, thrust, inertia, gain, A_inv, 1.0, KF, commands)
-        rotor_wrench(commands, KF, A, wrench)
+        rotor_wrench(commands, KF, np.ones(4), A, wrench)
         tau = wrench[1:] - (0.0 if feedforward else np.cross(w, inertia @ w))
         return np.linalg.solve(inertia, tau - np.cross(w, inertia @ w))
 
@@ -134,7 +134,7 @@ def test_the_rate_controllers_commands_stay_in_the_motors_range():
 def wrench_of(commands, A):
     """The wrench (f, tau) [N, N m] the rotors make at speeds ``commands``."""
     out = np.zeros(4)
-    rotor_wrench(np.asarray(commands), KF, A, out)
+    rotor_wrench(np.asarray(commands), KF, np.ones(4), A, out)
     return out
 
 

@@ -51,13 +51,14 @@ QD_TORQUE = DRONE_DIAG.start("torque")
 #: with their compensated-summation remainders ``Rc``, ``Pic``; the rotor speeds ``speed`` (4,)
 #: [rad/s] (state) and the motor commands ``command`` (4,) [rad/s], held over a step; the
 #: actuation's ``setpoint`` (4,): the collective thrust [N], then the body torque [N m] or
-#: the body rates [rad/s] (:func:`actuate`); the constants ``consts`` (:data:`DRONE`), ``inertia`` J_q and its inverse ``inertia_inv`` (3, 3)
+#: the body rates [rad/s] (:func:`actuate`); each rotor's thrust scale ``thrust_scale`` (4,) (1:
+#: nominal; the environment's thrust noise, held over a control step); the constants ``consts`` (:data:`DRONE`), ``inertia`` J_q and its inverse ``inertia_inv`` (3, 3)
 #: [kg m^2] about the hook, the mixer ``mixer`` A and ``allocation`` A^-1 (4, 4)
 #: (esp_gym/rotors.py); scratch: ``next_speed`` (4,), ``wrench`` (2, 4), the wrench (f, tau) at
 #: the step's start and end, ``scratch`` (4, 3, 3), Newton's Jacobian, F - I, R_k (F - I) and
 #: R_{k+1}; and ``diag`` (:data:`DRONE_DIAG`).
-DroneArrays = namedtuple("DroneArrays", "R Rc Pi Pic speed command setpoint consts inertia inertia_inv mixer "
-                                        "allocation next_speed wrench scratch diag")
+DroneArrays = namedtuple("DroneArrays", "R Rc Pi Pic speed command setpoint thrust_scale consts inertia inertia_inv "
+                                        "mixer allocation next_speed wrench scratch diag")
 
 #: How the environment's action drives the rotors (docs/environment.md, "Drone actuation"): its
 #: code is the index. ``thrust_torque``: the setpoint's wrench through A^-1; ``thrust_rates``:
@@ -106,7 +107,7 @@ def attitude_step(body, inertia, h, torques, scratch, solver, compensated):
 def start_wrench(DR):
     """``DR.wrench[0]`` = (f, tau) at the state's rotor speeds: at the start of a run of steps,
     each of which then carries its end's wrench over to the next (:func:`drone_substep`)."""
-    rotor_wrench(DR.speed, DR.consts[Q_THRUST_COEFFICIENT], DR.mixer, DR.wrench[0])
+    rotor_wrench(DR.speed, DR.consts[Q_THRUST_COEFFICIENT], DR.thrust_scale, DR.mixer, DR.wrench[0])
 
 
 @kernel(inline="always")
@@ -117,7 +118,7 @@ def rotor_ends(DR):
     consts = DR.consts
     for i in range(4):
         DR.next_speed[i] = motor_lag(DR.speed[i], DR.command[i], consts[Q_DECAY_UP], consts[Q_DECAY_DOWN])
-    rotor_wrench(DR.next_speed, consts[Q_THRUST_COEFFICIENT], DR.mixer, DR.wrench[1])
+    rotor_wrench(DR.next_speed, consts[Q_THRUST_COEFFICIENT], DR.thrust_scale, DR.mixer, DR.wrench[1])
 
 
 @kernel(inline="always")
@@ -264,7 +265,7 @@ def drone_diagnostics(DR, out):
     d[QD_KINETIC] = kinetic
     d[QD_PI3] = R[2, 0] * Pi[0] + R[2, 1] * Pi[1] + R[2, 2] * Pi[2]
     d[QD_ORTHOGONALITY] = math.sqrt(orth)
-    rotor_wrench(DR.speed, DR.consts[Q_THRUST_COEFFICIENT], DR.mixer, DR.wrench[0])
+    rotor_wrench(DR.speed, DR.consts[Q_THRUST_COEFFICIENT], DR.thrust_scale, DR.mixer, DR.wrench[0])
     d[QD_THRUST] = DR.wrench[0, 0]
     for i in range(3):
         d[QD_TORQUE + i] = DR.wrench[0, 1 + i]

@@ -25,14 +25,15 @@ def motor_lag(speed, command, decay_up, decay_down):
 
 
 @kernel(inline="always")
-def rotor_wrench(speeds, kf, mixer, wrench):
-    """``wrench`` (4) = A (k_f omega_i^2): the collective thrust [N] along -b3, then the body
-    torque [N m], from the rotor ``speeds`` (4) [rad/s], ``kf`` [N s^2/rad^2] and the ``mixer``
-    A (4, 4)."""
+def rotor_wrench(speeds, kf, scale, mixer, wrench):
+    """``wrench`` (4) = A (k_f omega_i^2 s_i): the collective thrust [N] along -b3, then the body
+    torque [N m], from the rotor ``speeds`` (4) [rad/s], ``kf`` [N s^2/rad^2], each rotor's
+    thrust ``scale`` s_i (4; 1: its nominal thrust, bit for bit; the environment's thrust noise)
+    and the ``mixer`` A (4, 4)."""
     for row in range(4):
         total = 0.0
         for i in range(4):
-            total += mixer[row, i] * (kf * speeds[i] * speeds[i])
+            total += mixer[row, i] * ((kf * speeds[i] * speeds[i]) * scale[i])
         wrench[row] = total
 
 
