@@ -33,8 +33,9 @@ SWEEPS = {
 
 
 def sweep_options(name: str, value: float) -> dict:
-    """The hard preset's environment options with ``name`` set to ``value``."""
-    options = copy.deepcopy(PRESETS["hard"])
+    """The hard preset's environment options with ``name`` set to ``value`` (the default scene's
+    point pivot: without the drone's thrust noise, which it would refuse)."""
+    options = {key: given for key, given in copy.deepcopy(PRESETS["hard"]).items() if key != "thrust_noise"}
     if name == "wind_speed":
         options["wind"]["speed"] = float(value)
         return options
