@@ -220,6 +220,7 @@ OFFSET_PREFIXES = {
                                    "RW_": ("REWARD",), "TP_": ("TASK_PARAMS",), "F_": ("FEATURES",)},
     "esp_gym.kernels.disturbance": {"DP_": ("DISTURBANCE_PARAMS",), "DS_": ("DISTURBANCE",), "DR_": ("DRAWS",)},
     "esp_gym.kernels.drone": {"Q_": ("DRONE",), "QD_": ("DRONE_DIAG",)},
+    "esp_gym.kernels.drone_env": {"QA_": ("DRONE_ACTION_PARAMS",), "QS_": ("DRONE_SENSORS",)},
     "esp_gym.kernels.recording": {"S_": ("SAMPLE_HEAD",), "SW_": ("SAMPLE_WINCH",), "SI_": ("SAMPLE_INPUTS",),
                                   "SB_": ("SAMPLE_BALANCES",)},
 }

@@ -8,7 +8,9 @@ translation is the free pivot's (node 0, of mass M_p = the drone's), pushed by t
 -f R_q e3 taken at each end of the step. A step (:func:`drone_substep`): the rotors' lag over
 the step (kernels/rotors.py), their wrench at both ends, the rotation's solve, the string's
 step with the thrust pair, then the rotation's commit; a failure anywhere leaves all of it
-untouched.
+untouched. While a winch reels, the string's step is the winch's (:func:`drone_winch_step`).
+The actuations (:data:`ACTUATIONS`) turn the environment's setpoint into motor commands
+(:func:`actuate`).
 """
 from collections import namedtuple
 

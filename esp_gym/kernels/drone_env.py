@@ -5,9 +5,10 @@ tasks' stages (kernels/task_terms.py), then the drone's sensors and its flip -> 
 watchdog, with the drone's rotation in the energy. The single and the batched environments call
 the same :func:`drone_control_step`, so their results agree bit for bit.
 
-Its layouts: the action path's constants (:data:`DRONE_ACTION_PARAMS`) and the sensors, SENSORS
-then the drone's (:data:`DRONE_SENSORS`). The action is four numbers in [-1, 1] in every
-actuation (:data:`~.drone.ACTUATIONS`); 0 hovers.
+Its layouts: the action path's constants (:data:`DRONE_ACTION_PARAMS`), the action with a winch
+(:data:`DRONE_WINCH_ACTION`) and the sensors, SENSORS then the drone's (:data:`DRONE_SENSORS`).
+The action is four numbers in [-1, 1] in every actuation (:data:`~.drone.ACTUATIONS`), and the
+reel speed fifth with a winch; 0 hovers.
 """
 import math
 
@@ -17,8 +18,7 @@ from numba import prange
 from .diagnostics import diagnostics
 from .disturbance import kick
 from .drone import (MOTORS, THRUST_RATES, THRUST_TORQUE, DroneArrays, actuate, drone_diagnostics, drone_substep,
-                    drone_winch_step,
-                    max_rotor_thrust, start_wrench, Q_THRUST_COEFFICIENT, QD_RATES)
+                    drone_winch_step, max_rotor_thrust, start_wrench, Q_THRUST_COEFFICIENT, QD_RATES)
 from .env_arrays import O_UNSTRETCHED_LENGTH, SCHEME_DISTURBED, SENSORS, TP_ENERGY_ORIGIN, TP_STRING_LENGTH, EnvArrays
 from .env_step import (close_balances, diag_row, energy_watchdog, env_prepare,
                        env_row, params_row, state_row, winch_row, work_row)
@@ -33,7 +33,8 @@ from .winch import length_params, winch_energy
 
 #: The drone's action path: the actuation's code (:data:`~.drone.ACTUATIONS`), the collective
 #: thrust at action 0, the rig's weight [N], and the largest [N]; the body torque [N m] and the
-#: body rates [rad/s] at |action| = 1 per axis; cos of the tilt past which the drone has flipped.
+#: body rates [rad/s] at |action| = 1 per axis; cos of the tilt past which the drone has flipped;
+#: the winch's largest reel speed [m/s].
 DRONE_ACTION_PARAMS = Layout(("actuation", 1), ("hover_thrust", 1), ("max_thrust", 1), ("torque_limit", 3),
                              ("rate_limit", 3), ("flip_cosine", 1), ("max_reel_speed", 1))
 QA_ACTUATION = DRONE_ACTION_PARAMS.scalar("actuation")
