@@ -14,6 +14,7 @@ from .kernels.drone import DRONE, DRONE_DIAG, DroneArrays, drone_advance, drone_
 from .kernels.layout import DIAG
 from .model import ROTATION_TOL, Simulator
 from .params import Scene, check_rotation
+from .setup import total_weight
 
 #: The drone's state: attitude R_q (3, 3) (body to spatial), body angular momentum Pi_q (3,)
 #: [kg m^2/s] about the hook, and the rotor speeds (4,) [rad/s].
@@ -53,18 +54,13 @@ def hover_at_rest(arrays: DroneArrays, scene: Scene) -> None:
     """The drone level (R_q = I) and not turning, its remainders cleared, its rotors and their
     commands at the speed whose thrust carries the whole rig (drone, string and load), the
     setpoint cleared, the thrust noise off."""
-    hover = scene.pivot.drone.rotor_speed_for(scene.gravity * carried_mass(scene))
+    hover = scene.pivot.drone.rotor_speed_for(total_weight(scene))
     arrays.R[...] = np.eye(3)
     for a in (arrays.Rc, arrays.Pi, arrays.Pic, arrays.setpoint):
         a[...] = 0.0
     arrays.speed[...] = hover
     arrays.command[...] = hover
     arrays.thrust_scale[...] = 1.0
-
-
-def carried_mass(scene: Scene) -> float:
-    """The rig's mass [kg]: the drone (``pivot.mass``), the string and the load."""
-    return float(scene.pivot.mass + scene.string.mass_per_length * scene.string.length + scene.body.mass)
 
 
 class DroneSimulator(Simulator):

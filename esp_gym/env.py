@@ -223,11 +223,8 @@ class ElasticStringPendulumEnv(gym.Env):
         strain = self.sim.diagnostics()["strain_energy"]
         control = self.control
         drone = None
-        if self.setup.drone:  # the drone as it is turned, its rotors where the X layout puts them
-            from .rotors import x_layout
-
-            rotors = np.column_stack([x_layout(self.scene.pivot.drone.arm_length), np.zeros(4)])
-            drone = (self.sim.drone.R, rotors)
+        if self.setup.drone:  # the drone as it is turned, its rotors where its layout puts them
+            drone = (self.sim.drone.R, self.scene.pivot.drone.rotor_positions())
         return self._renderer.render(st.r, st.R, strain,
                                      pivot_force=control.inputs[INPUTS["pivot_force"]] - self.setup.hover,
                                      target_pivot=control.target[TARGET["pivot"]],

@@ -56,6 +56,11 @@ class DroneParams(Frozen):
         """J_q (3, 3) about the centre of mass (the hook) [kg m^2]."""
         return np.diag(np.asarray(self.inertia, dtype=np.float64))
 
+    def rotor_positions(self) -> np.ndarray:
+        """The rotors' positions (4, 3) [m] in the body frame, about the centre of mass: the X
+        layout's (esp_gym/rotors.py), in the rotors' plane b3 = 0."""
+        return np.column_stack([x_layout(self.arm_length), np.zeros(4)])
+
     def mixer(self) -> np.ndarray:
         """A (4, 4): (f [N], tau [N m]) = A (T_1..T_4) for the X layout (esp_gym/rotors.py)."""
         return mixer(x_layout(self.arm_length), X_SPINS, self.torque_coefficient / self.thrust_coefficient)

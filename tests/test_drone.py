@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 import esp_gym
-from esp_gym.drone import DroneSimulator, carried_mass
+from esp_gym.drone import DroneSimulator
+from esp_gym.setup import total_weight
 from esp_gym.params import SceneError
 
 SCENE = "quadrotor_load"
@@ -19,7 +20,7 @@ def wobbling_commands(sim, k):
     the rotors moving): collective +-5 %, and torques that tilt and yaw the drone."""
     phase = 0.7 * (k // 10)
     torque = 0.02 * np.array([np.sin(phase), np.cos(1.3 * phase), 0.5 * np.sin(0.4 * phase)])
-    thrust = carried_mass(sim.scene) * sim.scene.gravity * (1.0 + 0.05 * np.sin(0.3 * phase))
+    thrust = total_weight(sim.scene) * (1.0 + 0.05 * np.sin(0.3 * phase))
     return sim.commands_for(thrust, torque)
 
 
@@ -66,7 +67,7 @@ def thrust_pair_defects(sim, steps, end_rotation):
     (``end_rotation(R_k, R_{k+1})`` is the rotation used for u_{k+1}: R_{k+1} is the scheme's).
     Returns the largest defect and the largest thrust impulse [kg m/s]."""
     h = sim.h
-    weight = sim.scene.gravity * carried_mass(sim.scene) * h * E3
+    weight = total_weight(sim.scene) * h * E3
     defect = size = 0.0
     for k in range(steps):
         d0 = sim.diagnostics()

@@ -219,87 +219,72 @@ def drone_reset_observe(S, P, D, WA, DR, E, winched):
 drone_row = row_function(DroneArrays)
 
 
-def _drone_entry_points(winched: bool):
-    """``(step, batch)``: kernels/env_step.py's entry points for an environment with a drone
-    (``winched``: and a winch, a closure constant), which take the drone's arrays after the
-    environment's: ``step(s, w, p, d, e, q, raw, scheme)`` and ``batch(s, w, p, d, e, q, raw,
-    active, scheme)`` (plain tuples of StateArrays, Work, LGVIParams, DiagWork, EnvArrays and
-    DroneArrays, as there); with a winch the WinchArrays ``wa`` come after ``d`` (without one they
-    are not passed: a tuple more costs every call the dispatcher's typing of it)."""
-
-    @kernel(entry=True)
-    def step(s, w, p, d, e, q, raw, scheme):
-        E = EnvArrays(*e)
-        DR = DroneArrays(*q)
-        reel = drone_take_action(raw, E.ap, E.action, DR)
-        if reel == -np.inf:
-            return False
-        drone_control_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), None, DR, E, reel,
-                           (scheme & SCHEME_DISTURBED) != 0, False)
-        return True
-
-    @kernel(entry=True)
-    def winch_step(s, w, p, d, wa, e, q, raw, scheme):
-        E = EnvArrays(*e)
-        DR = DroneArrays(*q)
-        reel = drone_take_action(raw, E.ap, E.action, DR)
-        if reel == -np.inf:
-            return False
-        drone_control_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), DR, E, reel,
-                           (scheme & SCHEME_DISTURBED) != 0, True)
-        return True
-
-    @kernel(parallel=True, entry=True)
-    def batch(s, w, p, d, e, q, raw, active, scheme):
-        disturbed = (scheme & SCHEME_DISTURBED) != 0
-        S = StateArrays(*s)
-        W = Work(*w)
-        D = DiagWork(*d)
-        P = LGVIParams(*p)
-        E = EnvArrays(*e)
-        Q = DroneArrays(*q)
-        for b in prange(raw.shape[0]):
-            if active[b]:
-                Eb = env_row(E, b)
-                DRb = drone_row(Q, b)
-                reel = drone_take_action(raw[b], Eb.ap, Eb.action, DRb)
-                if reel != -np.inf:
-                    drone_control_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), None, DRb,
-                                       Eb, reel, disturbed, False)
-
-    @kernel(parallel=True, entry=True)
-    def winch_batch(s, w, p, d, wa, e, q, raw, active, scheme):
-        disturbed = (scheme & SCHEME_DISTURBED) != 0
-        S = StateArrays(*s)
-        W = Work(*w)
-        D = DiagWork(*d)
-        P = LGVIParams(*p)
-        WA = WinchArrays(*wa)
-        E = EnvArrays(*e)
-        Q = DroneArrays(*q)
-        for b in prange(raw.shape[0]):
-            if active[b]:
-                Eb = env_row(E, b)
-                DRb = drone_row(Q, b)
-                reel = drone_take_action(raw[b], Eb.ap, Eb.action, DRb)
-                if reel != -np.inf:
-                    drone_control_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b),
-                                       winch_row(WA, b), DRb, Eb, reel, disturbed, True)
-
-    which = "the environment's step with a drone" + (" and the winch" if winched else "")
-    if winched:
-        return (announce_compile(winch_step, which, COLD_DRONE_ENV_STEP_S),
-                announce_compile(winch_batch, "the batched " + which[4:], COLD_DRONE_BATCH_STEP_S))
-    return (announce_compile(step, which, COLD_DRONE_ENV_STEP_S),
-            announce_compile(batch, "the batched " + which[4:], COLD_DRONE_BATCH_STEP_S))
-
-
 #: The seconds to the first step of an environment and of a vector environment with a drone on an
 #: empty cache (2 cores; docs/performance.md, "Start-up"; its own kernels on top of the point
 #: pivot's), said when their entry points first compile.
 COLD_DRONE_ENV_STEP_S = 25
 COLD_DRONE_BATCH_STEP_S = 35
 
+@kernel(inline="always")
+def drone_env_step(S, W, P, D, WA, E, DR, raw, scheme, winched):
+    """:func:`drone_take_action` of the raw action, then :func:`drone_control_step`, for one
+    environment (``WA``: its winch's arrays, read only when ``winched``, a constant). Returns
+    False, with nothing changed, if the raw action is not finite."""
+    reel = drone_take_action(raw, E.ap, E.action, DR)
+    if reel == -np.inf:
+        return False
+    drone_control_step(S, W, P, D, WA, DR, E, reel, (scheme & SCHEME_DISTURBED) != 0, winched)
+    return True
+
+
+@kernel(inline="always")
+def drone_env_batch(S, W, P, D, WA, E, Q, raw, active, scheme, winched):
+    """:func:`drone_env_step` for every environment b with ``active[b]``, in parallel (each
+    struct's row b by its row function; the raw actions must be finite)."""
+    for b in prange(raw.shape[0]):
+        if active[b]:
+            if winched:
+                drone_env_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), winch_row(WA, b),
+                               env_row(E, b), drone_row(Q, b), raw[b], scheme, True)
+            else:
+                drone_env_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), None,
+                               env_row(E, b), drone_row(Q, b), raw[b], scheme, False)
+
+
+# The entry points: kernels/env_step.py's, with the drone's arrays ``q`` (DroneArrays) after the
+# environment's ``e``, all plain tuples as there; with a winch its arrays ``wa`` come after ``d``
+# (without one they are not passed: a tuple more costs every call the dispatcher's typing of it).
+@kernel(entry=True)
+def drone_step(s, w, p, d, e, q, raw, scheme):
+    return drone_env_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), None, EnvArrays(*e),
+                          DroneArrays(*q), raw, scheme, False)
+
+
+@kernel(entry=True)
+def drone_winch_env_step(s, w, p, d, wa, e, q, raw, scheme):
+    return drone_env_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), EnvArrays(*e),
+                          DroneArrays(*q), raw, scheme, True)
+
+
+@kernel(parallel=True, entry=True)
+def drone_batch(s, w, p, d, e, q, raw, active, scheme):
+    drone_env_batch(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), None, EnvArrays(*e), DroneArrays(*q),
+                    raw, active, scheme, False)
+
+
+@kernel(parallel=True, entry=True)
+def drone_winch_batch(s, w, p, d, wa, e, q, raw, active, scheme):
+    drone_env_batch(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), EnvArrays(*e),
+                    DroneArrays(*q), raw, active, scheme, True)
+
+
 #: The drone environment's (step, batch) entry points by ``winched`` (each compiled when first
-#: asked for).
-DRONE_ENTRY_POINTS = {winched: _drone_entry_points(winched) for winched in (False, True)}
+#: asked for; kernels/env_step.py's ENTRY_POINTS give the arguments).
+DRONE_ENTRY_POINTS = {
+    False: (announce_compile(drone_step, "the environment's step with a drone", COLD_DRONE_ENV_STEP_S),
+            announce_compile(drone_batch, "the batched environment's step with a drone", COLD_DRONE_BATCH_STEP_S)),
+    True: (announce_compile(drone_winch_env_step, "the environment's step with a drone and the winch",
+                            COLD_DRONE_ENV_STEP_S),
+           announce_compile(drone_winch_batch, "the batched environment's step with a drone and the winch",
+                            COLD_DRONE_BATCH_STEP_S)),
+}

@@ -58,9 +58,7 @@ class RecordRerun(gym.Wrapper):
         #: a drone's action, padded to the point pivot's size (the sample row's action field)
         self._drone_action = np.zeros(ACTION.size) if setup.drone else None
         if setup.drone:
-            from ..rotors import x_layout
-
-            drone = (setup.actuation, np.column_stack([x_layout(setup.scene.pivot.drone.arm_length), np.zeros(4)]))
+            drone = (setup.actuation, setup.scene.pivot.drone.rotor_positions())
         self.recorder = Recorder(path, setup.scene, env=True, winch=setup.winch, sample_period=setup.control_period,
                                  force_offset=setup.hover, action_scale=(setup.force_limit, setup.torque_limit),
                                  drone=drone, **recorder_kwargs)
