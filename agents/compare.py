@@ -2,16 +2,18 @@
 seeded episodes, with the paired difference policy - best baseline and its bootstrap CI.
 
     python -m agents.compare --task transport --preset hard --episodes 100 --json
+    python -m agents.compare --scene quadrotor_load --actuation thrust_rates --task stabilize --preset hard
 
-Policies: ``zero``, the baselines of agents/baselines/registry.py ``baselines`` for the task and the
-preset's observation, and the shipped policy ``models/{task}[_{preset}]_ppo/model.zip`` (or
+Policies: ``zero``, the baselines of agents/baselines/registry.py ``baselines`` for the task, the
+scene, its actuation and the preset's observation, and the shipped policy
+``models/{task}[_{scene}][_{actuation}][_{preset}]_ppo/model.zip`` (:func:`configuration_name`; or
 ``--model``). Each runs episodes seed + i (default seed 100000: none of them is a training or
 an evaluation-during-training seed). Per policy: mean and standard deviation of the return,
 success rate, final and mean swing, settling time and peak hook tension (agents/evaluate.py
 EpisodeResult). The best baseline is the one of highest mean return; the paired differences
 (policy - best baseline, episode by episode) get a 95 % bootstrap confidence interval (BCa,
 scipy.stats.bootstrap). Prints a Markdown table, or with ``--json`` one JSON object;
-``--out DIR`` writes both (compare_{task}[_{preset}].md/.json).
+``--out DIR`` writes both (compare_{configuration}.md/.json).
 """
 from __future__ import annotations
 
@@ -26,16 +28,36 @@ from agents.common import ROOT
 from agents.baselines.pd import ZeroPolicy
 from agents.baselines.registry import baselines
 from agents.evaluate import SB3Policy, run_episodes, summarize
+from esp_gym.options import EnvOptions
 from esp_gym.tasks import TASKS
 
 MODELS = ROOT / "models"
 HELD_OUT_SEED = 100_000
+DEFAULT_SCENE = EnvOptions.model_fields["scene"].default
 NOT_BASELINES = ("zero", "policy")
 
 
-def shipped_model(task: str, preset: Optional[str] = None) -> Path:
-    """Where the policy shipped for ``task`` (and ``preset``) lives."""
-    return MODELS / (f"{task}_{preset}_ppo" if preset else f"{task}_ppo") / "model.zip"
+def configuration_name(task: str, preset: Optional[str] = None, scene: Optional[str] = None,
+                       actuation: Optional[str] = None) -> str:
+    """``task[_scene][_actuation][_preset]``: the scene when it is not the default one, the actuation
+    when it is not the scene's default (``thrust_rates`` for a drone, ``force`` for a point pivot)."""
+    parts = [task]
+    if scene is not None and scene != DEFAULT_SCENE:
+        parts.append(scene)
+    if actuation is not None:
+        from esp_gym.setup import make_setup
+
+        if actuation != make_setup(task=task, scene=scene or DEFAULT_SCENE).actuation:
+            parts.append(actuation)
+    if preset:
+        parts.append(preset)
+    return "_".join(parts)
+
+
+def shipped_model(task: str, preset: Optional[str] = None, scene: Optional[str] = None,
+                  actuation: Optional[str] = None) -> Path:
+    """Where the policy shipped for the configuration (:func:`configuration_name`) lives."""
+    return MODELS / f"{configuration_name(task, preset, scene, actuation)}_ppo" / "model.zip"
 
 
 def paired_ci(differences, confidence: float = 0.95, resamples: int = 10_000, seed: int = 0) -> tuple:
@@ -53,14 +75,17 @@ def paired_ci(differences, confidence: float = 0.95, resamples: int = 10_000, se
 
 
 def compare(task: str, preset: Optional[str] = None, episodes: int = 100, seed: int = HELD_OUT_SEED,
-            model: Optional[str] = None, progress: bool = True) -> dict:
+            model: Optional[str] = None, progress: bool = True, scene: Optional[str] = None,
+            actuation: Optional[str] = None) -> dict:
     """Evaluate zero, the baselines and the policy (``model``, default :func:`shipped_model`;
-    left out when there is none) and return the comparison (module docstring)."""
+    left out when there is none) on ``scene`` (default: drone_load) in ``actuation`` (default:
+    the scene's pivot's) and return the comparison (module docstring)."""
     from tqdm import tqdm
 
     env_kwargs = {"preset": preset} if preset else {}
+    env_kwargs.update({name: value for name, value in (("scene", scene), ("actuation", actuation)) if value is not None})
     policies = {"zero": ZeroPolicy(), **baselines(task, env_kwargs)}
-    path = Path(model) if model else shipped_model(task, preset)
+    path = Path(model) if model else shipped_model(task, preset, scene, actuation)
     if model or path.is_file():
         policies["policy"] = SB3Policy(path)
         policies["policy"].check(task, env_kwargs)  # before any episode: a model that does not fit says so
@@ -71,7 +96,7 @@ def compare(task: str, preset: Optional[str] = None, episodes: int = 100, seed: 
     for name, rows in results.items():
         table[name] = {k: v for k, v in summarize(rows, task).items() if k not in ("task", "episodes")}
     best = max((n for n in table if n not in NOT_BASELINES), key=lambda n: table[n]["mean_return"])
-    out = {"task": task, "preset": preset, "episodes": episodes, "seed": seed,
+    out = {"task": task, "preset": preset, "scene": scene, "actuation": actuation, "episodes": episodes, "seed": seed,
            "model": str(path) if "policy" in policies else None, "policies": table, "best_baseline": best,
            "paired_diff_mean": None, "paired_ci95": None}
     if "policy" in results:
@@ -83,7 +108,8 @@ def compare(task: str, preset: Optional[str] = None, episodes: int = 100, seed: 
 
 def markdown(c: dict) -> str:
     """The comparison as a Markdown table and a line for the paired difference."""
-    lines = [f"{c['task']} ({c['preset'] or 'nominal'}), {c['episodes']} episodes, seeds {c['seed']}.."
+    where = "".join(f", {c[k]}" for k in ("scene", "actuation") if c.get(k))
+    lines = [f"{c['task']} ({c['preset'] or 'nominal'}{where}), {c['episodes']} episodes, seeds {c['seed']}.."
              f"{c['seed'] + c['episodes'] - 1}", "",
              "| policy | return (mean ± std) | success | final swing [deg] | mean swing [deg] | settling [s] "
              "| peak tension [N] |", "|---|---|---|---|---|---|---|"]
@@ -107,18 +133,29 @@ def main(argv=None) -> dict:
     ap.add_argument("--json", action="store_true", help="print one JSON object instead of the Markdown table")
     ap.add_argument("--out", default=None, metavar="DIR", help="also write compare_TASK[_PRESET].md and .json here")
     ap.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
+    ap.add_argument("--scene", default=None, help="the environment's scene (default: drone_load)")
+    ap.add_argument("--actuation", default=None, choices=["force", "thrust_torque", "thrust_rates", "motors"],
+                    help="how the action moves the pivot (default: the scene's pivot's)")
     a = ap.parse_args(argv)
     ap.check_out_dir("--out", a.out)
     ap.check_file("--model", a.model)
+    if a.scene is not None or a.actuation is not None:
+        from esp_gym.setup import make_setup
+
+        try:
+            make_setup(task=a.task, preset=a.preset, **{k: v for k, v in (("scene", a.scene), ("actuation", a.actuation))
+                                                          if v is not None})
+        except ValueError as err:
+            ap.error(f"argument --scene/--actuation: {err}")
     try:
-        c = compare(a.task, a.preset, a.episodes, a.seed, a.model, a.progress)
+        c = compare(a.task, a.preset, a.episodes, a.seed, a.model, a.progress, a.scene, a.actuation)
     except ValueError as err:  # ModelFileError, NormalizationFileError
         ap.error(f"argument --model: {err}")
     print(json.dumps(c) if a.json else markdown(c))
     if a.out:
         out = Path(a.out)
         out.mkdir(exist_ok=True)
-        stem = f"compare_{a.task}" + (f"_{a.preset}" if a.preset else "")
+        stem = "compare_" + configuration_name(a.task, a.preset, a.scene, a.actuation)
         (out / f"{stem}.md").write_text(markdown(c) + "\n")
         (out / f"{stem}.json").write_text(json.dumps(c, indent=2) + "\n")
     return c

@@ -1,6 +1,6 @@
 """Residual policies: the trained network's action is added to a classical baseline's, and the
 sum clipped to the box, so learning starts from the baseline and refines it (residual policy
-learning). A run with ``residual: pd`` or ``residual: lqg`` in its config trains through
+learning). A run with ``residual: pd``, ``lqg`` or ``geometric`` in its config trains through
 :class:`ResidualVecEnv` and writes ``residual.json`` beside its model; agents.evaluate.SB3Policy
 reads it back and adds the same baseline when it acts.
 
@@ -8,7 +8,9 @@ reads it back and adds the same baseline when it acts.
 filter per environment: it is told the action actually applied (base plus network), and the
 network also sees its estimate [z; q; f] (agents/baselines/lqg.py; for ``track`` also the reference's
 feed-forward, velocity and displacement ahead), appended to the observation, so the
-policy starts from the filter's state rather than from raw hook readings.
+policy starts from the filter's state rather than from raw hook readings. ``geometric`` (a drone
+at the pivot) is the load-led cascade of agents/baselines/geometric.py; on the hook observation it
+is stateful too, its load estimate (agents/baselines/load_estimate.py ESTIMATE) appended likewise.
 """
 from __future__ import annotations
 
@@ -21,7 +23,7 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
 #: The baselines a residual may start from.
-BASES = ("pd", "lqg")
+BASES = ("pd", "lqg", "geometric")
 RESIDUAL_FILE = "residual.json"
 
 
@@ -34,8 +36,9 @@ def base_policy(name: str, task: str, env_kwargs: Optional[dict] = None):
         raise ValueError(f"residual must be one of {BASES}, got {name!r}")
     known = baseline_factories(task, env_kwargs)  # "pd" is the winch's Hoist where the task reels
     if name not in known:
-        raise ValueError(f"residual {name!r} needs the hook observation (env_kwargs observation: hook or "
-                         f"preset: hard); with {env_kwargs or {}} the baselines are {sorted(known)}")
+        needs = ("a drone's scene and no winch" if name == "geometric"
+                 else "the hook observation (env_kwargs observation: hook or preset: hard)")
+        raise ValueError(f"residual {name!r} needs {needs}; with {env_kwargs or {}} the baselines are {sorted(known)}")
     return known[name]()
 
 

@@ -193,6 +193,10 @@ def test_evaluate_rejects_policy_names_it_does_not_know():
      ["--grid", "no default grid"]),
     ("agents.baselines.gain_search", ["--controller", "geometric", "--scene", "quadrotor_load", "--grid",
                                       '{"kp": [1]}'], ["--grid", "'kp'", "k_load"]),
+    ("agents.baselines.gain_search", ["--controller", "geometric", "--scene", "quadrotor_load", "--preset", "hard",
+                                      "--grid", '{"kp": [1]}'], ["--grid", "'kp'", "k_load"]),
+    ("agents.compare", ["--scene", "quadrotor_load", "--actuation", "force", "--episodes", "2"],
+     ["--scene/--actuation", "does not fly"]),
 ])
 def test_script_errors_are_one_line(tmp_path, module, args, names):
     missing = tmp_path / "missing"  # a directory that does not exist

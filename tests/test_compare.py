@@ -120,3 +120,25 @@ def test_sweep_options_change_one_thing():
     assert PRESETS["hard"]["wind"]["speed"] == 6.0  # the preset itself is untouched
     low, high = sweep_options("load_mass", 4.0)["randomize"]["load_mass"]
     assert low == high > 0
+
+
+def test_compare_flies_the_drone_on_the_hard_preset(tmp_path, capsys):
+    """``--scene quadrotor_load --actuation thrust_rates --preset hard`` (issue 34's command): the
+    drone's baselines (the PD law and the geometric cascade on its hook estimate), the configuration
+    in the JSON and in the files' names, and the shipped drone policy when there is one."""
+    c = compare.main(["--task", "stabilize", "--scene", "quadrotor_load", "--actuation", "thrust_rates", "--preset",
+                      "hard", "--episodes", "2", "--json", "--no-progress", "--out", str(tmp_path)])
+    capsys.readouterr()
+    assert (c["scene"], c["actuation"], c["preset"]) == ("quadrotor_load", "thrust_rates", "hard")
+    assert {"zero", "pd", "geometric"} <= set(c["policies"])
+    shipped = compare.shipped_model("stabilize", "hard", "quadrotor_load", "thrust_rates")
+    assert ("policy" in c["policies"]) == shipped.is_file()
+    assert (tmp_path / "compare_stabilize_quadrotor_load_hard.json").is_file()
+
+
+def test_configuration_names_leave_out_the_defaults():
+    """The scene's default actuation and the default scene add nothing: one configuration, one name."""
+    name = compare.configuration_name
+    assert name("track", "hard") == name("track", "hard", "drone_load", "force") == "track_hard"
+    assert name("stabilize", "hard", "quadrotor_load", "thrust_rates") == name("stabilize", "hard", "quadrotor_load")
+    assert name("stabilize", None, "quadrotor_load", "motors") == "stabilize_quadrotor_load_motors"

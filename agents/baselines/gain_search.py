@@ -9,7 +9,8 @@ Every combination of the ``--grid`` values replaces those gains of the task's ba
 scored by its mean return over ``--episodes`` episodes (seeds 1000 + i). Prints the ten best as
 JSON lines, best first. The winch's tasks (lift, lower) tune their Hoist: the PD law's gains and
 ``k_length``. ``--controller geometric`` tunes the drone's load-led cascade
-(agents/baselines/geometric.py) on ``--scene`` (a drone's) in ``--actuation``; ``--controller pd``
+(agents/baselines/geometric.py) on ``--scene`` (a drone's) in ``--actuation`` (with ``--preset hard``
+on the hook observation, through its load estimate); ``--controller pd``
 with a drone's scene, the PD law flying it.
 """
 from __future__ import annotations
@@ -19,6 +20,7 @@ import json
 from dataclasses import fields, replace
 
 from agents.cli import ArgumentParser
+from agents.baselines.geometric import HookGeometricController
 from agents.baselines.pd import Hoist
 from agents.baselines.registry import baseline
 from agents.evaluate import evaluate_policy
@@ -30,7 +32,10 @@ COARSE_GRID = dict(kp=[1, 2, 4, 8], kd=[1, 2, 4, 8], k_sway=[0, 1, 2, 4, 8], k_s
 
 def gain_names(law) -> list:
     """The gains ``--grid`` may set: the PD law's, and a Hoist's ``k_length`` besides its PD's (the
-    numbers among a controller's fields: not its inner loops or its episode's record)."""
+    numbers among a controller's fields: not its inner loops or its episode's record); the hook's
+    geometric cascade's are its law's."""
+    if isinstance(law, HookGeometricController):
+        return gain_names(law.law)
     if isinstance(law, Hoist):
         return sorted([f.name for f in fields(law.pd)] + ["k_length"])
     return sorted(f.name for f in fields(law) if f.type in ("float", float) and not f.name.startswith("_"))
@@ -45,14 +50,20 @@ def controller(name: str, task: str, env_kwargs: dict):
     if name == "geometric":
         if not setup.drone:
             raise ValueError("the geometric cascade flies a drone: give a drone's --scene (quadrotor_load)")
-        from agents.baselines.geometric import geometric_controller
+        from agents.baselines.registry import baseline_factories
 
-        return geometric_controller(task, setup.actuation)
+        known = baseline_factories(task, env_kwargs)
+        if "geometric" not in known:
+            raise ValueError(f"the geometric cascade holds a fixed length: no winch (the baselines: {sorted(known)})")
+        return known["geometric"]()  # on the hook observation: with its load estimate
     return baseline(task, setup.winch, setup.drone)
 
 
 def with_gains(law, gains: dict):
-    """``law`` with ``gains`` replaced (a Hoist's PD gains go to its PD law)."""
+    """``law`` with ``gains`` replaced (a Hoist's PD gains go to its PD law, the hook's geometric
+    cascade's to its law, with an estimate of its own)."""
+    if isinstance(law, HookGeometricController):
+        return replace(law.clone(), law=replace(law.law, **gains))
     if isinstance(law, Hoist):
         pd = {k: v for k, v in gains.items() if k != "k_length"}
         return replace(law, pd=replace(law.pd, **pd), k_length=gains.get("k_length", law.k_length))
@@ -78,7 +89,7 @@ def tune(task: str, episodes: int, grid: dict, top: int = 10, base=None, env_kwa
 
 def main(argv=None) -> list:
     ap = ArgumentParser(prog="python -m agents.baselines.gain_search", description=__doc__.split("\n\n")[0])
-    ap.add_episode_options(TASKS, episodes=20, seed=False)
+    ap.add_episode_options(TASKS, episodes=20, seed=False, preset=True)
     ap.add_argument("--grid", type=str, default=None,
                     help=f"JSON object gain -> list of values (default: {json.dumps(COARSE_GRID)}; "
                          "required with --controller geometric)")
@@ -86,7 +97,8 @@ def main(argv=None) -> list:
     ap.add_argument("--scene", default=None, help="the environment's scene (default: drone_load)")
     ap.add_argument("--actuation", default=None, choices=["force", "thrust_torque", "thrust_rates", "motors"])
     a = ap.parse_args(argv)
-    env_kwargs = {name: value for name, value in (("scene", a.scene), ("actuation", a.actuation)) if value is not None}
+    env_kwargs = {name: value for name, value in (("scene", a.scene), ("actuation", a.actuation), ("preset", a.preset))
+                  if value is not None}
     try:
         base = controller(a.controller, a.task, env_kwargs)
     except ValueError as err:

@@ -9,7 +9,12 @@ two outer laws.
   a suspended load: Sreenath, Lee and Kumar 2013; Lee, Sreenath and Kumar 2013). The load's
   position error asks for a load acceleration, that for the string's force on the load, whose
   direction q_d and size T_d place the drone at x_L - d q_d (d the drone-load distance now); a
-  PD law on that place, with the string's pull -T_d q taken off, is the thrust vector.
+  PD law on that place, plus the load's asked acceleration along the string q (along it drone
+  and load move as one: without that term only the load's mass stiffens the height, and a hover
+  thrust 2 % off settles 17 cm off), with the string's pull -T_d q taken off, is the thrust vector.
+* :class:`HookGeometricController`: that law on the hook observation, on the load's place and
+  velocity as agents/baselines/load_estimate.py's filter tells them from the hook's pull; the
+  load's mass is weighed, the drone's is the nominal one.
 
 The inner loops (:func:`drone_action`), shared: the thrust vector u_d (spatial, pushing the
 drone; hover -W e3) gives the collective thrust f = -u_d . b3 along the body's -b3 now and the
@@ -25,7 +30,9 @@ from typing import Optional
 
 import numpy as np
 
+from agents.baselines.load_estimate import LoadEstimator
 from esp_gym.kernels.drone_env import DRONE_ACTION_PARAMS
+from esp_gym.setup import total_weight
 from esp_gym.tasks import hanging_depth
 
 E1 = np.array([1.0, 0.0, 0.0])
@@ -62,12 +69,16 @@ class InnerLoops:
     k_rate: float = 20.0
 
 
-def drone_action(u_d: np.ndarray, obs: np.ndarray, setup, inner: InnerLoops = InnerLoops()) -> np.ndarray:
+def drone_action(u_d: np.ndarray, obs: np.ndarray, setup, inner: InnerLoops = InnerLoops(),
+                 hover: Optional[float] = None) -> np.ndarray:
     """The action in [-1, 1]^4 of ``setup.actuation`` that pushes the drone with the thrust vector
-    ``u_d`` [N] (spatial; module docstring)."""
+    ``u_d`` [N] (spatial; module docstring). The action's thrust is relative to the episode's hover
+    thrust (the rig's weight: esp_gym/setup.py drone_action_params), ``hover`` [N] the
+    controller's value of it (default: the nominal scene's)."""
     layout = setup.observer.layout
     qa = setup.action_params
-    hover = qa[DRONE_ACTION_PARAMS.scalar("hover_thrust")]
+    if hover is None:
+        hover = qa[DRONE_ACTION_PARAMS.scalar("hover_thrust")]
     R = drone_attitude(obs, layout)
     rates = obs[layout["drone_rates"]]
     size = np.linalg.norm(u_d)
@@ -122,22 +133,28 @@ class DronePD:
 class GeometricLoadController:
     """The load-led cascade (module docstring), for the full observation. Gains: the load's
     k_load [1/s^2] and k_load_d [1/s], its acceleration command's largest size
-    max_load_acceleration [m/s^2], the drone's place k_drone [1/s^2] and velocity k_drone_d [1/s]. :meth:`reset` reads the episode's masses and the load's hanging depth below the
-    pivot's target (randomised episodes have their own)."""
+    max_load_acceleration [m/s^2], the drone's place k_drone [1/s^2] and velocity k_drone_d [1/s],
+    the share of the load's asked acceleration along the string the drone takes too
+    (``feedforward``, 1; 0 leaves it out). :meth:`reset` reads the episode's masses, the load's
+    hanging depth below the pivot's target and the hover thrust the action is relative to
+    (randomised episodes have their own)."""
 
     k_load: float = 6.0
     k_load_d: float = 3.0
     k_drone: float = 16.0
     k_drone_d: float = 4.0
     max_load_acceleration: float = np.inf
+    feedforward: float = 1.0
     inner: InnerLoops = InnerLoops()
     _episode: Optional[tuple] = None
+    _hover: Optional[float] = None
 
     def reset(self, env) -> None:
         scene = env.scene
         load = scene.body.mass + 0.5 * scene.string.mass_per_length * scene.string.length
         self._episode = (load, scene.pivot.mass + 0.5 * scene.string.mass_per_length * scene.string.length,
                          hanging_depth(scene))
+        self._hover = total_weight(scene)
 
     def act(self, obs, setup) -> np.ndarray:
         obs = np.asarray(obs, dtype=np.float64)
@@ -145,29 +162,85 @@ class GeometricLoadController:
             return np.stack([self.act(o, setup) for o in obs])
         layout = setup.observer.layout
         if "load_position_error" not in layout:
-            raise ValueError("GeometricLoadController needs the full observation (the load's state)")
+            raise ValueError("GeometricLoadController needs the full observation (the load's state); "
+                             "HookGeometricController flies on the hook's")
         if self._episode is None:
             self.reset(type("Nominal", (), {"scene": setup.scene})())
-        m_load, m_drone, depth = self._episode
-        g = setup.scene.gravity
-        e_load, v_load = obs[layout["load_position_error"]], obs[layout["load_velocity"]]
-        e_drone, v_drone = obs[layout["pivot_position_error"]], obs[layout["pivot_velocity"]]
+        u_d = self.thrust_vector(obs[layout["load_position_error"]], obs[layout["load_velocity"]],
+                                 obs[layout["pivot_position_error"]], obs[layout["pivot_velocity"]],
+                                 *self._episode, setup.scene.gravity)
+        return drone_action(u_d, obs, setup, self.inner, self._hover)
+
+    def thrust_vector(self, e_load, v_load, e_drone, v_drone, m_load: float, m_drone: float, depth: float,
+                      g: float, disturbance=None) -> np.ndarray:
+        """The drone's thrust vector u_d [N] (module docstring) from the load's and the drone's
+        position errors [m] and velocities [m/s], their masses [kg], the load's depth below the
+        drone at rest [m], gravity [m/s^2] and ``disturbance``, what else accelerates the load
+        [m/s^2] (the wind's drag; the string's force cancels it)."""
         # 1. the load's acceleration -> the string's force on it: its tension and direction
         wanted = -self.k_load * e_load - self.k_load_d * v_load
         size = np.linalg.norm(wanted)
         if size > self.max_load_acceleration:
             wanted *= self.max_load_acceleration / size
-        force = m_load * (wanted - g * E3)
+        force = m_load * (wanted - g * E3 - (0.0 if disturbance is None else disturbance))
         tension = np.linalg.norm(force)
         q_d = -force / tension
         # 2. the drone's place on that direction, at the distance it has now
         r = e_load - e_drone + depth * E3  # drone -> load
         place = r - np.linalg.norm(r) * q_d  # x_d - x
-        acc = self.k_drone * place + self.k_drone_d * (v_load - v_drone)
-        # 3. its thrust vector: the PD's force less the string's pull on it, tension T_d along q
         q = r / max(np.linalg.norm(r), 1e-9)
-        u_d = m_drone * (acc - g * E3) - tension * q
-        return drone_action(u_d, obs, setup, self.inner)
+        acc = self.feedforward * (wanted @ q) * q + self.k_drone * place + self.k_drone_d * (v_load - v_drone)
+        # 3. its thrust vector: the PD's force less the string's pull on it, tension T_d along q
+        return m_drone * (acc - g * E3) - tension * q
+
+
+@dataclass
+class HookGeometricController:
+    """The load-led cascade on the hook observation: ``law``'s gains acting on the load's state
+    as agents/baselines/load_estimate.py's filter estimates it from the hook's pull. Stateful
+    (one estimate per episode): ``reset``/``start`` begin an episode, ``clone`` makes a copy with an
+    estimate of its own, ``features`` is the estimate (a residual network sees it)."""
+
+    law: GeometricLoadController
+    estimator: LoadEstimator
+
+    @classmethod
+    def for_setup(cls, setup, law: GeometricLoadController, **noise) -> "HookGeometricController":
+        """``law`` with a filter at ``setup``'s control period (``noise``: LoadEstimator's)."""
+        return cls(law, LoadEstimator(setup.control_period, setup.scene.gravity, **noise))
+
+    def clone(self) -> "HookGeometricController":
+        return HookGeometricController(self.law, self.estimator.clone())
+
+    def reset(self, env=None) -> None:
+        self.estimator.start()
+
+    def start(self, target=None) -> None:
+        self.estimator.start()
+
+    def applied(self, action) -> None:
+        """The filter takes the load cell's pull, not the action: nothing to do."""
+
+    @property
+    def features(self) -> np.ndarray:
+        return self.estimator.features
+
+    def act(self, obs, setup) -> np.ndarray:
+        obs = np.asarray(obs, dtype=np.float64)
+        if obs.ndim > 1:
+            raise ValueError("HookGeometricController acts on one observation (clone one per environment)")
+        layout = setup.observer.layout
+        if "hook_tension" not in layout:
+            raise ValueError("HookGeometricController needs the hook observation (observation='hook' or preset='hard')")
+        e_drone, v_drone = obs[layout["pivot_position_error"]], obs[layout["pivot_velocity"]]
+        estimate = self.estimator
+        estimate.update(e_drone, obs[layout["hook_tension"]], obs[layout["load_target_offset"]])
+        scene = setup.scene  # the nominal one: the drone's mass is not measured
+        u_d = self.law.thrust_vector(estimate.position_error, estimate.velocity, e_drone, v_drone,
+                                     estimate.load_mass, scene.pivot.mass, estimate.length, scene.gravity,
+                                     estimate.disturbance)
+        hover = scene.gravity * (scene.pivot.mass + estimate.load_mass)  # the weighed load's rig
+        return drone_action(u_d, obs, setup, self.law.inner, hover)
 
 
 #: The load-led cascade's gains per task (k_load, k_load_d, k_drone, k_drone_d,
@@ -186,6 +259,28 @@ GEOMETRIC_GAINS = {"stabilize": (6.0, 3.0, 16.0, 4.0, np.inf), "transport": (4.0
 #: there on held-out seeds (-29.9 +- 34.2 over seeds 0-49: some episodes flip), where the softer
 #: ones win (+23.6 +- 7.6).
 MOTORS_GAINS = {"track": (6.0, 3.0, 16.0, 4.0, np.inf)}
+
+
+#: The cascade's gains on the hook observation (:class:`HookGeometricController`, the hard preset), as
+#: :data:`GEOMETRIC_GAINS`, tuned on quadrotor_load in ``thrust_rates``, 20 episodes (seeds 1000+) per
+#: grid point: ``python -m agents.baselines.gain_search --controller geometric --scene quadrotor_load
+#: --preset hard --task TASK --episodes 20 --grid GRID`` with GRID {"k_load": [2, 3, 4], "k_load_d":
+#: [4, 6, 8], "k_drone": [4, 6, 8], "k_drone_d": [4, 6, 8]} for stabilize (327.1), {"k_load": [3, 4, 6],
+#: "k_load_d": [4, 6], "k_drone": [8, 12], "k_drone_d": [4, 6], "max_load_acceleration": [2, 100]} for
+#: transport (326.6) and {"k_load": [3, 4, 6, 8], "k_load_d": [4, 6], "k_drone": [8, 12, 16],
+#: "k_drone_d": [4, 6]} for track (253.3); the PD law on the same seeds: 317.3, 210.9, 203.6. The
+#: shipped hard drone policies (models/*_quadrotor_load_hard_ppo) are residuals on this controller:
+#: a change here changes what they do.
+HOOK_GEOMETRIC_GAINS = {"stabilize": (4.0, 6.0, 8.0, 4.0, np.inf), "transport": (6.0, 6.0, 12.0, 6.0, np.inf),
+                        "track": (4.0, 6.0, 12.0, 6.0, np.inf)}
+#: The hook's load estimate (agents/baselines/load_estimate.py LoadEstimator's noise and slack pull).
+HOOK_ESTIMATOR = {"position_std": 0.05, "acceleration_std": 1.0, "drift_std": 1.0, "taut_fraction": 0.3}
+
+
+def hook_geometric_controller(task: str, actuation: str = "thrust_rates") -> GeometricLoadController:
+    """The load-led cascade's law with ``task``'s gains on the hook observation
+    (:data:`HOOK_GEOMETRIC_GAINS`; stabilize's for other tasks)."""
+    return GeometricLoadController(*HOOK_GEOMETRIC_GAINS.get(task, HOOK_GEOMETRIC_GAINS["stabilize"]))
 
 
 def geometric_controller(task: str, actuation: str = "thrust_rates") -> GeometricLoadController:

@@ -55,11 +55,17 @@ def baseline_factories(task: str, env_kwargs: Optional[dict] = None) -> dict:
 
     setup = make_setup(task=task, **(env_kwargs or {}))
     out = {"pd": lambda: baseline(task, setup.winch, setup.drone)}
-    if setup.drone:  # the drone's cascades (agents/baselines/geometric.py)
-        if setup.observer.mode == "full":
-            from agents.baselines.geometric import geometric_controller
+    if setup.drone:  # the drone's cascades (agents/baselines/geometric.py), for a fixed length
+        from agents.baselines.geometric import (HOOK_ESTIMATOR, HookGeometricController, geometric_controller,
+                                                hook_geometric_controller)
 
+        if setup.winch:
+            return out
+        if setup.observer.mode == "full":
             out["geometric"] = lambda: geometric_controller(task, setup.actuation)
+        else:  # on the load's state as the hook's pull tells it (agents/baselines/load_estimate.py)
+            out["geometric"] = lambda: HookGeometricController.for_setup(
+                setup, hook_geometric_controller(task, setup.actuation), **HOOK_ESTIMATOR)
         return out
     if setup.winch:  # the model-based designs are for a fixed length
         return out
