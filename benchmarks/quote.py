@@ -346,6 +346,22 @@ def compare_baselines(data: dict) -> str:
             f"and {parts[2]}")
 
 
+def drone_compare_file(task: str) -> str:
+    """``agents.compare``'s output file for ``task`` flown by quadrotor_load's drone, hard preset."""
+    return f"docs/compare/compare_{task}_quadrotor_load_hard.json"
+
+
+def compare_drone(data: dict) -> str:
+    parts = []
+    for task in ("stabilize", "transport"):
+        result = data[drone_compare_file(task)]
+        policies = result["policies"]
+        parts.append(f"{task} {_difference(result, '95 % CI ' if task == 'stabilize' else '')} over the "
+                     f"{result['best_baseline']} cascade ({policies[result['best_baseline']]['mean_return']:.1f}; "
+                     f"PD law {policies['pd']['mean_return']:.1f})")
+    return "; ".join(parts)
+
+
 _COMPARE_FILES = tuple(compare_file(task, preset) for task in ("stabilize", "transport", "track")
                        for preset in (None, "hard"))
 
@@ -577,6 +593,9 @@ QUOTES = {
                                    mujoco_chain_long_run),
     "compare.winch": Quote((compare_file("lower"), compare_file("lift")),
                            "python -m agents.compare --task lift|lower --episodes 100", compare_winch),
+    "compare.drone": Quote(tuple(drone_compare_file(task) for task in ("stabilize", "transport")),
+                           "python -m agents.compare --scene quadrotor_load --actuation thrust_rates --preset hard "
+                           "--task T --episodes 100", compare_drone),
     "compare.baselines": Quote(_COMPARE_FILES, "python -m agents.compare --task T [--preset hard] --episodes 100",
                                compare_baselines),
     "stability.long_run": Quote("docs/img/stability.json", "python -m benchmarks.stability --out docs/img",

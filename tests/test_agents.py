@@ -121,14 +121,15 @@ SHIPPED_POLICIES = sorted(p.parent for p in (ROOT / "models").glob("*_ppo/model.
 
 @pytest.mark.parametrize("run", SHIPPED_POLICIES, ids=[p.name for p in SHIPPED_POLICIES])
 def test_shipped_policies_beat_the_zero_action(run):
-    """Every policy under models/ (named TASK[_PRESET]_ppo) loads with its statistics and beats
-    the zero action on 3 seeds of its own configuration. Margin 20: the smallest gap over 100
-    held-out episodes is hard transport's 47 (docs/compare; 43 on these seeds), the others
-    197-315."""
-    task, _, rest = run.name.partition("_")
-    preset = rest[:-len("_ppo")] or None
-    env_kwargs = {"preset": preset} if preset else {}
+    """Every policy under models/ loads with its statistics, sits where agents.compare looks for
+    its configuration (the one it was trained in: TASK[_SCENE][_ACTUATION][_PRESET]_ppo), and
+    beats the zero action on 3 seeds of it. Margin 20: the smallest gap over 100 held-out episodes
+    is hard transport's 47 (docs/compare; 43 on these seeds), the others 197-315."""
+    from agents.compare import configuration_name
+
     policy = SB3Policy(run / "model.zip")
+    task, env_kwargs = policy.configuration["task"], policy.configuration["env_kwargs"]
+    assert run.name == configuration_name(task, *(env_kwargs.get(k) for k in ("preset", "scene", "actuation"))) + "_ppo"
     assert policy.normalization is not None
     trained = evaluate_policy(policy, task, 3, 4242, env_kwargs=env_kwargs)
     zero = evaluate_policy(ZeroPolicy(), task, 3, 4242, env_kwargs=env_kwargs)
