@@ -108,7 +108,8 @@ class ElasticStringPendulumEnv(gym.Env):
     did not converge or the state became non-finite; the state is the last good one), `energy_balance`
     (|E - E0 - W| passed the energy watchdog's bound, `solver.energy_watchdog`: docs/physics.md),
     `string_overstretched` (stretched length > 1.5 l, l the current length), `left_workspace` (pivot or load more than
-    4 m from its target). Truncated: only by the time limit (`max_episode_steps`, 500 steps =
+    4 m from its target), `drone_flipped` (a drone tilted past 90 degrees), `hit_ground` (pivot or load's centre of
+    mass at the scene's `ground` plane, where it has one). Truncated: only by the time limit (`max_episode_steps`, 500 steps =
     10 s at the default 50 Hz).
 
     ## Arguments

@@ -269,6 +269,9 @@ class Scene(_Frozen):
     solver: SolverParams = SolverParams()
     initial: InitialState = InitialState()
     winch: WinchParams = WinchParams()
+    ground: Optional[Real] = Field(None, gt=0, allow_inf_nan=False,
+                                   description="the ground plane's depth z below the origin [m] (e3 down): an "
+                                               "environment's episode ends when the pivot or the load reaches it")
 
     @model_validator(mode="before")
     @classmethod

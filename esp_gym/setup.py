@@ -26,7 +26,7 @@ from .params import Scene, load_scene, override_scene, scene_from_dict
 from .randomize import Randomizer, episode_param_names, nominal_values
 from .state import build_params
 from .stepsize import auto_elements, resolution_safety, scheme_substeps, shortest
-from .tasks import Task, get_task
+from .tasks import Task, get_task, hanging_depth
 from .wind import WIND_INFO, Wind, drag_areas, wind_options
 
 #: The arguments each preset sets (docs/environment.md, "The hard preset"): ``hard`` is every
@@ -46,7 +46,8 @@ def check_hanging(scene: Scene, task: Task, randomizer: Optional[Randomizer]) ->
     """ValueError unless the load can hang in every episode: under the weight it carries, the
     string's top stretches by g (M + mu l) / EA, at most half the stretch at which the task ends
     an episode (at the ranges' worst corner with ``randomizer``: the softest string, the heaviest
-    and longest load and string), or every episode would end at its first steps."""
+    and longest load and string), or every episode would end at its first steps; and the load's
+    deepest target lies above the scene's ground plane."""
     nominal = nominal_values(scene)
     ranges = {} if randomizer is None else randomizer.ranges
     low = {k: ranges.get(k, (v, v))[0] for k, v in nominal.items()}
@@ -59,6 +60,13 @@ def check_hanging(scene: Scene, task: Task, randomizer: Optional[Randomizer]) ->
                          f"string (EA = {low['EA']:.4g} N) by {stretch:.3g} of its length{where}, past {allowed:g} "
                          f"(half of the {task.max_stretch - 1.0:g} at which task {task.name!r} ends an episode); "
                          f"raise EA or lighten the load or the string")
+    if scene.ground is not None:  # the load's deepest target, hanging from the pivot's deepest one
+        longest = high["string_length"] / nominal["string_length"] * (1.0 + stretch) * (1.0 + max(task.reel_range))
+        deepest = task.target_box[2] + hanging_depth(scene) * longest
+        if scene.ground <= deepest:
+            raise ValueError(f"ElasticStringPendulum-v0: scene {scene.name!r}: ground {scene.ground:g} m is not below "
+                             f"the load's deepest target, {deepest:.4g} m (its longest string under task "
+                             f"{task.name!r}); lower the ground")
 
 
 #: The least thrust-to-weight a drone needs at the randomize ranges' worst corner: below it a

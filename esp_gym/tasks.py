@@ -62,7 +62,7 @@ class Task:
             scale_velocity=self.scale_velocity, scale_swing=self.scale_swing, scale_spin=self.scale_spin,
             max_stretched_length=self.max_stretch * scene.string.length,
             workspace_radius=self.workspace_radius, string_length=scene.string.length,
-            energy_origin=0.0)
+            ground_depth=np.inf if scene.ground is None else scene.ground, energy_origin=0.0)
         values["energy_watchdog"], values["energy_bound"] = task_constants(scene)
         return np.array([values[k] for k in TASK_PARAM_NAMES], dtype=np.float64)
 

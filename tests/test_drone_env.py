@@ -58,6 +58,40 @@ def test_rolling_on_flips_the_drone_and_ends_the_episode():
     assert 0.3 <= (k + 1) * 0.02 <= 0.5  # pi/2 at 4 rad/s after the rate controller's lag
 
 
+def descend(ground, pivot="drone"):
+    """Steps of a descent (the drone's thrust at 40 % of hover; a point pivot pushed down at 40 %
+    of the hover force) until the episode ends, on quadrotor_load (drone_load) with ``ground``:
+    (steps, termination reason, the pivot's and the load's depth [m] at the end)."""
+    scene = esp_gym.load_scene(SCENE if pivot == "drone" else "drone_load",
+                               **({} if ground is None else {"ground": ground}))
+    env = gym.make(ENV_ID, scene=scene).unwrapped
+    env.reset(seed=0)
+    action = np.array([-0.6, 0.0, 0.0, 0.0]) if pivot == "drone" else np.array([0.0, 0.0, 0.4, 0.0, 0.0, 0.0])
+    for k in range(500):
+        _, _, terminated, truncated, info = env.step(action[:env.action_space.shape[0]])
+        if terminated or truncated:
+            break
+    return k + 1, info.get("termination_reason"), env.pivot_position()[2], env.load_position()[2]
+
+
+@pytest.mark.parametrize("pivot", ["drone", "point"])
+def test_the_ground_plane_ends_a_descent_where_the_load_reaches_it(pivot):
+    """The load (1.05 m below the drone, 1.6 m of ground) touches down first: the episode ends
+    the step its centre of mass passes the plane, within a step's fall of it; without a ground the
+    same descent goes on until it leaves the workspace (the negative control)."""
+    steps, reason, pivot_depth, load_depth = descend(1.6, pivot)
+    assert reason == "hit_ground" and pivot_depth < 1.6 <= load_depth < 1.6 + 0.05, (steps, load_depth)
+    later, reason, _, load_depth = descend(None, pivot)
+    assert reason == "left_workspace" and later > steps and load_depth > 1.6 + 1.0
+
+
+def test_a_ground_above_the_loads_target_is_refused():
+    with pytest.raises(ValueError, match="ground 0.9 m is not below the load's deepest target"):
+        gym.make(ENV_ID, scene=esp_gym.load_scene(SCENE, ground=0.9))
+    with pytest.raises(ValueError, match="ground"):
+        esp_gym.load_scene(SCENE, ground=-1.0)
+
+
 def test_the_energy_balance_holds_the_drones_rotation_and_the_watchdog_stays_quiet():
     """200 steps of random rates and thrust: E - E0 - W (E with the drone's rotational energy, W
     the thrust's and the rotors' torques' work) stays below 1e-4 of the work; leaving the

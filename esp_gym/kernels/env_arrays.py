@@ -128,12 +128,13 @@ RW_SPIN = REWARD.scalar("spin")
 RW_CONTROL = REWARD.scalar("control")
 
 #: The task's constants (esp_gym/tasks.py): reward weights, shaping scales [m, m/s, rad,
-#: rad/s], termination limits [m], the string's rest length [m], and the energy watchdog's
-#: fraction, bound [J] and the episode's E0 [J] (esp_gym/watchdog.py; the reset writes E0).
+#: rad/s], termination limits [m] (the ground plane's depth z [m], e3 down; inf without one), the
+#: string's rest length [m], and the energy watchdog's fraction, bound [J] and the episode's E0 [J]
+#: (esp_gym/watchdog.py; the reset writes E0).
 TASK_PARAMS = Layout(*((name, 1) for name in (
     "w_load_position", "w_load_velocity", "w_pivot_position", "w_swing", "w_spin", "w_control",
     "scale_position", "scale_velocity", "scale_swing", "scale_spin",
-    "max_stretched_length", "workspace_radius", "string_length", "energy_watchdog", "energy_bound",
+    "max_stretched_length", "workspace_radius", "ground_depth", "string_length", "energy_watchdog", "energy_bound",
     "energy_origin")))
 TASK_PARAM_NAMES = TASK_PARAMS.names
 TP_W_LOAD_POSITION = TASK_PARAMS.scalar("w_load_position")
@@ -148,6 +149,7 @@ TP_SCALE_SWING = TASK_PARAMS.scalar("scale_swing")
 TP_SCALE_SPIN = TASK_PARAMS.scalar("scale_spin")
 TP_MAX_STRETCHED_LENGTH = TASK_PARAMS.scalar("max_stretched_length")
 TP_WORKSPACE_RADIUS = TASK_PARAMS.scalar("workspace_radius")
+TP_GROUND_DEPTH = TASK_PARAMS.scalar("ground_depth")
 TP_STRING_LENGTH = TASK_PARAMS.scalar("string_length")
 TP_ENERGY_WATCHDOG = TASK_PARAMS.scalar("energy_watchdog")
 TP_ENERGY_BOUND = TASK_PARAMS.scalar("energy_bound")

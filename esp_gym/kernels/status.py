@@ -18,6 +18,7 @@ STATUS = {
     6: Status("energy_balance", "the energy balance |E - E0 - W| passed the watchdog's bound (the step is "
                                 "gaining energy)", "energy_balance"),
     7: Status("drone_flipped", "the drone tilted past the flip limit", "drone_flipped"),
+    8: Status("hit_ground", "the pivot or the load reached the scene's ground plane", "hit_ground"),
 }
 OK = 0
 #: A control step that does not end the episode.
@@ -34,6 +35,9 @@ ENERGY_BALANCE = 6
 #: A drone's body axis b3 tilted from the vertical past the environment's limit
 #: (kernels/drone_env.py).
 TERM_DRONE_FLIPPED = 7
+#: The pivot (the drone's centre) or the load's centre of mass reached the scene's ``ground`` plane
+#: (kernels/task_terms.py).
+TERM_GROUND = 8
 #: Codes of the physics (failures of a step); the others are the environment's terminations.
 PHYSICS_FAILURES = (NEWTON_FAILED, NON_FINITE, BLOW_UP)
 

@@ -15,8 +15,9 @@ from .env_arrays import (O_ANGULAR_VELOCITY, O_ATTITUDE_6D, O_LOAD_POSITION_ERRO
                          RW_LOAD_VELOCITY, RW_PIVOT_POSITION, RW_SPIN, RW_SWING, SN_HOOK_TENSION, SN_LOAD_TARGET_OFFSET,
                          T_LOAD, T_PIVOT, T_VELOCITY, TP_MAX_STRETCHED_LENGTH, TP_SCALE_POSITION, TP_SCALE_SPIN,
                          TP_SCALE_SWING, TP_SCALE_VELOCITY, TP_STRING_LENGTH, TP_W_CONTROL, TP_W_LOAD_POSITION,
-                         TP_W_LOAD_VELOCITY, TP_W_PIVOT_POSITION, TP_W_SPIN, TP_W_SWING, TP_WORKSPACE_RADIUS)
-from .status import TERM_NONE, TERM_OVERSTRETCH, TERM_WORKSPACE
+                         TP_W_LOAD_VELOCITY, TP_W_PIVOT_POSITION, TP_W_SPIN, TP_W_SWING, TP_WORKSPACE_RADIUS,
+                         TP_GROUND_DEPTH)
+from .status import TERM_GROUND, TERM_NONE, TERM_OVERSTRETCH, TERM_WORKSPACE
 from .tolerance import tolerance
 
 
@@ -120,16 +121,20 @@ def reward_terms(E, pivot2, load2):
 
 
 @kernel(inline="always")
-def terminate(D, E, length, pivot2, load2):
+def terminate(D, E, length, pivot2, load2, pivot_depth, load_depth):
     """The task's termination code (TERM_*): the string stretched past its limit (scaled to
-    the unstretched ``length`` [m]), or the pivot or the load outside the workspace's radius
-    (their squared distances to their targets ``pivot2``, ``load2`` [m^2])."""
+    the unstretched ``length`` [m]), the pivot or the load outside the workspace's radius
+    (their squared distances to their targets ``pivot2``, ``load2`` [m^2]), or the pivot or the
+    load's centre of mass (their z ``pivot_depth``, ``load_depth`` [m], e3 down) at or under the
+    ground plane's depth."""
     tp = E.tp
     if not (D.out[D_STRETCHED_LENGTH] <= tp[TP_MAX_STRETCHED_LENGTH] * (length / tp[TP_STRING_LENGTH])):
         return TERM_OVERSTRETCH
     r2 = tp[TP_WORKSPACE_RADIUS] * tp[TP_WORKSPACE_RADIUS]
     if not (pivot2 <= r2 and load2 <= r2):
         return TERM_WORKSPACE
+    if not (pivot_depth < tp[TP_GROUND_DEPTH] and load_depth < tp[TP_GROUND_DEPTH]):
+        return TERM_GROUND
     return TERM_NONE
 
 
@@ -145,4 +150,4 @@ def observe_and_score(S, P, D, E, length):
     pivot2 = squared_norm(E.obs, O_PIVOT_POSITION_ERROR)
     load2 = squared_norm(E.obs, O_LOAD_POSITION_ERROR)
     reward_terms(E, pivot2, load2)
-    return terminate(D, E, length, pivot2, load2)
+    return terminate(D, E, length, pivot2, load2, S.r[0, 2], E.features[F_LOAD_POSITION + 2])
