@@ -135,9 +135,10 @@ class GeometricLoadController:
     k_load [1/s^2] and k_load_d [1/s], its acceleration command's largest size
     max_load_acceleration [m/s^2], the drone's place k_drone [1/s^2] and velocity k_drone_d [1/s],
     the share of the load's asked acceleration along the string the drone takes too
-    (``feedforward``, 1; 0 leaves it out). :meth:`reset` reads the episode's masses, the load's
-    hanging depth below the pivot's target and the hover thrust the action is relative to
-    (randomised episodes have their own)."""
+    (``feedforward``, 1; 0 leaves it out). :meth:`reset` reads the episode's masses, the depth of
+    the load's target below the pivot's (its hanging depth; with a winch, at the task's target
+    length) and the hover thrust the action is relative to (randomised episodes have their own).
+    Under :class:`~agents.baselines.pd.Hoist` it flies a winch's task, the hoist reeling."""
 
     k_load: float = 6.0
     k_load_d: float = 3.0
@@ -152,8 +153,9 @@ class GeometricLoadController:
     def reset(self, env) -> None:
         scene = env.scene
         load = scene.body.mass + 0.5 * scene.string.mass_per_length * scene.string.length
+        pivot_target, load_target = np.split(np.asarray(env.target), 2)  # a winch's task: at its target length
         self._episode = (load, scene.pivot.mass + 0.5 * scene.string.mass_per_length * scene.string.length,
-                         hanging_depth(scene))
+                         float((load_target - pivot_target) @ E3))
         self._hover = total_weight(scene)
 
     def act(self, obs, setup) -> np.ndarray:
@@ -164,11 +166,18 @@ class GeometricLoadController:
         if "load_position_error" not in layout:
             raise ValueError("GeometricLoadController needs the full observation (the load's state); "
                              "HookGeometricController flies on the hook's")
-        if self._episode is None:
-            self.reset(type("Nominal", (), {"scene": setup.scene})())
-        u_d = self.thrust_vector(obs[layout["load_position_error"]], obs[layout["load_velocity"]],
-                                 obs[layout["pivot_position_error"]], obs[layout["pivot_velocity"]],
-                                 *self._episode, setup.scene.gravity)
+        if self._episode is None:  # not reset: the nominal scene's rig, the load hanging at rest below the pivot
+            nominal = type("Nominal", (), {"scene": setup.scene,
+                                           "target": np.concatenate([np.zeros(3), hanging_depth(setup.scene) * E3])})
+            self.reset(nominal())
+        e_load, v_load = obs[layout["load_position_error"]], obs[layout["load_velocity"]]
+        e_drone, v_drone = obs[layout["pivot_position_error"]], obs[layout["pivot_velocity"]]
+        m_load, m_drone, depth = self._episode
+        if setup.winch:  # the reel sets the load's height (Hoist): the load asks for the drone's height
+            below = (e_load - e_drone) @ E3  # the load's depth error beyond the drone's
+            e_load, depth = e_load - below * E3, depth + below  # the same drone -> load vector
+            v_load = v_load - ((v_load - v_drone) @ E3) * E3
+        u_d = self.thrust_vector(e_load, v_load, e_drone, v_drone, m_load, m_drone, depth, setup.scene.gravity)
         return drone_action(u_d, obs, setup, self.inner, self._hover)
 
     def thrust_vector(self, e_load, v_load, e_drone, v_drone, m_load: float, m_drone: float, depth: float,
@@ -258,8 +267,18 @@ GEOMETRIC_GAINS = {"stabilize": (4.0, 4.0, 16.0, 6.0, np.inf), "transport": (4.0
 #: the physics rate as the onboard rate controller does. With track's stiff gains some episodes
 #: flip (the PD law won on held-out seeds 0-49, -29.9 +- 34.2, where these win); transport's
 #: uncapped ones flipped one episode of 50 (+11.8 +- 18.1), capped at 2 m/s^2 (the tuner's best in
-#: ``motors``, 451.9) none.
-MOTORS_GAINS = {"transport": (4.0, 4.0, 16.0, 6.0, 2.0), "track": (6.0, 3.0, 16.0, 4.0, np.inf)}
+#: ``motors``, 451.9) none. ``lower`` moves its pivot as transport does and takes the same (uncapped:
+#: +29.3 +- 28.2, one flip; capped: +69.3 +- 10.2).
+MOTORS_GAINS = {"transport": (4.0, 4.0, 16.0, 6.0, 2.0), "lower": (4.0, 4.0, 16.0, 6.0, 2.0),
+                "track": (6.0, 3.0, 16.0, 4.0, np.inf)}
+
+
+#: The hoist's reel gain k_length [1/s] under the cascade (agents/baselines/pd.py Hoist; the winch's
+#: tasks, full observation, stabilize's cascade gains): ``python -m agents.baselines.gain_search
+#: --controller geometric --scene quadrotor_load --task lift --episodes 10 --grid GRID`` with GRID
+#: {"k_load": [2, 4, 6], "k_load_d": [2, 4], "k_drone": [8, 16], "k_drone_d": [4, 6], "k_length": [1, 2, 4]}:
+#: 453.1 at 1 with stabilize's gains (453.4 the grid's best), 186.7 at 4.
+GEOMETRIC_HOIST_GAIN = 1.0
 
 
 #: The cascade's gains on the hook observation (:class:`HookGeometricController`, the hard preset), as

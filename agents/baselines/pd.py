@@ -89,10 +89,15 @@ class Hoist:
     e_depth as the load's position error along z; the hook observation estimates the load's depth
     as the string's length plus the nominal hanging depth's excess over it (its static stretch
     and the attachment offset). ``pd`` may be a drone's PD law (agents/baselines/geometric.py
-    DronePD): the reel speed follows its action."""
+    DronePD, or its geometric cascade, GeometricLoadController): the reel speed follows its action."""
 
     pd: AntiSwayPD = AntiSwayPD()
     k_length: float = 1.0
+
+    def reset(self, env) -> None:
+        """A law that reads its episode (the drone's geometric cascade) reads it."""
+        if hasattr(self.pd, "reset"):
+            self.pd.reset(env)
 
     def act(self, obs: np.ndarray, setup) -> np.ndarray:
         """Action in [-1, 1]^7 (WINCH_ACTION; a drone's 5) for one observation or a batch."""

@@ -55,11 +55,13 @@ def baseline_factories(task: str, env_kwargs: Optional[dict] = None) -> dict:
 
     setup = make_setup(task=task, **(env_kwargs or {}))
     out = {"pd": lambda: baseline(task, setup.winch, setup.drone)}
-    if setup.drone:  # the drone's cascades (agents/baselines/geometric.py), for a fixed length
-        from agents.baselines.geometric import (HOOK_ESTIMATOR, HookGeometricController, geometric_controller,
-                                                hook_geometric_controller)
+    if setup.drone:  # the drone's cascades (agents/baselines/geometric.py)
+        from agents.baselines.geometric import (GEOMETRIC_HOIST_GAIN, HOOK_ESTIMATOR, HookGeometricController,
+                                                geometric_controller, hook_geometric_controller)
 
-        if setup.winch:
+        if setup.winch:  # the cascade at the pivot, the PD law's hoist reeling
+            if setup.observer.mode == "full":
+                out["geometric"] = lambda: Hoist(geometric_controller(task, setup.actuation), GEOMETRIC_HOIST_GAIN)
             return out
         if setup.observer.mode == "full":
             out["geometric"] = lambda: geometric_controller(task, setup.actuation)
