@@ -83,6 +83,11 @@ def test_a_failure_in_a_cut_step_keeps_the_last_good_state(order, factor):
     assert_same(one, cut)
 
 
+def default_sigint() -> None:
+    """In a child before it starts: SIGINT's default disposition, so Python raises KeyboardInterrupt."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 CHILD = r'''
 import sys, time, numpy as np, esp_gym
 sim = esp_gym.Simulator(esp_gym.load_scene("paper_example"))
@@ -101,7 +106,7 @@ except KeyboardInterrupt:
 def test_ctrl_c_stops_a_long_step_with_a_consistent_state(tmp_path):
     out = tmp_path / "interrupted.npz"
     proc = subprocess.Popen([sys.executable, "-c", CHILD, str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+                            text=True, preexec_fn=default_sigint)  # as a terminal leaves it, not a background job
     watchdog = threading.Timer(120, proc.kill)  # a child that hangs before it is ready fails the test
     watchdog.start()
     try:

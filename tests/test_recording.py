@@ -10,6 +10,7 @@ state rounded once to float32 (``np.float32(x)``), exactly.
 import signal
 import subprocess
 import sys
+import threading
 
 import gymnasium as gym
 import numpy as np
@@ -230,6 +231,11 @@ def test_free_simulation_via_the_cli(tmp_path):
     assert "Mesh3D:vertex_positions" in static[R.BODY_SHAPE]  # the paper's elliptic cylinder
 
 
+def default_sigint() -> None:
+    """In a child before it starts: SIGINT's default disposition, so Python raises KeyboardInterrupt."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
 def test_recording_of_a_killed_process_is_complete(tmp_path, signum):
     """A rollout buffering everything (no flush before the signal) is killed mid-episode: the
@@ -246,8 +252,12 @@ def test_recording_of_a_killed_process_is_complete(tmp_path, signum):
         "    k += 1\n"
         "    print(k, flush=True)\n"
     )
+    # SIGINT as a terminal leaves it (a shell's background job ignores it, and so would the child),
+    # and a watchdog: a child the signal does not stop would record until the disk is full
     proc = subprocess.Popen([sys.executable, "-c", child, str(path)], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True, preexec_fn=default_sigint)
+    watchdog = threading.Timer(120, proc.kill)
+    watchdog.start()
     try:
         while True:
             line = proc.stdout.readline()
@@ -259,6 +269,7 @@ def test_recording_of_a_killed_process_is_complete(tmp_path, signum):
         err = proc.stderr.read()
         proc.wait(timeout=60)
     finally:
+        watchdog.cancel()
         proc.kill()
     last = int(printed[-1]) if printed else 30
     assert proc.returncode == -signum, err  # ends as the signal would have ended it
