@@ -346,6 +346,10 @@ def compare_baselines(data: dict) -> str:
             f"and {parts[2]}")
 
 
+#: The drone's tasks with a shipped hard-preset policy.
+DRONE_COMPARED = ("stabilize", "transport", "track")
+
+
 def drone_compare_file(task: str) -> str:
     """``agents.compare``'s output file for ``task`` flown by quadrotor_load's drone, hard preset."""
     return f"docs/compare/compare_{task}_quadrotor_load_hard.json"
@@ -353,7 +357,7 @@ def drone_compare_file(task: str) -> str:
 
 def compare_drone(data: dict) -> str:
     parts = []
-    for task in ("stabilize", "transport"):
+    for task in DRONE_COMPARED:
         result = data[drone_compare_file(task)]
         policies = result["policies"]
         parts.append(f"{task} {_difference(result, '95 % CI ' if task == 'stabilize' else '')} over the "
@@ -593,7 +597,7 @@ QUOTES = {
                                    mujoco_chain_long_run),
     "compare.winch": Quote((compare_file("lower"), compare_file("lift")),
                            "python -m agents.compare --task lift|lower --episodes 100", compare_winch),
-    "compare.drone": Quote(tuple(drone_compare_file(task) for task in ("stabilize", "transport")),
+    "compare.drone": Quote(tuple(drone_compare_file(task) for task in DRONE_COMPARED),
                            "python -m agents.compare --scene quadrotor_load --actuation thrust_rates --preset hard "
                            "--task T --episodes 100", compare_drone),
     "compare.baselines": Quote(_COMPARE_FILES, "python -m agents.compare --task T [--preset hard] --episodes 100",
