@@ -35,6 +35,29 @@ class ArgumentParser(argparse.ArgumentParser):
             self.add_argument("--preset", default=None, choices=sorted(PRESETS),
                               help="environment preset (default: the nominal task)")
 
+    def add_scene_options(self) -> None:
+        """``--scene`` and ``--actuation``: the environment the episodes run in (read back, checked,
+        by :meth:`environment_options`)."""
+        from esp_gym.options import ACTUATION_CHOICES
+
+        self.add_argument("--scene", default=None, help="the environment's scene (default: drone_load)")
+        self.add_argument("--actuation", default=None, choices=ACTUATION_CHOICES,
+                          help="how the action moves the pivot (default: the scene's pivot's)")
+
+    def environment_options(self, args) -> dict:
+        """The environment options ``args`` give (``--preset``, ``--scene``, ``--actuation``: those
+        set); an error naming --scene/--actuation where they make no environment for ``args.task``."""
+        options = {name: getattr(args, name, None) for name in ("preset", "scene", "actuation")}
+        options = {name: value for name, value in options.items() if value is not None}
+        if "scene" in options or "actuation" in options:
+            from esp_gym.setup import make_setup
+
+            try:
+                make_setup(task=args.task, **options)
+            except ValueError as err:
+                self.error(f"argument --scene/--actuation: {err}")
+        return options
+
     def parse_args(self, args=None, namespace=None):
         parsed = super().parse_args(args, namespace)
         self.check_minimums(vars(parsed), **getattr(self, "minimums", {}))

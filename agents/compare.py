@@ -133,20 +133,11 @@ def main(argv=None) -> dict:
     ap.add_argument("--json", action="store_true", help="print one JSON object instead of the Markdown table")
     ap.add_argument("--out", default=None, metavar="DIR", help="also write compare_TASK[_PRESET].md and .json here")
     ap.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
-    ap.add_argument("--scene", default=None, help="the environment's scene (default: drone_load)")
-    ap.add_argument("--actuation", default=None, choices=["force", "thrust_torque", "thrust_rates", "motors"],
-                    help="how the action moves the pivot (default: the scene's pivot's)")
+    ap.add_scene_options()
     a = ap.parse_args(argv)
     ap.check_out_dir("--out", a.out)
     ap.check_file("--model", a.model)
-    if a.scene is not None or a.actuation is not None:
-        from esp_gym.setup import make_setup
-
-        try:
-            make_setup(task=a.task, preset=a.preset, **{k: v for k, v in (("scene", a.scene), ("actuation", a.actuation))
-                                                          if v is not None})
-        except ValueError as err:
-            ap.error(f"argument --scene/--actuation: {err}")
+    ap.environment_options(a)  # checked before any episode
     try:
         c = compare(a.task, a.preset, a.episodes, a.seed, a.model, a.progress, a.scene, a.actuation)
     except ValueError as err:  # ModelFileError, NormalizationFileError

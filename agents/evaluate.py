@@ -232,19 +232,10 @@ def main(argv=None) -> dict:
     ap.add_episode_options(TASKS, episodes=50, preset=True)
     ap.add_argument("--record", metavar="FILE.rrd", default=None,
                     help="write a Rerun recording of the first episode to FILE.rrd")
-    ap.add_argument("--scene", default=None, help="the environment's scene (default: drone_load)")
-    ap.add_argument("--actuation", default=None, choices=["force", "thrust_torque", "thrust_rates", "motors"],
-                    help="how the action moves the pivot (default: the scene's pivot's)")
+    ap.add_scene_options()
     args = ap.parse_args(argv)
     ap.check_new_file("--record", args.record)
-    env_kwargs = {"preset": args.preset} if args.preset else {}
-    env_kwargs.update({name: value for name, value in (("scene", args.scene), ("actuation", args.actuation))
-                       if value is not None})
-    if env_kwargs.get("scene") is not None or env_kwargs.get("actuation") is not None:
-        try:
-            make_setup(task=args.task, **env_kwargs)
-        except ValueError as err:
-            ap.error(f"argument --scene/--actuation: {err}")
+    env_kwargs = ap.environment_options(args)
     try:
         policy = load_policy(args.policy, args.task, env_kwargs)
     except ValueError as err:  # ModelFileError, NormalizationFileError

@@ -36,7 +36,7 @@ def base_policy(name: str, task: str, env_kwargs: Optional[dict] = None):
         raise ValueError(f"residual must be one of {BASES}, got {name!r}")
     known = baseline_factories(task, env_kwargs)  # "pd" is the winch's Hoist where the task reels
     if name not in known:
-        needs = ("a drone's scene and no winch" if name == "geometric"
+        needs = ("a drone's scene (with a winch, the full observation)" if name == "geometric"
                  else "the hook observation (env_kwargs observation: hook or preset: hard)")
         raise ValueError(f"residual {name!r} needs {needs}; with {env_kwargs or {}} the baselines are {sorted(known)}")
     return known[name]()

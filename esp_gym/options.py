@@ -28,6 +28,10 @@ MAX_LATENCY = 50
 Count = Annotated[int, BeforeValidator(plain_number)]
 
 
+#: The ``actuation`` names: a point pivot's force, a drone's thrust and torque, thrust and rates, motors.
+ACTUATION_CHOICES = ("force", "thrust_torque", "thrust_rates", "motors")
+
+
 class EnvOptions(BaseModel):
     """Arguments of ElasticStringPendulum-v0 (see :class:`~esp_gym.env.ElasticStringPendulumEnv`)."""
 
@@ -53,7 +57,7 @@ class EnvOptions(BaseModel):
     #: None: as the task needs (lift, lower)
     winch: Optional[Flag] = None
     #: None: the scene's pivot's ("force" for a free point mass, "thrust_rates" for a drone)
-    actuation: Optional[Literal["force", "thrust_torque", "thrust_rates", "motors"]] = None
+    actuation: Optional[Literal[ACTUATION_CHOICES]] = None
     #: a drone's: each rotor's thrust times 1 + this x N(0, 1), drawn per control step
     thrust_noise: Real = Field(0.0, ge=0, le=0.5, allow_inf_nan=False, description="relative")
 

@@ -374,22 +374,28 @@ def test_env_recording_holds_the_pushes(tmp_path):
     assert np.array_equal(f32(vectors)[:, 0], f32(push * 0.02))
 
 
+def recorded_rollout(path, actions, seed, **make_kwargs) -> list:
+    """Record an ElasticStringPendulum-v0 (``make_kwargs``) rollout of ``actions`` from the reset
+    of ``seed`` to ``path``; the simulator's diagnostics at the reset and after each step."""
+    env = RecordRerun(gym.make("ElasticStringPendulum-v0", **make_kwargs), path)
+    env.reset(seed=seed)
+    sim = env.unwrapped.sim
+    reported = [sim.diagnostics()]
+    for action in actions:
+        env.step(action)
+        reported.append(sim.diagnostics())
+    env.close()
+    return reported
+
+
 def test_env_recording_holds_the_winch(tmp_path):
     """A `lower` rollout reeling out, then in: the recording holds the unstretched length, the
     reel speed and the winch's work of every sample as the simulator reports them, and its
     E - E0 - W includes the winch's work (it stays below 1 % of the work: measured 1.0 mJ of 0.92 J).
     Negative control: a recording without a winch has no /winch entities."""
     path = tmp_path / "winch.rrd"
-    env = RecordRerun(gym.make("ElasticStringPendulum-v0", task="lower"), path)
-    env.reset(seed=4)
-    sim = env.unwrapped.sim
-    reported = [sim.diagnostics()]
-    for k in range(40):
-        action = np.zeros(7)
-        action[6] = 0.5 if k < 20 else -0.25
-        env.step(action)
-        reported.append(sim.diagnostics())
-    env.close()
+    reels = [0.5] * 20 + [-0.25] * 20
+    reported = recorded_rollout(path, [np.r_[np.zeros(6), reel] for reel in reels], seed=4, task="lower")
     for entity, key in ((R.WINCH_LENGTH, "unstretched_length"), (R.WINCH_SPEED, "reel_speed"),
                         (R.WINCH_WORK, "winch_work")):
         steps, got = values(path, entity)
@@ -399,10 +405,7 @@ def test_env_recording_holds_the_winch(tmp_path):
     assert np.allclose(residual, [d["energy_balance_residual"] for d in reported], rtol=0, atol=1e-12)
     assert max(abs(d["winch_work"]) for d in reported) > 1e2 * np.max(np.abs(residual))  # measured 900x
     plain = tmp_path / "plain.rrd"
-    env = RecordRerun(gym.make("ElasticStringPendulum-v0", task="transport"), plain)
-    env.reset(seed=4)
-    env.step(np.zeros(6))
-    env.close()
+    recorded_rollout(plain, [np.zeros(6)], seed=4, task="transport")
     assert not {e for e in entities(plain) if e.startswith("/winch")}
 
 
@@ -412,14 +415,7 @@ def test_env_recording_holds_the_drone(tmp_path):
     the same bits), and the action series holds the drone's four entries. Negative control: a
     point pivot's recording has no /drone entities."""
     path = tmp_path / "drone.rrd"
-    env = RecordRerun(gym.make("ElasticStringPendulum-v0", scene="quadrotor_load"), path)
-    env.reset(seed=0)
-    sim = env.unwrapped.sim
-    reported = [sim.diagnostics()]
-    for _ in range(20):
-        env.step(np.array([0.1, 0.5, -0.3, 0.2]))
-        reported.append(sim.diagnostics())
-    env.close()
+    reported = recorded_rollout(path, [np.array([0.1, 0.5, -0.3, 0.2])] * 20, seed=0, scene="quadrotor_load")
     rows = read(path, R.DRONE)
     f32 = lambda a: np.asarray(a, dtype=np.float32)  # noqa: E731
     assert len(rows["step"]) == 21
@@ -435,10 +431,7 @@ def test_env_recording_holds_the_drone(tmp_path):
     assert np.allclose(actions[-1], [0.1, 0.5, -0.3, 0.2], rtol=0, atol=1e-7)
     assert R.DRONE_FRAME in {c.entity_path for c in RrdReader(path).stream() if c.is_static}
     plain = tmp_path / "plain.rrd"
-    env = RecordRerun(gym.make("ElasticStringPendulum-v0"), plain)
-    env.reset(seed=0)
-    env.step(np.zeros(6))
-    env.close()
+    recorded_rollout(plain, [np.zeros(6)], seed=0)
     assert not {e for e in entities(plain) if "drone" in e}
 
 

@@ -54,7 +54,8 @@ def controller(name: str, task: str, env_kwargs: dict):
 
         known = baseline_factories(task, env_kwargs)
         if "geometric" not in known:
-            raise ValueError(f"the geometric cascade holds a fixed length: no winch (the baselines: {sorted(known)})")
+            raise ValueError(f"no geometric cascade here: with a winch it needs the full observation (the hook's "
+                             f"estimate holds a fixed length); the baselines: {sorted(known)}")
         return known["geometric"]()  # on the hook observation: with its load estimate
     return baseline(task, setup.winch, setup.drone)
 
@@ -94,11 +95,9 @@ def main(argv=None) -> list:
                     help=f"JSON object gain -> list of values (default: {json.dumps(COARSE_GRID)}; "
                          "required with --controller geometric)")
     ap.add_argument("--controller", choices=("pd", "geometric"), default="pd")
-    ap.add_argument("--scene", default=None, help="the environment's scene (default: drone_load)")
-    ap.add_argument("--actuation", default=None, choices=["force", "thrust_torque", "thrust_rates", "motors"])
+    ap.add_scene_options()
     a = ap.parse_args(argv)
-    env_kwargs = {name: value for name, value in (("scene", a.scene), ("actuation", a.actuation), ("preset", a.preset))
-                  if value is not None}
+    env_kwargs = ap.environment_options(a)
     try:
         base = controller(a.controller, a.task, env_kwargs)
     except ValueError as err:

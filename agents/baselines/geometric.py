@@ -151,11 +151,13 @@ class GeometricLoadController:
     _hover: Optional[float] = None
 
     def reset(self, env) -> None:
-        scene = env.scene
-        load = scene.body.mass + 0.5 * scene.string.mass_per_length * scene.string.length
         pivot_target, load_target = np.split(np.asarray(env.target), 2)  # a winch's task: at its target length
-        self._episode = (load, scene.pivot.mass + 0.5 * scene.string.mass_per_length * scene.string.length,
-                         float((load_target - pivot_target) @ E3))
+        self._use(env.scene, float((load_target - pivot_target) @ E3))
+
+    def _use(self, scene, depth: float) -> None:
+        """Fly ``scene``'s rig with the load ``depth`` [m] below the drone at its target."""
+        half_string = 0.5 * scene.string.mass_per_length * scene.string.length
+        self._episode = (scene.body.mass + half_string, scene.pivot.mass + half_string, depth)
         self._hover = total_weight(scene)
 
     def act(self, obs, setup) -> np.ndarray:
@@ -167,9 +169,7 @@ class GeometricLoadController:
             raise ValueError("GeometricLoadController needs the full observation (the load's state); "
                              "HookGeometricController flies on the hook's")
         if self._episode is None:  # not reset: the nominal scene's rig, the load hanging at rest below the pivot
-            nominal = type("Nominal", (), {"scene": setup.scene,
-                                           "target": np.concatenate([np.zeros(3), hanging_depth(setup.scene) * E3])})
-            self.reset(nominal())
+            self._use(setup.scene, hanging_depth(setup.scene))
         e_load, v_load = obs[layout["load_position_error"]], obs[layout["load_velocity"]]
         e_drone, v_drone = obs[layout["pivot_position_error"]], obs[layout["pivot_velocity"]]
         m_load, m_drone, depth = self._episode

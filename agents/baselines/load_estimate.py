@@ -13,9 +13,7 @@ Per axis, a steady-state Kalman filter on x = [p, v, b] (the place, the velocity
 acceleration the model leaves out: the wind's drag, the reference's acceleration) with
 x+ = F x + G a, F = [[1, h, h^2/2], [0, 1, h], [0, 0, 1]], G = [h^2/2, h, 0], fuses the two:
 the load cell's acceleration carries the velocity between the position fixes, whose error the
-string's direction noise sets (|noise of T| / |T| rad times l). The vertical axis trusts the load
-cell less: along the string its pull oscillates with the string's stretch (the load bouncing, some
-40 rad/s with quadrotor_load's cord), which the control rate samples, aliased.
+string's direction noise sets (|noise of T| / |T| rad times l).
 
 What the hook does not say the first observation does: the load's weight m g is the first
 reading's downward pull, then a low-pass of it (time constant ``weighing_time``; over a swing its
@@ -42,15 +40,19 @@ ESTIMATE = Layout(("load_position_error", 3), ("load_velocity", 3), ("unmodelled
                   ("load_mass", 1))
 
 
+def axis_model(period: float) -> tuple:
+    """``(F, G)`` of one axis over a step of ``period`` [s]: x+ = F x + G a (module docstring)."""
+    h = period
+    return np.array([[1.0, h, 0.5 * h * h], [0.0, 1.0, h], [0.0, 0.0, 1.0]]), np.array([0.5 * h * h, h, 0.0])
+
+
 def steady_gain(period: float, position_std: float, acceleration_std: float, drift_std: float) -> np.ndarray:
     """The steady-state Kalman gain (3,) of one axis of x = [p, v, b] (module docstring) with a
     position fix of standard deviation ``position_std`` [m], white acceleration noise
     ``acceleration_std`` [m/s^2] over each step and the left-out acceleration's random walk
     ``drift_std`` [m/s^2 per sqrt(s)]."""
-    h = period
-    F = np.array([[1.0, h, 0.5 * h * h], [0.0, 1.0, h], [0.0, 0.0, 1.0]])
-    G = np.array([0.5 * h * h, h, 0.0])
-    Q = acceleration_std ** 2 * np.outer(G, G) + np.diag([0.0, 0.0, drift_std ** 2 * h])
+    F, G = axis_model(period)
+    Q = acceleration_std ** 2 * np.outer(G, G) + np.diag([0.0, 0.0, drift_std ** 2 * period])
     C = np.array([[1.0, 0.0, 0.0]])
     R = np.array([[position_std ** 2]])
     P = scipy.linalg.solve_discrete_are(F.T, C.T, Q, R)  # the predicted covariance
@@ -61,8 +63,7 @@ def steady_gain(period: float, position_std: float, acceleration_std: float, dri
 class LoadEstimator:
     """The filter of the module docstring for a control period ``period`` [s] and gravity
     ``gravity`` [m/s^2]. Noise: ``position_std`` [m] of the position fix, ``acceleration_std``
-    [m/s^2] of the load cell's acceleration (``vertical_acceleration_std`` along e3, default the
-    same), ``drift_std`` of the left-out acceleration;
+    [m/s^2] of the load cell's acceleration, ``drift_std`` of the left-out acceleration;
     ``weighing_time`` [s] the weight's low-pass; below ``taut_fraction`` of the weight the pull
     is too slack to fix the load's place (the filter predicts only)."""
 
@@ -72,7 +73,6 @@ class LoadEstimator:
     acceleration_std: float = 1.0
     drift_std: float = 1.0
     weighing_time: float = 2.0
-    vertical_acceleration_std: Optional[float] = None
     taut_fraction: float = 0.3
     _gain: np.ndarray = field(init=False, repr=False)
     _state: Optional[np.ndarray] = field(default=None, init=False, repr=False)  # (3 axes, [p, v, b])
@@ -81,18 +81,11 @@ class LoadEstimator:
     _length: float = field(default=0.0, init=False, repr=False)
 
     def __post_init__(self):
-        if self.vertical_acceleration_std is None:
-            self.vertical_acceleration_std = self.acceleration_std
-        for name in ("period", "gravity", "position_std", "acceleration_std", "drift_std", "weighing_time",
-                     "vertical_acceleration_std"):
+        for name in ("period", "gravity", "position_std", "acceleration_std", "drift_std", "weighing_time"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"LoadEstimator {name} must be > 0, got {getattr(self, name)!r}")
-        horizontal = steady_gain(self.period, self.position_std, self.acceleration_std, self.drift_std)
-        vertical = steady_gain(self.period, self.position_std, self.vertical_acceleration_std, self.drift_std)
-        self._gain = np.stack([horizontal, horizontal, vertical])  # (axis, [p, v, b])
-        h = self.period
-        self._F = np.array([[1.0, h, 0.5 * h * h], [0.0, 1.0, h], [0.0, 0.0, 1.0]])
-        self._G = np.array([0.5 * h * h, h, 0.0])
+        self._gain = steady_gain(self.period, self.position_std, self.acceleration_std, self.drift_std)  # [p, v, b]
+        self._F, self._G = axis_model(self.period)
 
     def clone(self) -> "LoadEstimator":
         """The same filter with no estimate yet."""
@@ -103,10 +96,6 @@ class LoadEstimator:
     def start(self) -> None:
         """Forget the episode: the next :meth:`update` starts a new estimate."""
         self._state = None
-
-    @property
-    def started(self) -> bool:
-        return self._state is not None
 
     @property
     def load_mass(self) -> float:
@@ -161,6 +150,6 @@ class LoadEstimator:
             self._state = predicted
             if pull > self.taut_fraction * self.gravity * self._mass:  # a slack string does not point at the load
                 innovation = drone_error + self._length * q - predicted[:, 0]
-                self._state = predicted + innovation[:, None] * self._gain
+                self._state = predicted + np.outer(innovation, self._gain)
         mass = max(self._mass, 1e-6)
         self._input = self.gravity * E3 - tension / mass
