@@ -2,7 +2,9 @@
 is ``drone`` (esp_gym/pivot_params.py) with the compiled step of esp_gym/kernels/drone.py, the
 rotors driven by motor commands or a wrench (docs/physics.md, "A drone at the pivot").
 
-The drone's hook is its centre of mass; the string is explicit, of order 2, at a fixed length.
+The drone's hook is its centre of mass (the step of esp_gym/kernels/drone.py) or a point of its body
+away from it (``pivot.drone.rho_q``: esp_gym/kernels/drone_hook.py, the rotation coupled to the
+string); the string is explicit, of order 2, at a fixed length.
 """
 from __future__ import annotations
 
@@ -11,10 +13,14 @@ from collections import namedtuple
 import numpy as np
 
 from .kernels.drone import DRONE, DRONE_DIAG, DroneArrays, drone_advance, drone_diagnostics
+from .kernels.drone_hook import hook_advance, hook_diagnostics
+from .kernels.string import tridiag_factor
 from .kernels.layout import DIAG
 from .model import ROTATION_TOL, Simulator
 from .params import Scene, check_rotation
 from .setup import total_weight
+from .stability import hat
+from .state import attachment_column, mass_matrix
 
 #: The drone's state: attitude R_q (3, 3) (body to spatial), body angular momentum Pi_q (3,)
 #: [kg m^2/s] about the hook, and the rotor speeds (4,) [rad/s].
@@ -26,17 +32,28 @@ def drone_arrays(scene: Scene) -> DroneArrays:
     (:func:`hover_at_rest`)."""
     z = np.zeros
     arrays = DroneArrays(R=z((3, 3)), Rc=z((3, 3)), Pi=z(3), Pic=z(3), speed=z(4), command=z(4), setpoint=z(4),
-                         thrust_scale=np.ones(4), consts=z(DRONE.size), inertia=z((3, 3)), inertia_inv=z((3, 3)), mixer=z((4, 4)),
-                         allocation=z((4, 4)), next_speed=z(4), wrench=z((2, 4)), scratch=z((4, 3, 3)),
-                         diag=z(DRONE_DIAG.size))
+                         thrust_scale=np.ones(4), consts=z(DRONE.size), inertia=z((3, 3)), inertia_inv=z((3, 3)),
+                         mixer=z((4, 4)), allocation=z((4, 4)), hook=z(3), hook_inertia=z((3, 3)),
+                         hook_jeff=z((3, 3)), pivot_column=z(scene.string.elements + 1), next_speed=z(4),
+                         wrench=z((2, 4)), scratch=z((4, 3, 3)), diag=z(DRONE_DIAG.size))
     use_drone_scene(arrays, scene)
     hover_at_rest(arrays, scene)
     return arrays
 
 
+def pivot_column(scene: Scene) -> np.ndarray:
+    """M_tot^-1 e_1 (N+1,) [1/kg], the pivot's column of the inverse mass matrix of a free pivot's
+    ``scene``: the attachment's column (esp_gym/state.py) of the string read from its other end."""
+    diag, off, _ = mass_matrix(scene)
+    reversed_diag = diag[::-1].copy()
+    _, cp = tridiag_factor(reversed_diag, off)
+    return attachment_column(reversed_diag, off, cp, 0)[::-1].copy()
+
+
 def use_drone_scene(arrays: DroneArrays, scene: Scene) -> None:
     """Write ``scene``'s drone into the constants of ``arrays`` (:data:`DRONE` with the motor lag's
-    decays over ``scene.h``, J_q and its inverse, the mixer and its inverse)."""
+    decays over ``scene.h``, J_q and its inverse, the mixer and its inverse, the hook: rho_q,
+    J_q^h, the reduced inertia of its Cayley equation and the pivot's column of M_tot^-1)."""
     drone = scene.pivot.drone
     J = drone.inertia_matrix()
     consts = arrays.consts
@@ -48,6 +65,12 @@ def use_drone_scene(arrays: DroneArrays, scene: Scene) -> None:
     arrays.inertia_inv[...] = np.linalg.inv(J)
     arrays.mixer[...] = drone.mixer()
     arrays.allocation[...] = drone.allocation()
+    mass = scene.pivot.mass
+    column = pivot_column(scene)
+    arrays.hook[...] = drone.rho_q
+    arrays.hook_inertia[...] = drone.hook_inertia(mass)
+    arrays.hook_jeff[...] = arrays.hook_inertia + mass * mass * column[0] * hat(arrays.hook) @ hat(arrays.hook)
+    arrays.pivot_column[...] = column
 
 
 def hover_at_rest(arrays: DroneArrays, scene: Scene) -> None:
@@ -82,6 +105,7 @@ class DroneSimulator(Simulator):
                              f"has solver.string {scene.solver.string!r} of order {scene.solver.scheme.order}")
         #: The drone's arrays (esp_gym/kernels/drone.py), advanced by the compiled step.
         self.drone = drone_arrays(scene)
+        self._hooked = scene.pivot.drone.offset_hook
         super().__init__(scene, specialise)
         self._coupled = bool(np.any(self.params.rho != 0.0))
 
@@ -91,6 +115,7 @@ class DroneSimulator(Simulator):
             raise ValueError(f"use_scene: pivot.kind must stay 'drone', got {scene.pivot.kind!r}")
         super().use_scene(scene, params)
         use_drone_scene(self.drone, scene)
+        self._hooked = scene.pivot.drone.offset_hook
 
     # -- state ------------------------------------------------------------------------------
     @property
@@ -158,7 +183,7 @@ class DroneSimulator(Simulator):
         while n > 0:
             k = min(n, self.steps_per_call)
             n -= k
-            self._timed(drone_advance, (self._arrays, self._work, self.params, self.drone, self._inputs, k,
+            self._timed(hook_advance if self._hooked else drone_advance, (self._arrays, self._work, self.params, self.drone, self._inputs, k,
                                         self._stats, self._coupled), k)
 
     def run(self, *args, **kwargs):
@@ -166,8 +191,11 @@ class DroneSimulator(Simulator):
 
     # -- diagnostics ------------------------------------------------------------------------
     def _update_diag(self) -> float:
-        super()._update_diag()
-        drone_diagnostics(self.drone, self._diag.out)
+        if self._hooked:
+            hook_diagnostics(self._arrays, self.params, self._diag, self.drone)
+        else:
+            super()._update_diag()
+            drone_diagnostics(self.drone, self._diag.out)
         return float(self._diag.out[DIAG.scalar("energy")])
 
     def diagnostics(self) -> dict:

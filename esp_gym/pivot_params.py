@@ -1,7 +1,7 @@
 """The pivot's scene section (``pivot``): a fixed point, a free point mass, or a drone, whose own
 parameters are ``pivot.drone`` (docs/physics.md, "The pivot" and "A drone at the pivot";
-docs/scenes.md). A drone's mass is ``pivot.mass``; its hook is its centre of mass; its rotors are
-an X layout (esp_gym/rotors.py).
+docs/scenes.md). A drone's mass is ``pivot.mass``; its hook is its centre of mass or a point
+``rho_q`` away from it; its rotors are an X layout (esp_gym/rotors.py).
 """
 from __future__ import annotations
 
@@ -35,6 +35,9 @@ class DroneParams(Frozen):
     max_rotor_speed: Real = Field(gt=0.0, le=1e6, description="largest rotor speed [rad/s]")
     motor_time_constant_up: Real = Field(0.0, ge=0.0, le=1e3, description="motor lag spinning up [s]")
     motor_time_constant_down: Real = Field(0.0, ge=0.0, le=1e3, description="motor lag spinning down [s]")
+    rho_q: Point3 = Field((0.0, 0.0, 0.0), description="the hook -> the centre of mass, body frame [m]: (0, 0, 0) "
+                                                   "hangs the string from the centre of mass; (0, 0, -0.05) from "
+                                                   "5 cm below it (b3 points down)")
     rate_gain: Positive3 = Field((20.0, 20.0, 10.0), description="the rate controller's K_Omega per body axis "
                                                                  "[1/s] (docs/physics.md, 'Actuation and the "
                                                                  "rate controller')")
@@ -53,8 +56,19 @@ class DroneParams(Frozen):
         return self
 
     def inertia_matrix(self) -> np.ndarray:
-        """J_q (3, 3) about the centre of mass (the hook) [kg m^2]."""
+        """J_q (3, 3) about the centre of mass [kg m^2]."""
         return np.diag(np.asarray(self.inertia, dtype=np.float64))
+
+    def hook_inertia(self, mass: float) -> np.ndarray:
+        """J_q^h = J_q + m_q (|rho_q|^2 I - rho_q rho_q^T) (3, 3), about the hook [kg m^2], for the
+        drone's ``mass`` m_q [kg] (docs/physics.md, "A drone at the pivot")."""
+        rho = np.asarray(self.rho_q, dtype=np.float64)
+        return self.inertia_matrix() + mass * (rho @ rho * np.eye(3) - np.outer(rho, rho))
+
+    @property
+    def offset_hook(self) -> bool:
+        """The string hangs from a point other than the centre of mass (rho_q != 0)."""
+        return any(v != 0.0 for v in self.rho_q)
 
     def rotor_positions(self) -> np.ndarray:
         """The rotors' positions (4, 3) [m] in the body frame, about the centre of mass: the X
@@ -88,7 +102,7 @@ class PivotParams(Frozen):
     """Where the string is held. ``fixed``: the paper's pivot at ``position``. ``free``: node 1
     is a point mass ``mass`` [kg] free in 3-D (a crane hook, a drone), starting at ``position``
     with ``velocity`` [m/s], pushed by the pivot force input. ``drone``: node 1 is a quadrotor's
-    hook at its centre of mass, of mass ``mass``, flown by its rotors (``drone``:
+    hook (its centre of mass, or ``drone.rho_q`` from it), of mass ``mass``, flown by its rotors (``drone``:
     esp_gym/drone_params.py; docs/physics.md, "A drone at the pivot")."""
 
     kind: Literal["fixed", "free", "drone"] = "fixed"

@@ -157,6 +157,8 @@ def test_the_drone_reels_with_the_winch(task):
     ({"actuation": "thrust_rates"}, "does not fly scene 'drone_load'"),
     ({"scene": SCENE, "scene_overrides": {"solver": {"string": "implicit"}}}, "explicit string of order 2"),
     ({"scene": SCENE, "actuation": "rates"}, "actuation"),
+    ({"scene": SCENE, "scene_overrides": {"pivot": {"drone": {"rho_q": [0.0, 0.0, -0.05]}}}},
+     r"pivot.drone.rho_q = \[0.0, 0.0, -0.05\]"),
 ])
 def test_a_mismatched_actuation_or_option_is_refused_by_name(options, message):
     with pytest.raises(ValueError, match=message):

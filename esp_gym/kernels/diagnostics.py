@@ -100,6 +100,15 @@ def kinetic_energies(V, w0, w1, w2, q0, q1, q2, P):
 def diagnostics(S, P, D):
     """Fill the :class:`~.layout.DiagWork` ``D`` (``D.out``: :data:`~.layout.DIAG`) from the state
     ``S`` (:class:`~.layout.StateArrays`)."""
+    w0, w1, w2, q0, q1, q2 = node_velocities(S.p, S.Pi[0], S.Pi[1], S.Pi[2], S.R, P, D.V)
+    state_diagnostics(S, P, D, w0, w1, w2, q0, q1, q2)
+
+
+@kernel(inline="always")
+def state_diagnostics(S, P, D, w0, w1, w2, q0, q1, q2):
+    """:func:`diagnostics` once ``D.V`` holds the node velocities and (w, q) the body's Omega (body
+    frame) [rad/s] and R (rho_c x Omega) [m/s]: shared with a drone at an offset hook, whose
+    velocities couple both ends (kernels/drone_hook.py)."""
     r = S.r
     p = S.p
     R = S.R
@@ -113,7 +122,6 @@ def diagnostics(S, P, D):
     rho0 = P.rho[0]
     rho1 = P.rho[1]
     rho2 = P.rho[2]
-    w0, w1, w2, q0, q1, q2 = node_velocities(p, Pi[0], Pi[1], Pi[2], R, P, V)
     omega[0] = w0
     omega[1] = w1
     omega[2] = w2

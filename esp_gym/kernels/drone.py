@@ -17,7 +17,7 @@ from collections import namedtuple
 import math
 
 from .jit import kernel
-from .layout import B_ANGULAR_IMPULSE_Z, B_WORK, D_ENERGY, D_PI3, IN_PIVOT_FORCE, IN_PIVOT_FORCE_END, Layout
+from .layout import B_ANGULAR_IMPULSE_Z, B_WORK, D_ENERGY, D_PI3, D_POTENTIAL_GRAVITY, IN_PIVOT_FORCE, IN_PIVOT_FORCE_END, Layout
 from .loops import finish, winch_step
 from .lgvi import lgvi_substep
 from .rotors import motor_lag, rate_command, rotor_wrench, wrench_command
@@ -50,17 +50,23 @@ QD_THRUST = DRONE_DIAG.scalar("thrust")
 QD_TORQUE = DRONE_DIAG.start("torque")
 
 #: A drone's arrays: attitude ``R`` (3, 3) and body angular momentum ``Pi`` (3,) [kg m^2/s]
-#: with their compensated-summation remainders ``Rc``, ``Pic``; the rotor speeds ``speed`` (4,)
+#: (conjugate to R_q with the hook as the drone's point: docs/physics.md) with their
+#: compensated-summation remainders ``Rc``, ``Pic``; the rotor speeds ``speed`` (4,)
 #: [rad/s] (state) and the motor commands ``command`` (4,) [rad/s], held over a step; the
 #: actuation's ``setpoint`` (4,): the collective thrust [N], then the body torque [N m] or
 #: the body rates [rad/s] (:func:`actuate`); each rotor's thrust scale ``thrust_scale`` (4,) (1:
-#: nominal; the environment's thrust noise, held over a control step); the constants ``consts`` (:data:`DRONE`), ``inertia`` J_q and its inverse ``inertia_inv`` (3, 3)
-#: [kg m^2] about the hook, the mixer ``mixer`` A and ``allocation`` A^-1 (4, 4)
-#: (esp_gym/rotors.py); scratch: ``next_speed`` (4,), ``wrench`` (2, 4), the wrench (f, tau) at
-#: the step's start and end, ``scratch`` (4, 3, 3), Newton's Jacobian, F - I, R_k (F - I) and
-#: R_{k+1}; and ``diag`` (:data:`DRONE_DIAG`).
+#: nominal; the environment's thrust noise, held over a control step); the constants ``consts``
+#: (:data:`DRONE`), ``inertia`` J_q about the centre of mass and its inverse ``inertia_inv`` (3, 3)
+#: [kg m^2], the mixer ``mixer`` A and ``allocation`` A^-1 (4, 4) (esp_gym/rotors.py); the hook:
+#: ``hook`` rho_q (3,), hook -> centre of mass (body frame) [m], ``hook_inertia`` J_q^h about the
+#: hook and ``hook_jeff`` J_q^h + m_q^2 (M_tot^-1)_{11} rho_q^ rho_q^ (3, 3) [kg m^2], the inverse
+#: mass matrix's pivot column ``pivot_column`` M_tot^-1 e_1 (N+1,) [1/kg] (kernels/drone_hook.py);
+#: scratch: ``next_speed`` (4,), ``wrench`` (2, 4), the wrench (f, tau) at the step's start and
+#: end, ``scratch`` (4, 3, 3), Newton's Jacobian, F - I, R_k (F - I) and R_{k+1}; and ``diag``
+#: (:data:`DRONE_DIAG`).
 DroneArrays = namedtuple("DroneArrays", "R Rc Pi Pic speed command setpoint thrust_scale consts inertia inertia_inv "
-                                        "mixer allocation next_speed wrench scratch diag")
+                                        "mixer allocation hook hook_inertia hook_jeff pivot_column next_speed wrench "
+                                        "scratch diag")
 
 #: How the environment's action drives the rotors (docs/environment.md, "Drone actuation"): its
 #: code is the index. ``thrust_torque``: the setpoint's wrench through A^-1; ``thrust_rates``:
@@ -248,19 +254,31 @@ def drone_advance(S, W, P, DR, inputs, nsteps, stats, coupled):
 
 @kernel(entry=True)
 def drone_diagnostics(DR, out):
-    """``DR.diag`` (:data:`DRONE_DIAG`) of the drone's state, and its share of the system's
-    diagnostics ``out`` (DIAG, the string's and the load's on entry): its rotational kinetic
-    energy 1/2 Pi_q . J_q^-1 Pi_q joins the energy, e3 . R_q Pi_q joins pi3."""
+    """``DR.diag`` (:data:`DRONE_DIAG`) of the drone's state at the default hook, and its share of
+    the system's diagnostics ``out`` (DIAG, the string's and the load's on entry): its rotational
+    kinetic energy 1/2 Pi_q . J_q^-1 Pi_q joins the energy, e3 . R_q Pi_q joins pi3."""
     Pi = DR.Pi
-    R = DR.R
     Ji = DR.inertia_inv
-    d = DR.diag
+    rates = (Ji[0, 0] * Pi[0] + Ji[0, 1] * Pi[1] + Ji[0, 2] * Pi[2],
+             Ji[1, 0] * Pi[0] + Ji[1, 1] * Pi[1] + Ji[1, 2] * Pi[2],
+             Ji[2, 0] * Pi[0] + Ji[2, 1] * Pi[1] + Ji[2, 2] * Pi[2])
     kinetic = 0.0
     for i in range(3):
-        d[QD_RATES + i] = Ji[i, 0] * Pi[0] + Ji[i, 1] * Pi[1] + Ji[i, 2] * Pi[2]
-        kinetic += 0.5 * Pi[i] * d[QD_RATES + i]
+        kinetic += 0.5 * Pi[i] * rates[i]
+    drone_share(DR, out, rates, kinetic, 0.0)
+
+
+@kernel(inline="always")
+def drone_share(DR, out, rates, kinetic, potential):
+    """``DR.diag`` from the drone's body ``rates`` Omega_q [rad/s], its kinetic energy beyond its
+    hook's translation [J] and its weight's potential beyond the hook's, -m_q g (R_q rho_q) . e3
+    [J] (0 at the default hook); both join the energy in ``out`` (DIAG), e3 . R_q Pi_q joins pi3."""
+    Pi = DR.Pi
+    R = DR.R
+    d = DR.diag
     orth = 0.0
     for i in range(3):
+        d[QD_RATES + i] = rates[i]
         for j in range(3):
             s = R[0, i] * R[0, j] + R[1, i] * R[1, j] + R[2, i] * R[2, j] - (1.0 if i == j else 0.0)
             orth += s * s
@@ -271,5 +289,6 @@ def drone_diagnostics(DR, out):
     d[QD_THRUST] = DR.wrench[0, 0]
     for i in range(3):
         d[QD_TORQUE + i] = DR.wrench[0, 1 + i]
-    out[D_ENERGY] += kinetic
+    out[D_ENERGY] += kinetic + potential
+    out[D_POTENTIAL_GRAVITY] += potential
     out[D_PI3] += d[QD_PI3]

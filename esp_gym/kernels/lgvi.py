@@ -61,29 +61,24 @@ def explicit_increments(S, W, P, h, up0, up1, up2, t0, t1, t2, free, forced, cou
     return rigid_increments(S, W, P, h, P.Jeff, P.w, t0, t1, t2, free, forced, coupled)
 
 
-@kernel(forceinline=True)
-def rigid_increments(S, W, P, h, Jeff, w, t0, t1, t2, free, forced, coupled):
-    """The rest of :func:`explicit_increments` once ``W.X`` holds the string solve with F_k = I
-    (X = M^-1 B): the Schur complement (``w`` = M^-1 e_{N+1}, ``Jeff`` = J + M^2 w_{N+1}
-    rho_c^ rho_c^), Newton on the Cayley vector of F_k and the increments dr into ``W.Y``. Shared
-    with the winch's step (kernels/winch.py), whose M is the step's own. Returns as
-    :func:`explicit_increments`."""
-    r = S.r
+@kernel(inline="always")
+def load_rhs(S, P, X, h, t, forced, coupled):
+    """The right-hand side of the load's (2) after the Schur complement, once ``X`` holds the
+    string solve with F_k = I: g = h Pi + h^2/2 t - M rho_c x (R_k^T d) with d = h X_{N+1} and
+    the left torque ``t`` (body frame) [N m]. Returns ``(g (3), d (3), e = R_k^T d (3))``, e = 0
+    when not ``coupled``."""
     R = S.R
     Pi = S.Pi
-    X = W.X
-    Y = W.Y
     hh = 0.5 * h
-    n = r.shape[0] - 1
-    first = 0 if free else 1
+    n = X.shape[0] - 1
     M = P.M
     rho0 = P.rho[0]
     rho1 = P.rho[1]
     rho2 = P.rho[2]
+    t0, t1, t2 = t
     d0 = h * X[n, 0]
     d1 = h * X[n, 1]
     d2 = h * X[n, 2]
-    # (2) after the Schur complement: g = h Pi + h^2/2 tau_k - M rho_c x (R_k^T d)
     e0 = e1 = e2 = 0.0
     if coupled:
         e0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2  # R^T d
@@ -100,28 +95,33 @@ def rigid_increments(S, W, P, h, Jeff, w, t0, t1, t2, free, forced, coupled):
         g0 = h * Pi[0]
         g1 = h * Pi[1]
         g2 = h * Pi[2]
-    c0, c1, c2, iters, converged = cayley_newton(g0, g1, g2, Jeff, P.tol, P.max_iter, W.jac)
-    if not converged:
-        if np.isfinite(c0 + c1 + c2 + d0 + d1 + d2):
-            return c0, c1, c2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, iters, NEWTON_FAILED
-        return c0, c1, c2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, iters, NON_FINITE
-    FmI = W.FmI
-    cayley_minus_identity(c0, c1, c2, FmI)
-    # q = R_k (F_k - I) rho_c; dr = h X - M w q -> Y
-    s0 = s1 = s2 = q0 = q1 = q2 = 0.0
-    if coupled:
-        s0 = FmI[0, 0] * rho0 + FmI[0, 1] * rho1 + FmI[0, 2] * rho2
-        s1 = FmI[1, 0] * rho0 + FmI[1, 1] * rho1 + FmI[1, 2] * rho2
-        s2 = FmI[2, 0] * rho0 + FmI[2, 1] * rho1 + FmI[2, 2] * rho2
-        q0 = R[0, 0] * s0 + R[0, 1] * s1 + R[0, 2] * s2
-        q1 = R[1, 0] * s0 + R[1, 1] * s1 + R[1, 2] * s2
-        q2 = R[2, 0] * s0 + R[2, 1] * s1 + R[2, 2] * s2
-    dr00 = dr01 = dr02 = 0.0
-    if free and forced:  # pivot displacement, for the work of the pivot force
-        dr00 = h * X[0, 0] - M * w[0] * q0
-        dr01 = h * X[0, 1] - M * w[0] * q1
-        dr02 = h * X[0, 2] - M * w[0] * q2
-    for a in range(first, n + 1):
+    return g0, g1, g2, d0, d1, d2, e0, e1, e2
+
+
+@kernel(inline="always")
+def end_shift(R, FmI, rho):
+    """s = (F - I) rho and q = R (F - I) rho [m]: how far a body's turn over the step moves the
+    point at ``rho`` from its centre of mass (body frame) relative to its string end. Returns
+    ``(s (3), q (3))``."""
+    rho0 = rho[0]
+    rho1 = rho[1]
+    rho2 = rho[2]
+    s0 = FmI[0, 0] * rho0 + FmI[0, 1] * rho1 + FmI[0, 2] * rho2
+    s1 = FmI[1, 0] * rho0 + FmI[1, 1] * rho1 + FmI[1, 2] * rho2
+    s2 = FmI[2, 0] * rho0 + FmI[2, 1] * rho1 + FmI[2, 2] * rho2
+    q0 = R[0, 0] * s0 + R[0, 1] * s1 + R[0, 2] * s2
+    q1 = R[1, 0] * s0 + R[1, 1] * s1 + R[1, 2] * s2
+    q2 = R[2, 0] * s0 + R[2, 1] * s1 + R[2, 2] * s2
+    return s0, s1, s2, q0, q1, q2
+
+
+@kernel(inline="always")
+def string_increments(X, Y, w, M, q, h, first, coupled):
+    """The increments dr = h X - M w q of the unknown nodes into ``Y`` (rows from ``first``):
+    the string solve ``X`` with F_k = I, corrected by the load's turn q = R_k (F_k - I) rho_c
+    through its column ``w`` = M^-1 e_{N+1} when ``coupled``."""
+    q0, q1, q2 = q
+    for a in range(first, X.shape[0]):
         y0 = h * X[a, 0]
         y1 = h * X[a, 1]
         y2 = h * X[a, 2]
@@ -132,6 +132,37 @@ def rigid_increments(S, W, P, h, Jeff, w, t0, t1, t2, free, forced, coupled):
         Y[a, 0] = y0
         Y[a, 1] = y1
         Y[a, 2] = y2
+
+
+@kernel(forceinline=True)
+def rigid_increments(S, W, P, h, Jeff, w, t0, t1, t2, free, forced, coupled):
+    """The rest of :func:`explicit_increments` once ``W.X`` holds the string solve with F_k = I
+    (X = M^-1 B): the Schur complement (``w`` = M^-1 e_{N+1}, ``Jeff`` = J + M^2 w_{N+1}
+    rho_c^ rho_c^), Newton on the Cayley vector of F_k and the increments dr into ``W.Y``. Shared
+    with the winch's step (kernels/winch.py), whose M is the step's own. Returns as
+    :func:`explicit_increments`."""
+    X = W.X
+    n = X.shape[0] - 1
+    M = P.M
+    # (2) after the Schur complement: g = h Pi + h^2/2 tau_k - M rho_c x (R_k^T d)
+    g0, g1, g2, d0, d1, d2, e0, e1, e2 = load_rhs(S, P, X, h, (t0, t1, t2), forced, coupled)
+    c0, c1, c2, iters, converged = cayley_newton(g0, g1, g2, Jeff, P.tol, P.max_iter, W.jac)
+    if not converged:
+        if np.isfinite(c0 + c1 + c2 + d0 + d1 + d2):
+            return c0, c1, c2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, iters, NEWTON_FAILED
+        return c0, c1, c2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, iters, NON_FINITE
+    FmI = W.FmI
+    cayley_minus_identity(c0, c1, c2, FmI)
+    # q = R_k (F_k - I) rho_c; dr = h X - M w q -> Y
+    s0 = s1 = s2 = q0 = q1 = q2 = 0.0
+    if coupled:
+        s0, s1, s2, q0, q1, q2 = end_shift(S.R, FmI, P.rho)
+    dr00 = dr01 = dr02 = 0.0
+    if free and forced:  # pivot displacement, for the work of the pivot force
+        dr00 = h * X[0, 0] - M * w[0] * q0
+        dr01 = h * X[0, 1] - M * w[0] * q1
+        dr02 = h * X[0, 2] - M * w[0] * q2
+    string_increments(X, W.Y, w, M, (q0, q1, q2), h, 0 if free else 1, coupled)
     if coupled:
         e0 = e0 - M * w[n] * s0  # R_k^T dr_{N+1} = R_k^T d - M s (F - I) rho_c
         e1 = e1 - M * w[n] * s1

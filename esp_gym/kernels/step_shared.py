@@ -70,16 +70,20 @@ def held_inputs(inputs, forced):
 
 
 @kernel(inline="always")
-def left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled):
-    """The left torque of (2) in the body frame [N m]: ``(l, t)`` with l = tau^- = tau + R_k^T T
-    (the inputs' share) and t = tau_g(R_k) + l, tau_g = M g rho_c x (R_k^T e3)."""
-    Mg = P.M * P.g
-    rho0 = P.rho[0]
-    rho1 = P.rho[1]
-    rho2 = P.rho[2]
+def weight_torque(Mg, rho, R):
+    """The weight's torque about a body's string end, Mg rho x (R^T e3) (body frame) [N m]:
+    ``Mg`` its weight [N], ``rho`` its end -> centre of mass (body frame) [m], R its attitude."""
     z0 = R[2, 0]  # R^T e3
     z1 = R[2, 1]
     z2 = R[2, 2]
+    return (Mg * (rho[1] * z2 - rho[2] * z1), Mg * (rho[2] * z0 - rho[0] * z2),
+            Mg * (rho[0] * z1 - rho[1] * z0))
+
+
+@kernel(inline="always")
+def left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled):
+    """The left torque of (2) in the body frame [N m]: ``(l, t)`` with l = tau^- = tau + R_k^T T
+    (the inputs' share) and t = tau_g(R_k) + l, tau_g = M g rho_c x (R_k^T e3)."""
     l0 = l1 = l2 = t0 = t1 = t2 = 0.0
     if forced:
         l0 = tb0 + (R[0, 0] * ts0 + R[1, 0] * ts1 + R[2, 0] * ts2)  # tau^- = tau + R_k^T T
@@ -89,9 +93,10 @@ def left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled):
         t1 = l1
         t2 = l2
     if coupled:
-        t0 = Mg * (rho1 * z2 - rho2 * z1) + l0
-        t1 = Mg * (rho2 * z0 - rho0 * z2) + l1
-        t2 = Mg * (rho0 * z1 - rho1 * z0) + l2
+        w0, w1, w2 = weight_torque(P.M * P.g, P.rho, R)
+        t0 = w0 + l0
+        t1 = w1 + l1
+        t2 = w2 + l2
     return l0, l1, l2, t0, t1, t2
 
 
@@ -176,9 +181,11 @@ def free_body_increment(Pi, FmI, h, t, n, forced):
 
 
 @kernel(inline="always")
-def body_momentum_increment(Pi, FmI, P, h, t, n, e, forced, coupled):
+def body_momentum_increment(Pi, FmI, M, rho, h, t, n, e, forced, coupled):
     """dPi of (4) in increment form [kg m^2/s], from the left total torque ``t`` = tau_g(R_k) +
-    tau^-, the right one ``n`` = tau_g(R_{k+1}) + tau^+ (body frame) and ``e`` = R_k^T dr_{N+1}.
+    tau^-, the right one ``n`` = tau_g(R_{k+1}) + tau^+ (body frame) and ``e`` = R_k^T dr_{N+1},
+    for a body of mass ``M`` [kg] whose string end is ``rho`` from its centre of mass (body
+    frame) [m]: the load (M, rho_c), or a drone at an offset hook (m_q, rho_q; kernels/drone_hook.py).
 
     By (2), u := Pi_k + h/2 t - (M/h) rho_c x e equals (1/h)(F J_d - J_d F^T)^vee, so (4) reads
     Pi_{k+1} = F^T u + (M/h) rho_c x (R_{k+1}^T dr_{N+1}) + h/2 n, i.e.
@@ -188,10 +195,10 @@ def body_momentum_increment(Pi, FmI, P, h, t, n, e, forced, coupled):
     if not coupled:
         return free_body_increment(Pi, FmI, h, t, n, forced)
     hh = 0.5 * h
-    Mh = P.M / h
-    rho0 = P.rho[0]
-    rho1 = P.rho[1]
-    rho2 = P.rho[2]
+    Mh = M / h
+    rho0 = rho[0]
+    rho1 = rho[1]
+    rho2 = rho[2]
     t0, t1, t2 = t
     n0, n1, n2 = n
     e0, e1, e2 = e
@@ -339,7 +346,8 @@ def commit_step(S, W, P, h, c, e, dr0, left, held, impulse, flags):
     # the torque at the right end, tau_g(R_{k+1}) + tau^+ with tau^+ = tau + R_{k+1}^T T
     _, _, _, _, _, _, tb0, tb1, tb2, ts0, ts1, ts2 = held
     m0, m1, m2, n0, n1, n2 = left_torque(W.Rn, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
-    dP = body_momentum_increment(S.Pi, W.FmI, P, h, (left[3], left[4], left[5]), (n0, n1, n2), e, forced, coupled)
+    dP = body_momentum_increment(S.Pi, W.FmI, P.M, P.rho, h, (left[3], left[4], left[5]), (n0, n1, n2), e,
+                                 forced, coupled)
     if not np.isfinite(dP[0] + dP[1] + dP[2]):
         return NON_FINITE
     input_balances(S, P, S.R, W.Rn, h, c, (left[0], left[1], left[2]), (m0, m1, m2), held, dr0, free, forced)
