@@ -13,7 +13,7 @@ from collections import namedtuple
 import numpy as np
 
 from .kernels.drone import DRONE, DRONE_DIAG, DroneArrays, drone_advance, drone_diagnostics
-from .kernels.drone_hook import hook_advance, hook_diagnostics
+from .kernels.drone_hook import HookArrays, hook_advance, hook_diagnostics
 from .kernels.string import tridiag_factor
 from .kernels.layout import DIAG
 from .model import ROTATION_TOL, Simulator
@@ -33,9 +33,8 @@ def drone_arrays(scene: Scene) -> DroneArrays:
     z = np.zeros
     arrays = DroneArrays(R=z((3, 3)), Rc=z((3, 3)), Pi=z(3), Pic=z(3), speed=z(4), command=z(4), setpoint=z(4),
                          thrust_scale=np.ones(4), consts=z(DRONE.size), inertia=z((3, 3)), inertia_inv=z((3, 3)),
-                         mixer=z((4, 4)), allocation=z((4, 4)), hook=z(3), hook_inertia=z((3, 3)),
-                         hook_jeff=z((3, 3)), pivot_column=z(scene.string.elements + 1), next_speed=z(4),
-                         wrench=z((2, 4)), scratch=z((4, 3, 3)), diag=z(DRONE_DIAG.size))
+                         mixer=z((4, 4)), allocation=z((4, 4)), next_speed=z(4), wrench=z((2, 4)),
+                         scratch=z((4, 3, 3)), diag=z(DRONE_DIAG.size))
     use_drone_scene(arrays, scene)
     hover_at_rest(arrays, scene)
     return arrays
@@ -50,10 +49,21 @@ def pivot_column(scene: Scene) -> np.ndarray:
     return attachment_column(reversed_diag, off, cp, 0)[::-1].copy()
 
 
+def hook_arrays(scene: Scene) -> HookArrays:
+    """The :class:`~esp_gym.kernels.drone_hook.HookArrays` of ``scene``'s drone: rho_q, J_q^h, the
+    reduced inertia of its Cayley equation J_q^h + m_q^2 (M_tot^-1)_{11} rho_q^ rho_q^ and the
+    pivot's column of M_tot^-1."""
+    drone, mass = scene.pivot.drone, scene.pivot.mass
+    column = pivot_column(scene)
+    rho = np.array(drone.rho_q, dtype=np.float64)
+    inertia = drone.hook_inertia(mass)
+    return HookArrays(rho=rho, inertia=inertia, jeff=inertia + mass * mass * column[0] * hat(rho) @ hat(rho),
+                      column=column)
+
+
 def use_drone_scene(arrays: DroneArrays, scene: Scene) -> None:
     """Write ``scene``'s drone into the constants of ``arrays`` (:data:`DRONE` with the motor lag's
-    decays over ``scene.h``, J_q and its inverse, the mixer and its inverse, the hook: rho_q,
-    J_q^h, the reduced inertia of its Cayley equation and the pivot's column of M_tot^-1)."""
+    decays over ``scene.h``, J_q and its inverse, the mixer and its inverse)."""
     drone = scene.pivot.drone
     J = drone.inertia_matrix()
     consts = arrays.consts
@@ -65,12 +75,6 @@ def use_drone_scene(arrays: DroneArrays, scene: Scene) -> None:
     arrays.inertia_inv[...] = np.linalg.inv(J)
     arrays.mixer[...] = drone.mixer()
     arrays.allocation[...] = drone.allocation()
-    mass = scene.pivot.mass
-    column = pivot_column(scene)
-    arrays.hook[...] = drone.rho_q
-    arrays.hook_inertia[...] = drone.hook_inertia(mass)
-    arrays.hook_jeff[...] = arrays.hook_inertia + mass * mass * column[0] * hat(arrays.hook) @ hat(arrays.hook)
-    arrays.pivot_column[...] = column
 
 
 def hover_at_rest(arrays: DroneArrays, scene: Scene) -> None:
@@ -105,6 +109,8 @@ class DroneSimulator(Simulator):
                              f"has solver.string {scene.solver.string!r} of order {scene.solver.scheme.order}")
         #: The drone's arrays (esp_gym/kernels/drone.py), advanced by the compiled step.
         self.drone = drone_arrays(scene)
+        #: The hook's constants (esp_gym/kernels/drone_hook.py), read when it is off the centre of mass.
+        self.hook = hook_arrays(scene)
         self._hooked = scene.pivot.drone.offset_hook
         super().__init__(scene, specialise)
         self._coupled = bool(np.any(self.params.rho != 0.0))
@@ -115,6 +121,7 @@ class DroneSimulator(Simulator):
             raise ValueError(f"use_scene: pivot.kind must stay 'drone', got {scene.pivot.kind!r}")
         super().use_scene(scene, params)
         use_drone_scene(self.drone, scene)
+        self.hook = hook_arrays(scene)
         self._hooked = scene.pivot.drone.offset_hook
 
     # -- state ------------------------------------------------------------------------------
@@ -183,8 +190,12 @@ class DroneSimulator(Simulator):
         while n > 0:
             k = min(n, self.steps_per_call)
             n -= k
-            self._timed(hook_advance if self._hooked else drone_advance, (self._arrays, self._work, self.params, self.drone, self._inputs, k,
-                                        self._stats, self._coupled), k)
+            if self._hooked:
+                self._timed(hook_advance, (self._arrays, self._work, self.params, self.drone, self.hook, self._inputs,
+                                           k, self._stats, self._coupled), k)
+            else:
+                self._timed(drone_advance, (self._arrays, self._work, self.params, self.drone, self._inputs, k,
+                                            self._stats, self._coupled), k)
 
     def run(self, *args, **kwargs):
         raise NotImplementedError("DroneSimulator records no trajectory yet: call step() and diagnostics()")
@@ -192,7 +203,7 @@ class DroneSimulator(Simulator):
     # -- diagnostics ------------------------------------------------------------------------
     def _update_diag(self) -> float:
         if self._hooked:
-            hook_diagnostics(self._arrays, self.params, self._diag, self.drone)
+            hook_diagnostics(self._arrays, self.params, self._diag, self.drone, self.hook)
         else:
             super()._update_diag()
             drone_diagnostics(self.drone, self._diag.out)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import esp_gym
-from esp_gym.drone import DroneSimulator
+from esp_gym.drone import DroneSimulator, pivot_column
 from esp_gym.state import mass_matrix
 
 from discrete_lagrangian import (E3, expm, hat, left_perturbed, random_rotation, random_state, right_perturbed,
@@ -125,7 +125,7 @@ def test_the_step_satisfies_the_discrete_legendre_transforms_of_the_hooked_rig(s
 def test_the_diagnostics_invert_the_legendre_transform_at_both_ends():
     """Momenta built from chosen velocities by the continuous Legendre transform (docs/physics.md),
     then the diagnostics: the drone's rates are the chosen Omega_q and the kinetic energy the
-    Lagrangian's, to 1e-12 relative; the default hook's J_q^-1 Pi_q misses the rates by > 1e-3."""
+    Lagrangian's, to 1e-12 relative (and the pivot's column of M_tot^-1 is the dense solve's); the default hook's J_q^-1 Pi_q misses the rates by > 1e-3."""
     scene = hooked_scene()
     rng = np.random.default_rng(5)
     sim = DroneSimulator(scene)
@@ -135,6 +135,8 @@ def test_the_diagnostics_invert_the_legendre_transform_at_both_ends():
     R, Rq = random_rotation(rng, 0.6), random_rotation(rng, 0.6)
     diag, off, _ = mass_matrix(scene)
     Mtot = np.diag(diag) + off * (np.eye(n + 1, k=1) + np.eye(n + 1, k=-1))
+    column = np.linalg.solve(Mtot, np.eye(n + 1)[:, 0])
+    assert np.abs(pivot_column(scene) - column).max() <= 1e-12 * np.abs(column).max()
     M, mq = scene.body.mass, scene.pivot.mass
     rc, rq = np.array(scene.body.rho_c), np.array(scene.pivot.drone.rho_q)
     J, Jh = scene.body.J, hook_inertia(scene)

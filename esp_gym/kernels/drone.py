@@ -57,16 +57,11 @@ QD_TORQUE = DRONE_DIAG.start("torque")
 #: the body rates [rad/s] (:func:`actuate`); each rotor's thrust scale ``thrust_scale`` (4,) (1:
 #: nominal; the environment's thrust noise, held over a control step); the constants ``consts``
 #: (:data:`DRONE`), ``inertia`` J_q about the centre of mass and its inverse ``inertia_inv`` (3, 3)
-#: [kg m^2], the mixer ``mixer`` A and ``allocation`` A^-1 (4, 4) (esp_gym/rotors.py); the hook:
-#: ``hook`` rho_q (3,), hook -> centre of mass (body frame) [m], ``hook_inertia`` J_q^h about the
-#: hook and ``hook_jeff`` J_q^h + m_q^2 (M_tot^-1)_{11} rho_q^ rho_q^ (3, 3) [kg m^2], the inverse
-#: mass matrix's pivot column ``pivot_column`` M_tot^-1 e_1 (N+1,) [1/kg] (kernels/drone_hook.py);
-#: scratch: ``next_speed`` (4,), ``wrench`` (2, 4), the wrench (f, tau) at the step's start and
+#: [kg m^2], the mixer ``mixer`` A and ``allocation`` A^-1 (4, 4) (esp_gym/rotors.py); scratch: ``next_speed`` (4,), ``wrench`` (2, 4), the wrench (f, tau) at the step's start and
 #: end, ``scratch`` (4, 3, 3), Newton's Jacobian, F - I, R_k (F - I) and R_{k+1}; and ``diag``
 #: (:data:`DRONE_DIAG`).
 DroneArrays = namedtuple("DroneArrays", "R Rc Pi Pic speed command setpoint thrust_scale consts inertia inertia_inv "
-                                        "mixer allocation hook hook_inertia hook_jeff pivot_column next_speed wrench "
-                                        "scratch diag")
+                                        "mixer allocation next_speed wrench scratch diag")
 
 #: How the environment's action drives the rotors (docs/environment.md, "Drone actuation"): its
 #: code is the index. ``thrust_torque``: the setpoint's wrench through A^-1; ``thrust_rates``:

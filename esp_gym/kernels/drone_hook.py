@@ -5,12 +5,12 @@ coupled to the string through the pivot's row as the load's is through the attac
 With rho_q (hook -> centre of mass, body frame) and m_q = P.Mp, the one-step form gains the
 drone's copies of the load's (2) and (4), and (1) the term (m_q/h) e_1 R_q,k (F_q - I) rho_q on
 the pivot's row. The Schur complement eliminates the string onto both ends; with
-w = M_tot^-1 e_{N+1} (``P.w``) and w_1 = M_tot^-1 e_1 (``DR.pivot_column``) the increments are
+w = M_tot^-1 e_{N+1} (``P.w``) and w_1 = M_tot^-1 e_1 (``HK.column``) the increments are
 
     dr = h X - M w q_L - m_q w_1 q_q,   q_L = R_k (F_k - I) rho_c,  q_q = R_q,k (F_q - I) rho_q,
 
 and the two Cayley equations, each a rigid body's with its reduced inertia (the load's
-``P.Jeff``, the drone's ``DR.hook_jeff`` = J_q^h + m_q^2 (w_1)_1 rho_q^ rho_q^), are coupled only
+``P.Jeff``, the drone's ``HK.jeff`` = J_q^h + m_q^2 (w_1)_1 rho_q^ rho_q^), are coupled only
 through the corner (M_tot^-1)_{1,N+1} = w_1[N]:
 
     drone: g_q = h Pi_q + h^2/2 t_q - m_q rho_q x R_q,k^T (h X_1 - M w_1[N] q_L)
@@ -19,8 +19,12 @@ through the corner (M_tot^-1)_{1,N+1} = w_1[N]:
 They are solved by alternating the two Newton iterations (block Gauss-Seidel) until q_L stops
 changing to the Newton tolerance; the coupling is of the order of the string's corner entry
 against the bodies' inertias, so a second pass confirms the first (one pass when rho_c = 0).
-The step then commits the string and the load (kernels/step_shared.py), then the drone.
+The step then commits the string and the load (kernels/step_shared.py), then the drone. The
+hook's constants are :class:`HookArrays`, apart from the drone's (kernels/drone.py), so the
+environment's kernels, which fly the default hook, compile as before.
 """
+from collections import namedtuple
+
 import numpy as np
 
 from .jit import kernel
@@ -36,6 +40,12 @@ from .switch import settle_switches, switch_errors
 from .diagnostics import state_diagnostics
 from .drone import drone_balances, drone_share, rotor_ends, start_wrench
 
+#: The hook's constants: ``rho`` rho_q (3,), hook -> centre of mass (body frame) [m]; ``inertia``
+#: J_q^h about the hook and ``jeff`` J_q^h + m_q^2 (M_tot^-1)_{11} rho_q^ rho_q^ (3, 3) [kg m^2], the
+#: drone's reduced inertia in its Cayley equation; ``column`` M_tot^-1 e_1 (N+1,) [1/kg], the
+#: inverse mass matrix's pivot column (esp_gym/drone.py ``hook_arrays``).
+HookArrays = namedtuple("HookArrays", "rho inertia jeff column")
+
 
 @kernel(inline="always")
 def hook_torque(rho, wrench):
@@ -46,13 +56,13 @@ def hook_torque(rho, wrench):
 
 
 @kernel(inline="always")
-def drone_turn(DR, P, X, h, t, qL, coupled):
+def drone_turn(DR, HK, P, X, h, t, qL, coupled):
     """The drone's Cayley equation for a given load turn ``qL``: Newton on F_q with g_q (module
     docstring), then F_q - I into ``DR.scratch[1]``. Returns ``(c_q (3), q_q (3), iterations,
     converged)``."""
     R = DR.R
     Pi = DR.Pi
-    rho = DR.hook
+    rho = HK.rho
     hh = 0.5 * h
     mq = P.Mp
     corner = P.M * P.w[0] if coupled else 0.0
@@ -65,7 +75,7 @@ def drone_turn(DR, P, X, h, t, qL, coupled):
     g0 = h * (Pi[0] + hh * t[0]) - mq * (rho[1] * e2 - rho[2] * e1)
     g1 = h * (Pi[1] + hh * t[1]) - mq * (rho[2] * e0 - rho[0] * e2)
     g2 = h * (Pi[2] + hh * t[2]) - mq * (rho[0] * e1 - rho[1] * e0)
-    c0, c1, c2, iters, converged = cayley_newton(g0, g1, g2, DR.hook_jeff, P.tol, P.max_iter, DR.scratch[0])
+    c0, c1, c2, iters, converged = cayley_newton(g0, g1, g2, HK.jeff, P.tol, P.max_iter, DR.scratch[0])
     FmI = DR.scratch[1]
     cayley_minus_identity(c0, c1, c2, FmI)
     _, _, _, q0, q1, q2 = end_shift(R, FmI, rho)
@@ -73,7 +83,7 @@ def drone_turn(DR, P, X, h, t, qL, coupled):
 
 
 @kernel(inline="always")
-def load_turn(S, W, P, DR, h, t, qq, forced, coupled):
+def load_turn(S, W, P, HK, h, t, qq, forced, coupled):
     """The load's Cayley equation for a given drone turn ``qq``: Newton on F with g_L (module
     docstring), F - I into ``W.FmI``. Returns ``(c (3), q_L (3), s_L = (F - I) rho_c (3),
     iterations, converged)``."""
@@ -81,7 +91,7 @@ def load_turn(S, W, P, DR, h, t, qq, forced, coupled):
     g0, g1, g2, _, _, _, _, _, _ = load_rhs(S, P, W.X, h, t, forced, coupled)
     s0 = s1 = s2 = q0 = q1 = q2 = 0.0
     if coupled:
-        k = P.M * P.Mp * DR.pivot_column[W.X.shape[0] - 1]
+        k = P.M * P.Mp * HK.column[W.X.shape[0] - 1]
         a0 = R[0, 0] * qq[0] + R[1, 0] * qq[1] + R[2, 0] * qq[2]  # R^T q_q
         a1 = R[0, 1] * qq[0] + R[1, 1] * qq[1] + R[2, 1] * qq[2]
         a2 = R[0, 2] * qq[0] + R[1, 2] * qq[1] + R[2, 2] * qq[2]
@@ -103,7 +113,7 @@ def failure(c):
 
 
 @kernel(inline="always")
-def coupled_turns(S, W, P, DR, h, t, tq, forced, coupled):
+def coupled_turns(S, W, P, DR, HK, h, t, tq, forced, coupled):
     """Both Cayley equations, alternated until the load's turn q_L is still to the Newton tolerance
     (module docstring). Returns ``(status, iterations, c, q_L, s_L, c_q, q_q)``."""
     qL = (0.0, 0.0, 0.0)
@@ -111,11 +121,11 @@ def coupled_turns(S, W, P, DR, h, t, tq, forced, coupled):
     total = 0
     tol2 = P.tol * P.tol
     for _ in range(P.max_iter):
-        cq, qq, iters, converged = drone_turn(DR, P, W.X, h, tq, qL, coupled)
+        cq, qq, iters, converged = drone_turn(DR, HK, P, W.X, h, tq, qL, coupled)
         total += iters
         if not converged:
             return failure(cq), total, c, qL, s, cq, qq
-        c, q, s, iters, converged = load_turn(S, W, P, DR, h, t, qq, forced, coupled)
+        c, q, s, iters, converged = load_turn(S, W, P, HK, h, t, qq, forced, coupled)
         total += iters
         if not converged:
             return failure(c), total, c, qL, s, cq, qq
@@ -127,7 +137,7 @@ def coupled_turns(S, W, P, DR, h, t, tq, forced, coupled):
 
 
 @kernel(inline="always")
-def hook_increments(S, W, P, DR, h, qL, sL, qq, coupled):
+def hook_increments(S, W, P, HK, h, qL, sL, qq, coupled):
     """The increments dr = h X - M w q_L - m_q w_1 q_q into ``W.Y`` (module docstring). Returns
     ``(e = R_k^T dr_{N+1} (3), the pivot's displacement dr_1 (3))``."""
     X = W.X
@@ -137,7 +147,7 @@ def hook_increments(S, W, P, DR, h, qL, sL, qq, coupled):
     M = P.M
     mq = P.Mp
     w = P.w
-    w1 = DR.pivot_column
+    w1 = HK.column
     string_increments(X, Y, w, M, qL, h, 0, coupled)
     for a in range(n + 1):
         for i in range(3):
@@ -157,13 +167,13 @@ def hook_increments(S, W, P, DR, h, qL, sL, qq, coupled):
 
 
 @kernel(inline="always")
-def drone_momentum(DR, P, h, tq, wr, dr1):
+def drone_momentum(DR, HK, P, h, tq, wr, dr1):
     """R_q,k+1 into ``DR.scratch[3]`` (R_q,k (F_q - I) in ``DR.scratch[2]``), and the drone's
     (4) at the hook: dPi_q (body_momentum_increment with m_q, rho_q) from its left torque ``tq``,
     its right one (the weight's and the rotors' about the hook at R_q,k+1, ``wr`` the end's
     wrench) and e_q = R_q,k^T dr_1. Returns ``(dPi_q, tau_q^+)``."""
     R = DR.R
-    rho = DR.hook
+    rho = HK.rho
     next_attitude(R, DR.Rc, DR.scratch[1], DR.scratch[2], DR.scratch[3], P.compensated)
     right = hook_torque(rho, wr)
     n0, n1, n2 = weight_torque(P.Mp * P.g, rho, DR.scratch[3])
@@ -176,7 +186,7 @@ def drone_momentum(DR, P, h, tq, wr, dr1):
 
 
 @kernel(forceinline=True)
-def hook_substep(S, W, P, DR, inputs, h, coupled, compensated):
+def hook_substep(S, W, P, DR, HK, inputs, h, coupled, compensated):
     """One step of length ``h`` of the string, the load and a drone at an offset hook (module
     docstring), the motor commands held, ``DR.wrench[0]`` the wrench at the state's rotor speeds;
     ``inputs`` (INPUTS) receives the thrust pair. Returns ``(status, newton_iterations)``; on
@@ -185,7 +195,7 @@ def hook_substep(S, W, P, DR, inputs, h, coupled, compensated):
     wl = DR.wrench[0]
     wr = DR.wrench[1]
     Rq = DR.R
-    rho = DR.hook
+    rho = HK.rho
     for i in range(3):  # the thrust along -b3 at the step's start
         inputs[IN_PIVOT_FORCE + i] = -wl[0] * Rq[i, 2]
     up0, up1, up2, _, _, _, tb0, tb1, tb2, ts0, ts1, ts2 = held_inputs(inputs, True)
@@ -194,11 +204,12 @@ def hook_substep(S, W, P, DR, inputs, h, coupled, compensated):
     g0, g1, g2 = weight_torque(P.Mp * P.g, rho, Rq)
     tq = (g0 + lq[0], g1 + lq[1], g2 + lq[2])
     string_solve(P.inv, P.cp, 0, S.p, S.f, 0.5 * h, up0, up1, up2, True, W.X)
-    status, iters, c, qL, sL, cq, qq = coupled_turns(S, W, P, DR, h, (left[3], left[4], left[5]), tq, True, coupled)
+    status, iters, c, qL, sL, cq, qq = coupled_turns(S, W, P, DR, HK, h, (left[3], left[4], left[5]), tq, True,
+                                                       coupled)
     if status != OK:
         return status, iters
-    e, dr1 = hook_increments(S, W, P, DR, h, qL, sL, qq, coupled)
-    dP, right = drone_momentum(DR, P, h, tq, wr, dr1)
+    e, dr1 = hook_increments(S, W, P, HK, h, qL, sL, qq, coupled)
+    dP, right = drone_momentum(DR, HK, P, h, tq, wr, dr1)
     if not np.isfinite(dP[0] + dP[1] + dP[2]):
         return NON_FINITE, iters
     Rn = DR.scratch[3]
@@ -223,7 +234,7 @@ def hook_substep(S, W, P, DR, inputs, h, coupled, compensated):
 
 
 @kernel(entry=True)
-def hook_advance(S, W, P, DR, inputs, nsteps, stats, coupled):
+def hook_advance(S, W, P, DR, HK, inputs, nsteps, stats, coupled):
     """Take up to ``nsteps`` :func:`hook_substep` s of length ``P.h`` with the motor commands held;
     stop at the first failure with the last good state. ``stats`` as kernels/drone.py's
     ``drone_advance``."""
@@ -232,7 +243,7 @@ def hook_advance(S, W, P, DR, inputs, nsteps, stats, coupled):
     total = 0
     most = 0
     for k in range(nsteps):
-        status, iters = hook_substep(S, W, P, DR, inputs, P.h, coupled, P.compensated)
+        status, iters = hook_substep(S, W, P, DR, HK, inputs, P.h, coupled, P.compensated)
         total += iters
         most = max(most, iters)
         if status != OK:
@@ -251,7 +262,7 @@ def cross_columns(a, B, out):
 
 
 @kernel(inline="always")
-def hook_velocities(S, P, DR, V):
+def hook_velocities(S, P, DR, HK, V):
     """The continuous Legendre transform inverted with both ends coupled: node velocities ``V``
     (N+1, 3) [m/s] from the momenta, the load's and the drone's Omega from Pi and Pi_q by the
     Schur complement over the 6 x 6 block (docs/physics.md, "The offset hook"):
@@ -265,7 +276,7 @@ def hook_velocities(S, P, DR, V):
     R = S.R
     Rq = DR.R
     rc = P.rho
-    rq = DR.hook
+    rq = HK.rho
     M = P.M
     mq = P.Mp
     tridiag_solve(P.inv, P.cp, P.off, 0, p, V)
@@ -290,12 +301,12 @@ def hook_velocities(S, P, DR, V):
         B[i, 1] = A[i, 2] * rq[0] - A[i, 0] * rq[2]
         B[i, 2] = A[i, 0] * rq[1] - A[i, 1] * rq[0]
     cross_columns(rc, B, C)
-    k = M * mq * DR.pivot_column[n]
+    k = M * mq * HK.column[n]
     for i in range(3):
         for j in range(3):
             C[i, j] *= k
     # Z = J_q,eff^-1 C^T column by column, then the Schur complement J_eff - C Z into B
-    Jq = DR.hook_jeff
+    Jq = HK.jeff
     for j in range(3):
         z0, z1, z2 = solve3(Jq, C[j, 0], C[j, 1], C[j, 2])
         A[0, j] = z0
@@ -318,7 +329,7 @@ def hook_velocities(S, P, DR, V):
     qq = (Rq[0, 0] * y[0] + Rq[0, 1] * y[1] + Rq[0, 2] * y[2], Rq[1, 0] * y[0] + Rq[1, 1] * y[1] + Rq[1, 2] * y[2],
           Rq[2, 0] * y[0] + Rq[2, 1] * y[1] + Rq[2, 2] * y[2])
     w = P.w
-    column = DR.pivot_column
+    column = HK.column
     for a in range(n + 1):
         for i in range(3):
             V[a, i] += M * w[a] * qL[i] + mq * column[a] * qq[i]
@@ -326,19 +337,19 @@ def hook_velocities(S, P, DR, V):
 
 
 @kernel(entry=True)
-def hook_diagnostics(S, P, D, DR):
+def hook_diagnostics(S, P, D, DR, HK):
     """The rig's diagnostics (``D.out``: DIAG; ``DR.diag``: DRONE_DIAG) with the drone at an offset
     hook: the velocities of :func:`hook_velocities`, the drone's kinetic energy beyond its hook's
     translation 1/2 Omega_q . J_q^h Omega_q + m_q v_1 . R_q (Omega_q x rho_q) and its weight's
     potential -m_q g (R_q rho_q) . e3 [J]."""
-    omega, qL, rates, qq = hook_velocities(S, P, DR, D.V)
+    omega, qL, rates, qq = hook_velocities(S, P, DR, HK, D.V)
     state_diagnostics(S, P, D, omega[0], omega[1], omega[2], qL[0], qL[1], qL[2])
-    J = DR.hook_inertia
+    J = HK.inertia
     kinetic = 0.0
     for i in range(3):
         kinetic += 0.5 * rates[i] * (J[i, 0] * rates[0] + J[i, 1] * rates[1] + J[i, 2] * rates[2])
         kinetic -= P.Mp * D.V[0, i] * qq[i]
     R = DR.R
-    rho = DR.hook
+    rho = HK.rho
     potential = -P.Mp * P.g * (R[2, 0] * rho[0] + R[2, 1] * rho[1] + R[2, 2] * rho[2])
     drone_share(DR, D.out, rates, kinetic, potential)
