@@ -12,7 +12,7 @@ import esp_gym
 from esp_gym.drone import DroneSimulator, pivot_column
 from esp_gym.state import mass_matrix
 
-from discrete_lagrangian import (E3, expm, hat, left_perturbed, random_rotation, random_state, right_perturbed,
+from discrete_lagrangian import (E3, expm, left_perturbed, random_rotation, random_state, right_perturbed,
                                  rigid_body_lagrangian, string_lagrangian)
 from test_drone import wobbling_commands
 
