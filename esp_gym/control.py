@@ -29,8 +29,9 @@ from .kernels.disturbance import DISTURBANCE, DISTURBANCE_PARAMS, DRAWS
 from .kernels.string import state_forces
 from .kernels.env_arrays import FEATURES, EnvArrays
 from .kernels.env_step import ENTRY_POINTS, actions_finite, env_reset_observe
-from .kernels.drone_env import DRONE_ENTRY_POINTS, DRONE_SENSORS, drone_reset_observe
-from .drone import DroneSimulator, hover_at_rest, use_drone_scene
+from .kernels.drone_env import DRONE_ENTRY_POINTS, DRONE_SENSORS, HOOK_ENTRY_POINTS, drone_reset_observe, \
+    hook_reset_observe
+from .drone import DroneSimulator, hover_at_rest, use_drone_scene, use_hook_scene
 from .model import Simulator
 from .options import check_count
 from .setup import Episode, EnvSetup
@@ -104,6 +105,8 @@ class ControlStep:
         winch = self.sim.winch.arrays  # the winch's (read only with winch=True)
         #: The drone's arrays (kernels/drone.py; a batch's stacked), or None without a drone.
         self._drone = self.sim.drone if setup.drone else None
+        #: The drone's hook constants (kernels/drone_hook.py) when it is off the centre of mass, else None.
+        self._hook = self.sim.hook if setup.drone and setup.scene.pivot.drone.offset_hook else None
         nominal = setup.nominal_episode
         if batch:
             def stack(t):
@@ -112,6 +115,8 @@ class ControlStep:
             state, work, diag, winch = stack(state), stack(work), stack(diag), stack(winch)
             if setup.drone:  # its constants in every row, as the template's
                 self._drone = type(self._drone)(*(np.repeat(a[None], self.num_envs, axis=0) for a in self._drone))
+            if self._hook is not None:
+                self._hook = type(self._hook)(*(np.repeat(a[None], self.num_envs, axis=0) for a in self._hook))
             winch.coef[...] = self.sim.winch.arrays.coef
             # every constant per sub-environment (scalars become (num_envs,) arrays of their type)
             params = LGVIParams(*(np.repeat(np.asarray(v)[None], self.num_envs, axis=0) for v in params))
@@ -148,7 +153,8 @@ class ControlStep:
         #: a drone's rotors draw their thrust noise before every control step (setup.thrust_noise)
         self._noisy_thrust = setup.drone and setup.thrust_noise > 0.0
         #: the compiled step and batched step (kernels/env_step.py), and their ``scheme``
-        self._step_kernel, self._batch_kernel = (DRONE_ENTRY_POINTS[bool(setup.winch)] if setup.drone
+        self._step_kernel, self._batch_kernel = (HOOK_ENTRY_POINTS if self._hook is not None
+                                                 else DRONE_ENTRY_POINTS[bool(setup.winch)] if setup.drone
                                                  else ENTRY_POINTS[(bool(setup.winch), bool(self.sim.implicit))])
         self._scheme = SCHEME_DISTURBED if self._windy else 0
         self._was_reset = z(batch, dtype=bool)  # stepping a state that was never set is an error
@@ -167,6 +173,7 @@ class ControlStep:
         self._kernel_tuples = (tuple(self._state), tuple(self._work), tuple(self._params), tuple(self._diag),
                                tuple(self._winch), tuple(self._env_arrays()))
         self._drone_tuple = None if self._drone is None else tuple(self._drone)
+        self._hook_tuple = None if self._hook is None else tuple(self._hook)
         self.observation = read_only(self._obs)
         self.reward_terms = read_only(self._terms)
         self.action = read_only(self._action)
@@ -179,8 +186,8 @@ class ControlStep:
         self.disturbance = read_only(self._disturbance)
 
     # a pickled view would come back as a copy: pickle the arrays, rebuild the views
-    _VIEWS = ("_kernel_tuples", "_drone_tuple", "observation", "reward_terms", "action", "inputs", "target", "report", "sensors",
-              "features", "scene_params", "disturbance")
+    _VIEWS = ("_kernel_tuples", "_drone_tuple", "_hook_tuple", "observation", "reward_terms", "action", "inputs",
+              "target", "report", "sensors", "features", "scene_params", "disturbance")
 
     def __getstate__(self) -> dict:
         return {k: v for k, v in self.__dict__.items() if k not in self._VIEWS}
@@ -230,6 +237,8 @@ class ControlStep:
                 stacked[index] = value
             if self._drone is not None:
                 use_drone_scene(type(self._drone)(*(a[index] for a in self._drone)), episode.scene)
+            if self._hook is not None:
+                use_hook_scene(type(self._hook)(*(a[index] for a in self._hook)), episode.scene)
             self.scenes[index] = episode.scene
             self._substeps[index] = episode.substeps
         row = () if index is None else index
@@ -272,6 +281,9 @@ class ControlStep:
             self._was_reset[() if index is None else int(index)] = True
             self._ready = bool(self._was_reset.all())
         WA = self.sim.winch.arrays if index is None else type(self._winch)(*(a[int(index)] for a in self._winch))
+        if self._hook is not None:
+            HK = self._hook if index is None else type(self._hook)(*(a[int(index)] for a in self._hook))
+            return int(hook_reset_observe(S, P, D, DR, HK, E))
         if DR is not None:
             return int(drone_reset_observe(S, P, D, WA, DR, E, self.setup.winch))
         return int(env_reset_observe(S, P, D, WA, E, self.setup.winch))
@@ -303,6 +315,8 @@ class ControlStep:
             q = self._drone_tuple
             if q is None:
                 done = self._step_kernel(s, w, p, d, wa, e, raw, self._scheme)
+            elif self._hook_tuple is not None:
+                done = self._step_kernel(s, w, p, d, e, q, self._hook_tuple, raw, self._scheme)
             elif self.setup.winch:
                 done = self._step_kernel(s, w, p, d, wa, e, q, raw, self._scheme)
             else:
@@ -329,6 +343,8 @@ class ControlStep:
                 self._drone.thrust_scale[i] = 1.0 + self.setup.thrust_noise * self._rngs[i].standard_normal(4)
         if self._drone_tuple is None:
             self._batch_kernel(s, w, p, d, wa, e, raw, active, self._scheme)
+        elif self._hook_tuple is not None:
+            self._batch_kernel(s, w, p, d, e, self._drone_tuple, self._hook_tuple, raw, active, self._scheme)
         elif self.setup.winch:
             self._batch_kernel(s, w, p, d, wa, e, self._drone_tuple, raw, active, self._scheme)
         else:

@@ -50,15 +50,22 @@ def pivot_column(scene: Scene) -> np.ndarray:
 
 
 def hook_arrays(scene: Scene) -> HookArrays:
-    """The :class:`~esp_gym.kernels.drone_hook.HookArrays` of ``scene``'s drone: rho_q, J_q^h, the
-    reduced inertia of its Cayley equation J_q^h + m_q^2 (M_tot^-1)_{11} rho_q^ rho_q^ and the
-    pivot's column of M_tot^-1."""
+    """The :class:`~esp_gym.kernels.drone_hook.HookArrays` of ``scene``'s drone (:func:`use_hook_scene`)."""
+    n = scene.string.elements
+    arrays = HookArrays(rho=np.zeros(3), inertia=np.zeros((3, 3)), jeff=np.zeros((3, 3)), column=np.zeros(n + 1))
+    use_hook_scene(arrays, scene)
+    return arrays
+
+
+def use_hook_scene(arrays: HookArrays, scene: Scene) -> None:
+    """Write ``scene``'s hook into ``arrays``: rho_q, J_q^h, the reduced inertia of the drone's
+    Cayley equation J_q^h + m_q^2 (M_tot^-1)_{11} rho_q^ rho_q^ and the pivot's column of M_tot^-1."""
     drone, mass = scene.pivot.drone, scene.pivot.mass
     column = pivot_column(scene)
-    rho = np.array(drone.rho_q, dtype=np.float64)
-    inertia = drone.hook_inertia(mass)
-    return HookArrays(rho=rho, inertia=inertia, jeff=inertia + mass * mass * column[0] * hat(rho) @ hat(rho),
-                      column=column)
+    arrays.rho[...] = drone.rho_q
+    arrays.inertia[...] = drone.hook_inertia(mass)
+    arrays.jeff[...] = arrays.inertia + mass * mass * column[0] * hat(arrays.rho) @ hat(arrays.rho)
+    arrays.column[...] = column
 
 
 def use_drone_scene(arrays: DroneArrays, scene: Scene) -> None:
@@ -121,7 +128,7 @@ class DroneSimulator(Simulator):
             raise ValueError(f"use_scene: pivot.kind must stay 'drone', got {scene.pivot.kind!r}")
         super().use_scene(scene, params)
         use_drone_scene(self.drone, scene)
-        self.hook = hook_arrays(scene)
+        use_hook_scene(self.hook, scene)
         self._hooked = scene.pivot.drone.offset_hook
 
     # -- state ------------------------------------------------------------------------------

@@ -287,10 +287,10 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
         raise ValueError(f"ElasticStringPendulum-v0: a drone at the pivot flies the explicit string of order 2 "
                          f"for now (scene {resolved.name!r}: solver.string {resolved.solver.string!r}, order "
                          f"{resolved.solver.order})")
-    if resolved.pivot.is_drone and resolved.pivot.drone.offset_hook:
-        raise ValueError(f"ElasticStringPendulum-v0: pivot.drone.rho_q = {list(resolved.pivot.drone.rho_q)}: the "
-                         f"environment flies a drone whose hook is its centre of mass (rho_q = [0, 0, 0]) for now; "
-                         f"an offset hook runs in esp_gym.drone.DroneSimulator (scene {resolved.name!r})")
+    if resolved.pivot.is_drone and resolved.pivot.drone.offset_hook and winch:
+        raise ValueError(f"ElasticStringPendulum-v0: pivot.drone.rho_q = {list(resolved.pivot.drone.rho_q)} with "
+                         f"winch=True: the winch reels from a drone whose hook is its centre of mass (rho_q = "
+                         f"[0, 0, 0]) for now (scene {resolved.name!r})")
     if t.needs_winch and not winch:
         raise ValueError(f"ElasticStringPendulum-v0: task={o.task!r} reels the string: it needs winch=True")
     randomizer = None if o.randomize is False else Randomizer(resolved, o.randomize)

@@ -92,21 +92,29 @@ def test_a_ground_above_the_loads_target_is_refused():
         esp_gym.load_scene(SCENE, ground=-1.0)
 
 
-def test_the_energy_balance_holds_the_drones_rotation_and_the_watchdog_stays_quiet():
+#: The hook at the drone's centre of mass, and 6 cm below it and off its axes (tests/test_drone_hook.py).
+HOOKS = {"centre": {}, "offset": {"pivot": {"drone": {"rho_q": [0.02, -0.01, -0.06]}}}}
+
+
+@pytest.mark.parametrize("hook", HOOKS)
+def test_the_energy_balance_holds_the_drones_rotation_and_the_watchdog_stays_quiet(hook):
     """200 steps of random rates and thrust: E - E0 - W (E with the drone's rotational energy, W
     the thrust's and the rotors' torques' work) stays below 1e-4 of the work; leaving the
-    drone's rotation out of E would miss by its kinetic energy (the negative control)."""
-    env = gym.make(ENV_ID, scene=SCENE, actuation="thrust_rates").unwrapped
+    drone's rotation out of E would miss by its kinetic energy (the negative control). At the
+    offset hook the rate controller and the rates sensor take Omega_q from the Legendre transform
+    at both ends: the observed rates are the simulator's diagnostics'."""
+    env = gym.make(ENV_ID, scene=SCENE, actuation="thrust_rates", scene_overrides=HOOKS[hook]).unwrapped
     env.reset(seed=4)
     rng = np.random.default_rng(1)
     for _ in range(200):
-        _, _, terminated, _, info = env.step(rng.uniform(-0.2, 0.2, 4))
+        obs, _, terminated, _, info = env.step(rng.uniform(-0.2, 0.2, 4))
         assert info.get("termination_reason") != "energy_balance"
         if terminated:
             break
     d = env.sim.diagnostics()
     assert abs(d["energy_balance_residual"]) <= 1e-4 * abs(d["work"])
-    assert d["kinetic_drone"] > 1e3 * abs(d["energy_balance_residual"])
+    assert abs(d["kinetic_drone"]) > 1e3 * abs(d["energy_balance_residual"])  # with the hook's cross term
+    np.testing.assert_allclose(obs[env.observation_structure["drone_rates"]], d["drone_rates"], rtol=1e-6, atol=1e-7)
 
 
 @pytest.mark.parametrize("observation", ["full", "hook"])
@@ -157,8 +165,8 @@ def test_the_drone_reels_with_the_winch(task):
     ({"actuation": "thrust_rates"}, "does not fly scene 'drone_load'"),
     ({"scene": SCENE, "scene_overrides": {"solver": {"string": "implicit"}}}, "explicit string of order 2"),
     ({"scene": SCENE, "actuation": "rates"}, "actuation"),
-    ({"scene": SCENE, "scene_overrides": {"pivot": {"drone": {"rho_q": [0.0, 0.0, -0.05]}}}},
-     r"pivot.drone.rho_q = \[0.0, 0.0, -0.05\]"),
+    ({"scene": SCENE, "winch": True, "scene_overrides": {"pivot": {"drone": {"rho_q": [0.0, 0.0, -0.05]}}}},
+     r"pivot.drone.rho_q = \[0.0, 0.0, -0.05\] with winch=True"),
 ])
 def test_a_mismatched_actuation_or_option_is_refused_by_name(options, message):
     with pytest.raises(ValueError, match=message):

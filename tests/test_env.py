@@ -246,9 +246,11 @@ VECTOR_OPTIONS = [{}, {"randomize": True},
                   {"task": "lower", "scene_overrides": {"solver": {"string": "implicit"}, "EA": 2e4}},
                   {"randomize": True, "scene_overrides": {"string": {"EA": 2e5, "elements": "auto"}}},
                   {"scene": "quadrotor_load"}, {"scene": "quadrotor_load", "actuation": "motors", "preset": "hard"},
-                  {"scene": "quadrotor_load", "task": "lower", "preset": "hard"}]
+                  {"scene": "quadrotor_load", "task": "lower", "preset": "hard"},
+                  {"scene": "quadrotor_load", "preset": "hard",
+                   "scene_overrides": {"pivot": {"drone": {"rho_q": [0.02, -0.01, -0.06]}}}}]
 VECTOR_IDS = ["plain", "randomize", "hook-noise-latency", "hard", "track", "winch-lower-hard", "winch-lower-implicit",
-              "randomize-auto", "drone-rates", "drone-motors-hard", "drone-winch-lower-hard"]
+              "randomize-auto", "drone-rates", "drone-motors-hard", "drone-winch-lower-hard", "drone-offset-hook-hard"]
 
 
 @pytest.mark.parametrize("options", VECTOR_OPTIONS, ids=VECTOR_IDS)

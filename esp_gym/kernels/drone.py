@@ -143,11 +143,19 @@ def actuate(DR, mode):
     elif mode == THRUST_RATES:
         Ji = DR.inertia_inv
         Pi = DR.Pi
-        rates = (Ji[0, 0] * Pi[0] + Ji[0, 1] * Pi[1] + Ji[0, 2] * Pi[2],
-                 Ji[1, 0] * Pi[0] + Ji[1, 1] * Pi[1] + Ji[1, 2] * Pi[2],
-                 Ji[2, 0] * Pi[0] + Ji[2, 1] * Pi[1] + Ji[2, 2] * Pi[2])
-        rate_command(rates, (sp[1], sp[2], sp[3]), sp[0], DR.inertia, DR.consts[Q_RATE_GAIN:Q_RATE_GAIN + 3],
-                     DR.allocation, max_rotor_thrust(DR), kf, DR.command)
+        rate_actuate(DR, (Ji[0, 0] * Pi[0] + Ji[0, 1] * Pi[1] + Ji[0, 2] * Pi[2],
+                          Ji[1, 0] * Pi[0] + Ji[1, 1] * Pi[1] + Ji[1, 2] * Pi[2],
+                          Ji[2, 0] * Pi[0] + Ji[2, 1] * Pi[1] + Ji[2, 2] * Pi[2]))
+
+
+@kernel(inline="always")
+def rate_actuate(DR, rates):
+    """``DR.command`` from the rate controller (kernels/rotors.py) at the body ``rates`` Omega_q
+    [rad/s]: J_q^-1 Pi_q at the default hook (:func:`actuate`), the Legendre transform's at an
+    offset one (kernels/drone_hook.py)."""
+    sp = DR.setpoint
+    rate_command(rates, (sp[1], sp[2], sp[3]), sp[0], DR.inertia, DR.consts[Q_RATE_GAIN:Q_RATE_GAIN + 3],
+                 DR.allocation, max_rotor_thrust(DR), DR.consts[Q_THRUST_COEFFICIENT], DR.command)
 
 
 @kernel(inline="always")

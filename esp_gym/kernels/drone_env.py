@@ -18,7 +18,8 @@ from numba import prange
 from .diagnostics import diagnostics
 from .disturbance import kick
 from .drone import (MOTORS, THRUST_RATES, THRUST_TORQUE, DroneArrays, actuate, drone_diagnostics, drone_substep,
-                    drone_winch_step, max_rotor_thrust, start_wrench, Q_THRUST_COEFFICIENT, QD_RATES)
+                    drone_winch_step, max_rotor_thrust, rate_actuate, start_wrench, Q_THRUST_COEFFICIENT, QD_RATES)
+from .drone_hook import HookArrays, hook_diagnostics, hook_substep, hook_velocities
 from .env_arrays import O_UNSTRETCHED_LENGTH, SCHEME_DISTURBED, SENSORS, TP_ENERGY_ORIGIN, TP_STRING_LENGTH, EnvArrays
 from .env_step import (close_balances, diag_row, energy_watchdog, env_prepare,
                        env_row, params_row, state_row, winch_row, work_row)
@@ -93,19 +94,41 @@ def drone_take_action(raw, qa, action, DR):
 
 
 @kernel(inline="always")
+def steps_start(S, W, P, DR, E, disturbed):
+    """Before a control step's physics steps: the first half kick of the held external forces
+    (``disturbed``), the rotors' wrench at the state. Returns (the first unknown node, h/2, the
+    number of steps, whether the rate controller runs)."""
+    first = 0 if P.first == 0 else 1
+    hh = 0.5 * P.h
+    nsub = E.nsub[0]
+    if disturbed and nsub > 0:
+        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, hh, first)
+    start_wrench(DR)
+    return first, hh, nsub, int(E.ap[QA_ACTUATION]) == THRUST_RATES
+
+
+@kernel(inline="always")
+def step_end(S, W, P, E, status, k, nsub, counts, disturbed, first, hh):
+    """After physics step ``k`` of ``nsub``: the kicks around it (a failure takes the pending half
+    back and fills ``E.result``). Returns True when the loop must stop."""
+    if status != OK:
+        if disturbed:
+            kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, -hh, first)
+        finish(E.result, status, k, counts[0], counts[1])
+        return True
+    if disturbed:
+        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, P.h if k + 1 < nsub else hh, first)
+    return False
+
+
+@kernel(inline="always")
 def drone_steps(S, W, P, WA, D, DR, E, reel, coupled, disturbed, winched):
     """``E.nsub[0]`` steps of :func:`~.drone.drone_substep` (``winched``: of
     :func:`~.drone.drone_winch_step`, reeling at ``reel`` [m/s]), the rate controller before each
     in ``thrust_rates``; the held external forces (``disturbed``) as kicks of h/2 on both sides
     of each step, as kernels/loops.py does. A failed step leaves the state after the last good
     one (its pending half kick taken back). Fills ``E.result``'s first four entries."""
-    first = 0 if P.first == 0 else 1
-    hh = 0.5 * P.h
-    nsub = E.nsub[0]
-    rates = int(E.ap[QA_ACTUATION]) == THRUST_RATES
-    if disturbed and nsub > 0:
-        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, hh, first)
-    start_wrench(DR)
+    first, hh, nsub, rates = steps_start(S, W, P, DR, E, disturbed)
     total = 0
     most = 0
     for k in range(nsub):
@@ -117,13 +140,28 @@ def drone_steps(S, W, P, WA, D, DR, E, reel, coupled, disturbed, winched):
             status, iters = drone_substep(S, W, P, DR, E.inputs, P.h, coupled, P.compensated)
         total += iters
         most = max(most, iters)
-        if status != OK:
-            if disturbed:
-                kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, -hh, first)
-            finish(E.result, status, k, total, most)
+        if step_end(S, W, P, E, status, k, nsub, (total, most), disturbed, first, hh):
             return
-        if disturbed:
-            kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, P.h if k + 1 < nsub else hh, first)
+    finish(E.result, OK, nsub, total, most)
+
+
+# Its own loop, not a flag of drone_steps: the flag doubled drone_loop's compile (3.7 -> 7.4 s).
+@kernel(inline="always")
+def hook_steps(S, W, P, D, DR, HK, E, coupled, disturbed):
+    """:func:`drone_steps` for a drone at an offset hook (no winch): :func:`~.drone_hook.hook_substep`,
+    the rate controller on the rates of the Legendre transform at both ends."""
+    first, hh, nsub, rates = steps_start(S, W, P, DR, E, disturbed)
+    total = 0
+    most = 0
+    for k in range(nsub):
+        if rates:
+            _, _, omega_q, _ = hook_velocities(S, P, DR, HK, D.V)
+            rate_actuate(DR, omega_q)
+        status, iters = hook_substep(S, W, P, DR, HK, E.inputs, P.h, coupled, P.compensated)
+        total += iters
+        most = max(most, iters)
+        if step_end(S, W, P, E, status, k, nsub, (total, most), disturbed, first, hh):
+            return
     finish(E.result, OK, nsub, total, most)
 
 
@@ -134,6 +172,12 @@ def drone_loop(S, W, P, D, DR, E, coupled, disturbed):
 
 
 @kernel
+def hook_loop(S, W, P, D, DR, HK, E, coupled, disturbed):
+    """:func:`drone_steps` at an offset hook."""
+    hook_steps(S, W, P, D, DR, HK, E, coupled, disturbed)
+
+
+@kernel
 def drone_winch_loop(S, W, P, WA, D, DR, E, reel, coupled, disturbed):
     """:func:`drone_steps` with the winch reeling at ``reel`` [m/s]."""
     drone_steps(S, W, P, WA, D, DR, E, reel, coupled, disturbed, True)
@@ -141,8 +185,9 @@ def drone_winch_loop(S, W, P, WA, D, DR, E, reel, coupled, disturbed):
 
 @kernel(inline="always")
 def drone_sensors(DR, sensors):
-    """The drone's fields of DRONE_SENSORS: R_q's first two columns and Omega_q = J_q^-1 Pi_q
-    (``DR.diag`` filled by :func:`~.drone.drone_diagnostics`)."""
+    """The drone's fields of DRONE_SENSORS: R_q's first two columns and Omega_q (``DR.diag``
+    filled by :func:`~.drone.drone_diagnostics`, J_q^-1 Pi_q, or at an offset hook by
+    :func:`~.drone_hook.hook_diagnostics`)."""
     for i in range(3):
         sensors[QS_DRONE_ATTITUDE_6D + i] = DR.R[i, 0]
         sensors[QS_DRONE_ATTITUDE_6D + 3 + i] = DR.R[i, 1]
@@ -150,10 +195,11 @@ def drone_sensors(DR, sensors):
 
 
 @kernel(inline="always")
-def drone_observe_stages(S, P, D, WA, DR, E, winched):
+def drone_observe_stages(S, P, D, WA, DR, HK, E, winched, hooked):
     """The diagnostics with the drone's share (``winched``: at the winch's length and reel speed,
-    the energy the Hamiltonian, as kernels/env_step.py's ``env_finish_winched``), the tasks'
-    stages, the drone's sensors; returns the task's termination code, or TERM_DRONE_FLIPPED when
+    the energy the Hamiltonian, as kernels/env_step.py's ``env_finish_winched``; ``hooked``: with
+    the Legendre transform at both ends, kernels/drone_hook.py), the tasks' stages, the drone's
+    sensors; returns the task's termination code, or TERM_DRONE_FLIPPED when
     the drone's b3 is tilted from e3 past the limit (R_q[2, 2] below its cosine)."""
     if winched:
         length = WA.state[WN_LENGTH]
@@ -165,8 +211,11 @@ def drone_observe_stages(S, P, D, WA, DR, E, winched):
         code = observe_and_score(S, Pl, D, E, length)
         E.obs[O_UNSTRETCHED_LENGTH] = length
     else:
-        diagnostics(S, P, D)
-        drone_diagnostics(DR, D.out)
+        if hooked:
+            hook_diagnostics(S, P, D, DR, HK)
+        else:
+            diagnostics(S, P, D)
+            drone_diagnostics(DR, D.out)
         code = observe_and_score(S, P, D, E, E.tp[TP_STRING_LENGTH])
     drone_sensors(DR, E.sensors)
     if code == OK and not (DR.R[2, 2] >= E.ap[QA_FLIP_COSINE]):
@@ -177,17 +226,23 @@ def drone_observe_stages(S, P, D, WA, DR, E, winched):
 @kernel
 def drone_observe(S, P, D, DR, E):
     """:func:`drone_observe_stages` without a winch."""
-    return drone_observe_stages(S, P, D, None, DR, E, False)
+    return drone_observe_stages(S, P, D, None, DR, None, E, False, False)
+
+
+@kernel
+def hook_observe(S, P, D, DR, HK, E):
+    """:func:`drone_observe_stages` at an offset hook."""
+    return drone_observe_stages(S, P, D, None, DR, HK, E, False, True)
 
 
 @kernel
 def drone_winch_observe(S, P, D, WA, DR, E):
     """:func:`drone_observe_stages` with a winch."""
-    return drone_observe_stages(S, P, D, WA, DR, E, True)
+    return drone_observe_stages(S, P, D, WA, DR, None, E, True, False)
 
 
 @kernel(inline="always")
-def drone_control_step(S, W, P, D, WA, DR, E, reel, disturbed, winched):
+def drone_control_step(S, W, P, D, WA, DR, HK, E, reel, disturbed, winched, hooked):
     """One control step of one environment with a drone (the setpoint already taken from the
     action; ``reel`` the reel speed [m/s] with a winch): wind and pushes, the physics steps, the
     balances closed, the observation, reward terms and termination code (a physics failure's
@@ -196,11 +251,15 @@ def drone_control_step(S, W, P, D, WA, DR, E, reel, disturbed, winched):
     coupled = P.rho[0] != 0.0 or P.rho[1] != 0.0 or P.rho[2] != 0.0
     if winched:
         drone_winch_loop(S, W, P, WA, D, DR, E, reel, coupled, disturbed)
+    elif hooked:
+        hook_loop(S, W, P, D, DR, HK, E, coupled, disturbed)
     else:
         drone_loop(S, W, P, D, DR, E, coupled, disturbed)
     status = close_balances(S, W, P, E, phi, disturbed)
     if winched:
         code = drone_winch_observe(S, P, D, WA, DR, E)
+    elif hooked:
+        code = hook_observe(S, P, D, DR, HK, E)
     else:
         code = drone_observe(S, P, D, DR, E)
     E.result[R_TERMINATION] = status if status != OK else energy_watchdog(S, D, E.tp, code)
@@ -216,7 +275,16 @@ def drone_reset_observe(S, P, D, WA, DR, E, winched):
     return code
 
 
+@kernel(entry=True)
+def hook_reset_observe(S, P, D, DR, HK, E):
+    """:func:`drone_reset_observe` at an offset hook (no winch)."""
+    code = hook_observe(S, P, D, DR, HK, E)
+    E.tp[TP_ENERGY_ORIGIN] = D.out[D_ENERGY]
+    return code
+
+
 drone_row = row_function(DroneArrays)
+hook_row = row_function(HookArrays)
 
 
 #: The seconds to the first step of an environment and of a vector environment with a drone on an
@@ -226,29 +294,33 @@ COLD_DRONE_ENV_STEP_S = 25
 COLD_DRONE_BATCH_STEP_S = 35
 
 @kernel(inline="always")
-def drone_env_step(S, W, P, D, WA, E, DR, raw, scheme, winched):
+def drone_env_step(S, W, P, D, WA, E, DR, HK, raw, scheme, winched, hooked):
     """:func:`drone_take_action` of the raw action, then :func:`drone_control_step`, for one
-    environment (``WA``: its winch's arrays, read only when ``winched``, a constant). Returns
+    environment (``WA``: its winch's arrays, read only when ``winched``; ``HK``: the hook's, read
+    only when ``hooked``; both constants). Returns
     False, with nothing changed, if the raw action is not finite."""
     reel = drone_take_action(raw, E.ap, E.action, DR)
     if reel == -np.inf:
         return False
-    drone_control_step(S, W, P, D, WA, DR, E, reel, (scheme & SCHEME_DISTURBED) != 0, winched)
+    drone_control_step(S, W, P, D, WA, DR, HK, E, reel, (scheme & SCHEME_DISTURBED) != 0, winched, hooked)
     return True
 
 
 @kernel(inline="always")
-def drone_env_batch(S, W, P, D, WA, E, Q, raw, active, scheme, winched):
+def drone_env_batch(S, W, P, D, WA, E, Q, K, raw, active, scheme, winched, hooked):
     """:func:`drone_env_step` for every environment b with ``active[b]``, in parallel (each
     struct's row b by its row function; the raw actions must be finite)."""
     for b in prange(raw.shape[0]):
         if active[b]:
             if winched:
                 drone_env_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), winch_row(WA, b),
-                               env_row(E, b), drone_row(Q, b), raw[b], scheme, True)
+                               env_row(E, b), drone_row(Q, b), None, raw[b], scheme, True, False)
+            elif hooked:
+                drone_env_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), None,
+                               env_row(E, b), drone_row(Q, b), hook_row(K, b), raw[b], scheme, False, True)
             else:
                 drone_env_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), None,
-                               env_row(E, b), drone_row(Q, b), raw[b], scheme, False)
+                               env_row(E, b), drone_row(Q, b), None, raw[b], scheme, False, False)
 
 
 # The entry points: kernels/env_step.py's, with the drone's arrays ``q`` (DroneArrays) after the
@@ -257,25 +329,37 @@ def drone_env_batch(S, W, P, D, WA, E, Q, raw, active, scheme, winched):
 @kernel(entry=True)
 def drone_step(s, w, p, d, e, q, raw, scheme):
     return drone_env_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), None, EnvArrays(*e),
-                          DroneArrays(*q), raw, scheme, False)
+                          DroneArrays(*q), None, raw, scheme, False, False)
 
 
 @kernel(entry=True)
 def drone_winch_env_step(s, w, p, d, wa, e, q, raw, scheme):
     return drone_env_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), EnvArrays(*e),
-                          DroneArrays(*q), raw, scheme, True)
+                          DroneArrays(*q), None, raw, scheme, True, False)
+
+
+@kernel(entry=True)
+def hook_env_step(s, w, p, d, e, q, k, raw, scheme):
+    return drone_env_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), None, EnvArrays(*e),
+                          DroneArrays(*q), HookArrays(*k), raw, scheme, False, True)
 
 
 @kernel(parallel=True, entry=True)
 def drone_batch(s, w, p, d, e, q, raw, active, scheme):
     drone_env_batch(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), None, EnvArrays(*e), DroneArrays(*q),
-                    raw, active, scheme, False)
+                    None, raw, active, scheme, False, False)
 
 
 @kernel(parallel=True, entry=True)
 def drone_winch_batch(s, w, p, d, wa, e, q, raw, active, scheme):
     drone_env_batch(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), EnvArrays(*e),
-                    DroneArrays(*q), raw, active, scheme, True)
+                    DroneArrays(*q), None, raw, active, scheme, True, False)
+
+
+@kernel(parallel=True, entry=True)
+def hook_batch(s, w, p, d, e, q, k, raw, active, scheme):
+    drone_env_batch(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), None, EnvArrays(*e), DroneArrays(*q),
+                    HookArrays(*k), raw, active, scheme, False, True)
 
 
 #: The drone environment's (step, batch) entry points by ``winched`` (each compiled when first
@@ -288,3 +372,10 @@ DRONE_ENTRY_POINTS = {
            announce_compile(drone_winch_batch, "the batched environment's step with a drone and the winch",
                             COLD_DRONE_BATCH_STEP_S)),
 }
+
+#: The entry points of a drone at an offset hook (no winch), (step, batch): their arguments are the
+#: drone's, then the hook's ``k`` (HookArrays).
+HOOK_ENTRY_POINTS = (announce_compile(hook_env_step, "the environment's step with a drone at an offset hook",
+                                      COLD_DRONE_ENV_STEP_S),
+                     announce_compile(hook_batch, "the batched environment's step with a drone at an offset hook",
+                                      COLD_DRONE_BATCH_STEP_S))
