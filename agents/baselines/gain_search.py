@@ -37,7 +37,7 @@ def gain_names(law) -> list:
     if isinstance(law, HookGeometricController):
         return gain_names(law.law)
     if isinstance(law, Hoist):
-        return sorted([f.name for f in fields(law.pd)] + ["k_length"])
+        return sorted(gain_names(law.pd) + ["k_length"])
     return sorted(f.name for f in fields(law) if f.type in ("float", float) and not f.name.startswith("_"))
 
 
@@ -53,9 +53,6 @@ def controller(name: str, task: str, env_kwargs: dict):
         from agents.baselines.registry import baseline_factories
 
         known = baseline_factories(task, env_kwargs)
-        if "geometric" not in known:
-            raise ValueError(f"no geometric cascade here: with a winch it needs the full observation (the hook's "
-                             f"estimate holds a fixed length); the baselines: {sorted(known)}")
         return known["geometric"]()  # on the hook observation: with its load estimate
     return baseline(task, setup.winch, setup.drone)
 
@@ -67,7 +64,7 @@ def with_gains(law, gains: dict):
         return replace(law.clone(), law=replace(law.law, **gains))
     if isinstance(law, Hoist):
         pd = {k: v for k, v in gains.items() if k != "k_length"}
-        return replace(law, pd=replace(law.pd, **pd), k_length=gains.get("k_length", law.k_length))
+        return replace(law, pd=with_gains(law.pd, pd), k_length=gains.get("k_length", law.k_length))
     return replace(law, **gains)
 
 

@@ -18,8 +18,10 @@ string's direction noise sets (|noise of T| / |T| rad times l).
 What the hook does not say the first observation does: the load's weight m g is the first
 reading's downward pull, then a low-pass of it (time constant ``weighing_time``; over a swing its
 mean is the weight), and l is the depth of the load's target below the drone's
-((load_target_offset + pivot_position_error) . e3, the episode's hanging depth). Nothing of the
-episode's true parameters is read.
+((load_target_offset + pivot_position_error) . e3, the episode's hanging depth). With a winch l
+follows the reel instead (the caller gives it each step: the observed unstretched length plus the
+nominal excess of the hanging depth over it), and the load's target stays at the first depth.
+Nothing of the episode's true parameters is read.
 """
 from __future__ import annotations
 
@@ -79,6 +81,7 @@ class LoadEstimator:
     _input: np.ndarray = field(default_factory=lambda: np.zeros(3), init=False, repr=False)
     _mass: float = field(default=0.0, init=False, repr=False)
     _length: float = field(default=0.0, init=False, repr=False)
+    _depth: float = field(default=0.0, init=False, repr=False)
 
     def __post_init__(self):
         for name in ("period", "gravity", "position_std", "acceleration_std", "drift_std", "weighing_time"):
@@ -108,9 +111,15 @@ class LoadEstimator:
         return self._length
 
     @property
+    def depth(self) -> float:
+        """The depth of the load's target below the drone's [m] (the first observation's; without a
+        winch also l)."""
+        return self._depth
+
+    @property
     def position_error(self) -> np.ndarray:
-        """The load's place relative to its own target, l below the drone's [m]."""
-        return self._state[:, 0] - self._length * E3
+        """The load's place relative to its own target, :attr:`depth` below the drone's [m]."""
+        return self._state[:, 0] - self._depth * E3
 
     @property
     def velocity(self) -> np.ndarray:
@@ -134,14 +143,20 @@ class LoadEstimator:
             out[ESTIMATE["load_mass"]] = self._mass
         return out
 
-    def update(self, drone_error: np.ndarray, tension: np.ndarray, load_target_offset: np.ndarray) -> None:
+    def update(self, drone_error: np.ndarray, tension: np.ndarray, load_target_offset: np.ndarray,
+               length: Optional[float] = None) -> None:
         """Take one observation: the drone's position error [m], the hook's pull [N] and the load
-        target relative to the drone [m]."""
+        target relative to the drone [m]; ``length``, the drone-load distance now [m] when a winch
+        changes it (None: the depth of the load's target below the drone's, from the first)."""
         pull = float(np.linalg.norm(tension))
         q = tension / pull if pull > 0 else E3
+        if length is not None:
+            self._length = max(float(length), 0.0)
         if self._state is None:
             self._mass = max(float(tension[2]), 0.0) / self.gravity
-            self._length = max(float(load_target_offset[2] + drone_error[2]), 0.0)
+            self._depth = max(float(load_target_offset[2] + drone_error[2]), 0.0)
+            if length is None:
+                self._length = self._depth
             self._state = np.zeros((3, 3))
             self._state[:, 0] = drone_error + self._length * q
         else:

@@ -62,6 +62,9 @@ def baseline_factories(task: str, env_kwargs: Optional[dict] = None) -> dict:
         if setup.winch:  # the cascade at the pivot, the PD law's hoist reeling
             if setup.observer.mode == "full":
                 out["geometric"] = lambda: Hoist(geometric_controller(task, setup.actuation), GEOMETRIC_HOIST_GAIN)
+            else:
+                out["geometric"] = lambda: Hoist(HookGeometricController.for_setup(
+                    setup, hook_geometric_controller(task, setup.actuation), **HOOK_ESTIMATOR), GEOMETRIC_HOIST_GAIN)
             return out
         if setup.observer.mode == "full":
             out["geometric"] = lambda: geometric_controller(task, setup.actuation)
