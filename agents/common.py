@@ -33,7 +33,7 @@ class RunConfig(BaseModel):
     #: (SB3 VecFrameStack), the memory an observation without the load's state needs
     frame_stack: int = Field(default=1, ge=1)
     #: a baseline the policy's action is added to (agents/residual.py), or None
-    residual: Optional[Literal["pd", "lqg", "geometric"]] = None
+    residual: Optional[Literal["pd", "lqr", "lqg", "geometric"]] = None
     #: PPO only: the critic also sees the simulator's state and the episode's parameters
     #: (agents/privileged.py), the actor the observation alone
     privileged_critic: bool = False

@@ -23,7 +23,7 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
 #: The baselines a residual may start from.
-BASES = ("pd", "lqg", "geometric")
+BASES = ("pd", "lqr", "lqg", "geometric")
 RESIDUAL_FILE = "residual.json"
 
 
@@ -34,12 +34,32 @@ def base_policy(name: str, task: str, env_kwargs: Optional[dict] = None):
 
     if name not in BASES:
         raise ValueError(f"residual must be one of {BASES}, got {name!r}")
+    if name == "lqr":
+        return nominal_lqr(task, env_kwargs)
     known = baseline_factories(task, env_kwargs)  # "pd" is the winch's Hoist where the task reels
     if name not in known:
         needs = ("a drone's scene (with a winch, the full observation)" if name == "geometric"
                  else "the hook observation (env_kwargs observation: hook or preset: hard)")
         raise ValueError(f"residual {name!r} needs {needs}; with {env_kwargs or {}} the baselines are {sorted(known)}")
     return known[name]()
+
+
+def nominal_lqr(task: str, env_kwargs: Optional[dict] = None):
+    """The LQR of ``task`` designed once for the nominal scene (agents/baselines/lqr.py, the
+    registry's weights): stateless, so a batch shares it. It is the registry's ``lqr`` on every
+    episode of a configuration that draws no scene; ``track``'s follows a reference (per episode)."""
+    from agents.baselines.lqr import LQR
+    from agents.baselines.registry import LQR_WEIGHT
+    from esp_gym.setup import make_setup
+
+    setup = make_setup(task=task, **(env_kwargs or {}))
+    if task not in ("stabilize", "transport"):
+        raise ValueError(f"residual 'lqr' is the stabilize and transport tasks' fixed design; task {task!r} has "
+                         f"none (track's follows each episode's reference)")
+    if setup.randomizer is not None or setup.drone or setup.winch or setup.observer.mode != "full":
+        raise ValueError(f"residual 'lqr' is one design for the nominal scene: it needs the point pivot, the full "
+                         f"observation, no winch and no randomize; got {env_kwargs or {}}")
+    return LQR.design(setup, None, LQR_WEIGHT[task])
 
 
 def base_features(base, batch: tuple = ()) -> np.ndarray:

@@ -88,3 +88,29 @@ def test_lqg_residual_env_with_a_zero_network_is_the_lqg():
     for _ in range(60):
         nudged += wrapped.step(np.full((2, 6), 0.05, np.float32))[1]
     assert not np.allclose(nudged, single, rtol=1e-3, atol=0)
+
+
+def test_the_lqr_base_is_the_registrys_lqr_on_the_nominal_scene_and_refuses_elsewhere():
+    """residual=lqr: one design for the nominal scene, the registry's per-episode LQR's actions on its
+    episodes (a nominal configuration draws no scene); refused, by name, where one design would not
+    be that LQR (randomize, hook observation, track's reference)."""
+    import gymnasium as gym
+    import pytest
+
+    import esp_gym
+    from agents.baselines.registry import baselines
+    from agents.residual import base_policy
+
+    env = gym.make(esp_gym.ENV_ID, task="transport").unwrapped
+    fixed, per_episode = base_policy("lqr", "transport"), baselines("transport")["lqr"]
+    for seed in (0, 1):
+        obs, _ = env.reset(seed=seed)
+        per_episode.reset(env)
+        for _ in range(5):
+            assert np.array_equal(fixed.act(obs, env.setup), per_episode.act(obs, env.setup))
+            obs, *_ = env.step(fixed.act(obs, env.setup))
+    for task, kwargs, message in (("stabilize", {"randomize": True}, "no randomize"),
+                                  ("stabilize", {"observation": "hook"}, "full observation"),
+                                  ("track", {}, "track's follows")):
+        with pytest.raises(ValueError, match=message):
+            base_policy("lqr", task, kwargs)
