@@ -37,6 +37,9 @@ class RunConfig(BaseModel):
     #: PPO only: the critic also sees the simulator's state and the episode's parameters
     #: (agents/privileged.py), the actor the observation alone
     privileged_critic: bool = False
+    #: PPO only: environment steps during which the actor is held (only the critic learns), so
+    #: that a residual policy's first updates follow a trained critic, not a random one
+    critic_warmup: int = Field(default=0, ge=0)
     algo: dict = {}
 
 
@@ -252,6 +255,38 @@ class TimeLimitCallback(BaseCallback):
     def _on_step(self) -> bool:
         self.stopped = time.perf_counter() - self.start >= self.seconds
         return not self.stopped
+
+
+class CriticWarmup(BaseCallback):
+    """Holds the actor of an SB3 actor-critic (its layers, its mean's output and its log std) for
+    the first ``steps`` environment steps, so that only the critic learns (the optimiser skips
+    parameters without a gradient); then lets it learn as usual."""
+
+    def __init__(self, steps: int):
+        super().__init__()
+        self.steps = int(steps)
+        self.held = False
+
+    def _actor(self) -> list:
+        policy = self.model.policy
+        return (list(policy.mlp_extractor.policy_net.parameters()) + list(policy.action_net.parameters())
+                + [policy.log_std])
+
+    def _hold(self, held: bool) -> None:
+        for parameter in self._actor():
+            parameter.requires_grad_(not held)
+        self.held = held
+
+    def _on_training_start(self) -> None:
+        if self.model.num_timesteps < self.steps:
+            self._hold(True)
+
+    def _on_rollout_start(self) -> None:
+        if self.held and self.model.num_timesteps >= self.steps:
+            self._hold(False)
+
+    def _on_step(self) -> bool:
+        return True
 
 
 def plot_learning_curve(run_dir: Path, title: str) -> Optional[Path]:

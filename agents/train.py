@@ -35,8 +35,8 @@ import yaml
 import esp_gym
 from agents.artifacts import ModelFileError, load_model
 from agents.cli import SettingsError, one_line, option_name, parse_settings, settings_parser
-from agents.common import (CONFIG_DIR, ROOT, ConfigError, RunConfig, TimeLimitCallback, TqdmCallback, json_default,
-                           load_run_config, plot_learning_curve, resolve_schedules)
+from agents.common import (CONFIG_DIR, ROOT, ConfigError, CriticWarmup, RunConfig, TimeLimitCallback, TqdmCallback,
+                           json_default, load_run_config, plot_learning_curve, resolve_schedules)
 from agents.baselines.pd import ZeroPolicy
 from agents.evaluate import evaluate_policy
 from agents.normalization import NormStats
@@ -166,6 +166,8 @@ def prepare(s: Settings, given: frozenset = frozenset()) -> Prepared:
 
     if cfg.privileged_critic and s.algo != "ppo":
         raise SettingsError("--set", f"privileged_critic needs an actor-critic with a state value (ppo), not {s.algo}")
+    if cfg.critic_warmup and s.algo != "ppo":
+        raise SettingsError("--set", f"critic_warmup needs an actor-critic with a state value (ppo), not {s.algo}")
     try:  # a residual the observation cannot feed, a batch past the memory: before anything is written
         monitor = RunMonitor(_make_vec_env(cfg.n_envs, s.task, s.seed, cfg.env_kwargs, cfg.residual,
                                            cfg.privileged_critic))
@@ -273,7 +275,8 @@ def run(p: Prepared, argv: Optional[list] = None, callbacks: Sequence = ()) -> P
             evaluations,
             RunCheckpoint(run_dir / "checkpoints", s.checkpoint_freq, p.monitor),
             TqdmCallback(cfg.total_timesteps, disable=not s.progress),  # counts from the resumed step
-        ] + ([limit] if limit else []) + list(callbacks))
+        ] + ([limit] if limit else []) + ([CriticWarmup(cfg.critic_warmup)] if cfg.critic_warmup else [])
+            + list(callbacks))
         first = model.num_timesteps
         # SB3's training statistics (losses, entropy, KL, ...) into the run, one file per segment
         # (a resume does not overwrite the first); by default SB3 makes an empty /tmp/SB3-* per run

@@ -114,3 +114,31 @@ def test_the_lqr_base_is_the_registrys_lqr_on_the_nominal_scene_and_refuses_else
                                   ("track", {}, "track's follows")):
         with pytest.raises(ValueError, match=message):
             base_policy("lqr", task, kwargs)
+
+
+def test_the_critic_warmup_holds_the_actor_while_the_critic_learns():
+    """critic_warmup (agents/common.py CriticWarmup): two PPO updates held from the start leave every
+    actor parameter as it was and move the critic's; without the hold (the negative control) the
+    actor moves too."""
+    import torch
+    from stable_baselines3 import PPO
+
+    from agents.common import CriticWarmup
+
+    def trained(hold_steps):
+        torch.manual_seed(0)
+        model = PPO("MlpPolicy", ElasticStringPendulumSB3VecEnv(num_envs=2, task="stabilize"), n_steps=32,
+                    batch_size=64, n_epochs=2, seed=0, device="cpu")
+        warmup = CriticWarmup(hold_steps)
+        warmup.init_callback(model)
+        actor = [p.detach().clone() for p in warmup._actor()]
+        critic = [p.detach().clone() for p in model.policy.mlp_extractor.value_net.parameters()]
+        model.learn(total_timesteps=128, callback=warmup)
+        moved = lambda before, now: max(float((a - b).abs().max()) for a, b in zip(before, now))
+        return (moved(actor, warmup._actor()),
+                moved(critic, list(model.policy.mlp_extractor.value_net.parameters())))
+
+    held_actor, held_critic = trained(10 ** 9)
+    assert held_actor == 0.0 and held_critic > 0.0
+    free_actor, _ = trained(0)
+    assert free_actor > 0.0
