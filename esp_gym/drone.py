@@ -128,8 +128,9 @@ class DroneSimulator(Simulator):
             raise ValueError(f"use_scene: pivot.kind must stay 'drone', got {scene.pivot.kind!r}")
         super().use_scene(scene, params)
         use_drone_scene(self.drone, scene)
-        use_hook_scene(self.hook, scene)
         self._hooked = scene.pivot.drone.offset_hook
+        if self._hooked:  # the hook's constants are read only then (an O(N) column per episode)
+            use_hook_scene(self.hook, scene)
 
     # -- state ------------------------------------------------------------------------------
     @property

@@ -14,12 +14,11 @@ from esp_gym.state import mass_matrix
 
 from discrete_lagrangian import (E3, expm, left_perturbed, random_rotation, random_state, right_perturbed,
                                  rigid_body_lagrangian, string_lagrangian)
+from test_discrete_lagrangian import REL_STEP, RTOL, central
 from test_drone import wobbling_commands
 
 #: The hook 6 cm below the drone's centre of mass and off its axes (hook -> centre, body frame).
 RHO_Q = [0.02, -0.01, -0.06]
-REL_STEP = 1e-6
-RTOL = 1e-7
 
 
 def hooked_scene(rho_q=RHO_Q, **overrides):
@@ -46,10 +45,6 @@ def drone_lagrangian(scene, r1, Rq, dr1, FqmI, rho=None) -> float:
 def rig_lagrangian(scene, r, R, Rq, dr, FmI, FqmI, rho=None) -> float:
     return (string_lagrangian(scene, r, dr) + rigid_body_lagrangian(scene, r[-1], R, dr[-1], FmI)
             + drone_lagrangian(scene, r[0], Rq, dr[0], FqmI, rho))
-
-
-def central(fun, d):
-    return (fun(d) - fun(-d)) / (2.0 * d)
 
 
 def fd_momenta(scene, before, after, rho=None):

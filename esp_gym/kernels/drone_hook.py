@@ -31,7 +31,7 @@ from .jit import kernel
 from .layout import IN_PIVOT_FORCE, IN_PIVOT_FORCE_END
 from .lgvi import end_shift, load_rhs, string_increments
 from .loops import finish
-from .so3 import cayley_minus_identity, cayley_newton, solve3
+from .so3 import cayley_minus_identity, cayley_newton, cross, rotated, solve3, unrotated
 from .status import NEWTON_FAILED, NON_FINITE, OK
 from .step_shared import (body_momentum_increment, commit_rotation, commit_step, held_inputs, left_torque,
                           new_positions, next_attitude, weight_torque)
@@ -66,15 +66,11 @@ def drone_turn(DR, HK, P, X, h, t, qL, coupled):
     hh = 0.5 * h
     mq = P.Mp
     corner = P.M * P.w[0] if coupled else 0.0
-    d0 = h * X[0, 0] - corner * qL[0]
-    d1 = h * X[0, 1] - corner * qL[1]
-    d2 = h * X[0, 2] - corner * qL[2]
-    e0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2  # R_q^T d_1
-    e1 = R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2
-    e2 = R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2
-    g0 = h * (Pi[0] + hh * t[0]) - mq * (rho[1] * e2 - rho[2] * e1)
-    g1 = h * (Pi[1] + hh * t[1]) - mq * (rho[2] * e0 - rho[0] * e2)
-    g2 = h * (Pi[2] + hh * t[2]) - mq * (rho[0] * e1 - rho[1] * e0)
+    e = unrotated(R, (h * X[0, 0] - corner * qL[0], h * X[0, 1] - corner * qL[1], h * X[0, 2] - corner * qL[2]))
+    a = cross(rho, e)  # rho_q x R_q^T d_1
+    g0 = h * (Pi[0] + hh * t[0]) - mq * a[0]
+    g1 = h * (Pi[1] + hh * t[1]) - mq * a[1]
+    g2 = h * (Pi[2] + hh * t[2]) - mq * a[2]
     c0, c1, c2, iters, converged = cayley_newton(g0, g1, g2, HK.jeff, P.tol, P.max_iter, DR.scratch[0])
     FmI = DR.scratch[1]
     cayley_minus_identity(c0, c1, c2, FmI)
@@ -83,22 +79,20 @@ def drone_turn(DR, HK, P, X, h, t, qL, coupled):
 
 
 @kernel(inline="always")
-def load_turn(S, W, P, HK, h, t, qq, forced, coupled):
-    """The load's Cayley equation for a given drone turn ``qq``: Newton on F with g_L (module
-    docstring), F - I into ``W.FmI``. Returns ``(c (3), q_L (3), s_L = (F - I) rho_c (3),
-    iterations, converged)``."""
+def load_turn(S, W, P, HK, g, qq, coupled):
+    """The load's Cayley equation for a given drone turn ``qq``: Newton on F with g_L, the load's own
+    right-hand side ``g`` (kernels/lgvi.py ``load_rhs``) plus the drone's share (module docstring),
+    F - I into ``W.FmI``. Returns ``(c (3), q_L (3), s_L = (F - I) rho_c (3), iterations,
+    converged)``."""
     R = S.R
-    g0, g1, g2, _, _, _, _, _, _ = load_rhs(S, P, W.X, h, t, forced, coupled)
+    g0, g1, g2 = g
     s0 = s1 = s2 = q0 = q1 = q2 = 0.0
     if coupled:
         k = P.M * P.Mp * HK.column[W.X.shape[0] - 1]
-        a0 = R[0, 0] * qq[0] + R[1, 0] * qq[1] + R[2, 0] * qq[2]  # R^T q_q
-        a1 = R[0, 1] * qq[0] + R[1, 1] * qq[1] + R[2, 1] * qq[2]
-        a2 = R[0, 2] * qq[0] + R[1, 2] * qq[1] + R[2, 2] * qq[2]
-        rho = P.rho
-        g0 += k * (rho[1] * a2 - rho[2] * a1)
-        g1 += k * (rho[2] * a0 - rho[0] * a2)
-        g2 += k * (rho[0] * a1 - rho[1] * a0)
+        a = cross(P.rho, unrotated(R, qq))  # rho_c x R^T q_q
+        g0 += k * a[0]
+        g1 += k * a[1]
+        g2 += k * a[2]
     c0, c1, c2, iters, converged = cayley_newton(g0, g1, g2, P.Jeff, P.tol, P.max_iter, W.jac)
     cayley_minus_identity(c0, c1, c2, W.FmI)
     if coupled:
@@ -115,7 +109,10 @@ def failure(c):
 @kernel(inline="always")
 def coupled_turns(S, W, P, DR, HK, h, t, tq, forced, coupled):
     """Both Cayley equations, alternated until the load's turn q_L is still to the Newton tolerance
-    (module docstring). Returns ``(status, iterations, c, q_L, s_L, c_q, q_q)``."""
+    (module docstring). Returns ``(status, iterations, c, q_L, s_L, c_q, q_q, R_k^T d)`` (d = h X_{N+1},
+    the string solve's share of dr_{N+1}; 0 when not ``coupled``)."""
+    g0, g1, g2, _, _, _, e0, e1, e2 = load_rhs(S, P, W.X, h, t, forced, coupled)
+    e = (e0, e1, e2)
     qL = (0.0, 0.0, 0.0)
     c = s = qq = cq = (0.0, 0.0, 0.0)
     total = 0
@@ -124,25 +121,24 @@ def coupled_turns(S, W, P, DR, HK, h, t, tq, forced, coupled):
         cq, qq, iters, converged = drone_turn(DR, HK, P, W.X, h, tq, qL, coupled)
         total += iters
         if not converged:
-            return failure(cq), total, c, qL, s, cq, qq
-        c, q, s, iters, converged = load_turn(S, W, P, HK, h, t, qq, forced, coupled)
+            return failure(cq), total, c, qL, s, cq, qq, e
+        c, q, s, iters, converged = load_turn(S, W, P, HK, (g0, g1, g2), qq, coupled)
         total += iters
         if not converged:
-            return failure(c), total, c, qL, s, cq, qq
+            return failure(c), total, c, qL, s, cq, qq, e
         change = (q[0] - qL[0]) ** 2 + (q[1] - qL[1]) ** 2 + (q[2] - qL[2]) ** 2
         qL = q
         if not coupled or change <= tol2 * (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]):
-            return OK, total, c, qL, s, cq, qq
-    return NEWTON_FAILED, total, c, qL, s, cq, qq
+            return OK, total, c, qL, s, cq, qq, e
+    return NEWTON_FAILED, total, c, qL, s, cq, qq, e
 
 
 @kernel(inline="always")
-def hook_increments(S, W, P, HK, h, qL, sL, qq, coupled):
-    """The increments dr = h X - M w q_L - m_q w_1 q_q into ``W.Y`` (module docstring). Returns
-    ``(e = R_k^T dr_{N+1} (3), the pivot's displacement dr_1 (3))``."""
+def hook_increments(S, W, P, HK, h, ed, qL, sL, qq, coupled):
+    """The increments dr = h X - M w q_L - m_q w_1 q_q into ``W.Y`` (module docstring), from ``ed`` =
+    R_k^T h X_{N+1}. Returns ``(e = R_k^T dr_{N+1} (3), the pivot's displacement dr_1 (3))``."""
     X = W.X
     Y = W.Y
-    R = S.R
     n = X.shape[0] - 1
     M = P.M
     mq = P.Mp
@@ -153,35 +149,27 @@ def hook_increments(S, W, P, HK, h, qL, sL, qq, coupled):
         for i in range(3):
             Y[a, i] = Y[a, i] - mq * w1[a] * qq[i]
     e0 = e1 = e2 = 0.0
-    if coupled:
-        d0 = h * X[n, 0]
-        d1 = h * X[n, 1]
-        d2 = h * X[n, 2]
-        e0 = R[0, 0] * d0 + R[1, 0] * d1 + R[2, 0] * d2 - M * w[n] * sL[0]
-        e1 = R[0, 1] * d0 + R[1, 1] * d1 + R[2, 1] * d2 - M * w[n] * sL[1]
-        e2 = R[0, 2] * d0 + R[1, 2] * d1 + R[2, 2] * d2 - M * w[n] * sL[2]
-        e0 -= mq * w1[n] * (R[0, 0] * qq[0] + R[1, 0] * qq[1] + R[2, 0] * qq[2])
-        e1 -= mq * w1[n] * (R[0, 1] * qq[0] + R[1, 1] * qq[1] + R[2, 1] * qq[2])
-        e2 -= mq * w1[n] * (R[0, 2] * qq[0] + R[1, 2] * qq[1] + R[2, 2] * qq[2])
+    if coupled:  # R_k^T dr_{N+1} = R_k^T d - M w_{N+1} (F - I) rho_c - m_q (w_1)_{N+1} R_k^T q_q
+        a = unrotated(S.R, qq)
+        e0 = ed[0] - M * w[n] * sL[0] - mq * w1[n] * a[0]
+        e1 = ed[1] - M * w[n] * sL[1] - mq * w1[n] * a[1]
+        e2 = ed[2] - M * w[n] * sL[2] - mq * w1[n] * a[2]
     return (e0, e1, e2), (Y[0, 0], Y[0, 1], Y[0, 2])
 
 
 @kernel(inline="always")
-def drone_momentum(DR, HK, P, h, tq, wr, dr1):
+def drone_momentum(DR, HK, P, h, tq, wr, dr1, compensated):
     """R_q,k+1 into ``DR.scratch[3]`` (R_q,k (F_q - I) in ``DR.scratch[2]``), and the drone's
     (4) at the hook: dPi_q (body_momentum_increment with m_q, rho_q) from its left torque ``tq``,
     its right one (the weight's and the rotors' about the hook at R_q,k+1, ``wr`` the end's
     wrench) and e_q = R_q,k^T dr_1. Returns ``(dPi_q, tau_q^+)``."""
     R = DR.R
     rho = HK.rho
-    next_attitude(R, DR.Rc, DR.scratch[1], DR.scratch[2], DR.scratch[3], P.compensated)
+    next_attitude(R, DR.Rc, DR.scratch[1], DR.scratch[2], DR.scratch[3], compensated)
     right = hook_torque(rho, wr)
     n0, n1, n2 = weight_torque(P.Mp * P.g, rho, DR.scratch[3])
-    e0 = R[0, 0] * dr1[0] + R[1, 0] * dr1[1] + R[2, 0] * dr1[2]
-    e1 = R[0, 1] * dr1[0] + R[1, 1] * dr1[1] + R[2, 1] * dr1[2]
-    e2 = R[0, 2] * dr1[0] + R[1, 2] * dr1[1] + R[2, 2] * dr1[2]
     dP = body_momentum_increment(DR.Pi, DR.scratch[1], P.Mp, rho, h, tq, (n0 + right[0], n1 + right[1], n2 + right[2]),
-                                 (e0, e1, e2), True, True)
+                                 unrotated(R, dr1), True, True)
     return dP, right
 
 
@@ -204,12 +192,12 @@ def hook_substep(S, W, P, DR, HK, inputs, h, coupled, compensated):
     g0, g1, g2 = weight_torque(P.Mp * P.g, rho, Rq)
     tq = (g0 + lq[0], g1 + lq[1], g2 + lq[2])
     string_solve(P.inv, P.cp, 0, S.p, S.f, 0.5 * h, up0, up1, up2, True, W.X)
-    status, iters, c, qL, sL, cq, qq = coupled_turns(S, W, P, DR, HK, h, (left[3], left[4], left[5]), tq, True,
-                                                       coupled)
+    status, iters, c, qL, sL, cq, qq, ed = coupled_turns(S, W, P, DR, HK, h, (left[3], left[4], left[5]), tq, True,
+                                                           coupled)
     if status != OK:
         return status, iters
-    e, dr1 = hook_increments(S, W, P, HK, h, qL, sL, qq, coupled)
-    dP, right = drone_momentum(DR, HK, P, h, tq, wr, dr1)
+    e, dr1 = hook_increments(S, W, P, HK, h, ed, qL, sL, qq, coupled)
+    dP, right = drone_momentum(DR, HK, P, h, tq, wr, dr1, compensated)
     if not np.isfinite(dP[0] + dP[1] + dP[2]):
         return NON_FINITE, iters
     Rn = DR.scratch[3]
@@ -280,18 +268,14 @@ def hook_velocities(S, P, DR, HK, V):
     M = P.M
     mq = P.Mp
     tridiag_solve(P.inv, P.cp, P.off, 0, p, V)
-    eN = (R[0, 0] * V[n, 0] + R[1, 0] * V[n, 1] + R[2, 0] * V[n, 2],
-          R[0, 1] * V[n, 0] + R[1, 1] * V[n, 1] + R[2, 1] * V[n, 2],
-          R[0, 2] * V[n, 0] + R[1, 2] * V[n, 1] + R[2, 2] * V[n, 2])
-    e1 = (Rq[0, 0] * V[0, 0] + Rq[1, 0] * V[0, 1] + Rq[2, 0] * V[0, 2],
-          Rq[0, 1] * V[0, 0] + Rq[1, 1] * V[0, 1] + Rq[2, 1] * V[0, 2],
-          Rq[0, 2] * V[0, 0] + Rq[1, 2] * V[0, 1] + Rq[2, 2] * V[0, 2])
-    bL0 = S.Pi[0] - M * (rc[1] * eN[2] - rc[2] * eN[1])
-    bL1 = S.Pi[1] - M * (rc[2] * eN[0] - rc[0] * eN[2])
-    bL2 = S.Pi[2] - M * (rc[0] * eN[1] - rc[1] * eN[0])
-    bq0 = DR.Pi[0] - mq * (rq[1] * e1[2] - rq[2] * e1[1])
-    bq1 = DR.Pi[1] - mq * (rq[2] * e1[0] - rq[0] * e1[2])
-    bq2 = DR.Pi[2] - mq * (rq[0] * e1[1] - rq[1] * e1[0])
+    aL = cross(rc, unrotated(R, V[n]))  # rho_c x R^T y_{N+1}
+    aq = cross(rq, unrotated(Rq, V[0]))  # rho_q x R_q^T y_1
+    bL0 = S.Pi[0] - M * aL[0]
+    bL1 = S.Pi[1] - M * aL[1]
+    bL2 = S.Pi[2] - M * aL[2]
+    bq0 = DR.Pi[0] - mq * aq[0]
+    bq1 = DR.Pi[1] - mq * aq[1]
+    bq2 = DR.Pi[2] - mq * aq[2]
     A, B, C, _ = DR.scratch  # R^T R_q, then the coupling C and the Schur complement (free between steps)
     for i in range(3):
         for j in range(3):
@@ -322,12 +306,8 @@ def hook_velocities(S, P, DR, HK, V):
     v0, v1, v2 = solve3(Jq, bq0 - (C[0, 0] * o0 + C[1, 0] * o1 + C[2, 0] * o2),
                         bq1 - (C[0, 1] * o0 + C[1, 1] * o1 + C[2, 1] * o2),
                         bq2 - (C[0, 2] * o0 + C[1, 2] * o1 + C[2, 2] * o2))
-    x = (rc[1] * o2 - rc[2] * o1, rc[2] * o0 - rc[0] * o2, rc[0] * o1 - rc[1] * o0)  # rho_c x Omega
-    y = (rq[1] * v2 - rq[2] * v1, rq[2] * v0 - rq[0] * v2, rq[0] * v1 - rq[1] * v0)  # rho_q x Omega_q
-    qL = (R[0, 0] * x[0] + R[0, 1] * x[1] + R[0, 2] * x[2], R[1, 0] * x[0] + R[1, 1] * x[1] + R[1, 2] * x[2],
-          R[2, 0] * x[0] + R[2, 1] * x[1] + R[2, 2] * x[2])
-    qq = (Rq[0, 0] * y[0] + Rq[0, 1] * y[1] + Rq[0, 2] * y[2], Rq[1, 0] * y[0] + Rq[1, 1] * y[1] + Rq[1, 2] * y[2],
-          Rq[2, 0] * y[0] + Rq[2, 1] * y[1] + Rq[2, 2] * y[2])
+    qL = rotated(R, cross(rc, (o0, o1, o2)))  # R (rho_c x Omega)
+    qq = rotated(Rq, cross(rq, (v0, v1, v2)))  # R_q (rho_q x Omega_q)
     w = P.w
     column = HK.column
     for a in range(n + 1):

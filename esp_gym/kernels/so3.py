@@ -7,6 +7,26 @@ import numpy as np
 from .jit import kernel
 
 
+@kernel(inline="always")
+def rotated(R, v):
+    """R v for a 3x3 ``R`` and a 3-vector ``v`` (a body vector in the spatial frame), a 3-tuple."""
+    return (R[0, 0] * v[0] + R[0, 1] * v[1] + R[0, 2] * v[2], R[1, 0] * v[0] + R[1, 1] * v[1] + R[1, 2] * v[2],
+            R[2, 0] * v[0] + R[2, 1] * v[1] + R[2, 2] * v[2])
+
+
+@kernel(inline="always")
+def unrotated(R, v):
+    """R^T v for a 3x3 ``R`` and a 3-vector ``v`` (a spatial vector in the body frame), a 3-tuple."""
+    return (R[0, 0] * v[0] + R[1, 0] * v[1] + R[2, 0] * v[2], R[0, 1] * v[0] + R[1, 1] * v[1] + R[2, 1] * v[2],
+            R[0, 2] * v[0] + R[1, 2] * v[1] + R[2, 2] * v[2])
+
+
+@kernel(inline="always")
+def cross(a, b):
+    """a x b of two 3-vectors, a 3-tuple."""
+    return a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
+
+
 @kernel
 def solve3(A, b0, b1, b2):
     """Solve ``A x = b`` for a 3x3 matrix by cofactors; returns ``(x0, x1, x2)``.
