@@ -16,8 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from stable_baselines3.common.callbacks import BaseCallback
 from tqdm.auto import tqdm
 
-ROOT = Path(__file__).resolve().parent.parent
-CONFIG_DIR = ROOT / "configs" / "agents"
+from agents import CONFIG_DIR
 
 
 class RunConfig(BaseModel):
@@ -289,14 +288,26 @@ class CriticWarmup(BaseCallback):
         return True
 
 
+#: Evaluations averaged for the residual panel's running mean (each is 10 episodes, 50,000 steps apart).
+EVALUATION_WINDOW = 10
+
+
 def plot_learning_curve(run_dir: Path, title: str) -> Optional[Path]:
-    """learning_curve.png from the training episodes (monitor) and EvalCallback's evaluations."""
+    """learning_curve.png from the training episodes (monitor) and EvalCallback's evaluations,
+    with the reference returns as lines. A residual run's curve gets a second panel near its
+    base's return: the evaluations' running mean over EVALUATION_WINDOW of them against it (the
+    full scale, down to the zero action, hides a gain of a few points)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7, 4), layout="constrained")
+    ref = run_dir / "references.json"
+    references = json.loads(ref.read_text()) if ref.is_file() else {}
+    base = references.get("residual_base_return")
+    fig, axes = plt.subplots(1, 2 if base is not None else 1, figsize=(12 if base is not None else 7, 4),
+                             layout="constrained", squeeze=False)
+    ax = axes[0, 0]
     mon = run_dir / "monitor.csv"
     if mon.is_file():
         rows = np.genfromtxt(mon, delimiter=",", skip_header=2)
@@ -306,16 +317,31 @@ def plot_learning_curve(run_dir: Path, title: str) -> Optional[Path]:
             smooth = np.convolve(rows[:, 0], np.ones(k) / k, mode="valid")
             ax.plot(steps[k - 1:], smooth, color="tab:blue", alpha=0.8, label=f"training episodes (mean of {k})")
     ev = run_dir / "evaluations.npz"
+    evaluations = None
     if ev.is_file():
         d = np.load(ev)
-        mean, std = d["results"].mean(1), d["results"].std(1)
-        ax.errorbar(d["timesteps"], mean, yerr=std, fmt="o-", color="tab:red", ms=3, label="deterministic evaluation")
+        evaluations = d["timesteps"], d["results"].mean(1)
+        ax.errorbar(d["timesteps"], evaluations[1], yerr=d["results"].std(1), fmt="o-", color="tab:red", ms=3,
+                    label="deterministic evaluation")
     for name, style in (("baseline_return", "--"), ("residual_base_return", "-."), ("zero_return", ":")):
-        ref = run_dir / "references.json"
-        if ref.is_file():
-            val = json.loads(ref.read_text()).get(name)
-            if val is not None:
-                ax.axhline(val, color="k", ls=style, lw=1, label=name.replace("_", " "))
+        if references.get(name) is not None:
+            ax.axhline(references[name], color="k", ls=style, lw=1, label=name.replace("_", " "))
+    if base is not None:
+        near = axes[0, 1]
+        if evaluations is not None and len(evaluations[0]) >= EVALUATION_WINDOW:
+            steps, means = evaluations
+            window = np.ones(EVALUATION_WINDOW) / EVALUATION_WINDOW
+            near.plot(steps, means, ".", color="tab:red", alpha=0.35, ms=3, label="evaluation (10 episodes)")
+            near.plot(steps[EVALUATION_WINDOW - 1:], np.convolve(means, window, mode="valid"), color="tab:red",
+                      label=f"running mean of {EVALUATION_WINDOW} evaluations")
+            spread = max(np.percentile(np.abs(means - base), 95), 1.0)
+            near.set_ylim(base - 1.5 * spread, base + 1.5 * spread)
+        near.axhline(base, color="k", ls="-.", lw=1, label="residual base return")
+        if references.get("baseline_return") is not None:
+            near.axhline(references["baseline_return"], color="k", ls="--", lw=1, label="baseline return")
+        near.set(xlabel="environment steps", ylabel="episode return", title="near the base")
+        near.grid(True, alpha=0.3)
+        near.legend(loc="lower right", fontsize=8)
     return save_learning_curve(fig, ax, run_dir, title)
 
 

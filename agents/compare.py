@@ -10,7 +10,7 @@ scene, its actuation and the preset's observation, and the shipped policy
 ``--model``). Each runs episodes seed + i (default seed 100000: none of them is a training or
 an evaluation-during-training seed). Per policy: mean and standard deviation of the return,
 success rate, final and mean swing, settling time and peak hook tension (agents/evaluate.py
-EpisodeResult). The best baseline is the one of highest mean return; the paired differences
+EpisodeResult), and the return of every episode (``returns``). The best baseline is the one of highest mean return; the paired differences
 (policy - best baseline, episode by episode) get a 95 % bootstrap confidence interval (BCa,
 scipy.stats.bootstrap). Prints a Markdown table, or with ``--json`` one JSON object;
 ``--out DIR`` writes both (compare_{configuration}.md/.json).
@@ -24,7 +24,7 @@ from typing import Optional
 import numpy as np
 
 from agents.cli import ArgumentParser
-from agents.common import ROOT
+from agents import ROOT
 from agents.baselines.pd import ZeroPolicy
 from agents.baselines.registry import baselines
 from agents.evaluate import SB3Policy, run_episodes, summarize
@@ -95,6 +95,7 @@ def compare(task: str, preset: Optional[str] = None, episodes: int = 100, seed: 
     table = {}
     for name, rows in results.items():
         table[name] = {k: v for k, v in summarize(rows, task).items() if k not in ("task", "episodes")}
+        table[name]["returns"] = [r.ret for r in rows]  # episode by episode, seed + i
     best = max((n for n in table if n not in NOT_BASELINES), key=lambda n: table[n]["mean_return"])
     out = {"task": task, "preset": preset, "scene": scene, "actuation": actuation, "episodes": episodes, "seed": seed,
            "model": str(path) if "policy" in policies else None, "policies": table, "best_baseline": best,
@@ -125,6 +126,16 @@ def markdown(c: dict) -> str:
     return "\n".join(lines)
 
 
+def write_comparison(c: dict, out) -> Path:
+    """Write the comparison ``c`` to ``out``/compare_{configuration}.md and .json; returns the .json."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    stem = "compare_" + configuration_name(c["task"], c["preset"], c["scene"], c["actuation"])
+    (out / f"{stem}.md").write_text(markdown(c) + "\n")
+    (out / f"{stem}.json").write_text(json.dumps(c, indent=2) + "\n")
+    return out / f"{stem}.json"
+
+
 def main(argv=None) -> dict:
     ap = ArgumentParser(prog="python -m agents.compare", description=__doc__.split("\n\n")[0])
     ap.add_episode_options(TASKS, episodes=100, preset=True, default_seed=HELD_OUT_SEED)
@@ -144,11 +155,7 @@ def main(argv=None) -> dict:
         ap.error(f"argument --model: {err}")
     print(json.dumps(c) if a.json else markdown(c))
     if a.out:
-        out = Path(a.out)
-        out.mkdir(exist_ok=True)
-        stem = "compare_" + configuration_name(a.task, a.preset, a.scene, a.actuation)
-        (out / f"{stem}.md").write_text(markdown(c) + "\n")
-        (out / f"{stem}.json").write_text(json.dumps(c, indent=2) + "\n")
+        write_comparison(c, a.out)
     return c
 
 

@@ -3,7 +3,7 @@
 
 Runs written by ``agents.train`` hold ``vecnormalize.npz`` beside ``model.zip`` and
 ``checkpoints/model_vecnormalize_N_steps.npz`` beside ``checkpoints/model_N_steps.zip``. Older runs
-(and the shipped model) hold SB3's pickled ``vecnormalize.pkl`` instead; :func:`read_legacy_pickle`
+hold SB3's pickled ``vecnormalize.pkl`` instead; :func:`read_legacy_pickle`
 reads those with an unpickler that knows only numpy's array constructors and a plain record type
 standing in for VecNormalize, RunningMeanStd and the spaces, and refuses every other global: a
 crafted pickle fails with an error naming the global instead of running it.

@@ -4,7 +4,9 @@ learning). A run with ``residual: pd``, ``lqg`` or ``geometric`` in its config t
 :class:`ResidualVecEnv` and writes ``residual.json`` beside its model; agents.evaluate.SB3Policy
 reads it back and adds the same baseline when it acts.
 
-``pd`` is stateless and acts on the raw observation. ``lqg`` (hook observation) is a Kalman
+``pd`` and ``lqr`` (stabilize, transport) are stateless and act on the raw observation; ``track``'s
+``lqr`` follows each episode's reference and appends its context (agents/baselines/lqr.py
+REFERENCE_CONTEXT) to the observation. ``lqg`` (hook observation) is a Kalman
 filter per environment: it is told the action actually applied (base plus network), and the
 network also sees its estimate [z; q; f] (agents/baselines/lqg.py; for ``track`` also the reference's
 feed-forward, velocity and displacement ahead), appended to the observation, so the
@@ -46,20 +48,22 @@ def base_policy(name: str, task: str, env_kwargs: Optional[dict] = None):
 
 def nominal_lqr(task: str, env_kwargs: Optional[dict] = None):
     """The LQR of ``task`` designed once for the nominal scene (agents/baselines/lqr.py, the
-    registry's weights): stateless, so a batch shares it. It is the registry's ``lqr`` on every
-    episode of a configuration that draws no scene; ``track``'s follows a reference (per episode)."""
-    from agents.baselines.lqr import LQR
+    registry's weights): the registry's ``lqr`` on every episode of a configuration that draws no
+    scene. stabilize's and transport's is stateless, so a batch shares it; ``track``'s
+    (LQRTracker) follows each episode's reference, one copy per environment, and tells the network
+    the reference's context."""
+    from agents.baselines.lqr import LQR, LQRTracker
     from agents.baselines.registry import LQR_WEIGHT
     from esp_gym.setup import make_setup
 
     setup = make_setup(task=task, **(env_kwargs or {}))
-    if task not in ("stabilize", "transport"):
-        raise ValueError(f"residual 'lqr' is the stabilize and transport tasks' fixed design; task {task!r} has "
-                         f"none (track's follows each episode's reference)")
+    if task not in LQR_WEIGHT:
+        raise ValueError(f"residual 'lqr' has a design for the tasks {sorted(LQR_WEIGHT)}; task {task!r} has none")
     if setup.randomizer is not None or setup.drone or setup.winch or setup.observer.mode != "full":
         raise ValueError(f"residual 'lqr' is one design for the nominal scene: it needs the point pivot, the full "
                          f"observation, no winch and no randomize; got {env_kwargs or {}}")
-    return LQR.design(setup, None, LQR_WEIGHT[task])
+    design = LQRTracker.design if task == "track" else LQR.design
+    return design(setup, None, LQR_WEIGHT[task])
 
 
 def base_features(base, batch: tuple = ()) -> np.ndarray:

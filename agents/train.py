@@ -35,7 +35,8 @@ import yaml
 import esp_gym
 from agents.artifacts import ModelFileError, load_model
 from agents.cli import SettingsError, one_line, option_name, parse_settings, settings_parser
-from agents.common import (CONFIG_DIR, ROOT, ConfigError, CriticWarmup, RunConfig, TimeLimitCallback, TqdmCallback,
+from agents import ROOT
+from agents.common import (CONFIG_DIR, ConfigError, CriticWarmup, RunConfig, TimeLimitCallback, TqdmCallback,
                            json_default, load_run_config, plot_learning_curve, resolve_schedules)
 from agents.baselines.pd import ZeroPolicy
 from agents.evaluate import evaluate_policy

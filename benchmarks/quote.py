@@ -313,9 +313,12 @@ def mujoco_chain_long_run(data: dict) -> str:
 
 
 # -- trained policies against the baselines ---------------------------------------------------
-def compare_file(task: str, preset: str = None) -> str:
-    """``agents.compare``'s output file for ``task`` (and the hard preset)."""
-    return f"docs/compare/compare_{task}{'_hard' if preset == 'hard' else ''}.json"
+def zoo_compare_files() -> tuple:
+    """``agents.compare``'s output file of every configuration of the model zoo
+    (configs/agents/zoo.yaml), in the zoo's order."""
+    from agents.zoo import configuration_names
+
+    return tuple(f"docs/compare/compare_{name}.json" for name in configuration_names())
 
 
 def _difference(result: dict, with_ci: str = "95 % CI ") -> str:
@@ -323,27 +326,80 @@ def _difference(result: dict, with_ci: str = "95 % CI ") -> str:
     return f"{signed(result['paired_diff_mean'])} ({with_ci}[{signed(low)}, {signed(high)}])"
 
 
-def compare_winch(data: dict) -> str:
-    lower, lift = data[compare_file("lower")], data[compare_file("lift")]
-    low, high = lift["paired_ci95"]
-    return f"lower {_difference(lower)}; lift {signed(lift['paired_diff_mean'])} [{signed(low)}, {signed(high)}]"
+def _configuration(result: dict) -> str:
+    where = [result["preset"] or "nominal"] + [result[k] for k in ("scene", "actuation") if result.get(k)]
+    return f"`{result['task']}` ({', '.join(where)})"
 
 
-def compare_baselines(data: dict) -> str:
-    nominal = [data[compare_file(task)] for task in ("stabilize", "transport", "track")]
-    best = {result["best_baseline"] for result in nominal}
-    diffs = sorted((result["paired_diff_mean"] for result in nominal), key=abs)
-    hard = {task: data[compare_file(task, "hard")] for task in ("stabilize", "transport", "track")}
-    winner = " and ".join(sorted(b.upper() for b in best))
-    parts = []
-    for task, result in hard.items():
+def compare_zoo_table(data: dict) -> str:
+    """One row per configuration of the zoo: its best baseline's and its policy's mean return
+    and the paired difference with its 95 % CI (bold where the CI is above zero)."""
+    lines = ["| configuration | best baseline | its return | policy's return | policy − best baseline (95 % CI) |",
+             "|---|---|---|---|---|"]
+    for source in zoo_compare_files():
+        result = data[source]
+        policies, best = result["policies"], result["best_baseline"]
         low, high = result["paired_ci95"]
-        ci = f"95 % CI [{signed(low)}, {signed(high)}]" if task == "stabilize" else f"[{signed(low)}, {signed(high)}]"
-        parts.append(f"{task} ({signed(result['paired_diff_mean'])}, {ci})" if task == "stabilize"
-                     else f"{task} ({signed(result['paired_diff_mean'])} {ci})")
-    return (f"nominal: the {winner} wins (PPO − {winner} {signed(diffs[0])} to {signed(diffs[-1])}); hard preset: "
-            f"residual PPO on the {hard['stabilize']['best_baseline'].upper()} beats it on {parts[0]}, {parts[1]} "
-            f"and {parts[2]}")
+        difference = f"{signed(result['paired_diff_mean'])} [{signed(low)}, {signed(high)}]"
+        if low > 0:
+            difference = f"**{difference}**"
+        lines.append(f"| {_configuration(result)} | {best} | {policies[best]['mean_return']:.1f} | "
+                     f"{policies['policy']['mean_return']:.1f} | {difference} |")
+    return "\n".join(lines)
+
+
+#: The columns of the full comparison, in order: every policy a configuration may compare.
+COMPARED_POLICIES = ("zero", "pd", "lqr", "lqr_zv", "lqg", "geometric", "policy")
+
+
+def compare_returns_table(data: dict) -> str:
+    """Every zoo configuration's mean return ± standard deviation per policy (the best baseline's
+    and, where it wins, the policy's in bold) and the paired difference."""
+    head = " | ".join(COMPARED_POLICIES)
+    lines = [f"| configuration | {head} | policy − best baseline (95 % CI) |",
+             "|---" * (len(COMPARED_POLICIES) + 2) + "|"]
+    for source in zoo_compare_files():
+        result = data[source]
+        low, high = result["paired_ci95"]
+        winner = "policy" if low > 0 else result["best_baseline"]
+        cells = []
+        for name in COMPARED_POLICIES:
+            s = result["policies"].get(name)
+            cell = "" if s is None else f"{s['mean_return']:.1f} ± {s['std_return']:.1f}"
+            cells.append(f"**{cell}**" if name == winner else cell)
+        difference = f"{signed(result['paired_diff_mean'])} [{signed(low)}, {signed(high)}]"
+        lines.append(f"| {_configuration(result)} | {' | '.join(cells)} | "
+                     f"{'**' + difference + '**' if low > 0 else difference} |")
+    return "\n".join(lines)
+
+
+def compare_zoo_readme(data: dict) -> str:
+    """How many shipped policies beat their configuration's best baseline (CI above zero), and
+    which do not, with their difference."""
+    results = [data[source] for source in zoo_compare_files()]
+    above = [r for r in results if r["paired_ci95"][0] > 0]
+    text = f"{len(above)} of {len(results)} above the best baseline with the 95 % CI above zero"
+    rest = [f"{_configuration(r)} {_difference(r, '')}" for r in results if r["paired_ci95"][0] <= 0]
+    return text + ("; not yet: " + ", ".join(rest) if rest else "")
+
+
+def zoo_training_files() -> tuple:
+    """The training statistics (agents.train's training.json) of every shipped model of the zoo."""
+    from agents.zoo import configuration_names
+
+    return tuple(f"models/{name}_ppo/training.json" for name in configuration_names())
+
+
+def zoo_training_table(data: dict) -> str:
+    """One row per shipped model: the environment steps it trained for and its wall time."""
+    lines = ["| model | steps | wall time | stopped by the time limit |", "|---|---|---|---|"]
+    for source in zoo_training_files():
+        t = data[source]
+        minutes, seconds = divmod(round(t["wall_time_s"]), 60)
+        stopped = {True: "yes", False: "no"}.get(t.get("stopped_by_time_limit"), "no limit set")
+        lines.append(f"| `{source.split('/')[1]}` | {t['timesteps'] / 1e6:.2f} M | {minutes} min {seconds:02d} s "
+                     f"| {stopped} |")
+    return "\n".join(lines)
 
 
 #: The drone's tasks with a shipped hard-preset policy.
@@ -364,10 +420,6 @@ def compare_drone(data: dict) -> str:
                      f"{result['best_baseline']} cascade ({policies[result['best_baseline']]['mean_return']:.1f}; "
                      f"PD law {policies['pd']['mean_return']:.1f})")
     return "; ".join(parts)
-
-
-_COMPARE_FILES = tuple(compare_file(task, preset) for task in ("stabilize", "transport", "track")
-                       for preset in (None, "hard"))
 
 
 # -- stability, the model's own error --------------------------------------------------------
@@ -595,13 +647,13 @@ QUOTES = {
                                     mujoco_chain_stability),
     "mujoco_chain.long_run": Quote("docs/img/mujoco_chain.json", "python -m benchmarks.mujoco_chain --out docs/img",
                                    mujoco_chain_long_run),
-    "compare.winch": Quote((compare_file("lower"), compare_file("lift")),
-                           "python -m agents.compare --task lift|lower --episodes 100", compare_winch),
+    "compare.zoo": Quote(zoo_compare_files(), "python -m agents.zoo --compare", compare_zoo_table),
+    "zoo.training": Quote(zoo_training_files(), "python -m agents.zoo --train", zoo_training_table),
+    "compare.returns": Quote(zoo_compare_files(), "python -m agents.zoo --compare", compare_returns_table),
+    "compare.zoo_readme": Quote(zoo_compare_files(), "python -m agents.zoo --compare", compare_zoo_readme),
     "compare.drone": Quote(tuple(drone_compare_file(task) for task in DRONE_COMPARED),
                            "python -m agents.compare --scene quadrotor_load --actuation thrust_rates --preset hard "
                            "--task T --episodes 100", compare_drone),
-    "compare.baselines": Quote(_COMPARE_FILES, "python -m agents.compare --task T [--preset hard] --episodes 100",
-                               compare_baselines),
     "stability.long_run": Quote("docs/img/stability.json", "python -m benchmarks.stability --out docs/img",
                                 stability_long_run),
     "stability.readme": Quote("docs/img/stability.json", "python -m benchmarks.stability --out docs/img",

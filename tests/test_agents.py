@@ -76,10 +76,10 @@ def test_evaluate_cli_prints_one_json_line():
 
 
 def test_shipped_policy_loads_and_stabilizes():
-    """The shipped policy (with its VecNormalize statistics, a legacy pickle read as data) runs
-    seeded episodes to the time limit and brings the load to rest: far above the zero action's
-    ~165 (the 50-episode comparison with the baseline is agents/compare.py, quoted in the README)."""
-    assert SHIPPED.is_file() and (SHIPPED.parent / "vecnormalize.pkl").is_file()
+    """The shipped policy (with its VecNormalize statistics) runs seeded episodes to the time limit
+    and brings the load to rest: far above the zero action's ~165 (the 100-episode comparison
+    with the baselines is agents/compare.py, quoted in the README)."""
+    assert SHIPPED.is_file() and (SHIPPED.parent / "vecnormalize.npz").is_file()
     policy = SB3Policy(SHIPPED)
     assert policy.normalization is not None
     stats = evaluate_policy(policy, episodes=3, seed=777)
@@ -134,6 +134,31 @@ def test_shipped_policies_beat_the_zero_action(run):
     trained = evaluate_policy(policy, task, 3, 4242, env_kwargs=env_kwargs)
     zero = evaluate_policy(ZeroPolicy(), task, 3, 4242, env_kwargs=env_kwargs)
     assert trained["mean_return"] > zero["mean_return"] + 20, (trained["mean_return"], zero["mean_return"])
+
+
+def test_the_zoo_command_trains_ships_and_compares(tmp_path):
+    """python -m agents.zoo --train --compare on one configuration and a tiny budget: the run
+    ships its files to --models, and the comparison (written to --out, not to the docs) has the
+    shipped model as its policy."""
+    from agents.zoo import SHIPPED_FILES
+
+    runs, models, out = tmp_path / "runs", tmp_path / "models", tmp_path / "compare"
+    cmd = [sys.executable, "-m", "agents.zoo", "--train", "--compare", "--only", "stabilize", "--no-progress",
+           "--runs", str(runs), "--models", str(models), "--out", str(out), "--episodes", "2",
+           "--set", "total_timesteps=1024", "n_envs=4", "n_steps=128", "batch_size=256", "n_epochs=2",
+           "critic_warmup=256"]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=900, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr[-3000:] + (runs / "zoo_stabilize.log").read_text()[-3000:]
+    shipped = models / "stabilize_ppo"
+    # every file of a finished run but the evaluations, which a run this short never makes
+    assert {p.name for p in shipped.iterdir()} == set(SHIPPED_FILES) - {"evaluations.npz"}
+    assert "residual=lqr" in (shipped / "command.txt").read_text()
+    result = json.loads((out / "compare_stabilize.json").read_text())
+    assert result["model"] == str(shipped / "model.zip") and result["episodes"] == 2
+    assert set(result["policies"]) == {"zero", "pd", "lqr", "policy"}
+    bad = subprocess.run([sys.executable, "-m", "agents.zoo", "--train", "--only", "stabilise"], capture_output=True,
+                         text=True, timeout=120, cwd=ROOT)
+    assert bad.returncode == 2 and "--only" in bad.stderr and "'stabilise'" in bad.stderr
 
 
 def test_time_limit_stops_training_and_saves(tmp_path):

@@ -275,17 +275,28 @@ def test_a_crafted_statistics_pickle_beside_a_model_is_refused_not_run(tmp_path)
     assert "open" in str(err.value)  # the global it refused
 
 
-def test_shipped_statistics_read_as_data_equal_the_pickle():
+def test_a_legacy_statistics_pickle_reads_as_data_equal_to_the_pickle(tmp_path):
+    """SB3's own VecNormalize pickle (what runs before the .npz statistics wrote) read as data
+    (agents/normalization.py read_legacy_pickle) holds what unpickling it gives."""
+    import gymnasium as gym
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
     from agents.normalization import NormStats
 
-    stats = NormStats.load(SHIPPED.parent / "vecnormalize.pkl")
-    with open(SHIPPED.parent / "vecnormalize.pkl", "rb") as fh:  # the shipped file is trusted
+    rng = np.random.default_rng(1)
+    written = VecNormalize(DummyVecEnv([lambda: gym.make("Pendulum-v1")]), clip_obs=5.0, gamma=0.98)
+    written.obs_rms.update(rng.normal(1.0, 3.0, size=(40, 3)))
+    written.ret_rms.update(rng.normal(size=40))
+    written.save(str(tmp_path / "vecnormalize.pkl"))
+    stats = NormStats.load(tmp_path / "vecnormalize.pkl")
+    with open(tmp_path / "vecnormalize.pkl", "rb") as fh:  # written here: trusted
         vn = pickle.load(fh)
     np.testing.assert_array_equal(stats.obs_mean, vn.obs_rms.mean)
     np.testing.assert_array_equal(stats.obs_var, vn.obs_rms.var)
     assert (stats.obs_count, stats.ret_count) == (vn.obs_rms.count, vn.ret_rms.count)
     assert (stats.clip_obs, stats.epsilon, stats.norm_obs, stats.norm_reward, stats.gamma) == (
         vn.clip_obs, vn.epsilon, vn.norm_obs, vn.norm_reward, vn.gamma)
+    assert stats.obs_count > 1 and stats.clip_obs == 5.0  # not a default-built record
 
 
 def test_statistics_round_trip_through_npz_and_normalise_like_vecnormalize(tmp_path):

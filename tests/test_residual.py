@@ -55,7 +55,7 @@ def test_lqg_residual_env_with_a_zero_network_is_the_lqg():
     filter's features (its estimate and the reference's context: feed-forward, velocity and
     displacement ahead, agents/baselines/lqg.py), and so do terminal observations."""
     from agents.evaluate import run_episodes
-    from agents.baselines.lqg import REFERENCE_CONTEXT
+    from agents.baselines.lqr import REFERENCE_CONTEXT
     from agents.residual import base_policy
     from esp_gym.kernels.env_arrays import TARGET
 
@@ -93,7 +93,7 @@ def test_lqg_residual_env_with_a_zero_network_is_the_lqg():
 def test_the_lqr_base_is_the_registrys_lqr_on_the_nominal_scene_and_refuses_elsewhere():
     """residual=lqr: one design for the nominal scene, the registry's per-episode LQR's actions on its
     episodes (a nominal configuration draws no scene); refused, by name, where one design would not
-    be that LQR (randomize, hook observation, track's reference)."""
+    be that LQR (randomize, hook observation) or where there is no LQR (the winch's tasks)."""
     import gymnasium as gym
     import pytest
 
@@ -111,9 +111,45 @@ def test_the_lqr_base_is_the_registrys_lqr_on_the_nominal_scene_and_refuses_else
             obs, *_ = env.step(fixed.act(obs, env.setup))
     for task, kwargs, message in (("stabilize", {"randomize": True}, "no randomize"),
                                   ("stabilize", {"observation": "hook"}, "full observation"),
-                                  ("track", {}, "track's follows")):
+                                  ("lift", {}, "task 'lift' has none")):
         with pytest.raises(ValueError, match=message):
             base_policy("lqr", task, kwargs)
+
+
+def test_the_track_lqr_base_follows_each_episodes_reference_as_the_registrys_lqr():
+    """residual=lqr on track: ResidualVecEnv with one LQRTracker per environment (each started on its
+    own episode's reference) and a zero network reproduces the registry's per-episode LQR's returns
+    on the same seeds, and the observation carries the reference's context; a small constant
+    residual (the negative control) changes them."""
+    from agents.baselines.lqr import REFERENCE_CONTEXT
+    from agents.baselines.registry import baselines
+    from agents.evaluate import run_episodes
+    from agents.residual import base_policy
+    from esp_gym.kernels.env_arrays import TARGET
+
+    venv = ElasticStringPendulumSB3VecEnv(num_envs=2, task="track", max_episode_steps=60)
+    venv.seed(700)
+    wrapped = ResidualVecEnv(venv, base_policy("lqr", "track"), venv.setup)
+    obs = wrapped.reset()
+    assert obs.shape == (2, venv.observation_space.shape[0] + REFERENCE_CONTEXT.size)
+    returns = np.zeros(2)
+    for step in range(60):
+        obs, rewards, dones, infos = wrapped.step(np.zeros((2, 6), np.float32))
+        returns += rewards
+        if step == 0:
+            context = obs[1, -REFERENCE_CONTEXT.size:]
+            assert np.allclose(context[REFERENCE_CONTEXT["reference_velocity"]],
+                               venv.control.target[1][TARGET["velocity"]], atol=1e-6)
+    assert dones.all() and all(info["terminal_observation"].shape == obs.shape[1:] for info in infos)
+    single = [e.ret for e in run_episodes(baselines("track")["lqr"], "track", 2, seed=700,
+                                          env_kwargs={"max_episode_steps": 60})]
+    assert np.allclose(returns, single, rtol=1e-5, atol=0)  # float32 rewards summed
+    venv.seed(700)
+    wrapped.reset()
+    nudged = np.zeros(2)
+    for _ in range(60):
+        nudged += wrapped.step(np.full((2, 6), 0.05, np.float32))[1]
+    assert not np.allclose(nudged, single, rtol=1e-3, atol=0)
 
 
 def test_the_critic_warmup_holds_the_actor_while_the_critic_learns():

@@ -31,9 +31,8 @@ import numpy as np
 import scipy.linalg
 
 from agents.baselines.lqr import (LQR, REDUCED, equilibrium_target, lift, lqr_solution, plain_setup, preview_feedforward,
-                        preview_terms, reference_drift, reference_states, reward_weights)
+                                  preview_terms, REFERENCE_CONTEXT, reference_context, reference_drift, reward_weights)
 from esp_gym.control import ControlStep
-from esp_gym.kernels.layout import Layout
 from esp_gym.kernels.env_arrays import ACTION, TARGET
 from esp_gym.observe import UNIT_NOISE
 from esp_gym.params import override_scene
@@ -41,11 +40,6 @@ from esp_gym.tasks import hanging_depth
 
 #: Entries of z that the process noise drives (velocities: forces act on them).
 DRIVEN = ("pivot_velocity", "load_velocity", "rate_h")
-#: What a ``track`` design tells a residual network of the reference beside its estimate
-#: (:attr:`HookLQG.features`): the preview feed-forward [action units], the reference's velocity
-#: [m/s] and its displacement [m] over the next PREVIEW_TIMES [s].
-PREVIEW_TIMES = (0.5, 1.0)
-REFERENCE_CONTEXT = Layout(("feedforward", 3), ("reference_velocity", 3), ("reference_ahead", 3 * len(PREVIEW_TIMES)))
 
 
 def measurement_model(setup, episode=None, z_step: float = 1e-5) -> tuple:
@@ -190,16 +184,6 @@ class HookLQG:
         reference's REFERENCE_CONTEXT after the last observation (zeros for a fixed target)."""
         return np.concatenate((self._estimate, self._context)) if self.preview else self._estimate
 
-    def _reference_context(self, feedforward: np.ndarray) -> np.ndarray:
-        context = np.zeros(REFERENCE_CONTEXT.size)
-        context[REFERENCE_CONTEXT["feedforward"]] = feedforward
-        now = float(self._target[TARGET.scalar("clock")])
-        ahead = reference_states(self._target, now + np.array((0.0,) + PREVIEW_TIMES))
-        pivot = REDUCED["pivot_error"]
-        context[REFERENCE_CONTEXT["reference_velocity"]] = ahead[0, REDUCED["pivot_velocity"]]
-        context[REFERENCE_CONTEXT["reference_ahead"]] = (ahead[1:, pivot] - ahead[0, pivot]).ravel()
-        return context
-
     def _drift(self) -> np.ndarray:
         """The reference's drifts d_k of the next preview steps (16 each), or None."""
         target = self._target
@@ -219,7 +203,7 @@ class HookLQG:
         if drift is not None:  # the reference moves z only: the pending actions' drift is 0
             feedforward = preview_feedforward(self.preview, drift)
             force = force + feedforward
-            self._context = self._reference_context(feedforward)
+            self._context = reference_context(self._target, feedforward)
         force = np.clip(force, -1.0, 1.0)
         self._estimate, self._drift0 = estimate, None if drift is None else drift[0]
         self._predict(force)

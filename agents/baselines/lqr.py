@@ -23,6 +23,7 @@ horizontal part. The gains are the discrete algebraic Riccati equation's (scipy)
 """
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 from dataclasses import dataclass
@@ -41,6 +42,11 @@ from esp_gym.tasks import hanging_axis, hanging_depth, rotation_between, static_
 REDUCED = Layout(("pivot_error", 3), ("pivot_velocity", 3), ("load_error", 3), ("load_velocity", 3),
                  ("axis_h", 2), ("rate_h", 2))
 HORIZONTAL = slice(0, 2)  # the x, y components of a spatial vector
+#: What a ``track`` design tells a residual network of the reference (:attr:`LQRTracker.features`,
+#: agents/baselines/lqg.py HookLQG.features): the preview feed-forward [action units], the
+#: reference's velocity [m/s] and its displacement [m] over the next PREVIEW_TIMES [s].
+PREVIEW_TIMES = (0.5, 1.0)
+REFERENCE_CONTEXT = Layout(("feedforward", 3), ("reference_velocity", 3), ("reference_ahead", 3 * len(PREVIEW_TIMES)))
 
 
 def reduced_state(obs: np.ndarray, axis: np.ndarray) -> np.ndarray:
@@ -247,19 +253,34 @@ def reference_drift(target: np.ndarray, A: np.ndarray, period: float, count: int
     return ref[:-1] @ A.T - ref[1:]
 
 
+def reference_context(target: np.ndarray, feedforward: np.ndarray) -> np.ndarray:
+    """REFERENCE_CONTEXT of the reference in TARGET ``target`` (its clock now) with the preview
+    feed-forward ``feedforward`` [action units]."""
+    context = np.zeros(REFERENCE_CONTEXT.size)
+    context[REFERENCE_CONTEXT["feedforward"]] = feedforward
+    now = float(target[TARGET.scalar("clock")])
+    ahead = reference_states(target, now + np.array((0.0,) + PREVIEW_TIMES))
+    pivot = REDUCED["pivot_error"]
+    context[REFERENCE_CONTEXT["reference_velocity"]] = ahead[0, REDUCED["pivot_velocity"]]
+    context[REFERENCE_CONTEXT["reference_ahead"]] = (ahead[1:, pivot] - ahead[0, pivot]).ravel()
+    return context
+
+
 class LQRTracker(LQR):
     """:class:`LQR` plus the optimal feed-forward of a known reference (``track``): for the error
     e = z - z_ref, e+ = A e + B a + d_k with d_k = A z_ref(t_k) - z_ref(t_k+1), the affine LQR
     gives a = -K e - G^-1 B' sum_j (A - BK)'^j P d_k+j, G = R + B'PB (docs/agents.md); the sum is
     cut after ``preview`` control steps. The reference is read from the environment's TARGET
     (:meth:`reset`), as a tracking controller is given the curve it tracks; the observation
-    already holds e."""
+    already holds e. As a residual's base (agents/residual.py) it is stateful: one copy per
+    environment (:meth:`clone`, :meth:`start`), telling the network the reference's
+    REFERENCE_CONTEXT (:attr:`features`)."""
 
     def __init__(self, base: LQR, period: float, preview: int = 150):
         super().__init__(base.K, base.axis, base.A, base.B, base.P, base.R, base.k_spin)
         self._preview = preview_terms(self.A, self.B, self.K, self.P, self.R, preview)
         self.period = float(period)
-        self._target = None
+        self.start(None)
 
     @classmethod
     def design(cls, setup, episode=None, control_weight: float = 1.0, preview: int = 150, **kw) -> "LQRTracker":
@@ -267,15 +288,38 @@ class LQRTracker(LQR):
 
     def reset(self, env) -> None:
         """Follow the reference of ``env``'s current episode (its live TARGET view)."""
-        self._target = env.control.target
+        self.start(env.control.target)
+
+    def start(self, target) -> None:
+        """Follow the reference in the live TARGET view ``target`` (None: no reference)."""
+        self._target = target
+        self._context = np.zeros(REFERENCE_CONTEXT.size)
+
+    def clone(self) -> "LQRTracker":
+        """The same design following a reference of its own (one per environment of a batch)."""
+        twin = copy.copy(self)  # the gains and preview terms shared, read only
+        twin.start(None)
+        return twin
+
+    @property
+    def features(self) -> np.ndarray:
+        """The reference's REFERENCE_CONTEXT at the last observation (zeros for a fixed target)."""
+        return self._context
+
+    def applied(self, action: np.ndarray) -> None:
+        """The law holds no estimate: what was applied changes nothing."""
 
     def act(self, obs: np.ndarray, setup) -> np.ndarray:
         obs = np.asarray(obs, dtype=np.float64)
+        if obs.ndim != 1 and self._target is not None:
+            raise ValueError(f"LQRTracker follows one environment's reference, got observations of shape {obs.shape}")
         force = -(reduced_state(obs, self.axis) @ self.K.T)
         target = self._target
         if target is not None and target[TARGET.scalar("rate")] != 0.0:
             drifts = reference_drift(target, self.A, self.period, len(self._preview[1]))
-            force = force + preview_feedforward(self._preview, drifts)
+            feedforward = preview_feedforward(self._preview, drifts)
+            force = force + feedforward
+            self._context = reference_context(target, feedforward)
         return self.action(force, obs, setup)
 
 

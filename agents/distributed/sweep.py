@@ -38,7 +38,8 @@ import yaml
 import esp_gym
 from agents.artifacts import checkpoint_steps
 from agents.cli import SettingsError, one_line, option_name, parse_settings, settings_parser
-from agents.common import ROOT, ConfigError, load_run_config
+from agents import ROOT
+from agents.common import ConfigError, load_run_config
 from agents.distributed.sweep_results import gather
 from agents.distributed.cluster import AddressError, check_address, connect, shutdown, token_auth
 from esp_gym.tasks import TASKS

@@ -34,7 +34,8 @@ import yaml
 
 import esp_gym
 from agents.cli import SettingsError, one_line, parse_settings, settings_parser
-from agents.common import ROOT, ConfigError, json_default, save_learning_curve
+from agents import ROOT
+from agents.common import ConfigError, json_default, save_learning_curve
 from agents.baselines.pd import ZeroPolicy
 from agents.evaluate import evaluate_policy
 from agents.distributed.cluster import AddressError, check_address, cluster_nodes, connect, shutdown, token_auth
