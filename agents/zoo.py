@@ -7,7 +7,7 @@
 
 ``--train`` runs ``python -m agents.train`` per configuration with the recipe's settings and the
 configuration's own (its residual base, privileged critic, environment options and ``set``),
-``--jobs`` at a time (each with one thread per library), into ``--runs`` (run directories
+``--jobs`` at a time (each with one thread per library; comparisons too), into ``--runs`` (run directories
 ``zoo_NAME``, their output in ``zoo_NAME.log``), and ships each finished run to
 ``--models``/NAME_ppo: the model, its normalisation statistics, the resolved config, the
 command, the training statistics and the learning curve (with the base controller's return
@@ -64,6 +64,7 @@ class Configuration(BaseModel):
     actuation: Optional[str] = None
     residual: Optional[Literal["pd", "lqr", "lqg", "geometric"]] = None
     privileged_critic: bool = False
+    seed: Optional[int] = Field(default=None, ge=0)  #: the recipe's seed unless given (chosen on validation seeds)
     set: dict = {}
 
     @property
@@ -122,7 +123,8 @@ def train_argv(zoo: Zoo, name: str, runs: Path, extra: tuple = ()) -> list:
     """agents.train's command line for configuration ``name`` (``extra``: more ``--set`` items)."""
     c, r = zoo.configurations[name], zoo.recipe
     items = [f"{key}={yaml_value(value)}" for key, value in settings(zoo, name).items()] + list(extra)
-    return ["--algo", r.algo, "--task", c.task, "--seed", str(r.seed), "--runs", str(runs), "--run-name",
+    seed = r.seed if c.seed is None else c.seed
+    return ["--algo", r.algo, "--task", c.task, "--seed", str(seed), "--runs", str(runs), "--run-name",
             f"zoo_{name}", "--time-limit", str(r.time_limit), "--no-progress", "--set", *items]
 
 
@@ -178,21 +180,35 @@ def train(zoo: Zoo, names: list, runs: Path, models: Path, jobs: int = 1, extra:
     return shipped
 
 
-def compare_all(zoo: Zoo, names: list, models: Path, out: Path, episodes: int, seed: int,
-                progress: bool = True) -> dict:
-    """agents.compare on each configuration's model under ``models``, written to ``out``;
-    returns {name: comparison}."""
+def compare_one(zoo: Zoo, name: str, models: Path, out: Path, episodes: int, seed: int, progress: bool) -> dict:
+    """agents.compare on configuration ``name``'s model under ``models``, written to ``out``."""
     from agents.compare import compare, write_comparison
 
-    results = {}
-    for name in names:
-        c = zoo.configurations[name]
-        model = models / f"{name}_ppo" / "model.zip"
-        if not model.is_file():
-            raise FileNotFoundError(f"configuration {name!r} has no model at {model}: train it first (--train)")
-        results[name] = compare(c.task, c.preset, episodes, seed, str(model), progress, c.scene, c.actuation)
-        write_comparison(results[name], out)
-    return results
+    c = zoo.configurations[name]
+    model = models / f"{name}_ppo" / "model.zip"
+    if not model.is_file():
+        raise FileNotFoundError(f"configuration {name!r} has no model at {model}: train it first (--train)")
+    result = compare(c.task, c.preset, episodes, seed, str(model), progress, c.scene, c.actuation)
+    write_comparison(result, out)
+    return result
+
+
+def compare_all(zoo: Zoo, names: list, models: Path, out: Path, episodes: int, seed: int, jobs: int = 1,
+                progress: bool = True) -> dict:
+    """:func:`compare_one` for each of ``names``, ``jobs`` at a time (each in a process of its own
+    when more than one); returns {name: comparison} in ``names``' order."""
+    if jobs == 1:
+        return {name: compare_one(zoo, name, models, out, episodes, seed, progress) for name in names}
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    from tqdm import tqdm
+
+    with ProcessPoolExecutor(max_workers=jobs) as pool:
+        futures = {name: pool.submit(compare_one, zoo, name, models, out, episodes, seed, False) for name in names}
+        for _ in tqdm(as_completed(futures.values()), total=len(futures), desc="zoo comparisons", unit="configuration",
+                      disable=not progress):
+            pass
+        return {name: future.result() for name, future in futures.items()}
 
 
 def main(argv=None) -> dict:
@@ -203,7 +219,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--train", action="store_true", help="train every configuration (or --only's) and ship it")
     ap.add_argument("--compare", action="store_true", help="compare every configuration's model with its baselines")
     ap.add_argument("--only", nargs="+", default=None, metavar="NAME", help="these configurations (default: all)")
-    ap.add_argument("--jobs", type=int, default=1, help="trainings at once (default: 1)")
+    ap.add_argument("--jobs", type=int, default=1, help="trainings, or comparisons, at once (default: 1)")
     ap.add_argument("--set", nargs="+", default=[], action="extend", metavar="KEY=VALUE",
                     help="more agents.train --set items for every training (e.g. a smaller total_timesteps)")
     ap.add_argument("--zoo", default=str(ZOO_FILE), help="the zoo file (default: configs/agents/zoo.yaml)")
@@ -236,7 +252,8 @@ def main(argv=None) -> dict:
         out["shipped"] = {n: str(p) for n, p in train(zoo, names, Path(a.runs), Path(a.models), a.jobs,
                                                       tuple(a.set), a.progress).items()}
     if a.compare:
-        out["compared"] = compare_all(zoo, names, Path(a.models), Path(a.out), a.episodes, a.seed, a.progress)
+        out["compared"] = compare_all(zoo, names, Path(a.models), Path(a.out), a.episodes, a.seed, a.jobs,
+                                      a.progress)
         for c in out["compared"].values():
             print(markdown(c) + "\n")
         if Path(a.out).resolve() == COMPARE_DIR.resolve():

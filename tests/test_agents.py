@@ -143,8 +143,8 @@ def test_the_zoo_command_trains_ships_and_compares(tmp_path):
     from agents.zoo import SHIPPED_FILES
 
     runs, models, out = tmp_path / "runs", tmp_path / "models", tmp_path / "compare"
-    cmd = [sys.executable, "-m", "agents.zoo", "--train", "--compare", "--only", "stabilize", "--no-progress",
-           "--runs", str(runs), "--models", str(models), "--out", str(out), "--episodes", "2",
+    cmd = [sys.executable, "-m", "agents.zoo", "--train", "--compare", "--only", "stabilize", "--jobs", "2",
+           "--no-progress", "--runs", str(runs), "--models", str(models), "--out", str(out), "--episodes", "2",
            "--set", "total_timesteps=1024", "n_envs=4", "n_steps=128", "batch_size=256", "n_epochs=2",
            "critic_warmup=256"]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=900, cwd=ROOT)
