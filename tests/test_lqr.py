@@ -64,3 +64,37 @@ def test_lqr_beats_the_zero_action(task, weight):
     lqr = evaluate_policy(policy, task=task, episodes=4, seed=123)
     zero = evaluate_policy(ZeroPolicy(), task=task, episodes=4, seed=123)
     assert lqr["mean_return"] > zero["mean_return"] + 100
+
+
+def test_the_reference_preview_is_the_150_step_sum_as_a_map_of_the_phase():
+    """ReferencePreview (the tracking LQR's feed-forward, first drift and reference context as
+    matrices on b(t)) equals the direct 150-step preview sum over the reference's drifts and the
+    context read from the curve, at random references and clocks, to 1e-12 of their size; a
+    reference drawn for another episode (the negative control) does not."""
+    from agents.baselines.lqr import (REFERENCE_CONTEXT, ReferencePreview, preview_feedforward, reference_basis,
+                                      reference_context, reference_drift)
+    from esp_gym.setup import make_setup
+    from esp_gym.tasks import track_reference
+
+    setup = make_setup(task="track")
+    law = LQRTracker.design(setup, None, 300.0)
+    rng = np.random.default_rng(3)
+    targets = [track_reference(rng, 1.0) for _ in range(4)]
+    for target in targets:
+        preview = ReferencePreview(target, law.A, law._preview, law.period)
+        for clock in rng.uniform(0.0, 20.0, 3):
+            target[TARGET.scalar("clock")] = clock
+            drifts = reference_drift(target, law.A, law.period, len(law._preview[1]))
+            feedforward = preview_feedforward(law._preview, drifts)
+            context = reference_context(target, feedforward)
+            b = preview.now()
+            assert np.allclose(preview.context @ b, context, rtol=0, atol=1e-12 * np.abs(context).max())
+            assert np.allclose(preview.drift @ b, drifts[0], rtol=0, atol=1e-12 * np.abs(drifts[0]).max())
+            assert np.abs(feedforward).max() > 1e-3  # a moving reference asks for a feed-forward
+    other = ReferencePreview(targets[1], law.A, law._preview, law.period)
+    targets[0][TARGET.scalar("clock")] = 1.0
+    drifts = reference_drift(targets[0], law.A, law.period, len(law._preview[1]))
+    assert not np.allclose(other.feedforward @ reference_basis(targets[0]),
+                           preview_feedforward(law._preview, drifts), atol=1e-3)
+    assert REFERENCE_CONTEXT.size == preview.context.shape[0]
+

@@ -266,6 +266,69 @@ def reference_context(target: np.ndarray, feedforward: np.ndarray) -> np.ndarray
     return context
 
 
+def reference_map(target: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """G (len(times), 16, 4) with z_ref(t + tau) = G(tau) b(t) for the reference in TARGET
+    ``target`` (:func:`reference_states`; b = :func:`reference_basis`): the curve is a sum of
+    sinusoids of theta and m theta, so a shift in time is a rotation of their phases."""
+    w, m = float(target[TARGET.scalar("rate")]), float(target[TARGET.scalar("harmonic")])
+    ax, ay = target[TARGET["amplitude"]]
+    c, s = math.cos(target[TARGET.scalar("orientation")]), math.sin(target[TARGET.scalar("orientation")])
+    times = np.asarray(times, dtype=np.float64)
+    cx, sx, cy, sy = np.cos(w * times), np.sin(w * times), np.cos(m * w * times), np.sin(m * w * times)
+    zero = np.zeros_like(times)
+    # the curve's own frame, rows x and y, columns b = [sin u, cos u, sin v, cos v]
+    offset = np.stack([np.stack([ax * cx, ax * sx, zero, zero], -1), np.stack([zero, zero, ay * cy, ay * sy], -1)], 1)
+    velocity = np.stack([np.stack([-ax * w * sx, ax * w * cx, zero, zero], -1),
+                         np.stack([zero, zero, -ay * m * w * sy, ay * m * w * cy], -1)], 1)
+    turn = np.array([[c, -s], [s, c], [0.0, 0.0]])  # about e3, into the spatial frame
+    G = np.zeros((len(times), REDUCED.size, 4))
+    for name in ("pivot_error", "load_error"):
+        G[:, REDUCED[name]] = turn @ offset
+    for name in ("pivot_velocity", "load_velocity"):
+        G[:, REDUCED[name]] = turn @ velocity
+    return G
+
+
+def reference_basis(target: np.ndarray) -> np.ndarray:
+    """b(t) = [sin u, cos u, sin v, cos v] of the reference in TARGET at its clock, u = theta + psi_x,
+    v = m theta + psi_y, theta = theta_0 + omega t (esp_gym/kernels/reference.py)."""
+    theta = target[TARGET.scalar("start")] + target[TARGET.scalar("rate")] * target[TARGET.scalar("clock")]
+    phase = target[TARGET["phase"]]
+    u, v = theta + phase[0], target[TARGET.scalar("harmonic")] * theta + phase[1]
+    return np.array([math.sin(u), math.cos(u), math.sin(v), math.cos(v)])
+
+
+class ReferencePreview:
+    """One episode's moving reference for a design with step ``A`` and preview ``terms``
+    (:func:`preview_terms`), as linear maps of b(t) (:func:`reference_basis`): the preview
+    feed-forward (:func:`preview_feedforward` of :func:`reference_drift`), the first drift d_k and
+    REFERENCE_CONTEXT, each a matrix product per step instead of the 150-step sum (exact to
+    round-off: z_ref(t + tau) = G(tau) b(t), :func:`reference_map`)."""
+
+    def __init__(self, target: np.ndarray, A: np.ndarray, terms: tuple, period: float):
+        weights = terms[1][:, :, :REDUCED.size]
+        G = reference_map(target, period * np.arange(len(weights) + 1))
+        drifts = np.einsum("mn,jnb->jmb", A, G[:-1]) - G[1:]  # d_k+j = (A G_j - G_j+1) b
+        self.drift = drifts[0]  #: (16, 4)
+        self.feedforward = np.einsum("jan,jnb->ab", weights, drifts)  #: (3, 4) [action units]
+        ahead = reference_map(target, np.array((0.0,) + PREVIEW_TIMES))
+        pivot = REDUCED["pivot_error"]
+        self.context = np.concatenate((self.feedforward, ahead[0, REDUCED["pivot_velocity"]],
+                                       (ahead[1:, pivot] - ahead[0, pivot]).reshape(-1, 4)))  #: REFERENCE_CONTEXT rows
+        self.target = target
+
+    @classmethod
+    def of(cls, target, A, terms, period) -> "ReferencePreview | None":
+        """The preview of a moving reference in ``target``, or None for none (a fixed target)."""
+        if target is None or target[TARGET.scalar("rate")] == 0.0:
+            return None
+        return cls(target, A, terms, period)
+
+    def now(self) -> np.ndarray:
+        """b(t) at the live TARGET's clock."""
+        return reference_basis(self.target)
+
+
 class LQRTracker(LQR):
     """:class:`LQR` plus the optimal feed-forward of a known reference (``track``): for the error
     e = z - z_ref, e+ = A e + B a + d_k with d_k = A z_ref(t_k) - z_ref(t_k+1), the affine LQR
@@ -293,6 +356,7 @@ class LQRTracker(LQR):
     def start(self, target) -> None:
         """Follow the reference in the live TARGET view ``target`` (None: no reference)."""
         self._target = target
+        self._reference = ReferencePreview.of(target, self.A, self._preview, self.period)
         self._context = np.zeros(REFERENCE_CONTEXT.size)
 
     def clone(self) -> "LQRTracker":
@@ -314,12 +378,9 @@ class LQRTracker(LQR):
         if obs.ndim != 1 and self._target is not None:
             raise ValueError(f"LQRTracker follows one environment's reference, got observations of shape {obs.shape}")
         force = -(reduced_state(obs, self.axis) @ self.K.T)
-        target = self._target
-        if target is not None and target[TARGET.scalar("rate")] != 0.0:
-            drifts = reference_drift(target, self.A, self.period, len(self._preview[1]))
-            feedforward = preview_feedforward(self._preview, drifts)
-            force = force + feedforward
-            self._context = reference_context(target, feedforward)
+        if self._reference is not None:
+            self._context = self._reference.context @ self._reference.now()
+            force = force + self._context[REFERENCE_CONTEXT["feedforward"]]
         return self.action(force, obs, setup)
 
 
