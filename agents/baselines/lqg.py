@@ -30,10 +30,10 @@ import dataclasses
 import numpy as np
 import scipy.linalg
 
-from agents.baselines.lqr import (LQR, REDUCED, equilibrium_target, lift, lqr_solution, plain_setup, preview_feedforward,
-                                  preview_terms, REFERENCE_CONTEXT, reference_context, reference_drift, reward_weights)
+from agents.baselines.lqr import (LQR, REDUCED, REFERENCE_CONTEXT, ReferencePreview, equilibrium_target, lift, lqr_solution,
+                                  plain_setup, preview_terms, reward_weights)
 from esp_gym.control import ControlStep
-from esp_gym.kernels.env_arrays import ACTION, TARGET
+from esp_gym.kernels.env_arrays import ACTION
 from esp_gym.observe import UNIT_NOISE
 from esp_gym.params import override_scene
 from esp_gym.tasks import hanging_depth
@@ -167,6 +167,7 @@ class HookLQG:
     def start(self, target) -> None:
         """Start an episode whose TARGET is the live view ``target`` (one environment's row)."""
         self._target = target
+        self._reference = ReferencePreview.of(target, self.A, self.preview, self.period) if self.preview else None
         self._predicted = np.zeros(self.A_est.shape[0])
         self._estimate = self._predicted
         self._drift0 = None
@@ -184,13 +185,6 @@ class HookLQG:
         reference's REFERENCE_CONTEXT after the last observation (zeros for a fixed target)."""
         return np.concatenate((self._estimate, self._context)) if self.preview else self._estimate
 
-    def _drift(self) -> np.ndarray:
-        """The reference's drifts d_k of the next preview steps (16 each), or None."""
-        target = self._target
-        if not self.preview or target is None or target[TARGET.scalar("rate")] == 0.0:
-            return None
-        return reference_drift(target, self.A, self.period, len(self.preview[1]))
-
     def act(self, obs: np.ndarray, setup) -> np.ndarray:
         y = np.asarray(obs, dtype=np.float64) - self.y0
         if y.ndim != 1:
@@ -199,13 +193,14 @@ class HookLQG:
         estimate = predicted + self.L @ (y - self.C_est @ predicted)
         nx = self.K.shape[1]
         force = -self.K @ estimate[:nx] - self.K_force @ estimate[nx:]
-        drift = self._drift()
-        if drift is not None:  # the reference moves z only: the pending actions' drift is 0
-            feedforward = preview_feedforward(self.preview, drift)
-            force = force + feedforward
-            self._context = reference_context(self._target, feedforward)
+        drift0 = None
+        if self._reference is not None:  # the reference moves z only: the pending actions' drift is 0
+            phases = self._reference.now()
+            self._context = self._reference.context @ phases
+            force = force + self._context[REFERENCE_CONTEXT["feedforward"]]
+            drift0 = self._reference.drift @ phases
         force = np.clip(force, -1.0, 1.0)
-        self._estimate, self._drift0 = estimate, None if drift is None else drift[0]
+        self._estimate, self._drift0 = estimate, drift0
         self._predict(force)
         action = np.zeros(ACTION.size)
         action[ACTION["pivot_force"]] = force

@@ -247,7 +247,9 @@ def preview_feedforward(terms: tuple, drifts: np.ndarray) -> np.ndarray:
 
 def reference_drift(target: np.ndarray, A: np.ndarray, period: float, count: int) -> np.ndarray:
     """d_k = A z_ref(t_k) - z_ref(t_k+1) for the next ``count`` control steps of the reference
-    in TARGET ``target`` (its clock now), (count, 16): the error's drift e+ = A e + B a + d_k."""
+    in TARGET ``target`` (its clock now), (count, 16): the error's drift e+ = A e + B a + d_k.
+    The definition :class:`ReferencePreview` is checked against (tests/test_lqr.py); the laws use
+    that, one matrix product a step."""
     now = float(target[TARGET.scalar("clock")])
     ref = reference_states(target, now + period * np.arange(count + 1))
     return ref[:-1] @ A.T - ref[1:]
@@ -255,7 +257,8 @@ def reference_drift(target: np.ndarray, A: np.ndarray, period: float, count: int
 
 def reference_context(target: np.ndarray, feedforward: np.ndarray) -> np.ndarray:
     """REFERENCE_CONTEXT of the reference in TARGET ``target`` (its clock now) with the preview
-    feed-forward ``feedforward`` [action units]."""
+    feed-forward ``feedforward`` [action units]: read from the curve, the definition
+    :class:`ReferencePreview` is checked against."""
     context = np.zeros(REFERENCE_CONTEXT.size)
     context[REFERENCE_CONTEXT["feedforward"]] = feedforward
     now = float(target[TARGET.scalar("clock")])
