@@ -309,7 +309,8 @@ class ReferencePreview:
     round-off: z_ref(t + tau) = G(tau) b(t), :func:`reference_map`)."""
 
     def __init__(self, target: np.ndarray, A: np.ndarray, terms: tuple, period: float):
-        weights = terms[1][:, :, :REDUCED.size]
+        _, weights = terms  # preview_terms: (gain, the preview's weights on the state)
+        weights = weights[:, :, :REDUCED.size]
         G = reference_map(target, period * np.arange(len(weights) + 1))
         drifts = np.einsum("mn,jnb->jmb", A, G[:-1]) - G[1:]  # d_k+j = (A G_j - G_j+1) b
         self.drift = drifts[0]  #: (16, 4)
