@@ -2,7 +2,8 @@
 
 Each configuration of the environment's compiled step (with or without the winch, on the
 explicit or the implicit string, single or batched: ``ENTRY_POINTS`` in esp_gym/kernels/env_step.py;
-with a drone at the pivot, single or batched: ``DRONE_ENTRY_POINTS`` in esp_gym/kernels/drone_env.py)
+with a drone at the pivot, single or batched: ``DRONE_ENTRY_POINTS`` in esp_gym/kernels/drone_env.py;
+a drone at an offset hook: ``HOOK_ENTRY_POINTS`` there)
 compiles on its first step and is cached on disk (docs/performance.md, "Start-up"). This takes
 them all in worker processes, so that a machine (a container image, a CI run, a cluster's nodes)
 pays the compile once, in parallel, instead of at the first step of each.
@@ -23,17 +24,22 @@ class Configuration:
     implicit: bool
     batched: bool
     drone: bool = False
+    hook: bool = False  #: the drone's hook off its centre of mass (pivot.drone.rho_q)
 
     @property
     def name(self) -> str:
-        kind = ("drone-winch" if self.winch else "drone") if self.drone else "winch" if self.winch else "fixed"
+        kind = ("drone-winch" if self.winch else "drone-hook" if self.hook else "drone") if self.drone \
+            else "winch" if self.winch else "fixed"
         return "-".join((kind, "implicit" if self.implicit else "explicit", "batched" if self.batched else "single"))
 
 
 #: Every configuration, the first environment's (no winch, explicit, single) first; a drone's
-#: (explicit, with or without the winch) last.
+#: (explicit, with or without the winch, then at an offset hook) last.
 CONFIGURATIONS = (tuple(Configuration(w, i, b) for w in (False, True) for i in (False, True) for b in (False, True))
-                  + tuple(Configuration(w, False, b, True) for w in (False, True) for b in (False, True)))
+                  + tuple(Configuration(w, False, b, True) for w in (False, True) for b in (False, True))
+                  + tuple(Configuration(False, False, b, True, True) for b in (False, True)))
+#: The offset hook the hook configurations compile with [m] (any non-zero one: the same kernels).
+OFFSET_HOOK = [0.0, 0.0, 0.05]
 
 
 def compile_configuration(config: Configuration) -> float:
@@ -51,6 +57,8 @@ def compile_configuration(config: Configuration) -> float:
         options["scene"] = "quadrotor_load"
     if config.implicit:
         options["scene_overrides"] = {"solver": {"string": "implicit"}}
+    if config.hook:
+        options["scene_overrides"] = {"pivot": {"drone": {"rho_q": OFFSET_HOOK}}}
     if config.batched:
         env = gym.make_vec(esp_gym.ENV_ID, num_envs=2, **options)
     else:

@@ -288,7 +288,7 @@ def test_slack_switch_quick_runs(tmp_path):
 
 
 def test_compile_takes_every_configuration_of_the_environment(tmp_path):
-    """``esp-gym compile`` builds, resets and steps an environment of each of the twelve
+    """``esp-gym compile`` builds, resets and steps an environment of each of the fourteen
     configurations of the compiled step (here from the cache `make test` filled) and prints their
     seconds as one JSON line; a bad --jobs is one line with exit code 2."""
     from esp_gym.precompile import CONFIGURATIONS
@@ -296,7 +296,7 @@ def test_compile_takes_every_configuration_of_the_environment(tmp_path):
                           capture_output=True, text=True, timeout=1200, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-2000:]
     seconds = json.loads(proc.stdout)["seconds"]
-    assert sorted(seconds) == sorted(c.name for c in CONFIGURATIONS) and len(seconds) == 12
+    assert sorted(seconds) == sorted(c.name for c in CONFIGURATIONS) and len(seconds) == 14
     assert all(t >= 0 for t in seconds.values())
     bad = subprocess.run([sys.executable, "-m", "esp_gym.cli", "compile", "--jobs", "0"], capture_output=True,
                          text=True, timeout=600, cwd=tmp_path)
