@@ -70,8 +70,10 @@ def test_each_shipped_model_was_trained_by_the_zoos_recipe_for_it(name):
     wanted = load_run_config(ZOO.recipe.algo, esp_gym.ENV_ID, c.task, argv[argv.index("--set") + 1:])
     assert RunConfig(**yaml.safe_load((shipped / "config.yaml").read_text())) == wanted
     args = json.loads((shipped / "args.json").read_text())
+    seed = ZOO.recipe.seed if c.seed is None else c.seed
     assert (args["algo"], args["task"], args["seed"], args["time_limit"]) == (
-        ZOO.recipe.algo, c.task, ZOO.recipe.seed, ZOO.recipe.time_limit)
+        ZOO.recipe.algo, c.task, seed, ZOO.recipe.time_limit)
+    assert argv[argv.index("--seed") + 1] == str(seed)
 
 
 @pytest.mark.parametrize("name", list(ZOO.configurations))
