@@ -13,6 +13,28 @@ def vec_env():
     return venv
 
 
+def summed_rewards(wrapped, value: float, steps: int = 60):
+    """Step a ResidualVecEnv ``steps`` times with the constant network action ``value``: the summed
+    rewards and the last step's (obs, dones, infos)."""
+    returns = np.zeros(wrapped.num_envs)
+    for _ in range(steps):
+        obs, rewards, dones, infos = wrapped.step(np.full((wrapped.num_envs, 6), value, np.float32))
+        returns += rewards
+    return returns, obs, dones, infos
+
+
+def assert_zero_network_is_the_base(wrapped, venv, seed: int, single: list, steps: int = 60):
+    """From its reset, ``wrapped`` with a zero network gives the base's own episodes' returns
+    ``single`` (float32 rewards summed) and terminal observations of its shape; a small constant
+    residual, reset to the same seed, does not (the negative control)."""
+    returns, obs, dones, infos = summed_rewards(wrapped, 0.0, steps)
+    assert dones.all() and all(info["terminal_observation"].shape == obs.shape[1:] for info in infos)
+    assert np.allclose(returns, single, rtol=1e-5, atol=0)
+    venv.seed(seed)
+    wrapped.reset()
+    assert not np.allclose(summed_rewards(wrapped, 0.05, steps)[0], single, rtol=1e-3, atol=0)
+
+
 def test_residual_env_steps_with_the_baseline_added():
     pd = baseline("transport")
     wrapped, plain = ResidualVecEnv(vec_env(), pd, vec_env().setup), vec_env()
@@ -73,21 +95,9 @@ def test_lqg_residual_env_with_a_zero_network_is_the_lqg():
     target = venv.control.target[0]
     assert np.allclose(context[REFERENCE_CONTEXT["reference_velocity"]], target[TARGET["velocity"]])
     assert np.linalg.norm(context[REFERENCE_CONTEXT["reference_ahead"]]) > 0.01  # the curve moves on
-    returns = np.zeros(2)
-    for _ in range(60):
-        obs, rewards, dones, infos = wrapped.step(np.zeros((2, 6), np.float32))
-        returns += rewards
-    assert dones.all() and all(info["terminal_observation"].shape == obs.shape[1:] for info in infos)
     single = [e.ret for e in run_episodes(base_policy("lqg", "track", kwargs), "track", 2, seed=500,
                                           env_kwargs={**kwargs, "max_episode_steps": 60})]
-    assert np.allclose(returns, single, rtol=1e-5, atol=0)  # float32 rewards summed
-    # negative control: a small constant residual changes the episodes
-    venv.seed(500)
-    wrapped.reset()
-    nudged = np.zeros(2)
-    for _ in range(60):
-        nudged += wrapped.step(np.full((2, 6), 0.05, np.float32))[1]
-    assert not np.allclose(nudged, single, rtol=1e-3, atol=0)
+    assert_zero_network_is_the_base(wrapped, venv, 500, single)
 
 
 def test_the_lqr_base_is_the_registrys_lqr_on_the_nominal_scene_and_refuses_elsewhere():
@@ -132,24 +142,12 @@ def test_the_track_lqr_base_follows_each_episodes_reference_as_the_registrys_lqr
     wrapped = ResidualVecEnv(venv, base_policy("lqr", "track"), venv.setup)
     obs = wrapped.reset()
     assert obs.shape == (2, venv.observation_space.shape[0] + REFERENCE_CONTEXT.size)
-    returns = np.zeros(2)
-    for step in range(60):
-        obs, rewards, dones, infos = wrapped.step(np.zeros((2, 6), np.float32))
-        returns += rewards
-        if step == 0:
-            context = obs[1, -REFERENCE_CONTEXT.size:]
-            assert np.allclose(context[REFERENCE_CONTEXT["reference_velocity"]],
-                               venv.control.target[1][TARGET["velocity"]], atol=1e-6)
-    assert dones.all() and all(info["terminal_observation"].shape == obs.shape[1:] for info in infos)
+    context = obs[1, -REFERENCE_CONTEXT.size:]
+    assert np.allclose(context[REFERENCE_CONTEXT["reference_velocity"]],
+                       venv.control.target[1][TARGET["velocity"]], atol=1e-6)
     single = [e.ret for e in run_episodes(baselines("track")["lqr"], "track", 2, seed=700,
                                           env_kwargs={"max_episode_steps": 60})]
-    assert np.allclose(returns, single, rtol=1e-5, atol=0)  # float32 rewards summed
-    venv.seed(700)
-    wrapped.reset()
-    nudged = np.zeros(2)
-    for _ in range(60):
-        nudged += wrapped.step(np.full((2, 6), 0.05, np.float32))[1]
-    assert not np.allclose(nudged, single, rtol=1e-3, atol=0)
+    assert_zero_network_is_the_base(wrapped, venv, 700, single)
 
 
 def test_the_critic_warmup_holds_the_actor_while_the_critic_learns():
