@@ -93,7 +93,8 @@ class ElasticStringPendulumEnv(gym.Env):
     `lift` and `lower` (need `winch=True`): the system nearly at rest at the origin; the load's
     target is the rest position of a string 25-45 % shorter (`lift`, the pivot target the origin)
     or 25-60 % longer (`lower`, the pivot target uniform in +-(1, 1, 0.5) m), within the winch's
-    range.
+    range. With `moving_target=True` (the hard preset's lift) the lift's targets move as `track`'s,
+    the load target at the shorter string's rest depth, and the pivot starts at the reference's start.
     With `randomize`, the episode's tether and load are drawn first (then the state above, for
     that scene), and its physics step is its own. `reset`'s info holds the episode's physical
     parameters under `"scene_params"` (a flat dict of floats: `string_length`, `EA`, ...;
@@ -128,10 +129,11 @@ class ElasticStringPendulumEnv(gym.Env):
     | `sensor_noise` | None | None: the preset's, else 0. s: Gaussian noise of s x UNIT_NOISE per field; or a dict field -> standard deviation |
     | `action_latency` | None | control steps (0-50) between an action and its application (hover before the first); None: the preset's, else 0 |
     | `wind` | None | None: the preset's, else 0. The mean wind speed [m/s] (gusts of 0.2 x it, direction drawn per episode), or a dict of esp_gym/wind.py `WindOptions` (speed, direction, gust_std, gust_time, drag coefficients, line_diameter, push_rate, push_speed): drag on the line and the load, pushes on the load |
-    | `preset` | None | `"hard"`: randomize, wind 6 m/s with 1.5 m/s gusts and a push every 5 s on average, the hook observation with sensor noise 1 and a latency of 1 step (docs/environment.md). An option given explicitly (even at its usual default) replaces the preset's: `preset="hard", observation="full"` is the hard preset with the full observation |
+    | `preset` | None | `"hard"`: randomize, wind 6 m/s with 1.5 m/s gusts and a push every 5 s on average, the hook observation with sensor noise 1 and a latency of 1 step, and for `lift` a moving target (docs/environment.md). An option given explicitly (even at its usual default) replaces the preset's: `preset="hard", observation="full"` is the hard preset with the full observation |
     | `winch` | None | True: a winch at the pivot, its reel speed the 7th action, the length the last observation; h is chosen for the shortest string it reaches (`scene.winch`). None: as the task needs (True for `lift` and `lower`) |
     | `actuation` | None | how the action moves the pivot: `"force"` (a free point mass: its only one), or for a drone `"thrust_rates"` (None's choice), `"thrust_torque"`, `"motors"` |
     | `thrust_noise` | None | a drone's: each rotor's thrust times 1 + s N(0, 1), drawn from `np_random` at every step (0-0.5); None: the preset's (hard: 0.05, a point pivot ignores it), else 0 |
+    | `moving_target` | None | True: `lift`'s targets move along a `track` reference; None: the task's own (`track` moves), or the preset's (hard: `lift` moves) |
     | `render_mode` | None | `"rgb_array"`: uint8 frames, front and side views |
 
     ## Version History
@@ -147,12 +149,13 @@ class ElasticStringPendulumEnv(gym.Env):
                  randomize: Union[bool, dict, None] = None, observation: Optional[str] = None,
                  sensor_noise: Union[float, dict, None] = None, action_latency: Optional[int] = None,
                  wind: Union[float, dict, None] = None, preset: Optional[str] = None, winch: Optional[bool] = None,
-                 actuation: Optional[str] = None, thrust_noise: Optional[float] = None):
+                 actuation: Optional[str] = None, thrust_noise: Optional[float] = None,
+                 moving_target: Optional[bool] = None):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.setup = make_setup(scene, task, control_period, h, safety, force_limit, torque_limit, scene_overrides,
                                 randomize, observation, sensor_noise, action_latency, wind, preset, winch, actuation,
-                                thrust_noise)
+                                thrust_noise, moving_target)
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.setup.control_period))}
         self.observation_space = self.setup.observation_space

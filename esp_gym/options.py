@@ -56,6 +56,8 @@ class EnvOptions(BaseModel):
     preset: Optional[Literal["hard"]] = None
     #: None: as the task needs (lift, lower)
     winch: Optional[Flag] = None
+    #: True: the targets move along a track reference (lift); None: the task's own, or its preset's
+    moving_target: Optional[Flag] = None
     #: None: the scene's pivot's ("force" for a free point mass, "thrust_rates" for a drone)
     actuation: Optional[Literal[ACTUATION_CHOICES]] = None
     #: a drone's: each rotor's thrust times 1 + this x N(0, 1), drawn per control step

@@ -34,6 +34,9 @@ from .wind import WIND_INFO, Wind, drag_areas, wind_options
 PRESETS = {"hard": {"randomize": True, "observation": "hook", "sensor_noise": 1.0, "action_latency": 1,
                     "wind": {"speed": 6.0, "gust_std": 1.5, "push_rate": 0.2, "push_speed": 0.5},
                     "thrust_noise": 0.05}}
+#: The arguments a preset sets for one task only (after :data:`PRESETS`' own): the hard preset's
+#: lift follows a moving target, since hoisting to a fixed one is solved by the hoist baseline.
+PRESET_TASK_OPTIONS = {"hard": {"lift": {"moving_target": True}}}
 
 
 def total_weight(scene: Scene) -> float:
@@ -249,19 +252,22 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
                observation: Optional[str] = None, sensor_noise: Union[float, dict, None] = None,
                action_latency: Optional[int] = None, wind: Union[float, dict, None] = None,
                preset: Optional[str] = None, winch: Optional[bool] = None,
-               actuation: Optional[str] = None, thrust_noise: Optional[float] = None) -> EnvSetup:
+               actuation: Optional[str] = None, thrust_noise: Optional[float] = None,
+               moving_target: Optional[bool] = None) -> EnvSetup:
     """Resolve the environment's arguments (see :class:`~esp_gym.env.ElasticStringPendulumEnv`),
     validated by :class:`~esp_gym.options.EnvOptions` (ValueError naming each bad one). The
     options a preset sets take, in this order: the value given (None: not given), the preset's,
     EnvOptions' default."""
     given = {name: value for name, value in dict(randomize=randomize, observation=observation,
                                                  sensor_noise=sensor_noise, action_latency=action_latency,
-                                                 wind=wind, thrust_noise=thrust_noise).items() if value is not None}
+                                                 wind=wind, thrust_noise=thrust_noise,
+                                                 moving_target=moving_target).items() if value is not None}
     o = env_options(scene=scene, task=task, control_period=control_period, h=h, safety=safety,
                     force_limit=force_limit, torque_limit=torque_limit, scene_overrides=scene_overrides,
                     preset=preset, winch=winch, actuation=actuation, **given)
     if o.preset is not None:
-        o = o.model_copy(update={name: value for name, value in PRESETS[o.preset].items() if name not in given})
+        preset = {**PRESETS[o.preset], **PRESET_TASK_OPTIONS[o.preset].get(o.task, {})}
+        o = o.model_copy(update={name: value for name, value in preset.items() if name not in given})
     control_period, h, safety = o.control_period, o.h, o.safety
     overrides = dict(o.scene_overrides or {})
     base = o.scene if isinstance(o.scene, Scene) else load_scene(o.scene)
@@ -273,7 +279,7 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
     if not resolved.pivot.is_free:
         raise ValueError(f"ElasticStringPendulum-v0 moves the pivot: scene {resolved.name!r} needs pivot.kind: free "
                          "or drone")
-    t = get_task(o.task)
+    t = get_task(o.task, o.moving_target)
     winch = t.needs_winch if o.winch is None else o.winch
     actuation = o.actuation or ("thrust_rates" if resolved.pivot.is_drone else "force")
     if resolved.pivot.is_drone != (actuation != "force"):

@@ -6,6 +6,7 @@ Every distance is in metres, spatial frame, gravity along +e3 (so "below" is +z)
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -48,6 +49,9 @@ class Task:
     #: lift, lower: the load's target hangs from a string this many times l longer, uniform in the
     #: range (negative: shorter); the winch (``winch=True``) must reel it there
     reel_range: tuple = (0.0, 0.0)
+    #: the targets move along a reference of the track family (:func:`track_reference`), the pivot
+    #: starting at its start: ``track``, and ``lift`` with ``moving_target=True`` (the hard preset)
+    moving: bool = False
 
     @property
     def needs_winch(self) -> bool:
@@ -79,7 +83,7 @@ TASKS = {
                       w_load_position=0.45, w_load_velocity=0.1, w_swing=0.2, w_spin=0.05),
     # the load follows a moving reference (a circle or a figure-eight) from rest
     "track": Task("track", max_swing_deg=3.0, max_speed=0.05, max_spin=0.1, w_load_position=0.5,
-                  w_load_velocity=0.15, w_pivot_position=0.15, w_swing=0.15, w_spin=0.05),
+                  w_load_velocity=0.15, w_pivot_position=0.15, w_swing=0.15, w_spin=0.05, moving=True),
     # hoist a load hanging at rest to a target 25-45 % of the string's length higher, the pivot
     # held where it is, with little swing (winch=True)
     "lift": Task("lift", max_swing_deg=3.0, max_speed=0.05, max_spin=0.1, w_load_position=0.45,
@@ -113,10 +117,22 @@ def track_reference(rng: np.random.Generator, depth: float) -> np.ndarray:
     return t
 
 
-def get_task(name: str) -> Task:
+#: The tasks whose targets may move (``moving_target=True``): track always does.
+MOVABLE_TASKS = ("track", "lift")
+
+
+def get_task(name: str, moving_target: bool = None) -> Task:
+    """The task ``name``; ``moving_target`` True moves a movable task's targets (None: the task's own)."""
     if name not in TASKS:
         raise ValueError(f"unknown task {name!r}; choose one of {sorted(TASKS)}")
-    return TASKS[name]
+    task = TASKS[name]
+    if moving_target is None or moving_target == task.moving:
+        return task
+    if name not in MOVABLE_TASKS or not moving_target:
+        raise ValueError(f"moving_target={moving_target!r}: task {name!r} "
+                         + ("always moves its targets" if task.moving else
+                            f"has fixed targets; the targets of {MOVABLE_TASKS} move"))
+    return dataclasses.replace(task, moving=True)
 
 
 def static_node_depths(scene: Scene, length=None) -> np.ndarray:
@@ -176,22 +192,23 @@ def sample_episode(task: Task, scene: Scene, rng: np.random.Generator):
     the pivot starts within 0.1 m of the origin. transport: the pivot starts at the origin and
     its target is uniform in +-target_box. lift, lower: as transport (lift's pivot target is the
     origin), the load's target at the rest position of a string of a length drawn from
-    ``reel_range`` (within the winch's range). track: the reference is drawn first
-    (:func:`track_reference`) and the pivot starts at its start, the system nearly at rest.
+    ``reel_range`` (within the winch's range). track, and a moving lift: the reference is drawn
+    first (:func:`track_reference`; a lift's load target at its reeled length's depth) and the
+    pivot starts at its start, the system nearly at rest.
     """
     origin = np.zeros(3)
     box = np.asarray(task.target_box, dtype=float)
     pivot_target = rng.uniform(-box, box) if np.any(box) else origin.copy()
     start = rng.uniform(-0.1, 0.1, 3) if task.name == "stabilize" else origin.copy()
     target = np.zeros(TARGET.size)
-    if task.name == "track":  # the pivot starts where the reference does
-        target = track_reference(rng, hanging_depth(scene))
+    length = scene.string.length
+    if task.needs_winch:  # within the winch's range
+        shortest, longest = scene.winch_range
+        length = min(max(length * (1.0 + rng.uniform(*task.reel_range)), shortest), longest)
+    if task.moving:  # the pivot starts where the reference does
+        target = track_reference(rng, hanging_depth(scene, length))
         start = target[TARGET["pivot"]].copy()
     else:
-        length = scene.string.length
-        if task.needs_winch:  # within the winch's range
-            shortest, longest = scene.winch_range
-            length = min(max(length * (1.0 + rng.uniform(*task.reel_range)), shortest), longest)
         target[TARGET["pivot"]] = pivot_target
         target[TARGET["load"]] = pivot_target + hanging_depth(scene, length) * np.array([0.0, 0.0, 1.0])
     theta = math.radians(task.max_swing_deg) * rng.uniform(0.0, 1.0)

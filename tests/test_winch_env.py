@@ -6,7 +6,9 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import esp_gym  # noqa: F401  (registers the environment)
-from esp_gym.kernels.env_arrays import WINCH_OBSERVATION
+from esp_gym.kernels.env_arrays import TARGET, WINCH_OBSERVATION
+from esp_gym.kernels.reference import reference_at
+from esp_gym.tasks import hanging_depth
 
 ENV_ID = "ElasticStringPendulum-v0"
 
@@ -84,12 +86,43 @@ def test_lift_and_lower_put_the_target_where_a_string_of_another_length_hangs():
             if task == "lift":
                 assert np.array_equal(pivot, np.zeros(3))
         scene = env.unwrapped.scene
-        from esp_gym.tasks import hanging_depth
         assert hanging_depth(scene, low * scene.string.length) <= min(depths)
         assert max(depths) <= hanging_depth(scene, high * scene.string.length)
 
 
+def test_the_hard_lift_follows_a_moving_target_at_the_shorter_strings_depth():
+    """The hard preset's lift (moving_target): the pivot starts on a track reference and the
+    targets move along it, the load's at the rest depth of a string 25-45 % shorter; an explicit
+    moving_target=False gives the hard preset's fixed lift (negative control)."""
+    env = gym.make(ENV_ID, task="lift", preset="hard").unwrapped
+    assert env.setup.task.moving and env.setup.task.name == "lift"
+    moved = []
+    for seed in range(6):
+        env.reset(seed=seed)
+        start = env.control.target.copy()
+        np.testing.assert_allclose(env.pivot_position(), start[TARGET["pivot"]], atol=1e-12)
+        scene = env.scene  # this episode's draw
+        depth = start[TARGET.scalar("depth")]
+        assert hanging_depth(scene, 0.55 * scene.string.length) <= depth <= hanging_depth(scene, 0.75 * scene.string.length)
+        for _ in range(20):
+            env.step(np.zeros(7))
+        expected = start.copy()
+        reference_at(expected, 20 * env.setup.control_period)
+        np.testing.assert_allclose(env.control.target, expected, rtol=1e-12, atol=1e-12)
+        moved.append(np.linalg.norm(env.control.target[TARGET["pivot"]] - start[TARGET["pivot"]]))
+    assert min(moved) > 0.01
+    fixed = gym.make(ENV_ID, task="lift", preset="hard", moving_target=False).unwrapped
+    fixed.reset(seed=0)
+    before = fixed.control.target.copy()
+    fixed.step(np.zeros(7))
+    assert not fixed.setup.task.moving and np.array_equal(before, fixed.control.target)
+    assert np.array_equal(before[TARGET["pivot"]], np.zeros(3))
+
+
 @pytest.mark.parametrize("kwargs, match", [
+    (dict(task="transport", moving_target=True), "moving_target=True: task 'transport' has fixed targets"),
+    (dict(task="track", moving_target=False), "moving_target=False: task 'track' always moves"),
+    (dict(task="lift", moving_target="yes"), "moving_target"),
     (dict(task="lift", winch=False), "winch=True"), (dict(task="lower", winch=False), "winch=True"),
     (dict(winch=1), "winch"),
     (dict(winch=True, h=1e-3), "winch.s shortest"),
