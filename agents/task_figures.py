@@ -2,10 +2,13 @@
 above and over time (docs/environment.md, "The tasks").
 
     python -m agents.task_figures --out docs/img [--seed 3] [--steps 500] [--policy baseline] [--drone]
+    python -m agents.task_figures --out docs/img --hard-lift [--model models/lift_hard_ppo/model.zip]
 
 writes ``task_{stabilize,transport,track}.png`` (with ``--drone``: ``drone_transport.png``, a
 ``transport`` episode of ``quadrotor_load`` under the geometric cascade, ``thrust_rates``, the
-drone's roll, pitch and yaw over time below the load's distance): left, the top view (x, y) of the pivot's and the
+drone's roll, pitch and yaw over time below the load's distance; with ``--hard-lift``:
+``lift_hard.png``, one episode of the hard preset's ``lift`` (a moving target) under the hoist
+and under the shipped policy, drawn together): left, the top view (x, y) of the pivot's and the
 load's paths with the targets (``track``: the reference the load follows); right, over time, the
 load's distance to its target [m] and the swing angle of the string [deg]. The controller is the
 task's classical baseline (agents/baselines/pd.py) unless ``--policy zero``; each panel notes the
@@ -20,9 +23,10 @@ import gymnasium as gym
 import numpy as np
 
 import esp_gym
+from agents import ROOT
 from agents.cli import ArgumentParser
 from agents.baselines.pd import ZeroPolicy
-from agents.baselines.registry import baseline
+from agents.baselines.registry import baseline, baselines
 from esp_gym.tasks import TASKS
 
 #: What the top view's markers and lines stand for, and their colours.
@@ -56,7 +60,7 @@ def rollout(task: str, policy, seed: int, steps: int, env_kwargs=None) -> dict:
     targets = np.array(targets)
     run = {"time": u.setup.control_period * np.arange(k + 1), "pivot": np.array(pivot), "load": np.array(load),
            "pivot_target": targets[:, :3], "load_target": targets[:, 3:], "swing": np.array(swing),
-           "return": total}
+           "return": total, "moving": u.setup.task.moving}
     if attitude is not None:  # the drone's roll, pitch and yaw [rad] (body x-y-z, extrinsic)
         from scipy.spatial.transform import Rotation
 
@@ -73,7 +77,7 @@ def plot_task(run: dict, task: str, path, title: str) -> Path:
     top = fig.add_subplot(grid[:, 0])
     distance_ax, swing_ax = fig.add_subplot(grid[0, 1]), fig.add_subplot(grid[1, 1])
     xy = slice(0, 2)  # the horizontal components of a spatial vector
-    if task == "track":
+    if run["moving"]:
         ref = run["load_target"][:, xy]
         top.plot(*ref.T, color=COLOURS["target"], lw=1, ls="--", label="reference (load)")
     else:
@@ -112,6 +116,58 @@ def plot_task(run: dict, task: str, path, title: str) -> Path:
     return save_figure(fig, path)
 
 
+def plot_policies(runs: dict, path, title: str) -> Path:
+    """One episode of a moving-target task under several policies (``runs``: name -> rollout, the
+    same seed): the top view of the reference and each load's path, each load's distance to its
+    target and each swing over time."""
+    from esp_gym.viz.figures import new_figure, save_figure
+
+    fig = new_figure((10, 4))
+    grid = fig.add_gridspec(2, 2, width_ratios=(1, 1.4))
+    top = fig.add_subplot(grid[:, 0])
+    distance_ax, swing_ax = fig.add_subplot(grid[0, 1]), fig.add_subplot(grid[1, 1])
+    xy = slice(0, 2)
+    first = next(iter(runs.values()))
+    top.plot(*first["load_target"][:, xy].T, color=COLOURS["target"], lw=1, ls="--", label="reference (load)")
+    for (name, run), colour in zip(runs.items(), ("tab:orange", "tab:purple", "tab:cyan")):
+        label = f"{name} ({run['return']:.1f})"
+        top.plot(*run["load"][:, xy].T, color=colour, lw=1.2, label=label)
+        distance_ax.plot(run["time"], np.linalg.norm(run["load"] - run["load_target"], axis=1), color=colour,
+                         label=label)
+        swing_ax.plot(run["time"], np.degrees(run["swing"]), color=colour)
+    top.plot(*first["load"][0, xy], "o", color="black", ms=4)
+    top.set_aspect("equal", adjustable="datalim")
+    top.set(xlabel="x [m]", ylabel="y [m]", title="load seen from above (dot: start)")
+    top.legend(loc="best")
+    distance_ax.set(ylabel="load to target [m]", title="returns in the legend")
+    swing_ax.set(ylabel="swing [deg]", xlabel="time [s]")
+    for ax in (top, distance_ax, swing_ax):
+        ax.grid(True, alpha=0.3)
+    distance_ax.set_ylim(bottom=0.0)
+    swing_ax.set_ylim(bottom=0.0)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def hard_lift_figure(out: Path, seed: int, steps: int, model: Path) -> dict:
+    """``lift_hard.png``: the hard preset's lift under the hoist and, where ``model`` exists, the
+    policy, on episode ``seed``; their returns and final distances."""
+    from agents.evaluate import SB3Policy
+
+    kwargs = {"preset": "hard"}
+    runs = {"hoist": rollout("lift", baselines("lift", kwargs)["pd"], seed, steps, kwargs)}
+    if model.exists():
+        runs["policy"] = rollout("lift", SB3Policy(model), seed, steps, kwargs)
+    path = plot_policies(runs, out / "lift_hard.png", f"task='lift', preset='hard' (a moving target), seed {seed}")
+    results = {}
+    for name, run in runs.items():
+        final = float(np.linalg.norm(run["load"][-1] - run["load_target"][-1]))
+        results[f"lift_hard_{name}"] = {"return": run["return"], "final_distance_m": final, "figure": str(path)}
+        print(f"hard lift, {name:6s} return {run['return']:7.1f}  final distance {final:.3f} m  -> {path}")
+    return results
+
+
 def main(argv=None) -> dict:
     ap = ArgumentParser(prog="python -m agents.task_figures", description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", default="docs/img", help="directory of the figures")
@@ -120,12 +176,18 @@ def main(argv=None) -> dict:
     ap.add_argument("--policy", choices=("baseline", "zero"), default="baseline")
     ap.add_argument("--drone", action="store_true",
                     help="only drone_transport.png: quadrotor_load's transport under the geometric cascade")
+    ap.add_argument("--hard-lift", action="store_true",
+                    help="only lift_hard.png: the hard preset's lift under the hoist and the policy of --model")
+    ap.add_argument("--model", default=str(ROOT / "models" / "lift_hard_ppo" / "model.zip"),
+                    help="the policy of --hard-lift (default: the shipped one; left out if absent)")
     ap.minimums = {"seed": 0, "steps": 1}
     a = ap.parse_args(argv)
     ap.check_out_dir("--out", a.out)  # as compare's and robustness's: a new directory in an existing one
     out = Path(a.out)
     out.mkdir(exist_ok=True)
     results = {}
+    if a.hard_lift:
+        return hard_lift_figure(out, a.seed, a.steps, Path(a.model))
     if a.drone:
         from agents.baselines.geometric import geometric_controller
 

@@ -402,6 +402,17 @@ def zoo_training_table(data: dict) -> str:
     return "\n".join(lines)
 
 
+def zoo_curves(data: dict) -> str:
+    """Every shipped model's learning curve (agents.train's learning_curve.png beside its
+    training.json), one image per line, in the zoo's order."""
+    lines = []
+    for source in zoo_training_files():
+        model = source.split("/")[1]
+        label = model.removesuffix("_ppo").replace("_", " ")
+        lines.append(f"![learning curve, {label}](../{source.rsplit('/', 1)[0]}/learning_curve.png)")
+    return "\n".join(lines)
+
+
 #: The drone's tasks with a shipped hard-preset policy.
 DRONE_COMPARED = ("stabilize", "transport", "track")
 
@@ -649,6 +660,7 @@ QUOTES = {
                                    mujoco_chain_long_run),
     "compare.zoo": Quote(zoo_compare_files(), "python -m agents.zoo --compare", compare_zoo_table),
     "zoo.training": Quote(zoo_training_files(), "python -m agents.zoo --train", zoo_training_table),
+    "zoo.curves": Quote(zoo_training_files(), "python -m agents.zoo --train", zoo_curves),
     "compare.returns": Quote(zoo_compare_files(), "python -m agents.zoo --compare", compare_returns_table),
     "compare.zoo_readme": Quote(zoo_compare_files(), "python -m agents.zoo --compare", compare_zoo_readme),
     "compare.drone": Quote(tuple(drone_compare_file(task) for task in DRONE_COMPARED),

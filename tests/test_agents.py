@@ -116,6 +116,23 @@ def test_the_drone_figure_is_the_geometric_cascades_evaluated_episode(tmp_path):
     assert list(results) == ["drone_transport"] and (tmp_path / "drone_transport.png").stat().st_size > 10_000
 
 
+def test_the_hard_lift_figure_draws_the_evaluated_episodes_of_the_hoist_and_the_policy(tmp_path):
+    """``--hard-lift``: the hard preset's lift under the hoist and the shipped policy, each the
+    episode agents.evaluate scores; without a model file only the hoist is drawn."""
+    from agents import task_figures
+    from agents.baselines.registry import baselines
+
+    kw = {"preset": "hard"}
+    results = task_figures.main(["--out", str(tmp_path), "--steps", "500", "--hard-lift", "--seed", "5"])
+    assert sorted(results) == ["lift_hard_hoist", "lift_hard_policy"]
+    assert results["lift_hard_hoist"]["return"] == evaluate_policy(baselines("lift", kw)["pd"], task="lift",
+                                                                   episodes=1, seed=5, env_kwargs=kw)["mean_return"]
+    assert (tmp_path / "lift_hard.png").stat().st_size > 10_000
+    alone = task_figures.main(["--out", str(tmp_path), "--steps", "5", "--hard-lift", "--model",
+                               str(tmp_path / "absent.zip")])
+    assert list(alone) == ["lift_hard_hoist"]
+
+
 SHIPPED_POLICIES = sorted(p.parent for p in (ROOT / "models").glob("*_ppo/model.zip"))
 
 
