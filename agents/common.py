@@ -39,6 +39,10 @@ class RunConfig(BaseModel):
     #: PPO only: environment steps during which the actor is held (only the critic learns), so
     #: that a residual policy's first updates follow a trained critic, not a random one
     critic_warmup: int = Field(default=0, ge=0)
+    #: training episodes end (truncated, their value bootstrapped) after this many steps, so that
+    #: more of the samples are transients; None: the environment's own. Evaluations keep the
+    #: environment's full episodes
+    episode_steps: Optional[int] = Field(default=None, ge=1)
     algo: dict = {}
 
 

@@ -171,7 +171,7 @@ def prepare(s: Settings, given: frozenset = frozenset()) -> Prepared:
         raise SettingsError("--set", f"critic_warmup needs an actor-critic with a state value (ppo), not {s.algo}")
     try:  # a residual the observation cannot feed, a batch past the memory: before anything is written
         monitor = RunMonitor(_make_vec_env(cfg.n_envs, s.task, s.seed, cfg.env_kwargs, cfg.residual,
-                                           cfg.privileged_critic))
+                                           cfg.privileged_critic, cfg.episode_steps or esp_gym.MAX_EPISODE_STEPS))
         eval_env = VecMonitor(_make_vec_env(min(4, s.eval_episodes), s.task, s.seed + 10_000, cfg.env_kwargs,
                                             cfg.residual, cfg.privileged_critic))
     except (ValueError, MemoryError) as err:

@@ -70,6 +70,23 @@ def test_trained_residual_policy_adds_its_base(tmp_path):
     assert not np.allclose(expected, np.clip(net, -1, 1))  # the base does act
 
 
+def test_training_episodes_end_at_episode_steps_and_evaluations_run_full_episodes(tmp_path):
+    """``episode_steps``: the training environments truncate their episodes after that many steps
+    (monitor.csv), the evaluations keep the environment's 500 (evaluations.npz)."""
+    import csv
+
+    from agents.train import Settings, train
+
+    run = train(Settings(task="transport", runs=str(tmp_path), run_name="short", progress=False, eval_freq=256,
+                         eval_episodes=1, reference_episodes=1,
+                         set=["total_timesteps=256", "n_envs=2", "n_steps=128", "batch_size=128", "n_epochs=1",
+                              "residual=lqr", "episode_steps=40"]))
+    with open(run / "monitor.csv") as f:
+        lengths = [int(row["l"]) for row in csv.DictReader(line for line in f if not line.startswith("#"))]
+    assert len(lengths) >= 4 and set(lengths) == {40}
+    assert set(np.load(run / "evaluations.npz")["ep_lengths"].ravel()) == {500}
+
+
 def test_lqg_residual_env_with_a_zero_network_is_the_lqg():
     """ResidualVecEnv over the scheduled LQG (one filter per environment, told the applied
     action) and a zero network action reproduces the LQG's own episodes on the same seeds (the
