@@ -402,6 +402,23 @@ def zoo_training_table(data: dict) -> str:
     return "\n".join(lines)
 
 
+#: The nominal tasks whose best controller's headroom agents.headroom measured.
+HEADROOM_TASKS = ("stabilize", "transport", "track", "lift")
+
+
+def headroom_table(data: dict) -> str:
+    """Per task: the controller, its return and the optimised feed-forward's gain per episode."""
+    lines = ["| task | controller | episodes | its return | gain of the optimised feed-forward, per episode | mean gain |",
+             "|---|---|---|---|---|---|"]
+    for task in HEADROOM_TASKS:
+        h = data[f"docs/compare/headroom_{task}.json"]
+        rows = h["episodes"]
+        base = sum(r["controller_return"] for r in rows) / len(rows)
+        gains = ", ".join(f"{signed(r['gain'])}" for r in rows)
+        lines.append(f"| `{task}` | {h['policy']} | {len(rows)} | {base:.1f} | {gains} | {signed(h['mean_gain'])} |")
+    return "\n".join(lines)
+
+
 def zoo_curves(data: dict) -> str:
     """Every shipped model's learning curve (agents.train's learning_curve.png beside its
     training.json), one image per line, in the zoo's order."""
@@ -660,6 +677,9 @@ QUOTES = {
                                    mujoco_chain_long_run),
     "compare.zoo": Quote(zoo_compare_files(), "python -m agents.zoo --compare", compare_zoo_table),
     "zoo.training": Quote(zoo_training_files(), "python -m agents.zoo --train", zoo_training_table),
+    "headroom.table": Quote(tuple(f"docs/compare/headroom_{task}.json" for task in HEADROOM_TASKS),
+                            "python -m agents.headroom --task T --policy P --episodes 3 --out docs/compare",
+                            headroom_table),
     "zoo.curves": Quote(zoo_training_files(), "python -m agents.zoo --train", zoo_curves),
     "compare.returns": Quote(zoo_compare_files(), "python -m agents.zoo --compare", compare_returns_table),
     "compare.zoo_readme": Quote(zoo_compare_files(), "python -m agents.zoo --compare", compare_zoo_readme),
