@@ -43,6 +43,13 @@ class RunConfig(BaseModel):
     #: more of the samples are transients; None: the environment's own. Evaluations keep the
     #: environment's full episodes
     episode_steps: Optional[int] = Field(default=None, ge=1)
+    #: PPO with a residual: before training, fit the actor to this many teacher episodes (the base
+    #: plus a feed-forward optimised per episode, agents/distill.py); 0: none
+    distill_episodes: int = Field(default=0, ge=0)
+    #: episodes the teacher's optimiser may run per teacher episode
+    distill_evaluations: int = Field(default=600, ge=1)
+    #: the teacher's feed-forward values per axis over an episode
+    distill_knots: int = Field(default=11, ge=2)
     algo: dict = {}
 
 

@@ -169,6 +169,12 @@ def prepare(s: Settings, given: frozenset = frozenset()) -> Prepared:
         raise SettingsError("--set", f"privileged_critic needs an actor-critic with a state value (ppo), not {s.algo}")
     if cfg.critic_warmup and s.algo != "ppo":
         raise SettingsError("--set", f"critic_warmup needs an actor-critic with a state value (ppo), not {s.algo}")
+    if cfg.distill_episodes and not (s.algo == "ppo" and cfg.residual and cfg.normalize and not cfg.privileged_critic
+                                     and cfg.frame_stack == 1):
+        raise SettingsError("--set", "distill_episodes fits a residual PPO actor with normalised observations: it needs "
+                                     "algo ppo, residual, normalize, no privileged_critic and frame_stack 1 (got "
+                                     f"{s.algo}, residual={cfg.residual}, normalize={bool(cfg.normalize)}, "
+                                     f"privileged_critic={cfg.privileged_critic}, frame_stack={cfg.frame_stack})")
     try:  # a residual the observation cannot feed, a batch past the memory: before anything is written
         monitor = RunMonitor(_make_vec_env(cfg.n_envs, s.task, s.seed, cfg.env_kwargs, cfg.residual,
                                            cfg.privileged_critic, cfg.episode_steps or esp_gym.MAX_EPISODE_STEPS))
@@ -271,7 +277,9 @@ def run(p: Prepared, argv: Optional[list] = None, callbacks: Sequence = ()) -> P
                                    best_model_save_path=str(run_dir / "best"), deterministic=True, verbose=0)
         if p.resume and p.resume.evaluations is not None:
             p.resume.evaluations.continue_in(evaluations, run_dir / "evaluations.npz")
-        limit = TimeLimitCallback(60.0 * s.time_limit) if s.time_limit is not None else None
+        distilled = distill(p) if cfg.distill_episodes and not p.resume else None
+        taken = distilled["distill_wall_s"] if distilled else 0.0
+        limit = TimeLimitCallback(max(60.0 * s.time_limit - taken, 0.0)) if s.time_limit is not None else None
         callbacks = CallbackList([
             evaluations,
             RunCheckpoint(run_dir / "checkpoints", s.checkpoint_freq, p.monitor),
@@ -286,13 +294,15 @@ def run(p: Prepared, argv: Optional[list] = None, callbacks: Sequence = ()) -> P
         remaining = cfg.total_timesteps - first  # a resumed run continues up to the total
         start = time.perf_counter()
         model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=not p.resume)
-        wall = time.perf_counter() - start
+        wall = time.perf_counter() - start + taken
         model.save(run_dir / "model.zip")
         normalizer = unwrap_vec_normalize(p.venv)
         if normalizer is not None:
             NormStats.from_vecnormalize(normalizer).save(run_dir / "vecnormalize.npz")
         summary = {"wall_time_s": wall, "timesteps": int(model.num_timesteps),
-                   "steps_per_s": (model.num_timesteps - first) / wall if wall > 0 else None}
+                   "steps_per_s": (model.num_timesteps - first) / (wall - taken) if wall > taken else None}
+        if distilled:
+            summary.update(distilled)
         if p.resume:
             summary["resumed_from"] = p.resume.steps
         if limit:
@@ -305,6 +315,27 @@ def run(p: Prepared, argv: Optional[list] = None, callbacks: Sequence = ()) -> P
         raise
     print(json.dumps({"run_dir": str(run_dir), **summary}))
     return run_dir
+
+
+def distill(p: Prepared) -> dict:
+    """Fit the residual actor to the teacher's episodes (agents/distill.py) and freeze the
+    observation statistics at the teacher data's (the actor was fitted on them); what it took."""
+    from agents.distill import DISTILL_SEED, fit_actor, teach
+
+    from stable_baselines3.common.vec_env import unwrap_vec_normalize
+
+    s, cfg = p.settings, p.cfg
+    start = time.perf_counter()
+    first = DISTILL_SEED + 1000 * s.seed
+    inputs, targets, gains = teach(s.task, cfg.residual, cfg.env_kwargs,
+                                   list(range(first, first + cfg.distill_episodes)), cfg.distill_knots,
+                                   cfg.distill_evaluations, jobs=min(2, cfg.distill_episodes), progress=s.progress)
+    normalizer = unwrap_vec_normalize(p.venv)
+    loss = fit_actor(p.model, normalizer, inputs, targets, seed=s.seed)
+    normalizer.training = False  # the statistics the actor was fitted on
+    return {"distill_wall_s": time.perf_counter() - start, "distill_episodes": cfg.distill_episodes,
+            "distill_teacher_gain_mean": float(gains.mean()), "distill_fit_loss": loss,
+            "distill_target_mean_square": float((targets ** 2).mean())}
 
 
 def train(s: Settings, argv: Optional[list] = None, given: frozenset = frozenset(), callbacks: Sequence = ()) -> Path:
