@@ -391,14 +391,17 @@ def zoo_training_files() -> tuple:
 
 
 def zoo_training_table(data: dict) -> str:
-    """One row per shipped model: the environment steps it trained for and its wall time."""
-    lines = ["| model | steps | wall time | stopped by the time limit |", "|---|---|---|---|"]
+    """One row per shipped model: its teacher where it was distilled (episodes, time, their mean
+    gain over the base), the environment steps it trained for and its wall time (teacher included)."""
+    lines = ["| model | teacher (distilled) | steps | wall time | stopped by the time limit |", "|---|---|---|---|---|"]
     for source in zoo_training_files():
         t = data[source]
         minutes, seconds = divmod(round(t["wall_time_s"]), 60)
         stopped = {True: "yes", False: "no"}.get(t.get("stopped_by_time_limit"), "no limit set")
-        lines.append(f"| `{source.split('/')[1]}` | {t['timesteps'] / 1e6:.2f} M | {minutes} min {seconds:02d} s "
-                     f"| {stopped} |")
+        teacher = (f"{t['distill_episodes']} episodes, {t['distill_wall_s'] / 60:.1f} min, gain "
+                   f"{signed(t['distill_teacher_gain_mean'])}" if t.get("distill_episodes") else "")
+        lines.append(f"| `{source.split('/')[1]}` | {teacher} | {t['timesteps'] / 1e6:.2f} M | {minutes} min "
+                     f"{seconds:02d} s | {stopped} |")
     return "\n".join(lines)
 
 
