@@ -25,9 +25,11 @@ from esp_gym.kernels.env_arrays import ACTION_SIZE
 from esp_gym.tasks import TASKS
 
 
-def feedforward_axes(action_size: int) -> list:
-    """The action entries a feed-forward drives: the pivot force's three, and the reel's (the
-    last) with a winch."""
+def feedforward_axes(action_size: int, drone: bool = False) -> list:
+    """The action entries a feed-forward drives: a point pivot's force (three) and the reel (the
+    last) with a winch; every entry of a drone's action (thrust and its actuation's rest)."""
+    if drone:
+        return list(range(action_size))
     return [0, 1, 2] + ([action_size - 1] if action_size > ACTION_SIZE else [])
 
 
@@ -38,7 +40,7 @@ class Episode:
     def __init__(self, task: str, controller, seed: int, knots: int, env_kwargs=None):
         self.env = gym.make(esp_gym.ENV_ID, task=task, **(env_kwargs or {}))
         self.controller, self.seed = controller, seed
-        self.axes = feedforward_axes(self.env.action_space.shape[0])
+        self.axes = feedforward_axes(self.env.action_space.shape[0], self.env.unwrapped.setup.drone)
         self.steps = self.env.spec.max_episode_steps
         self.knot_steps = np.linspace(0.0, self.steps, knots)
         self.size = knots * len(self.axes)

@@ -20,6 +20,7 @@ def test_a_zero_feedforward_is_the_controllers_evaluated_episode_and_a_push_chan
 def test_the_feedforward_is_linear_between_its_knots_on_the_force_and_reel_axes():
     episode = Episode("lift", baselines("lift")["pd"], seed=1, knots=3)
     assert episode.axes == feedforward_axes(7) == [0, 1, 2, 6]
+    assert feedforward_axes(4, drone=True) == [0, 1, 2, 3]  # a drone's thrust and rates
     values = np.arange(12.0).reshape(3, 4)
     f = episode.feedforward(values.ravel())
     assert f.shape == (500, 4)
