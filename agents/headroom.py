@@ -4,8 +4,9 @@ episode: the controller plus an open-loop feed-forward, optimised for each episo
     python -m agents.headroom --task transport --policy lqr --episodes 3 --out docs/compare
 
 For each episode (seeds ``--seed`` + i) the feed-forward is piecewise linear in time, ``--knots``
-values per force axis (and the reel, with a winch) spread over the episode, added to the
-controller's action before the environment's clip; Powell's method (scipy.optimize) maximises the
+values per force axis (and the reel, with a winch; per action entry for a drone, through
+:class:`Episode`'s ``env_kwargs``) spread over the episode, added to the controller's action
+before the environment's clip; Powell's method (scipy.optimize) maximises the
 episode's return over those values within ``--evaluations`` episodes. The optimised return is a
 lower bound on what a policy that knew the episode could reach, so its gain over the controller
 tells whether a learned policy has anything to find. Writes ``headroom_TASK.json`` (per episode:
