@@ -28,28 +28,14 @@ def teacher_episode(task: str, base_name: str, env_kwargs: Optional[dict], seed:
     input at each step, the feed-forward applied there (the target residual) and the optimum's
     return gain over the base."""
     from agents.headroom import Episode, optimise
-    from agents.residual import base_features, base_policy
+    from agents.residual import base_policy
 
-    law = base_policy(base_name, task, env_kwargs)
-    episode = Episode(task, law, seed, knots, env_kwargs)
+    episode = Episode(task, base_policy(base_name, task, env_kwargs), seed, knots, env_kwargs)
     best = optimise(episode, evaluations)
-    extra = episode.feedforward(np.ravel(best["knots"]))
-    env, u = episode.env, episode.env.unwrapped
-    obs, _ = env.reset(seed=seed)
-    if hasattr(law, "reset"):
-        law.reset(u)
-    inputs, targets = [], []
-    for k in range(episode.steps):
-        action = np.array(law.act(obs, u.setup), dtype=np.float64)
-        inputs.append(np.concatenate([np.asarray(obs, dtype=np.float64), base_features(law)]))
-        target = np.zeros_like(action)
-        target[episode.axes] = extra[k]
-        targets.append(target)
-        action[episode.axes] += extra[k]
-        obs, _, terminated, truncated, _ = env.step(np.clip(action, -1.0, 1.0))
-        if terminated or truncated:
-            break
-    return np.array(inputs), np.array(targets), best["gain"]
+    steps = []
+    episode(np.ravel(best["knots"]), record=steps)  # the optimum again, as the student sees it
+    inputs = np.array([np.concatenate([obs, features]) for obs, features, _ in steps])
+    return inputs, np.array([target for _, _, target in steps]), best["gain"]
 
 
 def _teacher_job(job: tuple) -> tuple:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Optional
 
 import gymnasium as gym
 import numpy as np
@@ -52,8 +53,12 @@ class Episode:
         k = np.arange(self.steps)
         return np.stack([np.interp(k, self.knot_steps, values[:, j]) for j in range(len(self.axes))], axis=1)
 
-    def __call__(self, values: np.ndarray) -> float:
-        """The episode's return with the feed-forward of ``values``."""
+    def __call__(self, values: np.ndarray, record: Optional[list] = None) -> float:
+        """The episode's return with the feed-forward of ``values``; with ``record``, each step's
+        (observation, the controller's features after it acted, the feed-forward over the whole
+        action: zero off :attr:`axes`) is appended to it (agents/distill.py)."""
+        from agents.residual import base_features
+
         extra = self.feedforward(values)
         u = self.env.unwrapped
         obs, _ = self.env.reset(seed=self.seed)
@@ -62,6 +67,10 @@ class Episode:
         total = 0.0
         for k in range(self.steps):
             action = np.array(self.controller.act(obs, u.setup), dtype=np.float64)
+            if record is not None:
+                applied = np.zeros_like(action)
+                applied[self.axes] = extra[k]
+                record.append((np.asarray(obs, dtype=np.float64), base_features(self.controller), applied))
             action[self.axes] += extra[k]
             obs, reward, terminated, truncated, _ = self.env.step(np.clip(action, -1.0, 1.0))
             total += reward

@@ -68,14 +68,26 @@ def rollout(task: str, policy, seed: int, steps: int, env_kwargs=None) -> dict:
     return run
 
 
-def plot_task(run: dict, task: str, path, title: str) -> Path:
-    """The figure of one rollout (module docstring)."""
-    from esp_gym.viz.figures import new_figure, save_figure
+def panels():
+    """The figures' layout: the top view on the left, distance over swing (or attitude) on the
+    right. Returns ``(fig, top, distance_ax, swing_ax)``."""
+    from esp_gym.viz.figures import new_figure
 
     fig = new_figure((10, 4))
     grid = fig.add_gridspec(2, 2, width_ratios=(1, 1.4))
-    top = fig.add_subplot(grid[:, 0])
-    distance_ax, swing_ax = fig.add_subplot(grid[0, 1]), fig.add_subplot(grid[1, 1])
+    return fig, fig.add_subplot(grid[:, 0]), fig.add_subplot(grid[0, 1]), fig.add_subplot(grid[1, 1])
+
+
+def load_distance(run: dict) -> np.ndarray:
+    """The load's distance to its target at each time of a rollout [m]."""
+    return np.linalg.norm(run["load"] - run["load_target"], axis=1)
+
+
+def plot_task(run: dict, task: str, path, title: str) -> Path:
+    """The figure of one rollout (module docstring)."""
+    from esp_gym.viz.figures import save_figure
+
+    fig, top, distance_ax, swing_ax = panels()
     xy = slice(0, 2)  # the horizontal components of a spatial vector
     if run["moving"]:
         ref = run["load_target"][:, xy]
@@ -94,7 +106,7 @@ def plot_task(run: dict, task: str, path, title: str) -> Path:
     top.legend(loc="best")
     top.grid(True, alpha=0.3)
     t = run["time"]
-    distance_ax.plot(t, np.linalg.norm(run["load"] - run["load_target"], axis=1), color=COLOURS["load"])
+    distance_ax.plot(t, load_distance(run), color=COLOURS["load"])
     distance_ax.set_ylabel("load to target [m]")
     distance_ax.set_title(f"return {run['return']:.1f} over {len(t) - 1} steps")
     if "attitude" in run:  # the drone's attitude instead of the swing
@@ -120,20 +132,16 @@ def plot_policies(runs: dict, path, title: str) -> Path:
     """One episode of a moving-target task under several policies (``runs``: name -> rollout, the
     same seed): the top view of the reference and each load's path, each load's distance to its
     target and each swing over time."""
-    from esp_gym.viz.figures import new_figure, save_figure
+    from esp_gym.viz.figures import save_figure
 
-    fig = new_figure((10, 4))
-    grid = fig.add_gridspec(2, 2, width_ratios=(1, 1.4))
-    top = fig.add_subplot(grid[:, 0])
-    distance_ax, swing_ax = fig.add_subplot(grid[0, 1]), fig.add_subplot(grid[1, 1])
+    fig, top, distance_ax, swing_ax = panels()
     xy = slice(0, 2)
     first = next(iter(runs.values()))
     top.plot(*first["load_target"][:, xy].T, color=COLOURS["target"], lw=1, ls="--", label="reference (load)")
     for (name, run), colour in zip(runs.items(), ("tab:orange", "tab:purple", "tab:cyan")):
         label = f"{name} ({run['return']:.1f})"
         top.plot(*run["load"][:, xy].T, color=colour, lw=1.2, label=label)
-        distance_ax.plot(run["time"], np.linalg.norm(run["load"] - run["load_target"], axis=1), color=colour,
-                         label=label)
+        distance_ax.plot(run["time"], load_distance(run), color=colour, label=label)
         swing_ax.plot(run["time"], np.degrees(run["swing"]), color=colour)
     top.plot(*first["load"][0, xy], "o", color="black", ms=4)
     top.set_aspect("equal", adjustable="datalim")
@@ -162,7 +170,7 @@ def hard_lift_figure(out: Path, seed: int, steps: int, model: Path) -> dict:
     path = plot_policies(runs, out / "lift_hard.png", f"task='lift', preset='hard' (a moving target), seed {seed}")
     results = {}
     for name, run in runs.items():
-        final = float(np.linalg.norm(run["load"][-1] - run["load_target"][-1]))
+        final = float(load_distance(run)[-1])
         results[f"lift_hard_{name}"] = {"return": run["return"], "final_distance_m": final, "figure": str(path)}
         print(f"hard lift, {name:6s} return {run['return']:7.1f}  final distance {final:.3f} m  -> {path}")
     return results
@@ -196,7 +204,7 @@ def main(argv=None) -> dict:
         name = "zero action" if a.policy == "zero" else "geometric cascade"
         path = plot_task(run, "transport", out / "drone_transport.png",
                          f"quadrotor_load, task='transport', thrust_rates, {name}, seed {a.seed}")
-        final = float(np.linalg.norm(run["load"][-1] - run["load_target"][-1]))
+        final = float(load_distance(run)[-1])
         results["drone_transport"] = {"return": run["return"], "final_distance_m": final, "figure": str(path),
                                       "largest_tilt_deg": float(np.degrees(np.abs(run["attitude"][:, :2]).max()))}
         print(f"drone transport return {run['return']:7.1f}  final distance {final:.3f} m  largest roll or pitch "
@@ -207,7 +215,7 @@ def main(argv=None) -> dict:
         run = rollout(task, policy, a.seed, a.steps)
         name = "zero action" if a.policy == "zero" else "classical baseline"
         path = plot_task(run, task, out / f"task_{task}.png", f"task={task!r}, {name}, seed {a.seed}")
-        final = float(np.linalg.norm(run["load"][-1] - run["load_target"][-1]))
+        final = float(load_distance(run)[-1])
         results[task] = {"return": run["return"], "final_distance_m": final,
                          "final_swing_deg": math.degrees(run["swing"][-1]), "figure": str(path)}
         print(f"{task:10s} return {run['return']:7.1f}  final distance {final:.3f} m  "

@@ -405,16 +405,17 @@ def zoo_training_table(data: dict) -> str:
     return "\n".join(lines)
 
 
-#: The nominal tasks whose best controller's headroom agents.headroom measured.
+#: The nominal tasks whose best controller's headroom agents.headroom measured, and its files.
 HEADROOM_TASKS = ("stabilize", "transport", "track", "lift")
+HEADROOM_FILES = tuple(f"docs/compare/headroom_{task}.json" for task in HEADROOM_TASKS)
 
 
 def headroom_table(data: dict) -> str:
     """Per task: the controller, its return and the optimised feed-forward's gain per episode."""
     lines = ["| task | controller | episodes | its return | gain of the optimised feed-forward, per episode | mean gain |",
              "|---|---|---|---|---|---|"]
-    for task in HEADROOM_TASKS:
-        h = data[f"docs/compare/headroom_{task}.json"]
+    for task, source in zip(HEADROOM_TASKS, HEADROOM_FILES):
+        h = data[source]
         rows = h["episodes"]
         base = sum(r["controller_return"] for r in rows) / len(rows)
         gains = ", ".join(f"{signed(r['gain'])}" for r in rows)
@@ -680,7 +681,7 @@ QUOTES = {
                                    mujoco_chain_long_run),
     "compare.zoo": Quote(zoo_compare_files(), "python -m agents.zoo --compare", compare_zoo_table),
     "zoo.training": Quote(zoo_training_files(), "python -m agents.zoo --train", zoo_training_table),
-    "headroom.table": Quote(tuple(f"docs/compare/headroom_{task}.json" for task in HEADROOM_TASKS),
+    "headroom.table": Quote(HEADROOM_FILES,
                             "python -m agents.headroom --task T --policy P --episodes 3 --out docs/compare",
                             headroom_table),
     "zoo.curves": Quote(zoo_training_files(), "python -m agents.zoo --train", zoo_curves),
