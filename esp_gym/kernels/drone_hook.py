@@ -111,7 +111,7 @@ def coupled_turns(S, W, P, DR, HK, h, t, tq, forced, coupled):
     """Both Cayley equations, alternated until the load's turn q_L is still to the Newton tolerance
     (module docstring). Returns ``(status, iterations, c, q_L, s_L, c_q, q_q, R_k^T d)`` (d = h X_{N+1},
     the string solve's share of dr_{N+1}; 0 when not ``coupled``)."""
-    g0, g1, g2, _, _, _, e0, e1, e2 = load_rhs(S, P, W.X, h, t, forced, coupled)
+    g0, g1, g2, _, _, _, e0, e1, e2 = load_rhs(S, P.M, P.rho, W.X, h, t, forced, coupled)
     e = (e0, e1, e2)
     qL = (0.0, 0.0, 0.0)
     c = s = qq = cq = (0.0, 0.0, 0.0)

@@ -58,23 +58,24 @@ def explicit_increments(S, W, P, h, up0, up1, up2, t0, t1, t2, free, forced, cou
     first = 0 if free else 1
     # (1): right-hand side and the string solve with F_k = I
     string_solve(P.inv, P.cp, first, S.p, S.f, 0.5 * h, up0, up1, up2, free and forced, W.X)
-    return rigid_increments(S, W, P, h, P.Jeff, P.w, t0, t1, t2, free, forced, coupled)
+    return rigid_increments(S, W, P, h, P.M, P.rho, P.Jeff, P.w, t0, t1, t2, free, forced, coupled)
 
 
 @kernel(inline="always")
-def load_rhs(S, P, X, h, t, forced, coupled):
+def load_rhs(S, M, rho, X, h, t, forced, coupled):
     """The right-hand side of the load's (2) after the Schur complement, once ``X`` holds the
     string solve with F_k = I: g = h Pi + h^2/2 t - M rho_c x (R_k^T d) with d = h X_{N+1} and
-    the left torque ``t`` (body frame) [N m]. Returns ``(g (3), d (3), e = R_k^T d (3))``, e = 0
-    when not ``coupled``."""
+    the left torque ``t`` (body frame) [N m], for the load's inertial mass ``M`` [kg] and
+    attachment -> centre of mass ``rho`` (body frame) [m] (P.M, P.rho; a team's body with its
+    other strings' end masses: kernels/team.py). Returns ``(g (3), d (3), e = R_k^T d (3))``,
+    e = 0 when not ``coupled``."""
     R = S.R
     Pi = S.Pi
     hh = 0.5 * h
     n = X.shape[0] - 1
-    M = P.M
-    rho0 = P.rho[0]
-    rho1 = P.rho[1]
-    rho2 = P.rho[2]
+    rho0 = rho[0]
+    rho1 = rho[1]
+    rho2 = rho[2]
     t0, t1, t2 = t
     d0 = h * X[n, 0]
     d1 = h * X[n, 1]
@@ -135,17 +136,17 @@ def string_increments(X, Y, w, M, q, h, first, coupled):
 
 
 @kernel(forceinline=True)
-def rigid_increments(S, W, P, h, Jeff, w, t0, t1, t2, free, forced, coupled):
+def rigid_increments(S, W, P, h, M, rho, Jeff, w, t0, t1, t2, free, forced, coupled):
     """The rest of :func:`explicit_increments` once ``W.X`` holds the string solve with F_k = I
     (X = M^-1 B): the Schur complement (``w`` = M^-1 e_{N+1}, ``Jeff`` = J + M^2 w_{N+1}
-    rho_c^ rho_c^), Newton on the Cayley vector of F_k and the increments dr into ``W.Y``. Shared
-    with the winch's step (kernels/winch.py), whose M is the step's own. Returns as
-    :func:`explicit_increments`."""
+    rho_c^ rho_c^), Newton on the Cayley vector of F_k and the increments dr into ``W.Y``, for the
+    load's inertial mass ``M`` and offset ``rho`` (:func:`load_rhs`). Shared with the winch's step
+    (kernels/winch.py), whose matrix is the step's own, and a team's (kernels/team.py), whose load
+    carries its other strings' ends. Returns as :func:`explicit_increments`."""
     X = W.X
     n = X.shape[0] - 1
-    M = P.M
     # (2) after the Schur complement: g = h Pi + h^2/2 tau_k - M rho_c x (R_k^T d)
-    g0, g1, g2, d0, d1, d2, e0, e1, e2 = load_rhs(S, P, X, h, (t0, t1, t2), forced, coupled)
+    g0, g1, g2, d0, d1, d2, e0, e1, e2 = load_rhs(S, M, rho, X, h, (t0, t1, t2), forced, coupled)
     c0, c1, c2, iters, converged = cayley_newton(g0, g1, g2, Jeff, P.tol, P.max_iter, W.jac)
     if not converged:
         if np.isfinite(c0 + c1 + c2 + d0 + d1 + d2):
@@ -156,7 +157,7 @@ def rigid_increments(S, W, P, h, Jeff, w, t0, t1, t2, free, forced, coupled):
     # q = R_k (F_k - I) rho_c; dr = h X - M w q -> Y
     s0 = s1 = s2 = q0 = q1 = q2 = 0.0
     if coupled:
-        s0, s1, s2, q0, q1, q2 = end_shift(S.R, FmI, P.rho)
+        s0, s1, s2, q0, q1, q2 = end_shift(S.R, FmI, rho)
     dr00 = dr01 = dr02 = 0.0
     if free and forced:  # pivot displacement, for the work of the pivot force
         dr00 = h * X[0, 0] - M * w[0] * q0

@@ -267,11 +267,12 @@ def input_balances(S, P, R, Rn, h, c, left, right, held, dr0, free, forced):
 
 
 @kernel(inline="always")
-def commit_string(S, W, h, held, fl, fr, free, forced, compensated):
+def commit_string(S, W, h, held, fl, fr, free, forced, compensated, end_impulse=(0.0, 0.0, 0.0)):
     """Write the nodes' new positions and momenta (:func:`commit_node`) with the impulse
     h/2 (fl + fr), the free pivot's row with its input impulse h/2 (u_k + u_{k+1}) (h u, bit for
-    bit, for a held force) in the same compensated sum; ``S.f`` becomes ``fr`` (the implicit
-    step's first guess for the next)."""
+    bit, for a held force) in the same compensated sum, and the attachment row with
+    ``end_impulse`` (spatial) [N s] (a team's other strings' ends: kernels/team.py; an exact zero
+    otherwise); ``S.f`` becomes ``fr`` (the implicit step's first guess for the next)."""
     r = S.r
     p = S.p
     f = S.f
@@ -286,9 +287,12 @@ def commit_string(S, W, h, held, fl, fr, free, forced, compensated):
         commit_node(r, p, S.rc, S.pc, f, fnext, fl, fr, W.X, W.Y, 0, 1, hh * (up1 + ue1), hh, compensated)
         commit_node(r, p, S.rc, S.pc, f, fnext, fl, fr, W.X, W.Y, 0, 2, hh * (up2 + ue2), hh, compensated)
         start = 1
-    for a in range(start, n + 1):
+    for a in range(start, n):
         for i in range(3):
             commit_node(r, p, S.rc, S.pc, f, fnext, fl, fr, W.X, W.Y, a, i, 0.0, hh, compensated)
+    commit_node(r, p, S.rc, S.pc, f, fnext, fl, fr, W.X, W.Y, n, 0, end_impulse[0], hh, compensated)
+    commit_node(r, p, S.rc, S.pc, f, fnext, fl, fr, W.X, W.Y, n, 1, end_impulse[1], hh, compensated)
+    commit_node(r, p, S.rc, S.pc, f, fnext, fl, fr, W.X, W.Y, n, 2, end_impulse[2], hh, compensated)
     for a in range(first):
         f[a, 0] = fnext[a, 0]
         f[a, 1] = fnext[a, 1]

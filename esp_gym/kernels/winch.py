@@ -252,7 +252,7 @@ def winch_substep(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, compens
     l_0, l_1, l_2, t0, t1, t2 = left_torque(S.R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
     step_solve(S, W, WA, c, hh, up0, up1, up2, free and forced, first, n)
     c0, c1, c2, e0, e1, e2, dr00, dr01, dr02, iters, status = rigid_increments(
-        S, W, P, h, WA.jeff, WA.w, t0, t1, t2, free, forced, coupled)
+        S, W, P, h, P.M, P.rho, WA.jeff, WA.w, t0, t1, t2, free, forced, coupled)
     if status != OK:
         return status, iters
     new_positions(S, W, first, compensated)

@@ -74,8 +74,8 @@ def winch_implicit_once(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, c
     if v != 0.0:
         add_convective_forces(r, coef, theta0, fl, first)
     step_solve(S, W, WA, c, hh, up0, up1, up2, free and forced, first, n)
-    c0, c1, c2, _, _, _, _, _, _, _, status = rigid_increments(S, W, Pm, h, WA.jeff, WA.w, t0, t1, t2, free, forced,
-                                                               coupled)
+    c0, c1, c2, _, _, _, _, _, _, _, status = rigid_increments(S, W, Pm, h, Pm.M, Pm.rho, WA.jeff, WA.w, t0, t1,
+                                                               t2, free, forced, coupled)
     if status != OK:  # the string solve alone
         c0 = c1 = c2 = 0.0
         for a in range(first, n + 1):

@@ -1,0 +1,312 @@
+"""A team's step: K strings from their own pivots to one body (docs/physics.md, "A team: several
+strings on one body").
+
+String 0 and the body are a single string's arrays (StateArrays, Work, LGVIParams: the lead scene's)
+and run through the single string's stages (kernels/lgvi.py, kernels/step_shared.py), with the
+body's inertia augmented by the other strings' effective end masses (:data:`TeamParams`
+``mass``, ``rho_inertial``, ``jeff``, and string 0's factors ``inv0``, ``cp0``, ``w0`` with that
+mass on its last row). Gravity keeps the body's own mass and offset (P.M, P.rho).
+
+The other strings 1..K-1 are stacked by rows in :data:`TeamArrays`: string j owns rows
+``start[j] .. start[j+1] - 1``, its pivot first and its end, slaved to the body at ``rho[j]``
+from string 0's attachment point (body frame), last. A slaved end carries no momentum of its
+own: its row of ``p`` stays 0 and its share is in the body's (S.p[N], S.Pi).
+
+With K = 1 every loop below is empty and every addition an exact zero: the step is the single
+string's general-path step, bit for bit.
+"""
+from collections import namedtuple
+
+import numpy as np
+
+from .jit import kernel
+from .layout import B_ANGULAR_IMPULSE_Z, B_GRAVITY_IMPULSE, B_PIVOT_IMPULSE, B_WORK
+from .lgvi import end_shift, rigid_increments
+from .loops import finish
+from .status import BLOW_UP, NON_FINITE, OK
+from .step_shared import (body_momentum_increment, commit_body, commit_node, commit_string, guarded_forces,
+                          held_inputs, input_balances, left_torque, new_positions, next_attitude)
+from .string import nodal_forces, string_solve
+from .sums import kahan_add
+
+#: Constants of a team's strings 1..K-1 (per string j: ``first`` its first unknown row, 0 for a
+#: free pivot of mass ``Mp``; ``kappa`` [N/m], ``u`` [m], ``m`` [kg] its elements'; ``off`` its
+#: mass matrix's off-diagonal [kg]; ``slack`` tension only; ``max_len2`` its blow-up guard [m^2];
+#: ``rho`` (K-1, 3) its attachment point from string 0's, body frame [m]) and per stacked row the
+#: Thomas factors ``inv``, ``cp`` of the rows before the end and ``w_end`` = M_II^-1 e_last, that
+#: block's last column. The body's inertia with the strings' end masses: ``mass`` M' [kg],
+#: ``rho_inertial`` rho' [m], ``jeff`` (3, 3), and string 0's Thomas factors ``inv0``, ``cp0`` and
+#: attachment column ``w0`` with M' on its last row.
+TeamParams = namedtuple("TeamParams", "start first kappa u m Mp off slack max_len2 rho inv cp w_end "
+                                      "mass rho_inertial jeff inv0 cp0 w0")
+
+#: The state and scratch of strings 1..K-1, stacked by rows (rows, 3): positions ``r``, momenta
+#: ``p`` (0 on the ends), their remainders ``rc``, ``pc``, the forces ``f`` at r and ``fn`` at the
+#: step's new positions ``X`` (increments ``Y``) [N, m]; per string the coupling momentum ``c``
+#: (K-1, 3) = M_eI M_II^-1 b_I [kg m/s], the pivot's displacement ``dr0`` over the step [m] and
+#: the pivot force ``force`` held over it (spatial) [N].
+TeamArrays = namedtuple("TeamArrays", "r p rc pc f fn X Y c dr0 force")
+
+
+@kernel(inline="always")
+def end_loads(R, T, A, h, forced):
+    """Each string j >= 1 reduced to its end: the solve of its rows before the end,
+    X = M_II^-1 (p + h/2 f (+ h/2 u at a free pivot)), its coupling c_j = off X_last (into
+    ``A.c``), and the left load l_j = h/2 f_end - c_j on the body. Returns the sum of the l_j
+    (spatial) [N s] and their torque (2/h) sum rho_j x R_k^T l_j (body frame) [N m], the
+    share of the left torque of (2)."""
+    hh = 0.5 * h
+    E0 = E1 = E2 = 0.0
+    t0 = t1 = t2 = 0.0
+    for j in range(T.first.shape[0]):
+        s = T.start[j]
+        e = T.start[j + 1] - 1
+        first = T.first[j]
+        X = A.X[s:e]
+        string_solve(T.inv[s:e], T.cp[s:e], first, A.p[s:e], A.f[s:e], hh, A.force[j, 0], A.force[j, 1],
+                     A.force[j, 2], first == 0 and forced, X)
+        c0 = c1 = c2 = 0.0
+        if e - 1 >= s + first:  # a moving row next to the end
+            c0 = T.off[j] * X[e - 1 - s, 0]
+            c1 = T.off[j] * X[e - 1 - s, 1]
+            c2 = T.off[j] * X[e - 1 - s, 2]
+        A.c[j, 0] = c0
+        A.c[j, 1] = c1
+        A.c[j, 2] = c2
+        l0 = hh * A.f[e, 0] - c0
+        l1 = hh * A.f[e, 1] - c1
+        l2 = hh * A.f[e, 2] - c2
+        E0 += l0
+        E1 += l1
+        E2 += l2
+        b0 = R[0, 0] * l0 + R[1, 0] * l1 + R[2, 0] * l2  # R_k^T l
+        b1 = R[0, 1] * l0 + R[1, 1] * l1 + R[2, 1] * l2
+        b2 = R[0, 2] * l0 + R[1, 2] * l1 + R[2, 2] * l2
+        rho = T.rho[j]
+        t0 += rho[1] * b2 - rho[2] * b1
+        t1 += rho[2] * b0 - rho[0] * b2
+        t2 += rho[0] * b1 - rho[1] * b0
+    return E0, E1, E2, t0 / hh, t1 / hh, t2 / hh
+
+
+@kernel(inline="always")
+def lead_solve(S, W, P, T, h, up, E, free, forced):
+    """String 0's solve of (1) with F_k = I: M'^-1 (p + h/2 f (+ h/2 u_p at a free pivot)) into
+    ``W.X``, plus w0 ``E`` (the other strings' left loads on the attachment row), by linearity."""
+    first = 0 if free else 1
+    up0, up1, up2 = up
+    string_solve(T.inv0, T.cp0, first, S.p, S.f, 0.5 * h, up0, up1, up2, free and forced, W.X)
+    if T.first.shape[0] > 0:
+        E0, E1, E2 = E
+        X = W.X
+        for a in range(first, X.shape[0]):
+            X[a, 0] += T.w0[a] * E0
+            X[a, 1] += T.w0[a] * E1
+            X[a, 2] += T.w0[a] * E2
+
+
+@kernel(inline="always")
+def other_increments(S, W, T, A, h, forced, compensated):
+    """Once Newton has F_k: each string j >= 1's end moves by dr_e = dr_x + R_k (F_k - I) rho_j,
+    its other rows by h X - off w_end dr_e; ``A.Y`` gets the increments, ``A.X`` the new positions
+    of the rows before the end (r + dr, + the remainders when ``compensated``) and ``A.dr0`` each
+    pivot's displacement. Reads string 0's raw attachment increment ``W.Y[N]``, so it runs
+    before :func:`new_positions`."""
+    n = S.r.shape[0] - 1
+    dx0 = W.Y[n, 0]
+    dx1 = W.Y[n, 1]
+    dx2 = W.Y[n, 2]
+    X = A.X
+    Y = A.Y
+    for j in range(T.first.shape[0]):
+        s = T.start[j]
+        e = T.start[j + 1] - 1
+        first = T.first[j]
+        _, _, _, q0, q1, q2 = end_shift(S.R, W.FmI, T.rho[j])
+        d0 = dx0 + q0
+        d1 = dx1 + q1
+        d2 = dx2 + q2
+        o = T.off[j]
+        for a in range(s + first, e):
+            Y[a, 0] = h * X[a, 0] - o * T.w_end[a] * d0
+            Y[a, 1] = h * X[a, 1] - o * T.w_end[a] * d1
+            Y[a, 2] = h * X[a, 2] - o * T.w_end[a] * d2
+        Y[e, 0] = d0
+        Y[e, 1] = d1
+        Y[e, 2] = d2
+        A.dr0[j, 0] = Y[s, 0] if first == 0 else 0.0
+        A.dr0[j, 1] = Y[s, 1] if first == 0 else 0.0
+        A.dr0[j, 2] = Y[s, 2] if first == 0 else 0.0
+        for a in range(s, e):
+            for i in range(3):
+                if a < s + first:
+                    X[a, i] = A.r[a, i]
+                else:
+                    y = Y[a, i]
+                    if compensated:
+                        y = y + A.rc[a, i]
+                        Y[a, i] = y
+                    X[a, i] = A.r[a, i] + y
+
+
+@kernel(inline="always")
+def other_forces(S, W, P, T, A, h):
+    """The other strings' ends placed on the body at x_{k+1} + R_{k+1} rho_j (``W.Rn`` holds
+    R_{k+1}), their forces at the new positions into ``A.fn`` and their guards. Returns
+    ``(status, the right load's torque (2/h) sum rho_j x R_{k+1}^T (h/2 fn_end + c_j) (body frame)
+    [N m], the attachment row's impulse h/2 sum (f_end + fn_end) [N s])``."""
+    n = S.r.shape[0] - 1
+    hh = 0.5 * h
+    Rn = W.Rn
+    X = A.X
+    t0 = t1 = t2 = 0.0
+    i0 = i1 = i2 = 0.0
+    for j in range(T.first.shape[0]):
+        s = T.start[j]
+        e = T.start[j + 1] - 1
+        rho = T.rho[j]
+        for i in range(3):
+            X[e, i] = W.X[n, i] + (Rn[i, 0] * rho[0] + Rn[i, 1] * rho[1] + Rn[i, 2] * rho[2])
+        total, longest = nodal_forces(X[s:e + 1], T.kappa[j], T.u[j], T.m[j], 0.0, T.Mp[j], P.g, T.slack[j],
+                                      A.fn[s:e + 1])
+        if not np.isfinite(total):
+            return NON_FINITE, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        if longest > T.max_len2[j]:
+            return BLOW_UP, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        l0 = hh * A.fn[e, 0] + A.c[j, 0]
+        l1 = hh * A.fn[e, 1] + A.c[j, 1]
+        l2 = hh * A.fn[e, 2] + A.c[j, 2]
+        b0 = Rn[0, 0] * l0 + Rn[1, 0] * l1 + Rn[2, 0] * l2  # R_{k+1}^T l
+        b1 = Rn[0, 1] * l0 + Rn[1, 1] * l1 + Rn[2, 1] * l2
+        b2 = Rn[0, 2] * l0 + Rn[1, 2] * l1 + Rn[2, 2] * l2
+        t0 += rho[1] * b2 - rho[2] * b1
+        t1 += rho[2] * b0 - rho[0] * b2
+        t2 += rho[0] * b1 - rho[1] * b0
+        i0 += hh * (A.f[e, 0] + A.fn[e, 0])
+        i1 += hh * (A.f[e, 1] + A.fn[e, 1])
+        i2 += hh * (A.f[e, 2] + A.fn[e, 2])
+    return OK, t0 / hh, t1 / hh, t2 / hh, i0, i1, i2
+
+
+@kernel(inline="always")
+def other_balances(S, P, T, A, h, forced):
+    """The other strings' shares of the input balances: their weight's impulse along +e3, and
+    with ``forced`` their free pivots' work u . dr_0, impulse h u and angular impulse about e3
+    h/2 ((2 r_0 + dr_0) x u) . e3 [N s, J, N m s]."""
+    acc = S.acc
+    accc = S.accc
+    hh = 0.5 * h
+    for j in range(T.first.shape[0]):
+        s = T.start[j]
+        e = T.start[j + 1] - 1
+        kahan_add(acc, accc, B_GRAVITY_IMPULSE + 2, h * P.g * (T.Mp[j] + (e - s) * T.m[j]))
+        if forced and T.first[j] == 0:
+            u0 = A.force[j, 0]
+            u1 = A.force[j, 1]
+            u2 = A.force[j, 2]
+            d0 = A.dr0[j, 0]
+            d1 = A.dr0[j, 1]
+            kahan_add(acc, accc, B_WORK, u0 * d0 + u1 * d1 + u2 * A.dr0[j, 2])
+            kahan_add(acc, accc, B_ANGULAR_IMPULSE_Z,
+                      hh * ((2.0 * A.r[s, 0] + d0) * u1 - (2.0 * A.r[s, 1] + d1) * u0))
+            kahan_add(acc, accc, B_PIVOT_IMPULSE, h * u0)
+            kahan_add(acc, accc, B_PIVOT_IMPULSE + 1, h * u1)
+            kahan_add(acc, accc, B_PIVOT_IMPULSE + 2, h * u2)
+
+
+@kernel(inline="always")
+def commit_others(T, A, h, forced, compensated):
+    """Write the other strings' new positions and momenta (:func:`commit_node`; a free pivot's
+    row with its impulse h u), their ends' positions (no momentum of their own), and f <- fn."""
+    hh = 0.5 * h
+    for j in range(T.first.shape[0]):
+        s = T.start[j]
+        e = T.start[j + 1] - 1
+        first = T.first[j]
+        for a in range(s + first, e):
+            for i in range(3):
+                impulse = 0.0
+                if forced and a == s:
+                    impulse = h * A.force[j, i]
+                commit_node(A.r, A.p, A.rc, A.pc, A.f, A.fn, A.f, A.fn, A.X, A.Y, a, i, impulse, hh, compensated)
+        for i in range(3):
+            for a in range(s, s + first):
+                A.f[a, i] = A.fn[a, i]
+            A.r[e, i] = A.X[e, i]
+            A.rc[e, i] = 0.0
+            A.f[e, i] = A.fn[e, i]
+
+
+@kernel(forceinline=True)
+def team_substep(S, W, P, T, A, inputs, h, free, forced, coupled, compensated):
+    """Advance a team by one step of length ``h``, in place (docs/physics.md, "A team: several
+    strings on one body"): string 0 and the body as :func:`~.lgvi.lgvi_substep` with the body's
+    inertia augmented (``T``), the other strings (``A``) reduced to their ends before Newton and
+    back-substituted after it. ``inputs`` (:data:`~.layout.INPUTS`) push string 0's pivot and
+    turn the body; ``A.force`` pushes the other pivots. Flags as in ``lgvi_substep``; a failing
+    step leaves the state untouched. Returns ``(status, newton_iterations)``."""
+    R = S.R
+    first = 0 if free else 1
+    held = held_inputs(inputs, forced)
+    up0, up1, up2, _, _, _, tb0, tb1, tb2, ts0, ts1, ts2 = held
+    l0, l1, l2, t0, t1, t2 = left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
+    E0, E1, E2, a0, a1, a2 = end_loads(R, T, A, h, forced)
+    t0 = t0 + a0
+    t1 = t1 + a1
+    t2 = t2 + a2
+    lead_solve(S, W, P, T, h, (up0, up1, up2), (E0, E1, E2), free, forced)
+    c0, c1, c2, e0, e1, e2, dr00, dr01, dr02, iters, status = rigid_increments(
+        S, W, P, h, T.mass, T.rho_inertial, T.jeff, T.w0, t0, t1, t2, free, forced, coupled)
+    if status != OK:
+        return status, iters
+    other_increments(S, W, T, A, h, forced, compensated)
+    new_positions(S, W, first, compensated)
+    status = guarded_forces(W.X, P, W.fn)
+    if status != OK:
+        return status, iters
+    next_attitude(S.R, S.Rc, W.FmI, W.RF, W.Rn, compensated)
+    status, b0, b1, b2, i0, i1, i2 = other_forces(S, W, P, T, A, h)
+    if status != OK:
+        return status, iters
+    # the right torque: tau_g(R_{k+1}) + tau^+, and the other strings' right loads
+    m0, m1, m2, n0, n1, n2 = left_torque(W.Rn, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
+    dP = body_momentum_increment(S.Pi, W.FmI, T.mass, T.rho_inertial, h, (t0, t1, t2), (n0 + b0, n1 + b1, n2 + b2),
+                                 (e0, e1, e2), forced, coupled)
+    if not np.isfinite(dP[0] + dP[1] + dP[2]):
+        return NON_FINITE, iters
+    input_balances(S, P, S.R, W.Rn, h, (c0, c1, c2), (l0, l1, l2), (m0, m1, m2), held, (dr00, dr01, dr02), free,
+                   forced)
+    other_balances(S, P, T, A, h, forced)
+    commit_string(S, W, h, held, S.f, W.fn, free, forced, compensated, (i0, i1, i2))
+    commit_others(T, A, h, forced, compensated)
+    commit_body(S, W.Rn, W.RF, dP, compensated)
+    return OK, iters
+
+
+@kernel(entry=True)
+def team_advance(S, W, P, T, A, inputs, nsteps, stats):
+    """Take up to ``nsteps`` team steps with constant inputs; stop at the first failure with the
+    last good state (a failing step moves nothing). ``stats`` as kernels/loops.py's. Every term
+    is in (the general path): forced, coupled, the pivot and the compensation read from ``P``."""
+    free = P.first == 0
+    total = 0
+    most = 0
+    for k in range(nsteps):
+        status, iters = team_substep(S, W, P, T, A, inputs, P.h, free, True, True, P.compensated)
+        total += iters
+        most = max(most, iters)
+        if status != OK:
+            finish(stats, status, k, total, most)
+            return
+    finish(stats, OK, nsteps, total, most)
+
+
+@kernel(entry=True)
+def team_forces(S, P, T, A):
+    """The forces at the state's positions: string 0's into ``S.f``, the others' into ``A.f``
+    (a state just set)."""
+    nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
+    for j in range(T.first.shape[0]):
+        s = T.start[j]
+        e = T.start[j + 1]
+        nodal_forces(A.r[s:e], T.kappa[j], T.u[j], T.m[j], 0.0, T.Mp[j], P.g, T.slack[j], A.f[s:e])

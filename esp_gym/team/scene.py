@@ -1,0 +1,139 @@
+"""A team's scene: one body held by K = 1..6 strings, each from its own pivot to its own
+attachment point (docs/physics.md, "A team: several strings on one body").
+
+A :class:`TeamScene` is a single-string :class:`~esp_gym.params.Scene` (string 0, the body, its
+pivot, gravity, the step, the solver and the initial state) plus the other strings
+(:class:`TeamString`). With no other strings it is that scene, and steps as it does, bit for bit.
+"""
+from __future__ import annotations
+
+from typing import Optional
+
+import numpy as np
+from pydantic import Field, ValidationError, model_validator
+
+from ..params import PivotParams, Scene, StringParams
+from ..scene_input import Frozen, vector
+
+Point3 = vector("coordinate")
+
+#: The most strings a team has.
+MAX_STRINGS = 6
+
+
+class TeamString(Frozen):
+    """One more string of a team: its string, its pivot (fixed, or a free point mass) and its
+    attachment point on the body (body frame, from the body's centre of mass) [m]. It starts
+    straight from its pivot to that point, at rest but for its end, which moves with the body."""
+
+    string: StringParams
+    pivot: PivotParams = PivotParams()
+    attachment: Point3 = Field(description="attachment point, body frame, from the centre of mass [m]")
+
+
+class TeamScene(Frozen):
+    """``scene``: string 0 and everything the team shares (the body, with ``body.rho_c`` from
+    string 0's attachment point to the centre of mass; gravity, h, the solver, the initial state);
+    ``strings``: strings 1..K-1."""
+
+    scene: Scene
+    strings: list[TeamString] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _a_team_the_step_supports(self) -> "TeamScene":
+        lead = self.scene
+        if len(self.strings) + 1 > MAX_STRINGS:
+            raise ValueError(f"strings: a team has at most {MAX_STRINGS} strings, got {len(self.strings) + 1}")
+        if lead.solver.string != "explicit":
+            raise ValueError("scene.solver.string: a team steps the explicit string only (docs/physics.md, "
+                             "\"What a team does not do yet\")")
+        if lead.solver.scheme.stages != 1:
+            raise ValueError(f"scene.solver.order: a team steps at order 2 only, got order {lead.solver.order}")
+        pivots = [("scene.pivot", lead.pivot)] + [(f"strings[{i}].pivot", s.pivot) for i, s in enumerate(self.strings)]
+        for name, pivot in pivots:
+            if pivot.is_drone:
+                raise ValueError(f"{name}.kind: a team's pivots are fixed or free points; drones are not supported "
+                                 "yet")
+        laws = [("scene.string.law", lead.string)] + [(f"strings[{i}].string.law", s.string)
+                                                      for i, s in enumerate(self.strings)]
+        for name, string in laws:
+            if string.law == "slack" and lead.solver.slack_switch == "settled":
+                raise ValueError(f"{name}: a team's slack string takes scene.solver.slack_switch: plain (the "
+                                 "settled switch does not yet see the other strings)")
+        for i, s in enumerate(self.strings):
+            try:
+                self.member_scene(i + 1)  # the string's own stability bound and ranges at this h
+            except (ValidationError, ValueError) as err:
+                raise ValueError(f"strings[{i}]: {err}") from None
+        return self
+
+    @property
+    def size(self) -> int:
+        """K, the number of strings."""
+        return 1 + len(self.strings)
+
+    @property
+    def h(self) -> float:
+        return self.scene.h
+
+    def attachments(self) -> np.ndarray:
+        """Every string's attachment point (K, 3), body frame, from the centre of mass [m]."""
+        rows = [-np.asarray(self.scene.body.rho_c, dtype=float)]
+        rows += [np.asarray(s.attachment, dtype=float) for s in self.strings]
+        return np.array(rows)
+
+    def offsets(self) -> np.ndarray:
+        """rho_k (K, 3): string k's attachment point from string 0's, body frame [m] (rho_0 = 0)."""
+        rho_c = np.asarray(self.scene.body.rho_c, dtype=float)
+        return np.array([np.zeros(3)] + [np.asarray(s.attachment, dtype=float) + rho_c for s in self.strings])
+
+    def member_scene(self, k: int) -> Scene:
+        """String k as a single-string scene with the team's body, step and solver (for its ranges
+        and stability bound; string 0's is :attr:`scene`)."""
+        if k == 0:
+            return self.scene
+        s = self.strings[k - 1]
+        data = self.scene.model_dump()
+        data.update(string=s.string.model_dump(), pivot=s.pivot.model_dump(), name=f"{self.scene.name}[{k}]")
+        data["initial"] = {}
+        return Scene.model_validate(data)
+
+
+def symmetric_team(size: int = 3, length: float = 1.0, mass_per_length: float = 0.05, EA: float = 2000.0,
+                   elements: int = 8, body_mass: float = 1.0, body_size=(0.4, 0.4, 0.1), pivot_radius: float = 0.6,
+                   attachment_radius: float = 0.2, pivot: Optional[dict] = None, h: float = 2e-4,
+                   stretch: float = 1.0, **scene) -> TeamScene:
+    """A team of ``size`` equal strings symmetric about the e3 axis: pivots on a circle of
+    ``pivot_radius`` in the plane z = 0, attachment points on a circle of ``attachment_radius``
+    on the top face of a box load (``body_size`` [m], ``body_mass`` [kg]), string k at the angle
+    2 pi k / size; each string straight from its pivot to its attachment point, of unstretched
+    ``length`` [m] stretched by ``stretch``. ``pivot``: the pivots' section (default fixed; e.g.
+    ``{"kind": "free", "mass": 0.5}``). ``scene``: more of the lead scene's sections (solver,
+    gravity, ...)."""
+    if not 1 <= int(size) <= MAX_STRINGS:
+        raise ValueError(f"size must be 1..{MAX_STRINGS}, got {size}")
+    size = int(size)
+    angles = 2.0 * np.pi * np.arange(size) / size
+    ring = np.stack([np.cos(angles), np.sin(angles), np.zeros(size)], axis=1)
+    attach = attachment_radius * ring - np.array([0.0, 0.0, 0.5 * body_size[2]])
+    pivots = pivot_radius * ring
+    span = np.hypot(pivot_radius - attachment_radius, 0.0)
+    drop = np.sqrt(max((length * stretch) ** 2 - span ** 2, 0.0))
+    if drop <= 0.0:
+        raise ValueError(f"length * stretch = {length * stretch} m cannot reach from the pivots' circle to the "
+                         f"attachments' ({span} m apart)")
+    centre = np.array([0.0, 0.0, drop + 0.5 * body_size[2]])  # e3 down: the load hangs at z > 0
+    pivot = dict(pivot or {"kind": "fixed"})
+    string = dict(length=length, mass_per_length=mass_per_length, EA=EA, elements=elements)
+    direction = centre + attach[0] - pivots[0]
+    lead = Scene.model_validate({
+        "name": f"team{size}", "h": h,
+        "string": string,
+        "body": {"mass": body_mass, "rho_c": list(map(float, -attach[0])),
+                 "shape": {"kind": "box", "size": list(map(float, body_size))}},
+        "pivot": {**pivot, "position": list(map(float, pivots[0]))},
+        "initial": {"direction": list(map(float, direction)), "stretch": float(stretch)},
+        **scene})
+    others = [TeamString(string=StringParams(**string), pivot=PivotParams(**pivot, position=tuple(pivots[k])),
+                         attachment=tuple(attach[k])) for k in range(1, size)]
+    return TeamScene(scene=lead, strings=others)

@@ -1,0 +1,355 @@
+"""The Python face of a team's physics: :class:`TeamSimulator` steps a :class:`TeamScene` with the
+compiled team step (esp_gym/kernels/team.py) and reports its diagnostics and balances
+(docs/physics.md, "A team: several strings on one body").
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import solve_banded
+
+from ..kernels.layout import BALANCE, INPUTS, LOOP_REPORT_SIZE, R_NEWTON_TOTAL, R_STATUS, R_STEPS
+from ..kernels.status import OK
+from ..kernels.team import TeamArrays, TeamParams, team_advance, team_forces
+from ..model import SimulationError, Simulator
+from ..state import State, attachment_column, cross3, mass_matrix
+from ..stability import hat
+from ..kernels.string import tridiag_factor
+from .scene import TeamScene
+
+
+@dataclass
+class TeamState:
+    """A team's discrete state: ``lead`` string 0 and the body (a single string's
+    :class:`~esp_gym.state.State`, whose last row of p and whose Pi hold the body's momenta with
+    every string end's share), and the other strings' positions ``r`` and momenta ``p``, stacked by
+    rows (each string's end last, its momentum row 0)."""
+
+    lead: State
+    r: np.ndarray
+    p: np.ndarray
+
+    def copy(self) -> "TeamState":
+        return TeamState(self.lead.copy(), self.r.copy(), self.p.copy())
+
+
+def string_mass(string, pivot):
+    """``(diagonal (N+1,), off-diagonal, end share)`` of one string's mass matrix without a body
+    (a free pivot's mass on its first row, a fixed pivot's row 0)."""
+    m = string.m
+    off, end = (m / 6.0, 2.0 * m / 6.0) if string.mass_model == "consistent" else (0.0, 0.5 * m)
+    diag = np.full(string.elements + 1, 2.0 * end)
+    diag[0] = end + pivot.mass if pivot.is_free else 0.0
+    diag[-1] = end
+    return diag, off, end
+
+
+def end_reduction(diag, off, first):
+    """The rows before a string's end, and its end mass: ``(inv, cp, w_end, mu)``, the Thomas
+    factors of M_II, its last column M_II^-1 e_last and mu = M_ee - off^2 (M_II^-1)_last,last
+    (docs/physics.md, "One string reduced to its end")."""
+    n = diag.shape[0] - 1
+    block = diag[:n]
+    if n - 1 < first:  # one element from a fixed pivot: nothing moves but the end
+        return np.zeros(n), np.zeros(n), np.zeros(n), float(diag[n])
+    inv, cp = tridiag_factor(block, off)
+    w_end = attachment_column(block, off, cp, first)
+    return inv, cp, w_end, float(diag[n] - off * off * w_end[n - 1])
+
+
+def build_team(team: TeamScene, lead_params):
+    """The team's constants (:data:`~esp_gym.kernels.team.TeamParams`) from the lead scene's
+    ``lead_params``, and the other strings' per-string data for the diagnostics."""
+    rho = team.offsets()[1:]
+    rows, first, mus, data = [0], [], [], []
+    inv, cp, w_end = [], [], []
+    for k, s in enumerate(team.strings, start=1):
+        diag, off, end = string_mass(s.string, s.pivot)
+        f = 0 if s.pivot.is_free else 1
+        i, c, w, mu = end_reduction(diag, off, f)
+        inv += [i, [0.0]]
+        cp += [c, [0.0]]
+        w_end += [w, [0.0]]
+        rows.append(rows[-1] + s.string.elements + 1)
+        first.append(f)
+        mus.append(mu)
+        data.append((diag, off, end, f))
+    P = lead_params
+    n = P.inv.shape[0] - 1
+    if team.strings:
+        mu = np.array(mus)
+        mass = P.M + float(mu.sum())
+        rho_inertial = P.rho + (mu[:, None] * (rho - P.rho)).sum(0) / mass
+        J = P.J + sum(m * (r @ r * np.eye(3) - np.outer(r, r)) for m, r in zip(mu, rho))
+        diag0, off0, _ = mass_matrix(team.scene)
+        diag0[n] += float(mu.sum())
+        inv0, cp0 = tridiag_factor(diag0, off0)
+        w0 = attachment_column(diag0, off0, cp0, P.first)
+        jeff = J + mass * mass * inv0[n] * hat(rho_inertial) @ hat(rho_inertial)
+    else:  # one string: the lead scene's own constants
+        mass, rho_inertial, jeff, inv0, cp0, w0 = P.M, P.rho, P.Jeff, P.inv, P.cp, P.w
+    strings = team.strings
+    cat = (lambda parts: np.concatenate(parts)) if strings else (lambda parts: np.zeros(0))
+    T = TeamParams(
+        start=np.array(rows, dtype=np.int64), first=np.array(first, dtype=np.int64),
+        kappa=np.array([s.string.kappa for s in strings], dtype=float),
+        u=np.array([s.string.u for s in strings], dtype=float),
+        m=np.array([s.string.m for s in strings], dtype=float),
+        Mp=np.array([s.pivot.mass or 0.0 for s in strings], dtype=float),
+        off=np.array([d[1] for d in data], dtype=float),
+        slack=np.array([s.string.law == "slack" for s in strings], dtype=np.bool_),
+        max_len2=np.array([(team.scene.solver.max_stretch * s.string.u) ** 2 for s in strings], dtype=float),
+        rho=np.ascontiguousarray(rho.reshape(-1, 3)), inv=cat(inv), cp=cat(cp), w_end=cat(w_end),
+        mass=float(mass), rho_inertial=np.ascontiguousarray(rho_inertial, dtype=float), jeff=jeff,
+        inv0=inv0, cp0=cp0, w0=w0)
+    return T, data
+
+
+class TeamSimulator:
+    """Steps a :class:`TeamScene` with the compiled team step.
+
+    >>> sim = TeamSimulator(team)
+    >>> sim.step(100, pivot_forces=np.zeros((team.size, 3)))
+    >>> sim.diagnostics()["energy"]
+    """
+
+    def __init__(self, team: TeamScene):
+        self.team = team
+        self.h = team.scene.h
+        #: string 0 and the body: a single string's arrays (its Simulator is not stepped itself)
+        self._lead = Simulator(team.scene, specialise=False)
+        buffers = self._lead.buffers
+        self._S, self._W, self._P = buffers.state, buffers.work, buffers.params
+        self.params, self._strings = build_team(team, self._P)
+        rows = int(self.params.start[-1])
+        z = np.zeros
+        K1 = len(team.strings)
+        self._A = TeamArrays(r=z((rows, 3)), p=z((rows, 3)), rc=z((rows, 3)), pc=z((rows, 3)), f=z((rows, 3)),
+                             fn=z((rows, 3)), X=z((rows, 3)), Y=z((rows, 3)), c=z((K1, 3)), dr0=z((K1, 3)),
+                             force=z((K1, 3)))
+        self._inputs = z(INPUTS.size)
+        self._stats = np.zeros(LOOP_REPORT_SIZE, dtype=np.int64)
+        self._step = 0
+        self.set_state(self.initial_state())
+
+    # -- state ------------------------------------------------------------------------------
+    def initial_state(self) -> TeamState:
+        """The scene's initial state: string 0 and the body as the lead scene's, every other
+        string straight from its pivot to its attachment point, its nodes at rest but its pivot
+        (``pivot.velocity``) and its end (moving with the body); momenta by the continuous
+        Legendre transform, each end's row added to the body's."""
+        lead = self._lead.state
+        lead = State(lead.r, lead.p, lead.R, lead.Pi, 0)
+        scene = self.team.scene
+        x = lead.r[-1]
+        R = lead.R
+        v_x = np.asarray(scene.initial_velocities()[-1], dtype=float)
+        Omega = np.asarray(scene.initial.Omega0, dtype=float)
+        rows = int(self.params.start[-1])
+        r, p = np.zeros((rows, 3)), np.zeros((rows, 3))
+        for j, s in enumerate(self.team.strings):
+            a, b = self.params.start[j], self.params.start[j + 1]
+            rho = self.params.rho[j]
+            end = x + R @ rho
+            t = np.linspace(0.0, 1.0, b - a)[:, None]
+            r[a:b] = (1.0 - t) * np.asarray(s.pivot.position, dtype=float) + t * end
+            v = np.zeros((b - a, 3))
+            v[0] = s.pivot.velocity
+            v[-1] = v_x + R @ cross3(Omega, rho)
+            diag, off, end_share, first = self._strings[j]
+            q = np.zeros_like(v)
+            q[:-1] += end_share * v[:-1] + off * v[1:]
+            q[1:] += off * v[:-1] + end_share * v[1:]
+            if first == 0:
+                q[0] += s.pivot.mass * v[0]
+            else:
+                q[0] = 0.0
+            p[a:b - 1] = q[:-1]
+            lead.p[-1] += q[-1]
+            lead.Pi += cross3(rho, R.T @ q[-1])
+        return TeamState(lead, r, p)
+
+    @property
+    def state(self) -> TeamState:
+        """A copy of the current state (without the summation remainders)."""
+        S = self._S
+        return TeamState(State(S.r.copy(), S.p.copy(), S.R.copy(), S.Pi.copy(), self._step), self._A.r.copy(),
+                         self._A.p.copy())
+
+    def set_state(self, state: TeamState) -> None:
+        """Replace the state (copied; remainders and balances restart at 0). The other strings'
+        ends are placed on the body."""
+        A = self._A
+        for name in ("r", "p"):
+            given = np.asarray(getattr(state, name), dtype=float)
+            if given.shape != getattr(A, name).shape:
+                raise ValueError(f"state.{name} has shape {given.shape}, expected {getattr(A, name).shape}")
+            if not np.all(np.isfinite(given)):
+                raise ValueError(f"state.{name} is not finite")
+        self._lead.set_state(state.lead)
+        A.r[...] = state.r
+        A.p[...] = state.p
+        x, R = self._S.r[-1], self._S.R
+        for j in range(len(self.team.strings)):
+            e = self.params.start[j + 1] - 1
+            A.r[e] = x + R @ self.params.rho[j]
+            A.p[e] = 0.0
+        A.rc[...] = 0.0
+        A.pc[...] = 0.0
+        self._step = int(state.lead.step)
+        team_forces(self._S, self._P, self.params, A)
+        self.reset_balances()
+
+    def reset_balances(self) -> None:
+        """Start the input balances (work, impulses) afresh from the current state."""
+        self._S.acc[...] = 0.0
+        self._S.accc[...] = 0.0
+        d = self._diagnostics()
+        self._E0, self._pi3_0, self._P0 = d["energy"], d["pi3"], d["linear_momentum"].copy()
+
+    @property
+    def step_count(self) -> int:
+        return self._step
+
+    @property
+    def time(self) -> float:
+        """Simulated time k*h [s]."""
+        return self._step * self.h
+
+    # -- stepping ---------------------------------------------------------------------------
+    def _set_forces(self, pivot_forces) -> None:
+        K = self.team.size
+        u = np.zeros((K, 3)) if pivot_forces is None else np.asarray(pivot_forces, dtype=float)
+        if u.shape != (K, 3):
+            raise ValueError(f"pivot_forces must have shape ({K}, 3), one spatial force per string's pivot [N]; "
+                             f"got {u.shape}")
+        if not np.all(np.isfinite(u)):
+            raise ValueError("pivot_forces must be finite")
+        pivots = [self.team.scene.pivot] + [s.pivot for s in self.team.strings]
+        for k, pivot in enumerate(pivots):
+            if not pivot.is_free and np.any(u[k] != 0.0):
+                raise ValueError(f"pivot_forces[{k}]: string {k}'s pivot is fixed and cannot be pushed")
+        self._inputs[INPUTS["pivot_force"]] = u[0]
+        self._inputs[INPUTS["pivot_force_end"]] = u[0]
+        self._A.force[...] = u[1:]
+
+    def step(self, n: int = 1, pivot_forces=None) -> None:
+        """Advance ``n`` steps with each pivot's force (K, 3) held (spatial) [N]; fixed pivots'
+        rows must be 0. Raises :class:`~esp_gym.errors.SimulationError` on failure (the state is
+        then the last good one)."""
+        n = int(n)
+        if n < 0:
+            raise ValueError(f"n must be >= 0, got {n}")
+        self._set_forces(pivot_forces)
+        team_advance(self._S, self._W, self._P, self.params, self._A, self._inputs, n, self._stats)
+        self._step += int(self._stats[R_STEPS])
+        status = int(self._stats[R_STATUS])
+        if status != OK:
+            raise SimulationError(status, self._step, self.time, int(self._stats[R_NEWTON_TOTAL]))
+
+    # -- diagnostics ------------------------------------------------------------------------
+    def velocities(self):
+        """The inverse of the continuous Legendre transform (docs/physics.md, "Diagnostics of a
+        team"): ``(string 0's node velocities (N+1, 3), the others' (rows, 3), Omega (3,))``
+        [m/s, rad/s]."""
+        S, A, T = self._S, self._A, self.params
+        R, Pi = S.R, S.Pi
+        scene = self.team.scene
+        diag0, off0, end0 = string_mass(scene.string, scene.pivot)
+        members = [(diag0, off0, 0 if scene.pivot.is_free else 1, S.p, np.zeros(3))]
+        for j in range(len(self.team.strings)):
+            a, b = T.start[j], T.start[j + 1]
+            diag, off, _, first = self._strings[j]
+            members.append((diag, off, first, A.p[a:b], T.rho[j]))
+        solves, mus, cs = [], [], []
+        for diag, off, first, p, rho in members:
+            n = diag.shape[0] - 1
+            lo = first
+            if n - 1 >= lo:
+                ab = banded(diag[lo:n], off)
+                y = solve_banded((1, 1), ab, p[lo:n])
+                e = np.zeros(n - lo)
+                e[-1] = 1.0
+                col = solve_banded((1, 1), ab, e)
+                mu, c = diag[n] - off * off * col[-1], off * y[-1]
+            else:
+                ab, y, col, mu, c = None, None, None, float(diag[n]), np.zeros(3)
+            solves.append((ab, y, col, lo, n))
+            mus.append(mu)
+            cs.append(c)
+        M, rho_c, J = self._P.M, self._P.rho, self._P.J
+        rhos = [m[4] for m in members]
+        Mt = M + sum(mus)
+        St = M * rho_c + sum(mu * r for mu, r in zip(mus, rhos))
+        Jt = J + sum(mu * (r @ r * np.eye(3) - np.outer(r, r)) for mu, r in zip(mus, rhos))
+        px = S.p[-1] - sum(cs)
+        Pt = Pi - sum(cross3(r, R.T @ c) for r, c in zip(rhos, cs))
+        K6 = np.zeros((6, 6))
+        K6[:3, :3] = Mt * np.eye(3)
+        K6[:3, 3:] = -hat(St)
+        K6[3:, :3] = hat(St)
+        K6[3:, 3:] = Jt
+        sol = np.linalg.solve(K6, np.concatenate([R.T @ px, Pt]))
+        V, Omega = R @ sol[:3], sol[3:]
+        out = []
+        for (diag, off, first, p, rho), (ab, y, col, lo, n) in zip(members, solves):
+            v = np.zeros((n + 1, 3))
+            v[n] = V + R @ cross3(Omega, rho)
+            if ab is not None:
+                v[lo:n] = y - off * col[:, None] * v[n]
+            out.append(v)
+        others = np.concatenate(out[1:]) if len(out) > 1 else np.zeros((0, 3))
+        return out[0], others, Omega
+
+    def _diagnostics(self) -> dict:
+        S, A, T = self._S, self._A, self.params
+        P, scene = self._P, self.team.scene
+        v0, vo, Omega = self.velocities()
+        kinetic = 0.5 * (np.sum(S.p * v0) + np.sum(A.p * vo) + float(S.Pi @ Omega))
+        g = P.g
+        strings = [(S.r, scene.string, scene.pivot)] + [
+            (A.r[T.start[j]:T.start[j + 1]], s.string, s.pivot) for j, s in enumerate(self.team.strings)]
+        elastic = gravity = 0.0
+        for r, string, pivot in strings:
+            x = np.linalg.norm(np.diff(r, axis=0), axis=1) - string.u
+            if string.law == "slack":
+                x = np.maximum(x, 0.0)
+            elastic += 0.5 * string.kappa * float(x @ x)
+            w = np.full(r.shape[0], string.m)
+            w[0] = w[-1] = 0.5 * string.m
+            w[0] += pivot.mass or 0.0
+            gravity -= g * float(w @ r[:, 2])
+        gravity -= g * P.M * float((S.r[-1] + S.R @ P.rho)[2])
+        momentum = S.p.sum(0) + A.p.sum(0)
+        pi3 = float(np.sum(S.r[:, 0] * S.p[:, 1] - S.r[:, 1] * S.p[:, 0]) +
+                    np.sum(A.r[:, 0] * A.p[:, 1] - A.r[:, 1] * A.p[:, 0]) + (S.R @ S.Pi)[2])
+        return dict(kinetic=float(kinetic), potential_elastic=elastic, potential_gravity=gravity,
+                    energy=float(kinetic) + elastic + gravity, linear_momentum=momentum, pi3=pi3,
+                    orthogonality=float(np.linalg.norm(S.R.T @ S.R - np.eye(3))))
+
+    def diagnostics(self) -> dict:
+        """Energy (kinetic, elastic, gravity) [J], linear momentum [kg m/s], pi3 (about the e3
+        axis through the origin) [kg m^2/s], ||R^T R - I||, and the input balances since the last
+        reset with their residuals: ``energy_balance_residual`` = E - E0 - work,
+        ``pi3_balance_residual`` = pi3 - pi3_0 - the angular impulse about e3 (exact with free
+        pivots only), ``momentum_balance_residual`` = P - P0 - the gravity and pivot impulses
+        (with free pivots only: a fixed pivot's reaction is not an input)."""
+        d = self._diagnostics()
+        acc = self._S.acc
+        work = float(acc[BALANCE["work"]][0])
+        impulse = acc[BALANCE["gravity_impulse"]] + acc[BALANCE["pivot_impulse"]]
+        d.update(work=work, angular_impulse_z=float(acc[BALANCE["angular_impulse_z"]][0]),
+                 energy_balance_residual=d["energy"] - self._E0 - work,
+                 pi3_balance_residual=d["pi3"] - self._pi3_0 - float(acc[BALANCE["angular_impulse_z"]][0]),
+                 momentum_balance_residual=d["linear_momentum"] - self._P0 - impulse)
+        return d
+
+
+def banded(diag, off):
+    """The (3, n) banded form of a symmetric tridiagonal matrix with constant ``off``."""
+    ab = np.zeros((3, diag.shape[0]))
+    ab[0, 1:] = off
+    ab[1] = diag
+    ab[2, :-1] = off
+    return ab
