@@ -301,3 +301,10 @@ def test_compile_takes_every_configuration_of_the_environment(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "esp_gym.cli", "compile", "--jobs", "0"], capture_output=True,
                          text=True, timeout=600, cwd=tmp_path)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "--jobs" in bad.stderr, bad.stderr
+
+
+def test_team_step_quick_runs(tmp_path):
+    result = quick_benchmark("team_step", tmp_path, "team_step")
+    assert [(r["K"], r["N"]) for r in result["rows"]] == [(1, 10), (3, 10)]
+    assert all(r["team_us"] > 0 and r["single_us"] > 0 and np.isfinite(r["ratio"]) for r in result["rows"])
+    assert (tmp_path / "team_step.png").stat().st_size > 0

@@ -1,0 +1,78 @@
+"""What a team's step costs against K single strings' (docs/physics.md, "A team: several strings on
+one body"): microseconds per step of a symmetric team of K = 1..6 equal strings (N elements each,
+fixed pivots; esp_gym.team.symmetric_team) and of one of its strings alone with the body
+(the lead scene, through the single string's general kernel, which the team's step extends, and
+its specialised kernel), medians of interleaved repeats. The issue's bound: a team's step costs at
+most K x the single string's step plus the body's share.
+
+Prints the table and writes ``OUT/team_step.json`` and ``OUT/team_step.png``.
+Usage: ``python -m benchmarks.team_step [--quick] [--elements N ...] [--out DIR]``.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from benchmarks.common import arg_parser, figure, finish, interleaved_wall_times, machine
+
+
+def costs(elements: int, sizes, steps: int, repeats: int) -> list:
+    """Rows ``{K, N, team_us, single_us, single_specialised_us, ratio}``: us per step, the team's
+    against K x the single string's general step (``ratio``)."""
+    from esp_gym.model import Simulator
+    from esp_gym.team import TeamSimulator, symmetric_team
+
+    rows = []
+    for K in sizes:
+        team = symmetric_team(K, elements=elements, stretch=1.01)
+        sims = {"team": TeamSimulator(team), "single": Simulator(team.scene, specialise=False),
+                "single_specialised": Simulator(team.scene)}
+        for sim in sims.values():
+            sim.step(10)  # compiled
+        walls = interleaved_wall_times({key: (None, lambda s=sim: s.step(steps)) for key, sim in sims.items()},
+                                       repeats)
+        us = {key: 1e6 * float(np.median(w)) / steps for key, w in walls.items()}
+        rows.append({"K": K, "N": elements, "team_us": us["team"], "single_us": us["single"],
+                     "single_specialised_us": us["single_specialised"], "ratio": us["team"] / (K * us["single"])})
+    return rows
+
+
+def plot(rows: list):
+    def draw(path):
+        fig = figure((6.0, 3.6))
+        ax = fig.add_subplot()
+        for N in sorted({r["N"] for r in rows}):
+            sub = [r for r in rows if r["N"] == N]
+            K = [r["K"] for r in sub]
+            line, = ax.plot(K, [r["team_us"] for r in sub], "o-", label=f"team, N = {N}")
+            ax.plot(K, [r["K"] * r["single_us"] for r in sub], "--", color=line.get_color(),
+                    label=f"K x one string's step, N = {N}")
+        ax.set_xlabel("strings K")
+        ax.set_ylabel("us per step")
+        ax.set_title("a team's step against K single strings'")
+        ax.legend(fontsize=8)
+        fig.savefig(path)
+    return draw
+
+
+def main(argv=None) -> None:
+    parser = arg_parser(__doc__)
+    parser.add_argument("--elements", type=int, nargs="+", default=[10, 40], help="elements per string")
+    args = parser.parse_args(argv)
+    start = time.perf_counter()
+    sizes = (1, 3) if args.quick else (1, 2, 3, 4, 5, 6)
+    steps, repeats = (200, 2) if args.quick else (5000, 7)
+    rows = []
+    for N in ([10] if args.quick else args.elements):
+        rows += costs(N, sizes, steps, repeats)
+    print(f"{'K':>3} {'N':>4} {'team us':>9} {'single us':>10} {'specialised':>12} {'team / (K x single)':>20}")
+    for r in rows:
+        print(f"{r['K']:>3} {r['N']:>4} {r['team_us']:>9.2f} {r['single_us']:>10.2f} "
+              f"{r['single_specialised_us']:>12.2f} {r['ratio']:>20.2f}")
+    finish(args.out, "team_step", {"rows": rows, "steps": steps, "repeats": repeats, "machine": machine()},
+           {"team_step.png": plot(rows)}, start)
+
+
+if __name__ == "__main__":
+    main()
