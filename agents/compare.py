@@ -107,9 +107,33 @@ def compare(task: str, preset: Optional[str] = None, episodes: int = 100, seed: 
     return out
 
 
+def compare_team(team: int, task: str, preset: Optional[str] = None, episodes: int = 100, seed: int = HELD_OUT_SEED,
+                 progress: bool = True) -> dict:
+    """:func:`compare` for a team of ``team`` strings (esp_gym/team/env.py): zero, the team's
+    baselines (agents/team_evaluate.py); the same keys, with ``team``. No team policy ships yet."""
+    from tqdm import tqdm
+
+    from agents.team_evaluate import TeamZero, run_team_episodes, team_baselines
+
+    if preset is not None:
+        raise ValueError(f"--preset {preset}: a team has no presets yet (docs/team.md)")
+    policies = {"zero": TeamZero(), **team_baselines()}
+    results = {name: run_team_episodes(policy, team, task, episodes, seed)
+               for name, policy in tqdm(policies.items(), desc=f"compare team {team} {task}", disable=not progress)}
+    table = {}
+    for name, rows in results.items():
+        table[name] = {k: v for k, v in summarize(rows, task).items() if k not in ("task", "episodes")}
+        table[name]["returns"] = [r.ret for r in rows]
+    best = max((n for n in table if n not in NOT_BASELINES), key=lambda n: table[n]["mean_return"])
+    return {"task": task, "preset": preset, "scene": None, "actuation": None, "episodes": episodes, "seed": seed,
+            "model": None, "policies": table, "best_baseline": best, "paired_diff_mean": None, "paired_ci95": None,
+            "team": team}
+
+
 def markdown(c: dict) -> str:
     """The comparison as a Markdown table and a line for the paired difference."""
     where = "".join(f", {c[k]}" for k in ("scene", "actuation") if c.get(k))
+    where += f", team of {c['team']}" if c.get("team") else ""
     lines = [f"{c['task']} ({c['preset'] or 'nominal'}{where}), {c['episodes']} episodes, seeds {c['seed']}.."
              f"{c['seed'] + c['episodes'] - 1}", "",
              "| policy | return (mean ± std) | success | final swing [deg] | mean swing [deg] | settling [s] "
@@ -131,6 +155,8 @@ def write_comparison(c: dict, out) -> Path:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     stem = "compare_" + configuration_name(c["task"], c["preset"], c["scene"], c["actuation"])
+    if c.get("team"):
+        stem = f"compare_team{c['team']}_{c['task']}" + (f"_{c['preset']}" if c["preset"] else "")
     (out / f"{stem}.md").write_text(markdown(c) + "\n")
     (out / f"{stem}.json").write_text(json.dumps(c, indent=2) + "\n")
     return out / f"{stem}.json"
@@ -145,9 +171,30 @@ def main(argv=None) -> dict:
     ap.add_argument("--out", default=None, metavar="DIR", help="also write compare_TASK[_PRESET].md and .json here")
     ap.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
     ap.add_scene_options()
+    ap.add_argument("--team", type=int, default=None, metavar="K",
+                    help="a team of K strings (1-6) carrying one load (esp_gym/team; tasks stabilize, transport)")
     a = ap.parse_args(argv)
     ap.check_out_dir("--out", a.out)
     ap.check_file("--model", a.model)
+    if a.team is not None:
+        from esp_gym.team import MAX_STRINGS
+        from esp_gym.team.env import TEAM_TASKS
+
+        if not 1 <= a.team <= MAX_STRINGS:
+            ap.error(f"argument --team: a team has 1 to {MAX_STRINGS} strings, got {a.team}")
+        if a.task not in TEAM_TASKS:
+            ap.error(f"argument --task: a team's tasks are {sorted(TEAM_TASKS)}, got {a.task!r}")
+        for name in ("scene", "actuation", "model"):
+            if getattr(a, name) is not None:
+                ap.error(f"argument --{name}: not with --team (a team's scene is esp_gym.team.env.team_scene)")
+        try:
+            c = compare_team(a.team, a.task, a.preset, a.episodes, a.seed, a.progress)
+        except ValueError as err:
+            ap.error(f"argument --preset: {err}")
+        print(json.dumps(c) if a.json else markdown(c))
+        if a.out:
+            write_comparison(c, a.out)
+        return c
     ap.environment_options(a)  # checked before any episode
     try:
         c = compare(a.task, a.preset, a.episodes, a.seed, a.model, a.progress, a.scene, a.actuation)

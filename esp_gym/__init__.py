@@ -24,6 +24,10 @@ if ENV_ID not in registry:
         max_episode_steps=MAX_EPISODE_STEPS,
     )
 
+TEAM_ENV_ID = "ElasticStringTeam-v0"
+if TEAM_ENV_ID not in registry:
+    register(id=TEAM_ENV_ID, entry_point="esp_gym.team.env:ElasticStringTeamEnv", max_episode_steps=MAX_EPISODE_STEPS)
+
 
 def __getattr__(name):
     if name in ("Simulator", "SimulationError", "Trajectory", "State"):

@@ -102,17 +102,22 @@ class TeamScene(Frozen):
 def symmetric_team(size: int = 3, length: float = 1.0, mass_per_length: float = 0.05, EA: float = 2000.0,
                    elements: int = 8, body_mass: float = 1.0, body_size=(0.4, 0.4, 0.1), pivot_radius: float = 0.6,
                    attachment_radius: float = 0.2, pivot: Optional[dict] = None, h: float = 2e-4,
-                   stretch: float = 1.0, **scene) -> TeamScene:
+                   stretch=1.0, law: str = "elastic", **scene) -> TeamScene:
     """A team of ``size`` equal strings symmetric about the e3 axis: pivots on a circle of
     ``pivot_radius`` in the plane z = 0, attachment points on a circle of ``attachment_radius``
     on the top face of a box load (``body_size`` [m], ``body_mass`` [kg]), string k at the angle
     2 pi k / size; each string straight from its pivot to its attachment point, of unstretched
-    ``length`` [m] stretched by ``stretch``. ``pivot``: the pivots' section (default fixed; e.g.
-    ``{"kind": "free", "mass": 0.5}``). ``scene``: more of the lead scene's sections (solver,
+    ``length`` [m] stretched by ``stretch`` (``"static"``: about where the strings carry the load
+    at rest, :func:`static_stretch`). ``pivot``: the pivots' section (default fixed; e.g.
+    ``{"kind": "free", "mass": 0.5}``); ``law`` the strings' (``slack`` takes ``solver:
+    {slack_switch: plain}`` in ``scene``). ``scene``: more of the lead scene's sections (solver,
     gravity, ...)."""
     if not 1 <= int(size) <= MAX_STRINGS:
         raise ValueError(f"size must be 1..{MAX_STRINGS}, got {size}")
     size = int(size)
+    if stretch == "static":
+        stretch = static_stretch(size, length, mass_per_length, EA, body_mass, pivot_radius - attachment_radius,
+                                 scene.get("gravity", 9.81))
     angles = 2.0 * np.pi * np.arange(size) / size
     ring = np.stack([np.cos(angles), np.sin(angles), np.zeros(size)], axis=1)
     attach = attachment_radius * ring - np.array([0.0, 0.0, 0.5 * body_size[2]])
@@ -124,7 +129,7 @@ def symmetric_team(size: int = 3, length: float = 1.0, mass_per_length: float = 
                          f"attachments' ({span} m apart)")
     centre = np.array([0.0, 0.0, drop + 0.5 * body_size[2]])  # e3 down: the load hangs at z > 0
     pivot = dict(pivot or {"kind": "fixed"})
-    string = dict(length=length, mass_per_length=mass_per_length, EA=EA, elements=elements)
+    string = dict(length=length, mass_per_length=mass_per_length, EA=EA, elements=elements, law=law)
     direction = centre + attach[0] - pivots[0]
     lead = Scene.model_validate({
         "name": f"team{size}", "h": h,
@@ -137,3 +142,17 @@ def symmetric_team(size: int = 3, length: float = 1.0, mass_per_length: float = 
     others = [TeamString(string=StringParams(**string), pivot=PivotParams(**pivot, position=tuple(pivots[k])),
                          attachment=tuple(attach[k])) for k in range(1, size)]
     return TeamScene(scene=lead, strings=others)
+
+
+def static_stretch(size: int, length: float, mass_per_length: float, EA: float, body_mass: float, span: float,
+                   gravity: float = 9.81) -> float:
+    """The stretch at which ``size`` equal strings, ``span`` [m] apart horizontally from pivot to
+    attachment, hold a load of ``body_mass`` [kg] at rest: each carries its share of the weight
+    and half its own along its slope, T = (M g / K + mu l g / 2) / cos(theta), stretch = 1 + T/EA
+    (a fixed point; the strings' sag neglected)."""
+    stretch = 1.0
+    for _ in range(50):
+        cos = np.sqrt(max(1.0 - (span / (length * stretch)) ** 2, 1e-12))
+        tension = (body_mass * gravity / size + 0.5 * mass_per_length * length * gravity) / cos
+        stretch = 1.0 + tension / EA
+    return float(stretch)

@@ -13,7 +13,7 @@ from ..kernels.layout import BALANCE, INPUTS, LOOP_REPORT_SIZE, R_NEWTON_TOTAL, 
 from ..kernels.status import OK
 from ..kernels.team import TeamArrays, TeamParams, team_advance, team_forces
 from ..model import SimulationError, Simulator
-from ..state import State, attachment_column, cross3, mass_matrix
+from ..state import State, attachment_column, cross3, legendre_momenta, mass_matrix
 from ..stability import hat
 from ..kernels.string import tridiag_factor
 from .scene import TeamScene
@@ -134,29 +134,66 @@ class TeamSimulator:
         self.set_state(self.initial_state())
 
     # -- state ------------------------------------------------------------------------------
-    def initial_state(self) -> TeamState:
+    def initial_state(self, velocity=None, rates=None) -> TeamState:
         """The scene's initial state: string 0 and the body as the lead scene's, every other
         string straight from its pivot to its attachment point, its nodes at rest but its pivot
         (``pivot.velocity``) and its end (moving with the body); momenta by the continuous
-        Legendre transform, each end's row added to the body's."""
-        lead = self._lead.state
-        lead = State(lead.r, lead.p, lead.R, lead.Pi, 0)
+        Legendre transform, each end's row added to the body's. ``velocity``: string 0's
+        attachment point's (spatial) [m/s], ``rates``: the body's Omega (body frame) [rad/s],
+        instead of the scene's ``initial.attach_velocity`` and ``initial.Omega0``."""
         scene = self.team.scene
-        x = lead.r[-1]
-        R = lead.R
-        v_x = np.asarray(scene.initial_velocities()[-1], dtype=float)
-        Omega = np.asarray(scene.initial.Omega0, dtype=float)
+        x0 = scene.initial_nodes()
+        v0 = scene.initial_velocities()
+        if velocity is not None:
+            v0[-1] = np.asarray(velocity, dtype=float)
+        R = np.array(scene.initial.R0, dtype=float)
+        Omega = np.array(scene.initial.Omega0 if rates is None else rates, dtype=float)
+        p0, Pi = legendre_momenta(scene, x0, v0, R, Omega)
+        lead = State(np.ascontiguousarray(x0), np.ascontiguousarray(p0), R, Pi, 0)
+        pivots = np.array([s.pivot.position for s in self.team.strings], dtype=float).reshape(-1, 3)
+        velocities = np.array([s.pivot.velocity for s in self.team.strings], dtype=float).reshape(-1, 3)
+        return self._with_others(lead, v0[-1], Omega, pivots, velocities, interpolate=False)
+
+    def lifted_state(self, pivots, pivot_velocities, load, load_velocity, R, Omega) -> TeamState:
+        """The state with every string straight from its pivot (K, 3) to its attachment point,
+        its nodes evenly spaced and their velocities interpolated between the pivot's (K, 3) and
+        the end's, the load's centre of mass at ``load`` moving at ``load_velocity`` (spatial)
+        [m, m/s], turned by ``R`` at ``Omega`` (body frame) [rad/s]; momenta by the continuous
+        Legendre transform (a reduced state lifted to a full one: agents/baselines/team_lqr.py)."""
+        pivots = np.asarray(pivots, dtype=float)
+        pivot_velocities = np.asarray(pivot_velocities, dtype=float)
+        R = np.asarray(R, dtype=float)
+        Omega = np.asarray(Omega, dtype=float)
+        rho_c = np.asarray(self.team.scene.body.rho_c, dtype=float)
+        x = np.asarray(load, dtype=float) - R @ rho_c
+        v_x = np.asarray(load_velocity, dtype=float) - R @ cross3(Omega, rho_c)
+        scene = self.team.scene
+        t = np.linspace(0.0, 1.0, scene.string.elements + 1)[:, None]
+        r0 = (1.0 - t) * pivots[0] + t * x
+        v0 = (1.0 - t) * pivot_velocities[0] + t * v_x
+        p0, Pi = legendre_momenta(scene, r0, v0, R, Omega)
+        lead = State(np.ascontiguousarray(r0), np.ascontiguousarray(p0), R.copy(), Pi, 0)
+        return self._with_others(lead, v_x, Omega, pivots[1:], pivot_velocities[1:], interpolate=True)
+
+    def _with_others(self, lead: State, v_x, Omega, pivots, pivot_velocities, interpolate: bool) -> TeamState:
+        """``lead`` with the other strings straight from ``pivots`` to their attachment points;
+        their velocities the pivots' and the ends' (with the body), the nodes between at rest or
+        (``interpolate``) interpolated; their ends' momenta added to the body's."""
+        x, R = lead.r[-1], lead.R
         rows = int(self.params.start[-1])
         r, p = np.zeros((rows, 3)), np.zeros((rows, 3))
         for j, s in enumerate(self.team.strings):
             a, b = self.params.start[j], self.params.start[j + 1]
             rho = self.params.rho[j]
-            end = x + R @ rho
             t = np.linspace(0.0, 1.0, b - a)[:, None]
-            r[a:b] = (1.0 - t) * np.asarray(s.pivot.position, dtype=float) + t * end
-            v = np.zeros((b - a, 3))
-            v[0] = s.pivot.velocity
-            v[-1] = v_x + R @ cross3(Omega, rho)
+            r[a:b] = (1.0 - t) * pivots[j] + t * (x + R @ rho)
+            end_velocity = v_x + R @ cross3(Omega, rho)
+            if interpolate:
+                v = (1.0 - t) * pivot_velocities[j] + t * end_velocity
+            else:
+                v = np.zeros((b - a, 3))
+                v[0] = pivot_velocities[j]
+                v[-1] = end_velocity
             diag, off, end_share, first = self._strings[j]
             q = np.zeros_like(v)
             q[:-1] += end_share * v[:-1] + off * v[1:]
@@ -299,8 +336,8 @@ class TeamSimulator:
             if ab is not None:
                 v[lo:n] = y - off * col[:, None] * v[n]
             out.append(v)
-        others = np.concatenate(out[1:]) if len(out) > 1 else np.zeros((0, 3))
-        return out[0], others, Omega
+        lead, *rest = out
+        return lead, (np.concatenate(rest) if rest else np.zeros((0, 3))), Omega
 
     def _diagnostics(self) -> dict:
         S, A, T = self._S, self._A, self.params

@@ -1,0 +1,129 @@
+"""The team's centralised LQR: one gain on the whole team's reduced state, from the linearisation of
+the team environment's own control step (esp_gym/team/env.py) about the hanging formation, as
+agents/baselines/lqr.py does for one string.
+
+Reduced state z (:func:`reduced_layout`, spatial frame, relative to the targets): every pivot's
+position error and velocity, the load's (centre of mass) position error and velocity, its attitude
+as a rotation vector (the hanging attitude is R = I) and its spatial angular velocity R Omega. A
+reduced state is lifted to a full one with each string straight from its pivot to its attachment
+point and its velocities interpolated (``TeamSimulator.lifted_state``). The control step is
+differentiated by central differences; the cost is the reward's local quadratic expansion
+(w / (1 + (x/s)^2) = w - (w/s^2) x^2 + ...), with small weights on what the reward leaves free
+(the pivots' velocities, the load's yaw); the gains are the discrete algebraic Riccati equation's,
+on the normalised action.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+from scipy.spatial.transform import Rotation
+
+from esp_gym.kernels.layout import Layout
+from esp_gym.team.env import TeamCore
+from esp_gym.team.simulator import TeamSimulator
+
+#: Weight on what the reward does not see (pivot velocities, the load's yaw) [per unit^2].
+SMALL = 1e-3
+
+
+def reduced_layout(size: int) -> Layout:
+    return Layout(("pivot_error", 3 * size), ("pivot_velocity", 3 * size), ("load_error", 3), ("load_velocity", 3),
+                  ("attitude", 3), ("rates", 3))
+
+
+def reduced_from_observation(obs: np.ndarray, core: TeamCore) -> np.ndarray:
+    """z from the centralised observation (the agents' observations one after the other)."""
+    K, L = core.size, core.layout
+    o = np.asarray(obs, dtype=np.float64).reshape(K, L.size)
+    Z = reduced_layout(K)
+    z = np.empty(Z.size)
+    z[Z["pivot_error"]] = o[:, L["pivot_position_error"]].ravel()
+    z[Z["pivot_velocity"]] = o[:, L["pivot_velocity"]].ravel()
+    z[Z["load_error"]] = o[0, L["load_position_error"]]
+    z[Z["load_velocity"]] = o[0, L["load_velocity"]]
+    first, second = o[0, L["load_attitude_6d"]].reshape(2, 3)
+    R = np.stack((first, second, np.cross(first, second)), axis=1)
+    z[Z["attitude"]] = Rotation.from_matrix(R).as_rotvec()
+    z[Z["rates"]] = R @ o[0, L["load_rates"]]
+    return z
+
+
+def linearize(core: TeamCore, z_step: float = 1e-5, a_step: float = 1e-4):
+    """``(A, B)``: central differences of the control step z -> z' about the formation at rest
+    (hover forces), with ``core``'s targets."""
+    sim = TeamSimulator(core.scene)
+    K = core.size
+    Z = reduced_layout(K)
+
+    def step(z, action):
+        R = Rotation.from_rotvec(z[Z["attitude"]]).as_matrix()
+        sim.set_state(sim.lifted_state(core.pivot_targets + z[Z["pivot_error"]].reshape(K, 3),
+                                       z[Z["pivot_velocity"]].reshape(K, 3), core.load_target + z[Z["load_error"]],
+                                       z[Z["load_velocity"]], R, R.T @ z[Z["rates"]]))
+        forces = core.force_scale * action.reshape(K, 3)
+        forces[:, 2] -= core.hover
+        sim.step(core.substeps, pivot_forces=forces)
+        st = sim.state
+        v_lead, v_other, Omega = sim.velocities()
+        T = sim.params
+        rows = [int(T.start[j]) for j in range(K - 1)]
+        pivots = np.vstack([st.lead.r[0]] + [st.r[i] for i in rows])
+        pivot_v = np.vstack([v_lead[0]] + [v_other[i] for i in rows])
+        rho_c = np.asarray(core.scene.scene.body.rho_c, dtype=float)
+        Rn = st.lead.R
+        out = np.empty(Z.size)
+        out[Z["pivot_error"]] = (pivots - core.pivot_targets).ravel()
+        out[Z["pivot_velocity"]] = pivot_v.ravel()
+        out[Z["load_error"]] = st.lead.r[-1] + Rn @ rho_c - core.load_target
+        out[Z["load_velocity"]] = v_lead[-1] + Rn @ np.cross(Omega, rho_c)
+        out[Z["attitude"]] = Rotation.from_matrix(Rn).as_rotvec()
+        out[Z["rates"]] = Rn @ Omega
+        return out
+
+    zero_z, zero_a = np.zeros(Z.size), np.zeros(3 * K)
+    A = np.column_stack([(step(zero_z + z_step * e, zero_a) - step(zero_z - z_step * e, zero_a)) / (2 * z_step)
+                         for e in np.eye(Z.size)])
+    B = np.column_stack([(step(zero_z, a_step * e) - step(zero_z, -a_step * e)) / (2 * a_step)
+                         for e in np.eye(3 * K)])
+    return A, B
+
+
+def reward_weights(core: TeamCore):
+    """``(Q, R)``: the reward's quadratic expansion (module docstring)."""
+    task, K = core.task, core.size
+    Z = reduced_layout(K)
+    q = np.full(Z.size, SMALL)
+    q[Z["pivot_error"]] = task.w_pivot_position / (K * task.scale_position ** 2)
+    q[Z["load_error"]] = task.w_load_position / task.scale_position ** 2
+    q[Z["load_velocity"]] = task.w_load_velocity / task.scale_velocity ** 2
+    q[Z.start("attitude"):Z.start("attitude") + 2] = task.w_tilt / task.scale_tilt ** 2
+    q[Z["rates"]] = task.w_spin / task.scale_spin ** 2
+    return np.diag(q), np.eye(3 * K) * task.w_control / (3.0 * K)
+
+
+@dataclass
+class TeamLQR:
+    """The team's centralised LQR (module docstring): action -K z, clipped to the box."""
+
+    K: np.ndarray  #: (3K, 6K + 12) gains, action units
+    A: np.ndarray
+    B: np.ndarray
+    size: int
+
+    @classmethod
+    def design(cls, core: TeamCore, control_weight: float = 1.0) -> "TeamLQR":
+        A, B = linearize(core)
+        Q, R = reward_weights(core)
+        P = scipy.linalg.solve_discrete_are(A, B, Q, control_weight * R)
+        K = np.linalg.solve(control_weight * R + B.T @ P @ B, B.T @ P @ A)
+        return cls(K, A, B, core.size)
+
+    def closed_loop_radius(self) -> float:
+        """Spectral radius of A - B K (< 1: the linear closed loop is stable)."""
+        return float(np.max(np.abs(np.linalg.eigvals(self.A - self.B @ self.K))))
+
+    def act(self, obs: np.ndarray, core: TeamCore) -> np.ndarray:
+        """The centralised action (3K,) for the centralised observation."""
+        return np.clip(-(self.K @ reduced_from_observation(obs, core)), -1.0, 1.0)

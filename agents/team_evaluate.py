@@ -1,0 +1,80 @@
+"""Episodes of a team (esp_gym/team/env.py, ``ElasticStringTeam-v0``) under a centralised policy,
+measured as agents/evaluate.py measures one string's: return, success, the load's final and mean
+tilt (its ``swing``), settling time and the peak of the strings' pull on their pivots.
+
+Policies act on the centralised observation: ``zero`` (hover) and ``lqr`` (the team's LQR,
+agents/baselines/team_lqr.py) are the baselines (:func:`team_baselines`).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from agents.evaluate import SUCCESS_DISTANCE, SUCCESS_SWING_DEG, EpisodeResult
+from esp_gym.team.env import MAX_EPISODE_STEPS, ElasticStringTeamEnv
+
+
+class TeamZero:
+    """Every pivot hovers."""
+
+    def act(self, obs, core):
+        return np.zeros(3 * core.size)
+
+
+class TeamLQRPolicy:
+    """The team's LQR, designed for the env's core the first time it acts."""
+
+    def __init__(self):
+        self.design = None
+
+    def act(self, obs, core):
+        if self.design is None:
+            from agents.baselines.team_lqr import TeamLQR
+
+            self.design = TeamLQR.design(core)
+        return self.design.act(obs, core)
+
+
+def team_baselines() -> dict:
+    """The team's classical baselines by name."""
+    return {"lqr": TeamLQRPolicy()}
+
+
+def load_tilt(core) -> float:
+    """The load's tilt from its hanging attitude (R = I) [rad]."""
+    R = core.sim.state.lead.R
+    return math.acos(min(1.0, max(-1.0, float(R[2, 2]))))
+
+
+def run_team_episodes(policy, team: int = 3, task: str = "transport", episodes: int = 10, seed: int = 0,
+                      env_kwargs=None) -> list:
+    """``episodes`` seeded episodes (seed + i) of ``policy`` on a team of ``team`` strings:
+    :class:`~agents.evaluate.EpisodeResult` each."""
+    env = ElasticStringTeamEnv(team, task=task, **(env_kwargs or {}))
+    core = env.core
+    out = []
+    for i in range(episodes):
+        obs, _ = env.reset(seed=seed + i)
+        total, tilt_sum, steps, settled_at, peak = 0.0, 0.0, 0, 0, 0.0
+        terminated = truncated = False
+        while not (terminated or truncated):
+            obs, r, terminated, _, info = env.step(policy.act(obs, core))
+            truncated = core.steps >= MAX_EPISODE_STEPS
+            total += r
+            tilt = load_tilt(core)
+            tilt_sum += tilt
+            steps += 1
+            peak = max(peak, float(np.linalg.norm(info["tension"], axis=1).max()))
+            near = (np.linalg.norm(core.load_position() - core.load_target) < SUCCESS_DISTANCE
+                    and math.degrees(tilt) < SUCCESS_SWING_DEG)
+            if not near:
+                settled_at = steps
+        final = math.degrees(load_tilt(core))
+        dist = float(np.linalg.norm(core.load_position() - core.load_target))
+        success = bool(not terminated and dist < SUCCESS_DISTANCE and final < SUCCESS_SWING_DEG)
+        if terminated:
+            settled_at = MAX_EPISODE_STEPS
+        out.append(EpisodeResult(seed + i, total, success, final, math.degrees(tilt_sum / steps),
+                                 settled_at * core.control_period, peak))
+    return out

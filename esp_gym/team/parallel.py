@@ -1,0 +1,88 @@
+"""The team as a PettingZoo ``ParallelEnv`` (docs/team.md): agents ``pivot_0 .. pivot_{K-1}``, each
+pushing its own pivot and observing what :func:`~esp_gym.team.env.agent_layout` names; the reward
+is the team's, given to every agent, with each agent's own terms in its ``infos`` entry."""
+from __future__ import annotations
+
+import functools
+from typing import Optional
+
+import gymnasium as gym
+import numpy as np
+from pettingzoo import ParallelEnv
+
+from .env import MAX_EPISODE_STEPS, TeamCore
+
+
+class ElasticStringTeamParallelEnv(ParallelEnv):
+    """K point pivots carrying one load on tension-only elastic strings. Each agent's action is
+    ``Box(-1, 1, (3,))``, its pivot's force (spatial) on top of its hover force (``force_limit``
+    of it at 1); its observation is ``Box(-inf, inf, (n,))`` with n = 27 + 3 (K - 1), named by
+    :attr:`observation_structure`. An episode is truncated after ``max_cycles`` steps (500: 10 s)
+    and terminated for the whole team (collision, an overstretched string, the workspace left, a
+    failed step: ``infos[agent]["termination_reason"]``). Arguments as
+    :class:`~esp_gym.team.env.TeamCore`'s."""
+
+    metadata = {"name": "elastic_string_team_v0", "render_modes": [], "is_parallelizable": True}
+
+    def __init__(self, team=3, task: str = "transport", control_period: float = 0.02, force_limit: float = 0.6,
+                 max_cycles: int = MAX_EPISODE_STEPS, render_mode: Optional[str] = None):
+        if render_mode is not None:
+            raise ValueError(f"render_mode: a team env does not render yet, got {render_mode!r}")
+        if isinstance(max_cycles, bool) or not isinstance(max_cycles, (int, np.integer)) or max_cycles < 1:
+            raise ValueError(f"max_cycles must be a whole number >= 1, got {max_cycles!r}")
+        self.core = TeamCore(team, task, control_period, force_limit)
+        self.max_cycles = int(max_cycles)
+        self.render_mode = None
+        self.possible_agents = [f"pivot_{k}" for k in range(self.core.size)]
+        self.agents = []
+        #: name -> slice of one agent's observation
+        self.observation_structure = self.core.layout.structure()
+
+    @functools.lru_cache(maxsize=None)
+    def observation_space(self, agent):
+        return gym.spaces.Box(-np.inf, np.inf, (self.core.layout.size,), np.float32)
+
+    @functools.lru_cache(maxsize=None)
+    def action_space(self, agent):
+        return gym.spaces.Box(-1.0, 1.0, (3,), np.float32)
+
+    def reset(self, seed: Optional[int] = None, options: Optional[dict] = None):
+        obs, info = self.core.reset(seed=seed)
+        self.agents = list(self.possible_agents)
+        return ({a: obs[k] for k, a in enumerate(self.agents)},
+                {a: {**info, "agent": k} for k, a in enumerate(self.agents)})
+
+    def step(self, actions: dict):
+        if not self.agents:
+            raise RuntimeError("step: the episode has ended; call reset()")
+        missing = [a for a in self.agents if a not in actions]
+        if missing:
+            raise ValueError(f"actions: every agent acts in a team, missing {missing}")
+        unknown = [a for a in actions if a not in self.possible_agents]
+        if unknown:
+            raise ValueError(f"actions: unknown agents {unknown}")
+        action = np.stack([np.asarray(actions[a], dtype=np.float64).reshape(-1) for a in self.possible_agents])
+        obs, reward, terminated, _, info = self.core.step(action)
+        truncated = not terminated and self.core.steps >= self.max_cycles
+        agents = list(self.agents)
+        infos = {}
+        for k, a in enumerate(agents):
+            infos[a] = {"terms": info["agents"][k], "reward_terms": info["reward_terms"],
+                        "min_separation": info["min_separation"]}
+            if terminated:
+                infos[a]["termination_reason"] = info["termination_reason"]
+        out = ({a: obs[k] for k, a in enumerate(agents)}, {a: reward for a in agents},
+               {a: terminated for a in agents}, {a: truncated for a in agents}, infos)
+        if terminated or truncated:
+            self.agents = []
+        return out
+
+    def state(self) -> np.ndarray:
+        """The centralised observation: every agent's, one after the other (a centralised critic's
+        input)."""
+        return self.core.observations(self.core.kinematics()).ravel()
+
+
+def parallel_env(team=3, task: str = "transport", **kwargs) -> ElasticStringTeamParallelEnv:
+    """A team of ``team`` point pivots as a PettingZoo ParallelEnv (:class:`ElasticStringTeamParallelEnv`)."""
+    return ElasticStringTeamParallelEnv(team=team, task=task, **kwargs)

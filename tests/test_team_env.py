@@ -1,0 +1,145 @@
+"""A team's environments (esp_gym/team/env.py, esp_gym/team/parallel.py; docs/team.md): PettingZoo's
+API and seed tests, both Gymnasium env checkers, the centralised env equal to the parallel one,
+the observation's fields, the reward's per-agent terms, separation and collision, the errors, and
+the team's LQR baseline."""
+import json
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+from pettingzoo.test import parallel_api_test, parallel_seed_test
+from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+import esp_gym
+from agents.baselines.team_lqr import TeamLQR
+from agents.team_evaluate import TeamZero, run_team_episodes
+from esp_gym.team import parallel_env, symmetric_team
+from esp_gym.team.env import COLLISION, SEPARATION, ElasticStringTeamEnv
+
+
+@pytest.mark.parametrize("team", [1, 3])
+def test_the_parallel_env_passes_pettingzoos_api_and_seed_tests(team):
+    parallel_api_test(parallel_env(team=team), num_cycles=60)
+    parallel_seed_test(lambda: parallel_env(team=team))
+
+
+@pytest.mark.filterwarnings("ignore:.*Box observation space.*infinity")
+def test_the_centralised_env_passes_both_checkers():
+    env = gym.make("ElasticStringTeam-v0", team=3)
+    check_env(env.unwrapped, skip_render_check=True)
+    sb3_check_env(ElasticStringTeamEnv(3))
+    assert env.action_space.shape == (9,) and env.observation_space.shape == (99,)
+
+
+def test_the_centralised_env_is_the_parallel_env():
+    central = ElasticStringTeamEnv(3)
+    team = parallel_env(team=3)
+    obs_c, _ = central.reset(seed=5)
+    obs_p, _ = team.reset(seed=5)
+    assert np.array_equal(obs_c, np.concatenate([obs_p[a] for a in team.possible_agents]))
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        a = rng.uniform(-0.3, 0.3, 9).astype(np.float32)
+        obs_c, r_c, term_c, trunc_c, _ = central.step(a)
+        obs_p, r_p, term_p, trunc_p, _ = team.step({f"pivot_{k}": a[3 * k:3 * k + 3] for k in range(3)})
+        assert np.array_equal(obs_c, np.concatenate([obs_p[a] for a in team.possible_agents]))
+        assert all(r == r_c for r in r_p.values())
+
+
+def test_observations_name_what_they_hold_and_the_reward_adds_up():
+    team = parallel_env(team=3)
+    obs, _ = team.reset(seed=1)
+    core, L = team.core, team.core.layout
+    obs, rewards, _, _, infos = team.step({a: np.full(3, 0.2, np.float32) for a in team.agents})
+    kin = core.kinematics()
+    for k, agent in enumerate(team.possible_agents):
+        o = obs[agent]
+        assert np.allclose(o[L["pivot_position_error"]], kin["pivot"][k] - core.pivot_targets[k], atol=1e-6)
+        assert np.allclose(o[L["load_offset"]], kin["load"] - kin["pivot"][k], atol=1e-6)
+        ahead = [(k + 1) % 3, (k + 2) % 3]
+        assert np.allclose(o[L["neighbours"]], (kin["pivot"][ahead] - kin["pivot"][k]).ravel(), atol=1e-6)
+        # the hook tension is the first element's pull, kappa (|x0| - u)+ x0/|x0|
+        st, T = core.sim.state, core.sim.params
+        nodes = st.lead.r if k == 0 else st.r[T.start[k - 1]:T.start[k]]
+        x = nodes[1] - nodes[0]
+        string = core.scene.scene.string
+        pull = string.kappa * max(np.linalg.norm(x) - string.u, 0.0) * x / np.linalg.norm(x)
+        assert np.allclose(o[L["hook_tension"]], pull, rtol=1e-6)
+        assert pull[2] > 0.5 * core.scene.scene.body.mass * 9.81 / 3  # carries its share of the load
+    info = infos["pivot_0"]
+    shared = sum(v for k, v in info["reward_terms"].items() if k not in ("pivot_position", "control", "separation"))
+    own = sum(sum(infos[a]["terms"].values()) for a in team.possible_agents)
+    assert rewards["pivot_0"] == pytest.approx(shared + own, abs=1e-12)
+    assert infos["pivot_1"]["terms"]["control"] == pytest.approx(-core.task.w_control * 0.12 / 9)
+
+
+def test_pivots_that_close_in_are_penalised_and_then_collide():
+    env = ElasticStringTeamEnv(2)
+    env.reset(seed=0)
+    toward = np.array([-1.0, 0.0, 0.0, 1.0, 0.0, 0.0])  # pivot 0 at +x, pivot 1 at -x
+    penalised = False
+    for _ in range(200):
+        _, _, terminated, _, info = env.step(toward)
+        penalised |= info["reward_terms"]["separation"] < 0.0 and info["min_separation"] < SEPARATION
+        if terminated:
+            break
+    assert penalised and terminated and info["termination_reason"] == "collision"
+    assert info["min_separation"] < COLLISION
+
+
+def test_team_envs_refuse_bad_arguments():
+    for team in (0, 7, True, "3", 2.5):
+        with pytest.raises(ValueError, match="team|size"):
+            ElasticStringTeamEnv(team)
+    with pytest.raises(ValueError, match="task"):
+        ElasticStringTeamEnv(3, task="juggle")
+    with pytest.raises(ValueError, match="free"):
+        ElasticStringTeamEnv(symmetric_team(3))  # fixed pivots
+    env = ElasticStringTeamEnv(3)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"shape \(9,\)"):
+        env.step(np.zeros(6))
+    with pytest.raises(ValueError, match="finite"):
+        env.step(np.full(9, np.nan))
+    team = parallel_env(team=2, max_cycles=2)
+    team.reset(seed=0)
+    with pytest.raises(ValueError, match="missing"):
+        team.step({"pivot_0": np.zeros(3)})
+    for _ in range(2):
+        _, _, _, truncated, _ = team.step({a: np.zeros(3) for a in team.agents})
+    assert all(truncated.values()) and team.agents == []
+    with pytest.raises(RuntimeError, match="reset"):
+        team.step({"pivot_0": np.zeros(3), "pivot_1": np.zeros(3)})
+    with pytest.raises(ValueError, match="max_cycles"):
+        parallel_env(team=2, max_cycles=0)
+
+
+def test_the_teams_lqr_holds_the_formation_and_carries_the_load():
+    env = ElasticStringTeamEnv(3)
+    env.reset(seed=0)
+    lqr = TeamLQR.design(env.core)
+    assert lqr.closed_loop_radius() < 1.0
+    zero = [r.ret for r in run_team_episodes(TeamZero(), 3, "transport", 2, seed=100)]
+    rows = run_team_episodes(type("P", (), {"act": lambda self, obs, core: lqr.act(obs, core)})(), 3, "transport", 2,
+                             seed=100)
+    assert min(r.ret for r in rows) > 400.0 > 50.0 > max(zero)  # measured: 444 +- 26 over 20 episodes, zero 16
+
+
+def test_compare_takes_a_team(capsys):
+    from agents.compare import main
+
+    c = main(["--team", "2", "--task", "stabilize", "--episodes", "2", "--json", "--no-progress"])
+    printed = json.loads(capsys.readouterr().out)
+    single_keys = {"task", "preset", "scene", "actuation", "episodes", "seed", "model", "policies", "best_baseline",
+                   "paired_diff_mean", "paired_ci95"}
+    assert single_keys <= set(printed) and printed["team"] == 2 and c["best_baseline"] == "lqr"
+    assert set(printed["policies"]["lqr"]) >= {"mean_return", "std_return", "success_rate", "returns"}
+    with pytest.raises(SystemExit):
+        main(["--team", "7", "--task", "transport", "--episodes", "2"])
+    with pytest.raises(SystemExit):
+        main(["--team", "3", "--task", "lift", "--episodes", "2"])
+
+
+def test_import_esp_gym_registers_the_team_env():
+    assert esp_gym.TEAM_ENV_ID in gym.registry
