@@ -110,15 +110,15 @@ def compare(task: str, preset: Optional[str] = None, episodes: int = 100, seed: 
 def compare_team(team: int, task: str, preset: Optional[str] = None, episodes: int = 100, seed: int = HELD_OUT_SEED,
                  progress: bool = True) -> dict:
     """:func:`compare` for a team of ``team`` strings (esp_gym/team/env.py): zero, the team's
-    baselines (agents/team_evaluate.py); the same keys, with ``team``. No team policy ships yet."""
+    baselines (agents/team_evaluate.py), ``preset`` the team's (esp_gym/team/env.py TEAM_PRESETS);
+    the same keys, with ``team``. No team policy ships yet."""
     from tqdm import tqdm
 
     from agents.team_evaluate import TeamZero, run_team_episodes, team_baselines
 
-    if preset is not None:
-        raise ValueError(f"--preset {preset}: a team has no presets yet (docs/team.md)")
+    env_kwargs = {"preset": preset} if preset else {}
     policies = {"zero": TeamZero(), **team_baselines()}
-    results = {name: run_team_episodes(policy, team, task, episodes, seed)
+    results = {name: run_team_episodes(policy, team, task, episodes, seed, env_kwargs)
                for name, policy in tqdm(policies.items(), desc=f"compare team {team} {task}", disable=not progress)}
     table = {}
     for name, rows in results.items():
@@ -178,7 +178,7 @@ def main(argv=None) -> dict:
     ap.check_file("--model", a.model)
     if a.team is not None:
         from esp_gym.team import MAX_STRINGS
-        from esp_gym.team.env import TEAM_TASKS
+        from esp_gym.team.tasks import TEAM_TASKS
 
         if not 1 <= a.team <= MAX_STRINGS:
             ap.error(f"argument --team: a team has 1 to {MAX_STRINGS} strings, got {a.team}")
@@ -186,11 +186,8 @@ def main(argv=None) -> dict:
             ap.error(f"argument --task: a team's tasks are {sorted(TEAM_TASKS)}, got {a.task!r}")
         for name in ("scene", "actuation", "model"):
             if getattr(a, name) is not None:
-                ap.error(f"argument --{name}: not with --team (a team's scene is esp_gym.team.env.team_scene)")
-        try:
-            c = compare_team(a.team, a.task, a.preset, a.episodes, a.seed, a.progress)
-        except ValueError as err:
-            ap.error(f"argument --preset: {err}")
+                ap.error(f"argument --{name}: not with --team (a team's scene is esp_gym.team.scene.team_scene)")
+        c = compare_team(a.team, a.task, a.preset, a.episodes, a.seed, a.progress)
         print(json.dumps(c) if a.json else markdown(c))
         if a.out:
             write_comparison(c, a.out)

@@ -3,12 +3,14 @@ above and over time (docs/environment.md, "The tasks").
 
     python -m agents.task_figures --out docs/img [--seed 3] [--steps 500] [--policy baseline] [--drone]
     python -m agents.task_figures --out docs/img --hard-lift [--model models/lift_hard_ppo/model.zip]
+    python -m agents.task_figures --out docs/img --team 3
 
 writes ``task_{stabilize,transport,track}.png`` (with ``--drone``: ``drone_transport.png``, a
 ``transport`` episode of ``quadrotor_load`` under the geometric cascade, ``thrust_rates``, the
 drone's roll, pitch and yaw over time below the load's distance; with ``--hard-lift``:
 ``lift_hard.png``, one episode of the hard preset's ``lift`` (a moving target) under the hoist
-and under the shipped policy, drawn together): left, the top view (x, y) of the pivot's and the
+and under the shipped policy, drawn together; with ``--team K``: ``team_transport.png``, a team's
+transport, :func:`team_figure`): left, the top view (x, y) of the pivot's and the
 load's paths with the targets (``track``: the reference the load follows); right, over time, the
 load's distance to its target [m] and the swing angle of the string [deg]. The controller is the
 task's classical baseline (agents/baselines/pd.py) unless ``--policy zero``; each panel notes the
@@ -176,6 +178,68 @@ def hard_lift_figure(out: Path, seed: int, steps: int, model: Path) -> dict:
     return results
 
 
+def team_figure(out: Path, size: int, seed: int, steps: int, preset=None) -> dict:
+    """``team_transport.png``: one ``transport`` episode of a team of ``size`` pivots (docs/team.md)
+    under the team's LQR: the top view of every pivot's and the load's path with their targets,
+    the load's distance to its target, each string's pull on its pivot, and the smallest distance
+    between two pivots with the separation and collision distances."""
+    from agents.team_evaluate import TeamLQRPolicy
+    from esp_gym.team.env import COLLISION, SEPARATION, ElasticStringTeamEnv
+    from esp_gym.viz.figures import new_figure, save_figure
+
+    env = ElasticStringTeamEnv(size, task="transport", **({"preset": preset} if preset else {}))
+    core, policy = env.core, TeamLQRPolicy()
+    obs, _ = env.reset(seed=seed)
+    pivots, load, tension, separation, total = [core.pivot_positions()], [core.load_position()], [], [], 0.0
+    for _ in range(steps):
+        obs, reward, terminated, _, info = env.step(policy.act(obs, core))
+        total += reward
+        pivots.append(core.pivot_positions())
+        load.append(core.load_position())
+        tension.append(np.linalg.norm(info["tension"], axis=1))
+        separation.append(info["min_separation"])
+        if terminated:
+            break
+    pivots, load = np.array(pivots), np.array(load)
+    t = core.control_period * np.arange(len(load))
+    fig = new_figure((11, 5))
+    grid = fig.add_gridspec(3, 2, width_ratios=(1, 1.4))
+    top = fig.add_subplot(grid[:, 0])
+    for k in range(size):
+        line, = top.plot(*pivots[:, k, :2].T, lw=1.2, label=f"pivot_{k}")
+        top.plot(*pivots[0, k, :2], "o", color=line.get_color(), ms=4)
+        top.plot(*core.pivot_targets[k, :2], "s", mfc="none", color=line.get_color(), ms=9)
+    top.plot(*load[:, :2].T, color=COLOURS["load"], lw=1.6, label="load")
+    top.plot(*load[0, :2], "o", color=COLOURS["load"], ms=4)
+    top.plot(*core.load_target[:2], "x", color=COLOURS["load"], ms=9, label="load target")
+    top.set_aspect("equal", adjustable="datalim")
+    top.set(xlabel="x [m]", ylabel="y [m]", title="seen from above (dots: start, squares: targets)")
+    top.legend(loc="best", fontsize=8)
+    top.grid(True, alpha=0.3)
+    distance_ax, tension_ax, separation_ax = (fig.add_subplot(grid[i, 1]) for i in range(3))
+    distance_ax.plot(t, np.linalg.norm(load - core.load_target, axis=1), color=COLOURS["load"])
+    distance_ax.set(ylabel="load to target [m]", title=f"return {total:.1f} over {len(t) - 1} steps")
+    for k, series in enumerate(np.array(tension).T):
+        tension_ax.plot(t[1:], series, lw=1.0, label=f"pivot_{k}")
+    tension_ax.set_ylabel("hook tension [N]")
+    tension_ax.legend(loc="best", ncol=size, fontsize=8)
+    separation_ax.plot(t[1:], separation, color="tab:purple")
+    separation_ax.axhline(SEPARATION, color="tab:orange", ls="--", lw=1, label="penalised below")
+    separation_ax.axhline(COLLISION, color="tab:red", ls=":", lw=1, label="collision")
+    separation_ax.set(ylabel="closest pivots [m]", xlabel="time [s]")
+    separation_ax.legend(loc="best", fontsize=8)
+    for ax in (distance_ax, tension_ax, separation_ax):
+        ax.grid(True, alpha=0.3)
+    fig.suptitle(f"a team of {size}, task='transport'{', ' + preset if preset else ''}, the team's LQR, seed {seed}")
+    fig.tight_layout()
+    path = save_figure(fig, out / "team_transport.png")
+    result = {"return": total, "final_distance_m": float(np.linalg.norm(load[-1] - core.load_target)),
+              "closest_pivots_m": float(min(separation)), "figure": str(path)}
+    print(f"team of {size} transport return {total:7.1f}  final distance {result['final_distance_m']:.3f} m  "
+          f"closest pivots {result['closest_pivots_m']:.2f} m  -> {path}")
+    return result
+
+
 def main(argv=None) -> dict:
     ap = ArgumentParser(prog="python -m agents.task_figures", description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", default="docs/img", help="directory of the figures")
@@ -188,7 +252,9 @@ def main(argv=None) -> dict:
                     help="only lift_hard.png: the hard preset's lift under the hoist and the policy of --model")
     ap.add_argument("--model", default=str(ROOT / "models" / "lift_hard_ppo" / "model.zip"),
                     help="the policy of --hard-lift (default: the shipped one; left out if absent)")
-    ap.minimums = {"seed": 0, "steps": 1}
+    ap.add_argument("--team", type=int, default=None, metavar="K",
+                    help="only team_transport.png: a team of K pivots (docs/team.md) under the team's LQR")
+    ap.minimums = {"seed": 0, "steps": 1, "team": 1}
     a = ap.parse_args(argv)
     ap.check_out_dir("--out", a.out)  # as compare's and robustness's: a new directory in an existing one
     out = Path(a.out)
@@ -196,6 +262,8 @@ def main(argv=None) -> dict:
     results = {}
     if a.hard_lift:
         return hard_lift_figure(out, a.seed, a.steps, Path(a.model))
+    if a.team is not None:
+        return team_figure(out, a.team, a.seed, a.steps)
     if a.drone:
         from agents.baselines.geometric import geometric_controller
 

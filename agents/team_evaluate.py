@@ -23,16 +23,28 @@ class TeamZero:
 
 
 class TeamLQRPolicy:
-    """The team's LQR, designed for the env's core the first time it acts."""
+    """The team's LQR (agents/baselines/team_lqr.py), designed the first time it acts for the
+    nominal team of the env's size, task and control period, and its action latency. It reads the true state: from the
+    ``full`` observation, and with the ``hook`` observation (the hard preset) from the core
+    (:meth:`~esp_gym.team.env.TeamCore.true_observations`, no estimator yet: an optimistic
+    baseline there)."""
 
     def __init__(self):
         self.design = None
 
     def act(self, obs, core):
-        if self.design is None:
-            from agents.baselines.team_lqr import TeamLQR
+        from agents.baselines.team_lqr import TeamLQR
+        from esp_gym.team.env import TeamCore
 
-            self.design = TeamLQR.design(core)
+        if self.design is None:
+            nominal = TeamCore(core.size, core.task.name, control_period=core.control_period,
+                               force_limit=core.force_limit)
+            nominal.reset(seed=0)
+            self.design = TeamLQR.design(nominal, latency=core.action_latency)
+        if core.steps == 0:
+            self.design.reset()
+        if core.observation != "full":
+            obs = core.true_observations().ravel()
         return self.design.act(obs, core)
 
 

@@ -26,7 +26,8 @@ if ENV_ID not in registry:
 
 TEAM_ENV_ID = "ElasticStringTeam-v0"
 if TEAM_ENV_ID not in registry:
-    register(id=TEAM_ENV_ID, entry_point="esp_gym.team.env:ElasticStringTeamEnv", max_episode_steps=MAX_EPISODE_STEPS)
+    register(id=TEAM_ENV_ID, entry_point="esp_gym.team.env:ElasticStringTeamEnv",
+             vector_entry_point="esp_gym.team.vector:ElasticStringTeamVectorEnv", max_episode_steps=MAX_EPISODE_STEPS)
 
 
 def __getattr__(name):

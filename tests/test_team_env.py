@@ -143,3 +143,84 @@ def test_compare_takes_a_team(capsys):
 
 def test_import_esp_gym_registers_the_team_env():
     assert esp_gym.TEAM_ENV_ID in gym.registry
+
+
+# -- the hard preset ----------------------------------------------------------------------------
+
+def test_the_hard_preset_draws_each_team_and_hides_the_load():
+    team = parallel_env(team=3, preset="hard")
+    core = team.core
+    assert (core.randomize, core.observation, core.sensor_noise, core.action_latency) == (True, "hook", 1.0, 1)
+    assert list(team.observation_structure) == ["pivot_position_error", "pivot_velocity", "hook_tension",
+                                                "load_target_offset", "neighbours"]
+    _, info = team.reset(seed=3)
+    draws = info["pivot_0"]["team_draws"]
+    EAs = [s["EA"] for s in draws["strings"]]
+    assert len(set(EAs)) == 3 and all(100.0 <= e <= 400.0 for e in EAs)
+    assert core.scene.strings[0].string.EA == EAs[1] and core.scene.scene.body.mass == draws["body_mass"]
+    # each string starts at the stretch that carries its share: the load hangs nearly still
+    kin = core.kinematics()
+    assert np.linalg.norm(kin["load_velocity"]) < 0.2
+    team.reset(seed=4)
+    assert core.scene.scene.string.EA != EAs[0]
+    # the action arrives one step late
+    _, _, _, _, _ = team.step({a: np.full(3, 0.5, np.float32) for a in team.agents})
+    assert np.all(core.last_action == 0.0)
+    team.step({a: np.zeros(3, np.float32) for a in team.agents})
+    assert np.all(core.last_action == 0.5)
+    parallel_api_test(parallel_env(team=3, preset="hard"), num_cycles=30)
+    parallel_seed_test(lambda: parallel_env(team=2, preset="hard"))
+
+
+def test_the_wind_pushes_the_load_and_its_noise_is_the_documented_one():
+    calm = ElasticStringTeamEnv(2, wind={"speed": 0.0, "gust_std": 0.0, "push_rate": 0.0})
+    windy = ElasticStringTeamEnv(2, wind={"speed": 8.0, "direction": 0.0, "gust_std": 0.0})
+    assert calm.core.wind is None
+    windy.reset(seed=0)
+    for _ in range(5):
+        windy.step(np.zeros(6))
+    assert windy.core.load_force[0] > 0.5 > 10 * abs(windy.core.load_force[1])  # drag along +x, the wind's
+    noisy = ElasticStringTeamEnv(2, sensor_noise=1.0)
+    clean = ElasticStringTeamEnv(2)
+    noise = []
+    for seed in range(30):
+        a, _ = noisy.reset(seed=seed)
+        b, _ = clean.reset(seed=seed)
+        noise.append(a - b)
+    std = np.std(np.array(noise)[:, noisy.core.layout["pivot_velocity"]])
+    assert 0.035 < std < 0.065  # 0.05 m/s
+
+
+def test_the_teams_lqr_takes_the_latency_into_account():
+    from agents.team_evaluate import TeamLQRPolicy
+
+    rows = run_team_episodes(TeamLQRPolicy(), 3, "transport", 2, seed=100, env_kwargs={"action_latency": 1})
+    assert min(r.ret for r in rows) > 400.0  # designed without the delay it leaves the workspace (1.4, 1.3)
+
+
+def test_the_vector_env_is_the_single_env_bit_for_bit():
+    n = 3
+    venv = gym.make_vec("ElasticStringTeam-v0", num_envs=n, vectorization_mode="vector_entry_point", team=2,
+                        task="stabilize", max_episode_steps=30)
+    singles = [gym.make("ElasticStringTeam-v0", team=2, task="stabilize", max_episode_steps=30) for _ in range(n)]
+    obs, _ = venv.reset(seed=7)
+    for i, env in enumerate(singles):
+        o, _ = env.reset(seed=7 + i)
+        assert np.array_equal(obs[i], o)
+    rng = np.random.default_rng(0)
+    restart, ends = [False] * n, 0
+    for _ in range(70):  # past two truncations: the next-step autoreset
+        actions = rng.uniform(-0.2, 0.2, (n, 6)).astype(np.float32)
+        obs, rewards, terminated, truncated, _ = venv.step(actions)
+        for i, env in enumerate(singles):
+            if restart[i]:
+                o, _ = env.reset()
+                r, te, tr = 0.0, False, False
+            else:
+                o, r, te, tr, _ = env.step(actions[i])
+            assert np.array_equal(obs[i], o) and rewards[i] == r and terminated[i] == te and truncated[i] == tr
+            restart[i] = te or tr
+            ends += restart[i]
+    assert ends >= 2 * n  # every sub-env ended twice and restarted
+    with pytest.raises(ValueError, match="num_envs"):
+        gym.make_vec("ElasticStringTeam-v0", num_envs=0, vectorization_mode="vector_entry_point")

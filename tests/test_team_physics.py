@@ -231,6 +231,26 @@ def test_free_pivots_balance_momentum_and_pi3_with_their_forces():
     assert np.abs(fixed.diagnostics()["momentum_balance_residual"]).max() > 0.1
 
 
+def test_a_force_on_the_load_joins_the_balances():
+    team = asymmetric_team(FREE)
+    sim = kicked(TeamSimulator(team))
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        sim.step(50, load_force=rng.normal(0.0, 3.0, 3))
+    d = sim.diagnostics()
+    assert np.abs(d["momentum_balance_residual"]).max() < 1e-12
+    assert abs(d["pi3_balance_residual"]) < 1e-12
+    assert abs(d["energy_balance_residual"]) < 2e-3 < abs(d["work"])
+    with pytest.raises(ValueError, match="load_force"):
+        sim.step(1, load_force=[1.0, np.nan, 0.0])
+    # the force's impulse is what the momentum gains besides gravity's: F n h along x
+    sim = kicked(TeamSimulator(team))
+    sim.step(50)
+    before = sim.diagnostics()["linear_momentum"]
+    sim.step(50, load_force=[5.0, 0.0, 0.0])
+    assert sim.diagnostics()["linear_momentum"][0] - before[0] == pytest.approx(5.0 * 50 * team.h, abs=1e-12)
+
+
 def test_a_team_retraces_its_steps_when_its_momenta_are_reversed():
     team = asymmetric_team(FREE, "lumped")
     sim = kicked(TeamSimulator(team))

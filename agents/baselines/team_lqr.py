@@ -21,7 +21,7 @@ import scipy.linalg
 from scipy.spatial.transform import Rotation
 
 from esp_gym.kernels.layout import Layout
-from esp_gym.team.env import TeamCore
+from esp_gym.team.env import TeamCore, agent_layout
 from esp_gym.team.simulator import TeamSimulator
 
 #: Weight on what the reward does not see (pivot velocities, the load's yaw) [per unit^2].
@@ -34,8 +34,8 @@ def reduced_layout(size: int) -> Layout:
 
 
 def reduced_from_observation(obs: np.ndarray, core: TeamCore) -> np.ndarray:
-    """z from the centralised observation (the agents' observations one after the other)."""
-    K, L = core.size, core.layout
+    """z from the centralised ``full`` observation (the agents' observations one after the other)."""
+    K, L = core.size, agent_layout(core.size)
     o = np.asarray(obs, dtype=np.float64).reshape(K, L.size)
     Z = reduced_layout(K)
     z = np.empty(Z.size)
@@ -105,25 +105,51 @@ def reward_weights(core: TeamCore):
 
 @dataclass
 class TeamLQR:
-    """The team's centralised LQR (module docstring): action -K z, clipped to the box."""
+    """The team's centralised LQR (module docstring): action -K [z; the actions still queued],
+    clipped to the box. With an action latency of d control steps the model carries the d
+    actions given but not yet applied (z+ = A z + B u_{k-d}), and the law keeps them."""
 
-    K: np.ndarray  #: (3K, 6K + 12) gains, action units
+    K: np.ndarray  #: (3K, 6K + 12 + 3K d) gains, action units
     A: np.ndarray
     B: np.ndarray
     size: int
+    latency: int = 0
 
     @classmethod
-    def design(cls, core: TeamCore, control_weight: float = 1.0) -> "TeamLQR":
+    def design(cls, core: TeamCore, control_weight: float = 1.0, latency: int = 0) -> "TeamLQR":
         A, B = linearize(core)
         Q, R = reward_weights(core)
-        P = scipy.linalg.solve_discrete_are(A, B, Q, control_weight * R)
-        K = np.linalg.solve(control_weight * R + B.T @ P @ B, B.T @ P @ A)
-        return cls(K, A, B, core.size)
+        R = control_weight * R
+        n, m = B.shape
+        if latency:  # the queue of given actions joins the state; the newest enters it
+            Aa = np.zeros((n + m * latency, n + m * latency))
+            Aa[:n, :n] = A
+            Aa[:n, n:n + m] = B  # the oldest queued action is applied now
+            for i in range(latency - 1):  # the queue moves up
+                Aa[n + m * i:n + m * (i + 1), n + m * (i + 1):n + m * (i + 2)] = np.eye(m)
+            Ba = np.zeros((n + m * latency, m))
+            Ba[n + m * (latency - 1):] = np.eye(m)
+            Qa = np.zeros_like(Aa)
+            Qa[:n, :n] = Q
+            A, B, Q = Aa, Ba, Qa
+        P = scipy.linalg.solve_discrete_are(A, B, Q, R)
+        K = np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
+        design = cls(K, A, B, core.size, int(latency))
+        design.reset()
+        return design
+
+    def reset(self) -> None:
+        """Empty the queue of actions given and not yet applied (an episode's start)."""
+        self.queue = [np.zeros(3 * self.size) for _ in range(self.latency)]
 
     def closed_loop_radius(self) -> float:
         """Spectral radius of A - B K (< 1: the linear closed loop is stable)."""
         return float(np.max(np.abs(np.linalg.eigvals(self.A - self.B @ self.K))))
 
     def act(self, obs: np.ndarray, core: TeamCore) -> np.ndarray:
-        """The centralised action (3K,) for the centralised observation."""
-        return np.clip(-(self.K @ reduced_from_observation(obs, core)), -1.0, 1.0)
+        """The centralised action (3K,) for the centralised ``full`` observation."""
+        state = np.concatenate([reduced_from_observation(obs, core)] + self.queue)
+        action = np.clip(-(self.K @ state), -1.0, 1.0)
+        if self.latency:
+            self.queue = self.queue[1:] + [action]
+        return action

@@ -21,6 +21,7 @@ import numpy as np
 
 from .jit import kernel
 from .layout import B_ANGULAR_IMPULSE_Z, B_GRAVITY_IMPULSE, B_PIVOT_IMPULSE, B_WORK
+from .disturbance import kick
 from .lgvi import end_shift, rigid_increments
 from .loops import finish
 from .status import BLOW_UP, NON_FINITE, OK
@@ -284,11 +285,18 @@ def team_substep(S, W, P, T, A, inputs, h, free, forced, coupled, compensated):
 
 
 @kernel(entry=True)
-def team_advance(S, W, P, T, A, inputs, nsteps, stats):
+def team_advance(S, W, P, T, A, inputs, nsteps, stats, disturbed):
     """Take up to ``nsteps`` team steps with constant inputs; stop at the first failure with the
     last good state (a failing step moves nothing). ``stats`` as kernels/loops.py's. Every term
-    is in (the general path): forced, coupled, the pivot and the compensation read from ``P``."""
+    is in (the general path): forced, coupled, the pivot and the compensation read from ``P``.
+    ``disturbed``: the held force on the load's centre of mass ``W.ext[N+1]`` (wind, a push;
+    string 0's rows of ``W.ext`` zero) acts too, as kicks of h/2 on both sides of every step
+    (kernels/disturbance.py's :func:`kick`), the pending half taken back after a failure."""
     free = P.first == 0
+    first = 0 if free else 1
+    hh = 0.5 * P.h
+    if disturbed and nsteps > 0:
+        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, hh, first)
     total = 0
     most = 0
     for k in range(nsteps):
@@ -296,8 +304,12 @@ def team_advance(S, W, P, T, A, inputs, nsteps, stats):
         total += iters
         most = max(most, iters)
         if status != OK:
+            if disturbed:
+                kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, -hh, first)
             finish(stats, status, k, total, most)
             return
+        if disturbed:
+            kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, P.h if k < nsteps - 1 else hh, first)
     finish(stats, OK, nsteps, total, most)
 
 

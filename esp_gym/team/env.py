@@ -9,7 +9,8 @@ episode's end. Two faces share it: :class:`ElasticStringTeamEnv`, the centralise
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from collections import deque
 from typing import Optional
 
 import gymnasium as gym
@@ -18,8 +19,10 @@ import numpy as np
 from ..kernels.layout import Layout
 from ..model import SimulationError
 from ..stepsize import explicit_substeps
-from .scene import TeamScene, symmetric_team
+from ..wind import drag_areas, wind_options
+from .scene import MAX_STRINGS, TeamScene, draw_team, team_scene
 from .simulator import TeamSimulator
+from .tasks import get_team_task
 
 #: Pivots closer than this are penalised (the reward's separation term) [m].
 SEPARATION = 0.4
@@ -29,86 +32,57 @@ COLLISION = 0.15
 MAX_EPISODE_STEPS = 500
 
 
-@dataclass(frozen=True)
-class TeamTask:
-    """Reward weights and scales, and the start and target distributions, of a team task.
-
-    Each tracking term is ``weight / (1 + (x/scale)^2)``; the control term is
-    ``-w_control mean_k |a_k|^2 / 3``; the separation term ``-w_separation sum over pairs of
-    max(0, 1 - d/SEPARATION)^2``. So a step's reward is at most
-    w_load_position + w_load_velocity + w_pivot_position + w_tilt + w_spin."""
-
-    name: str
-    w_load_position: float = 0.45
-    w_load_velocity: float = 0.1
-    w_pivot_position: float = 0.2
-    w_tilt: float = 0.2
-    w_spin: float = 0.05
-    w_control: float = 0.1
-    w_separation: float = 0.5
-    scale_position: float = 0.2  #: [m]
-    scale_velocity: float = 0.5  #: [m/s]
-    scale_tilt: float = 0.2  #: [rad]
-    scale_spin: float = 1.0  #: [rad/s]
-    max_speed: float = 0.05  #: the load's initial speed, up to this per axis [m/s]
-    max_spin: float = 0.1  #: the load's initial body rates, up to this per axis [rad/s]
-    target_box: tuple = (0.0, 0.0, 0.0)  #: the load's target, uniform in +-box about its start [m]
-    max_stretch: float = 1.5  #: the episode ends when a string is longer than this times its l
-    workspace_radius: float = 4.0  #: the episode ends when the load or a pivot is this far from its target [m]
-
-    @property
-    def max_reward(self) -> float:
-        return self.w_load_position + self.w_load_velocity + self.w_pivot_position + self.w_tilt + self.w_spin
-
-
-TEAM_TASKS = {
-    # bring a load knocked into motion (up to 0.5 m/s, 1 rad/s) to rest, the pivots held in formation
-    "stabilize": TeamTask("stabilize", max_speed=0.5, max_spin=1.0, w_load_position=0.35, w_load_velocity=0.2,
-                          w_tilt=0.15, w_spin=0.1),
-    # carry a load hanging at rest to a random target, the pivots in formation around it
-    "transport": TeamTask("transport", target_box=(1.0, 1.0, 0.5)),
-}
-
-
-def get_team_task(name: str) -> TeamTask:
-    if name not in TEAM_TASKS:
-        raise ValueError(f"task must be one of {sorted(TEAM_TASKS)}, got {name!r}")
-    return TEAM_TASKS[name]
-
-
-def agent_layout(size: int) -> Layout:
-    """One agent's observation (:attr:`TeamCore.observation_structure`): its pivot's position
-    error and velocity, its string's hook tension, the load relative to it, the load's error,
-    velocity, attitude and rates, and the other pivots relative to it (the next one first)."""
-    fields = [("pivot_position_error", 3), ("pivot_velocity", 3), ("hook_tension", 3), ("load_offset", 3),
-              ("load_position_error", 3), ("load_velocity", 3), ("load_attitude_6d", 6), ("load_rates", 3)]
+def agent_layout(size: int, observation: str = "full") -> Layout:
+    """One agent's observation (:attr:`TeamCore.layout`): its pivot's position error and velocity,
+    its string's hook tension, then in the ``full`` mode the load relative to it and the load's
+    error, velocity, attitude and rates, in the ``hook`` mode only the load's target relative to
+    it; and the other pivots relative to it (the next one first)."""
+    fields = [("pivot_position_error", 3), ("pivot_velocity", 3), ("hook_tension", 3)]
+    if observation == "full":
+        fields += [("load_offset", 3), ("load_position_error", 3), ("load_velocity", 3), ("load_attitude_6d", 6),
+                   ("load_rates", 3)]
+    else:
+        fields += [("load_target_offset", 3)]
     if size > 1:
         fields.append(("neighbours", 3 * (size - 1)))
     return Layout(*fields)
 
 
-def team_scene(size: int) -> TeamScene:
-    """The default team: ``size`` free 1 kg pivots 1.2 m apart across, each holding a 1 m,
-    50 g/m, EA = 200 N tension-only string (drone_load's) to a 1 kg box (0.4 x 0.4 x 0.1 m) at
-    points 0.15 m from its centre line on its top face, hanging at rest."""
-    return symmetric_team(size, length=1.0, mass_per_length=0.05, EA=200.0, elements=8, body_mass=1.0,
-                          body_size=(0.4, 0.4, 0.1), pivot_radius=0.6, attachment_radius=0.15,
-                          pivot={"kind": "free", "mass": 1.0}, h=2e-4, stretch="static",
-                          law="slack", solver={"slack_switch": "plain"})
+TEAM_PRESETS = {"hard": {"randomize": True, "observation": "hook", "sensor_noise": 1.0, "action_latency": 1,
+                         "wind": {"speed": 6.0, "gust_std": 1.5, "push_rate": 0.2, "push_speed": 0.5}}}
+#: Sensor noise per field at ``sensor_noise=1`` (as esp_gym/observe.py's UNIT_NOISE) [SI].
+TEAM_UNIT_NOISE = {"pivot_position_error": 0.01, "pivot_velocity": 0.05, "hook_tension": 0.1, "load_offset": 0.01,
+                   "load_position_error": 0.01, "load_velocity": 0.05, "load_attitude_6d": 0.01, "load_rates": 0.05,
+                   "load_target_offset": 0.01, "neighbours": 0.01}
 
 
 class TeamCore:
     """A team's episode (module docstring). ``team``: K or a :class:`TeamScene` whose pivots are
-    all free; ``task``: a name of :data:`TEAM_TASKS`; ``force_limit``: each pivot's force at
-    action 1, as a share of its hover force (its share of the rig's weight) [-]."""
+    all free; ``task``: a name of :data:`~esp_gym.team.tasks.TEAM_TASKS`; ``force_limit``: each pivot's force at
+    action 1, as a share of its hover force (its share of the rig's weight) [-]; ``preset``:
+    ``"hard"`` (:data:`TEAM_PRESETS`) sets the options left None: ``randomize`` (each episode
+    draws its team, :func:`draw_team`; ``team`` a number then), ``observation`` (``"full"`` or
+    ``"hook"``), ``sensor_noise`` (times :data:`TEAM_UNIT_NOISE`), ``action_latency`` (control
+    steps, 0-50) and ``wind`` (esp_gym/wind.py's options: the mean wind, gusts and pushes, on the
+    load)."""
 
-    def __init__(self, team=3, task: str = "transport", control_period: float = 0.02, force_limit: float = 0.6):
+    def __init__(self, team=3, task: str = "transport", control_period: float = 0.02, force_limit: float = 0.6,
+                 preset: Optional[str] = None, randomize: Optional[bool] = None, observation: Optional[str] = None,
+                 sensor_noise: Optional[float] = None, action_latency: Optional[int] = None, wind=None):
+        if preset is not None and preset not in TEAM_PRESETS:
+            raise ValueError(f"preset must be one of {sorted(TEAM_PRESETS)} or None, got {preset!r}")
+        given = dict(randomize=randomize, observation=observation, sensor_noise=sensor_noise,
+                     action_latency=action_latency, wind=wind)
+        options = {**dict(randomize=False, observation="full", sensor_noise=0.0, action_latency=0, wind=None),
+                   **(TEAM_PRESETS[preset] if preset else {}), **{k: v for k, v in given.items() if v is not None}}
         if isinstance(team, TeamScene):
             scene = team
-        elif isinstance(team, (int, np.integer)) and not isinstance(team, bool):
+            if options["randomize"]:
+                raise ValueError("randomize: a randomised team is drawn from team = K, not from a given TeamScene")
+        elif isinstance(team, (int, np.integer)) and not isinstance(team, bool) and 1 <= team <= MAX_STRINGS:
             scene = team_scene(int(team))
         else:
-            raise ValueError(f"team must be a number of strings (1-6) or a TeamScene, got {team!r}")
+            raise ValueError(f"team must be a number of strings (1-{MAX_STRINGS}) or a TeamScene, got {team!r}")
         pivots = [scene.scene.pivot] + [s.pivot for s in scene.strings]
         if not all(p.is_free for p in pivots):
             raise ValueError("team: every pivot of a team environment must be free (pivot.kind: free)")
@@ -116,26 +90,48 @@ class TeamCore:
             raise ValueError(f"control_period must be > 0 s, got {control_period}")
         if not (np.isfinite(force_limit) and force_limit > 0):
             raise ValueError(f"force_limit must be > 0, got {force_limit}")
+        if options["observation"] not in ("full", "hook"):
+            raise ValueError(f"observation must be 'full' or 'hook', got {options['observation']!r}")
+        noise = options["sensor_noise"]
+        if isinstance(noise, bool) or not isinstance(noise, (int, float)) or not 0.0 <= noise <= 100.0:
+            raise ValueError(f"sensor_noise must be a number in [0, 100], got {noise!r}")
+        latency = options["action_latency"]
+        if isinstance(latency, bool) or not isinstance(latency, (int, np.integer)) or not 0 <= latency <= 50:
+            raise ValueError(f"action_latency must be a whole number of control steps in [0, 50], got {latency!r}")
+        self.wind = wind_options(options["wind"])
+        self.randomize, self.observation = bool(options["randomize"]), options["observation"]
+        self.sensor_noise, self.action_latency = float(noise), int(latency)
         self.task = get_team_task(task)
         self.size = scene.size
-        substeps = max(explicit_substeps(scene.member_scene(k), control_period, 0.5) for k in range(self.size))
-        scene = scene.model_copy(update={"scene": scene.scene.model_copy(update={"h": control_period / substeps})})
-        self.scene, self.substeps, self.control_period = scene, substeps, control_period
-        self.sim = TeamSimulator(scene)
-        self.layout = agent_layout(self.size)
-        strings = [scene.scene.string] + [s.string for s in scene.strings]
-        weight = scene.scene.gravity * (scene.scene.body.mass + sum(p.mass for p in pivots)
-                                        + sum(s.length * s.mass_per_length for s in strings))
-        #: each pivot's hover force (its share of the weight, up: -e3) [N] and force at action 1 [N]
-        self.hover = weight / self.size
-        self.force_scale = force_limit * self.hover
-        self._start = self.sim.state
-        self._formation = self.pivot_positions() - self.load_position()
+        self.control_period, self.force_limit = control_period, force_limit
+        self.layout = agent_layout(self.size, self.observation)
+        self._noise = np.concatenate([np.full(s.stop - s.start, self.sensor_noise * TEAM_UNIT_NOISE[name])
+                                      for name, s in self.layout.structure().items()])
+        self._use_scene(scene)
+        self.nominal_scene = self.scene
         self.np_random = np.random.default_rng()
         self.steps = 0
         self.last_action = np.zeros((self.size, 3))
         self.load_target = self.load_position()
         self.pivot_targets = self.pivot_positions()
+        self.load_force = np.zeros(3)
+
+    def _use_scene(self, scene: TeamScene) -> None:
+        """Step ``scene`` from its initial state: h the largest within half of every string's
+        stability bound that divides the control period, the hover forces, the formation."""
+        substeps = max(explicit_substeps(scene.member_scene(k), self.control_period, 0.5) for k in range(self.size))
+        scene = scene.model_copy(update={"scene": scene.scene.model_copy(update={"h": self.control_period / substeps})})
+        self.scene, self.substeps = scene, substeps
+        self.sim = TeamSimulator(scene)
+        pivots = [scene.scene.pivot] + [s.pivot for s in scene.strings]
+        strings = [scene.scene.string] + [s.string for s in scene.strings]
+        weight = scene.scene.gravity * (scene.scene.body.mass + sum(p.mass for p in pivots)
+                                        + sum(s.length * s.mass_per_length for s in strings))
+        #: each pivot's hover force (its share of the weight, up: -e3) [N] and force at action 1 [N]
+        self.hover = weight / self.size
+        self.force_scale = self.force_limit * self.hover
+        self._start = self.sim.state
+        self._formation = self.pivot_positions() - self.load_position()
 
     # -- the state, as the observation reads it -------------------------------------------------
     def pivot_positions(self) -> np.ndarray:
@@ -172,29 +168,42 @@ class TeamCore:
 
     # -- episodes -------------------------------------------------------------------------------
     def reset(self, seed: Optional[int] = None):
-        """A new episode; returns ``(observations (K, n), info)``."""
+        """A new episode; returns ``(observations (K, n), info)``. Draws, in order: the team
+        (``randomize``), the load's velocity and rates, its target, the wind's azimuth (unless
+        given) and gust."""
         if seed is not None:
             self.np_random = np.random.default_rng(seed)
         rng, task = self.np_random, self.task
-        start = self._start.copy()
-        self.sim.set_state(start)
+        info = {}
+        if self.randomize:
+            scene, info["team_draws"] = draw_team(self.size, rng)
+            self._use_scene(scene)
+        self.sim.set_state(self._start.copy())
         load = self.load_position()
         velocity = rng.uniform(-task.max_speed, task.max_speed, 3)
         rates = rng.uniform(-task.max_spin, task.max_spin, 3)
-        R = start.lead.R
+        R = self._start.lead.R
         rho_c = np.asarray(self.scene.scene.body.rho_c, dtype=float)
-        attach_velocity = velocity - R @ np.cross(rates, rho_c)
-        self.sim.set_state(self.sim.initial_state(velocity=attach_velocity, rates=rates))
+        self.sim.set_state(self.sim.initial_state(velocity=velocity - R @ np.cross(rates, rho_c), rates=rates))
         self.load_target = load + rng.uniform(-1.0, 1.0, 3) * np.asarray(task.target_box)
         self.pivot_targets = self.load_target + self._formation
         self.steps = 0
         self.last_action = np.zeros((self.size, 3))
+        self._queue = deque([np.zeros((self.size, 3))] * self.action_latency)
+        self.load_force = np.zeros(3)
+        if self.wind is not None:
+            o = self.wind
+            azimuth = o.direction if o.direction is not None else 2.0 * math.pi * rng.random()
+            self._mean_wind = o.speed * np.array([math.cos(azimuth), math.sin(azimuth), 0.0])
+            self._gust = o.gusts * rng.standard_normal(3)
+            info.update(wind_speed=float(o.speed), wind_direction=float(azimuth))
         kin = self.kinematics()
-        return self.observations(kin), {"load_target": self.load_target.copy(),
-                                        "pivot_targets": self.pivot_targets.copy()}
+        info.update(load_target=self.load_target.copy(), pivot_targets=self.pivot_targets.copy())
+        return self.observations(kin), info
 
-    def observations(self, kin: dict) -> np.ndarray:
-        """Every agent's observation (K, n), float32 (:func:`agent_layout`)."""
+    def observations(self, kin: dict, noisy: bool = True) -> np.ndarray:
+        """Every agent's observation (K, n), float32 (:func:`agent_layout`), with the sensor noise
+        drawn from ``np_random`` when ``noisy``."""
         L = self.layout
         out = np.zeros((self.size, L.size))
         R = kin["R"]
@@ -203,15 +212,30 @@ class TeamCore:
             o[L["pivot_position_error"]] = kin["pivot"][k] - self.pivot_targets[k]
             o[L["pivot_velocity"]] = kin["pivot_velocity"][k]
             o[L["hook_tension"]] = kin["tension"][k]
-            o[L["load_offset"]] = kin["load"] - kin["pivot"][k]
-            o[L["load_position_error"]] = kin["load"] - self.load_target
-            o[L["load_velocity"]] = kin["load_velocity"]
-            o[L["load_attitude_6d"]] = R[:, :2].T.ravel()
-            o[L["load_rates"]] = kin["Omega"]
+            if self.observation == "full":
+                o[L["load_offset"]] = kin["load"] - kin["pivot"][k]
+                o[L["load_position_error"]] = kin["load"] - self.load_target
+                o[L["load_velocity"]] = kin["load_velocity"]
+                o[L["load_attitude_6d"]] = R[:, :2].T.ravel()
+                o[L["load_rates"]] = kin["Omega"]
+            else:
+                o[L["load_target_offset"]] = self.load_target - kin["pivot"][k]
             if self.size > 1:
                 others = [(k + i) % self.size for i in range(1, self.size)]
                 o[L["neighbours"]] = (kin["pivot"][others] - kin["pivot"][k]).ravel()
+        if noisy and self.sensor_noise > 0.0:
+            out += self._noise * self.np_random.standard_normal(out.shape)
         return out.astype(np.float32)
+
+    def true_observations(self) -> np.ndarray:
+        """The ``full`` observation of the current state without noise (K, 27 + 3(K-1)): what a
+        centralised controller with the true state reads (agents/baselines/team_lqr.py)."""
+        mode, layout = self.observation, self.layout
+        self.observation, self.layout = "full", agent_layout(self.size)
+        try:
+            return self.observations(self.kinematics(), noisy=False)
+        finally:
+            self.observation, self.layout = mode, layout
 
     def reward_terms(self, kin: dict, action: np.ndarray) -> dict:
         """The team's reward terms, and each agent's share of the per-agent ones (module
@@ -246,21 +270,50 @@ class TeamCore:
         distances = np.array([np.linalg.norm(pivots[i] - pivots[j]) for i, j in pairs])
         return distances, pairs
 
+    def wind_force(self, kin: dict) -> np.ndarray:
+        """The force on the load over the next control step [N], and the gusts and pushes drawn
+        for it from ``np_random``: drag 1/2 rho C_d A(n) |v| v of the air's velocity v relative to
+        the load (A the load's projected area across n = v/|v|, esp_gym/wind.py's law), plus a
+        push (Poisson, a horizontal force changing the load's velocity by 0.5-1.5 x push_speed
+        over the step, in a random azimuth)."""
+        o, rng, T = self.wind, self.np_random, self.control_period
+        decay = math.exp(-T / o.gust_time)
+        self._gust = decay * self._gust + o.gusts * math.sqrt(1.0 - decay * decay) * rng.standard_normal(3)
+        relative = self._mean_wind + self._gust - kin["load_velocity"]
+        speed = float(np.linalg.norm(relative))
+        force = np.zeros(3)
+        if speed > 0.0:
+            n = kin["R"].T @ (relative / speed)
+            faces, side, (a, b), round_ = drag_areas(self.scene.scene)
+            area = faces @ np.abs(n) + side * math.hypot(a * n[1], b * n[0]) + round_
+            force = 0.5 * o.air_density * o.load_drag_coefficient * area * speed * relative
+        chance, azimuth, size = rng.random(3)
+        if chance < -math.expm1(-o.push_rate * T):
+            push = self.scene.scene.body.mass * o.push_speed * (0.5 + size) / T
+            force = force + push * np.array([math.cos(2 * math.pi * azimuth), math.sin(2 * math.pi * azimuth), 0.0])
+        return force
+
     def step(self, action):
-        """Apply each pivot's force (K, 3) in [-1, 1] (clipped) over one control period; returns
-        ``(observations, reward, terminated, truncated, info)`` with the per-agent terms in
-        ``info["agents"]``."""
+        """Apply each pivot's force (K, 3) in [-1, 1] (clipped; after ``action_latency`` steps)
+        over one control period; returns ``(observations, reward, terminated, truncated, info)``
+        with the per-agent terms in ``info["agents"]``."""
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (self.size, 3):
             raise ValueError(f"action must have shape ({self.size}, 3) (one pivot force per agent), got {a.shape}")
         if not np.all(np.isfinite(a)):
             raise ValueError("action must be finite")
         a = np.clip(a, -1.0, 1.0)
+        if self.action_latency:
+            self._queue.append(a)
+            a = self._queue.popleft()
         forces = self.force_scale * a
         forces[:, 2] -= self.hover  # e3 points down: the hover force is -e3
         reason = ""
+        if self.wind is not None:
+            self.load_force = self.wind_force(self.kinematics())
         try:
-            self.sim.step(self.substeps, pivot_forces=forces)
+            self.sim.step(self.substeps, pivot_forces=forces,
+                          load_force=self.load_force if self.wind is not None else None)
         except SimulationError as error:
             reason = f"simulation_failed: {error}"
         self.steps += 1
@@ -285,7 +338,7 @@ class TeamCore:
                   for k in range(self.size)]
         info = {"reward_terms": {k: float(np.sum(v)) for k, v in terms.items()}, "agents": agents,
                 "min_separation": float(distances.min()) if distances.size else np.inf,
-                "tension": kin["tension"].copy()}
+                "tension": kin["tension"].copy(), "applied_action": a.copy()}
         if terminated:
             info["termination_reason"] = reason
         return self.observations(kin), reward, terminated, False, info
@@ -296,15 +349,16 @@ class ElasticStringTeamEnv(gym.Env):
     learners (docs/team.md). Actions ``Box(-1, 1, (3K,))``: each pivot's force (spatial) on top of
     its hover force, ``force_limit`` of it at 1. Observations ``Box(-inf, inf, (K n,))``: the
     agents' observations (:func:`agent_layout`) one after the other. The reward is the team's;
-    ``info["agents"]`` holds each agent's terms. Arguments as :class:`TeamCore`'s."""
+    ``info["agents"]`` holds each agent's terms. Arguments (``options``: control_period,
+    force_limit, preset, randomize, observation, sensor_noise, action_latency, wind) as
+    :class:`TeamCore`'s."""
 
     metadata = {"render_modes": []}
 
-    def __init__(self, team=3, task: str = "transport", control_period: float = 0.02, force_limit: float = 0.6,
-                 render_mode: Optional[str] = None):
+    def __init__(self, team=3, task: str = "transport", render_mode: Optional[str] = None, **options):
         if render_mode is not None:
             raise ValueError(f"render_mode: a team env does not render yet, got {render_mode!r}")
-        self.core = TeamCore(team, task, control_period, force_limit)
+        self.core = TeamCore(team, task, **options)
         K, n = self.core.size, self.core.layout.size
         self.action_space = gym.spaces.Box(-1.0, 1.0, (3 * K,), np.float32)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (K * n,), np.float32)

@@ -17,20 +17,21 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
     """K point pivots carrying one load on tension-only elastic strings. Each agent's action is
     ``Box(-1, 1, (3,))``, its pivot's force (spatial) on top of its hover force (``force_limit``
     of it at 1); its observation is ``Box(-inf, inf, (n,))`` with n = 27 + 3 (K - 1), named by
-    :attr:`observation_structure`. An episode is truncated after ``max_cycles`` steps (500: 10 s)
+    :attr:`observation_structure` (``preset="hard"``: the hook observation, 12 + 3 (K - 1)). An episode is truncated after ``max_cycles`` steps (500: 10 s)
     and terminated for the whole team (collision, an overstretched string, the workspace left, a
-    failed step: ``infos[agent]["termination_reason"]``). Arguments as
+    failed step: ``infos[agent]["termination_reason"]``). Arguments (``options``: control_period,
+    force_limit, preset, randomize, observation, sensor_noise, action_latency, wind) as
     :class:`~esp_gym.team.env.TeamCore`'s."""
 
     metadata = {"name": "elastic_string_team_v0", "render_modes": [], "is_parallelizable": True}
 
-    def __init__(self, team=3, task: str = "transport", control_period: float = 0.02, force_limit: float = 0.6,
-                 max_cycles: int = MAX_EPISODE_STEPS, render_mode: Optional[str] = None):
+    def __init__(self, team=3, task: str = "transport", max_cycles: int = MAX_EPISODE_STEPS,
+                 render_mode: Optional[str] = None, **options):
         if render_mode is not None:
             raise ValueError(f"render_mode: a team env does not render yet, got {render_mode!r}")
         if isinstance(max_cycles, bool) or not isinstance(max_cycles, (int, np.integer)) or max_cycles < 1:
             raise ValueError(f"max_cycles must be a whole number >= 1, got {max_cycles!r}")
-        self.core = TeamCore(team, task, control_period, force_limit)
+        self.core = TeamCore(team, task, **options)
         self.max_cycles = int(max_cycles)
         self.render_mode = None
         self.possible_agents = [f"pivot_{k}" for k in range(self.core.size)]
@@ -78,9 +79,9 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
         return out
 
     def state(self) -> np.ndarray:
-        """The centralised observation: every agent's, one after the other (a centralised critic's
-        input)."""
-        return self.core.observations(self.core.kinematics()).ravel()
+        """The team's true state as every agent's ``full`` observation without noise, one after the
+        other (a centralised critic's input)."""
+        return self.core.true_observations().ravel()
 
 
 def parallel_env(team=3, task: str = "transport", **kwargs) -> ElasticStringTeamParallelEnv:

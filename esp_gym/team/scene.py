@@ -7,6 +7,7 @@ pivot, gravity, the step, the solver and the initial state) plus the other strin
 """
 from __future__ import annotations
 
+import math
 from typing import Optional
 
 import numpy as np
@@ -156,3 +157,69 @@ def static_stretch(size: int, length: float, mass_per_length: float, EA: float, 
         tension = (body_mass * gravity / size + 0.5 * mass_per_length * length * gravity) / cos
         stretch = 1.0 + tension / EA
     return float(stretch)
+
+
+#: The default team's strings, pivots and load (:func:`team_scene`).
+NOMINAL = dict(length=1.0, mass_per_length=0.05, EA=200.0, pivot_mass=1.0, body_mass=1.0)
+#: The hard preset's draws per episode (``randomize``): each string's EA and mass per length
+#: log-uniform, its length uniform, each pivot's mass uniform, the load's mass uniform, as
+#: factors of :data:`NOMINAL`.
+RANDOM_FACTORS = dict(EA=(0.5, 2.0, "log"), mass_per_length=(0.5, 2.0, "log"), length=(0.9, 1.1, "uniform"),
+                      pivot_mass=(0.8, 1.25, "uniform"), body_mass=(0.7, 1.5, "uniform"))
+
+def team_scene(size: int, strings=None, pivot_masses=None, body_mass: float = NOMINAL["body_mass"]) -> TeamScene:
+    """A team of ``size`` free pivots holding a 1 kg-class box (0.4 x 0.4 x 0.1 m) at points 0.15 m
+    from its centre line on its top face, each on a tension-only string (``drone_load``'s by
+    default: 1 m, 50 g/m, EA = 200 N, 8 elements) from a pivot (1 kg) on a circle of 0.6 m radius
+    at rest. ``strings``: per string ``{length, mass_per_length, EA}``, ``pivot_masses`` per pivot
+    [kg]: each string keeps its nominal direction from its attachment point and starts at the
+    stretch that carries its share of the load (its pivot moved along it)."""
+    size = int(size)
+    nominal = symmetric_team(size, length=NOMINAL["length"], mass_per_length=NOMINAL["mass_per_length"],
+                             EA=NOMINAL["EA"], elements=8, body_mass=NOMINAL["body_mass"], body_size=(0.4, 0.4, 0.1),
+                             pivot_radius=0.6, attachment_radius=0.15,
+                             pivot={"kind": "free", "mass": NOMINAL["pivot_mass"]}, h=2e-4, stretch="static",
+                             law="slack", solver={"slack_switch": "plain"})
+    if strings is None and pivot_masses is None and body_mass == NOMINAL["body_mass"]:
+        return nominal
+    strings = strings or [{k: NOMINAL[k] for k in ("length", "mass_per_length", "EA")}] * size
+    pivot_masses = pivot_masses if pivot_masses is not None else [NOMINAL["pivot_mass"]] * size
+    lead = nominal.scene
+    g = lead.gravity
+    attachments = nominal.attachments()
+    centre = lead.initial_nodes()[-1] + np.asarray(lead.body.rho_c)
+    pivots = np.array([lead.pivot.position] + [s.pivot.position for s in nominal.strings], dtype=float)
+    members = []
+    for k in range(size):
+        d = centre + attachments[k] - pivots[k]
+        d /= np.linalg.norm(d)
+        s = strings[k]
+        tension = (body_mass * g / size + 0.5 * s["mass_per_length"] * s["length"] * g) / d[2]
+        stretch = 1.0 + tension / s["EA"]
+        members.append((dict(nominal.scene.string.model_dump(), **s), centre + attachments[k] - d * s["length"] * stretch,
+                        d, stretch, float(pivot_masses[k])))
+    (string0, pivot0, d0, stretch0, mass0), others = members[0], members[1:]
+    body = lead.body.model_dump()
+    body["mass"] = float(body_mass)
+    scene = lead.model_validate({**lead.model_dump(), "string": string0, "body": body,
+                                 "pivot": {"kind": "free", "mass": mass0, "position": list(pivot0)},
+                                 "initial": {"direction": list(d0), "stretch": stretch0}})
+    return TeamScene(scene=scene, strings=[
+        TeamString(string=string, pivot={"kind": "free", "mass": mass, "position": tuple(pivot)},
+                   attachment=tuple(attachments[k + 1]))
+        for k, (string, pivot, _, _, mass) in enumerate(others)])
+
+
+def draw_team(size: int, rng: np.random.Generator) -> tuple:
+    """One randomised episode's team (:data:`RANDOM_FACTORS`) and its draws by name."""
+    def draw(name):
+        low, high, law = RANDOM_FACTORS[name]
+        return NOMINAL[name] * (math.exp(rng.uniform(math.log(low), math.log(high))) if law == "log"
+                                else rng.uniform(low, high))
+
+    strings = [{"EA": draw("EA"), "mass_per_length": draw("mass_per_length"), "length": draw("length")}
+               for _ in range(size)]
+    pivot_masses = [draw("pivot_mass") for _ in range(size)]
+    body_mass = draw("body_mass")
+    return team_scene(size, strings, pivot_masses, body_mass), {"strings": strings, "pivot_masses": pivot_masses,
+                                                                "body_mass": body_mass}

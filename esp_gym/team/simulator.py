@@ -238,8 +238,13 @@ class TeamSimulator:
         team_forces(self._S, self._P, self.params, A)
         self.reset_balances()
 
+    def load_position(self) -> np.ndarray:
+        """The load's centre of mass (spatial) [m]."""
+        return self._S.r[-1] + self._S.R @ self._P.rho
+
     def reset_balances(self) -> None:
         """Start the input balances (work, impulses) afresh from the current state."""
+        self._load_work = 0.0
         self._S.acc[...] = 0.0
         self._S.accc[...] = 0.0
         d = self._diagnostics()
@@ -271,16 +276,28 @@ class TeamSimulator:
         self._inputs[INPUTS["pivot_force_end"]] = u[0]
         self._A.force[...] = u[1:]
 
-    def step(self, n: int = 1, pivot_forces=None) -> None:
+    def step(self, n: int = 1, pivot_forces=None, load_force=None) -> None:
         """Advance ``n`` steps with each pivot's force (K, 3) held (spatial) [N]; fixed pivots'
-        rows must be 0. Raises :class:`~esp_gym.errors.SimulationError` on failure (the state is
-        then the last good one)."""
+        rows must be 0; ``load_force`` (3,) a force on the load's centre of mass (spatial) [N]
+        held too (wind, a push: its impulse joins the balances' ``external_impulse``). Raises
+        :class:`~esp_gym.errors.SimulationError` on failure (the state is then the last good
+        one)."""
         n = int(n)
         if n < 0:
             raise ValueError(f"n must be >= 0, got {n}")
         self._set_forces(pivot_forces)
-        team_advance(self._S, self._W, self._P, self.params, self._A, self._inputs, n, self._stats)
+        disturbed = load_force is not None
+        if disturbed:
+            F = np.asarray(load_force, dtype=float)
+            if F.shape != (3,) or not np.all(np.isfinite(F)):
+                raise ValueError(f"load_force must be 3 finite numbers [N], got {load_force!r}")
+            self._W.ext[...] = 0.0
+            self._W.ext[-1] = F
+            before = self.load_position()
+        team_advance(self._S, self._W, self._P, self.params, self._A, self._inputs, n, self._stats, disturbed)
         self._step += int(self._stats[R_STEPS])
+        if disturbed:  # a held force's work: F . the displacement of its point
+            self._load_work += float(F @ (self.load_position() - before))
         status = int(self._stats[R_STATUS])
         if status != OK:
             raise SimulationError(status, self._step, self.time, int(self._stats[R_NEWTON_TOTAL]))
@@ -373,9 +390,9 @@ class TeamSimulator:
         pivots only), ``momentum_balance_residual`` = P - P0 - the gravity and pivot impulses
         (with free pivots only: a fixed pivot's reaction is not an input)."""
         d = self._diagnostics()
-        acc = self._S.acc
-        work = float(acc[BALANCE["work"]][0])
-        impulse = acc[BALANCE["gravity_impulse"]] + acc[BALANCE["pivot_impulse"]]
+        acc = self._S.acc  # (the load force's work is summed here, per call of step)
+        work = float(acc[BALANCE["work"]][0]) + self._load_work
+        impulse = acc[BALANCE["gravity_impulse"]] + acc[BALANCE["pivot_impulse"]] + acc[BALANCE["external_impulse"]]
         d.update(work=work, angular_impulse_z=float(acc[BALANCE["angular_impulse_z"]][0]),
                  energy_balance_residual=d["energy"] - self._E0 - work,
                  pi3_balance_residual=d["pi3"] - self._pi3_0 - float(acc[BALANCE["angular_impulse_z"]][0]),

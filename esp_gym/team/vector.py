@@ -1,0 +1,64 @@
+"""``gym.make_vec("ElasticStringTeam-v0", num_envs=n)``: n teams stepped in turn in one process, with
+Gymnasium's next-step autoreset, each from its own seed (``seed + i``), so that every sub-env
+repeats the single env's episodes bit for bit (docs/team.md). The teams' steps are not yet one
+compiled call for the batch, as ``ElasticStringPendulum-v0``'s are."""
+from __future__ import annotations
+
+from typing import Optional
+
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from ..vector import sub_env_seeds
+from .env import MAX_EPISODE_STEPS, ElasticStringTeamEnv
+
+
+class ElasticStringTeamVectorEnv(VectorEnv):
+    """``num_envs`` :class:`~esp_gym.team.env.ElasticStringTeamEnv` (arguments as its), truncated
+    after ``max_episode_steps`` as the registered single env is."""
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+
+    def __init__(self, num_envs: int = 1, team=3, task: str = "transport",
+                 max_episode_steps: int = MAX_EPISODE_STEPS, **options):
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise ValueError(f"num_envs must be a whole number >= 1, got {num_envs!r}")
+        if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer)) \
+                or max_episode_steps < 1:
+            raise ValueError(f"max_episode_steps must be a whole number >= 1, got {max_episode_steps!r}")
+        self.envs = [ElasticStringTeamEnv(team, task, **options) for _ in range(int(num_envs))]
+        self.num_envs = int(num_envs)
+        self.max_episode_steps = int(max_episode_steps)
+        self.single_action_space = self.envs[0].action_space
+        self.single_observation_space = self.envs[0].observation_space
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self._autoreset = np.zeros(self.num_envs, dtype=bool)
+        self._elapsed = np.zeros(self.num_envs, dtype=np.int64)
+
+    def reset(self, *, seed=None, options: Optional[dict] = None):
+        seeds = sub_env_seeds(seed, self.num_envs)
+        obs = [env.reset(seed=s)[0] for env, s in zip(self.envs, seeds)]
+        self._autoreset[:] = False
+        self._elapsed[:] = 0
+        return np.stack(obs), {}
+
+    def step(self, actions):
+        actions = np.asarray(actions)
+        if actions.shape != self.action_space.shape:
+            raise ValueError(f"actions must have shape {self.action_space.shape}, got {actions.shape}")
+        obs = np.empty(self.observation_space.shape, dtype=np.float32)
+        rewards = np.zeros(self.num_envs)
+        terminated = np.zeros(self.num_envs, dtype=bool)
+        truncated = np.zeros(self.num_envs, dtype=bool)
+        for i, env in enumerate(self.envs):
+            if self._autoreset[i]:
+                obs[i], _ = env.reset()
+                self._elapsed[i] = 0
+                continue
+            obs[i], rewards[i], terminated[i], truncated[i], _ = env.step(actions[i])
+            self._elapsed[i] += 1
+            truncated[i] |= self._elapsed[i] >= self.max_episode_steps
+        self._autoreset = terminated | truncated
+        return obs, rewards, terminated, truncated, {}
