@@ -77,6 +77,27 @@ def test_rllib_ppo_samples_on_both_nodes_and_checkpoints(cluster, tmp_path):
     assert sampling_nodes({"env_runners": [{"node_id": "a", "env_steps": 5}, {"node_id": "b", "env_steps": 0}]}) == {"a"}
 
 
+def test_a_team_trains_with_one_shared_policy_and_checkpoints(cluster, tmp_path):
+    """agents.team_train: RLlib PPO on the PettingZoo team, one module for every agent."""
+    proc = run("agents.team_train", "--team", "2", "--task", "transport", "--iterations", "2", "--address",
+               cluster.address, "--runs", tmp_path, "--run-name", "t", "--eval-episodes", "1",
+               "--reference-episodes", "1", "--no-progress", "--set", "num_env_runners=0",
+               "train_batch_size_per_learner=200", "minibatch_size=100", "num_epochs=1", env=cluster.env)
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    run_dir = tmp_path / "t"
+    assert json.loads((run_dir / "status.json").read_text())["status"] == "finished"
+    with open(run_dir / "progress.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [int(r["iteration"]) for r in rows] == [1, 2] and int(rows[1]["env_steps"]) >= 400
+    assert (run_dir / "checkpoint" / "learner_group" / "learner" / "rl_module" / "shared").is_dir()
+    refs = json.loads((run_dir / "references.json").read_text())
+    assert refs["baseline_return"] > 300.0 > 50.0 > refs["zero_return"]  # the team's LQR, the zero action
+    evaluation = json.loads((run_dir / "evaluation.json").read_text())
+    assert evaluation["episodes"] == 1 and -100.0 <= evaluation["mean_return"] <= 500.0
+    for name in ("config.yaml", "args.json", "command.txt", "training.json", "learning_curve.png"):
+        assert (run_dir / name).is_file(), name
+
+
 def _wait_for(predicate, timeout: float, what: str) -> None:
     end = time.monotonic() + timeout
     while not predicate():
@@ -145,11 +166,14 @@ def test_tune_sweep_runs_on_both_nodes_and_resumes_after_interruption(cluster, t
     ("agents.distributed.sweep", ["--set", "residual=lqg", "--space", '{"seed": [0, 1]}'], ["--set", "'lqg'", "hook"]),
     ("agents.distributed.sweep", ["--space", '{"residual": ["lqg"]}'], ["--space", "'residual' = 'lqg'", "hook"]),
     ("agents.distributed.sweep", ["--space", '{"n_envs": [100000000]}'], ["--space", "num_envs = 100000000", "GiB"]),
+    ("agents.team_train", ["--team", "7"], ["--team", "1 to 6"]),
+    ("agents.team_train", ["--set", "lr_rate=3"], ["--set", "'lr_rate'"]),
+    ("agents.team_train", ["--time-limit", "0"], ["--time-limit"]),
 ])
 def test_bad_input_is_one_line_naming_the_argument_and_writes_nothing(tmp_path, module, args, names):
     port = str(free_port())  # nothing listens there
     fill = [a.replace("{port}", port) for a in args]
-    out = ["--runs", tmp_path / "runs"] if module == "agents.distributed.train" else ["--out", tmp_path / "sweep"]
+    out = ["--runs", tmp_path / "runs"] if module in ("agents.distributed.train", "agents.team_train") else ["--out", tmp_path / "sweep"]
     proc = run(module, *fill, *out, timeout=120)
     assert proc.returncode == 2, proc.stderr[-3000:]
     lines = proc.stderr.strip().splitlines()

@@ -100,15 +100,15 @@ def _build(raw: dict) -> RLlibRunConfig:
                                    for e in err.errors())) from None
 
 
-def load_rllib_config(task: str, overrides: list, path: Path = CONFIG_FILE) -> RLlibRunConfig:
-    """The run config of ``task`` from ``path`` [env id][task] with ``KEY=VALUE`` overrides applied
+def load_rllib_config(task: str, overrides: list, path: Path = CONFIG_FILE, env_id: str = esp_gym.ENV_ID) -> RLlibRunConfig:
+    """The run config of ``task`` from ``path`` [env_id][task] with ``KEY=VALUE`` overrides applied
     in order; a bad key or value raises agents.common.ConfigError naming it."""
     data = yaml.load(Path(path).read_text(), Loader=ValueLoader)
     try:
-        raw = copy.deepcopy(dict(data[esp_gym.ENV_ID][task]))
+        raw = copy.deepcopy(dict(data[env_id][task]))
     except (KeyError, TypeError):
-        raise ConfigError(f"{path} has no entry {esp_gym.ENV_ID}/{task}") from None
-    where = f"{path} [{esp_gym.ENV_ID}][{task}]"
+        raise ConfigError(f"{path} has no entry {env_id}/{task}") from None
+    where = f"{path} [{env_id}][{task}]"
     found = first_unknown_key(rllib_keys, raw)
     if found:
         raise ConfigError(f"{where}: {found}")

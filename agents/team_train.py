@@ -1,0 +1,234 @@
+"""Train a team with RLlib (new API stack): PPO on the PettingZoo env (esp_gym.team.parallel_env),
+every agent acting with one shared policy (parameter sharing), on this machine or a Ray cluster.
+
+    python -m agents.team_train --team 3 --task transport --preset hard --iterations 100
+    python -m agents.team_train --team 3 --iterations 20 --set lr=1e-4 num_env_runners=2
+
+Hyper-parameters come from configs/agents/rllib_team_ppo.yaml keyed by ``ElasticStringTeam-v0``
+and the task; ``--set KEY=VALUE`` overrides them as in agents.distributed.train. A run directory
+``runs/{name}`` (default ``ElasticStringPendulum-v0__rllib_team_ppo__{task}__{seed}__{time}``, as
+agents.train names runs) receives config.yaml, args.json, command.txt, status.json, progress.csv
+(one row per iteration), references.json (the zero action's and the team's LQR's returns),
+checkpoint/ (the last), training.json, evaluation.json (agents/team_evaluate.py's metrics of the
+final deterministic policy) and learning_curve.png. ``--time-limit`` stops after that many
+minutes and saves.
+"""
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import shlex
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+import yaml
+
+from agents import ROOT
+from agents.cli import SettingsError, one_line, parse_settings, settings_parser
+from agents.common import CONFIG_DIR, ConfigError, json_default
+from agents.distributed.cluster import AddressError, check_address, connect, shutdown, token_auth
+from agents.distributed.rllib import RLlibRunConfig, load_rllib_config
+from agents.distributed.train import PROGRESS_FIELDS, plot_curve, progress_row
+from agents.evaluate import summarize
+from agents.runs import new_run_dir, write_status, write_stopped
+from agents.team_evaluate import TeamLQRPolicy, TeamZero, run_team_episodes
+
+ALGO = "rllib_team_ppo"
+CONFIG_FILE = CONFIG_DIR / "rllib_team_ppo.yaml"
+TEAM_ENV_ID = "ElasticStringTeam-v0"
+#: The name the team's environment creator is registered under with Ray Tune's registry.
+ENV_NAME = "esp_gym_team"
+#: The shared policy's module id.
+MODULE = "shared"
+EVAL_SEED = 10_000
+
+
+@dataclass
+class Settings:
+    team: int = field(default=3, metadata={"help": "strings K (1-6)", "type": int, "min": 1})
+    task: str = field(default="transport", metadata={"help": "task", "choices": ["stabilize", "transport"]})
+    preset: Optional[str] = field(default=None, metadata={"help": "the team's preset", "choices": ["hard"]})
+    iterations: int = field(default=100, metadata={
+        "help": "training iterations (each samples train_batch_size_per_learner steps)", "type": int, "min": 1})
+    time_limit: Optional[float] = field(default=None, metadata={
+        "help": "minutes of training after which the run stops and saves", "type": float})
+    seed: int = field(default=0, metadata={"help": "seed of the algorithm and of the environments", "type": int,
+                                           "min": 0})
+    set: list = field(default_factory=list, metadata={
+        "help": "hyper-parameter overrides KEY=VALUE (YAML values, dotted keys; repeatable)", "nargs": "+",
+        "action": "extend"})
+    address: Optional[str] = field(default=None, metadata={
+        "help": "a Ray cluster's head HOST:PORT or 'auto' (default: start Ray on this machine)"})
+    runs: str = field(default=str(ROOT / "runs"), metadata={"help": "where run directories go"})
+    run_name: Optional[str] = field(default=None, metadata={"help": "run directory name (default: generated)"})
+    eval_episodes: int = field(default=10, metadata={
+        "help": f"episodes of the final evaluation (seeds {EVAL_SEED}+)", "type": int, "min": 1})
+    reference_episodes: int = field(default=10, metadata={
+        "help": "episodes of the zero and LQR reference returns", "type": int, "min": 1})
+    progress: bool = field(default=True, metadata={"help": "show a progress bar"})
+    threads: int = field(default=1, metadata={"help": "torch threads of the learner", "type": int, "min": 1})
+
+
+def make_team_env(env_config: dict):
+    """RLlib's environment creator: the PettingZoo env of ``env_config`` as RLlib's MultiAgentEnv."""
+    from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
+
+    from esp_gym.team import parallel_env
+
+    return ParallelPettingZooEnv(parallel_env(**env_config))
+
+
+def env_config(s: Settings) -> dict:
+    return {"team": s.team, "task": s.task, **({"preset": s.preset} if s.preset else {})}
+
+
+def team_ppo_config(cfg: RLlibRunConfig, s: Settings):
+    """PPOConfig with one shared module for every agent."""
+    from ray.rllib.algorithms.ppo import PPOConfig
+    from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
+    from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
+    from ray.rllib.core.rl_module.rl_module import RLModuleSpec
+    from ray.tune.registry import register_env
+
+    register_env(ENV_NAME, make_team_env)
+    return (PPOConfig()
+            .environment(env=ENV_NAME, env_config=env_config(s))
+            .multi_agent(policies={MODULE}, policy_mapping_fn=lambda agent_id, episode, **kw: MODULE)
+            .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs={MODULE: RLModuleSpec()}),
+                       model_config=DefaultModelConfig(**cfg.model))
+            .env_runners(num_env_runners=cfg.num_env_runners, num_envs_per_env_runner=cfg.num_envs_per_env_runner)
+            .training(**cfg.training)
+            .debugging(seed=s.seed, log_level="ERROR"))
+
+
+class TeamRLlibPolicy:
+    """The shared module of a checkpoint as a centralised policy of agents/team_evaluate.py: each
+    agent's observation through the module, the action distribution's mean (deterministic),
+    clipped to [-1, 1]."""
+
+    def __init__(self, checkpoint):
+        from ray.rllib.core.rl_module.rl_module import RLModule
+
+        self.module = RLModule.from_checkpoint(Path(checkpoint) / "learner_group" / "learner" / "rl_module" / MODULE)
+
+    def act(self, obs, core) -> np.ndarray:
+        import torch
+        from ray.rllib.core.columns import Columns
+
+        agents = np.asarray(obs, dtype=np.float32).reshape(core.size, -1)
+        with torch.no_grad():
+            out = self.module.forward_inference({Columns.OBS: torch.from_numpy(agents)})
+        mean = out[Columns.ACTION_DIST_INPUTS].numpy()[:, :3]  # a diagonal Gaussian's (mean, log std)
+        return np.clip(mean, -1.0, 1.0).ravel()
+
+
+def check_settings(s: Settings) -> tuple:
+    """``(config, run_dir)``; SettingsError naming the argument for anything wrong, before anything
+    is written or started."""
+    from esp_gym.team import MAX_STRINGS
+
+    if s.team > MAX_STRINGS:
+        raise SettingsError("--team", f"a team has 1 to {MAX_STRINGS} strings, got {s.team}")
+    if s.time_limit is not None and not s.time_limit > 0:
+        raise SettingsError("--time-limit", f"must be > 0 minutes, got {s.time_limit}")
+    try:
+        cfg = load_rllib_config(s.task, s.set, CONFIG_FILE, TEAM_ENV_ID)
+    except ConfigError as err:
+        raise SettingsError("--set" if err.override else None, str(err)) from None
+    run_dir = new_run_dir(s.runs, s.run_name, ALGO, s.task, s.seed)
+    try:
+        check_address(s.address)
+    except AddressError as err:
+        raise SettingsError("--address", str(err)) from None
+    return cfg, run_dir
+
+
+def _record(s: Settings, cfg: RLlibRunConfig, run_dir: Path, argv: Optional[list]) -> None:
+    args = sys.argv[1:] if argv is None else list(argv)
+    (run_dir / "config.yaml").write_text(yaml.safe_dump(cfg.model_dump(), sort_keys=False))
+    (run_dir / "args.json").write_text(json.dumps(dataclasses.asdict(s), indent=2, default=json_default))
+    (run_dir / "command.txt").write_text(shlex.join([sys.executable, "-m", "agents.team_train", *args]) + "\n")
+    kwargs = {"preset": s.preset} if s.preset else {}
+    refs = {name: summarize(run_team_episodes(policy, s.team, s.task, s.reference_episodes, EVAL_SEED, kwargs),
+                            s.task)["mean_return"]
+            for name, policy in (("baseline_return", TeamLQRPolicy()), ("zero_return", TeamZero()))}
+    (run_dir / "references.json").write_text(json.dumps(refs))
+
+
+def run(s: Settings, cfg: RLlibRunConfig, run_dir: Path, algo, argv: Optional[list] = None) -> Path:
+    """Train a built algorithm in ``run_dir`` for ``s.iterations`` (or ``s.time_limit``);
+    status.json says ``running``, then ``finished``, ``interrupted`` or ``failed``."""
+    from tqdm.auto import tqdm
+
+    run_dir.mkdir(parents=True)
+    steps, done = 0, 0
+    try:
+        write_status(run_dir, "running", iterations=0, timesteps=0)
+        _record(s, cfg, run_dir, argv)
+        start = time.perf_counter()
+        with open(run_dir / "progress.csv", "w", newline="") as fh, \
+                tqdm(total=s.iterations, unit="it", desc="training", disable=not s.progress) as bar:
+            log = csv.DictWriter(fh, fieldnames=PROGRESS_FIELDS)
+            log.writeheader()
+            for k in range(1, s.iterations + 1):
+                row = progress_row(algo.train(), k)
+                log.writerow(row)
+                fh.flush()
+                steps, done = row["env_steps"], k
+                bar.set_postfix(steps=steps, ret=f"{row['episode_return_mean']:.1f}")
+                bar.update()
+                if s.time_limit is not None and time.perf_counter() - start > 60.0 * s.time_limit:
+                    break
+        wall = time.perf_counter() - start
+        algo.save_to_path(str((run_dir / "checkpoint").resolve()))
+        (run_dir / "training.json").write_text(json.dumps(
+            {"wall_time_s": wall, "iterations": done, "timesteps": steps, "address": s.address}, indent=2))
+        kwargs = {"preset": s.preset} if s.preset else {}
+        stats = summarize(run_team_episodes(TeamRLlibPolicy(run_dir / "checkpoint"), s.team, s.task, s.eval_episodes,
+                                            EVAL_SEED, kwargs), s.task)
+        (run_dir / "evaluation.json").write_text(json.dumps({**stats, "seed": EVAL_SEED}, indent=2))
+        plot_curve(run_dir, f"{TEAM_ENV_ID} team of {s.team} {s.task} {s.preset or 'nominal'}: RLlib PPO, shared "
+                            f"(seed {s.seed})")
+        write_status(run_dir, "finished", iterations=done, timesteps=steps)
+    except BaseException as err:  # Ctrl-C too: the directory says why it stopped
+        write_stopped(run_dir, err, timesteps=steps)
+        raise
+    print(json.dumps({"run_dir": str(run_dir), "timesteps": steps, "wall_time_s": wall,
+                      "mean_return": stats["mean_return"]}))
+    return run_dir
+
+
+def main(argv=None) -> Path:
+    import torch
+
+    ap = settings_parser(Settings, prog="python -m agents.team_train", description=__doc__.split("\n\n")[0])
+    s, _ = parse_settings(ap, Settings, argv)
+    token_auth(s.address)  # before anything imports ray
+    torch.set_num_threads(s.threads)
+    algo = None
+    try:
+        try:
+            cfg, run_dir = check_settings(s)
+            connect(s.address)
+            try:
+                algo = team_ppo_config(cfg, s).build_algo()
+            except (ValueError, TypeError, KeyError) as err:
+                raise SettingsError("--set", f"RLlib rejects the configuration: "
+                                             f"{one_line(f'{type(err).__name__}: {err}')}") from None
+        except SettingsError as err:
+            shutdown()
+            ap.error(str(err))
+        return run(s, cfg, run_dir, algo, argv)
+    finally:
+        if algo is not None:
+            algo.stop()
+        shutdown()
+
+
+if __name__ == "__main__":
+    main()
