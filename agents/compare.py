@@ -34,7 +34,7 @@ from esp_gym.tasks import TASKS
 MODELS = ROOT / "models"
 HELD_OUT_SEED = 100_000
 DEFAULT_SCENE = EnvOptions.model_fields["scene"].default
-NOT_BASELINES = ("zero", "policy")
+NOT_BASELINES = ("zero", "policy", "lqr_true_state")
 
 
 def configuration_name(task: str, preset: Optional[str] = None, scene: Optional[str] = None,
@@ -117,7 +117,9 @@ def compare_team(team: int, task: str, preset: Optional[str] = None, episodes: i
     from agents.team_evaluate import TeamZero, run_team_episodes, team_baselines
 
     env_kwargs = {"preset": preset} if preset else {}
-    policies = {"zero": TeamZero(), **team_baselines()}
+    from esp_gym.team.env import TEAM_PRESETS
+
+    policies = {"zero": TeamZero(), **team_baselines(TEAM_PRESETS.get(preset, {}).get("observation", "full"))}
     results = {name: run_team_episodes(policy, team, task, episodes, seed, env_kwargs)
                for name, policy in tqdm(policies.items(), desc=f"compare team {team} {task}", disable=not progress)}
     table = {}

@@ -254,8 +254,10 @@ def main(argv=None) -> dict:
                     help="the policy of --hard-lift (default: the shipped one; left out if absent)")
     ap.add_argument("--team", type=int, default=None, metavar="K",
                     help="only team_transport.png: a team of K pivots (docs/team.md) under the team's LQR")
-    ap.minimums = {"seed": 0, "steps": 1, "team": 1}
+    ap.minimums = {"seed": 0, "steps": 1}
     a = ap.parse_args(argv)
+    if a.team is not None and not 1 <= a.team <= 6:
+        ap.error(f"argument --team: a team has 1 to 6 strings, got {a.team}")
     ap.check_out_dir("--out", a.out)  # as compare's and robustness's: a new directory in an existing one
     out = Path(a.out)
     out.mkdir(exist_ok=True)

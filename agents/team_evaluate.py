@@ -2,8 +2,9 @@
 measured as agents/evaluate.py measures one string's: return, success, the load's final and mean
 tilt (its ``swing``), settling time and the peak of the strings' pull on their pivots.
 
-Policies act on the centralised observation: ``zero`` (hover) and ``lqr`` (the team's LQR,
-agents/baselines/team_lqr.py) are the baselines (:func:`team_baselines`).
+Policies act on the centralised observation: ``zero`` (hover), ``lqr`` (the team's LQR,
+agents/baselines/team_lqr.py) and with the hook observation ``lqg`` (agents/baselines/team_lqg.py)
+are the baselines (:func:`team_baselines`).
 """
 from __future__ import annotations
 
@@ -48,9 +49,37 @@ class TeamLQRPolicy:
         return self.design.act(obs, core)
 
 
-def team_baselines() -> dict:
-    """The team's classical baselines by name."""
-    return {"lqr": TeamLQRPolicy()}
+class TeamLQGPolicy:
+    """The team's LQG (agents/baselines/team_lqg.py) for the env's observation mode, sensor noise
+    and latency, designed the first time it acts on the nominal team; reset at each episode's
+    first step."""
+
+    def __init__(self):
+        self.design = None
+
+    def act(self, obs, core):
+        from agents.baselines.team_lqg import TeamLQG
+        from esp_gym.team.env import TeamCore
+
+        if self.design is None:
+            nominal = TeamCore(core.size, core.task.name, control_period=core.control_period,
+                               force_limit=core.force_limit, observation=core.observation,
+                               sensor_noise=core.sensor_noise)
+            nominal.reset(seed=0)
+            self.design = TeamLQG.design(nominal, latency=core.action_latency)
+        if core.steps == 0:
+            self.design.reset()
+        return self.design.act(obs, core)
+
+
+def team_baselines(observation: str = "full") -> dict:
+    """The team's classical baselines by name for an observation mode: the LQR with the ``full``
+    observation; with the ``hook`` one the LQG, and the LQR reading the true state as
+    ``lqr_true_state`` (a reference, not a baseline a policy is compared with: it reads what the
+    agents do not see)."""
+    if observation == "full":
+        return {"lqr": TeamLQRPolicy()}
+    return {"lqg": TeamLQGPolicy(), "lqr_true_state": TeamLQRPolicy()}
 
 
 def load_tilt(core) -> float:

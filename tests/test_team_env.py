@@ -224,3 +224,21 @@ def test_the_vector_env_is_the_single_env_bit_for_bit():
     assert ends >= 2 * n  # every sub-env ended twice and restarted
     with pytest.raises(ValueError, match="num_envs"):
         gym.make_vec("ElasticStringTeam-v0", num_envs=0, vectorization_mode="vector_entry_point")
+
+
+def test_the_teams_lqg_estimates_the_load_it_does_not_see():
+    from agents.baselines.team_lqr import reduced_layout
+    from agents.team_evaluate import TeamLQGPolicy
+
+    env = ElasticStringTeamEnv(3, observation="hook", sensor_noise=1.0, action_latency=1)
+    policy = TeamLQGPolicy()
+    obs, _ = env.reset(seed=100001)
+    total, errors = 0.0, []
+    for _ in range(500):
+        obs, reward, terminated, _, _ = env.step(policy.act(obs, env.core))
+        total += reward
+        load = reduced_layout(3)["load_error"]
+        errors.append(np.linalg.norm(policy.design.estimate[load] - (env.core.load_position() - env.core.load_target)))
+        assert not terminated
+    assert total > 400.0  # measured 479.2; the zero action 16
+    assert np.median(errors[250:]) < 0.05  # the filter's estimate of the load it does not see [m]
