@@ -242,3 +242,30 @@ def test_the_teams_lqg_estimates_the_load_it_does_not_see():
         assert not terminated
     assert total > 400.0  # measured 479.2; the zero action 16
     assert np.median(errors[250:]) < 0.05  # the filter's estimate of the load it does not see [m]
+
+
+def test_a_team_recording_holds_every_string_pivot_and_pull(tmp_path):
+    from rerun.chunk import RrdReader
+
+    from esp_gym.team.recording import RecordTeamRerun
+
+    path = tmp_path / "team.rrd"
+    env = RecordTeamRerun(ElasticStringTeamEnv(3), path)
+    env.reset(seed=0)
+    pulls = []
+    for _ in range(5):
+        _, _, _, _, info = env.step(np.zeros(9))
+        pulls.append(np.linalg.norm(info["tension"], axis=1))
+    env.close()
+    chunks = list(RrdReader(path).stream())
+    names = {c.entity_path for c in chunks}
+    assert {"/world/strings/0", "/world/strings/1", "/world/strings/2", "/world/pivots", "/world/load",
+            "/world/load/box", "/world/targets", "/team/separation", "/team/reward"} <= names
+    recorded = []
+    for chunk in chunks:
+        if chunk.entity_path == "/team/tension/pivot_2" and not chunk.is_static:
+            batch = chunk.to_record_batch()
+            recorded += [v[0] for v in batch.column("Scalars:scalars").to_pylist()]
+    assert recorded == [float(p[2]) for p in pulls]  # float64 series, bit for bit
+    with pytest.raises(ValueError, match="directory"):
+        RecordTeamRerun(ElasticStringTeamEnv(2), tmp_path / "missing" / "x.rrd")
