@@ -351,3 +351,20 @@ def test_a_failing_step_leaves_the_team_where_it_was():
     for a, b in ((sim.state.lead.r, again.state.lead.r), (sim.state.r, again.state.r),
                  (sim.state.lead.Pi, again.state.lead.Pi), (sim.state.p, again.state.p)):
         assert np.array_equal(a, b)
+
+
+def test_elements_auto_chooses_each_strings_resolution_and_the_smallest_step():
+    from esp_gym.params import Scene
+
+    base = asymmetric_team()
+    soft = dict(base.strings[0].string.model_dump(), elements="auto")
+    stiff = dict(base.strings[1].string.model_dump(), elements="auto", EA=2e7, length=1.0)
+    team = TeamScene.model_validate({"scene": base.scene, "strings": [
+        {"string": soft, "pivot": base.strings[0].pivot, "attachment": base.strings[0].attachment},
+        {"string": stiff, "pivot": base.strings[1].pivot, "attachment": base.strings[1].attachment}]})
+    alone = [Scene.model_validate({**base.scene.model_dump(), "string": s, "pivot": p.model_dump(), "initial": {}})
+             for s, p in ((soft, base.strings[0].pivot), (stiff, base.strings[1].pivot))]
+    assert [s.string.elements for s in team.strings] == [a.string.elements for a in alone]
+    assert all(s.string.auto for s in team.strings)
+    assert team.h == min(base.scene.h, *(a.h for a in alone)) < base.scene.h  # the stiff string's step
+    TeamSimulator(team).step(10)

@@ -8,7 +8,8 @@ pivot, gravity, the step, the solver and the initial state) plus the other strin
 from __future__ import annotations
 
 import math
-from typing import Optional
+from collections.abc import Mapping
+from typing import Any, Optional
 
 import numpy as np
 from pydantic import Field, ValidationError, model_validator
@@ -39,6 +40,36 @@ class TeamScene(Frozen):
 
     scene: Scene
     strings: list[TeamString] = Field(default_factory=list)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _resolve_auto_elements(cls, data: Any) -> Any:
+        """``elements: auto`` in a string of ``strings``: its N by esp_gym.choose_resolution as for a
+        single string (with the team's body, pivot and solver), and the team's h the smallest of
+        the strings' chosen steps (string 0's ``auto`` is the lead scene's own)."""
+        if not isinstance(data, Mapping) or not isinstance(data.get("strings"), (list, tuple)):
+            return data
+        lead = data.get("scene")
+        lead = lead if isinstance(lead, Scene) else Scene.model_validate(lead)
+        strings, steps = [], []
+        for i, entry in enumerate(data["strings"]):
+            entry = entry.model_dump() if isinstance(entry, TeamString) else dict(entry)
+            string = entry.get("string")
+            string = string.model_dump() if isinstance(string, StringParams) else dict(string or {})
+            if string.get("elements") == "auto":
+                member = {**lead.model_dump(), "string": string, "name": f"{lead.name}[{i + 1}]", "initial": {}}
+                pivot = entry.get("pivot", {})
+                member["pivot"] = pivot.model_dump() if isinstance(pivot, PivotParams) else dict(pivot)
+                try:
+                    chosen = Scene.model_validate(member)
+                except (ValidationError, ValueError) as err:
+                    raise ValueError(f"strings[{i}]: {err}") from None
+                string = chosen.string.model_dump()
+                steps.append(chosen.h)
+            strings.append({**entry, "string": string})
+        if steps and min(steps) < lead.h:
+            lead = lead.model_copy(update={"h": min(steps)})
+        return {**data, "scene": lead, "strings": strings}
 
     @model_validator(mode="after")
     def _a_team_the_step_supports(self) -> "TeamScene":
@@ -101,7 +132,7 @@ class TeamScene(Frozen):
 
 
 def symmetric_team(size: int = 3, length: float = 1.0, mass_per_length: float = 0.05, EA: float = 2000.0,
-                   elements: int = 8, body_mass: float = 1.0, body_size=(0.4, 0.4, 0.1), pivot_radius: float = 0.6,
+                   elements=8, body_mass: float = 1.0, body_size=(0.4, 0.4, 0.1), pivot_radius: float = 0.6,
                    attachment_radius: float = 0.2, pivot: Optional[dict] = None, h: float = 2e-4,
                    stretch=1.0, law: str = "elastic", **scene) -> TeamScene:
     """A team of ``size`` equal strings symmetric about the e3 axis: pivots on a circle of
@@ -140,9 +171,9 @@ def symmetric_team(size: int = 3, length: float = 1.0, mass_per_length: float = 
         "pivot": {**pivot, "position": list(map(float, pivots[0]))},
         "initial": {"direction": list(map(float, direction)), "stretch": float(stretch)},
         **scene})
-    others = [TeamString(string=StringParams(**string), pivot=PivotParams(**pivot, position=tuple(pivots[k])),
-                         attachment=tuple(attach[k])) for k in range(1, size)]
-    return TeamScene(scene=lead, strings=others)
+    others = [{"string": dict(string), "pivot": {**pivot, "position": tuple(pivots[k])}, "attachment": tuple(attach[k])}
+              for k in range(1, size)]
+    return TeamScene.model_validate({"scene": lead, "strings": others})
 
 
 def static_stretch(size: int, length: float, mass_per_length: float, EA: float, body_mass: float, span: float,
