@@ -6,7 +6,8 @@ its specialised kernel), medians of interleaved repeats. The issue's bound: a te
 most K x the single string's step plus the body's share.
 
 Prints the table and writes ``OUT/team_step.json`` and ``OUT/team_step.png``.
-Usage: ``python -m benchmarks.team_step [--quick] [--elements N ...] [--out DIR]``.
+Usage: ``python -m benchmarks.team_step [--quick] [--elements N|auto ...] [--out DIR]`` (default
+10, 40 and auto: each string's N by the resolution rule, docs/physics.md "The string's resolution").
 """
 from __future__ import annotations
 
@@ -17,15 +18,17 @@ import numpy as np
 from benchmarks.common import arg_parser, figure, finish, interleaved_wall_times, machine
 
 
-def costs(elements: int, sizes, steps: int, repeats: int) -> list:
-    """Rows ``{K, N, team_us, single_us, single_specialised_us, ratio}``: us per step, the team's
-    against K x the single string's general step (``ratio``)."""
+def costs(elements, sizes, steps: int, repeats: int) -> list:
+    """Rows ``{K, N, elements, team_us, single_us, single_specialised_us, ratio}``: us per step,
+    the team's against K x the single string's general step (``ratio``); ``elements`` a count or
+    ``"auto"`` (each string's N by the resolution rule, ``N`` the one chosen)."""
     from esp_gym.model import Simulator
     from esp_gym.team import TeamSimulator, symmetric_team
 
     rows = []
     for K in sizes:
         team = symmetric_team(K, elements=elements, stretch=1.01)
+        N = team.scene.string.elements
         sims = {"team": TeamSimulator(team), "single": Simulator(team.scene, specialise=False),
                 "single_specialised": Simulator(team.scene)}
         for sim in sims.values():
@@ -33,7 +36,7 @@ def costs(elements: int, sizes, steps: int, repeats: int) -> list:
         walls = interleaved_wall_times({key: (None, lambda s=sim: s.step(steps)) for key, sim in sims.items()},
                                        repeats)
         us = {key: 1e6 * float(np.median(w)) / steps for key, w in walls.items()}
-        rows.append({"K": K, "N": elements, "team_us": us["team"], "single_us": us["single"],
+        rows.append({"K": K, "N": N, "elements": elements, "team_us": us["team"], "single_us": us["single"],
                      "single_specialised_us": us["single_specialised"], "ratio": us["team"] / (K * us["single"])})
     return rows
 
@@ -42,12 +45,13 @@ def plot(rows: list):
     def draw(path):
         fig = figure((6.0, 3.6))
         ax = fig.add_subplot()
-        for N in sorted({r["N"] for r in rows}):
-            sub = [r for r in rows if r["N"] == N]
+        for elements in dict.fromkeys(r["elements"] for r in rows):
+            sub = [r for r in rows if r["elements"] == elements]
             K = [r["K"] for r in sub]
-            line, = ax.plot(K, [r["team_us"] for r in sub], "o-", label=f"team, N = {N}")
+            name = f"N = {elements}" if elements != "auto" else f"elements: auto (N = {sub[0]['N']})"
+            line, = ax.plot(K, [r["team_us"] for r in sub], "o-", label=f"team, {name}")
             ax.plot(K, [r["K"] * r["single_us"] for r in sub], "--", color=line.get_color(),
-                    label=f"K x one string's step, N = {N}")
+                    label=f"K x one string's step, {name}")
         ax.set_xlabel("strings K")
         ax.set_ylabel("us per step")
         ax.set_title("a team's step against K single strings'")
@@ -58,17 +62,21 @@ def plot(rows: list):
 
 def main(argv=None) -> None:
     parser = arg_parser(__doc__)
-    parser.add_argument("--elements", type=int, nargs="+", default=[10, 40], help="elements per string")
+    parser.add_argument("--elements", nargs="+", default=["10", "40", "auto"],
+                        help="elements per string: counts, or auto (the resolution rule's)")
     args = parser.parse_args(argv)
     start = time.perf_counter()
     sizes = (1, 3) if args.quick else (1, 2, 3, 4, 5, 6)
     steps, repeats = (200, 2) if args.quick else (5000, 7)
     rows = []
-    for N in ([10] if args.quick else args.elements):
-        rows += costs(N, sizes, steps, repeats)
-    print(f"{'K':>3} {'N':>4} {'team us':>9} {'single us':>10} {'specialised':>12} {'team / (K x single)':>20}")
+    for elements in (["10"] if args.quick else args.elements):
+        if elements != "auto" and not elements.isdigit():
+            parser.error(f"argument --elements: a count or auto, got {elements!r}")
+        rows += costs(elements if elements == "auto" else int(elements), sizes, steps, repeats)
+    print(f"{'K':>3} {'elements':>9} {'N':>4} {'team us':>9} {'single us':>10} {'specialised':>12} "
+          f"{'team / (K x single)':>20}")
     for r in rows:
-        print(f"{r['K']:>3} {r['N']:>4} {r['team_us']:>9.2f} {r['single_us']:>10.2f} "
+        print(f"{r['K']:>3} {str(r['elements']):>9} {r['N']:>4} {r['team_us']:>9.2f} {r['single_us']:>10.2f} "
               f"{r['single_specialised_us']:>12.2f} {r['ratio']:>20.2f}")
     finish(args.out, "team_step", {"rows": rows, "steps": steps, "repeats": repeats, "machine": machine()},
            {"team_step.png": plot(rows)}, start)
