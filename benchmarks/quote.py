@@ -438,6 +438,25 @@ def zoo_curves(data: dict) -> str:
 DRONE_COMPARED = ("stabilize", "transport", "track")
 
 
+def team_step_table(data: dict) -> str:
+    """us per step of a team of K strings against K x one string's (benchmarks.team_step)."""
+    rows = data["rows"]
+    kinds = list(dict.fromkeys(r["elements"] for r in rows))
+    sizes = sorted({r["K"] for r in rows})
+    head = ["| strings K |"] + [f" N = {k} |" if k != "auto" else " elements: auto |" for k in kinds]
+    lines = ["".join(head), "|---|" + "---|" * len(kinds)]
+    for K in sizes:
+        cells = []
+        for kind in kinds:
+            r = next(r for r in rows if r["K"] == K and r["elements"] == kind)
+            cells.append(f" {r['team_us']:.2f} µs ({r['ratio']:.2f}) |")
+        lines.append(f"| {K} |" + "".join(cells))
+    auto = next((r["N"] for r in rows if r["elements"] == "auto"), None)
+    if auto is not None:
+        lines.append(f"\n(auto: N = {auto} per string.)")
+    return "\n".join(lines)
+
+
 def drone_compare_file(task: str) -> str:
     """``agents.compare``'s output file for ``task`` flown by quadrotor_load's drone, hard preset."""
     return f"docs/compare/compare_{task}_quadrotor_load_hard.json"
@@ -647,6 +666,8 @@ QUOTES = {
                             step_cost_lgvi),
     "step_cost.by_n": Quote("docs/img/step_cost.json", "python -m benchmarks.step_cost --out docs/img",
                             step_cost_by_n),
+    "team_step.table": Quote("docs/img/team_step.json", "python -m benchmarks.team_step --out docs/img",
+                             team_step_table),
     "step_cost.specialised": Quote("docs/img/step_cost.json", "python -m benchmarks.step_cost --out docs/img",
                                    step_cost_specialised),
     "step_cost.substep": Quote("docs/img/step_cost.json", "python -m benchmarks.step_cost --out docs/img",
