@@ -287,12 +287,10 @@ def commit_string(S, W, h, held, fl, fr, free, forced, compensated, end_impulse=
         commit_node(r, p, S.rc, S.pc, f, fnext, fl, fr, W.X, W.Y, 0, 1, hh * (up1 + ue1), hh, compensated)
         commit_node(r, p, S.rc, S.pc, f, fnext, fl, fr, W.X, W.Y, 0, 2, hh * (up2 + ue2), hh, compensated)
         start = 1
-    for a in range(start, n):
-        for i in range(3):
-            commit_node(r, p, S.rc, S.pc, f, fnext, fl, fr, W.X, W.Y, a, i, 0.0, hh, compensated)
-    commit_node(r, p, S.rc, S.pc, f, fnext, fl, fr, W.X, W.Y, n, 0, end_impulse[0], hh, compensated)
-    commit_node(r, p, S.rc, S.pc, f, fnext, fl, fr, W.X, W.Y, n, 1, end_impulse[1], hh, compensated)
-    commit_node(r, p, S.rc, S.pc, f, fnext, fl, fr, W.X, W.Y, n, 2, end_impulse[2], hh, compensated)
+    for a in range(start, n + 1):
+        for i in range(3):  # one inlined site: the end row's impulse picked in the loop
+            impulse = end_impulse[i] if a == n else 0.0
+            commit_node(r, p, S.rc, S.pc, f, fnext, fl, fr, W.X, W.Y, a, i, impulse, hh, compensated)
     for a in range(first):
         f[a, 0] = fnext[a, 0]
         f[a, 1] = fnext[a, 1]
