@@ -8,7 +8,8 @@ Hyper-parameters come from configs/agents/rllib_team_ppo.yaml keyed by ``Elastic
 and the task; ``--set KEY=VALUE`` overrides them as in agents.distributed.train. A run directory
 ``runs/{name}`` (default ``ElasticStringPendulum-v0__rllib_team_ppo__{task}__{seed}__{time}``, as
 agents.train names runs) receives config.yaml, args.json, command.txt, status.json, progress.csv
-(one row per iteration), references.json (the zero action's and the team's LQR's returns),
+(one row per iteration), references.json (the zero action's and the team's baseline's returns: the
+LQR, or with the hook observation the LQG),
 checkpoint/ (the last), training.json, evaluation.json (agents/team_evaluate.py's metrics of the
 final deterministic policy) and learning_curve.png. ``--time-limit`` stops after that many
 minutes and saves.
@@ -36,7 +37,7 @@ from agents.distributed.rllib import RLlibRunConfig, load_rllib_config
 from agents.distributed.train import PROGRESS_FIELDS, plot_curve, progress_row
 from agents.evaluate import summarize
 from agents.runs import new_run_dir, write_status, write_stopped
-from agents.team_evaluate import TeamLQRPolicy, TeamZero, run_team_episodes
+from agents.team_evaluate import TeamZero, run_team_episodes, team_baselines
 
 ALGO = "rllib_team_ppo"
 CONFIG_FILE = CONFIG_DIR / "rllib_team_ppo.yaml"
@@ -153,10 +154,14 @@ def _record(s: Settings, cfg: RLlibRunConfig, run_dir: Path, argv: Optional[list
     (run_dir / "config.yaml").write_text(yaml.safe_dump(cfg.model_dump(), sort_keys=False))
     (run_dir / "args.json").write_text(json.dumps(dataclasses.asdict(s), indent=2, default=json_default))
     (run_dir / "command.txt").write_text(shlex.join([sys.executable, "-m", "agents.team_train", *args]) + "\n")
+    from esp_gym.team.env import TEAM_PRESETS
+
     kwargs = {"preset": s.preset} if s.preset else {}
+    observation = TEAM_PRESETS.get(s.preset, {}).get("observation", "full")
+    baseline = next(iter(team_baselines(observation).values()))  # the LQR, or the LQG with hook observations
     refs = {name: summarize(run_team_episodes(policy, s.team, s.task, s.reference_episodes, EVAL_SEED, kwargs),
                             s.task)["mean_return"]
-            for name, policy in (("baseline_return", TeamLQRPolicy()), ("zero_return", TeamZero()))}
+            for name, policy in (("baseline_return", baseline), ("zero_return", TeamZero()))}
     (run_dir / "references.json").write_text(json.dumps(refs))
 
 
