@@ -12,7 +12,8 @@ agents.train names runs) receives config.yaml, args.json, command.txt, status.js
 LQR, or with the hook observation the LQG),
 checkpoint/ (the last), training.json, evaluation.json (agents/team_evaluate.py's metrics of the
 final deterministic policy) and learning_curve.png. ``--time-limit`` stops after that many
-minutes and saves.
+minutes and saves. progress.csv's ``episode_return_mean`` is the team's return (RLlib's sum over
+the agents, each given the team's reward, divided by K).
 """
 from __future__ import annotations
 
@@ -182,6 +183,8 @@ def run(s: Settings, cfg: RLlibRunConfig, run_dir: Path, algo, argv: Optional[li
             log.writeheader()
             for k in range(1, s.iterations + 1):
                 row = progress_row(algo.train(), k)
+                # RLlib sums an episode's rewards over its agents, each given the team's: the team's return
+                row["episode_return_mean"] /= s.team
                 log.writerow(row)
                 fh.flush()
                 steps, done = row["env_steps"], k
