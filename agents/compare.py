@@ -108,10 +108,11 @@ def compare(task: str, preset: Optional[str] = None, episodes: int = 100, seed: 
 
 
 def compare_team(team: int, task: str, preset: Optional[str] = None, episodes: int = 100, seed: int = HELD_OUT_SEED,
-                 progress: bool = True) -> dict:
+                 progress: bool = True, model: Optional[str] = None) -> dict:
     """:func:`compare` for a team of ``team`` strings (esp_gym/team/env.py): zero, the team's
-    baselines (agents/team_evaluate.py), ``preset`` the team's (esp_gym/team/env.py TEAM_PRESETS);
-    the same keys, with ``team``. No team policy ships yet."""
+    baselines (agents/team_evaluate.py), ``preset`` the team's (esp_gym/team/env.py TEAM_PRESETS),
+    and ``model``, an agents.team_train checkpoint directory (no team policy ships yet); the same
+    keys, with ``team``."""
     from tqdm import tqdm
 
     from agents.team_evaluate import TeamZero, run_team_episodes, team_baselines
@@ -120,6 +121,10 @@ def compare_team(team: int, task: str, preset: Optional[str] = None, episodes: i
     from esp_gym.team.env import TEAM_PRESETS
 
     policies = {"zero": TeamZero(), **team_baselines(TEAM_PRESETS.get(preset, {}).get("observation", "full"))}
+    if model is not None:
+        from agents.team_train import TeamRLlibPolicy
+
+        policies["policy"] = TeamRLlibPolicy(model)
     results = {name: run_team_episodes(policy, team, task, episodes, seed, env_kwargs)
                for name, policy in tqdm(policies.items(), desc=f"compare team {team} {task}", disable=not progress)}
     table = {}
@@ -127,9 +132,14 @@ def compare_team(team: int, task: str, preset: Optional[str] = None, episodes: i
         table[name] = {k: v for k, v in summarize(rows, task).items() if k not in ("task", "episodes")}
         table[name]["returns"] = [r.ret for r in rows]
     best = max((n for n in table if n not in NOT_BASELINES), key=lambda n: table[n]["mean_return"])
-    return {"task": task, "preset": preset, "scene": None, "actuation": None, "episodes": episodes, "seed": seed,
-            "model": None, "policies": table, "best_baseline": best, "paired_diff_mean": None, "paired_ci95": None,
-            "team": team}
+    out = {"task": task, "preset": preset, "scene": None, "actuation": None, "episodes": episodes, "seed": seed,
+           "model": model, "policies": table, "best_baseline": best, "paired_diff_mean": None, "paired_ci95": None,
+           "team": team}
+    if "policy" in results:
+        diff = np.array([p.ret - b.ret for p, b in zip(results["policy"], results[best])])
+        out["paired_diff_mean"] = float(diff.mean())
+        out["paired_ci95"] = list(paired_ci(diff))
+    return out
 
 
 def markdown(c: dict) -> str:
@@ -177,8 +187,9 @@ def main(argv=None) -> dict:
                     help="a team of K strings (1-6) carrying one load (esp_gym/team; tasks stabilize, transport)")
     a = ap.parse_args(argv)
     ap.check_out_dir("--out", a.out)
-    ap.check_file("--model", a.model)
-    if a.team is not None:
+    if a.team is None:
+        ap.check_file("--model", a.model)
+    else:
         from esp_gym.team import MAX_STRINGS
         from esp_gym.team.tasks import TEAM_TASKS
 
@@ -186,10 +197,12 @@ def main(argv=None) -> dict:
             ap.error(f"argument --team: a team has 1 to {MAX_STRINGS} strings, got {a.team}")
         if a.task not in TEAM_TASKS:
             ap.error(f"argument --task: a team's tasks are {sorted(TEAM_TASKS)}, got {a.task!r}")
-        for name in ("scene", "actuation", "model"):
+        for name in ("scene", "actuation"):
             if getattr(a, name) is not None:
                 ap.error(f"argument --{name}: not with --team (a team's scene is esp_gym.team.scene.team_scene)")
-        c = compare_team(a.team, a.task, a.preset, a.episodes, a.seed, a.progress)
+        if a.model is not None and not (Path(a.model) / "learner_group").is_dir():
+            ap.error(f"argument --model: with --team, an agents.team_train checkpoint directory, got {a.model}")
+        c = compare_team(a.team, a.task, a.preset, a.episodes, a.seed, a.progress, a.model)
         print(json.dumps(c) if a.json else markdown(c))
         if a.out:
             write_comparison(c, a.out)

@@ -116,7 +116,8 @@ class TeamRLlibPolicy:
     def __init__(self, checkpoint):
         from ray.rllib.core.rl_module.rl_module import RLModule
 
-        self.module = RLModule.from_checkpoint(Path(checkpoint) / "learner_group" / "learner" / "rl_module" / MODULE)
+        self.module = RLModule.from_checkpoint(Path(checkpoint).resolve() / "learner_group" / "learner" / "rl_module"
+                                               / MODULE)  # an absolute path: RLlib reads it as a URI
 
     def act(self, obs, core) -> np.ndarray:
         import torch

@@ -96,6 +96,12 @@ def test_a_team_trains_with_one_shared_policy_and_checkpoints(cluster, tmp_path)
     assert evaluation["episodes"] == 1 and -100.0 <= evaluation["mean_return"] <= 500.0
     for name in ("config.yaml", "args.json", "command.txt", "training.json", "learning_curve.png"):
         assert (run_dir / name).is_file(), name
+    # the checkpoint as agents.compare's team policy, paired with the baseline
+    proc = run("agents.compare", "--team", "2", "--task", "transport", "--episodes", "2", "--model",
+               run_dir / "checkpoint", "--json", "--no-progress")
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    c = json.loads(proc.stdout)
+    assert c["best_baseline"] == "lqr" and len(c["policies"]["policy"]["returns"]) == 2 and c["paired_ci95"]
 
 
 def _wait_for(predicate, timeout: float, what: str) -> None:

@@ -139,6 +139,8 @@ def test_compare_takes_a_team(capsys):
         main(["--team", "7", "--task", "transport", "--episodes", "2"])
     with pytest.raises(SystemExit):
         main(["--team", "3", "--task", "lift", "--episodes", "2"])
+    with pytest.raises(SystemExit):  # not an agents.team_train checkpoint
+        main(["--team", "2", "--task", "transport", "--episodes", "2", "--model", "models"])
 
 
 def test_import_esp_gym_registers_the_team_env():
