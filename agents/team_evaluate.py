@@ -23,6 +23,17 @@ class TeamZero:
         return np.zeros(3 * core.size)
 
 
+def nominal_core(core, **options):
+    """The nominal team of ``core``'s size, task, control period and force limit (with
+    ``options``), at its first episode of seed 0: where the baselines are designed."""
+    from esp_gym.team.env import TeamCore
+
+    nominal = TeamCore(core.size, core.task.name, control_period=core.control_period, force_limit=core.force_limit,
+                       **options)
+    nominal.reset(seed=0)
+    return nominal
+
+
 class TeamLQRPolicy:
     """The team's LQR (agents/baselines/team_lqr.py), designed the first time it acts for the
     nominal team of the env's size, task and control period, and its action latency. It reads the true state: from the
@@ -35,13 +46,9 @@ class TeamLQRPolicy:
 
     def act(self, obs, core):
         from agents.baselines.team_lqr import TeamLQR
-        from esp_gym.team.env import TeamCore
 
         if self.design is None:
-            nominal = TeamCore(core.size, core.task.name, control_period=core.control_period,
-                               force_limit=core.force_limit)
-            nominal.reset(seed=0)
-            self.design = TeamLQR.design(nominal, latency=core.action_latency)
+            self.design = TeamLQR.design(nominal_core(core), latency=core.action_latency)
         if core.steps == 0:
             self.design.reset()
         if core.observation != "full":
@@ -59,13 +66,9 @@ class TeamLQGPolicy:
 
     def act(self, obs, core):
         from agents.baselines.team_lqg import TeamLQG
-        from esp_gym.team.env import TeamCore
 
         if self.design is None:
-            nominal = TeamCore(core.size, core.task.name, control_period=core.control_period,
-                               force_limit=core.force_limit, observation=core.observation,
-                               sensor_noise=core.sensor_noise)
-            nominal.reset(seed=0)
+            nominal = nominal_core(core, observation=core.observation, sensor_noise=core.sensor_noise)
             self.design = TeamLQG.design(nominal, latency=core.action_latency)
         if core.steps == 0:
             self.design.reset()

@@ -31,11 +31,11 @@ import numpy as np
 import yaml
 
 from agents import ROOT
-from agents.cli import SettingsError, one_line, parse_settings, settings_parser
+from agents.cli import SettingsError, settings_parser
 from agents.common import CONFIG_DIR, ConfigError, json_default
-from agents.distributed.cluster import AddressError, check_address, connect, shutdown, token_auth
+from agents.distributed.cluster import AddressError, check_address
 from agents.distributed.rllib import RLlibRunConfig, load_rllib_config
-from agents.distributed.train import PROGRESS_FIELDS, plot_curve, progress_row
+from agents.distributed.train import PROGRESS_FIELDS, build, plot_curve, progress_row, rllib_main
 from agents.evaluate import summarize
 from agents.runs import new_run_dir, write_status, write_stopped
 from agents.team_evaluate import TeamZero, run_team_episodes, team_baselines
@@ -213,30 +213,8 @@ def run(s: Settings, cfg: RLlibRunConfig, run_dir: Path, algo, argv: Optional[li
 
 
 def main(argv=None) -> Path:
-    import torch
-
     ap = settings_parser(Settings, prog="python -m agents.team_train", description=__doc__.split("\n\n")[0])
-    s, _ = parse_settings(ap, Settings, argv)
-    token_auth(s.address)  # before anything imports ray
-    torch.set_num_threads(s.threads)
-    algo = None
-    try:
-        try:
-            cfg, run_dir = check_settings(s)
-            connect(s.address)
-            try:
-                algo = team_ppo_config(cfg, s).build_algo()
-            except (ValueError, TypeError, KeyError) as err:
-                raise SettingsError("--set", f"RLlib rejects the configuration: "
-                                             f"{one_line(f'{type(err).__name__}: {err}')}") from None
-        except SettingsError as err:
-            shutdown()
-            ap.error(str(err))
-        return run(s, cfg, run_dir, algo, argv)
-    finally:
-        if algo is not None:
-            algo.stop()
-        shutdown()
+    return rllib_main(ap, Settings, argv, check_settings, lambda s, cfg: build(s, cfg, team_ppo_config), run)
 
 
 if __name__ == "__main__":

@@ -127,22 +127,20 @@ def legendre_by_differences(team, sim, q0, q1, side, eps=1e-5):
     x, R, lead, other = q
     px = np.array([diff(lambda e, i=i: (x + e * np.eye(3)[i], R, lead, other)) for i in range(3)])
     Pi = np.array([diff(lambda e, i=i: (x, R @ rotation(e * np.eye(3)[i]), lead, other)) for i in range(3)])
-    pl = np.zeros_like(lead)
-    for a in range(lead.shape[0]):
-        for i in range(3):
-            def moved(e, a=a, i=i):
-                nl = lead.copy()
-                nl[a, i] += e
-                return (x, R, nl, other)
-            pl[a, i] = diff(moved)
-    po = np.zeros_like(other)
-    for a in range(other.shape[0]):
-        for i in range(3):
-            def moved(e, a=a, i=i):
-                no = other.copy()
-                no[a, i] += e
-                return (x, R, lead, no)
-            po[a, i] = diff(moved)
+    def node_momenta(nodes, configuration):
+        """The differences in each coordinate of ``nodes``; ``configuration(moved nodes)`` is q."""
+        out = np.zeros_like(nodes)
+        for a in range(nodes.shape[0]):
+            for i in range(3):
+                def moved(e, a=a, i=i):
+                    shifted = nodes.copy()
+                    shifted[a, i] += e
+                    return configuration(shifted)
+                out[a, i] = diff(moved)
+        return out
+
+    pl = node_momenta(lead, lambda nodes: (x, R, nodes, other))
+    po = node_momenta(other, lambda nodes: (x, R, lead, nodes))
     return pl, px, Pi, po
 
 

@@ -16,9 +16,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from agents.baselines.team_lqr import TeamLQR, reduced_layout
+from agents.baselines.team_lqr import TeamLQR, lift, probe, reduced_layout
 from esp_gym.team.env import TEAM_UNIT_NOISE, TeamCore
-from esp_gym.team.simulator import TeamSimulator
 
 #: The process noise's spread of each action [action units] and its floor on every state.
 ACTION_SPREAD = 0.3
@@ -31,24 +30,15 @@ NOISE_FLOORS = {"hook_tension": 1.0}
 def measurement_model(core: TeamCore, step: float = 1e-5):
     """``(y0, C)``: the centralised observation of ``core``'s mode (without noise) at the lifted
     formation, and its derivative in the reduced state (central differences)."""
-    from scipy.spatial.transform import Rotation
-
-    probe = TeamCore(core.size, core.task.name, control_period=core.control_period, force_limit=core.force_limit,
-                     observation=core.observation)
-    probe.load_target, probe.pivot_targets = core.load_target.copy(), core.pivot_targets.copy()
-    sim: TeamSimulator = probe.sim
-    K = core.size
-    Z = reduced_layout(K)
+    observed = probe(core, core.observation)
 
     def observe(z):
-        R = Rotation.from_rotvec(z[Z["attitude"]]).as_matrix()
-        sim.set_state(sim.lifted_state(probe.pivot_targets + z[Z["pivot_error"]].reshape(K, 3),
-                                       z[Z["pivot_velocity"]].reshape(K, 3), probe.load_target + z[Z["load_error"]],
-                                       z[Z["load_velocity"]], R, R.T @ z[Z["rates"]]))
-        return probe.observations(probe.kinematics(), noisy=False).astype(np.float64).ravel()
+        lift(observed, z)
+        return observed.observations(observed.kinematics(), noisy=False).astype(np.float64).ravel()
 
-    y0 = observe(np.zeros(Z.size))
-    C = np.column_stack([(observe(step * e) - observe(-step * e)) / (2 * step) for e in np.eye(Z.size)])
+    n = reduced_layout(core.size).size
+    y0 = observe(np.zeros(n))
+    C = np.column_stack([(observe(step * e) - observe(-step * e)) / (2 * step) for e in np.eye(n)])
     return y0, C
 
 

@@ -22,7 +22,6 @@ from scipy.spatial.transform import Rotation
 
 from esp_gym.kernels.layout import Layout
 from esp_gym.team.env import TeamCore, agent_layout
-from esp_gym.team.simulator import TeamSimulator
 
 #: Weight on what the reward does not see (pivot velocities, the load's yaw) [per unit^2].
 SMALL = 1e-3
@@ -50,41 +49,57 @@ def reduced_from_observation(obs: np.ndarray, core: TeamCore) -> np.ndarray:
     return z
 
 
+def probe(core: TeamCore, observation: str = "full") -> TeamCore:
+    """A core of ``core``'s team, control period, force limit and targets, in the ``observation``
+    mode, noiseless: where a design lifts reduced states (:func:`lift`) and steps or observes them."""
+    out = TeamCore(core.scene, core.task.name, control_period=core.control_period, force_limit=core.force_limit,
+                   observation=observation)
+    out.load_target, out.pivot_targets = core.load_target.copy(), core.pivot_targets.copy()
+    return out
+
+
+def lift(core: TeamCore, z: np.ndarray) -> None:
+    """Set ``core``'s team to the reduced state ``z`` (module docstring), relative to its targets."""
+    K = core.size
+    Z = reduced_layout(K)
+    R = Rotation.from_rotvec(z[Z["attitude"]]).as_matrix()
+    sim = core.sim
+    sim.set_state(sim.lifted_state(core.pivot_targets + z[Z["pivot_error"]].reshape(K, 3),
+                                   z[Z["pivot_velocity"]].reshape(K, 3), core.load_target + z[Z["load_error"]],
+                                   z[Z["load_velocity"]], R, R.T @ z[Z["rates"]]))
+
+
+def reduced_state(core: TeamCore) -> np.ndarray:
+    """``core``'s team's reduced state now, relative to its targets."""
+    kin = core.kinematics()
+    Z = reduced_layout(core.size)
+    z = np.empty(Z.size)
+    z[Z["pivot_error"]] = (kin["pivot"] - core.pivot_targets).ravel()
+    z[Z["pivot_velocity"]] = kin["pivot_velocity"].ravel()
+    z[Z["load_error"]] = kin["load"] - core.load_target
+    z[Z["load_velocity"]] = kin["load_velocity"]
+    z[Z["attitude"]] = Rotation.from_matrix(kin["R"]).as_rotvec()
+    z[Z["rates"]] = kin["R"] @ kin["Omega"]
+    return z
+
+
 def linearize(core: TeamCore, z_step: float = 1e-5, a_step: float = 1e-4):
     """``(A, B)``: central differences of the control step z -> z' about the formation at rest
     (hover forces), with ``core``'s targets."""
-    sim = TeamSimulator(core.scene)
+    lifted = probe(core)
     K = core.size
-    Z = reduced_layout(K)
 
     def step(z, action):
-        R = Rotation.from_rotvec(z[Z["attitude"]]).as_matrix()
-        sim.set_state(sim.lifted_state(core.pivot_targets + z[Z["pivot_error"]].reshape(K, 3),
-                                       z[Z["pivot_velocity"]].reshape(K, 3), core.load_target + z[Z["load_error"]],
-                                       z[Z["load_velocity"]], R, R.T @ z[Z["rates"]]))
-        forces = core.force_scale * action.reshape(K, 3)
-        forces[:, 2] -= core.hover
-        sim.step(core.substeps, pivot_forces=forces)
-        st = sim.state
-        v_lead, v_other, Omega = sim.velocities()
-        T = sim.params
-        rows = [int(T.start[j]) for j in range(K - 1)]
-        pivots = np.vstack([st.lead.r[0]] + [st.r[i] for i in rows])
-        pivot_v = np.vstack([v_lead[0]] + [v_other[i] for i in rows])
-        rho_c = np.asarray(core.scene.scene.body.rho_c, dtype=float)
-        Rn = st.lead.R
-        out = np.empty(Z.size)
-        out[Z["pivot_error"]] = (pivots - core.pivot_targets).ravel()
-        out[Z["pivot_velocity"]] = pivot_v.ravel()
-        out[Z["load_error"]] = st.lead.r[-1] + Rn @ rho_c - core.load_target
-        out[Z["load_velocity"]] = v_lead[-1] + Rn @ np.cross(Omega, rho_c)
-        out[Z["attitude"]] = Rotation.from_matrix(Rn).as_rotvec()
-        out[Z["rates"]] = Rn @ Omega
-        return out
+        lift(lifted, z)
+        forces = lifted.force_scale * action.reshape(K, 3)
+        forces[:, 2] -= lifted.hover
+        lifted.sim.step(lifted.substeps, pivot_forces=forces)
+        return reduced_state(lifted)
 
-    zero_z, zero_a = np.zeros(Z.size), np.zeros(3 * K)
+    n = reduced_layout(K).size
+    zero_z, zero_a = np.zeros(n), np.zeros(3 * K)
     A = np.column_stack([(step(zero_z + z_step * e, zero_a) - step(zero_z - z_step * e, zero_a)) / (2 * z_step)
-                         for e in np.eye(Z.size)])
+                         for e in np.eye(n)])
     B = np.column_stack([(step(zero_z, a_step * e) - step(zero_z, -a_step * e)) / (2 * a_step)
                          for e in np.eye(3 * K)])
     return A, B

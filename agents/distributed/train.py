@@ -98,11 +98,13 @@ def check_settings(s: Settings) -> tuple:
     return cfg, run_dir
 
 
-def build(s: Settings, cfg: RLlibRunConfig):
-    """Join Ray and build the algorithm; a configuration RLlib rejects is a SettingsError."""
+def build(s, cfg: RLlibRunConfig, make_config=None):
+    """Join Ray and build the algorithm of ``make_config(cfg, s)`` (default :func:`ppo_config`'s);
+    a configuration RLlib rejects is a SettingsError."""
     connect(s.address)
     try:
-        return ppo_config(cfg, s.task, s.seed).build_algo()
+        config = ppo_config(cfg, s.task, s.seed) if make_config is None else make_config(cfg, s)
+        return config.build_algo()
     except (ValueError, TypeError, KeyError) as err:
         raise SettingsError("--set", f"RLlib rejects the configuration: {one_line(f'{type(err).__name__}: {err}')}") \
             from None
@@ -207,26 +209,34 @@ def run(s: Settings, cfg: RLlibRunConfig, run_dir: Path, algo, argv: Optional[li
     return run_dir
 
 
-def main(argv=None) -> Path:
+def rllib_main(ap, settings_class, argv, check, build_algo, train) -> Path:
+    """An RLlib training command's life (this module's and agents.team_train's): the settings from
+    ``ap``, Ray's token and the learner's threads; ``check(s) -> (config, run_dir)`` and
+    ``build_algo(s, config)``, whose SettingsError is one line naming the argument;
+    ``train(s, config, run_dir, algo, argv)``; the algorithm and Ray stopped whatever happens."""
     import torch
 
-    ap = settings_parser(Settings, prog="python -m agents.distributed.train", description=__doc__.split("\n\n")[0])
-    s, _ = parse_settings(ap, Settings, argv)
+    s, _ = parse_settings(ap, settings_class, argv)
     token_auth(s.address)  # before anything imports ray
     torch.set_num_threads(s.threads)
     algo = None
     try:
         try:
-            cfg, run_dir = check_settings(s)
-            algo = build(s, cfg)
+            cfg, run_dir = check(s)
+            algo = build_algo(s, cfg)
         except SettingsError as err:
             shutdown()
             ap.error(str(err))
-        return run(s, cfg, run_dir, algo, argv)
+        return train(s, cfg, run_dir, algo, argv)
     finally:
         if algo is not None:
             algo.stop()
         shutdown()
+
+
+def main(argv=None) -> Path:
+    ap = settings_parser(Settings, prog="python -m agents.distributed.train", description=__doc__.split("\n\n")[0])
+    return rllib_main(ap, Settings, argv, check_settings, build, run)
 
 
 if __name__ == "__main__":

@@ -24,6 +24,7 @@ from .layout import B_ANGULAR_IMPULSE_Z, B_GRAVITY_IMPULSE, B_PIVOT_IMPULSE, B_W
 from .disturbance import kick
 from .lgvi import end_shift, rigid_increments
 from .loops import finish
+from .so3 import cross, unrotated
 from .status import BLOW_UP, NON_FINITE, OK
 from .step_shared import (body_momentum_increment, commit_body, commit_node, commit_string, guarded_forces,
                           held_inputs, input_balances, left_torque, new_positions, next_attitude)
@@ -80,13 +81,10 @@ def end_loads(R, T, A, h, forced):
         E0 += l0
         E1 += l1
         E2 += l2
-        b0 = R[0, 0] * l0 + R[1, 0] * l1 + R[2, 0] * l2  # R_k^T l
-        b1 = R[0, 1] * l0 + R[1, 1] * l1 + R[2, 1] * l2
-        b2 = R[0, 2] * l0 + R[1, 2] * l1 + R[2, 2] * l2
-        rho = T.rho[j]
-        t0 += rho[1] * b2 - rho[2] * b1
-        t1 += rho[2] * b0 - rho[0] * b2
-        t2 += rho[0] * b1 - rho[1] * b0
+        m0, m1, m2 = cross(T.rho[j], unrotated(R, (l0, l1, l2)))  # rho_j x R_k^T l
+        t0 += m0
+        t1 += m1
+        t2 += m2
     return E0, E1, E2, t0 / hh, t1 / hh, t2 / hh
 
 
@@ -177,12 +175,10 @@ def other_forces(S, W, P, T, A, h):
         l0 = hh * A.fn[e, 0] + A.c[j, 0]
         l1 = hh * A.fn[e, 1] + A.c[j, 1]
         l2 = hh * A.fn[e, 2] + A.c[j, 2]
-        b0 = Rn[0, 0] * l0 + Rn[1, 0] * l1 + Rn[2, 0] * l2  # R_{k+1}^T l
-        b1 = Rn[0, 1] * l0 + Rn[1, 1] * l1 + Rn[2, 1] * l2
-        b2 = Rn[0, 2] * l0 + Rn[1, 2] * l1 + Rn[2, 2] * l2
-        t0 += rho[1] * b2 - rho[2] * b1
-        t1 += rho[2] * b0 - rho[0] * b2
-        t2 += rho[0] * b1 - rho[1] * b0
+        m0, m1, m2 = cross(rho, unrotated(Rn, (l0, l1, l2)))  # rho_j x R_{k+1}^T l
+        t0 += m0
+        t1 += m1
+        t2 += m2
         i0 += hh * (A.f[e, 0] + A.fn[e, 0])
         i1 += hh * (A.f[e, 1] + A.fn[e, 1])
         i2 += hh * (A.f[e, 2] + A.fn[e, 2])
