@@ -3,6 +3,11 @@ every agent acting with one shared policy (parameter sharing), on this machine o
 
     python -m agents.team_train --team 3 --task transport --preset hard --iterations 100
     python -m agents.team_train --team 3 --iterations 20 --set lr=1e-4 num_env_runners=2
+    python -m agents.team_train --team 3 --task transport --preset hard --residual --time-limit 60
+
+``--residual`` trains a residual on the team's baseline (agents/team_residual.py: the agents' actions
+added, scaled by ``--residual-scale``, to the LQR's, or with the hook observation the LQG's);
+the checkpoint then carries residual.json and every evaluation adds the same baseline.
 
 Hyper-parameters come from configs/agents/rllib_team_ppo.yaml keyed by ``ElasticStringTeam-v0``
 and the task; ``--set KEY=VALUE`` overrides them as in agents.distributed.train. A run directory
@@ -39,6 +44,7 @@ from agents.distributed.train import PROGRESS_FIELDS, build, plot_curve, progres
 from agents.evaluate import summarize
 from agents.runs import new_run_dir, write_status, write_stopped
 from agents.team_evaluate import TeamZero, run_team_episodes, team_baselines
+from agents.team_residual import RESIDUAL_FILE, RESIDUAL_SCALE, TeamBase, combine, read_residual, write_residual
 
 ALGO = "rllib_team_ppo"
 CONFIG_FILE = CONFIG_DIR / "rllib_team_ppo.yaml"
@@ -72,21 +78,31 @@ class Settings:
         "help": f"episodes of the final evaluation (seeds {EVAL_SEED}+)", "type": int, "min": 1})
     reference_episodes: int = field(default=10, metadata={
         "help": "episodes of the zero and LQR reference returns", "type": int, "min": 1})
+    residual: bool = field(default=False, metadata={
+        "help": "train a residual on the team's baseline (the LQR; with the hook observation the LQG)"})
+    residual_scale: float = field(default=RESIDUAL_SCALE, metadata={
+        "help": "the residual's share of the action box (with --residual)", "type": float})
     progress: bool = field(default=True, metadata={"help": "show a progress bar"})
     threads: int = field(default=1, metadata={"help": "torch threads of the learner", "type": int, "min": 1})
 
 
 def make_team_env(env_config: dict):
-    """RLlib's environment creator: the PettingZoo env of ``env_config`` as RLlib's MultiAgentEnv."""
+    """RLlib's environment creator: the PettingZoo env of ``env_config`` (with ``residual_scale``:
+    the residual team of agents/team_residual.py) as RLlib's MultiAgentEnv."""
     from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
 
+    from agents.team_residual import TeamResidualParallelEnv
     from esp_gym.team import parallel_env
 
-    return ParallelPettingZooEnv(parallel_env(**env_config))
+    options = dict(env_config)
+    scale = options.pop("residual_scale", None)
+    env = parallel_env(**options)
+    return ParallelPettingZooEnv(env if scale is None else TeamResidualParallelEnv(env, scale))
 
 
 def env_config(s: Settings) -> dict:
-    return {"team": s.team, "task": s.task, **({"preset": s.preset} if s.preset else {})}
+    return {"team": s.team, "task": s.task, **({"preset": s.preset} if s.preset else {}),
+            **({"residual_scale": s.residual_scale} if s.residual else {})}
 
 
 def team_ppo_config(cfg: RLlibRunConfig, s: Settings):
@@ -111,23 +127,64 @@ def team_ppo_config(cfg: RLlibRunConfig, s: Settings):
 class TeamRLlibPolicy:
     """The shared module of a checkpoint as a centralised policy of agents/team_evaluate.py: each
     agent's observation through the module, the action distribution's mean (deterministic),
-    clipped to [-1, 1]."""
+    clipped to [-1, 1]. A checkpoint with residual.json (``--residual``) adds that share of it to
+    the team's baseline, whose features it appends to each agent's observation, as in training."""
 
     def __init__(self, checkpoint):
         from ray.rllib.core.rl_module.rl_module import RLModule
 
-        self.module = RLModule.from_checkpoint(Path(checkpoint).resolve() / "learner_group" / "learner" / "rl_module"
-                                               / MODULE)  # an absolute path: RLlib reads it as a URI
+        checkpoint = Path(checkpoint).resolve()  # an absolute path: RLlib reads it as a URI
+        self.module = RLModule.from_checkpoint(checkpoint / MODULE_PATH)
+        self.scale = read_residual(checkpoint)
+        self.base = None
 
     def act(self, obs, core) -> np.ndarray:
         import torch
         from ray.rllib.core.columns import Columns
 
-        agents = np.asarray(obs, dtype=np.float32).reshape(core.size, -1)
+        agents = np.asarray(obs, dtype=np.float64).reshape(core.size, -1)
+        if self.scale is not None:
+            if self.base is None:
+                self.base = TeamBase(core.observation)
+            command = self.base.act(agents, core)
+            agents = np.concatenate([agents, self.base.features(core, command)], axis=1)
         with torch.no_grad():
-            out = self.module.forward_inference({Columns.OBS: torch.from_numpy(agents)})
-        mean = out[Columns.ACTION_DIST_INPUTS].numpy()[:, :3]  # a diagonal Gaussian's (mean, log std)
-        return np.clip(mean, -1.0, 1.0).ravel()
+            out = self.module.forward_inference({Columns.OBS: torch.from_numpy(agents.astype(np.float32))})
+        mean = out[Columns.ACTION_DIST_INPUTS].numpy()[:, :3].astype(np.float64)  # a diagonal Gaussian's (mean, log std)
+        if self.scale is None:
+            return np.clip(mean, -1.0, 1.0).ravel()
+        total = combine(command, mean, self.scale)
+        self.base.record_applied(total)
+        return total.ravel()
+
+
+#: What a shipped team model keeps of its run: the shared module, residual.json and the record.
+SHIPPED_RECORD = ("config.yaml", "args.json", "command.txt", "training.json", "progress.csv", "learning_curve.png",
+                  "references.json", "evaluation.json")
+MODULE_PATH = Path("learner_group") / "learner" / "rl_module" / MODULE
+
+
+def ship(run_dir, target) -> Path:
+    """Copy the finished run ``run_dir``'s shared module (``checkpoint/`` with only what
+    :class:`TeamRLlibPolicy` reads: the module and residual.json) and its record into ``target``,
+    which is replaced; returns ``target``.
+
+        python -c "from agents.team_train import ship; ship('runs/RUN', 'models/team3_transport_hard_rllib')"
+    """
+    import shutil
+
+    run_dir, target = Path(run_dir), Path(target)
+    if not (run_dir / "checkpoint" / MODULE_PATH).is_dir():
+        raise FileNotFoundError(f"run {run_dir} has no checkpoint/{MODULE_PATH}: it did not finish (see its status.json)")
+    staging = target.with_name(target.name + ".new")
+    shutil.rmtree(staging, ignore_errors=True)
+    shutil.copytree(run_dir / "checkpoint" / MODULE_PATH, staging / "checkpoint" / MODULE_PATH)
+    for name in [f"checkpoint/{RESIDUAL_FILE}", *SHIPPED_RECORD]:
+        if (run_dir / name).is_file():
+            shutil.copy2(run_dir / name, staging / name)
+    shutil.rmtree(target, ignore_errors=True)
+    staging.rename(target)
+    return target
 
 
 def check_settings(s: Settings) -> tuple:
@@ -139,6 +196,8 @@ def check_settings(s: Settings) -> tuple:
         raise SettingsError("--team", f"a team has 1 to {MAX_STRINGS} strings, got {s.team}")
     if s.time_limit is not None and not s.time_limit > 0:
         raise SettingsError("--time-limit", f"must be > 0 minutes, got {s.time_limit}")
+    if not (np.isfinite(s.residual_scale) and s.residual_scale > 0):
+        raise SettingsError("--residual-scale", f"must be > 0, got {s.residual_scale}")
     try:
         cfg = load_rllib_config(s.task, s.set, CONFIG_FILE, TEAM_ENV_ID)
     except ConfigError as err:
@@ -195,13 +254,16 @@ def run(s: Settings, cfg: RLlibRunConfig, run_dir: Path, algo, argv: Optional[li
                     break
         wall = time.perf_counter() - start
         algo.save_to_path(str((run_dir / "checkpoint").resolve()))
+        if s.residual:
+            write_residual(run_dir / "checkpoint", s.residual_scale)
         (run_dir / "training.json").write_text(json.dumps(
             {"wall_time_s": wall, "iterations": done, "timesteps": steps, "address": s.address}, indent=2))
         kwargs = {"preset": s.preset} if s.preset else {}
         stats = summarize(run_team_episodes(TeamRLlibPolicy(run_dir / "checkpoint"), s.team, s.task, s.eval_episodes,
                                             EVAL_SEED, kwargs), s.task)
         (run_dir / "evaluation.json").write_text(json.dumps({**stats, "seed": EVAL_SEED}, indent=2))
-        plot_curve(run_dir, f"{TEAM_ENV_ID} team of {s.team} {s.task} {s.preset or 'nominal'}: RLlib PPO, shared "
+        kind = "shared residual on the baseline" if s.residual else "shared"
+        plot_curve(run_dir, f"{TEAM_ENV_ID} team of {s.team} {s.task} {s.preset or 'nominal'}: RLlib PPO, {kind} "
                             f"(seed {s.seed})")
         write_status(run_dir, "finished", iterations=done, timesteps=steps)
     except BaseException as err:  # Ctrl-C too: the directory says why it stopped

@@ -473,6 +473,25 @@ def compare_drone(data: dict) -> str:
     return "; ".join(parts)
 
 
+#: The shipped team's comparison (docs/team.md "Training").
+TEAM_COMPARE_FILE = "docs/compare/compare_team3_transport_hard.json"
+TEAM_COMPARE_COMMAND = ("python -m agents.compare --team 3 --task transport --preset hard --episodes 100 "
+                        "--model models/team3_transport_hard_rllib/checkpoint --out docs/compare")
+
+
+def compare_team_table(data: dict) -> str:
+    from agents.compare import markdown
+
+    return markdown(data)
+
+
+def compare_team_readme(data: dict) -> str:
+    policies, best = data["policies"], data["best_baseline"]
+    low, high = data["paired_ci95"]
+    return (f"{policies['policy']['mean_return']:.1f} against the {best.upper()}'s {policies[best]['mean_return']:.1f}, "
+            f"**{signed(data['paired_diff_mean'])} [{signed(low)}, {signed(high)}]**")
+
+
 # -- stability, the model's own error --------------------------------------------------------
 def stability_long_run(data: dict) -> str:
     run = data["long_run"]
@@ -711,6 +730,8 @@ QUOTES = {
     "compare.drone": Quote(tuple(drone_compare_file(task) for task in DRONE_COMPARED),
                            "python -m agents.compare --scene quadrotor_load --actuation thrust_rates --preset hard "
                            "--task T --episodes 100", compare_drone),
+    "compare.team3_transport_hard": Quote(TEAM_COMPARE_FILE, TEAM_COMPARE_COMMAND, compare_team_table),
+    "compare.team_readme": Quote(TEAM_COMPARE_FILE, TEAM_COMPARE_COMMAND, compare_team_readme),
     "stability.long_run": Quote("docs/img/stability.json", "python -m benchmarks.stability --out docs/img",
                                 stability_long_run),
     "stability.readme": Quote("docs/img/stability.json", "python -m benchmarks.stability --out docs/img",

@@ -77,12 +77,15 @@ def test_rllib_ppo_samples_on_both_nodes_and_checkpoints(cluster, tmp_path):
     assert sampling_nodes({"env_runners": [{"node_id": "a", "env_steps": 5}, {"node_id": "b", "env_steps": 0}]}) == {"a"}
 
 
-def test_a_team_trains_with_one_shared_policy_and_checkpoints(cluster, tmp_path):
-    """agents.team_train: RLlib PPO on the PettingZoo team, one module for every agent."""
+@pytest.mark.parametrize("residual", [False, True])
+def test_a_team_trains_with_one_shared_policy_and_checkpoints(cluster, tmp_path, residual):
+    """agents.team_train: RLlib PPO on the PettingZoo team, one module for every agent (with
+    --residual, on the team's LQR: the checkpoint says so and the compare adds the LQR)."""
     proc = run("agents.team_train", "--team", "2", "--task", "transport", "--iterations", "2", "--address",
                cluster.address, "--runs", tmp_path, "--run-name", "t", "--eval-episodes", "1",
-               "--reference-episodes", "1", "--no-progress", "--set", "num_env_runners=0",
-               "train_batch_size_per_learner=200", "minibatch_size=100", "num_epochs=1", env=cluster.env)
+               "--reference-episodes", "1", "--no-progress", *(["--residual"] if residual else []), "--set",
+               "num_env_runners=0", "train_batch_size_per_learner=200", "minibatch_size=100", "num_epochs=1",
+               env=cluster.env)
     assert proc.returncode == 0, proc.stderr[-4000:]
     run_dir = tmp_path / "t"
     assert json.loads((run_dir / "status.json").read_text())["status"] == "finished"
@@ -90,18 +93,28 @@ def test_a_team_trains_with_one_shared_policy_and_checkpoints(cluster, tmp_path)
         rows = list(csv.DictReader(fh))
     assert [int(r["iteration"]) for r in rows] == [1, 2] and int(rows[1]["env_steps"]) >= 400
     assert (run_dir / "checkpoint" / "learner_group" / "learner" / "rl_module" / "shared").is_dir()
+    assert (run_dir / "checkpoint" / "residual.json").is_file() == residual
     refs = json.loads((run_dir / "references.json").read_text())
     assert refs["baseline_return"] > 300.0 > 50.0 > refs["zero_return"]  # the team's LQR, the zero action
     evaluation = json.loads((run_dir / "evaluation.json").read_text())
     assert evaluation["episodes"] == 1 and -100.0 <= evaluation["mean_return"] <= 500.0
+    if residual:  # two iterations move the LQR by a little: the team still carries the load
+        assert evaluation["mean_return"] > 200.0
     for name in ("config.yaml", "args.json", "command.txt", "training.json", "learning_curve.png"):
         assert (run_dir / name).is_file(), name
-    # the checkpoint as agents.compare's team policy, paired with the baseline
-    proc = run("agents.compare", "--team", "2", "--task", "transport", "--episodes", "2", "--model",
-               run_dir / "checkpoint", "--json", "--no-progress")
+    # the checkpoint (with --residual: as shipped) as agents.compare's team policy, paired with the baseline;
+    # its first episode is the run's own evaluation's (seed 10000)
+    checkpoint = run_dir / "checkpoint"
+    if residual:
+        from agents.team_train import ship
+
+        checkpoint = ship(run_dir, tmp_path / "model") / "checkpoint"
+    proc = run("agents.compare", "--team", "2", "--task", "transport", "--episodes", "2", "--seed", "10000",
+               "--model", checkpoint, "--json", "--no-progress")
     assert proc.returncode == 0, proc.stderr[-4000:]
     c = json.loads(proc.stdout)
     assert c["best_baseline"] == "lqr" and len(c["policies"]["policy"]["returns"]) == 2 and c["paired_ci95"]
+    assert c["policies"]["policy"]["returns"][0] == pytest.approx(evaluation["mean_return"], abs=1e-9)
 
 
 def _wait_for(predicate, timeout: float, what: str) -> None:
@@ -175,6 +188,7 @@ def test_tune_sweep_runs_on_both_nodes_and_resumes_after_interruption(cluster, t
     ("agents.team_train", ["--team", "7"], ["--team", "1 to 6"]),
     ("agents.team_train", ["--set", "lr_rate=3"], ["--set", "'lr_rate'"]),
     ("agents.team_train", ["--time-limit", "0"], ["--time-limit"]),
+    ("agents.team_train", ["--residual", "--residual-scale", "-1"], ["--residual-scale"]),
 ])
 def test_bad_input_is_one_line_naming_the_argument_and_writes_nothing(tmp_path, module, args, names):
     port = str(free_port())  # nothing listens there

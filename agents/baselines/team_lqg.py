@@ -75,6 +75,15 @@ class TeamLQG:
         self.applied = np.zeros(3 * self.lqr.size)
         self.lqr.reset()
 
+    def record_applied(self, action: np.ndarray) -> None:
+        """The action given at the last :meth:`act` was ``action`` (a residual's sum), not the
+        design's: the filter predicts with what was applied."""
+        action = np.asarray(action, dtype=np.float64).ravel()
+        if self.lqr.latency:
+            self.lqr.queue[-1] = action
+        else:
+            self.applied = action
+
     def act(self, obs: np.ndarray, core: TeamCore) -> np.ndarray:
         y = np.asarray(obs, dtype=np.float64).ravel() - self.y0
         if self.estimate is None:  # an episode starts at rest in formation: the load where the pivots say

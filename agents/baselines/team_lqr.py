@@ -161,6 +161,11 @@ class TeamLQR:
         """Spectral radius of A - B K (< 1: the linear closed loop is stable)."""
         return float(np.max(np.abs(np.linalg.eigvals(self.A - self.B @ self.K))))
 
+    def record_applied(self, action: np.ndarray) -> None:
+        """The action given at the last :meth:`act` was ``action`` (a residual's sum), not the design's."""
+        if self.latency:
+            self.queue[-1] = np.asarray(action, dtype=np.float64).ravel()
+
     def act(self, obs: np.ndarray, core: TeamCore) -> np.ndarray:
         """The centralised action (3K,) for the centralised ``full`` observation."""
         state = np.concatenate([reduced_from_observation(obs, core)] + self.queue)

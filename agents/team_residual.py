@@ -1,0 +1,124 @@
+"""A residual team: every agent's action is the team's baseline's command for its pivot plus
+``scale`` times the network's, the sum clipped to the box (residual policy learning, as
+agents/residual.py does for one string). The baseline is the centralised one of the observation
+mode (agents/team_evaluate.py :func:`~agents.team_evaluate.team_baselines`: the LQR, or with the
+hook observation the LQG); it is told the action actually applied, so the LQG's filter predicts
+with it.
+
+Each agent sees its own observation, then its baseline command (3) and, from a stateful baseline
+(the LQG), the filter's estimate of the team's reduced state (agents/baselines/team_lqr.py
+``reduced_layout``) with the pivots' blocks rolled so that its own pivot comes first: one shared
+network reads every agent's the same way.
+"""
+from __future__ import annotations
+
+import functools
+import json
+from pathlib import Path
+from typing import Optional
+
+import gymnasium as gym
+import numpy as np
+from pettingzoo import ParallelEnv
+
+from agents.baselines.team_lqr import reduced_layout
+from agents.team_evaluate import team_baselines
+
+#: The network's share of the action box by default: its unit action moves a pivot's command by this much.
+RESIDUAL_SCALE = 0.3
+RESIDUAL_FILE = "residual.json"
+
+
+class TeamBase:
+    """The centralised baseline of a team core's observation mode, acting for every agent at once."""
+
+    def __init__(self, observation: str):
+        self.policy = next(iter(team_baselines(observation).values()))
+
+    def act(self, obs: np.ndarray, core) -> np.ndarray:
+        """The baseline's (K, 3) command for the agents' (K, n) observations; a new episode at ``core.steps == 0``."""
+        return self.policy.act(np.asarray(obs, dtype=np.float64).ravel(), core).reshape(core.size, 3)
+
+    def record_applied(self, action: np.ndarray) -> None:
+        self.policy.design.record_applied(np.asarray(action).ravel())
+
+    def features(self, core, command: np.ndarray) -> np.ndarray:
+        """(K, 3 + e): each agent's command, then the filter's estimate (e = 0 without one) with its pivot first."""
+        estimate = getattr(self.policy.design, "estimate", None)
+        if estimate is None:
+            return np.asarray(command, dtype=np.float64)
+        K, Z = core.size, reduced_layout(core.size)
+        pivots = [estimate[Z[name]].reshape(K, 3) for name in ("pivot_error", "pivot_velocity")]
+        load = estimate[Z["load_error"].start:]
+        rows = [np.concatenate([command[k], *(np.roll(p, -k, axis=0).ravel() for p in pivots), load]) for k in range(K)]
+        return np.stack(rows)
+
+    def feature_size(self, size: int, observation: str) -> int:
+        return 3 + (reduced_layout(size).size if observation != "full" else 0)
+
+
+class TeamResidualParallelEnv(ParallelEnv):
+    """``env`` (an :class:`~esp_gym.team.parallel.ElasticStringTeamParallelEnv`) stepped with the
+    baseline's command plus ``scale`` x each agent's action (module docstring); its observations
+    carry :meth:`TeamBase.features`."""
+
+    metadata = {"name": "elastic_string_team_residual_v0", "render_modes": [], "is_parallelizable": True}
+
+    def __init__(self, env, scale: float = RESIDUAL_SCALE):
+        if not (np.isfinite(scale) and scale > 0):
+            raise ValueError(f"residual_scale must be > 0, got {scale!r}")
+        self.env, self.scale = env, float(scale)
+        self.core = env.core
+        self.base = TeamBase(self.core.observation)
+        self.possible_agents = list(env.possible_agents)
+        self.agents = []
+        self.render_mode = None
+        #: the baseline's command (K, 3) for the last observations
+        self.command = None
+        self._extra = self.base.feature_size(self.core.size, self.core.observation)
+
+    @functools.lru_cache(maxsize=None)
+    def observation_space(self, agent):
+        return gym.spaces.Box(-np.inf, np.inf, (self.env.observation_space(agent).shape[0] + self._extra,), np.float32)
+
+    def action_space(self, agent):
+        return self.env.action_space(agent)
+
+    def _observe(self, obs: dict) -> dict:
+        stacked = np.stack([obs[a] for a in self.possible_agents])
+        self.command = self.base.act(stacked, self.core)
+        extra = self.base.features(self.core, self.command)
+        return {a: np.concatenate([stacked[k], extra[k]]).astype(np.float32)
+                for k, a in enumerate(self.possible_agents) if a in obs}
+
+    def reset(self, seed: Optional[int] = None, options: Optional[dict] = None):
+        obs, infos = self.env.reset(seed=seed, options=options)
+        self.agents = list(self.env.agents)
+        return self._observe(obs), infos
+
+    def step(self, actions: dict):
+        total = combine(self.command, np.stack([np.asarray(actions[a], dtype=np.float64).reshape(-1)
+                                                  for a in self.possible_agents]), self.scale)
+        self.base.record_applied(total)
+        obs, rewards, terminations, truncations, infos = self.env.step(
+            {a: total[k] for k, a in enumerate(self.possible_agents)})
+        self.agents = list(self.env.agents)
+        return self._observe(obs), rewards, terminations, truncations, infos
+
+    def state(self) -> np.ndarray:
+        return self.env.state()
+
+
+def combine(command: np.ndarray, residual: np.ndarray, scale: float) -> np.ndarray:
+    """clip(command + scale clip(residual, -1, 1), -1, 1), each (K, 3)."""
+    return np.clip(command + scale * np.clip(residual, -1.0, 1.0), -1.0, 1.0)
+
+
+def write_residual(directory: Path, scale: float) -> None:
+    (Path(directory) / RESIDUAL_FILE).write_text(json.dumps({"base": "team_baseline", "scale": scale}) + "\n")
+
+
+def read_residual(directory: Path) -> Optional[float]:
+    """The residual scale recorded in ``directory`` (a run or a shipped model), or None for a plain policy."""
+    path = Path(directory) / RESIDUAL_FILE
+    return float(json.loads(path.read_text())["scale"]) if path.is_file() else None
