@@ -40,10 +40,27 @@ def sampling_nodes(training: dict) -> set:
     return {r["node_id"] for r in training["env_runners"] if r["env_steps"] > 0}
 
 
+class FlakyCluster(LocalCluster):
+    """A local cluster whose node ``i``'s attempt ``a`` runs a command that exits at once, for
+    each ``(i, a)`` in ``fail``."""
+
+    def __init__(self, fail: set, **kwargs):
+        self.fail, self.tries = fail, {}
+        super().__init__(**kwargs)
+
+    def _command(self, index, temp):
+        attempt = self.tries[index] = self.tries.get(index, -1) + 1
+        if (index, attempt) in self.fail:
+            return [sys.executable, "-c", "import sys; print('raylet did not register'); sys.exit(1)"]
+        return super()._command(index, temp)
+
+
 @pytest.fixture(scope="module")
 def cluster():
-    """A head and a worker node; afterwards, no process of theirs is left."""
-    with LocalCluster(nodes=2, cpus=1) as c:
+    """A head and a worker node, the worker started again after a failed first attempt;
+    afterwards, no process of theirs is left."""
+    with FlakyCluster(fail={(1, 0)}, nodes=2, cpus=1) as c:
+        assert c.tries == {0: 0, 1: 1} and [log.name for log in c.logs] == ["n0.log", "n1.1.log"]
         started = [p.pid for p in c.processes()]
         yield c
     alive = [pid for pid in started if psutil.pid_exists(pid) and psutil.Process(pid).status() != psutil.STATUS_ZOMBIE]
@@ -167,6 +184,16 @@ def test_tune_sweep_runs_on_both_nodes_and_resumes_after_interruption(cluster, t
     assert len({r["node_id"] for r in rows}) == 2  # the two one-CPU trials ran at once, one on each node
     for name in ("results.md", "results.png"):
         assert (out / name).is_file()
+
+
+def test_a_node_that_fails_to_start_every_time_is_an_error_quoting_its_last_attempt():
+    # (that a failed attempt is followed by one that starts: the cluster fixture's worker)
+    flaky = FlakyCluster(fail={(0, 0), (0, 1)}, nodes=1, cpus=1, attempts=2)
+    with pytest.raises(RuntimeError, match=r"(?s)node 0 exited \(1\) 2 times.*n0\.1\.log.*raylet did not register"):
+        flaky.__enter__()
+    assert not flaky.root.exists()
+    with pytest.raises(ValueError, match="attempts=0"):
+        LocalCluster(attempts=0)
 
 
 @pytest.mark.parametrize("module, args, names", [

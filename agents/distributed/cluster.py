@@ -113,14 +113,23 @@ class LocalCluster:
 
     ``with LocalCluster(2) as c: ... c.address ...``; :meth:`stop` (also on leaving the block,
     failures included) ends every process the nodes started, found by process id.
+
+    A node whose ``ray start`` exits before its node runs is started again, up to ``attempts``
+    times in all, with new ports and a new directory: Ray gives a raylet a fixed 30 s to register
+    with the head, which a loaded machine can miss; the processes of the failed attempt are ended
+    first. The error after the last attempt quotes its log and its raylet's.
     """
 
-    def __init__(self, nodes: int = 2, cpus: int = 1, timeout: float = 60.0, token: Optional[str] = None):
-        self.nodes, self.cpus, self.timeout = nodes, cpus, timeout
+    def __init__(self, nodes: int = 2, cpus: int = 1, timeout: float = 60.0, token: Optional[str] = None,
+                 attempts: int = 3):
+        if attempts < 1:
+            raise ValueError(f"attempts={attempts!r}: a node needs at least one attempt to start")
+        self.nodes, self.cpus, self.timeout, self.attempts = nodes, cpus, timeout, attempts
         self.port = free_port()
         self.address = f"{node_ip(0)}:{self.port}"
         self.root = Path(tempfile.mkdtemp(prefix="ray", dir="/tmp"))
         self.procs: list = []
+        self.logs: list = []  # each node's current ``ray start`` log
         #: what a driver of this cluster needs in its environment (before it imports ray): the
         #: cluster's token (Ray's token authentication, whether or not the user has a token of
         #: their own); ``token`` (default: a new one) lets one driver join several clusters
@@ -137,80 +146,123 @@ class LocalCluster:
     def __exit__(self, *exc) -> None:
         self.stop()
 
-    def _start_node(self, index: int) -> None:
+    def _command(self, index: int, temp: Path) -> list:
+        """The ``ray start`` command of node ``index``, with new ports and directory ``temp``."""
         node = (["--head", "--port", str(self.port), "--include-dashboard", "false"] if index == 0
                 else ["--address", self.address])
         ports = ["--node-manager-port", free_port(), "--object-manager-port", free_port(),
                  "--metrics-export-port", free_port(), "--runtime-env-agent-port", free_port(),
                  "--dashboard-agent-listen-port", free_port(), "--dashboard-agent-grpc-port", free_port()]
-        temp = self.root / f"n{index}"
+        return [str(Path(sys.executable).with_name("ray")), "start", *node, "--node-ip-address", node_ip(index),
+                "--num-cpus", str(self.cpus), "--temp-dir", str(temp), "--disable-usage-stats", "--block",
+                *map(str, ports)]
+
+    def _start_node(self, index: int, attempt: int) -> None:
+        if index == 0 and attempt > 0:  # the failed head may still hold its port
+            self.port = free_port()
+            self.address = f"{node_ip(0)}:{self.port}"
+        temp = self.root / (f"n{index}" if attempt == 0 else f"n{index}.{attempt}")
         temp.mkdir()
-        cmd = [str(Path(sys.executable).with_name("ray")), "start", *node, "--node-ip-address", node_ip(index),
-               "--num-cpus", str(self.cpus), "--temp-dir", str(temp), "--disable-usage-stats", "--block", *map(str, ports)]
-        log = open(self.root / f"n{index}.log", "w")
+        log_path = temp.with_name(temp.name + ".log")
         env = {**os.environ, **WORKER_ENV, **self.env, "RAY_USAGE_STATS_ENABLED": "0"}
-        self.procs.append(subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env,
-                                           start_new_session=True, cwd=self.root))
-        log.close()
+        with open(log_path, "w") as log:
+            proc = subprocess.Popen(self._command(index, temp), stdout=log, stderr=subprocess.STDOUT, env=env,
+                                    start_new_session=True, cwd=self.root)
+        if index < len(self.procs):
+            self.procs[index], self.logs[index] = proc, log_path
+        else:
+            self.procs.append(proc)
+            self.logs.append(log_path)
 
     def start(self) -> None:
-        self._start_node(0)
-        self._wait(lambda: self._started(0), "the head to start")
-        for i in range(1, self.nodes):
-            self._start_node(i)
-        self._wait(lambda: all(self._started(i) for i in range(self.nodes)), f"{self.nodes} nodes to start")
+        for index in range(self.nodes):
+            for attempt in range(self.attempts):
+                self._start_node(index, attempt)
+                if self._wait(index):
+                    break
+                if attempt + 1 == self.attempts:
+                    raise RuntimeError(f"ray start of node {index} exited ({self.procs[index].returncode}) "
+                                       f"{self.attempts} times; the last time:\n{self._failure(index)}")
+                self._end_node(index)
 
     def _started(self, index: int) -> bool:
         """Whether ``ray start`` of node ``index`` says its node runs (its raylet registered)."""
-        return "Ray runtime started" in (self.root / f"n{index}.log").read_text()
+        return "Ray runtime started" in self.logs[index].read_text()
 
-    def _wait(self, ready, what: str) -> None:
+    def _wait(self, index: int) -> bool:
+        """Whether node ``index`` starts within ``timeout`` seconds (False: its ``ray start``
+        exited first); TimeoutError if it neither starts nor exits."""
         end = time.monotonic() + self.timeout
-        while not ready():
-            for i, proc in enumerate(self.procs):
-                if proc.poll() is not None:
-                    raise RuntimeError(f"ray start of node {i} exited ({proc.returncode}): "
-                                       f"{(self.root / f'n{i}.log').read_text()[-2000:]}")
+        while not self._started(index):
+            if self.procs[index].poll() is not None:
+                return False
             if time.monotonic() > end:
-                raise TimeoutError(f"waited {self.timeout:.0f} s for {what}")
+                raise TimeoutError(f"waited {self.timeout:.0f} s for node {index} to start:\n{self._failure(index)}")
             time.sleep(0.5)
+        return True
+
+    def _failure(self, index: int) -> str:
+        """The tails of node ``index``'s ``ray start`` log and of its raylet's log."""
+        text = f"{self.logs[index]}:\n{self.logs[index].read_text()[-2000:]}"
+        temp = self.logs[index].with_suffix("")
+        for raylet in sorted(temp.glob("session_*/logs/raylet.out"))[-1:]:
+            text += f"\n{raylet}:\n{raylet.read_text(errors='replace')[-2000:]}"
+        return text
+
+    def _end_node(self, index: int) -> None:
+        """End every process of node ``index``'s current attempt (see :meth:`stop`)."""
+        import psutil
+
+        temp = str(self.logs[index].with_suffix(""))
+        procs = self._tree(self.procs[index]) + [
+            p for p in psutil.process_iter(["cmdline"]) if temp in " ".join(p.info["cmdline"] or ())]
+        _end(procs, grace=10.0)
 
     def processes(self) -> list:
         """Process ids of every process the nodes run: the ``ray start`` processes, their
         descendants, and any process whose command line names this cluster's directory."""
         import psutil
 
-        found = {}
-        for proc in self.procs:
-            try:
-                top = psutil.Process(proc.pid)
-                for p in [top] + top.children(recursive=True):
-                    found[p.pid] = p
-            except psutil.NoSuchProcess:
-                pass
+        found = {p.pid: p for proc in self.procs for p in self._tree(proc)}
         for p in psutil.process_iter(["cmdline"]):
             if str(self.root) in " ".join(p.info["cmdline"] or ()):
                 found[p.pid] = p
         return [found[k] for k in sorted(found)]
 
+    @staticmethod
+    def _tree(proc) -> list:
+        """The process ``proc`` (a Popen) and its descendants, as psutil processes."""
+        import psutil
+
+        try:
+            top = psutil.Process(proc.pid)
+            return [top] + top.children(recursive=True)
+        except psutil.NoSuchProcess:
+            return []
+
     def stop(self, grace: float = 10.0) -> None:
         """SIGTERM to every process of :meth:`processes`, SIGKILL to those alive after ``grace``
         seconds; then the temporary directory goes."""
-        import psutil
-
-        procs = self.processes()
-        for p in procs:
-            _signal(p, signal.SIGTERM)
-        _, alive = psutil.wait_procs(procs, timeout=grace)
-        for p in alive + self.processes():
-            _signal(p, signal.SIGKILL)
-        psutil.wait_procs(alive, timeout=grace)
+        _end(self.processes(), grace, again=self.processes)
         for proc in self.procs:
             try:
                 proc.wait(timeout=grace)
             except subprocess.TimeoutExpired:
                 pass
         shutil.rmtree(self.root, ignore_errors=True)
+
+
+def _end(procs: list, grace: float, again=lambda: []) -> None:
+    """SIGTERM to ``procs``; SIGKILL to those alive after ``grace`` seconds and to ``again()``
+    (processes started meanwhile)."""
+    import psutil
+
+    for p in procs:
+        _signal(p, signal.SIGTERM)
+    _, alive = psutil.wait_procs(procs, timeout=grace)
+    for p in alive + again():
+        _signal(p, signal.SIGKILL)
+    psutil.wait_procs(alive, timeout=grace)
 
 
 def _signal(p, sig) -> None:
