@@ -39,8 +39,19 @@ class TeamBase:
         """The baseline's (K, 3) command for the agents' (K, n) observations; a new episode at ``core.steps == 0``."""
         return self.policy.act(np.asarray(obs, dtype=np.float64).ravel(), core).reshape(core.size, 3)
 
-    def record_applied(self, action: np.ndarray) -> None:
-        self.policy.design.record_applied(np.asarray(action).ravel())
+    def observe(self, obs: np.ndarray, core) -> tuple:
+        """``(command, inputs)`` for the agents' (K, n) observations: the baseline's (K, 3) command
+        and each agent's observation followed by its :meth:`features`, (K, n + 3 + e) in float64."""
+        agents = np.asarray(obs, dtype=np.float64).reshape(core.size, -1)
+        command = self.act(agents, core)
+        return command, np.concatenate([agents, self.features(core, command)], axis=1)
+
+    def apply(self, command: np.ndarray, residual: np.ndarray, scale: float) -> np.ndarray:
+        """The (K, 3) action :func:`combine` makes of ``command`` and ``residual``, told to the
+        baseline's filter (its model's input for the next estimate)."""
+        total = combine(command, np.asarray(residual, dtype=np.float64).reshape(command.shape), scale)
+        self.policy.design.record_applied(total.ravel())
+        return total
 
     def features(self, core, command: np.ndarray) -> np.ndarray:
         """(K, 3 + e): each agent's command, then the filter's estimate (e = 0 without one) with its pivot first."""
@@ -53,8 +64,10 @@ class TeamBase:
         rows = [np.concatenate([command[k], *(np.roll(p, -k, axis=0).ravel() for p in pivots), load]) for k in range(K)]
         return np.stack(rows)
 
-    def feature_size(self, size: int, observation: str) -> int:
-        return 3 + (reduced_layout(size).size if observation != "full" else 0)
+
+def feature_size(size: int, observation: str) -> int:
+    """The length 3 + e of :meth:`TeamBase.features` for a team of ``size`` in ``observation`` mode."""
+    return 3 + (reduced_layout(size).size if observation != "full" else 0)
 
 
 class TeamResidualParallelEnv(ParallelEnv):
@@ -75,7 +88,7 @@ class TeamResidualParallelEnv(ParallelEnv):
         self.render_mode = None
         #: the baseline's command (K, 3) for the last observations
         self.command = None
-        self._extra = self.base.feature_size(self.core.size, self.core.observation)
+        self._extra = feature_size(self.core.size, self.core.observation)
 
     @functools.lru_cache(maxsize=None)
     def observation_space(self, agent):
@@ -85,11 +98,8 @@ class TeamResidualParallelEnv(ParallelEnv):
         return self.env.action_space(agent)
 
     def _observe(self, obs: dict) -> dict:
-        stacked = np.stack([obs[a] for a in self.possible_agents])
-        self.command = self.base.act(stacked, self.core)
-        extra = self.base.features(self.core, self.command)
-        return {a: np.concatenate([stacked[k], extra[k]]).astype(np.float32)
-                for k, a in enumerate(self.possible_agents) if a in obs}
+        self.command, inputs = self.base.observe(np.stack([obs[a] for a in self.possible_agents]), self.core)
+        return {a: inputs[k].astype(np.float32) for k, a in enumerate(self.possible_agents) if a in obs}
 
     def reset(self, seed: Optional[int] = None, options: Optional[dict] = None):
         obs, infos = self.env.reset(seed=seed, options=options)
@@ -97,9 +107,8 @@ class TeamResidualParallelEnv(ParallelEnv):
         return self._observe(obs), infos
 
     def step(self, actions: dict):
-        total = combine(self.command, np.stack([np.asarray(actions[a], dtype=np.float64).reshape(-1)
-                                                  for a in self.possible_agents]), self.scale)
-        self.base.record_applied(total)
+        total = self.base.apply(self.command, np.stack([np.asarray(actions[a]).reshape(-1) for a in self.possible_agents]),
+                                self.scale)
         obs, rewards, terminations, truncations, infos = self.env.step(
             {a: total[k] for k, a in enumerate(self.possible_agents)})
         self.agents = list(self.env.agents)

@@ -44,7 +44,7 @@ from agents.distributed.train import PROGRESS_FIELDS, build, plot_curve, progres
 from agents.evaluate import summarize
 from agents.runs import new_run_dir, write_status, write_stopped
 from agents.team_evaluate import TeamZero, run_team_episodes, team_baselines
-from agents.team_residual import RESIDUAL_FILE, RESIDUAL_SCALE, TeamBase, combine, read_residual, write_residual
+from agents.team_residual import RESIDUAL_FILE, RESIDUAL_SCALE, TeamBase, read_residual, write_residual
 
 ALGO = "rllib_team_ppo"
 CONFIG_FILE = CONFIG_DIR / "rllib_team_ppo.yaml"
@@ -146,16 +146,13 @@ class TeamRLlibPolicy:
         if self.scale is not None:
             if self.base is None:
                 self.base = TeamBase(core.observation)
-            command = self.base.act(agents, core)
-            agents = np.concatenate([agents, self.base.features(core, command)], axis=1)
+            command, agents = self.base.observe(agents, core)
         with torch.no_grad():
             out = self.module.forward_inference({Columns.OBS: torch.from_numpy(agents.astype(np.float32))})
         mean = out[Columns.ACTION_DIST_INPUTS].numpy()[:, :3].astype(np.float64)  # a diagonal Gaussian's (mean, log std)
         if self.scale is None:
             return np.clip(mean, -1.0, 1.0).ravel()
-        total = combine(command, mean, self.scale)
-        self.base.record_applied(total)
-        return total.ravel()
+        return self.base.apply(command, mean, self.scale).ravel()
 
 
 #: What a shipped team model keeps of its run: the shared module, residual.json and the record.
