@@ -30,6 +30,7 @@ from agents.cli import ArgumentParser
 from agents.baselines.pd import ZeroPolicy
 from agents.baselines.registry import baseline, baselines
 from esp_gym.tasks import TASKS
+from esp_gym.team.tasks import TEAM_TASKS
 
 #: What the top view's markers and lines stand for, and their colours.
 COLOURS = {"pivot": "tab:blue", "load": "tab:red", "target": "black"}
@@ -178,29 +179,31 @@ def hard_lift_figure(out: Path, seed: int, steps: int, model: Path) -> dict:
     return results
 
 
-def team_figure(out: Path, size: int, seed: int, steps: int, preset=None) -> dict:
-    """``team_transport.png``: one ``transport`` episode of a team of ``size`` pivots (docs/team.md)
-    under the team's LQR: the top view of every pivot's and the load's path with their targets,
-    the load's distance to its target, each string's pull on its pivot, and the smallest distance
-    between two pivots with the separation and collision distances."""
+def team_figure(out: Path, size: int, seed: int, steps: int, preset=None, task: str = "transport") -> dict:
+    """``team_{task}.png``: one episode of a team of ``size`` pivots (docs/team.md) under the
+    team's LQR: the top view of every pivot's and the load's path with their targets (a moving
+    target's path dashed), the load's distance to its target, each string's pull on its pivot,
+    and the smallest distance between two pivots with the separation and collision distances."""
     from agents.team_evaluate import TeamLQRPolicy
     from esp_gym.team.env import COLLISION, SEPARATION, ElasticStringTeamEnv
     from esp_gym.viz.figures import new_figure, save_figure
 
-    env = ElasticStringTeamEnv(size, task="transport", **({"preset": preset} if preset else {}))
+    env = ElasticStringTeamEnv(size, task=task, **({"preset": preset} if preset else {}))
     core, policy = env.core, TeamLQRPolicy()
     obs, _ = env.reset(seed=seed)
     pivots, load, tension, separation, total = [core.pivot_positions()], [core.load_position()], [], [], 0.0
+    targets = [core.load_target.copy()]
     for _ in range(steps):
         obs, reward, terminated, _, info = env.step(policy.act(obs, core))
         total += reward
         pivots.append(core.pivot_positions())
         load.append(core.load_position())
+        targets.append(core.load_target.copy())
         tension.append(np.linalg.norm(info["tension"], axis=1))
         separation.append(info["min_separation"])
         if terminated:
             break
-    pivots, load = np.array(pivots), np.array(load)
+    pivots, load, targets = np.array(pivots), np.array(load), np.array(targets)
     t = core.control_period * np.arange(len(load))
     fig = new_figure((11, 5))
     grid = fig.add_gridspec(3, 2, width_ratios=(1, 1.4))
@@ -211,13 +214,15 @@ def team_figure(out: Path, size: int, seed: int, steps: int, preset=None) -> dic
         top.plot(*core.pivot_targets[k, :2], "s", mfc="none", color=line.get_color(), ms=9)
     top.plot(*load[:, :2].T, color=COLOURS["load"], lw=1.6, label="load")
     top.plot(*load[0, :2], "o", color=COLOURS["load"], ms=4)
+    if core.task.moving:
+        top.plot(*targets[:, :2].T, color=COLOURS["target"], lw=1, ls="--", label="load target's path")
     top.plot(*core.load_target[:2], "x", color=COLOURS["load"], ms=9, label="load target")
     top.set_aspect("equal", adjustable="datalim")
-    top.set(xlabel="x [m]", ylabel="y [m]", title="seen from above (dots: start, squares: targets)")
+    top.set(xlabel="x [m]", ylabel="y [m]", title="from above (dots: starts, squares: final targets)")
     top.legend(loc="best", fontsize=8)
     top.grid(True, alpha=0.3)
     distance_ax, tension_ax, separation_ax = (fig.add_subplot(grid[i, 1]) for i in range(3))
-    distance_ax.plot(t, np.linalg.norm(load - core.load_target, axis=1), color=COLOURS["load"])
+    distance_ax.plot(t, np.linalg.norm(load - targets, axis=1), color=COLOURS["load"])
     distance_ax.set(ylabel="load to target [m]", title=f"return {total:.1f} over {len(t) - 1} steps")
     for k, series in enumerate(np.array(tension).T):
         tension_ax.plot(t[1:], series, lw=1.0, label=f"pivot_{k}")
@@ -230,12 +235,12 @@ def team_figure(out: Path, size: int, seed: int, steps: int, preset=None) -> dic
     separation_ax.legend(loc="best", fontsize=8)
     for ax in (distance_ax, tension_ax, separation_ax):
         ax.grid(True, alpha=0.3)
-    fig.suptitle(f"a team of {size}, task='transport'{', ' + preset if preset else ''}, the team's LQR, seed {seed}")
+    fig.suptitle(f"a team of {size}, task='{task}'{', ' + preset if preset else ''}, the team's LQR, seed {seed}")
     fig.tight_layout()
-    path = save_figure(fig, out / "team_transport.png")
+    path = save_figure(fig, out / f"team_{task}.png")
     result = {"return": total, "final_distance_m": float(np.linalg.norm(load[-1] - core.load_target)),
               "closest_pivots_m": float(min(separation)), "figure": str(path)}
-    print(f"team of {size} transport return {total:7.1f}  final distance {result['final_distance_m']:.3f} m  "
+    print(f"team of {size} {task} return {total:7.1f}  final distance {result['final_distance_m']:.3f} m  "
           f"closest pivots {result['closest_pivots_m']:.2f} m  -> {path}")
     return result
 
@@ -253,11 +258,15 @@ def main(argv=None) -> dict:
     ap.add_argument("--model", default=str(ROOT / "models" / "lift_hard_ppo" / "model.zip"),
                     help="the policy of --hard-lift (default: the shipped one; left out if absent)")
     ap.add_argument("--team", type=int, default=None, metavar="K",
-                    help="only team_transport.png: a team of K pivots (docs/team.md) under the team's LQR")
+                    help="only team_TASK.png: a team of K pivots (docs/team.md) under the team's LQR")
+    ap.add_argument("--team-task", default="transport", metavar="TASK",
+                    help="the task of --team: transport (default), stabilize or track")
     ap.minimums = {"seed": 0, "steps": 1}
     a = ap.parse_args(argv)
     if a.team is not None and not 1 <= a.team <= 6:
         ap.error(f"argument --team: a team has 1 to 6 strings, got {a.team}")
+    if a.team_task not in TEAM_TASKS:
+        ap.error(f"argument --team-task: a team's tasks are {sorted(TEAM_TASKS)}, got {a.team_task!r}")
     ap.check_out_dir("--out", a.out)  # as compare's and robustness's: a new directory in an existing one
     out = Path(a.out)
     out.mkdir(exist_ok=True)
@@ -265,7 +274,7 @@ def main(argv=None) -> dict:
     if a.hard_lift:
         return hard_lift_figure(out, a.seed, a.steps, Path(a.model))
     if a.team is not None:
-        return team_figure(out, a.team, a.seed, a.steps)
+        return team_figure(out, a.team, a.seed, a.steps, task=a.team_task)
     if a.drone:
         from agents.baselines.geometric import geometric_controller
 

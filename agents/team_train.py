@@ -45,6 +45,7 @@ from agents.evaluate import summarize
 from agents.runs import new_run_dir, write_status, write_stopped
 from agents.team_evaluate import TeamZero, run_team_episodes, team_baselines
 from agents.team_residual import RESIDUAL_FILE, RESIDUAL_SCALE, TeamBase, read_residual, write_residual
+from esp_gym.team.tasks import TEAM_TASKS
 
 ALGO = "rllib_team_ppo"
 CONFIG_FILE = CONFIG_DIR / "rllib_team_ppo.yaml"
@@ -59,7 +60,7 @@ EVAL_SEED = 10_000
 @dataclass
 class Settings:
     team: int = field(default=3, metadata={"help": "strings K (1-6)", "type": int, "min": 1})
-    task: str = field(default="transport", metadata={"help": "task", "choices": ["stabilize", "transport"]})
+    task: str = field(default="transport", metadata={"help": "task", "choices": sorted(TEAM_TASKS)})
     preset: Optional[str] = field(default=None, metadata={"help": "the team's preset", "choices": ["hard"]})
     iterations: int = field(default=100, metadata={
         "help": "training iterations (each samples train_batch_size_per_learner steps)", "type": int, "min": 1})
@@ -223,9 +224,10 @@ def _record(s: Settings, cfg: RLlibRunConfig, run_dir: Path, argv: Optional[list
     (run_dir / "references.json").write_text(json.dumps(refs))
 
 
-def run(s: Settings, cfg: RLlibRunConfig, run_dir: Path, algo, argv: Optional[list] = None) -> Path:
+def run(s: Settings, cfg: RLlibRunConfig, run_dir: Path, algo, argv: Optional[list] = None, report=None) -> Path:
     """Train a built algorithm in ``run_dir`` for ``s.iterations`` (or ``s.time_limit``);
-    status.json says ``running``, then ``finished``, ``interrupted`` or ``failed``."""
+    status.json says ``running``, then ``finished``, ``interrupted`` or ``failed``. ``report``, if
+    given, is called with each iteration's progress.csv row (agents.team_sweep: Tune's report)."""
     from tqdm.auto import tqdm
 
     run_dir.mkdir(parents=True)
@@ -247,6 +249,8 @@ def run(s: Settings, cfg: RLlibRunConfig, run_dir: Path, algo, argv: Optional[li
                 steps, done = row["env_steps"], k
                 bar.set_postfix(steps=steps, ret=f"{row['episode_return_mean']:.1f}")
                 bar.update()
+                if report is not None:
+                    report(row)
                 if s.time_limit is not None and time.perf_counter() - start > 60.0 * s.time_limit:
                     break
         wall = time.perf_counter() - start

@@ -479,6 +479,30 @@ TEAM_COMPARE_COMMAND = ("python -m agents.compare --team 3 --task transport --pr
                         "--model models/team3_transport_hard_rllib/checkpoint --out docs/compare")
 
 
+#: The team's baselines on each task and preset compared (docs/team.md "The baseline").
+TEAM_BASELINE_FILES = tuple(f"docs/compare/compare_team3_{task}{suffix}.json"
+                            for task in ("transport", "track") for suffix in ("", "_hard"))
+
+
+def team_baselines_table(data: dict) -> str:
+    """The zero action, the baseline and, with the hook observation, the LQR on the true state, per
+    configuration of TEAM_BASELINE_FILES."""
+    rows = ["| configuration | zero action | the baseline | its success | the LQR reading the true state (reference) |",
+            "|---|---|---|---|---|"]
+    for name in TEAM_BASELINE_FILES:
+        d = data[name]
+        policies, best = d["policies"], d["best_baseline"]
+
+        def cell(p):
+            return f"{policies[p]['mean_return']:.1f} ± {policies[p]['std_return']:.1f}"
+
+        truth = policies.get("lqr_true_state")
+        reference = f"{cell('lqr_true_state')} ({truth['success_rate'] * 100:.0f} %)" if truth else "(the baseline)"
+        rows.append(f"| {d['task']}, {d['preset'] or 'nominal'} | {cell('zero')} | {best.upper()} {cell(best)} | "
+                    f"{policies[best]['success_rate'] * 100:.0f} % | {reference} |")
+    return "\n".join(rows)
+
+
 def compare_team_table(data: dict) -> str:
     from agents.compare import markdown
 
@@ -730,6 +754,8 @@ QUOTES = {
     "compare.drone": Quote(tuple(drone_compare_file(task) for task in DRONE_COMPARED),
                            "python -m agents.compare --scene quadrotor_load --actuation thrust_rates --preset hard "
                            "--task T --episodes 100", compare_drone),
+    "compare.team_baselines": Quote(TEAM_BASELINE_FILES, "python -m agents.compare --team 3 --task T [--preset hard] "
+                                    "--episodes 100 --out docs/compare", team_baselines_table),
     "compare.team3_transport_hard": Quote(TEAM_COMPARE_FILE, TEAM_COMPARE_COMMAND, compare_team_table),
     "compare.team_readme": Quote(TEAM_COMPARE_FILE, TEAM_COMPARE_COMMAND, compare_team_readme),
     "stability.long_run": Quote("docs/img/stability.json", "python -m benchmarks.stability --out docs/img",

@@ -117,6 +117,19 @@ def track_reference(rng: np.random.Generator, depth: float) -> np.ndarray:
     return t
 
 
+def reference_acceleration(target: np.ndarray, t: float) -> np.ndarray:
+    """The acceleration [m/s^2] (spatial frame) of the reference TARGET ``target`` at time ``t``
+    [s]: the second derivative of kernels/reference.py's curve, zero for a fixed target."""
+    w, m = target[TARGET["rate"]][0], target[TARGET["harmonic"]][0]
+    theta = target[TARGET["start"]][0] + w * t
+    (ax, ay), (px, py) = target[TARGET["amplitude"]], target[TARGET["phase"]]
+    x = -ax * w * w * math.sin(theta + px)
+    y = -ay * m * m * w * w * math.sin(m * theta + py)
+    alpha = target[TARGET["orientation"]][0]
+    c, s = math.cos(alpha), math.sin(alpha)
+    return np.array([c * x - s * y, s * x + c * y, 0.0])
+
+
 #: The tasks whose targets may move (``moving_target=True``): track always does.
 MOVABLE_TASKS = ("track", "lift")
 

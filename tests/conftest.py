@@ -17,7 +17,7 @@ SERIAL_TESTS = {"test_a_randomised_reset_costs_at_most_two_and_a_half_plain_ones
 
 #: Modules that run the scripts end to end in subprocesses (the command lines, the benchmarks' and
 #: the training's smoke runs): marked slow, which `make check` leaves to `make test`.
-SLOW_MODULES = {"test_cli.py", "test_agents.py", "test_agents_cli.py", "test_mujoco_chain.py"}
+SLOW_MODULES = {"test_cli.py", "test_agents.py", "test_agents_cli.py", "test_mujoco_chain.py", "test_ray_arguments.py"}
 
 
 def pytest_collection_modifyitems(items):

@@ -2,7 +2,7 @@
 and a worker node, one CPU each, with their own temporary directories. The env runners and the
 trials must run on both nodes, the runs must leave checkpoints and results, an interrupted sweep
 must resume its trials from their checkpoints, and the cluster's processes must all be gone
-afterwards (stopped by process id, failures included). Bad input is one line naming the argument.
+afterwards (stopped by process id, failures included). Bad input: tests/test_ray_arguments.py.
 """
 import csv
 import json
@@ -16,8 +16,7 @@ from pathlib import Path
 import psutil
 import pytest
 
-from agents.distributed.cluster import LocalCluster, free_port
-from agents.distributed.sweep import parse_space
+from agents.distributed.cluster import LocalCluster
 
 ROOT = Path(__file__).resolve().parent.parent
 #: An RLlib run of a few seconds: 2 runners x 4 environments, 512 steps per iteration.
@@ -186,6 +185,33 @@ def test_tune_sweep_runs_on_both_nodes_and_resumes_after_interruption(cluster, t
         assert (out / name).is_file()
 
 
+def test_a_team_sweep_runs_its_trials_on_both_nodes_as_team_runs(cluster, tmp_path):
+    """agents.team_sweep: each trial an agents.team_train run directory (sampling in the trial's
+    own process), one per node at once, gathered into results.{csv,md,png}."""
+    out = tmp_path / "team_sweep"
+    proc = run("agents.team_sweep", "--team", "2", "--task", "track", "--iterations", "1", "--space",
+               '{"seed": [0, 1], "lr": [0.0003]}', "--out", out, "--address", cluster.address, "--eval-episodes", "1",
+               "--reference-episodes", "1", "--set", "train_batch_size_per_learner=200", "minibatch_size=100",
+               "num_epochs=1", env=cluster.env)
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    with open(out / "results.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert sorted(int(r["seed"]) for r in rows) == [0, 1]
+    for row in rows:
+        run_dir = Path(row["run_dir"])
+        assert json.loads((run_dir / "status.json").read_text())["status"] == "finished"
+        assert (run_dir / "checkpoint" / "learner_group" / "learner" / "rl_module" / "shared").is_dir()
+        with open(run_dir / "progress.csv") as fh:
+            assert [int(r["iteration"]) for r in csv.DictReader(fh)] == [1]
+        evaluation = json.loads((run_dir / "evaluation.json").read_text())
+        assert evaluation["episodes"] == 1 and float(row["mean_return"]) == evaluation["mean_return"]
+        command = (run_dir / "command.txt").read_text()
+        assert "agents.team_train" in command and "num_env_runners=0" in command and "lr=0.0003" in command
+    assert len({r["node_id"] for r in rows}) == 2  # the two one-CPU trials ran at once, one on each node
+    for name in ("results.md", "results.png", "sweep.json"):
+        assert (out / name).is_file()
+
+
 def test_a_node_that_fails_to_start_every_time_is_an_error_quoting_its_last_attempt():
     # (that a failed attempt is followed by one that starts: the cluster fixture's worker)
     flaky = FlakyCluster(fail={(0, 0), (0, 1)}, nodes=1, cpus=1, attempts=2)
@@ -194,56 +220,3 @@ def test_a_node_that_fails_to_start_every_time_is_an_error_quoting_its_last_atte
     assert not flaky.root.exists()
     with pytest.raises(ValueError, match="attempts=0"):
         LocalCluster(attempts=0)
-
-
-@pytest.mark.parametrize("module, args, names", [
-    ("agents.distributed.train", ["--address", "127.0.0.1:{port}"], ["--address", "127.0.0.1:{port}"]),
-    ("agents.distributed.train", ["--address", "nohostport"], ["--address", "HOST:PORT"]),
-    ("agents.distributed.train", ["--task", "balance"], ["--task", "balance"]),
-    ("agents.distributed.train", ["--set", "env_kwargs.wnd=3"], ["--set", "'env_kwargs.wnd'", "wind"]),
-    ("agents.distributed.train", ["--set", "lr_rate=3"], ["--set", "'lr_rate'", "lr"]),
-    ("agents.distributed.train", ["--set", "env_kwargs.observation=eyes"], ["--set", "observation"]),
-    ("agents.distributed.sweep", ["--space", '{"learning_rat": [1e-4]}'], ["--space", "'learning_rat'", "learning_rate"]),
-    ("agents.distributed.sweep", ["--space", '{"env_kwargs.randomize": [{"EA": [2, 1]}]}'], ["--space", "env_kwargs.randomize"]),
-    ("agents.distributed.sweep", ["--space", '{"seed": [-1]}'], ["--space", "seed"]),
-    ("agents.distributed.sweep", ["--space", '{"n_steps": 64}'], ["--space", "n_steps", "list"]),
-    ("agents.distributed.sweep", ["--space", '{"seed": [0]}', "--address", "127.0.0.1:{port}"], ["--address"]),
-    # what every trial would fail on is found before the cluster starts
-    ("agents.distributed.sweep", ["--set", "residual=lqg", "--space", '{"seed": [0, 1]}'], ["--set", "'lqg'", "hook"]),
-    ("agents.distributed.sweep", ["--space", '{"residual": ["lqg"]}'], ["--space", "'residual' = 'lqg'", "hook"]),
-    ("agents.distributed.sweep", ["--space", '{"n_envs": [100000000]}'], ["--space", "num_envs = 100000000", "GiB"]),
-    ("agents.team_train", ["--team", "7"], ["--team", "1 to 6"]),
-    ("agents.team_train", ["--set", "lr_rate=3"], ["--set", "'lr_rate'"]),
-    ("agents.team_train", ["--time-limit", "0"], ["--time-limit"]),
-    ("agents.team_train", ["--residual", "--residual-scale", "-1"], ["--residual-scale"]),
-])
-def test_bad_input_is_one_line_naming_the_argument_and_writes_nothing(tmp_path, module, args, names):
-    port = str(free_port())  # nothing listens there
-    fill = [a.replace("{port}", port) for a in args]
-    out = ["--runs", tmp_path / "runs"] if module in ("agents.distributed.train", "agents.team_train") else ["--out", tmp_path / "sweep"]
-    proc = run(module, *fill, *out, timeout=120)
-    assert proc.returncode == 2, proc.stderr[-3000:]
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1, proc.stderr[-3000:]
-    for name in names:
-        assert name.replace("{port}", port) in lines[0], lines[0]
-    assert list(tmp_path.iterdir()) == []
-
-
-def test_a_space_key_may_complete_what_the_base_settings_lack():
-    """The base --set alone is no trial: a residual that needs the hook observation is fine where
-    every trial of the space sets it (each value is checked with the others' first values)."""
-    from agents.distributed.sweep import Settings, check_space
-
-    s = Settings(set=["residual=lqg"], task="stabilize")
-    check_space({"env_kwargs.preset": ["hard"], "seed": [0, 1]}, s)
-    with pytest.raises(ValueError, match="'env_kwargs.observation' = 'full'.*hook"):
-        check_space({"env_kwargs.observation": ["hook", "full"]}, s)
-
-
-def test_a_sweep_space_is_a_mapping_of_lists():
-    assert parse_space('{"learning_rate": [1e-4, 3e-4], "seed": [0]}') == {"learning_rate": [1e-4, 3e-4], "seed": [0]}
-    assert parse_space("{env_kwargs.randomize: [false, true]}") == {"env_kwargs.randomize": [False, True]}
-    for bad in ("[1, 2]", "{}", '{"seed": []}', "{a: [1}"):
-        with pytest.raises(ValueError):
-            parse_space(bad)

@@ -18,10 +18,10 @@ from esp_gym.team import parallel_env, symmetric_team
 from esp_gym.team.env import COLLISION, SEPARATION, ElasticStringTeamEnv
 
 
-@pytest.mark.parametrize("team", [1, 3])
-def test_the_parallel_env_passes_pettingzoos_api_and_seed_tests(team):
-    parallel_api_test(parallel_env(team=team), num_cycles=60)
-    parallel_seed_test(lambda: parallel_env(team=team))
+@pytest.mark.parametrize("team, task", [(1, "transport"), (3, "transport"), (3, "track")])
+def test_the_parallel_env_passes_pettingzoos_api_and_seed_tests(team, task):
+    parallel_api_test(parallel_env(team=team, task=task), num_cycles=60)
+    parallel_seed_test(lambda: parallel_env(team=team, task=task))
 
 
 @pytest.mark.filterwarnings("ignore:.*Box observation space.*infinity")
@@ -191,6 +191,65 @@ def test_the_wind_pushes_the_load_and_its_noise_is_the_documented_one():
         noise.append(a - b)
     std = np.std(np.array(noise)[:, noisy.core.layout["pivot_velocity"]])
     assert 0.035 < std < 0.065  # 0.05 m/s
+
+
+def test_the_track_targets_follow_the_reference_in_formation():
+    from esp_gym.kernels.env_arrays import TARGET
+    from esp_gym.kernels.reference import reference_at
+
+    env = ElasticStringTeamEnv(3, task="track")
+    core = env.core
+    _, info = env.reset(seed=3)
+    reference = core.reference.copy()
+    assert np.allclose(info["load_target"], core.load_position(), rtol=0, atol=1e-12)  # it starts at the load
+    formation = core.pivot_targets - core.load_target
+    for n in range(1, 26):
+        env.step(np.zeros(9))
+        reference_at(reference, n * core.control_period)
+        assert np.array_equal(core.load_target, reference[TARGET["load"]])
+        assert np.array_equal(core.target_velocity, reference[TARGET["velocity"]])
+        assert np.allclose(core.pivot_targets - core.load_target, formation, rtol=0, atol=1e-12)
+    assert np.linalg.norm(core.load_target - info["load_target"]) > 0.05  # >= 0.19 m/s for 0.5 s
+    # the velocity term is relative to the reference: full at its velocity, less at rest
+    kin = core.kinematics()
+    along = core.reward_terms({**kin, "load_velocity": core.target_velocity.copy()}, np.zeros((3, 3)))
+    still = core.reward_terms({**kin, "load_velocity": np.zeros(3)}, np.zeros((3, 3)))
+    assert along["load_velocity"] == core.task.w_load_velocity > still["load_velocity"] + 0.01
+
+
+def test_the_references_acceleration_is_the_derivative_of_its_velocity():
+    from esp_gym.kernels.env_arrays import TARGET
+    from esp_gym.kernels.reference import reference_at
+    from esp_gym.tasks import reference_acceleration, track_reference
+
+    shapes, dt = set(), 1e-4
+    for seed in range(8):
+        target = track_reference(np.random.default_rng(seed), 0.0)
+        shapes.add(float(target[TARGET["harmonic"]][0]))
+        for t in (0.0, 0.37, 3.1):
+            velocity = []
+            for s in (t - dt, t + dt):
+                reference_at(target, s)
+                velocity.append(target[TARGET["velocity"]].copy())
+            difference = (velocity[1] - velocity[0]) / (2 * dt)
+            exact = reference_acceleration(target, t)
+            assert np.abs(exact - difference).max() < 1e-6 * (1 + np.abs(exact).max()), (seed, t)
+            assert np.abs(exact - difference).max() < 1e-2 * np.abs(exact).max()  # and it is not ~0 = ~0
+    assert shapes == {1.0, 2.0}  # circles and figure-eights
+    fixed = np.zeros(TARGET.size)
+    assert np.array_equal(reference_acceleration(fixed, 1.0), np.zeros(3))
+
+
+def test_the_teams_lqr_tracks_relative_to_the_moving_reference(monkeypatch):
+    from agents.team_evaluate import TeamLQRPolicy
+    import agents.baselines.team_lqr as team_lqr
+
+    rows = run_team_episodes(TeamLQRPolicy(), 3, "track", 2, seed=100)
+    assert min(r.ret for r in rows) > 440.0  # measured: 476, 478 (at most 500)
+    # negative control: velocities taken as they are (the target at rest) lag the reference
+    monkeypatch.setattr(team_lqr, "relative_to_reference", lambda obs, core, layout: np.asarray(obs, float).ravel())
+    rows = run_team_episodes(TeamLQRPolicy(), 3, "track", 2, seed=100)
+    assert max(r.ret for r in rows) < 400.0  # measured: 277, 306
 
 
 def test_the_teams_lqr_takes_the_latency_into_account():

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from agents.baselines.team_lqr import TeamLQR, lift, probe, reduced_layout
+from agents.baselines.team_lqr import TeamLQR, lift, probe, reduced_layout, reference_feedforward, relative_to_reference
 from esp_gym.team.env import TEAM_UNIT_NOISE, TeamCore
 
 #: The process noise's spread of each action [action units] and its floor on every state.
@@ -73,19 +73,25 @@ class TeamLQG:
         """A new episode: no estimate yet, the action queue empty."""
         self.estimate = None
         self.applied = np.zeros(3 * self.lqr.size)
+        self.feedforward = np.zeros(3 * self.lqr.size)
         self.lqr.reset()
 
     def record_applied(self, action: np.ndarray) -> None:
         """The action given at the last :meth:`act` was ``action`` (a residual's sum), not the
         design's: the filter predicts with what was applied."""
-        action = np.asarray(action, dtype=np.float64).ravel()
+        action = np.asarray(action, dtype=np.float64).ravel() - self.feedforward
         if self.lqr.latency:
             self.lqr.queue[-1] = action
         else:
             self.applied = action
 
     def act(self, obs: np.ndarray, core: TeamCore) -> np.ndarray:
-        y = np.asarray(obs, dtype=np.float64).ravel() - self.y0
+        """The centralised action (3K,) for the centralised observation: the LQR's on the estimate,
+        plus a moving reference's feedforward; the filter works relative to the reference (as
+        :meth:`TeamLQR.act`) and predicts with the actions less their feedforward."""
+        obs = relative_to_reference(obs, core, core.layout)
+        self.feedforward = reference_feedforward(core, self.lqr.latency)
+        y = obs - self.y0
         if self.estimate is None:  # an episode starts at rest in formation: the load where the pivots say
             prior = np.zeros(self.C.shape[1])
             Z = reduced_layout(self.lqr.size)
@@ -97,9 +103,9 @@ class TeamLQG:
             predicted = self.A @ self.estimate + self.B @ self.applied
             self.estimate = predicted + self.gain @ (y - self.C @ predicted)
         queue = list(self.lqr.queue)
-        action = np.clip(-(self.lqr.K @ np.concatenate([self.estimate] + queue)), -1.0, 1.0)
-        # the action the next step applies: the queue's oldest (or this one without a latency)
-        self.applied = queue[0] if queue else action
+        action = np.clip(-(self.lqr.K @ np.concatenate([self.estimate] + queue)) + self.feedforward, -1.0, 1.0)
+        # the model's input over the next step: the queue's oldest (or this one without a latency)
+        self.applied = queue[0] if queue else action - self.feedforward
         if self.lqr.latency:
-            self.lqr.queue = queue[1:] + [action]
+            self.lqr.queue = queue[1:] + [action - self.feedforward]
         return action

@@ -21,6 +21,7 @@ import scipy.linalg
 from scipy.spatial.transform import Rotation
 
 from esp_gym.kernels.layout import Layout
+from esp_gym.tasks import reference_acceleration
 from esp_gym.team.env import TeamCore, agent_layout
 
 #: Weight on what the reward does not see (pivot velocities, the load's yaw) [per unit^2].
@@ -47,6 +48,30 @@ def reduced_from_observation(obs: np.ndarray, core: TeamCore) -> np.ndarray:
     z[Z["attitude"]] = Rotation.from_matrix(R).as_rotvec()
     z[Z["rates"]] = R @ o[0, L["load_rates"]]
     return z
+
+
+def relative_to_reference(obs: np.ndarray, core: TeamCore, layout: Layout) -> np.ndarray:
+    """The centralised observation ``obs`` (agents' ``layout`` one after the other) with the
+    targets' velocity taken from every velocity it holds: the state relative to a moving
+    reference (``track``), where the linearisation about the formation at rest holds."""
+    o = np.array(obs, dtype=np.float64).reshape(core.size, layout.size)
+    for name in ("pivot_velocity", "load_velocity"):
+        if name in layout.structure():
+            o[:, layout[name]] -= core.target_velocity
+    return o.ravel()
+
+
+def reference_feedforward(core: TeamCore, delay: int = 0) -> np.ndarray:
+    """The action (3K,) that accelerates the whole team with a moving reference over the control
+    step that an action given now acts on (``delay`` steps later): each pivot's share of the rig's
+    mass times the reference's acceleration at the step's middle, over its force at action 1
+    (force_limit x its share of the weight), so a_ref / (force_limit g) whatever the masses.
+    Zero for a fixed target."""
+    if core.reference is None:
+        return np.zeros(3 * core.size)
+    t = (core.steps + delay + 0.5) * core.control_period
+    accel = reference_acceleration(core.reference, t) / (core.force_limit * core.scene.scene.gravity)
+    return np.tile(accel, core.size)
 
 
 def probe(core: TeamCore, observation: str = "full") -> TeamCore:
@@ -156,6 +181,7 @@ class TeamLQR:
     def reset(self) -> None:
         """Empty the queue of actions given and not yet applied (an episode's start)."""
         self.queue = [np.zeros(3 * self.size) for _ in range(self.latency)]
+        self.feedforward = np.zeros(3 * self.size)
 
     def closed_loop_radius(self) -> float:
         """Spectral radius of A - B K (< 1: the linear closed loop is stable)."""
@@ -164,12 +190,17 @@ class TeamLQR:
     def record_applied(self, action: np.ndarray) -> None:
         """The action given at the last :meth:`act` was ``action`` (a residual's sum), not the design's."""
         if self.latency:
-            self.queue[-1] = np.asarray(action, dtype=np.float64).ravel()
+            self.queue[-1] = np.asarray(action, dtype=np.float64).ravel() - self.feedforward
 
     def act(self, obs: np.ndarray, core: TeamCore) -> np.ndarray:
-        """The centralised action (3K,) for the centralised ``full`` observation."""
+        """The centralised action (3K,) for the centralised ``full`` observation: -K [z; queue]
+        plus the moving reference's :func:`reference_feedforward`, z relative to the reference
+        (:func:`relative_to_reference`). The queue holds the actions less their feedforward (the
+        model's input: the error dynamics)."""
+        obs = relative_to_reference(obs, core, agent_layout(core.size))
+        self.feedforward = reference_feedforward(core, self.latency)
         state = np.concatenate([reduced_from_observation(obs, core)] + self.queue)
-        action = np.clip(-(self.K @ state), -1.0, 1.0)
+        action = np.clip(-(self.K @ state) + self.feedforward, -1.0, 1.0)
         if self.latency:
-            self.queue = self.queue[1:] + [action]
+            self.queue = self.queue[1:] + [action - self.feedforward]
         return action

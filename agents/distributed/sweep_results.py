@@ -1,8 +1,9 @@
-"""A sweep's results in one table and one plot (agents/distributed/sweep.py): ``results.csv`` (one row per
-trial: its grid point, agents/evaluate.py's metrics of its final model, steps, wall time, node,
-run directory), ``results.md`` (the configurations, seeds pooled: mean ± standard deviation over
-seeds of each trial's mean return, best first; then every trial) and ``results.png`` (each
-trial's evaluations during training, coloured by configuration, and the final returns)."""
+"""A sweep's results in one table and one plot (agents/distributed/sweep.py, agents/team_sweep.py):
+``results.csv`` (one row per trial: its grid point, agents/evaluate.py's metrics of its final
+model, steps, wall time, node, run directory), ``results.md`` (the configurations, seeds pooled:
+mean ± standard deviation over seeds of each trial's mean return, best first; then every trial)
+and ``results.png`` (each trial's returns during training, coloured by configuration, and the
+final returns)."""
 from __future__ import annotations
 
 import csv
@@ -60,6 +61,22 @@ def markdown(rows: list, space: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def run_curve(run_dir: Path):
+    """``(steps, returns, label)`` of a trial's run directory: agents.train's evaluations during
+    training (evaluations.npz), or an RLlib run's training episodes per iteration (progress.csv,
+    agents.team_train); None if it has neither."""
+    ev, progress = run_dir / "evaluations.npz", run_dir / "progress.csv"
+    if ev.is_file():
+        with np.load(ev) as d:
+            return d["timesteps"], d["results"].mean(axis=1), "evaluation return (mean)"
+    if progress.is_file():
+        with open(progress, newline="") as fh:
+            rows = list(csv.DictReader(fh))
+        return ([int(r["env_steps"]) for r in rows], [float(r["episode_return_mean"]) for r in rows],
+                "training episodes' return (mean)")
+    return None
+
+
 def plot(rows: list, space: dict, title: str, path: Path) -> Path:
     import matplotlib
 
@@ -69,13 +86,23 @@ def plot(rows: list, space: dict, title: str, path: Path) -> Path:
     names = sorted({configuration(r, space) for r in rows})
     colours = {n: plt.cm.tab10(i % 10) for i, n in enumerate(names)}
     fig, (curves, finals) = plt.subplots(1, 2, figsize=(12, 4.5), layout="constrained")
+    label = "evaluation return (mean)"
     for row in rows:
-        ev = Path(row["run_dir"] or "") / "evaluations.npz"
-        if row["run_dir"] and ev.is_file():
-            with np.load(ev) as d:
-                curves.plot(d["timesteps"], d["results"].mean(axis=1), "o-", ms=2, lw=1,
-                            color=colours[configuration(row, space)])
-    curves.set(xlabel="environment steps", ylabel="evaluation return (mean)", title="evaluations during training")
+        curve = run_curve(Path(row["run_dir"])) if row["run_dir"] else None
+        if curve is not None:
+            steps, returns, label = curve
+            curves.plot(steps, returns, "o-", ms=2, lw=1, color=colours[configuration(row, space)])
+    refs = next((Path(r["run_dir"]) / "references.json" for r in rows
+                 if r["run_dir"] and (Path(r["run_dir"]) / "references.json").is_file()), None)
+    if refs is not None:  # the trials share their task: one trial's baseline and zero-action returns
+        references = json.loads(refs.read_text())
+        for key, style in (("baseline_return", "--"), ("zero_return", ":")):
+            if key in references:
+                for ax in (curves, finals):
+                    ax.axhline(references[key], color="0.4", ls=style, lw=1,
+                               label=f"{key.removesuffix('_return').replace('_', ' ')} ({references[key]:.1f})")
+        curves.legend(loc="best", fontsize=8)
+    curves.set(xlabel="environment steps", ylabel=label, title="during training")
     for i, name in enumerate(names):
         ret = [r["mean_return"] for r in rows if configuration(r, space) == name and r["mean_return"] is not None]
         finals.scatter([i] * len(ret), ret, color=colours[name], zorder=3)
@@ -102,5 +129,6 @@ def gather(results, spec) -> list:
                          for r in rows)
     (out / "results.md").write_text(markdown(rows, space))
     s = spec.settings
-    plot(rows, space, f"sweep: {s['algo'].upper()} on {s['task']} ({len(rows)} trials)", out / "results.png")
+    what = f"a team of {s['team']}, RLlib PPO" if "team" in s else s["algo"].upper()
+    plot(rows, space, f"sweep: {what} on {s['task']} ({len(rows)} trials)", out / "results.png")
     return rows

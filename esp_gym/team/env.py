@@ -16,9 +16,12 @@ from typing import Optional
 import gymnasium as gym
 import numpy as np
 
+from ..kernels.env_arrays import TARGET
 from ..kernels.layout import Layout
+from ..kernels.reference import reference_at
 from ..model import SimulationError
 from ..stepsize import explicit_substeps
+from ..tasks import track_reference
 from ..wind import drag_areas, wind_options
 from .scene import MAX_STRINGS, TeamScene, draw_team, team_scene
 from .simulator import TeamSimulator
@@ -114,6 +117,10 @@ class TeamCore:
         self.last_action = np.zeros((self.size, 3))
         self.load_target = self.load_position()
         self.pivot_targets = self.pivot_positions()
+        #: the load target's velocity [m/s] and, for a moving task, its reference (a TARGET
+        #: vector of esp_gym/kernels/env_arrays.py; None for a fixed target)
+        self.target_velocity = np.zeros(3)
+        self.reference = None
         self.load_force = np.zeros(3)
 
     def _use_scene(self, scene: TeamScene) -> None:
@@ -185,8 +192,14 @@ class TeamCore:
         R = self._start.lead.R
         rho_c = np.asarray(self.scene.scene.body.rho_c, dtype=float)
         self.sim.set_state(self.sim.initial_state(velocity=velocity - R @ np.cross(rates, rho_c), rates=rates))
-        self.load_target = load + rng.uniform(-1.0, 1.0, 3) * np.asarray(task.target_box)
-        self.pivot_targets = self.load_target + self._formation
+        if task.moving:
+            self.reference = track_reference(rng, 0.0)
+            self.reference[TARGET["centre"]] += load - self.reference[TARGET["load"]]
+            self._follow_reference(0.0)
+        else:
+            self.reference = None
+            self.load_target = load + rng.uniform(-1.0, 1.0, 3) * np.asarray(task.target_box)
+            self.pivot_targets = self.load_target + self._formation
         self.steps = 0
         self.last_action = np.zeros((self.size, 3))
         self._queue = deque([np.zeros((self.size, 3))] * self.action_latency)
@@ -200,6 +213,13 @@ class TeamCore:
         kin = self.kinematics()
         info.update(load_target=self.load_target.copy(), pivot_targets=self.pivot_targets.copy())
         return self.observations(kin), info
+
+    def _follow_reference(self, t: float) -> None:
+        """Put the targets at the reference's time ``t`` [s] (a moving task)."""
+        reference_at(self.reference, t)
+        self.load_target = self.reference[TARGET["load"]].copy()
+        self.pivot_targets = self.load_target + self._formation
+        self.target_velocity = self.reference[TARGET["velocity"]].copy()
 
     def observations(self, kin: dict, noisy: bool = True) -> np.ndarray:
         """Every agent's observation (K, n), float32 (:func:`agent_layout`), with the sensor noise
@@ -259,7 +279,8 @@ class TeamCore:
         return dict(
             load_position=task.w_load_position * closeness(np.linalg.norm(kin["load"] - self.load_target),
                                                            task.scale_position),
-            load_velocity=task.w_load_velocity * closeness(np.linalg.norm(kin["load_velocity"]), task.scale_velocity),
+            load_velocity=task.w_load_velocity * closeness(np.linalg.norm(kin["load_velocity"] - self.target_velocity),
+                                                           task.scale_velocity),
             tilt=task.w_tilt * closeness(tilt, task.scale_tilt),
             spin=task.w_spin * closeness(np.linalg.norm(kin["Omega"]), task.scale_spin),
             pivot_position=pivot_terms, control=control_terms, separation=separation_terms)
@@ -318,6 +339,8 @@ class TeamCore:
             reason = f"simulation_failed: {error}"
         self.steps += 1
         self.last_action = a
+        if self.reference is not None:
+            self._follow_reference(self.steps * self.control_period)
         kin = self.kinematics()
         terms = self.reward_terms(kin, a)
         reward = float(sum(np.sum(v) for v in terms.values()))

@@ -31,6 +31,10 @@ class TeamTask:
     target_box: tuple = (0.0, 0.0, 0.0)  #: the load's target, uniform in +-box about its start [m]
     max_stretch: float = 1.5  #: the episode ends when a string is longer than this times its l
     workspace_radius: float = 4.0  #: the episode ends when the load or a pivot is this far from its target [m]
+    #: the load's target moves along a reference of the single string's track family
+    #: (esp_gym/tasks.py ``track_reference``), starting where the load starts; the velocity term is
+    #: then relative to the reference's velocity
+    moving: bool = False
 
     @property
     def max_reward(self) -> float:
@@ -43,6 +47,9 @@ TEAM_TASKS = {
                           w_tilt=0.15, w_spin=0.1),
     # carry a load hanging at rest to a random target, the pivots in formation around it
     "transport": TeamTask("transport", target_box=(1.0, 1.0, 0.5)),
+    # carry a load hanging at rest along a circle or a figure-eight, the pivots in formation around it
+    "track": TeamTask("track", moving=True, w_load_position=0.5, w_load_velocity=0.15, w_pivot_position=0.15,
+                      w_tilt=0.15, w_spin=0.05),
 }
 
 

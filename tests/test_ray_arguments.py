@@ -1,0 +1,80 @@
+"""The Ray scripts' arguments (agents.distributed.train and .sweep, agents.team_train and
+agents.team_sweep): bad input is one line naming the argument, with exit status 2, before anything
+is written or a cluster is joined; and the sweeps' spaces. No cluster: these run with the others
+(tests/test_ray.py starts one)."""
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from agents.distributed.cluster import free_port
+from agents.distributed.sweep import parse_space
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def run(module, *args, timeout=120) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", module, *map(str, args)], capture_output=True, text=True, cwd=ROOT,
+                          timeout=timeout, env={**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"})
+
+
+@pytest.mark.parametrize("module, args, names", [
+    ("agents.distributed.train", ["--address", "127.0.0.1:{port}"], ["--address", "127.0.0.1:{port}"]),
+    ("agents.distributed.train", ["--address", "nohostport"], ["--address", "HOST:PORT"]),
+    ("agents.distributed.train", ["--task", "balance"], ["--task", "balance"]),
+    ("agents.distributed.train", ["--set", "env_kwargs.wnd=3"], ["--set", "'env_kwargs.wnd'", "wind"]),
+    ("agents.distributed.train", ["--set", "lr_rate=3"], ["--set", "'lr_rate'", "lr"]),
+    ("agents.distributed.train", ["--set", "env_kwargs.observation=eyes"], ["--set", "observation"]),
+    ("agents.distributed.sweep", ["--space", '{"learning_rat": [1e-4]}'], ["--space", "'learning_rat'", "learning_rate"]),
+    ("agents.distributed.sweep", ["--space", '{"env_kwargs.randomize": [{"EA": [2, 1]}]}'], ["--space", "env_kwargs.randomize"]),
+    ("agents.distributed.sweep", ["--space", '{"seed": [-1]}'], ["--space", "seed"]),
+    ("agents.distributed.sweep", ["--space", '{"n_steps": 64}'], ["--space", "n_steps", "list"]),
+    ("agents.distributed.sweep", ["--space", '{"seed": [0]}', "--address", "127.0.0.1:{port}"], ["--address"]),
+    # what every trial would fail on is found before the cluster starts
+    ("agents.distributed.sweep", ["--set", "residual=lqg", "--space", '{"seed": [0, 1]}'], ["--set", "'lqg'", "hook"]),
+    ("agents.distributed.sweep", ["--space", '{"residual": ["lqg"]}'], ["--space", "'residual' = 'lqg'", "hook"]),
+    ("agents.distributed.sweep", ["--space", '{"n_envs": [100000000]}'], ["--space", "num_envs = 100000000", "GiB"]),
+    ("agents.team_train", ["--team", "7"], ["--team", "1 to 6"]),
+    ("agents.team_train", ["--set", "lr_rate=3"], ["--set", "'lr_rate'"]),
+    ("agents.team_train", ["--time-limit", "0"], ["--time-limit"]),
+    ("agents.team_train", ["--residual", "--residual-scale", "-1"], ["--residual-scale"]),
+    ("agents.team_train", ["--task", "lift"], ["--task", "lift"]),
+    ("agents.team_sweep", ["--space", '{"lr": ["fast"]}'], ["--space", "lr"]),
+    ("agents.team_sweep", ["--space", '{"lr_rate": [0.1]}'], ["--space", "'lr_rate'"]),
+    ("agents.team_sweep", ["--space", '{"seed": [0]}', "--set", "minibatch_size=100000"], ["--set", "minibatch_size"]),
+    ("agents.team_sweep", ["--space", '{"minibatch_size": [1000, 100000]}'], ["--space", "'minibatch_size' = 100000"]),
+    ("agents.team_sweep", ["--team", "7", "--space", '{"seed": [0]}'], ["--team", "1 to 6"]),
+    ("agents.team_sweep", ["--space", '{"seed": [0]}', "--address", "127.0.0.1:{port}"], ["--address"]),
+])
+def test_bad_input_is_one_line_naming_the_argument_and_writes_nothing(tmp_path, module, args, names):
+    port = str(free_port())  # nothing listens there
+    fill = [a.replace("{port}", port) for a in args]
+    out = ["--runs", tmp_path / "runs"] if module in ("agents.distributed.train", "agents.team_train") else ["--out", tmp_path / "sweep"]
+    proc = run(module, *fill, *out, timeout=120)
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr[-3000:]
+    for name in names:
+        assert name.replace("{port}", port) in lines[0], lines[0]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_space_key_may_complete_what_the_base_settings_lack():
+    """The base --set alone is no trial: a residual that needs the hook observation is fine where
+    every trial of the space sets it (each value is checked with the others' first values)."""
+    from agents.distributed.sweep import Settings, check_space
+
+    s = Settings(set=["residual=lqg"], task="stabilize")
+    check_space({"env_kwargs.preset": ["hard"], "seed": [0, 1]}, s)
+    with pytest.raises(ValueError, match="'env_kwargs.observation' = 'full'.*hook"):
+        check_space({"env_kwargs.observation": ["hook", "full"]}, s)
+
+
+def test_a_sweep_space_is_a_mapping_of_lists():
+    assert parse_space('{"learning_rate": [1e-4, 3e-4], "seed": [0]}') == {"learning_rate": [1e-4, 3e-4], "seed": [0]}
+    assert parse_space("{env_kwargs.randomize: [false, true]}") == {"env_kwargs.randomize": [False, True]}
+    for bad in ("[1, 2]", "{}", '{"seed": []}', "{a: [1}"):
+        with pytest.raises(ValueError):
+            parse_space(bad)
