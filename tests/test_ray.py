@@ -43,14 +43,17 @@ class FlakyCluster(LocalCluster):
     """A local cluster whose node ``i``'s attempt ``a`` runs a command that exits at once, for
     each ``(i, a)`` in ``fail``."""
 
-    def __init__(self, fail: set, **kwargs):
-        self.fail, self.tries = fail, {}
+    EXITS = "import sys; print('raylet did not register'); sys.exit(1)"
+    HANGS = "import time; print('raylet hangs', flush=True); time.sleep(600)"
+
+    def __init__(self, fail: set, failure: str = EXITS, **kwargs):
+        self.fail, self.failure, self.tries = fail, failure, {}
         super().__init__(**kwargs)
 
     def _command(self, index, temp):
         attempt = self.tries[index] = self.tries.get(index, -1) + 1
         if (index, attempt) in self.fail:
-            return [sys.executable, "-c", "import sys; print('raylet did not register'); sys.exit(1)"]
+            return [sys.executable, "-c", self.failure]
         return super()._command(index, temp)
 
 
@@ -215,8 +218,13 @@ def test_a_team_sweep_runs_its_trials_on_both_nodes_as_team_runs(cluster, tmp_pa
 def test_a_node_that_fails_to_start_every_time_is_an_error_quoting_its_last_attempt():
     # (that a failed attempt is followed by one that starts: the cluster fixture's worker)
     flaky = FlakyCluster(fail={(0, 0), (0, 1)}, nodes=1, cpus=1, attempts=2)
-    with pytest.raises(RuntimeError, match=r"(?s)node 0 exited \(1\) 2 times.*n0\.1\.log.*raylet did not register"):
+    with pytest.raises(RuntimeError, match=r"(?s)node 0 exited \(1\) 2 times in all.*n0\.1\.log.*raylet did not register"):
         flaky.__enter__()
     assert not flaky.root.exists()
+    # one that hangs is ended after the timeout and started again; every time, an error too
+    hanging = FlakyCluster(fail={(0, 0), (0, 1)}, failure=FlakyCluster.HANGS, nodes=1, cpus=1, attempts=2, timeout=2)
+    with pytest.raises(RuntimeError, match=r"(?s)did not start within 2 s 2 times in all.*raylet hangs"):
+        hanging.__enter__()
+    assert all(p.poll() is not None for p in hanging.procs)
     with pytest.raises(ValueError, match="attempts=0"):
         LocalCluster(attempts=0)

@@ -28,6 +28,7 @@ def test_the_parallel_env_passes_pettingzoos_api_and_seed_tests(team, task):
 def test_the_centralised_env_passes_both_checkers():
     env = gym.make("ElasticStringTeam-v0", team=3)
     check_env(env.unwrapped, skip_render_check=True)
+    check_env(gym.make("ElasticStringTeam-v0", team=3, render_mode="rgb_array").unwrapped)  # its frames too
     sb3_check_env(ElasticStringTeamEnv(3))
     assert env.action_space.shape == (9,) and env.observation_space.shape == (99,)
 
@@ -332,6 +333,35 @@ def test_a_team_recording_holds_every_string_pivot_and_pull(tmp_path):
         RecordTeamRerun(ElasticStringTeamEnv(2), tmp_path / "missing" / "x.rrd")
 
 
+def test_a_team_frame_draws_every_string_and_pivot_where_they_are():
+    """render_mode="rgb_array": uint8 frames of both envs, the same picture; every pivot's icon and
+    every string's middle node drawn where they project, and a moved pivot moves its pixels."""
+    env = ElasticStringTeamEnv(3, task="transport", render_mode="rgb_array")
+    team = parallel_env(team=3, task="transport", render_mode="rgb_array")
+    env.reset(seed=2)
+    team.reset(seed=2)
+    for _ in range(3):
+        env.step(np.full(9, 0.2))
+        team.step({a: np.full(3, 0.2) for a in team.possible_agents})
+    frame = env.render()
+    assert frame.shape == (480, 960, 3) and frame.dtype == np.uint8 and np.array_equal(frame, team.render())
+    renderer = env.core._renderer
+    for nodes, _ in env.core.sim.strings():
+        for point in (nodes[0], nodes[len(nodes) // 2]):
+            x, y = np.round(renderer.project(point, 0)).astype(int)
+            assert not np.array_equal(frame[y, x], renderer.background[y, x]), point
+    # negative control: a pivot's pixels are background once it is drawn elsewhere (in the side
+    # view: in the front one pivots 1 and 2 of the formation overlap)
+    x, y = np.round(renderer.project(env.core.pivot_positions()[1], 1)).astype(int)
+    others = [nodes for nodes, _ in env.core.sim.strings()]
+    moved = renderer.render_team([(n + (k == 1) * np.array([0.0, 0.0, -0.5]), np.zeros(len(n) - 1))
+                                  for k, n in enumerate(others)], env.core.sim.state.lead.R)
+    assert np.array_equal(moved[y - 1:y + 2, x - 1:x + 2], renderer.background[y - 1:y + 2, x - 1:x + 2])
+    assert parallel_env(team=2).render() is None and ElasticStringTeamEnv(2).render() is None
+    with pytest.raises(ValueError, match="render_mode"):
+        parallel_env(team=2, render_mode="human")
+
+
 def test_a_residual_team_starts_as_its_baseline_and_tells_it_what_was_applied():
     """agents/team_residual.py: with zero residual the team is the LQG bit for bit (hook
     observation, noise and latency); each agent sees its command and the filter's estimate with its
@@ -410,3 +440,27 @@ def _rerun_the_documented_team_comparison():
     shifted = [e.ret for e in run_team_episodes(policies["policy"], 3, "transport", 1, doc["seed"] + 1,
                                                 {"preset": "hard"})]
     assert shifted != pytest.approx(doc["policies"]["policy"]["returns"][:1], rel=1e-6)
+
+
+@pytest.mark.parametrize("task, preset", [("transport", None), ("transport", "hard"), ("track", None),
+                                          ("track", "hard")])
+def test_the_documented_team_baselines_are_todays(task, preset):
+    """docs/compare/compare_team3_{task}[_hard].json (the table of docs/team.md's baselines): each
+    baseline's and the zero action's first recorded episode, rerun, gives its return (BLAS on one
+    thread, as written); the second seed's episode (the negative control) does not."""
+    from threadpoolctl import threadpool_limits
+
+    from agents import ROOT
+    from agents.team_evaluate import team_baselines
+
+    name = f"compare_team3_{task}{'_hard' if preset else ''}.json"
+    doc = json.loads((ROOT / "docs" / "compare" / name).read_text())
+    assert (doc["team"], doc["task"], doc["preset"], doc["episodes"]) == (3, task, preset, 100)
+    kwargs = {"preset": preset} if preset else {}
+    policies = {"zero": TeamZero(), **team_baselines(ElasticStringTeamEnv(3, **kwargs).core.observation)}
+    with threadpool_limits(limits=1, user_api="blas"):
+        for policy_name, policy in policies.items():
+            recorded = doc["policies"][policy_name]["returns"]
+            rerun = run_team_episodes(policy, 3, task, 1, doc["seed"], kwargs)[0].ret
+            assert rerun == pytest.approx(recorded[0], rel=1e-6), policy_name
+            assert rerun != pytest.approx(recorded[1], rel=1e-6), policy_name

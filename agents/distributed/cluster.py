@@ -114,10 +114,11 @@ class LocalCluster:
     ``with LocalCluster(2) as c: ... c.address ...``; :meth:`stop` (also on leaving the block,
     failures included) ends every process the nodes started, found by process id.
 
-    A node whose ``ray start`` exits before its node runs is started again, up to ``attempts``
-    times in all, with new ports and a new directory: Ray gives a raylet a fixed 30 s to register
-    with the head, which a loaded machine can miss; the processes of the failed attempt are ended
-    first. The error after the last attempt quotes its log and its raylet's.
+    A node whose ``ray start`` exits, or does not report its node running within ``timeout``
+    seconds, is started again, up to ``attempts`` times in all, with new ports and a new
+    directory: Ray gives a raylet a fixed 30 s to register with the head, which a loaded machine
+    can miss; the processes of the failed attempt are ended first. The error after the last
+    attempt quotes its log and its raylet's.
     """
 
     def __init__(self, nodes: int = 2, cpus: int = 1, timeout: float = 60.0, token: Optional[str] = None,
@@ -178,28 +179,31 @@ class LocalCluster:
         for index in range(self.nodes):
             for attempt in range(self.attempts):
                 self._start_node(index, attempt)
-                if self._wait(index):
+                outcome = self._wait(index)
+                if outcome == "started":
                     break
                 if attempt + 1 == self.attempts:
-                    raise RuntimeError(f"ray start of node {index} exited ({self.procs[index].returncode}) "
-                                       f"{self.attempts} times; the last time:\n{self._failure(index)}")
+                    what = (f"exited ({self.procs[index].returncode})" if outcome == "exited"
+                            else f"did not start within {self.timeout:.0f} s")
+                    raise RuntimeError(f"ray start of node {index} {what} {self.attempts} times in all; the last "
+                                       f"time:\n{self._failure(index)}")
                 self._end_node(index)
 
     def _started(self, index: int) -> bool:
         """Whether ``ray start`` of node ``index`` says its node runs (its raylet registered)."""
         return "Ray runtime started" in self.logs[index].read_text()
 
-    def _wait(self, index: int) -> bool:
-        """Whether node ``index`` starts within ``timeout`` seconds (False: its ``ray start``
-        exited first); TimeoutError if it neither starts nor exits."""
+    def _wait(self, index: int) -> str:
+        """``started``, ``exited`` (its ``ray start`` ended first) or ``timeout`` (neither within
+        ``timeout`` seconds), for node ``index``."""
         end = time.monotonic() + self.timeout
         while not self._started(index):
             if self.procs[index].poll() is not None:
-                return False
+                return "exited"
             if time.monotonic() > end:
-                raise TimeoutError(f"waited {self.timeout:.0f} s for node {index} to start:\n{self._failure(index)}")
+                return "timeout"
             time.sleep(0.5)
-        return True
+        return "started"
 
     def _failure(self, index: int) -> str:
         """The tails of node ``index``'s ``ray start`` log and of its raylet's log."""

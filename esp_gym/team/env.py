@@ -122,6 +122,7 @@ class TeamCore:
         self.target_velocity = np.zeros(3)
         self.reference = None
         self.load_force = np.zeros(3)
+        self._renderer = None
 
     def _use_scene(self, scene: TeamScene) -> None:
         """Step ``scene`` from its initial state: h the largest within half of every string's
@@ -185,6 +186,7 @@ class TeamCore:
         if self.randomize:
             scene, info["team_draws"] = draw_team(self.size, rng)
             self._use_scene(scene)
+            self._renderer = None  # the team changes with the episode
         self.sim.set_state(self._start.copy())
         load = self.load_position()
         velocity = rng.uniform(-task.max_speed, task.max_speed, 3)
@@ -246,6 +248,21 @@ class TeamCore:
         if noisy and self.sensor_noise > 0.0:
             out += self._noise * self.np_random.standard_normal(out.shape)
         return out.astype(np.float32)
+
+    def frame(self) -> np.ndarray:
+        """An ``rgb_array`` frame, uint8 (480, 960, 3) (esp_gym/viz/render.py ``render_team``):
+        front and side views, 3 m across, of every string coloured by its elements' strain energy,
+        the load, each pivot with its force above hover (the action applied last) and its target,
+        and the load's target."""
+        from ..viz.render import FrameRenderer
+
+        if self._renderer is None:
+            body = self.scene.scene.body
+            self._renderer = FrameRenderer(body.shape, body.rho_c, self.scene.scene.string.length, width=960,
+                                           height=480, view_center=(0.0, 0.0, 0.8), view_extent=3.0)
+        return self._renderer.render_team(self.sim.strings(), self.sim.state.lead.R,
+                                          pivot_forces=self.force_scale * self.last_action,
+                                          target_pivots=self.pivot_targets, target_load=self.load_target)
 
     def true_observations(self) -> np.ndarray:
         """The ``full`` observation of the current state without noise (K, 27 + 3(K-1)): what a
@@ -376,12 +393,14 @@ class ElasticStringTeamEnv(gym.Env):
     force_limit, preset, randomize, observation, sensor_noise, action_latency, wind) as
     :class:`TeamCore`'s."""
 
-    metadata = {"render_modes": []}
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
 
     def __init__(self, team=3, task: str = "transport", render_mode: Optional[str] = None, **options):
-        if render_mode is not None:
-            raise ValueError(f"render_mode: a team env does not render yet, got {render_mode!r}")
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        self.render_mode = render_mode
         self.core = TeamCore(team, task, **options)
+        self.metadata = {**self.metadata, "render_fps": 1.0 / self.core.control_period}  # a frame per step
         K, n = self.core.size, self.core.layout.size
         self.action_space = gym.spaces.Box(-1.0, 1.0, (3 * K,), np.float32)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (K * n,), np.float32)
@@ -401,3 +420,7 @@ class ElasticStringTeamEnv(gym.Env):
             raise ValueError(f"action must have shape {self.action_space.shape}, got {a.shape}")
         obs, reward, terminated, truncated, info = self.core.step(a.reshape(self.core.size, 3))
         return obs.ravel(), reward, terminated, truncated, info
+
+    def render(self):
+        """The frame of :meth:`TeamCore.frame` with ``render_mode="rgb_array"``, else None."""
+        return self.core.frame() if self.render_mode == "rgb_array" else None

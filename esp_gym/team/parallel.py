@@ -23,17 +23,19 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
     force_limit, preset, randomize, observation, sensor_noise, action_latency, wind) as
     :class:`~esp_gym.team.env.TeamCore`'s."""
 
-    metadata = {"name": "elastic_string_team_v0", "render_modes": [], "is_parallelizable": True}
+    metadata = {"name": "elastic_string_team_v0", "render_modes": ["rgb_array"], "render_fps": 50,
+                "is_parallelizable": True}
 
     def __init__(self, team=3, task: str = "transport", max_cycles: int = MAX_EPISODE_STEPS,
                  render_mode: Optional[str] = None, **options):
-        if render_mode is not None:
-            raise ValueError(f"render_mode: a team env does not render yet, got {render_mode!r}")
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         if isinstance(max_cycles, bool) or not isinstance(max_cycles, (int, np.integer)) or max_cycles < 1:
             raise ValueError(f"max_cycles must be a whole number >= 1, got {max_cycles!r}")
         self.core = TeamCore(team, task, **options)
+        self.metadata = {**self.metadata, "render_fps": 1.0 / self.core.control_period}  # a frame per step
         self.max_cycles = int(max_cycles)
-        self.render_mode = None
+        self.render_mode = render_mode
         self.possible_agents = [f"pivot_{k}" for k in range(self.core.size)]
         self.agents = []
         #: name -> slice of one agent's observation
@@ -77,6 +79,10 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
         if terminated or truncated:
             self.agents = []
         return out
+
+    def render(self):
+        """The team's frame (:meth:`~esp_gym.team.env.TeamCore.frame`) with ``render_mode="rgb_array"``, else None."""
+        return self.core.frame() if self.render_mode == "rgb_array" else None
 
     def state(self) -> np.ndarray:
         """The team's true state as every agent's ``full`` observation without noise, one after the

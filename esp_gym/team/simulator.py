@@ -356,19 +356,34 @@ class TeamSimulator:
         lead, *rest = out
         return lead, (np.concatenate(rest) if rest else np.zeros((0, 3))), Omega
 
-    def _diagnostics(self) -> dict:
+    def _members(self) -> list:
+        """Each string's ``(nodes (N_k+1, 3) [m], its string section, its pivot section)``, string 0 first."""
         S, A, T = self._S, self._A, self.params
-        P, scene = self._P, self.team.scene
+        scene = self.team.scene
+        return [(S.r, scene.string, scene.pivot)] + [
+            (A.r[T.start[j]:T.start[j + 1]], s.string, s.pivot) for j, s in enumerate(self.team.strings)]
+
+    @staticmethod
+    def _stretch(r: np.ndarray, string) -> np.ndarray:
+        """Each element's stretch x = |r_{i+1} - r_i| - u [m] (clipped at 0 for a slack law): its
+        strain energy is kappa x^2 / 2."""
+        x = np.linalg.norm(np.diff(r, axis=0), axis=1) - string.u
+        return np.maximum(x, 0.0) if string.law == "slack" else x
+
+    def strings(self) -> list:
+        """Each string's ``(nodes (N_k+1, 3) [m], each element's strain energy (N_k,) [J])``, string 0
+        first: what a frame draws (esp_gym/viz/render.py ``render_team``)."""
+        return [(r.copy(), 0.5 * string.kappa * self._stretch(r, string) ** 2) for r, string, _ in self._members()]
+
+    def _diagnostics(self) -> dict:
+        S, A = self._S, self._A
+        P = self._P
         v0, vo, Omega = self.velocities()
         kinetic = 0.5 * (np.sum(S.p * v0) + np.sum(A.p * vo) + float(S.Pi @ Omega))
         g = P.g
-        strings = [(S.r, scene.string, scene.pivot)] + [
-            (A.r[T.start[j]:T.start[j + 1]], s.string, s.pivot) for j, s in enumerate(self.team.strings)]
         elastic = gravity = 0.0
-        for r, string, pivot in strings:
-            x = np.linalg.norm(np.diff(r, axis=0), axis=1) - string.u
-            if string.law == "slack":
-                x = np.maximum(x, 0.0)
+        for r, string, pivot in self._members():
+            x = self._stretch(r, string)
             elastic += 0.5 * string.kappa * float(x @ x)
             w = np.full(r.shape[0], string.m)
             w[0] = w[-1] = 0.5 * string.m

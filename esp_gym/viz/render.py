@@ -247,15 +247,37 @@ class FrameRenderer:
         drone: None (the pivot's icon) or (R_q (3, 3), rotor positions (4, 3) in its body frame
         [m]): the drone drawn at the pivot, its arms to its rotors' rings, as it is turned.
         """
-        nodes = np.asarray(nodes, dtype=float).reshape(-1, 3)
+        return self._draw([(nodes, strain_energy)], R, [pivot_force], [target_pivot], target_load, [drone])
+
+    def render_team(self, strings, R, pivot_forces=None, target_pivots=None, target_load=None) -> np.ndarray:
+        """One frame of a team (esp_gym/team), uint8 (height, width, 3): :meth:`render`'s picture
+        with K strings, pivots, pivot forces and pivot targets.
+
+        strings: K pairs ``(nodes (N_k+1, 3) [m], strain energy (N_k,) [J])``, row 0 the pivot,
+        the last row the attachment point; string 0's is the one ``rho_c`` is measured from (a
+        body point b is at ``strings[0][0][-1] + R @ b``). pivot_forces, target_pivots: (K, 3) or
+        None; target_load: (3,) or None.
+        """
+        K = len(strings)
+        forces = [None] * K if pivot_forces is None else list(np.asarray(pivot_forces, float).reshape(K, 3))
+        targets = [None] * K if target_pivots is None else list(np.asarray(target_pivots, float).reshape(K, 3))
+        return self._draw(strings, R, forces, targets, target_load, [None] * K)
+
+    def _draw(self, strings, R, pivot_forces, target_pivots, target_load, drones) -> np.ndarray:
+        """The frame of strings ``[(nodes, strain energy)]`` and the body (string 0's attachment
+        the reference of ``rho_c``), each string's pivot force, pivot target and drone (or None)."""
+        drawn = []
+        for nodes, strain_energy in strings:
+            nodes = np.asarray(nodes, dtype=float).reshape(-1, 3)
+            seg_rgb = self.strain_colors(strain_energy).reshape(-1, 3)
+            if len(seg_rgb) != len(nodes) - 1:
+                raise ValueError(f"strain_energy needs one value per element ({len(nodes) - 1}), got {len(seg_rgb)}")
+            drawn.append((nodes, seg_rgb))
         R = np.asarray(R, dtype=float).reshape(3, 3)
-        seg_rgb = self.strain_colors(strain_energy).reshape(-1, 3)
-        if len(seg_rgb) != len(nodes) - 1:
-            raise ValueError(f"strain_energy needs one value per element ({len(nodes) - 1}), got {len(seg_rgb)}")
         frame = self._background.copy()
         px = self._px
         with np.errstate(all="ignore"):
-            attach = nodes[-1]
+            attach = drawn[0][0][-1]
             center = attach + R @ self.rho_c
             if self.mesh is not None:
                 verts = attach + self.mesh.vertices @ R.T
@@ -264,29 +286,33 @@ class FrameRenderer:
                 verts = normals = None
             for panel in self.panels:
                 view = frame[:, panel.x0:panel.x1]
-                pix = nodes @ panel.proj + panel.offset
+                pixels = [nodes @ panel.proj + panel.offset for nodes, _ in drawn]
                 self._draw_body(view, panel, verts, normals, center)
                 c = center @ panel.proj + panel.offset
                 if self._rod:
-                    draw_lines(view, pix[-1], c, PIVOT, 1.0)      # no shape: a rod to the centre of mass
+                    draw_lines(view, pixels[0][-1], c, PIVOT, 1.0)      # no shape: a rod to the centre of mass
                 draw_discs(view, c, px(1.5), PIVOT)
-                draw_lines(view, pix[:-1], pix[1:], seg_rgb, px(3))
-                draw_discs(view, pix[-1], px(2.5), PIVOT)
-                if target_pivot is not None:
-                    self._marker(view, np.asarray(target_pivot, float) @ panel.proj + panel.offset, "ring")
+                for pix, (_, seg_rgb) in zip(pixels, drawn):
+                    draw_lines(view, pix[:-1], pix[1:], seg_rgb, px(3))
+                    draw_discs(view, pix[-1], px(2.5), PIVOT)
+                for target in target_pivots:
+                    if target is not None:
+                        self._marker(view, np.asarray(target, float) @ panel.proj + panel.offset, "ring")
                 if target_load is not None:
                     self._marker(view, np.asarray(target_load, float) @ panel.proj + panel.offset, "cross")
-                if drone is None:
-                    self._marker(view, pix[0], "drone")
-                else:
+                for pix, (nodes, _), drone in zip(pixels, drawn, drones):
+                    if drone is None:
+                        self._marker(view, pix[0], "drone")
+                        continue
                     rotors = (nodes[0] + np.asarray(drone[1], float) @ np.asarray(drone[0], float).T) @ panel.proj \
                         + panel.offset
                     draw_lines(view, np.repeat(pix[:1], len(rotors), axis=0), rotors, PIVOT, px(2))
                     draw_discs(view, rotors, px(5), PIVOT, inner=px(3.5))
                     fill_convex_polygons(view, pix[0] + np.array([(-1, -1), (1, -1), (1, 1), (-1, 1)]) * px(3),
                                          PIVOT)
-                if pivot_force is not None and np.isfinite(pix[0]).all():
-                    tip = pix[0] + self.force_scale * (np.asarray(pivot_force, float) @ panel.proj)
-                    self._arrows(view, pix[:1], tip[None], FORCE, px(2), px(9))
+                for pix, force in zip(pixels, pivot_forces):
+                    if force is not None and np.isfinite(pix[0]).all():
+                        tip = pix[0] + self.force_scale * (np.asarray(force, float) @ panel.proj)
+                        self._arrows(view, pix[:1], tip[None], FORCE, px(2), px(9))
             frame[:, self.panels[1].x0] = INK                # divider
         return frame
