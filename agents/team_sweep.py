@@ -54,6 +54,7 @@ class Settings:
     preset: Optional[str] = field(default=None, metadata={"help": "the team's preset", "choices": ["hard"],
                                                           "run": True})
     residual: bool = field(default=False, metadata={"help": "train residuals on the team's baseline", "run": True})
+    central_critic: bool = field(default=False, metadata={"help": "trials with a centralised critic", "run": True})
     iterations: int = field(default=100, metadata={"help": "training iterations of each trial", "type": int,
                                                    "min": 1, "run": True})
     time_limit: Optional[float] = field(default=None, metadata={
@@ -85,7 +86,8 @@ def trial_settings(s: Settings, config: dict, runs: Path, name: str):
     return team_train.Settings(team=s.team, task=s.task, preset=s.preset, iterations=s.iterations,
                                time_limit=s.time_limit, seed=int(config.get("seed", 0)), set=overrides,
                                runs=str(runs), run_name=name, eval_episodes=s.eval_episodes,
-                               reference_episodes=s.reference_episodes, residual=s.residual, progress=False)
+                               reference_episodes=s.reference_episodes, residual=s.residual,
+                               central_critic=s.central_critic, progress=False)
 
 
 def check_trial(s: Settings, point: dict) -> None:
@@ -145,7 +147,8 @@ def run_trial(config: dict, spec: Spec) -> dict:
         algo = team_train.team_ppo_config(cfg, ts).build_algo()
         try:
             argv = ["--team", str(ts.team), "--task", ts.task, *(["--preset", ts.preset] if ts.preset else []),
-                    *(["--residual"] if ts.residual else []), "--iterations", str(ts.iterations),
+                    *(["--residual"] if ts.residual else []), *(["--central-critic"] if ts.central_critic else []),
+                    "--iterations", str(ts.iterations),
                     "--seed", str(ts.seed), "--runs", str(runs), "--run-name", name, "--set", *ts.set]
             team_train.run(ts, cfg, run_dir, algo, argv=argv, report=lambda row: tune.report(
                 {"timesteps": row["env_steps"], "mean_return": row["episode_return_mean"]}))

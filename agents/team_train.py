@@ -8,6 +8,8 @@ every agent acting with one shared policy (parameter sharing), on this machine o
 ``--residual`` trains a residual on the team's baseline (agents/team_residual.py: the agents' actions
 added, scaled by ``--residual-scale``, to the LQR's, or with the hook observation the LQG's);
 the checkpoint then carries residual.json and every evaluation adds the same baseline.
+``--central-critic`` gives the network a critic that also reads the team's true state
+(agents/team_critic.py); the checkpoint then carries central_critic.json.
 
 Hyper-parameters come from configs/agents/rllib_team_ppo.yaml keyed by ``ElasticStringTeam-v0``
 and the task; ``--set KEY=VALUE`` overrides them as in agents.distributed.train. A run directory
@@ -43,6 +45,7 @@ from agents.distributed.rllib import RLlibRunConfig, load_rllib_config
 from agents.distributed.train import PROGRESS_FIELDS, build, plot_curve, progress_row, rllib_main
 from agents.evaluate import summarize
 from agents.runs import new_run_dir, write_status, write_stopped
+from agents.team_critic import CRITIC_FILE, read_critic, write_critic
 from agents.team_evaluate import TeamZero, run_team_episodes, team_baselines
 from agents.team_residual import RESIDUAL_FILE, RESIDUAL_SCALE, TeamBase, read_residual, write_residual
 from esp_gym.team.tasks import TEAM_TASKS
@@ -83,27 +86,57 @@ class Settings:
         "help": "train a residual on the team's baseline (the LQR; with the hook observation the LQG)"})
     residual_scale: float = field(default=RESIDUAL_SCALE, metadata={
         "help": "the residual's share of the action box (with --residual)", "type": float})
+    central_critic: bool = field(default=False, metadata={
+        "help": "a centralised critic: the value function also reads the team's true state (agents/team_critic.py)"})
     progress: bool = field(default=True, metadata={"help": "show a progress bar"})
     threads: int = field(default=1, metadata={"help": "torch threads of the learner", "type": int, "min": 1})
 
 
-def make_team_env(env_config: dict):
-    """RLlib's environment creator: the PettingZoo env of ``env_config`` (with ``residual_scale``:
-    the residual team of agents/team_residual.py) as RLlib's MultiAgentEnv."""
-    from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
-
+def team_parallel_env(env_config: dict):
+    """The PettingZoo env of ``env_config``: with ``residual_scale`` the residual team of
+    agents/team_residual.py, with ``central_critic`` the team's true state appended to every
+    agent's observation (agents/team_critic.py)."""
     from agents.team_residual import TeamResidualParallelEnv
     from esp_gym.team import parallel_env
 
     options = dict(env_config)
     scale = options.pop("residual_scale", None)
+    critic = options.pop("central_critic", False)
     env = parallel_env(**options)
-    return ParallelPettingZooEnv(env if scale is None else TeamResidualParallelEnv(env, scale))
+    env = env if scale is None else TeamResidualParallelEnv(env, scale)
+    if critic:
+        from agents.team_critic import CentralCriticParallelEnv
+
+        env = CentralCriticParallelEnv(env)
+    return env
+
+
+def make_team_env(env_config: dict):
+    """RLlib's environment creator: :func:`team_parallel_env` as RLlib's MultiAgentEnv."""
+    from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
+
+    return ParallelPettingZooEnv(team_parallel_env(env_config))
 
 
 def env_config(s: Settings) -> dict:
     return {"team": s.team, "task": s.task, **({"preset": s.preset} if s.preset else {}),
-            **({"residual_scale": s.residual_scale} if s.residual else {})}
+            **({"residual_scale": s.residual_scale} if s.residual else {}),
+            **({"central_critic": True} if s.central_critic else {})}
+
+
+def module_spec(cfg: RLlibRunConfig, s: Settings):
+    """The shared module's RLModuleSpec: RLlib's default PPO module, or with ``--central-critic``
+    agents/team_critic.py's (its actor's input length from the env)."""
+    from ray.rllib.core.rl_module.rl_module import RLModuleSpec
+
+    if not s.central_critic:
+        return RLModuleSpec()
+    from agents.team_critic_module import CentralCriticModule
+
+    env = team_parallel_env(env_config(s))
+    return RLModuleSpec(module_class=CentralCriticModule,
+                        model_config={"actor_inputs": env.actor_inputs, "fcnet_hiddens": cfg.model["fcnet_hiddens"],
+                                      "fcnet_activation": cfg.model["fcnet_activation"]})
 
 
 def team_ppo_config(cfg: RLlibRunConfig, s: Settings):
@@ -111,14 +144,13 @@ def team_ppo_config(cfg: RLlibRunConfig, s: Settings):
     from ray.rllib.algorithms.ppo import PPOConfig
     from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
     from ray.rllib.core.rl_module.multi_rl_module import MultiRLModuleSpec
-    from ray.rllib.core.rl_module.rl_module import RLModuleSpec
     from ray.tune.registry import register_env
 
     register_env(ENV_NAME, make_team_env)
     return (PPOConfig()
             .environment(env=ENV_NAME, env_config=env_config(s))
             .multi_agent(policies={MODULE}, policy_mapping_fn=lambda agent_id, episode, **kw: MODULE)
-            .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs={MODULE: RLModuleSpec()}),
+            .rl_module(rl_module_spec=MultiRLModuleSpec(rl_module_specs={MODULE: module_spec(cfg, s)}),
                        model_config=DefaultModelConfig(**cfg.model))
             .env_runners(num_env_runners=cfg.num_env_runners, num_envs_per_env_runner=cfg.num_envs_per_env_runner)
             .training(**cfg.training)
@@ -129,7 +161,9 @@ class TeamRLlibPolicy:
     """The shared module of a checkpoint as a centralised policy of agents/team_evaluate.py: each
     agent's observation through the module, the action distribution's mean (deterministic),
     clipped to [-1, 1]. A checkpoint with residual.json (``--residual``) adds that share of it to
-    the team's baseline, whose features it appends to each agent's observation, as in training."""
+    the team's baseline, whose features it appends to each agent's observation, as in training;
+    one with central_critic.json (``--central-critic``) gets zeros where its critic read the
+    team's state (its actor never reads them)."""
 
     def __init__(self, checkpoint):
         from ray.rllib.core.rl_module.rl_module import RLModule
@@ -137,6 +171,7 @@ class TeamRLlibPolicy:
         checkpoint = Path(checkpoint).resolve()  # an absolute path: RLlib reads it as a URI
         self.module = RLModule.from_checkpoint(checkpoint / MODULE_PATH)
         self.scale = read_residual(checkpoint)
+        self.critic = read_critic(checkpoint)
         self.base = None
 
     def act(self, obs, core) -> np.ndarray:
@@ -148,6 +183,8 @@ class TeamRLlibPolicy:
             if self.base is None:
                 self.base = TeamBase(core.observation)
             command, agents = self.base.observe(agents, core)
+        if self.critic is not None:
+            agents = np.concatenate([agents, np.zeros((core.size, self.critic["state_size"]))], axis=1)
         with torch.no_grad():
             out = self.module.forward_inference({Columns.OBS: torch.from_numpy(agents.astype(np.float32))})
         mean = out[Columns.ACTION_DIST_INPUTS].numpy()[:, :3].astype(np.float64)  # a diagonal Gaussian's (mean, log std)
@@ -177,7 +214,7 @@ def ship(run_dir, target) -> Path:
     staging = target.with_name(target.name + ".new")
     shutil.rmtree(staging, ignore_errors=True)
     shutil.copytree(run_dir / "checkpoint" / MODULE_PATH, staging / "checkpoint" / MODULE_PATH)
-    for name in [f"checkpoint/{RESIDUAL_FILE}", *SHIPPED_RECORD]:
+    for name in [f"checkpoint/{RESIDUAL_FILE}", f"checkpoint/{CRITIC_FILE}", *SHIPPED_RECORD]:
         if (run_dir / name).is_file():
             shutil.copy2(run_dir / name, staging / name)
     shutil.rmtree(target, ignore_errors=True)
@@ -257,13 +294,17 @@ def run(s: Settings, cfg: RLlibRunConfig, run_dir: Path, algo, argv: Optional[li
         algo.save_to_path(str((run_dir / "checkpoint").resolve()))
         if s.residual:
             write_residual(run_dir / "checkpoint", s.residual_scale)
+        if s.central_critic:
+            env = team_parallel_env(env_config(s))
+            write_critic(run_dir / "checkpoint", env.actor_inputs, env.state_size)
         (run_dir / "training.json").write_text(json.dumps(
             {"wall_time_s": wall, "iterations": done, "timesteps": steps, "address": s.address}, indent=2))
         kwargs = {"preset": s.preset} if s.preset else {}
         stats = summarize(run_team_episodes(TeamRLlibPolicy(run_dir / "checkpoint"), s.team, s.task, s.eval_episodes,
                                             EVAL_SEED, kwargs), s.task)
         (run_dir / "evaluation.json").write_text(json.dumps({**stats, "seed": EVAL_SEED}, indent=2))
-        kind = "shared residual on the baseline" if s.residual else "shared"
+        kind = ("shared residual on the baseline" if s.residual else "shared") + \
+            (", centralised critic" if s.central_critic else "")
         plot_curve(run_dir, f"{TEAM_ENV_ID} team of {s.team} {s.task} {s.preset or 'nominal'}: RLlib PPO, {kind} "
                             f"(seed {s.seed})")
         write_status(run_dir, "finished", iterations=done, timesteps=steps)

@@ -96,13 +96,16 @@ def test_rllib_ppo_samples_on_both_nodes_and_checkpoints(cluster, tmp_path):
     assert sampling_nodes({"env_runners": [{"node_id": "a", "env_steps": 5}, {"node_id": "b", "env_steps": 0}]}) == {"a"}
 
 
-@pytest.mark.parametrize("residual", [False, True])
-def test_a_team_trains_with_one_shared_policy_and_checkpoints(cluster, tmp_path, residual):
+@pytest.mark.parametrize("residual, critic", [(False, True), (True, False)], ids=["central-critic", "residual"])
+def test_a_team_trains_with_one_shared_policy_and_checkpoints(cluster, tmp_path, residual, critic):
     """agents.team_train: RLlib PPO on the PettingZoo team, one module for every agent (with
-    --residual, on the team's LQR: the checkpoint says so and the compare adds the LQR)."""
+    --residual, on the team's LQR: the checkpoint says so and the compare adds the LQR; with
+    --central-critic, the critic reads the team's state: the checkpoint says so and the compare
+    acts without it)."""
     proc = run("agents.team_train", "--team", "2", "--task", "transport", "--iterations", "2", "--address",
                cluster.address, "--runs", tmp_path, "--run-name", "t", "--eval-episodes", "1",
-               "--reference-episodes", "1", "--no-progress", *(["--residual"] if residual else []), "--set",
+               "--reference-episodes", "1", "--no-progress", *(["--residual"] if residual else []),
+               *(["--central-critic"] if critic else []), "--set",
                "num_env_runners=0", "train_batch_size_per_learner=200", "minibatch_size=100", "num_epochs=1",
                env=cluster.env)
     assert proc.returncode == 0, proc.stderr[-4000:]
@@ -113,6 +116,7 @@ def test_a_team_trains_with_one_shared_policy_and_checkpoints(cluster, tmp_path,
     assert [int(r["iteration"]) for r in rows] == [1, 2] and int(rows[1]["env_steps"]) >= 400
     assert (run_dir / "checkpoint" / "learner_group" / "learner" / "rl_module" / "shared").is_dir()
     assert (run_dir / "checkpoint" / "residual.json").is_file() == residual
+    assert (run_dir / "checkpoint" / "central_critic.json").is_file() == critic
     refs = json.loads((run_dir / "references.json").read_text())
     assert refs["baseline_return"] > 300.0 > 50.0 > refs["zero_return"]  # the team's LQR, the zero action
     evaluation = json.loads((run_dir / "evaluation.json").read_text())
@@ -124,10 +128,11 @@ def test_a_team_trains_with_one_shared_policy_and_checkpoints(cluster, tmp_path,
     # the checkpoint (with --residual: as shipped) as agents.compare's team policy, paired with the baseline;
     # its first episode is the run's own evaluation's (seed 10000)
     checkpoint = run_dir / "checkpoint"
-    if residual:
+    if residual or critic:
         from agents.team_train import ship
 
         checkpoint = ship(run_dir, tmp_path / "model") / "checkpoint"
+        assert (checkpoint / "central_critic.json").is_file() == critic
     proc = run("agents.compare", "--team", "2", "--task", "transport", "--episodes", "2", "--seed", "10000",
                "--model", checkpoint, "--json", "--no-progress")
     assert proc.returncode == 0, proc.stderr[-4000:]

@@ -464,3 +464,38 @@ def test_the_documented_team_baselines_are_todays(task, preset):
             rerun = run_team_episodes(policy, 3, task, 1, doc["seed"], kwargs)[0].ret
             assert rerun == pytest.approx(recorded[0], rel=1e-6), policy_name
             assert rerun != pytest.approx(recorded[1], rel=1e-6), policy_name
+
+
+def test_a_central_critic_reads_the_teams_state_and_its_actor_does_not():
+    """agents/team_critic.py: every agent's observation carries the team's true state after its
+    own (the hook observation hides the load; the state holds it); the module's actor output does
+    not move with the state, its value does (the negative control: its own part moves both)."""
+    import torch
+    from ray.rllib.core.columns import Columns
+    from ray.rllib.core.rl_module.rl_module import RLModuleSpec
+
+    from agents.team_critic_module import CentralCriticModule
+    from agents.team_train import team_parallel_env
+
+    env = team_parallel_env({"team": 3, "task": "transport", "preset": "hard", "central_critic": True})
+    parallel_api_test(env, num_cycles=20)
+    obs, _ = env.reset(seed=4)
+    n = env.actor_inputs
+    assert n == env.core.layout.size and env.state_size == 3 * 33
+    assert np.array_equal(obs["pivot_2"][n:], env.core.true_observations().ravel().astype(np.float32))
+    module = RLModuleSpec(module_class=CentralCriticModule, observation_space=env.observation_space("pivot_0"),
+                          action_space=env.action_space("pivot_0"),
+                          model_config={"actor_inputs": n, "fcnet_hiddens": [16], "fcnet_activation": "tanh"}).build()
+    batch = torch.from_numpy(np.stack([obs[a] for a in env.possible_agents]))
+    other = batch.clone()
+    other[:, n:] += 1.0
+    mine = batch.clone()
+    mine[:, :n] += 1.0
+    with torch.no_grad():
+        def outputs(b):
+            return (module.forward_inference({Columns.OBS: b})[Columns.ACTION_DIST_INPUTS],
+                    module.compute_values({Columns.OBS: b}))
+        (act, value), (act_other, value_other), (act_mine, value_mine) = map(outputs, (batch, other, mine))
+    assert act.shape == (3, 6) and value.shape == (3,)
+    assert torch.equal(act, act_other) and not torch.allclose(value, value_other)
+    assert not torch.allclose(act, act_mine) and not torch.allclose(value, value_mine)
