@@ -50,11 +50,11 @@ class FlakyCluster(LocalCluster):
         self.fail, self.failure, self.tries = fail, failure, {}
         super().__init__(**kwargs)
 
-    def _command(self, index, temp):
+    def node_command(self, index, temp):
         attempt = self.tries[index] = self.tries.get(index, -1) + 1
         if (index, attempt) in self.fail:
             return [sys.executable, "-c", self.failure]
-        return super()._command(index, temp)
+        return super().node_command(index, temp)
 
 
 @pytest.fixture(scope="module")

@@ -345,7 +345,7 @@ def test_a_team_frame_draws_every_string_and_pivot_where_they_are():
         team.step({a: np.full(3, 0.2) for a in team.possible_agents})
     frame = env.render()
     assert frame.shape == (480, 960, 3) and frame.dtype == np.uint8 and np.array_equal(frame, team.render())
-    renderer = env.core._renderer
+    renderer = env.core.renderer
     for nodes, _ in env.core.sim.strings():
         for point in (nodes[0], nodes[len(nodes) // 2]):
             x, y = np.round(renderer.project(point, 0)).astype(int)

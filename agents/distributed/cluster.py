@@ -147,7 +147,7 @@ class LocalCluster:
     def __exit__(self, *exc) -> None:
         self.stop()
 
-    def _command(self, index: int, temp: Path) -> list:
+    def node_command(self, index: int, temp: Path) -> list:
         """The ``ray start`` command of node ``index``, with new ports and directory ``temp``."""
         node = (["--head", "--port", str(self.port), "--include-dashboard", "false"] if index == 0
                 else ["--address", self.address])
@@ -167,7 +167,7 @@ class LocalCluster:
         log_path = temp.with_name(temp.name + ".log")
         env = {**os.environ, **WORKER_ENV, **self.env, "RAY_USAGE_STATS_ENABLED": "0"}
         with open(log_path, "w") as log:
-            proc = subprocess.Popen(self._command(index, temp), stdout=log, stderr=subprocess.STDOUT, env=env,
+            proc = subprocess.Popen(self.node_command(index, temp), stdout=log, stderr=subprocess.STDOUT, env=env,
                                     start_new_session=True, cwd=self.root)
         if index < len(self.procs):
             self.procs[index], self.logs[index] = proc, log_path

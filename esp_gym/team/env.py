@@ -122,7 +122,8 @@ class TeamCore:
         self.target_velocity = np.zeros(3)
         self.reference = None
         self.load_force = np.zeros(3)
-        self._renderer = None
+        #: the FrameRenderer of :meth:`frame` (made by its first call)
+        self.renderer = None
 
     def _use_scene(self, scene: TeamScene) -> None:
         """Step ``scene`` from its initial state: h the largest within half of every string's
@@ -186,7 +187,7 @@ class TeamCore:
         if self.randomize:
             scene, info["team_draws"] = draw_team(self.size, rng)
             self._use_scene(scene)
-            self._renderer = None  # the team changes with the episode
+            self.renderer = None  # the team changes with the episode
         self.sim.set_state(self._start.copy())
         load = self.load_position()
         velocity = rng.uniform(-task.max_speed, task.max_speed, 3)
@@ -256,11 +257,11 @@ class TeamCore:
         and the load's target."""
         from ..viz.render import FrameRenderer
 
-        if self._renderer is None:
+        if self.renderer is None:
             body = self.scene.scene.body
-            self._renderer = FrameRenderer(body.shape, body.rho_c, self.scene.scene.string.length, width=960,
+            self.renderer = FrameRenderer(body.shape, body.rho_c, self.scene.scene.string.length, width=960,
                                            height=480, view_center=(0.0, 0.0, 0.8), view_extent=3.0)
-        return self._renderer.render_team(self.sim.strings(), self.sim.state.lead.R,
+        return self.renderer.render_team(self.sim.strings(), self.sim.state.lead.R,
                                           pivot_forces=self.force_scale * self.last_action,
                                           target_pivots=self.pivot_targets, target_load=self.load_target)
 
