@@ -193,15 +193,39 @@ def test_tune_sweep_runs_on_both_nodes_and_resumes_after_interruption(cluster, t
         assert (out / name).is_file()
 
 
-def test_a_team_sweep_runs_its_trials_on_both_nodes_as_team_runs(cluster, tmp_path):
+def _progress_rows(run_dir: Path) -> int:
+    path = run_dir / "progress.csv"
+    return max(0, len(path.read_text().splitlines()) - 1) if path.is_file() else 0
+
+
+def test_a_team_sweep_runs_its_trials_on_both_nodes_and_restarts_them_after_interruption(cluster, tmp_path):
     """agents.team_sweep: each trial an agents.team_train run directory (sampling in the trial's
-    own process), one per node at once, gathered into results.{csv,md,png}."""
+    own process), one per node at once; interrupted (Ctrl-C) while both train, then resumed, the
+    unfinished trials start again from scratch and finish, and the results are gathered into
+    results.{csv,md,png}."""
     out = tmp_path / "team_sweep"
-    proc = run("agents.team_sweep", "--team", "2", "--task", "track", "--iterations", "1", "--space",
-               '{"seed": [0, 1], "lr": [0.0003]}', "--out", out, "--address", cluster.address, "--eval-episodes", "1",
-               "--reference-episodes", "1", "--set", "train_batch_size_per_learner=200", "minibatch_size=100",
-               "num_epochs=1", env=cluster.env)
-    assert proc.returncode == 0, proc.stderr[-4000:]
+    iterations = 25
+    args = ["--team", "2", "--task", "track", "--iterations", iterations, "--space", '{"seed": [0, 1], "lr": [0.0003]}',
+            "--out", out, "--address", cluster.address, "--eval-episodes", "1", "--reference-episodes", "1", "--set",
+            "train_batch_size_per_learner=100", "minibatch_size=50", "num_epochs=1"]
+    env = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", **cluster.env}
+    first = subprocess.Popen([sys.executable, "-m", "agents.team_sweep", *map(str, args)], cwd=ROOT, env=env,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:  # interrupt once both trials have trained an iteration (measured: 2 and 3 of the 25 done then)
+        _wait_for(lambda: sum(_progress_rows(r) >= 1 for r in (out / "runs").glob("*")) >= 2 or first.poll() is not None,
+                  240, "both trials to train")
+        first.send_signal(signal.SIGINT)
+        first.communicate(timeout=120)
+    finally:
+        if first.poll() is None:
+            first.kill()
+    runs = sorted((out / "runs").iterdir())
+    assert len(runs) == 2
+    stopped = [r for r in runs if json.loads((r / "status.json").read_text())["status"] != "finished"]
+    assert stopped, "the sweep finished before the interruption: nothing to restart"
+
+    resumed = run("agents.team_sweep", "--resume", out, "--address", cluster.address, env=cluster.env)
+    assert resumed.returncode == 0, resumed.stderr[-4000:]
     with open(out / "results.csv") as fh:
         rows = list(csv.DictReader(fh))
     assert sorted(int(r["seed"]) for r in rows) == [0, 1]
@@ -209,12 +233,13 @@ def test_a_team_sweep_runs_its_trials_on_both_nodes_as_team_runs(cluster, tmp_pa
         run_dir = Path(row["run_dir"])
         assert json.loads((run_dir / "status.json").read_text())["status"] == "finished"
         assert (run_dir / "checkpoint" / "learner_group" / "learner" / "rl_module" / "shared").is_dir()
-        with open(run_dir / "progress.csv") as fh:
-            assert [int(r["iteration"]) for r in csv.DictReader(fh)] == [1]
+        with open(run_dir / "progress.csv") as fh:  # from scratch: one run of every iteration
+            assert [int(r["iteration"]) for r in csv.DictReader(fh)] == list(range(1, iterations + 1))
         evaluation = json.loads((run_dir / "evaluation.json").read_text())
         assert evaluation["episodes"] == 1 and float(row["mean_return"]) == evaluation["mean_return"]
         command = (run_dir / "command.txt").read_text()
         assert "agents.team_train" in command and "num_env_runners=0" in command and "lr=0.0003" in command
+        assert len(command.splitlines()) == 1
     assert len({r["node_id"] for r in rows}) == 2  # the two one-CPU trials ran at once, one on each node
     for name in ("results.md", "results.png", "sweep.json"):
         assert (out / name).is_file()
