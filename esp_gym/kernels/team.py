@@ -126,26 +126,34 @@ def other_increments(S, W, T, A, h, forced, compensated):
         d1 = dx1 + q1
         d2 = dx2 + q2
         o = T.off[j]
-        for a in range(s + first, e):
-            Y[a, 0] = h * X[a, 0] - o * T.w_end[a] * d0
-            Y[a, 1] = h * X[a, 1] - o * T.w_end[a] * d1
-            Y[a, 2] = h * X[a, 2] - o * T.w_end[a] * d2
+        if first == 0:  # the free pivot's displacement (its row's increment, before any remainder)
+            A.dr0[j, 0] = h * X[s, 0] - o * T.w_end[s] * d0
+            A.dr0[j, 1] = h * X[s, 1] - o * T.w_end[s] * d1
+            A.dr0[j, 2] = h * X[s, 2] - o * T.w_end[s] * d2
+        else:
+            A.dr0[j, 0] = 0.0
+            A.dr0[j, 1] = 0.0
+            A.dr0[j, 2] = 0.0
+        for a in range(s, s + first):  # a fixed pivot stays where it is
+            for i in range(3):
+                X[a, i] = A.r[a, i]
+        for a in range(s + first, e):  # one pass: each row's increment, then its new position
+            y0 = h * X[a, 0] - o * T.w_end[a] * d0
+            y1 = h * X[a, 1] - o * T.w_end[a] * d1
+            y2 = h * X[a, 2] - o * T.w_end[a] * d2
+            if compensated:
+                y0 = y0 + A.rc[a, 0]
+                y1 = y1 + A.rc[a, 1]
+                y2 = y2 + A.rc[a, 2]
+            Y[a, 0] = y0
+            Y[a, 1] = y1
+            Y[a, 2] = y2
+            X[a, 0] = A.r[a, 0] + y0
+            X[a, 1] = A.r[a, 1] + y1
+            X[a, 2] = A.r[a, 2] + y2
         Y[e, 0] = d0
         Y[e, 1] = d1
         Y[e, 2] = d2
-        A.dr0[j, 0] = Y[s, 0] if first == 0 else 0.0
-        A.dr0[j, 1] = Y[s, 1] if first == 0 else 0.0
-        A.dr0[j, 2] = Y[s, 2] if first == 0 else 0.0
-        for a in range(s, e):
-            for i in range(3):
-                if a < s + first:
-                    X[a, i] = A.r[a, i]
-                else:
-                    y = Y[a, i]
-                    if compensated:
-                        y = y + A.rc[a, i]
-                        Y[a, i] = y
-                    X[a, i] = A.r[a, i] + y
 
 
 @kernel(inline="always")
