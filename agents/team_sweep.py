@@ -26,23 +26,19 @@ import dataclasses
 import json
 import logging
 import shutil
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
-from agents import ROOT
-from agents.cli import SettingsError, one_line, option_name, parse_settings, settings_parser
+from agents.cli import SettingsError, one_line, settings_parser
 from agents.common import ConfigError
-from agents.distributed.cluster import AddressError, check_address, connect, shutdown, token_auth
 from agents.distributed.rllib import load_rllib_config
-from agents.distributed.sweep import Spec, override, parse_space
-from agents.distributed.sweep_results import gather
+from agents.distributed.sweep import (METRICS, Spec, checked_space, new_out, override, start_or_resume,
+                                      sweep_main)
 from esp_gym.team.tasks import TEAM_TASKS
 
 #: What every trial sets over ``--set`` and the space: sampling in the trial's own process (one CPU).
 TRIAL_OVERRIDES = ("num_env_runners=0",)
-METRICS = ("mean_return", "std_return", "success_rate", "mean_final_swing_deg", "mean_swing_deg")
 
 
 @dataclass
@@ -160,78 +156,27 @@ def run_trial(config: dict, spec: Spec) -> dict:
             "node_id": ray.get_runtime_context().get_node_id(), "run_dir": str(run_dir)}
 
 
-def _new_out(s: Settings) -> Path:
-    out = Path(s.out) if s.out else ROOT / "sweeps" / f"team{s.team}__{s.task}__{time.strftime('%Y%m%d-%H%M%S')}"
-    if out.exists():
-        raise SettingsError("--out", f"{out} already exists (--resume {out} continues a sweep)")
-    if not out.resolve().parent.is_dir():
-        raise SettingsError("--out", f"no directory {out.resolve().parent} for {out}")
-    return out
-
-
 def prepare(s: Settings, given: frozenset) -> tuple:
     """``(spec, resuming)`` of checked settings; SettingsError before anything is written."""
     from esp_gym.team import MAX_STRINGS
 
-    try:
-        check_address(s.address)
-    except AddressError as err:
-        raise SettingsError("--address", str(err)) from None
-    if s.resume:
-        clash = sorted(given & SWEEP_SETTINGS)
-        if clash:
-            raise SettingsError(option_name(clash[0]), "not allowed with --resume (a resumed sweep keeps its settings)")
-        saved = Path(s.resume) / "sweep.json"
-        if not saved.is_file() or not (Path(s.resume) / "tune").is_dir():
-            raise SettingsError("--resume", f"{s.resume} is not a sweep's directory (no sweep.json and tune/)")
-        return Spec(**json.loads(saved.read_text())), True
+    resumed = start_or_resume(s, given, SWEEP_SETTINGS)
+    if resumed is not None:
+        return resumed, True
     if s.team > MAX_STRINGS:
         raise SettingsError("--team", f"a team has 1 to {MAX_STRINGS} strings, got {s.team}")
     if s.time_limit is not None and not s.time_limit > 0:
         raise SettingsError("--time-limit", f"must be > 0 minutes, got {s.time_limit}")
-    try:
-        space = parse_space(s.space)
-    except ValueError as err:
-        raise SettingsError("--space", str(err)) from None
+    space = checked_space(s)
     check_space(space, s)
-    out = _new_out(s)
+    out = new_out(s.out, f"team{s.team}__{s.task}")
     return Spec({k: v for k, v in dataclasses.asdict(s).items() if k in SWEEP_SETTINGS}, space,
                 str(out.resolve())), False
 
 
-def sweep(spec: Spec, resuming: bool, address: Optional[str]):
-    """Run (or continue) the sweep on Ray Tune and gather its results; returns Tune's ResultGrid."""
-    from ray import tune
-
-    out = Path(spec.out)
-    connect(address)
-    trainable = tune.with_resources(tune.with_parameters(run_trial, spec=spec), {"cpu": 1})
-    if resuming:
-        tuner = tune.Tuner.restore(str(out / "tune"), trainable=trainable, resume_unfinished=True,
-                                   resume_errored=True)
-    else:
-        out.mkdir(parents=True)
-        (out / "sweep.json").write_text(json.dumps(dataclasses.asdict(spec), indent=2))
-        tuner = tune.Tuner(trainable, param_space={k: tune.grid_search(v) for k, v in spec.space.items()},
-                           tune_config=tune.TuneConfig(metric="mean_return", mode="max"),
-                           run_config=tune.RunConfig(name="tune", storage_path=str(out), verbose=1))
-    results = tuner.fit()
-    gather(results, spec)
-    return results
-
-
 def main(argv=None):
     ap = settings_parser(Settings, prog="python -m agents.team_sweep", description=__doc__.split("\n\n")[0])
-    s, given = parse_settings(ap, Settings, argv)
-    token_auth(s.address)  # before anything imports ray
-    try:
-        spec, resuming = prepare(s, given)
-    except SettingsError as err:
-        ap.error(str(err))
-    try:
-        return sweep(spec, resuming, s.address)
-    finally:
-        shutdown()
+    return sweep_main(ap, Settings, argv, prepare, run_trial)
 
 
 if __name__ == "__main__":

@@ -149,23 +149,32 @@ def _wait_for(predicate, timeout: float, what: str) -> None:
         time.sleep(0.2)
 
 
+def interrupt_sweep(module: str, args: list, cluster, ready, what: str) -> list:
+    """Run the sweep ``module`` with ``args``, Ctrl-C it once ``ready()`` (or once it ends: Tune
+    saves its state and stops), and return its two trials' run directories."""
+    env = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", **cluster.env}
+    sweep = subprocess.Popen([sys.executable, "-m", module, *map(str, args)], cwd=ROOT, env=env,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        _wait_for(lambda: ready() or sweep.poll() is not None, 240, what)
+        sweep.send_signal(signal.SIGINT)
+        sweep.communicate(timeout=120)
+    finally:
+        if sweep.poll() is None:
+            sweep.kill()
+    runs = sorted((Path(args[args.index("--out") + 1]) / "runs").iterdir())
+    assert len(runs) == 2
+    return runs
+
+
 def test_tune_sweep_runs_on_both_nodes_and_resumes_after_interruption(cluster, tmp_path):
     out = tmp_path / "sweep"
     args = ["--task", "stabilize", "--space", '{"seed": [0, 1]}', "--out", out, "--address", cluster.address,
             *SB3_OPTIONS, "--set", *SB3_TINY, "total_timesteps=6000"]
-    env = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", **cluster.env}
-    first = subprocess.Popen([sys.executable, "-m", "agents.distributed.sweep", *map(str, args)], cwd=ROOT, env=env,
-                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
-    try:  # interrupt the sweep once every trial has a checkpoint (Ctrl-C: Tune saves its state and stops)
-        _wait_for(lambda: len(list(out.glob("runs/*/checkpoints/model_*_steps.zip"))) >= 2 or first.poll() is not None,
-                  240, "both trials to checkpoint")
-        first.send_signal(signal.SIGINT)
-        first.communicate(timeout=120)
-    finally:
-        if first.poll() is None:
-            first.kill()
-    runs = sorted((out / "runs").iterdir())
-    assert len(runs) == 2
+    # interrupted once every trial has a checkpoint
+    runs = interrupt_sweep("agents.distributed.sweep", args, cluster,
+                           lambda: len(list(out.glob("runs/*/checkpoints/model_*_steps.zip"))) >= 2,
+                           "both trials to checkpoint")
     statuses = {r: json.loads((r / "status.json").read_text())["status"] for r in runs}
     assert set(statuses.values()) <= {"interrupted", "finished"}, statuses
     # Tune stops a trial at its next progress report (every 128 steps), not at its end
@@ -208,19 +217,10 @@ def test_a_team_sweep_runs_its_trials_on_both_nodes_and_restarts_them_after_inte
     args = ["--team", "2", "--task", "track", "--iterations", iterations, "--space", '{"seed": [0, 1], "lr": [0.0003]}',
             "--out", out, "--address", cluster.address, "--eval-episodes", "1", "--reference-episodes", "1", "--set",
             "train_batch_size_per_learner=100", "minibatch_size=50", "num_epochs=1"]
-    env = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", **cluster.env}
-    first = subprocess.Popen([sys.executable, "-m", "agents.team_sweep", *map(str, args)], cwd=ROOT, env=env,
-                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
-    try:  # interrupt once both trials have trained an iteration (measured: 2 and 3 of the 25 done then)
-        _wait_for(lambda: sum(_progress_rows(r) >= 1 for r in (out / "runs").glob("*")) >= 2 or first.poll() is not None,
-                  240, "both trials to train")
-        first.send_signal(signal.SIGINT)
-        first.communicate(timeout=120)
-    finally:
-        if first.poll() is None:
-            first.kill()
-    runs = sorted((out / "runs").iterdir())
-    assert len(runs) == 2
+    # interrupted once both trials have trained an iteration (measured: 2 and 3 of the 25 done then)
+    runs = interrupt_sweep("agents.team_sweep", args, cluster,
+                           lambda: sum(_progress_rows(r) >= 1 for r in (out / "runs").glob("*")) >= 2,
+                           "both trials to train")
     stopped = [r for r in runs if json.loads((r / "status.json").read_text())["status"] != "finished"]
     assert stopped, "the sweep finished before the interruption: nothing to restart"
 

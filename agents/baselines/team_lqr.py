@@ -54,6 +54,8 @@ def relative_to_reference(obs: np.ndarray, core: TeamCore, layout: Layout) -> np
     """The centralised observation ``obs`` (agents' ``layout`` one after the other) with the
     targets' velocity taken from every velocity it holds: the state relative to a moving
     reference (``track``), where the linearisation about the formation at rest holds."""
+    if core.reference is None:  # a fixed target: nothing moves
+        return np.asarray(obs, dtype=np.float64).ravel()
     o = np.array(obs, dtype=np.float64).reshape(core.size, layout.size)
     for name in ("pivot_velocity", "load_velocity"):
         if name in layout.structure():

@@ -213,8 +213,10 @@ def run_trial(config: dict, spec: Spec) -> dict:
             "node_id": ray.get_runtime_context().get_node_id(), "run_dir": str(run_dir)}
 
 
-def _new_out(s: Settings) -> Path:
-    out = Path(s.out) if s.out else ROOT / "sweeps" / f"{esp_gym.ENV_ID}__{s.algo}__{s.task}__{time.strftime('%Y%m%d-%H%M%S')}"
+def new_out(out: Optional[str], default: str) -> Path:
+    """A new sweep's directory: ``out``, or ``sweeps/{default}__{time}``; SettingsError naming
+    ``--out`` if it exists or its parent does not."""
+    out = Path(out) if out else ROOT / "sweeps" / f"{default}__{time.strftime('%Y%m%d-%H%M%S')}"
     if out.exists():
         raise SettingsError("--out", f"{out} already exists (--resume {out} continues a sweep)")
     if not out.resolve().parent.is_dir():
@@ -222,41 +224,57 @@ def _new_out(s: Settings) -> Path:
     return out
 
 
-def prepare(s: Settings, given: frozenset) -> tuple:
-    """``(spec, resuming)`` of checked settings; SettingsError before anything is written."""
+def start_or_resume(s, given: frozenset, sweep_settings: frozenset) -> Optional[Spec]:
+    """What every sweep command checks first: ``--address``; with ``--resume``, that no setting
+    of ``sweep_settings`` is given and the directory is a sweep's, and its Spec (None without
+    ``--resume``). SettingsError naming the argument."""
     try:
         check_address(s.address)
     except AddressError as err:
         raise SettingsError("--address", str(err)) from None
-    if s.resume:
-        clash = sorted(given & SWEEP_SETTINGS)
-        if clash:
-            raise SettingsError(option_name(clash[0]), "not allowed with --resume (a resumed sweep keeps its settings)")
-        saved = Path(s.resume) / "sweep.json"
-        if not saved.is_file() or not (Path(s.resume) / "tune").is_dir():
-            raise SettingsError("--resume", f"{s.resume} is not a sweep's directory (no sweep.json and tune/)")
-        return Spec(**json.loads(saved.read_text())), True
+    if not s.resume:
+        return None
+    clash = sorted(given & sweep_settings)
+    if clash:
+        raise SettingsError(option_name(clash[0]), "not allowed with --resume (a resumed sweep keeps its settings)")
+    saved = Path(s.resume) / "sweep.json"
+    if not saved.is_file() or not (Path(s.resume) / "tune").is_dir():
+        raise SettingsError("--resume", f"{s.resume} is not a sweep's directory (no sweep.json and tune/)")
+    return Spec(**json.loads(saved.read_text()))
+
+
+def checked_space(s) -> dict:
+    """``--space`` parsed; SettingsError naming it."""
+    try:
+        return parse_space(s.space)
+    except ValueError as err:
+        raise SettingsError("--space", str(err)) from None
+
+
+def prepare(s: Settings, given: frozenset) -> tuple:
+    """``(spec, resuming)`` of checked settings; SettingsError before anything is written."""
+    resumed = start_or_resume(s, given, SWEEP_SETTINGS)
+    if resumed is not None:
+        return resumed, True
     try:
         load_run_config(s.algo, esp_gym.ENV_ID, s.task, list(s.set))
     except ConfigError as err:
         raise SettingsError("--set", str(err)) from None
-    try:
-        space = parse_space(s.space)
-    except ValueError as err:
-        raise SettingsError("--space", str(err)) from None
+    space = checked_space(s)
     check_space(space, s)
-    out = _new_out(s)
+    out = new_out(s.out, f"{esp_gym.ENV_ID}__{s.algo}__{s.task}")
     return Spec({k: v for k, v in dataclasses.asdict(s).items() if k in SWEEP_SETTINGS}, space,
                 str(out.resolve())), False
 
 
-def sweep(spec: Spec, resuming: bool, address: Optional[str]):
-    """Run (or continue) the sweep on Ray Tune and gather its results; returns Tune's ResultGrid."""
+def sweep(spec: Spec, resuming: bool, address: Optional[str], trial=run_trial):
+    """Run (or continue) the sweep on Ray Tune, each point a one-CPU ``trial(config, spec)``, and
+    gather its results; returns Tune's ResultGrid."""
     from ray import tune
 
     out = Path(spec.out)
     connect(address)
-    trainable = tune.with_resources(tune.with_parameters(run_trial, spec=spec), {"cpu": 1})
+    trainable = tune.with_resources(tune.with_parameters(trial, spec=spec), {"cpu": 1})
     if resuming:
         tuner = tune.Tuner.restore(str(out / "tune"), trainable=trainable, resume_unfinished=True,
                                    resume_errored=True)
@@ -271,18 +289,25 @@ def sweep(spec: Spec, resuming: bool, address: Optional[str]):
     return results
 
 
-def main(argv=None):
-    ap = settings_parser(Settings, prog="python -m agents.distributed.sweep", description=__doc__.split("\n\n")[0])
-    s, given = parse_settings(ap, Settings, argv)
+def sweep_main(ap, settings_class, argv, check, trial):
+    """A sweep command's life (this module's and agents.team_sweep's): the settings from ``ap``,
+    Ray's token, ``check(s, given) -> (spec, resuming)`` (a SettingsError is one line naming the
+    argument), :func:`sweep` with ``trial``, and Ray left whatever happens."""
+    s, given = parse_settings(ap, settings_class, argv)
     token_auth(s.address)  # before anything imports ray
     try:
-        spec, resuming = prepare(s, given)
+        spec, resuming = check(s, given)
     except SettingsError as err:
         ap.error(str(err))
     try:
-        return sweep(spec, resuming, s.address)
+        return sweep(spec, resuming, s.address, trial)
     finally:
         shutdown()
+
+
+def main(argv=None):
+    ap = settings_parser(Settings, prog="python -m agents.distributed.sweep", description=__doc__.split("\n\n")[0])
+    return sweep_main(ap, Settings, argv, prepare, run_trial)
 
 
 if __name__ == "__main__":
