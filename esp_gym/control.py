@@ -31,7 +31,7 @@ from .kernels.env_arrays import FEATURES, EnvArrays
 from .kernels.env_step import ENTRY_POINTS, actions_finite, env_reset_observe
 from .kernels.drone_env import DRONE_ENTRY_POINTS, DRONE_SENSORS, HOOK_ENTRY_POINTS, drone_reset_observe, \
     hook_reset_observe
-from .drone import DroneSimulator, hover_at_rest, use_drone_scene, use_hook_scene
+from .drone import DroneSimulator, drone_view, hover_at_rest, use_drone_scene, use_hook_scene
 from .model import Simulator
 from .options import check_count
 from .setup import Episode, EnvSetup
@@ -236,7 +236,7 @@ class ControlStep:
             for stacked, value in zip(self._params, episode.params):
                 stacked[index] = value
             if self._drone is not None:
-                use_drone_scene(type(self._drone)(*(a[index] for a in self._drone)), episode.scene)
+                use_drone_scene(drone_view(self._drone, index), episode.scene)
             if self._hook is not None:
                 use_hook_scene(type(self._hook)(*(a[index] for a in self._hook)), episode.scene)
             self.scenes[index] = episode.scene
@@ -257,7 +257,7 @@ class ControlStep:
             self._use_episode(episode, None if index is None else int(index))
         DR = None
         if self._drone is not None:  # before the state: the simulator's balances start with it
-            DR = self._drone if index is None else type(self._drone)(*(a[int(index)] for a in self._drone))
+            DR = self._drone if index is None else drone_view(self._drone, int(index))
             hover_at_rest(DR, self.sim.scene if index is None else self.scenes[int(index)])
         if self.num_envs is None:
             self.sim.set_state(state, check=False)  # built for this scene, as the batch's rows below

@@ -30,11 +30,7 @@ DroneState = namedtuple("DroneState", "R Pi rotor_speeds")
 def drone_arrays(scene: Scene) -> DroneArrays:
     """A :class:`DroneArrays` for ``scene``'s drone (:func:`use_drone_scene`), at rest
     (:func:`hover_at_rest`)."""
-    z = np.zeros
-    arrays = DroneArrays(R=z((3, 3)), Rc=z((3, 3)), Pi=z(3), Pic=z(3), speed=z(4), command=z(4), setpoint=z(4),
-                         thrust_scale=np.ones(4), consts=z(DRONE.size), inertia=z((3, 3)), inertia_inv=z((3, 3)),
-                         mixer=z((4, 4)), allocation=z((4, 4)), next_speed=z(4), wrench=z((2, 4)),
-                         scratch=z((4, 3, 3)), diag=z(DRONE_DIAG.size))
+    arrays = drone_view(stacked_drone_arrays(1), 0)
     use_drone_scene(arrays, scene)
     hover_at_rest(arrays, scene)
     return arrays
@@ -69,13 +65,18 @@ def use_hook_scene(arrays: HookArrays, scene: Scene) -> None:
 
 
 def use_drone_scene(arrays: DroneArrays, scene: Scene) -> None:
-    """Write ``scene``'s drone into the constants of ``arrays`` (:data:`DRONE` with the motor lag's
-    decays over ``scene.h``, J_q and its inverse, the mixer and its inverse)."""
-    drone = scene.pivot.drone
+    """Write ``scene``'s drone into the constants of ``arrays`` (:func:`use_drone`)."""
+    use_drone(arrays, scene.pivot.drone, scene.h)
+
+
+def use_drone(arrays: DroneArrays, drone, h: float) -> None:
+    """Write ``drone`` (esp_gym/pivot_params.py ``DroneParams``) into the constants of ``arrays``
+    (:data:`DRONE` with the motor lag's decays over the step ``h`` [s], J_q and its inverse, the
+    mixer and its inverse)."""
     J = drone.inertia_matrix()
     consts = arrays.consts
     consts[DRONE.scalar("thrust_coefficient")] = drone.thrust_coefficient
-    consts[DRONE.scalar("decay_up")], consts[DRONE.scalar("decay_down")] = drone.decays(scene.h)
+    consts[DRONE.scalar("decay_up")], consts[DRONE.scalar("decay_down")] = drone.decays(h)
     consts[DRONE.scalar("max_rotor_speed")] = drone.max_rotor_speed
     consts[DRONE["rate_gain"]] = drone.rate_gain
     arrays.inertia[...] = J
@@ -85,16 +86,39 @@ def use_drone_scene(arrays: DroneArrays, scene: Scene) -> None:
 
 
 def hover_at_rest(arrays: DroneArrays, scene: Scene) -> None:
+    """:func:`hover_level` carrying the whole rig (drone, string and load)."""
+    hover_level(arrays, scene.pivot.drone, total_weight(scene))
+
+
+def hover_level(arrays: DroneArrays, drone, weight: float) -> None:
     """The drone level (R_q = I) and not turning, its remainders cleared, its rotors and their
-    commands at the speed whose thrust carries the whole rig (drone, string and load), the
-    setpoint cleared, the thrust noise off."""
-    hover = scene.pivot.drone.rotor_speed_for(total_weight(scene))
+    commands at the speed whose thrust is ``weight`` [N], the setpoint cleared, the thrust noise
+    off."""
+    hover = drone.rotor_speed_for(weight)
     arrays.R[...] = np.eye(3)
     for a in (arrays.Rc, arrays.Pi, arrays.Pic, arrays.setpoint):
         a[...] = 0.0
     arrays.speed[...] = hover
     arrays.command[...] = hover
     arrays.thrust_scale[...] = 1.0
+
+
+def stacked_drone_arrays(count: int) -> DroneArrays:
+    """:class:`DroneArrays` of ``count`` drones, zero, every field's first index the drone (a team's:
+    esp_gym/kernels/team_drones.py); ``thrust_scale`` 1."""
+    z = np.zeros
+    return DroneArrays(R=z((count, 3, 3)), Rc=z((count, 3, 3)), Pi=z((count, 3)), Pic=z((count, 3)),
+                       speed=z((count, 4)), command=z((count, 4)), setpoint=z((count, 4)),
+                       thrust_scale=np.ones((count, 4)), consts=z((count, DRONE.size)), inertia=z((count, 3, 3)),
+                       inertia_inv=z((count, 3, 3)), mixer=z((count, 4, 4)), allocation=z((count, 4, 4)),
+                       next_speed=z((count, 4)), wrench=z((count, 2, 4)), scratch=z((count, 4, 3, 3)),
+                       diag=z((count, DRONE_DIAG.size)))
+
+
+def drone_view(arrays: DroneArrays, k: int) -> DroneArrays:
+    """Drone ``k`` of :func:`stacked_drone_arrays` as its own :class:`DroneArrays` of views (the
+    kernels' ``drone_at``)."""
+    return DroneArrays(*(field[k] for field in arrays))
 
 
 class DroneSimulator(Simulator):

@@ -314,9 +314,6 @@ def test_a_team_refuses_what_its_step_does_not_do():
     one = base.strings[0]
     with pytest.raises(ValueError, match="at most 6"):
         TeamScene(scene=base.scene, strings=[one] * 6)
-    drone = load_scene("quadrotor_load")
-    with pytest.raises(ValueError, match="scene.pivot.kind"):
-        TeamScene(scene=drone)
     with pytest.raises(ValueError, match="slack_switch: plain"):
         TeamScene(scene=base.scene, strings=[one.model_copy(update={"string": one.string.model_copy(
             update={"law": "slack"})})])

@@ -171,11 +171,10 @@ def drone_balances(S, R, Rn, h, c, left, right):
 
 
 @kernel(inline="always")
-def drone_start(DR, P, inputs, h, compensated):
-    """The drone's half of a step before the string's (:func:`drone_substep`): the rotors over the
-    step, the rotation solved (not committed), and the thrust pair u_k = -f_k R_{q,k} e3,
-    u_{k+1} = -f_{k+1} R_{q,k+1} e3 into ``inputs`` (INPUTS). Returns ``(status, iterations,
-    dPi, c)``."""
+def drone_solve(DR, P, h, compensated, thrust):
+    """The drone's half of a step before the string's: the rotors over the step, the rotation
+    solved (not committed), and the thrust pair u_k = -f_k R_{q,k} e3, u_{k+1} = -f_{k+1}
+    R_{q,k+1} e3 into ``thrust`` (2, 3) (spatial) [N]. Returns ``(status, iterations, dPi, c)``."""
     rotor_ends(DR)
     wl = DR.wrench[0]
     wr = DR.wrench[1]
@@ -186,9 +185,25 @@ def drone_start(DR, P, inputs, h, compensated):
     if status == OK:
         Rn = DR.scratch[3]
         for i in range(3):  # the thrust along -b3 at either end
-            inputs[IN_PIVOT_FORCE + i] = -wl[0] * R[i, 2]
-            inputs[IN_PIVOT_FORCE_END + i] = -wr[0] * Rn[i, 2]
+            thrust[0, i] = -wl[0] * R[i, 2]
+            thrust[1, i] = -wr[0] * Rn[i, 2]
     return status, iters, dP, c
+
+
+@kernel(inline="always")
+def drone_start(DR, P, inputs, h, compensated):
+    """:func:`drone_solve` before the string's step of :func:`drone_substep`, its thrust pair into
+    ``inputs`` (INPUTS' pivot force at the step's start and end, contiguous)."""
+    return drone_solve(DR, P, h, compensated, inputs[IN_PIVOT_FORCE:IN_PIVOT_FORCE_END + 3].reshape((2, 3)))
+
+
+@kernel(inline="always")
+def drone_at(D, k):
+    """Drone ``k`` of stacked :class:`DroneArrays` ``D`` (every field with a leading index over
+    drones: a team's, kernels/team_drones.py) as its own :class:`DroneArrays` of views."""
+    return DroneArrays(D.R[k], D.Rc[k], D.Pi[k], D.Pic[k], D.speed[k], D.command[k], D.setpoint[k],
+                       D.thrust_scale[k], D.consts[k], D.inertia[k], D.inertia_inv[k], D.mixer[k], D.allocation[k],
+                       D.next_speed[k], D.wrench[k], D.scratch[k], D.diag[k])
 
 
 @kernel(inline="always")

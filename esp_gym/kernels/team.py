@@ -46,7 +46,8 @@ TeamParams = namedtuple("TeamParams", "start first kappa u m Mp off slack max_le
 #: ``p`` (0 on the ends), their remainders ``rc``, ``pc``, the forces ``f`` at r and ``fn`` at the
 #: step's new positions ``X`` (increments ``Y``) [N, m]; per string the coupling momentum ``c``
 #: (K-1, 3) = M_eI M_II^-1 b_I [kg m/s], the pivot's displacement ``dr0`` over the step [m] and
-#: the pivot force ``force`` held over it (spatial) [N].
+#: the pivot force ``force`` (K-1, 2, 3) at the step's start u_k and its end u_{k+1} (spatial) [N]
+#: (equal for a held force; a drone's thrust turns with it: kernels/team_drones.py).
 TeamArrays = namedtuple("TeamArrays", "r p rc pc f fn X Y c dr0 force")
 
 
@@ -65,8 +66,8 @@ def end_loads(R, T, A, h, forced):
         e = T.start[j + 1] - 1
         first = T.first[j]
         X = A.X[s:e]
-        string_solve(T.inv[s:e], T.cp[s:e], first, A.p[s:e], A.f[s:e], hh, A.force[j, 0], A.force[j, 1],
-                     A.force[j, 2], first == 0 and forced, X)
+        string_solve(T.inv[s:e], T.cp[s:e], first, A.p[s:e], A.f[s:e], hh, A.force[j, 0, 0], A.force[j, 0, 1],
+                     A.force[j, 0, 2], first == 0 and forced, X)
         c0 = c1 = c2 = 0.0
         if e - 1 >= s + first:  # a moving row next to the end
             c0 = T.off[j] * X[e - 1 - s, 0]
@@ -196,8 +197,9 @@ def other_forces(S, W, P, T, A, h):
 @kernel(inline="always")
 def other_balances(S, P, T, A, h, forced):
     """The other strings' shares of the input balances: their weight's impulse along +e3, and
-    with ``forced`` their free pivots' work u . dr_0, impulse h u and angular impulse about e3
-    h/2 ((2 r_0 + dr_0) x u) . e3 [N s, J, N m s]."""
+    with ``forced`` their free pivots' work u_bar . dr_0, impulse h u_bar and angular impulse
+    about e3 h/2 ((2 r_0 + dr_0) x u_bar + 1/2 dr_0 x (u_{k+1} - u_k)) . e3 [N s, J, N m s]
+    (u_bar = (u_k + u_{k+1})/2; the string 0's terms of step_shared.py's ``input_balances``)."""
     acc = S.acc
     accc = S.accc
     hh = 0.5 * h
@@ -206,14 +208,17 @@ def other_balances(S, P, T, A, h, forced):
         e = T.start[j + 1] - 1
         kahan_add(acc, accc, B_GRAVITY_IMPULSE + 2, h * P.g * (T.Mp[j] + (e - s) * T.m[j]))
         if forced and T.first[j] == 0:
-            u0 = A.force[j, 0]
-            u1 = A.force[j, 1]
-            u2 = A.force[j, 2]
+            ul = A.force[j, 0]
+            ur = A.force[j, 1]
+            u0 = 0.5 * (ul[0] + ur[0])  # the mean force: u itself, bit for bit, when held
+            u1 = 0.5 * (ul[1] + ur[1])
+            u2 = 0.5 * (ul[2] + ur[2])
             d0 = A.dr0[j, 0]
             d1 = A.dr0[j, 1]
             kahan_add(acc, accc, B_WORK, u0 * d0 + u1 * d1 + u2 * A.dr0[j, 2])
+            turning = 0.5 * (d0 * (ur[1] - ul[1]) - d1 * (ur[0] - ul[0]))
             kahan_add(acc, accc, B_ANGULAR_IMPULSE_Z,
-                      hh * ((2.0 * A.r[s, 0] + d0) * u1 - (2.0 * A.r[s, 1] + d1) * u0))
+                      hh * (((2.0 * A.r[s, 0] + d0) * u1 - (2.0 * A.r[s, 1] + d1) * u0) + turning))
             kahan_add(acc, accc, B_PIVOT_IMPULSE, h * u0)
             kahan_add(acc, accc, B_PIVOT_IMPULSE + 1, h * u1)
             kahan_add(acc, accc, B_PIVOT_IMPULSE + 2, h * u2)
@@ -222,7 +227,8 @@ def other_balances(S, P, T, A, h, forced):
 @kernel(inline="always")
 def commit_others(T, A, h, forced, compensated):
     """Write the other strings' new positions and momenta (:func:`commit_node`; a free pivot's
-    row with its impulse h u), their ends' positions (no momentum of their own), and f <- fn."""
+    row with its impulse h/2 (u_k + u_{k+1}), h u bit for bit when held), their ends' positions
+    (no momentum of their own), and f <- fn."""
     hh = 0.5 * h
     for j in range(T.first.shape[0]):
         s = T.start[j]
@@ -232,7 +238,7 @@ def commit_others(T, A, h, forced, compensated):
             for i in range(3):
                 impulse = 0.0
                 if forced and a == s:
-                    impulse = h * A.force[j, i]
+                    impulse = hh * (A.force[j, 0, i] + A.force[j, 1, i])
                 commit_node(A.r, A.p, A.rc, A.pc, A.f, A.fn, A.f, A.fn, A.X, A.Y, a, i, impulse, hh, compensated)
         for i in range(3):
             for a in range(s, s + first):
@@ -248,7 +254,7 @@ def team_substep(S, W, P, T, A, inputs, h, free, forced, coupled, compensated):
     strings on one body"): string 0 and the body as :func:`~.lgvi.lgvi_substep` with the body's
     inertia augmented (``T``), the other strings (``A``) reduced to their ends before Newton and
     back-substituted after it. ``inputs`` (:data:`~.layout.INPUTS`) push string 0's pivot and
-    turn the body; ``A.force`` pushes the other pivots. Flags as in ``lgvi_substep``; a failing
+    turn the body; ``A.force`` pushes the other pivots (its pair, as string 0's). Flags as in ``lgvi_substep``; a failing
     step leaves the state untouched. Returns ``(status, newton_iterations)``."""
     R = S.R
     first = 0 if free else 1
@@ -288,6 +294,25 @@ def team_substep(S, W, P, T, A, inputs, h, free, forced, coupled, compensated):
     return OK, iters
 
 
+@kernel(inline="always")
+def kick_before(S, W, P, nsteps, disturbed):
+    """The first half kick of a run of steps' held force on the load (``disturbed``, ``nsteps`` > 0):
+    kernels/disturbance.py's :func:`kick` of h/2."""
+    if disturbed and nsteps > 0:
+        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, 0.5 * P.h, 0 if P.first == 0 else 1)
+
+
+@kernel(inline="always")
+def kick_after(S, W, P, status, k, nsteps, disturbed):
+    """After step ``k`` of ``nsteps`` with ``status``: the kicks around it (``disturbed``): on
+    success the next step's first half and this one's second (h), or the last half (h/2); on
+    failure the pending half taken back (-h/2)."""
+    if disturbed:
+        hh = 0.5 * P.h
+        c = -hh if status != OK else (P.h if k < nsteps - 1 else hh)
+        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, c, 0 if P.first == 0 else 1)
+
+
 @kernel(entry=True)
 def team_advance(S, W, P, T, A, inputs, nsteps, stats, disturbed):
     """Take up to ``nsteps`` team steps with constant inputs; stop at the first failure with the
@@ -295,25 +320,19 @@ def team_advance(S, W, P, T, A, inputs, nsteps, stats, disturbed):
     is in (the general path): forced, coupled, the pivot and the compensation read from ``P``.
     ``disturbed``: the held force on the load's centre of mass ``W.ext[N+1]`` (wind, a push;
     string 0's rows of ``W.ext`` zero) acts too, as kicks of h/2 on both sides of every step
-    (kernels/disturbance.py's :func:`kick`), the pending half taken back after a failure."""
+    (:func:`kick_before`, :func:`kick_after`), the pending half taken back after a failure."""
     free = P.first == 0
-    first = 0 if free else 1
-    hh = 0.5 * P.h
-    if disturbed and nsteps > 0:
-        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, hh, first)
+    kick_before(S, W, P, nsteps, disturbed)
     total = 0
     most = 0
     for k in range(nsteps):
         status, iters = team_substep(S, W, P, T, A, inputs, P.h, free, True, True, P.compensated)
         total += iters
         most = max(most, iters)
+        kick_after(S, W, P, status, k, nsteps, disturbed)
         if status != OK:
-            if disturbed:
-                kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, -hh, first)
             finish(stats, status, k, total, most)
             return
-        if disturbed:
-            kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, P.h if k < nsteps - 1 else hh, first)
     finish(stats, OK, nsteps, total, most)
 
 

@@ -83,9 +83,9 @@ class TeamScene(Frozen):
             raise ValueError(f"scene.solver.order: a team steps at order 2 only, got order {lead.solver.order}")
         pivots = [("scene.pivot", lead.pivot)] + [(f"strings[{i}].pivot", s.pivot) for i, s in enumerate(self.strings)]
         for name, pivot in pivots:
-            if pivot.is_drone:
-                raise ValueError(f"{name}.kind: a team's pivots are fixed or free points; drones are not supported "
-                                 "yet")
+            if pivot.is_drone and pivot.drone.offset_hook:
+                raise ValueError(f"{name}.drone.rho_q: a team's drone carries its string at its centre of mass "
+                                 "(docs/physics.md, \"What a team does not do yet\")")
         laws = [("scene.string.law", lead.string)] + [(f"strings[{i}].string.law", s.string)
                                                       for i, s in enumerate(self.strings)]
         for name, string in laws:
@@ -107,6 +107,10 @@ class TeamScene(Frozen):
     @property
     def h(self) -> float:
         return self.scene.h
+
+    def pivots(self) -> list:
+        """Every string's pivot section (esp_gym/pivot_params.py ``PivotParams``), string 0's first."""
+        return [self.scene.pivot] + [s.pivot for s in self.strings]
 
     def attachments(self) -> np.ndarray:
         """Every string's attachment point (K, 3), body frame, from the centre of mass [m]."""
@@ -198,23 +202,38 @@ NOMINAL = dict(length=1.0, mass_per_length=0.05, EA=200.0, pivot_mass=1.0, body_
 RANDOM_FACTORS = dict(EA=(0.5, 2.0, "log"), mass_per_length=(0.5, 2.0, "log"), length=(0.9, 1.1, "uniform"),
                       pivot_mass=(0.8, 1.25, "uniform"), body_mass=(0.7, 1.5, "uniform"))
 
-def team_scene(size: int, strings=None, pivot_masses=None, body_mass: float = NOMINAL["body_mass"]) -> TeamScene:
+def quadrotor() -> tuple:
+    """``(mass [kg], DroneParams)`` of the quadrotor of ``quadrotor_load`` (configs/scenes: PX4's
+    1.5 kg x500), a team's drone by default."""
+    from ..params import load_scene
+
+    pivot = load_scene("quadrotor_load").pivot
+    return float(pivot.mass), pivot.drone
+
+
+def team_scene(size: int, strings=None, pivot_masses=None, body_mass: float = NOMINAL["body_mass"],
+               drones: bool = False) -> TeamScene:
     """A team of ``size`` free pivots holding a 1 kg-class box (0.4 x 0.4 x 0.1 m) at points 0.15 m
     from its centre line on its top face, each on a tension-only string (``drone_load``'s by
-    default: 1 m, 50 g/m, EA = 200 N, 8 elements) from a pivot (1 kg) on a circle of 0.6 m radius
-    at rest. ``strings``: per string ``{length, mass_per_length, EA}``, ``pivot_masses`` per pivot
+    default: 1 m, 50 g/m, EA = 200 N, 8 elements) from a pivot (1 kg; with ``drones``, the
+    :func:`quadrotor` of 1.5 kg, its hook at its centre of mass) on a circle of 0.6 m radius at
+    rest. ``strings``: per string ``{length, mass_per_length, EA}``, ``pivot_masses`` per pivot
     [kg]: each string keeps its nominal direction from its attachment point and starts at the
     stretch that carries its share of the load (its pivot moved along it)."""
     size = int(size)
+    if drones:
+        mass, drone = quadrotor()
+        kind = {"kind": "drone", "drone": drone.model_dump()}
+    else:
+        mass, kind = NOMINAL["pivot_mass"], {"kind": "free"}
     nominal = symmetric_team(size, length=NOMINAL["length"], mass_per_length=NOMINAL["mass_per_length"],
                              EA=NOMINAL["EA"], elements=8, body_mass=NOMINAL["body_mass"], body_size=(0.4, 0.4, 0.1),
-                             pivot_radius=0.6, attachment_radius=0.15,
-                             pivot={"kind": "free", "mass": NOMINAL["pivot_mass"]}, h=2e-4, stretch="static",
-                             law="slack", solver={"slack_switch": "plain"})
+                             pivot_radius=0.6, attachment_radius=0.15, pivot={**kind, "mass": mass}, h=2e-4,
+                             stretch="static", law="slack", solver={"slack_switch": "plain"})
     if strings is None and pivot_masses is None and body_mass == NOMINAL["body_mass"]:
         return nominal
     strings = strings or [{k: NOMINAL[k] for k in ("length", "mass_per_length", "EA")}] * size
-    pivot_masses = pivot_masses if pivot_masses is not None else [NOMINAL["pivot_mass"]] * size
+    pivot_masses = pivot_masses if pivot_masses is not None else [mass] * size
     lead = nominal.scene
     g = lead.gravity
     attachments = nominal.attachments()
@@ -233,24 +252,28 @@ def team_scene(size: int, strings=None, pivot_masses=None, body_mass: float = NO
     body = lead.body.model_dump()
     body["mass"] = float(body_mass)
     scene = lead.model_validate({**lead.model_dump(), "string": string0, "body": body,
-                                 "pivot": {"kind": "free", "mass": mass0, "position": list(pivot0)},
+                                 "pivot": {**kind, "mass": mass0, "position": list(pivot0)},
                                  "initial": {"direction": list(d0), "stretch": stretch0}})
     return TeamScene(scene=scene, strings=[
-        TeamString(string=string, pivot={"kind": "free", "mass": mass, "position": tuple(pivot)},
+        TeamString(string=string, pivot={**kind, "mass": mass, "position": tuple(pivot)},
                    attachment=tuple(attachments[k + 1]))
         for k, (string, pivot, _, _, mass) in enumerate(others)])
 
 
-def draw_team(size: int, rng: np.random.Generator) -> tuple:
-    """One randomised episode's team (:data:`RANDOM_FACTORS`) and its draws by name."""
-    def draw(name):
+def draw_team(size: int, rng: np.random.Generator, drones: bool = False) -> tuple:
+    """One randomised episode's team (:data:`RANDOM_FACTORS`; with ``drones``, each pivot's mass a
+    factor of the :func:`quadrotor`'s) and its draws by name."""
+    def factor(name):
         low, high, law = RANDOM_FACTORS[name]
-        return NOMINAL[name] * (math.exp(rng.uniform(math.log(low), math.log(high))) if law == "log"
-                                else rng.uniform(low, high))
+        return math.exp(rng.uniform(math.log(low), math.log(high))) if law == "log" else rng.uniform(low, high)
+
+    def draw(name):
+        return NOMINAL[name] * factor(name)
 
     strings = [{"EA": draw("EA"), "mass_per_length": draw("mass_per_length"), "length": draw("length")}
                for _ in range(size)]
-    pivot_masses = [draw("pivot_mass") for _ in range(size)]
+    pivot_mass = quadrotor()[0] if drones else NOMINAL["pivot_mass"]
+    pivot_masses = [pivot_mass * factor("pivot_mass") for _ in range(size)]
     body_mass = draw("body_mass")
-    return team_scene(size, strings, pivot_masses, body_mass), {"strings": strings, "pivot_masses": pivot_masses,
-                                                                "body_mass": body_mass}
+    return (team_scene(size, strings, pivot_masses, body_mass, drones),
+            {"strings": strings, "pivot_masses": pivot_masses, "body_mass": body_mass})

@@ -4,18 +4,21 @@ compiled team step (esp_gym/kernels/team.py) and reports its diagnostics and bal
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import solve_banded
 
+from ..drone import DroneState
 from ..kernels.layout import BALANCE, INPUTS, LOOP_REPORT_SIZE, R_NEWTON_TOTAL, R_STATUS, R_STEPS
 from ..kernels.status import OK
-from ..kernels.team import TeamArrays, TeamParams, team_advance, team_forces
+from ..kernels.team import TeamArrays, team_advance, team_forces
+from ..kernels.team_drones import team_drone_advance
 from ..model import SimulationError, Simulator
-from ..state import State, attachment_column, cross3, legendre_momenta, mass_matrix
 from ..stability import hat
-from ..kernels.string import tridiag_factor
+from ..state import State, cross3, legendre_momenta
+from .assembly import banded, build_team, string_mass
+from .fleet import Fleet
 from .scene import TeamScene
 
 
@@ -24,86 +27,18 @@ class TeamState:
     """A team's discrete state: ``lead`` string 0 and the body (a single string's
     :class:`~esp_gym.state.State`, whose last row of p and whose Pi hold the body's momenta with
     every string end's share), and the other strings' positions ``r`` and momenta ``p``, stacked by
-    rows (each string's end last, its momentum row 0)."""
+    rows (each string's end last, its momentum row 0); ``drones``: each drone's
+    :data:`~esp_gym.drone.DroneState` in the order of :attr:`TeamSimulator.drone_pivots` (empty
+    without drones)."""
 
     lead: State
     r: np.ndarray
     p: np.ndarray
+    drones: tuple = field(default_factory=tuple)
 
     def copy(self) -> "TeamState":
-        return TeamState(self.lead.copy(), self.r.copy(), self.p.copy())
-
-
-def string_mass(string, pivot):
-    """``(diagonal (N+1,), off-diagonal, end share)`` of one string's mass matrix without a body
-    (a free pivot's mass on its first row, a fixed pivot's row 0)."""
-    m = string.m
-    off, end = (m / 6.0, 2.0 * m / 6.0) if string.mass_model == "consistent" else (0.0, 0.5 * m)
-    diag = np.full(string.elements + 1, 2.0 * end)
-    diag[0] = end + pivot.mass if pivot.is_free else 0.0
-    diag[-1] = end
-    return diag, off, end
-
-
-def end_reduction(diag, off, first):
-    """The rows before a string's end, and its end mass: ``(inv, cp, w_end, mu)``, the Thomas
-    factors of M_II, its last column M_II^-1 e_last and mu = M_ee - off^2 (M_II^-1)_last,last
-    (docs/physics.md, "One string reduced to its end")."""
-    n = diag.shape[0] - 1
-    block = diag[:n]
-    if n - 1 < first:  # one element from a fixed pivot: nothing moves but the end
-        return np.zeros(n), np.zeros(n), np.zeros(n), float(diag[n])
-    inv, cp = tridiag_factor(block, off)
-    w_end = attachment_column(block, off, cp, first)
-    return inv, cp, w_end, float(diag[n] - off * off * w_end[n - 1])
-
-
-def build_team(team: TeamScene, lead_params):
-    """The team's constants (:data:`~esp_gym.kernels.team.TeamParams`) from the lead scene's
-    ``lead_params``, and the other strings' per-string data for the diagnostics."""
-    rho = team.offsets()[1:]
-    rows, first, mus, data = [0], [], [], []
-    inv, cp, w_end = [], [], []
-    for k, s in enumerate(team.strings, start=1):
-        diag, off, end = string_mass(s.string, s.pivot)
-        f = 0 if s.pivot.is_free else 1
-        i, c, w, mu = end_reduction(diag, off, f)
-        inv += [i, [0.0]]
-        cp += [c, [0.0]]
-        w_end += [w, [0.0]]
-        rows.append(rows[-1] + s.string.elements + 1)
-        first.append(f)
-        mus.append(mu)
-        data.append((diag, off, end, f))
-    P = lead_params
-    n = P.inv.shape[0] - 1
-    if team.strings:
-        mu = np.array(mus)
-        mass = P.M + float(mu.sum())
-        rho_inertial = P.rho + (mu[:, None] * (rho - P.rho)).sum(0) / mass
-        J = P.J + sum(m * (r @ r * np.eye(3) - np.outer(r, r)) for m, r in zip(mu, rho))
-        diag0, off0, _ = mass_matrix(team.scene)
-        diag0[n] += float(mu.sum())
-        inv0, cp0 = tridiag_factor(diag0, off0)
-        w0 = attachment_column(diag0, off0, cp0, P.first)
-        jeff = J + mass * mass * inv0[n] * hat(rho_inertial) @ hat(rho_inertial)
-    else:  # one string: the lead scene's own constants
-        mass, rho_inertial, jeff, inv0, cp0, w0 = P.M, P.rho, P.Jeff, P.inv, P.cp, P.w
-    strings = team.strings
-    cat = (lambda parts: np.concatenate(parts)) if strings else (lambda parts: np.zeros(0))
-    T = TeamParams(
-        start=np.array(rows, dtype=np.int64), first=np.array(first, dtype=np.int64),
-        kappa=np.array([s.string.kappa for s in strings], dtype=float),
-        u=np.array([s.string.u for s in strings], dtype=float),
-        m=np.array([s.string.m for s in strings], dtype=float),
-        Mp=np.array([s.pivot.mass or 0.0 for s in strings], dtype=float),
-        off=np.array([d[1] for d in data], dtype=float),
-        slack=np.array([s.string.law == "slack" for s in strings], dtype=np.bool_),
-        max_len2=np.array([(team.scene.solver.max_stretch * s.string.u) ** 2 for s in strings], dtype=float),
-        rho=np.ascontiguousarray(rho.reshape(-1, 3)), inv=cat(inv), cp=cat(cp), w_end=cat(w_end),
-        mass=float(mass), rho_inertial=np.ascontiguousarray(rho_inertial, dtype=float), jeff=jeff,
-        inv0=inv0, cp0=cp0, w0=w0)
-    return T, data
+        return TeamState(self.lead.copy(), self.r.copy(), self.p.copy(),
+                         tuple(DroneState(*(a.copy() for a in d)) for d in self.drones))
 
 
 class TeamSimulator:
@@ -127,10 +62,14 @@ class TeamSimulator:
         K1 = len(team.strings)
         self._A = TeamArrays(r=z((rows, 3)), p=z((rows, 3)), rc=z((rows, 3)), pc=z((rows, 3)), f=z((rows, 3)),
                              fn=z((rows, 3)), X=z((rows, 3)), Y=z((rows, 3)), c=z((K1, 3)), dr0=z((K1, 3)),
-                             force=z((K1, 3)))
+                             force=z((K1, 2, 3)))
         self._inputs = z(INPUTS.size)
         self._stats = np.zeros(LOOP_REPORT_SIZE, dtype=np.int64)
         self._step = 0
+        #: The team's drones (esp_gym/team/fleet.py), None without drones.
+        self.fleet = Fleet(team, self.h) if any(p.is_drone for p in team.pivots()) else None
+        #: The pivots that are drones (0: string 0's), in the order of the drones' arrays.
+        self.drone_pivots = self.fleet.pivots if self.fleet else []
         self.set_state(self.initial_state())
 
     # -- state ------------------------------------------------------------------------------
@@ -152,7 +91,9 @@ class TeamSimulator:
         lead = State(np.ascontiguousarray(x0), np.ascontiguousarray(p0), R, Pi, 0)
         pivots = np.array([s.pivot.position for s in self.team.strings], dtype=float).reshape(-1, 3)
         velocities = np.array([s.pivot.velocity for s in self.team.strings], dtype=float).reshape(-1, 3)
-        return self._with_others(lead, v0[-1], Omega, pivots, velocities, interpolate=False)
+        state = self._with_others(lead, v0[-1], Omega, pivots, velocities, interpolate=False)
+        state.drones = self.fleet.hovering() if self.fleet else ()
+        return state
 
     def lifted_state(self, pivots, pivot_velocities, load, load_velocity, R, Omega) -> TeamState:
         """The state with every string straight from its pivot (K, 3) to its attachment point,
@@ -212,11 +153,17 @@ class TeamSimulator:
         """A copy of the current state (without the summation remainders)."""
         S = self._S
         return TeamState(State(S.r.copy(), S.p.copy(), S.R.copy(), S.Pi.copy(), self._step), self._A.r.copy(),
-                         self._A.p.copy())
+                         self._A.p.copy(), self.fleet.states() if self.fleet else ())
 
     def set_state(self, state: TeamState) -> None:
         """Replace the state (copied; remainders and balances restart at 0). The other strings'
-        ends are placed on the body."""
+        ends are placed on the body. Without ``state.drones`` the drones keep theirs; with them,
+        each R_q a rotation to ROTATION_TOL, Pi_q (3,) [kg m^2/s] and its rotor speeds (4,) in
+        [0, max_rotor_speed] [rad/s], its motor commands then those speeds."""
+        if state.drones:
+            if not self.fleet:
+                raise ValueError(f"state.drones has {len(state.drones)} drones, the team none")
+            self.fleet.set_states(state.drones)
         A = self._A
         for name in ("r", "p"):
             given = np.asarray(getattr(state, name), dtype=float)
@@ -268,24 +215,39 @@ class TeamSimulator:
                              f"got {u.shape}")
         if not np.all(np.isfinite(u)):
             raise ValueError("pivot_forces must be finite")
-        pivots = [self.team.scene.pivot] + [s.pivot for s in self.team.strings]
-        for k, pivot in enumerate(pivots):
+        for k, pivot in enumerate(self.team.pivots()):
             if not pivot.is_free and np.any(u[k] != 0.0):
                 raise ValueError(f"pivot_forces[{k}]: string {k}'s pivot is fixed and cannot be pushed")
+            if pivot.is_drone and np.any(u[k] != 0.0):
+                raise ValueError(f"pivot_forces[{k}]: string {k}'s pivot is a drone, flown by its rotors "
+                                 "(step's rotor_commands, or thrust with torque or rates)")
         self._inputs[INPUTS["pivot_force"]] = u[0]
         self._inputs[INPUTS["pivot_force_end"]] = u[0]
-        self._A.force[...] = u[1:]
+        self._A.force[:, 0] = u[1:]
+        self._A.force[:, 1] = u[1:]
 
-    def step(self, n: int = 1, pivot_forces=None, load_force=None) -> None:
+    def step(self, n: int = 1, pivot_forces=None, load_force=None, rotor_commands=None, thrust=None, torque=None,
+             rates=None) -> None:
         """Advance ``n`` steps with each pivot's force (K, 3) held (spatial) [N]; fixed pivots'
-        rows must be 0; ``load_force`` (3,) a force on the load's centre of mass (spatial) [N]
-        held too (wind, a push: its impulse joins the balances' ``external_impulse``). Raises
-        :class:`~esp_gym.errors.SimulationError` on failure (the state is then the last good
-        one)."""
+        and drones' rows must be 0; ``load_force`` (3,) a force on the load's centre of mass
+        (spatial) [N] held too (wind, a push: its impulse joins the balances' ``external_impulse``).
+        The drones (in :attr:`drone_pivots`' order): ``rotor_commands`` (n_drones, 4) [rad/s]
+        held; or ``thrust`` (n_drones,) [N] with ``torque`` (n_drones, 3) (body frame) [N m],
+        made into held commands through A^-1 (clipped to each rotor's range); or ``thrust`` with
+        ``rates`` (n_drones, 3) [rad/s], the rate controller setting the commands before every
+        step (kernels/drone.py ``actuate``). None of them keeps the last call's (at first
+        hover: :meth:`Fleet.shares <esp_gym.team.fleet.Fleet.shares>`). Raises :class:`~esp_gym.errors.SimulationError` on failure
+        (the state is then the last good one)."""
         n = int(n)
         if n < 0:
             raise ValueError(f"n must be >= 0, got {n}")
         self._set_forces(pivot_forces)
+        drive = dict(rotor_commands=rotor_commands, thrust=thrust, torque=torque, rates=rates)
+        if self.fleet:
+            self.fleet.command(**drive)
+        elif any(v is not None for v in drive.values()):
+            given = next(k for k, v in drive.items() if v is not None)
+            raise ValueError(f"{given}: the team has no drone (its pivots are points: use pivot_forces)")
         disturbed = load_force is not None
         if disturbed:
             F = np.asarray(load_force, dtype=float)
@@ -294,7 +256,11 @@ class TeamSimulator:
             self._W.ext[...] = 0.0
             self._W.ext[-1] = F
             before = self.load_position()
-        team_advance(self._S, self._W, self._P, self.params, self._A, self._inputs, n, self._stats, disturbed)
+        if self.fleet is None:
+            team_advance(self._S, self._W, self._P, self.params, self._A, self._inputs, n, self._stats, disturbed)
+        else:
+            team_drone_advance(self._S, self._W, self._P, self.params, self._A, self.fleet.arrays, self._inputs,
+                               n, self._stats, disturbed, self.fleet.rates)
         self._step += int(self._stats[R_STEPS])
         if disturbed:  # a held force's work: F . the displacement of its point
             self._load_work += float(F @ (self.load_position() - before))
@@ -393,15 +359,23 @@ class TeamSimulator:
         momentum = S.p.sum(0) + A.p.sum(0)
         pi3 = float(np.sum(S.r[:, 0] * S.p[:, 1] - S.r[:, 1] * S.p[:, 0]) +
                     np.sum(A.r[:, 0] * A.p[:, 1] - A.r[:, 1] * A.p[:, 0]) + (S.R @ S.Pi)[2])
-        return dict(kinetic=float(kinetic), potential_elastic=elastic, potential_gravity=gravity,
-                    energy=float(kinetic) + elastic + gravity, linear_momentum=momentum, pi3=pi3,
-                    orthogonality=float(np.linalg.norm(S.R.T @ S.R - np.eye(3))))
+        out = dict(orthogonality=float(np.linalg.norm(S.R.T @ S.R - np.eye(3))))
+        if self.fleet:  # each drone's rotation
+            out.update(self.fleet.diagnostics())
+            kinetic += float(out["kinetic_drones"].sum())
+            pi3 += float(out["pi3_drones"].sum())
+        out.update(kinetic=float(kinetic), potential_elastic=elastic, potential_gravity=gravity,
+                   energy=float(kinetic) + elastic + gravity, linear_momentum=momentum, pi3=pi3)
+        return out
 
     def diagnostics(self) -> dict:
         """Energy (kinetic, elastic, gravity) [J], linear momentum [kg m/s], pi3 (about the e3
-        axis through the origin) [kg m^2/s], ||R^T R - I||, and the input balances since the last
-        reset with their residuals: ``energy_balance_residual`` = E - E0 - work,
-        ``pi3_balance_residual`` = pi3 - pi3_0 - the angular impulse about e3 (exact with free
+        axis through the origin) [kg m^2/s], ||R^T R - I||; with drones, the energy and pi3 with
+        their rotations, and each drone's (:meth:`Fleet.diagnostics
+        <esp_gym.team.fleet.Fleet.diagnostics>`), the work and angular impulse with the rotors'
+        thrust and torque; and the input
+        balances since the last reset with their residuals: ``energy_balance_residual`` =
+        E - E0 - work, ``pi3_balance_residual`` = pi3 - pi3_0 - the angular impulse about e3 (exact with free
         pivots only), ``momentum_balance_residual`` = P - P0 - the gravity and pivot impulses
         (with free pivots only: a fixed pivot's reaction is not an input)."""
         d = self._diagnostics()
@@ -413,12 +387,3 @@ class TeamSimulator:
                  pi3_balance_residual=d["pi3"] - self._pi3_0 - float(acc[BALANCE["angular_impulse_z"]][0]),
                  momentum_balance_residual=d["linear_momentum"] - self._P0 - impulse)
         return d
-
-
-def banded(diag, off):
-    """The (3, n) banded form of a symmetric tridiagonal matrix with constant ``off``."""
-    ab = np.zeros((3, diag.shape[0]))
-    ab[0, 1:] = off
-    ab[1] = diag
-    ab[2, :-1] = off
-    return ab
