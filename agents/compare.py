@@ -108,19 +108,22 @@ def compare(task: str, preset: Optional[str] = None, episodes: int = 100, seed: 
 
 
 def compare_team(team: int, task: str, preset: Optional[str] = None, episodes: int = 100, seed: int = HELD_OUT_SEED,
-                 progress: bool = True, model: Optional[str] = None) -> dict:
+                 progress: bool = True, model: Optional[str] = None, actuation: Optional[str] = None) -> dict:
     """:func:`compare` for a team of ``team`` strings (esp_gym/team/env.py): zero, the team's
     baselines (agents/team_evaluate.py), ``preset`` the team's (esp_gym/team/env.py TEAM_PRESETS),
-    and ``model``, an agents.team_train checkpoint directory (no team policy ships yet); the same
-    keys, with ``team``."""
+    ``actuation`` a drone team's (None: point pivots), and ``model``, an agents.team_train
+    checkpoint directory; the same keys, with ``team``."""
     from tqdm import tqdm
 
     from agents.team_evaluate import TeamZero, run_team_episodes, team_baselines
 
     env_kwargs = {"preset": preset} if preset else {}
+    if actuation:
+        env_kwargs["actuation"] = actuation
     from esp_gym.team.env import TEAM_PRESETS
 
-    policies = {"zero": TeamZero(), **team_baselines(TEAM_PRESETS.get(preset, {}).get("observation", "full"))}
+    drones = actuation not in (None, "force")
+    policies = {"zero": TeamZero(), **team_baselines(TEAM_PRESETS.get(preset, {}).get("observation", "full"), drones)}
     if model is not None:
         from agents.team_train import TeamRLlibPolicy
 
@@ -132,7 +135,7 @@ def compare_team(team: int, task: str, preset: Optional[str] = None, episodes: i
         table[name] = {k: v for k, v in summarize(rows, task).items() if k not in ("task", "episodes")}
         table[name]["returns"] = [r.ret for r in rows]
     best = max((n for n in table if n not in NOT_BASELINES), key=lambda n: table[n]["mean_return"])
-    out = {"task": task, "preset": preset, "scene": None, "actuation": None, "episodes": episodes, "seed": seed,
+    out = {"task": task, "preset": preset, "scene": None, "actuation": actuation, "episodes": episodes, "seed": seed,
            "model": model, "policies": table, "best_baseline": best, "paired_diff_mean": None, "paired_ci95": None,
            "team": team}
     if "policy" in results:
@@ -168,7 +171,7 @@ def write_comparison(c: dict, out) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     stem = "compare_" + configuration_name(c["task"], c["preset"], c["scene"], c["actuation"])
     if c.get("team"):
-        stem = f"compare_team{c['team']}_{c['task']}" + (f"_{c['preset']}" if c["preset"] else "")
+        stem = f"compare_team{c['team']}_{c['task']}" + "".join(f"_{c[k]}" for k in ("actuation", "preset") if c.get(k))
     (out / f"{stem}.md").write_text(markdown(c) + "\n")
     (out / f"{stem}.json").write_text(json.dumps(c, indent=2) + "\n")
     return out / f"{stem}.json"
@@ -190,6 +193,7 @@ def main(argv=None) -> dict:
     if a.team is None:
         ap.check_file("--model", a.model)
     else:
+        from esp_gym.kernels.drone import ACTUATIONS as DRONE_ACTUATIONS
         from esp_gym.team import MAX_STRINGS
         from esp_gym.team.tasks import TEAM_TASKS
 
@@ -197,12 +201,17 @@ def main(argv=None) -> dict:
             ap.error(f"argument --team: a team has 1 to {MAX_STRINGS} strings, got {a.team}")
         if a.task not in TEAM_TASKS:
             ap.error(f"argument --task: a team's tasks are {sorted(TEAM_TASKS)}, got {a.task!r}")
-        for name in ("scene", "actuation"):
-            if getattr(a, name) is not None:
-                ap.error(f"argument --{name}: not with --team (a team's scene is esp_gym.team.scene.team_scene)")
+        if a.scene is not None:
+            ap.error("argument --scene: not with --team (a team's scene is esp_gym.team.scene.team_scene)")
+        if a.actuation is not None and a.actuation not in DRONE_ACTUATIONS:
+            ap.error(f"argument --actuation: with --team, a drone's ({', '.join(DRONE_ACTUATIONS)}), or none for point "
+                     f"pivots; got {a.actuation!r}")
+        if a.actuation is not None and a.preset is not None:
+            ap.error("argument --preset: a drone team's baseline (the cascade) reads the full observation, nominal "
+                     "only for now")
         if a.model is not None and not (Path(a.model) / "learner_group").is_dir():
             ap.error(f"argument --model: with --team, an agents.team_train checkpoint directory, got {a.model}")
-        c = compare_team(a.team, a.task, a.preset, a.episodes, a.seed, a.progress, a.model)
+        c = compare_team(a.team, a.task, a.preset, a.episodes, a.seed, a.progress, a.model, a.actuation)
         print(json.dumps(c) if a.json else markdown(c))
         if a.out:
             write_comparison(c, a.out)

@@ -179,17 +179,22 @@ def hard_lift_figure(out: Path, seed: int, steps: int, model: Path) -> dict:
     return results
 
 
-def team_figure(out: Path, size: int, seed: int, steps: int, preset=None, task: str = "transport") -> dict:
+def team_figure(out: Path, size: int, seed: int, steps: int, preset=None, task: str = "transport",
+                actuation=None) -> dict:
     """``team_{task}.png``: one episode of a team of ``size`` pivots (docs/team.md) under the
-    team's LQR: the top view of every pivot's and the load's path with their targets (a moving
-    target's path dashed), the load's distance to its target, each string's pull on its pivot,
-    and the smallest distance between two pivots with the separation and collision distances."""
-    from agents.team_evaluate import TeamLQRPolicy
+    team's LQR (with a drone ``actuation``, ``team_drones_{task}.png`` under the drones' cascade):
+    the top view of every pivot's and the load's path with their targets (a moving target's path
+    dashed), the load's distance to its target, each string's pull on its pivot, and the smallest
+    distance between two pivots with the separation and collision distances."""
+    from agents.team_evaluate import TeamCascadePolicy, TeamLQRPolicy
     from esp_gym.team.env import COLLISION, SEPARATION, ElasticStringTeamEnv
     from esp_gym.viz.figures import new_figure, save_figure
 
-    env = ElasticStringTeamEnv(size, task=task, **({"preset": preset} if preset else {}))
-    core, policy = env.core, TeamLQRPolicy()
+    options = {**({"preset": preset} if preset else {}), **({"actuation": actuation} if actuation else {})}
+    env = ElasticStringTeamEnv(size, task=task, **options)
+    core = env.core
+    policy, who, what = ((TeamCascadePolicy(), "drones' cascade", f"drones_{task}") if core.drones
+                         else (TeamLQRPolicy(), "team's LQR", task))
     obs, _ = env.reset(seed=seed)
     pivots, load, tension, separation, total = [core.pivot_positions()], [core.load_position()], [], [], 0.0
     targets = [core.load_target.copy()]
@@ -209,7 +214,7 @@ def team_figure(out: Path, size: int, seed: int, steps: int, preset=None, task: 
     grid = fig.add_gridspec(3, 2, width_ratios=(1, 1.4))
     top = fig.add_subplot(grid[:, 0])
     for k in range(size):
-        line, = top.plot(*pivots[:, k, :2].T, lw=1.2, label=f"pivot_{k}")
+        line, = top.plot(*pivots[:, k, :2].T, lw=1.2, label=f"{'drone' if core.drones else 'pivot'}_{k}")
         top.plot(*pivots[0, k, :2], "o", color=line.get_color(), ms=4)
         top.plot(*core.pivot_targets[k, :2], "s", mfc="none", color=line.get_color(), ms=9)
     top.plot(*load[:, :2].T, color=COLOURS["load"], lw=1.6, label="load")
@@ -225,7 +230,7 @@ def team_figure(out: Path, size: int, seed: int, steps: int, preset=None, task: 
     distance_ax.plot(t, np.linalg.norm(load - targets, axis=1), color=COLOURS["load"])
     distance_ax.set(ylabel="load to target [m]", title=f"return {total:.1f} over {len(t) - 1} steps")
     for k, series in enumerate(np.array(tension).T):
-        tension_ax.plot(t[1:], series, lw=1.0, label=f"pivot_{k}")
+        tension_ax.plot(t[1:], series, lw=1.0, label=f"{'drone' if core.drones else 'pivot'}_{k}")
     tension_ax.set_ylabel("hook tension [N]")
     tension_ax.legend(loc="best", ncol=size, fontsize=8)
     separation_ax.plot(t[1:], separation, color="tab:purple")
@@ -235,9 +240,10 @@ def team_figure(out: Path, size: int, seed: int, steps: int, preset=None, task: 
     separation_ax.legend(loc="best", fontsize=8)
     for ax in (distance_ax, tension_ax, separation_ax):
         ax.grid(True, alpha=0.3)
-    fig.suptitle(f"a team of {size}, task='{task}'{', ' + preset if preset else ''}, the team's LQR, seed {seed}")
+    kind = f"{size} drones ({actuation})" if core.drones else f"a team of {size}"
+    fig.suptitle(f"{kind}, task='{task}'{', ' + preset if preset else ''}, the {who}, seed {seed}")
     fig.tight_layout()
-    path = save_figure(fig, out / f"team_{task}.png")
+    path = save_figure(fig, out / f"team_{what}.png")
     result = {"return": total, "final_distance_m": float(np.linalg.norm(load[-1] - core.load_target)),
               "closest_pivots_m": float(min(separation)), "figure": str(path)}
     print(f"team of {size} {task} return {total:7.1f}  final distance {result['final_distance_m']:.3f} m  "
@@ -261,6 +267,8 @@ def main(argv=None) -> dict:
                     help="only team_TASK.png: a team of K pivots (docs/team.md) under the team's LQR")
     ap.add_argument("--team-task", default="transport", metavar="TASK",
                     help="the task of --team: transport (default), stabilize or track")
+    ap.add_argument("--team-actuation", default=None, choices=("thrust_rates", "thrust_torque", "motors"),
+                    help="--team's pivots are drones flown so (team_drones_TASK.png, under the drones' cascade)")
     ap.minimums = {"seed": 0, "steps": 1}
     a = ap.parse_args(argv)
     if a.team is not None and not 1 <= a.team <= 6:
@@ -274,7 +282,7 @@ def main(argv=None) -> dict:
     if a.hard_lift:
         return hard_lift_figure(out, a.seed, a.steps, Path(a.model))
     if a.team is not None:
-        return team_figure(out, a.team, a.seed, a.steps, task=a.team_task)
+        return team_figure(out, a.team, a.seed, a.steps, task=a.team_task, actuation=a.team_actuation)
     if a.drone:
         from agents.baselines.geometric import geometric_controller
 

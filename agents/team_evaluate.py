@@ -4,7 +4,8 @@ tilt (its ``swing``), settling time and the peak of the strings' pull on their p
 
 Policies act on the centralised observation: ``zero`` (hover), ``lqr`` (the team's LQR,
 agents/baselines/team_lqr.py) and with the hook observation ``lqg`` (agents/baselines/team_lqg.py)
-are the baselines (:func:`team_baselines`).
+are the baselines of point pivots, ``cascade`` (agents/baselines/team_cascade.py) the drones'
+(:func:`team_baselines`).
 """
 from __future__ import annotations
 
@@ -20,16 +21,16 @@ class TeamZero:
     """Every pivot hovers."""
 
     def act(self, obs, core):
-        return np.zeros(3 * core.size)
+        return np.zeros(core.action_size * core.size)
 
 
 def nominal_core(core, **options):
-    """The nominal team of ``core``'s size, task, control period and force limit (with
+    """The nominal team of ``core``'s size, task, control period, force limit and actuation (with
     ``options``), at its first episode of seed 0: where the baselines are designed."""
     from esp_gym.team.env import TeamCore
 
     nominal = TeamCore(core.size, core.task.name, control_period=core.control_period, force_limit=core.force_limit,
-                       **options)
+                       actuation=core.actuation, **options)
     nominal.reset(seed=0)
     return nominal
 
@@ -75,11 +76,30 @@ class TeamLQGPolicy:
         return self.design.act(obs, core)
 
 
-def team_baselines(observation: str = "full") -> dict:
+class TeamCascadePolicy:
+    """A drone team's cascade (agents/baselines/team_cascade.py), designed the first time it acts
+    for the nominal drone team of the env's size, task, control period and actuation."""
+
+    def __init__(self):
+        self.design = None
+
+    def act(self, obs, core):
+        from agents.baselines.team_cascade import TeamCascade
+
+        if self.design is None:
+            self.design = TeamCascade.design(nominal_core(core))
+        return self.design.act(obs, core)
+
+
+def team_baselines(observation: str = "full", drones: bool = False) -> dict:
     """The team's classical baselines by name for an observation mode: the LQR with the ``full``
     observation; with the ``hook`` one the LQG, and the LQR reading the true state as
     ``lqr_true_state`` (a reference, not a baseline a policy is compared with: it reads what the
-    agents do not see)."""
+    agents do not see). A drone team's (``drones``): the cascade, with the ``full`` observation."""
+    if drones:
+        if observation != "full":
+            raise ValueError("observation: a drone team's cascade reads the full observation (no estimator yet)")
+        return {"cascade": TeamCascadePolicy()}
     if observation == "full":
         return {"lqr": TeamLQRPolicy()}
     return {"lqg": TeamLQGPolicy(), "lqr_true_state": TeamLQRPolicy()}

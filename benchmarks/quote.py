@@ -481,7 +481,7 @@ TEAM_COMPARE_COMMAND = ("python -m agents.compare --team 3 --task transport --pr
 
 #: The team's baselines on each task and preset compared (docs/team.md "The baseline").
 TEAM_BASELINE_FILES = tuple(f"docs/compare/compare_team3_{task}{suffix}.json"
-                            for task in ("transport", "track") for suffix in ("", "_hard"))
+                            for task in ("transport", "track") for suffix in ("", "_hard", "_thrust_rates"))
 
 
 def team_baselines_table(data: dict) -> str:
@@ -498,7 +498,9 @@ def team_baselines_table(data: dict) -> str:
 
         truth = policies.get("lqr_true_state")
         reference = f"{cell('lqr_true_state')} ({truth['success_rate'] * 100:.0f} %)" if truth else "(the baseline)"
-        rows.append(f"| {d['task']}, {d['preset'] or 'nominal'} | {cell('zero')} | {best.upper()} {cell(best)} | "
+        drones = f", drones ({d['actuation']})" if d.get("actuation") else ""
+        label = best.upper() if best in ("lqr", "lqg") else best
+        rows.append(f"| {d['task']}, {d['preset'] or 'nominal'}{drones} | {cell('zero')} | {label} {cell(best)} | "
                     f"{policies[best]['success_rate'] * 100:.0f} % | {reference} |")
     return "\n".join(rows)
 
@@ -754,7 +756,8 @@ QUOTES = {
     "compare.drone": Quote(tuple(drone_compare_file(task) for task in DRONE_COMPARED),
                            "python -m agents.compare --scene quadrotor_load --actuation thrust_rates --preset hard "
                            "--task T --episodes 100", compare_drone),
-    "compare.team_baselines": Quote(TEAM_BASELINE_FILES, "python -m agents.compare --team 3 --task T [--preset hard] "
+    "compare.team_baselines": Quote(TEAM_BASELINE_FILES, "python -m agents.compare --team 3 --task T "
+                                    "[--preset hard | --actuation thrust_rates] "
                                     "--episodes 100 --out docs/compare", team_baselines_table),
     "compare.team3_transport_hard": Quote(TEAM_COMPARE_FILE, TEAM_COMPARE_COMMAND, compare_team_table),
     "compare.team_readme": Quote(TEAM_COMPARE_FILE, TEAM_COMPARE_COMMAND, compare_team_readme),

@@ -442,22 +442,27 @@ def _rerun_the_documented_team_comparison():
     assert shifted != pytest.approx(doc["policies"]["policy"]["returns"][:1], rel=1e-6)
 
 
-@pytest.mark.parametrize("task, preset", [("transport", None), ("transport", "hard"), ("track", None),
-                                          ("track", "hard")])
-def test_the_documented_team_baselines_are_todays(task, preset):
-    """docs/compare/compare_team3_{task}[_hard].json (the table of docs/team.md's baselines): each
-    baseline's and the zero action's first recorded episode, rerun, gives its return (BLAS on one
-    thread, as written); the second seed's episode (the negative control) does not."""
+@pytest.mark.parametrize("task, preset, actuation", [("transport", None, None), ("transport", "hard", None),
+                                                     ("track", None, None), ("track", "hard", None),
+                                                     ("transport", None, "thrust_rates"),
+                                                     ("track", None, "thrust_rates")])
+def test_the_documented_team_baselines_are_todays(task, preset, actuation):
+    """docs/compare/compare_team3_{task}[_thrust_rates][_hard].json (the table of docs/team.md's
+    baselines): each baseline's and the zero action's first recorded episode, rerun, gives its
+    return (BLAS on one thread, as written); the second seed's episode (the negative control)
+    does not."""
     from threadpoolctl import threadpool_limits
 
     from agents import ROOT
     from agents.team_evaluate import team_baselines
 
-    name = f"compare_team3_{task}{'_hard' if preset else ''}.json"
+    name = f"compare_team3_{task}{'_' + actuation if actuation else ''}{'_hard' if preset else ''}.json"
     doc = json.loads((ROOT / "docs" / "compare" / name).read_text())
-    assert (doc["team"], doc["task"], doc["preset"], doc["episodes"]) == (3, task, preset, 100)
-    kwargs = {"preset": preset} if preset else {}
-    policies = {"zero": TeamZero(), **team_baselines(ElasticStringTeamEnv(3, **kwargs).core.observation)}
+    assert (doc["team"], doc["task"], doc["preset"], doc["episodes"], doc["actuation"]) == (3, task, preset, 100,
+                                                                                          actuation)
+    kwargs = {**({"preset": preset} if preset else {}), **({"actuation": actuation} if actuation else {})}
+    core = ElasticStringTeamEnv(3, **kwargs).core
+    policies = {"zero": TeamZero(), **team_baselines(core.observation, core.drones)}
     with threadpool_limits(limits=1, user_api="blas"):
         for policy_name, policy in policies.items():
             recorded = doc["policies"][policy_name]["returns"]

@@ -80,22 +80,31 @@ def drone_action(u_d: np.ndarray, obs: np.ndarray, setup, inner: InnerLoops = In
     qa = setup.action_params
     if hover is None:
         hover = qa[DRONE_ACTION_PARAMS.scalar("hover_thrust")]
-    R = drone_attitude(obs, layout)
-    rates = obs[layout["drone_rates"]]
+    limits = (qa[DRONE_ACTION_PARAMS["rate_limit"]], qa[DRONE_ACTION_PARAMS["torque_limit"]])
+    return inner_action(u_d, drone_attitude(obs, layout), obs[layout["drone_rates"]], setup.actuation,
+                        setup.scene.pivot.drone, hover, limits, inner)
+
+
+def inner_action(u_d: np.ndarray, R: np.ndarray, rates: np.ndarray, actuation: str, drone, hover: float, limits,
+                 inner: InnerLoops = InnerLoops()) -> np.ndarray:
+    """The inner loops (module docstring) of a drone (``drone``: its DroneParams) at attitude ``R``
+    turning at body ``rates`` [rad/s]: its action in [-1, 1]^4 of ``actuation`` for the thrust
+    vector ``u_d`` [N], the thrust relative to ``hover`` [N], the rates and torques over
+    ``limits`` = (rates at action 1 (3) [rad/s], torques at action 1 (3) [N m])."""
+    rate_limit, torque_limit = limits
     size = np.linalg.norm(u_d)
     b3_d = -u_d / size if size > 1e-9 else E3
     f = max(-float(u_d @ R[:, 2]), 0.0)
     rates_d = -inner.k_attitude * attitude_error(desired_attitude(b3_d), R)
     action = np.empty(4)
     action[0] = f / hover - 1.0
-    if setup.actuation == "thrust_rates":
-        action[1:] = rates_d / qa[DRONE_ACTION_PARAMS["rate_limit"]]
+    if actuation == "thrust_rates":
+        action[1:] = rates_d / rate_limit
         return np.clip(action, -1.0, 1.0)
-    drone = setup.scene.pivot.drone
     J = drone.inertia_matrix()
     torque = J @ (inner.k_rate * (rates_d - rates)) + np.cross(rates, J @ rates)
-    if setup.actuation == "thrust_torque":
-        action[1:] = torque / qa[DRONE_ACTION_PARAMS["torque_limit"]]
+    if actuation == "thrust_torque":
+        action[1:] = torque / torque_limit
         return np.clip(action, -1.0, 1.0)
     thrusts = drone.allocation() @ np.concatenate([[f], torque])
     return np.clip(thrusts / (0.25 * hover) - 1.0, -1.0, 1.0)

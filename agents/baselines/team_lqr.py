@@ -22,7 +22,8 @@ from scipy.spatial.transform import Rotation
 
 from esp_gym.kernels.layout import Layout
 from esp_gym.tasks import reference_acceleration
-from esp_gym.team.env import TeamCore, agent_layout
+from esp_gym.team.env import TeamCore
+from esp_gym.team.spaces import agent_layout
 
 #: Weight on what the reward does not see (pivot velocities, the load's yaw) [per unit^2].
 SMALL = 1e-3

@@ -1,5 +1,5 @@
-"""A team's environments: K point pivots (crane hooks, or drones flown as points) carry one load on
-elastic tension-only strings (docs/team.md).
+"""A team's environments: K point pivots (crane hooks, or drones flown as points) or K drones carry
+one load on elastic tension-only strings (docs/team.md).
 
 :class:`TeamCore` is the episode: the team's physics (:class:`~esp_gym.team.TeamSimulator`), the
 task's targets, each agent's observation, the team's reward with its per-agent terms, and the
@@ -17,51 +17,37 @@ import gymnasium as gym
 import numpy as np
 
 from ..kernels.env_arrays import TARGET
-from ..kernels.layout import Layout
 from ..kernels.reference import reference_at
 from ..model import SimulationError
+from ..setup import DRONE_FLIP_TILT
 from ..stepsize import explicit_substeps
 from ..tasks import track_reference
 from ..wind import drag_areas, wind_options
 from .scene import MAX_STRINGS, TeamScene, draw_team, team_scene
 from .simulator import TeamSimulator
+from .spaces import ACTUATIONS, TEAM_UNIT_NOISE, DroneDrive, action_size, agent_layout
 from .tasks import get_team_task
 
 #: Pivots closer than this are penalised (the reward's separation term) [m].
 SEPARATION = 0.4
 #: Pivots closer than this have collided: the episode ends [m].
 COLLISION = 0.15
+#: A drone whose body axis b3 tilts past this from the downward vertical has flipped: the episode
+#: ends (the single drone's DRONE_FLIP_TILT).
+FLIP_COSINE = math.cos(math.radians(DRONE_FLIP_TILT))
 #: The time limit of an episode [control steps]: 10 s at the default 20 ms.
 MAX_EPISODE_STEPS = 500
 
 
-def agent_layout(size: int, observation: str = "full") -> Layout:
-    """One agent's observation (:attr:`TeamCore.layout`): its pivot's position error and velocity,
-    its string's hook tension, then in the ``full`` mode the load relative to it and the load's
-    error, velocity, attitude and rates, in the ``hook`` mode only the load's target relative to
-    it; and the other pivots relative to it (the next one first)."""
-    fields = [("pivot_position_error", 3), ("pivot_velocity", 3), ("hook_tension", 3)]
-    if observation == "full":
-        fields += [("load_offset", 3), ("load_position_error", 3), ("load_velocity", 3), ("load_attitude_6d", 6),
-                   ("load_rates", 3)]
-    else:
-        fields += [("load_target_offset", 3)]
-    if size > 1:
-        fields.append(("neighbours", 3 * (size - 1)))
-    return Layout(*fields)
-
-
 TEAM_PRESETS = {"hard": {"randomize": True, "observation": "hook", "sensor_noise": 1.0, "action_latency": 1,
                          "wind": {"speed": 6.0, "gust_std": 1.5, "push_rate": 0.2, "push_speed": 0.5}}}
-#: Sensor noise per field at ``sensor_noise=1`` (as esp_gym/observe.py's UNIT_NOISE) [SI].
-TEAM_UNIT_NOISE = {"pivot_position_error": 0.01, "pivot_velocity": 0.05, "hook_tension": 0.1, "load_offset": 0.01,
-                   "load_position_error": 0.01, "load_velocity": 0.05, "load_attitude_6d": 0.01, "load_rates": 0.05,
-                   "load_target_offset": 0.01, "neighbours": 0.01}
-
 
 class TeamCore:
     """A team's episode (module docstring). ``team``: K or a :class:`TeamScene` whose pivots are
-    all free; ``task``: a name of :data:`~esp_gym.team.tasks.TEAM_TASKS`; ``force_limit``: each pivot's force at
+    all free points or all drones; ``task``: a name of :data:`~esp_gym.team.tasks.TEAM_TASKS`;
+    ``actuation``: ``force`` (point pivots, the default) or a drone's (esp_gym/team/spaces.py
+    :data:`ACTUATIONS`; ``team`` = K then flies :func:`~esp_gym.team.scene.quadrotor` s; a drone
+    team's default ``thrust_rates``); ``force_limit``: each point pivot's force at
     action 1, as a share of its hover force (its share of the rig's weight) [-]; ``preset``:
     ``"hard"`` (:data:`TEAM_PRESETS`) sets the options left None: ``randomize`` (each episode
     draws its team, :func:`draw_team`; ``team`` a number then), ``observation`` (``"full"`` or
@@ -71,24 +57,35 @@ class TeamCore:
 
     def __init__(self, team=3, task: str = "transport", control_period: float = 0.02, force_limit: float = 0.6,
                  preset: Optional[str] = None, randomize: Optional[bool] = None, observation: Optional[str] = None,
-                 sensor_noise: Optional[float] = None, action_latency: Optional[int] = None, wind=None):
+                 sensor_noise: Optional[float] = None, action_latency: Optional[int] = None, wind=None,
+                 actuation: Optional[str] = None):
         if preset is not None and preset not in TEAM_PRESETS:
             raise ValueError(f"preset must be one of {sorted(TEAM_PRESETS)} or None, got {preset!r}")
         given = dict(randomize=randomize, observation=observation, sensor_noise=sensor_noise,
                      action_latency=action_latency, wind=wind)
         options = {**dict(randomize=False, observation="full", sensor_noise=0.0, action_latency=0, wind=None),
                    **(TEAM_PRESETS[preset] if preset else {}), **{k: v for k, v in given.items() if v is not None}}
+        if actuation is not None and actuation not in ACTUATIONS:
+            raise ValueError(f"actuation must be one of {ACTUATIONS} or None, got {actuation!r}")
         if isinstance(team, TeamScene):
             scene = team
             if options["randomize"]:
                 raise ValueError("randomize: a randomised team is drawn from team = K, not from a given TeamScene")
         elif isinstance(team, (int, np.integer)) and not isinstance(team, bool) and 1 <= team <= MAX_STRINGS:
-            scene = team_scene(int(team))
+            scene = team_scene(int(team), drones=actuation not in (None, "force"))
         else:
             raise ValueError(f"team must be a number of strings (1-{MAX_STRINGS}) or a TeamScene, got {team!r}")
-        pivots = [scene.scene.pivot] + [s.pivot for s in scene.strings]
-        if not all(p.is_free for p in pivots):
-            raise ValueError("team: every pivot of a team environment must be free (pivot.kind: free)")
+        kinds = {p.kind for p in scene.pivots()}
+        if kinds not in ({"free"}, {"drone"}):
+            raise ValueError(f"team: a team environment's pivots are all free points or all drones, got {sorted(kinds)}")
+        #: whether the pivots are drones, and how the agents drive them
+        self.drones = kinds == {"drone"}
+        self.actuation = actuation or ("thrust_rates" if self.drones else "force")
+        if self.drones == (self.actuation == "force"):
+            raise ValueError(f"actuation {self.actuation!r} does not fly the team's "
+                             f"{'drones' if self.drones else 'point pivots'} (point pivots take 'force', drones "
+                             f"one of {ACTUATIONS[1:]})")
+        self.action_size = action_size(self.actuation)
         if not (np.isfinite(control_period) and control_period > 0):
             raise ValueError(f"control_period must be > 0 s, got {control_period}")
         if not (np.isfinite(force_limit) and force_limit > 0):
@@ -107,14 +104,14 @@ class TeamCore:
         self.task = get_team_task(task)
         self.size = scene.size
         self.control_period, self.force_limit = control_period, force_limit
-        self.layout = agent_layout(self.size, self.observation)
+        self.layout = agent_layout(self.size, self.observation, self.drones)
         self._noise = np.concatenate([np.full(s.stop - s.start, self.sensor_noise * TEAM_UNIT_NOISE[name])
                                       for name, s in self.layout.structure().items()])
         self._use_scene(scene)
         self.nominal_scene = self.scene
         self.np_random = np.random.default_rng()
         self.steps = 0
-        self.last_action = np.zeros((self.size, 3))
+        self.last_action = np.zeros((self.size, self.action_size))
         self.load_target = self.load_position()
         self.pivot_targets = self.pivot_positions()
         #: the load target's velocity [m/s] and, for a moving task, its reference (a TARGET
@@ -136,9 +133,11 @@ class TeamCore:
         strings = [scene.scene.string] + [s.string for s in scene.strings]
         weight = scene.scene.gravity * (scene.scene.body.mass + sum(p.mass for p in pivots)
                                         + sum(s.length * s.mass_per_length for s in strings))
-        #: each pivot's hover force (its share of the weight, up: -e3) [N] and force at action 1 [N]
+        #: each point pivot's hover force (its share of the weight, up: -e3) [N] and force at action 1
+        #: [N]; a drone team's actions through its DroneDrive
         self.hover = weight / self.size
         self.force_scale = self.force_limit * self.hover
+        self.drive = DroneDrive(self.sim.fleet, self.actuation) if self.drones else None
         self._start = self.sim.state
         self._formation = self.pivot_positions() - self.load_position()
 
@@ -153,7 +152,8 @@ class TeamCore:
         return st.lead.r[-1] + st.lead.R @ np.asarray(self.scene.scene.body.rho_c, dtype=float)
 
     def kinematics(self) -> dict:
-        """Positions, velocities and tensions of the current state (spatial frame, SI)."""
+        """Positions, velocities and tensions of the current state (spatial frame, SI), and a
+        drone team's attitudes, rates and thrusts."""
         st = self.sim.state
         T = self.sim.params
         v_lead, v_other, Omega = self.sim.velocities()
@@ -169,11 +169,14 @@ class TeamCore:
             length = np.linalg.norm(x)
             tension[k] = string.kappa * max(length - string.u, 0.0) * x / length
             stretched[k] = np.linalg.norm(np.diff(r, axis=0), axis=1).sum() / string.length
-        return dict(
-            pivot=np.vstack([st.lead.r[0]] + [st.r[i] for i in rows[1:]]),
-            pivot_velocity=np.vstack([v_lead[0]] + [v_other[i] for i in rows[1:]]),
-            load=st.lead.r[-1] + R @ rho_c, load_velocity=v_lead[-1] + R @ np.cross(Omega, rho_c),
-            R=R, Omega=Omega, tension=tension, stretch=stretched)
+        out = dict(pivot=np.vstack([st.lead.r[0]] + [st.r[i] for i in rows[1:]]),
+                   pivot_velocity=np.vstack([v_lead[0]] + [v_other[i] for i in rows[1:]]),
+                   load=st.lead.r[-1] + R @ rho_c, load_velocity=v_lead[-1] + R @ np.cross(Omega, rho_c),
+                   R=R, Omega=Omega, tension=tension, stretch=stretched)
+        if self.drones:  # R_q (K, 3, 3), Omega_q (K, 3), the collective thrusts (K,)
+            out.update({k: v for k, v in self.sim.fleet.diagnostics().items()
+                        if k in ("drone_attitudes", "drone_rates", "drone_thrust")})
+        return out
 
     # -- episodes -------------------------------------------------------------------------------
     def reset(self, seed: Optional[int] = None):
@@ -185,7 +188,7 @@ class TeamCore:
         rng, task = self.np_random, self.task
         info = {}
         if self.randomize:
-            scene, info["team_draws"] = draw_team(self.size, rng)
+            scene, info["team_draws"] = draw_team(self.size, rng, self.drones)
             self._use_scene(scene)
             self.renderer = None  # the team changes with the episode
         self.sim.set_state(self._start.copy())
@@ -204,8 +207,8 @@ class TeamCore:
             self.load_target = load + rng.uniform(-1.0, 1.0, 3) * np.asarray(task.target_box)
             self.pivot_targets = self.load_target + self._formation
         self.steps = 0
-        self.last_action = np.zeros((self.size, 3))
-        self._queue = deque([np.zeros((self.size, 3))] * self.action_latency)
+        self.last_action = np.zeros((self.size, self.action_size))
+        self._queue = deque([np.zeros((self.size, self.action_size))] * self.action_latency)
         self.load_force = np.zeros(3)
         if self.wind is not None:
             o = self.wind
@@ -234,6 +237,9 @@ class TeamCore:
             o = out[k]
             o[L["pivot_position_error"]] = kin["pivot"][k] - self.pivot_targets[k]
             o[L["pivot_velocity"]] = kin["pivot_velocity"][k]
+            if self.drones:
+                o[L["drone_attitude_6d"]] = kin["drone_attitudes"][k][:, :2].T.ravel()
+                o[L["drone_rates"]] = kin["drone_rates"][k]
             o[L["hook_tension"]] = kin["tension"][k]
             if self.observation == "full":
                 o[L["load_offset"]] = kin["load"] - kin["pivot"][k]
@@ -262,14 +268,24 @@ class TeamCore:
             self.renderer = FrameRenderer(body.shape, body.rho_c, self.scene.scene.string.length, width=960,
                                            height=480, view_center=(0.0, 0.0, 0.8), view_extent=3.0)
         return self.renderer.render_team(self.sim.strings(), self.sim.state.lead.R,
-                                          pivot_forces=self.force_scale * self.last_action,
+                                          pivot_forces=self.shown_forces(),
                                           target_pivots=self.pivot_targets, target_load=self.load_target)
+
+    def shown_forces(self) -> np.ndarray:
+        """Each pivot's force above hover (K, 3) (spatial) [N]: a point pivot's of the action
+        applied last, a drone's thrust -f R_q e3 less its hover share's -f_hover e3."""
+        if not self.drones:
+            return self.force_scale * self.last_action
+        d = self.sim.fleet.diagnostics()
+        up = -d["drone_attitudes"][:, :, 2] * d["drone_thrust"][:, None]
+        up[:, 2] += self.drive.hover
+        return up
 
     def true_observations(self) -> np.ndarray:
         """The ``full`` observation of the current state without noise (K, 27 + 3(K-1)): what a
         centralised controller with the true state reads (agents/baselines/team_lqr.py)."""
         mode, layout = self.observation, self.layout
-        self.observation, self.layout = "full", agent_layout(self.size)
+        self.observation, self.layout = "full", agent_layout(self.size, "full", self.drones)
         try:
             return self.observations(self.kinematics(), noisy=False)
         finally:
@@ -292,7 +308,7 @@ class TeamCore:
             per_agent_crowding[i] += 0.5 * c
             per_agent_crowding[j] += 0.5 * c
         pivot_terms = task.w_pivot_position * closeness(pivot_errors, task.scale_position) / self.size
-        control_terms = -task.w_control * np.sum(action ** 2, axis=1) / (3.0 * self.size)
+        control_terms = -task.w_control * np.sum(action ** 2, axis=1) / (action.shape[1] * self.size)
         separation_terms = -task.w_separation * per_agent_crowding
         return dict(
             load_position=task.w_load_position * closeness(np.linalg.norm(kin["load"] - self.load_target),
@@ -333,26 +349,30 @@ class TeamCore:
         return force
 
     def step(self, action):
-        """Apply each pivot's force (K, 3) in [-1, 1] (clipped; after ``action_latency`` steps)
-        over one control period; returns ``(observations, reward, terminated, truncated, info)``
-        with the per-agent terms in ``info["agents"]``."""
+        """Apply each pivot's force (K, 3), or each drone's action (K, 4), in [-1, 1] (clipped;
+        after ``action_latency`` steps) over one control period; returns ``(observations, reward,
+        terminated, truncated, info)`` with the per-agent terms in ``info["agents"]``."""
         a = np.asarray(action, dtype=np.float64)
-        if a.shape != (self.size, 3):
-            raise ValueError(f"action must have shape ({self.size}, 3) (one pivot force per agent), got {a.shape}")
+        if a.shape != (self.size, self.action_size):
+            raise ValueError(f"action must have shape ({self.size}, {self.action_size}) (one "
+                             f"{'drone action' if self.drones else 'pivot force'} per agent), got {a.shape}")
         if not np.all(np.isfinite(a)):
             raise ValueError("action must be finite")
         a = np.clip(a, -1.0, 1.0)
         if self.action_latency:
             self._queue.append(a)
             a = self._queue.popleft()
-        forces = self.force_scale * a
-        forces[:, 2] -= self.hover  # e3 points down: the hover force is -e3
+        if self.drones:
+            drive = self.drive(a)
+        else:
+            forces = self.force_scale * a
+            forces[:, 2] -= self.hover  # e3 points down: the hover force is -e3
+            drive = {"pivot_forces": forces}
         reason = ""
         if self.wind is not None:
             self.load_force = self.wind_force(self.kinematics())
         try:
-            self.sim.step(self.substeps, pivot_forces=forces,
-                          load_force=self.load_force if self.wind is not None else None)
+            self.sim.step(self.substeps, load_force=self.load_force if self.wind is not None else None, **drive)
         except SimulationError as error:
             reason = f"simulation_failed: {error}"
         self.steps += 1
@@ -367,6 +387,8 @@ class TeamCore:
         if not reason:
             if distances.size and distances.min() < COLLISION:
                 reason = "collision"
+            elif self.drones and np.any(kin["drone_attitudes"][:, 2, 2] < FLIP_COSINE):
+                reason = "drone_flipped"
             elif kin["stretch"].max() > task.max_stretch:
                 reason = "overstretched"
             elif (np.linalg.norm(kin["load"] - self.load_target) > task.workspace_radius or
@@ -386,13 +408,14 @@ class TeamCore:
 
 
 class ElasticStringTeamEnv(gym.Env):
-    """``ElasticStringTeam-v0``: a team of K point pivots carrying one load, for single-agent
-    learners (docs/team.md). Actions ``Box(-1, 1, (3K,))``: each pivot's force (spatial) on top of
-    its hover force, ``force_limit`` of it at 1. Observations ``Box(-inf, inf, (K n,))``: the
-    agents' observations (:func:`agent_layout`) one after the other. The reward is the team's;
-    ``info["agents"]`` holds each agent's terms. Arguments (``options``: control_period,
-    force_limit, preset, randomize, observation, sensor_noise, action_latency, wind) as
-    :class:`TeamCore`'s."""
+    """``ElasticStringTeam-v0``: a team of K point pivots or drones carrying one load, for
+    single-agent learners (docs/team.md). Actions ``Box(-1, 1, (3K,))``: each pivot's force
+    (spatial) on top of its hover force, ``force_limit`` of it at 1; with drones
+    ``Box(-1, 1, (4K,))``, each drone's four numbers (esp_gym/team/spaces.py ``DroneDrive``).
+    Observations ``Box(-inf, inf, (K n,))``: the agents' observations (:func:`agent_layout`) one
+    after the other. The reward is the team's; ``info["agents"]`` holds each agent's terms.
+    Arguments (``options``: control_period, force_limit, preset, randomize, observation,
+    sensor_noise, action_latency, wind, actuation) as :class:`TeamCore`'s."""
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
 
@@ -403,7 +426,7 @@ class ElasticStringTeamEnv(gym.Env):
         self.core = TeamCore(team, task, **options)
         self.metadata = {**self.metadata, "render_fps": 1.0 / self.core.control_period}  # a frame per step
         K, n = self.core.size, self.core.layout.size
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (3 * K,), np.float32)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (self.core.action_size * K,), np.float32)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (K * n,), np.float32)
         #: name -> slice of the observation: agent k's fields are ``pivot_k/<field>``
         self.observation_structure = {f"pivot_{k}/{name}": slice(k * n + s.start, k * n + s.stop)
@@ -419,7 +442,7 @@ class ElasticStringTeamEnv(gym.Env):
         a = np.asarray(action, dtype=np.float64)
         if a.shape != self.action_space.shape:
             raise ValueError(f"action must have shape {self.action_space.shape}, got {a.shape}")
-        obs, reward, terminated, truncated, info = self.core.step(a.reshape(self.core.size, 3))
+        obs, reward, terminated, truncated, info = self.core.step(a.reshape(self.core.size, self.core.action_size))
         return obs.ravel(), reward, terminated, truncated, info
 
     def render(self):

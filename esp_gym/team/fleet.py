@@ -30,6 +30,8 @@ class Fleet:
         sections = team.pivots()
         self.pivots = [k for k, pivot in enumerate(sections) if pivot.is_drone]
         self._sections = [sections[k] for k in self.pivots]
+        #: each drone's parameters (esp_gym/pivot_params.py ``DroneParams``)
+        self.drone_params = [pivot.drone for pivot in self._sections]
         strings = [team.scene.string] + [s.string for s in team.strings]
         g = team.scene.gravity
         self._shares = np.array([g * (sections[k].mass + strings[k].length * strings[k].mass_per_length

@@ -1,5 +1,6 @@
 """The team as a PettingZoo ``ParallelEnv`` (docs/team.md): agents ``pivot_0 .. pivot_{K-1}``, each
-pushing its own pivot and observing what :func:`~esp_gym.team.env.agent_layout` names; the reward
+pushing its own pivot or flying its drone and observing what :func:`~esp_gym.team.spaces.agent_layout`
+names; the reward
 is the team's, given to every agent, with each agent's own terms in its ``infos`` entry."""
 from __future__ import annotations
 
@@ -14,14 +15,17 @@ from .env import MAX_EPISODE_STEPS, TeamCore
 
 
 class ElasticStringTeamParallelEnv(ParallelEnv):
-    """K point pivots carrying one load on tension-only elastic strings. Each agent's action is
-    ``Box(-1, 1, (3,))``, its pivot's force (spatial) on top of its hover force (``force_limit``
-    of it at 1); its observation is ``Box(-inf, inf, (n,))`` with n = 27 + 3 (K - 1), named by
-    :attr:`observation_structure` (``preset="hard"``: the hook observation, 12 + 3 (K - 1)). An episode is truncated after ``max_cycles`` steps (500: 10 s)
-    and terminated for the whole team (collision, an overstretched string, the workspace left, a
-    failed step: ``infos[agent]["termination_reason"]``). Arguments (``options``: control_period,
-    force_limit, preset, randomize, observation, sensor_noise, action_latency, wind) as
-    :class:`~esp_gym.team.env.TeamCore`'s."""
+    """K point pivots or K drones carrying one load on tension-only elastic strings. Each agent's
+    action is ``Box(-1, 1, (3,))``, its pivot's force (spatial) on top of its hover force
+    (``force_limit`` of it at 1), or with drones ``Box(-1, 1, (4,))``, its drone's
+    (esp_gym/team/spaces.py ``DroneDrive``); its observation is ``Box(-inf, inf, (n,))`` with
+    n = 27 + 3 (K - 1) (+ 9 with drones), named by :attr:`observation_structure`
+    (``preset="hard"``: the hook observation, 12 + 3 (K - 1) (+ 9)). An episode is truncated
+    after ``max_cycles`` steps (500: 10 s) and terminated for the whole team (collision, an
+    overstretched string, the workspace left, a drone flipped, a failed step:
+    ``infos[agent]["termination_reason"]``). Arguments (``options``: control_period,
+    force_limit, preset, randomize, observation, sensor_noise, action_latency, wind, actuation)
+    as :class:`~esp_gym.team.env.TeamCore`'s."""
 
     metadata = {"name": "elastic_string_team_v0", "render_modes": ["rgb_array"], "render_fps": 50,
                 "is_parallelizable": True}
@@ -47,7 +51,7 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
 
     @functools.lru_cache(maxsize=None)
     def action_space(self, agent):
-        return gym.spaces.Box(-1.0, 1.0, (3,), np.float32)
+        return gym.spaces.Box(-1.0, 1.0, (self.core.action_size,), np.float32)
 
     def reset(self, seed: Optional[int] = None, options: Optional[dict] = None):
         obs, info = self.core.reset(seed=seed)
@@ -91,5 +95,6 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
 
 
 def parallel_env(team=3, task: str = "transport", **kwargs) -> ElasticStringTeamParallelEnv:
-    """A team of ``team`` point pivots as a PettingZoo ParallelEnv (:class:`ElasticStringTeamParallelEnv`)."""
+    """A team of ``team`` point pivots (or drones: ``actuation="thrust_rates"``) as a PettingZoo
+    ParallelEnv (:class:`ElasticStringTeamParallelEnv`)."""
     return ElasticStringTeamParallelEnv(team=team, task=task, **kwargs)
