@@ -34,7 +34,7 @@ from esp_gym.tasks import TASKS
 MODELS = ROOT / "models"
 HELD_OUT_SEED = 100_000
 DEFAULT_SCENE = EnvOptions.model_fields["scene"].default
-NOT_BASELINES = ("zero", "policy", "lqr_true_state")
+NOT_BASELINES = ("zero", "policy", "lqr_true_state", "cascade_true_state")
 
 
 def configuration_name(task: str, preset: Optional[str] = None, scene: Optional[str] = None,
@@ -206,9 +206,6 @@ def main(argv=None) -> dict:
         if a.actuation is not None and a.actuation not in DRONE_ACTUATIONS:
             ap.error(f"argument --actuation: with --team, a drone's ({', '.join(DRONE_ACTUATIONS)}), or none for point "
                      f"pivots; got {a.actuation!r}")
-        if a.actuation is not None and a.preset is not None:
-            ap.error("argument --preset: a drone team's baseline (the cascade) reads the full observation, nominal "
-                     "only for now")
         if a.model is not None and not (Path(a.model) / "learner_group").is_dir():
             ap.error(f"argument --model: with --team, an agents.team_train checkpoint directory, got {a.model}")
         c = compare_team(a.team, a.task, a.preset, a.episodes, a.seed, a.progress, a.model, a.actuation)

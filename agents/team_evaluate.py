@@ -4,8 +4,8 @@ tilt (its ``swing``), settling time and the peak of the strings' pull on their p
 
 Policies act on the centralised observation: ``zero`` (hover), ``lqr`` (the team's LQR,
 agents/baselines/team_lqr.py) and with the hook observation ``lqg`` (agents/baselines/team_lqg.py)
-are the baselines of point pivots, ``cascade`` (agents/baselines/team_cascade.py) the drones'
-(:func:`team_baselines`).
+are the baselines of point pivots, ``cascade`` and with the hook observation ``cascade_lqg``
+(agents/baselines/team_cascade.py) the drones' (:func:`team_baselines`).
 """
 from __future__ import annotations
 
@@ -87,7 +87,31 @@ class TeamCascadePolicy:
         from agents.baselines.team_cascade import TeamCascade
 
         if self.design is None:
-            self.design = TeamCascade.design(nominal_core(core))
+            self.design = TeamCascade.design(nominal_core(core, action_latency=core.action_latency))
+        if core.steps == 0:
+            self.design.reset()
+        if core.observation != "full":
+            obs = core.true_observations().ravel()
+        return self.design.act(obs, core)
+
+
+class TeamCascadeLQGPolicy:
+    """A drone team's cascade on a Kalman filter's estimate (agents/baselines/team_cascade.py
+    ``TeamCascadeLQG``) for the env's observation mode, sensor noise and latency, designed the
+    first time it acts on the nominal drone team; reset at each episode's first step."""
+
+    def __init__(self):
+        self.design = None
+
+    def act(self, obs, core):
+        from agents.baselines.team_cascade import TeamCascadeLQG
+
+        if self.design is None:
+            self.design = TeamCascadeLQG.design(nominal_core(core, observation=core.observation,
+                                                             sensor_noise=core.sensor_noise,
+                                                             action_latency=core.action_latency))
+        if core.steps == 0:
+            self.design.reset()
         return self.design.act(obs, core)
 
 
@@ -95,11 +119,13 @@ def team_baselines(observation: str = "full", drones: bool = False) -> dict:
     """The team's classical baselines by name for an observation mode: the LQR with the ``full``
     observation; with the ``hook`` one the LQG, and the LQR reading the true state as
     ``lqr_true_state`` (a reference, not a baseline a policy is compared with: it reads what the
-    agents do not see). A drone team's (``drones``): the cascade, with the ``full`` observation."""
+    agents do not see). A drone team's (``drones``): the cascade with the ``full`` observation; with
+    the ``hook`` one the cascade on its filter's estimate, and the cascade reading the true state
+    as ``cascade_true_state``."""
     if drones:
-        if observation != "full":
-            raise ValueError("observation: a drone team's cascade reads the full observation (no estimator yet)")
-        return {"cascade": TeamCascadePolicy()}
+        if observation == "full":
+            return {"cascade": TeamCascadePolicy()}
+        return {"cascade_lqg": TeamCascadeLQGPolicy(), "cascade_true_state": TeamCascadePolicy()}
     if observation == "full":
         return {"lqr": TeamLQRPolicy()}
     return {"lqg": TeamLQGPolicy(), "lqr_true_state": TeamLQRPolicy()}

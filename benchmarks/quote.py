@@ -481,13 +481,15 @@ TEAM_COMPARE_COMMAND = ("python -m agents.compare --team 3 --task transport --pr
 
 #: The team's baselines on each task and preset compared (docs/team.md "The baseline").
 TEAM_BASELINE_FILES = tuple(f"docs/compare/compare_team3_{task}{suffix}.json"
-                            for task in ("transport", "track") for suffix in ("", "_hard", "_thrust_rates"))
+                            for task in ("transport", "track")
+                            for suffix in ("", "_hard", "_thrust_rates", "_thrust_rates_hard"))
 
 
 def team_baselines_table(data: dict) -> str:
     """The zero action, the baseline and, with the hook observation, the LQR on the true state, per
     configuration of TEAM_BASELINE_FILES."""
-    rows = ["| configuration | zero action | the baseline | its success | the LQR reading the true state (reference) |",
+    rows = ["| configuration | zero action | the baseline | its success | the LQR (drones: cascade) reading the true "
+            "state (reference) |",
             "|---|---|---|---|---|"]
     for name in TEAM_BASELINE_FILES:
         d = data[name]
@@ -496,10 +498,11 @@ def team_baselines_table(data: dict) -> str:
         def cell(p):
             return f"{policies[p]['mean_return']:.1f} ± {policies[p]['std_return']:.1f}"
 
-        truth = policies.get("lqr_true_state")
-        reference = f"{cell('lqr_true_state')} ({truth['success_rate'] * 100:.0f} %)" if truth else "(the baseline)"
+        true_state = next((p for p in ("lqr_true_state", "cascade_true_state") if p in policies), None)
+        reference = (f"{cell(true_state)} ({policies[true_state]['success_rate'] * 100:.0f} %)" if true_state
+                     else "(the baseline)")
         drones = f", drones ({d['actuation']})" if d.get("actuation") else ""
-        label = best.upper() if best in ("lqr", "lqg") else best
+        label = best.upper() if best in ("lqr", "lqg") else best.replace("_", " ")
         rows.append(f"| {d['task']}, {d['preset'] or 'nominal'}{drones} | {cell('zero')} | {label} {cell(best)} | "
                     f"{policies[best]['success_rate'] * 100:.0f} % | {reference} |")
     return "\n".join(rows)
@@ -757,7 +760,7 @@ QUOTES = {
                            "python -m agents.compare --scene quadrotor_load --actuation thrust_rates --preset hard "
                            "--task T --episodes 100", compare_drone),
     "compare.team_baselines": Quote(TEAM_BASELINE_FILES, "python -m agents.compare --team 3 --task T "
-                                    "[--preset hard | --actuation thrust_rates] "
+                                    "[--preset hard] [--actuation thrust_rates] "
                                     "--episodes 100 --out docs/compare", team_baselines_table),
     "compare.team3_transport_hard": Quote(TEAM_COMPARE_FILE, TEAM_COMPARE_COMMAND, compare_team_table),
     "compare.team_readme": Quote(TEAM_COMPARE_FILE, TEAM_COMPARE_COMMAND, compare_team_readme),

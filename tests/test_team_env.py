@@ -445,7 +445,9 @@ def _rerun_the_documented_team_comparison():
 @pytest.mark.parametrize("task, preset, actuation", [("transport", None, None), ("transport", "hard", None),
                                                      ("track", None, None), ("track", "hard", None),
                                                      ("transport", None, "thrust_rates"),
-                                                     ("track", None, "thrust_rates")])
+                                                     ("track", None, "thrust_rates"),
+                                                     ("transport", "hard", "thrust_rates"),
+                                                     ("track", "hard", "thrust_rates")])
 def test_the_documented_team_baselines_are_todays(task, preset, actuation):
     """docs/compare/compare_team3_{task}[_thrust_rates][_hard].json (the table of docs/team.md's
     baselines): each baseline's and the zero action's first recorded episode, rerun, gives its
