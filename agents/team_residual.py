@@ -5,8 +5,9 @@ mode (agents/team_evaluate.py :func:`~agents.team_evaluate.team_baselines`: the 
 hook observation the LQG); it is told the action actually applied, so the LQG's filter predicts
 with it.
 
-Each agent sees its own observation, then its baseline command (3) and, from a stateful baseline
-(the LQG), the filter's estimate of the team's reduced state (agents/baselines/team_lqr.py
+A drone team's baseline is the drones' cascade (agents/baselines/team_cascade.py), its command
+each drone's four numbers. Each agent sees its own observation, then its baseline command (3, or
+4 for a drone) and, from a stateful baseline (the LQG, the cascade's filter), the filter's estimate of the team's reduced state (agents/baselines/team_lqr.py
 ``reduced_layout``) with the pivots' blocks rolled so that its own pivot comes first: one shared
 network reads every agent's the same way.
 """
@@ -30,31 +31,33 @@ RESIDUAL_FILE = "residual.json"
 
 
 class TeamBase:
-    """The centralised baseline of a team core's observation mode, acting for every agent at once."""
+    """The centralised baseline of a team core's observation mode (of its drones, with ``drones``),
+    acting for every agent at once."""
 
-    def __init__(self, observation: str):
-        self.policy = next(iter(team_baselines(observation).values()))
+    def __init__(self, observation: str, drones: bool = False):
+        self.policy = next(iter(team_baselines(observation, drones).values()))
 
     def act(self, obs: np.ndarray, core) -> np.ndarray:
-        """The baseline's (K, 3) command for the agents' (K, n) observations; a new episode at ``core.steps == 0``."""
-        return self.policy.act(np.asarray(obs, dtype=np.float64).ravel(), core).reshape(core.size, 3)
+        """The baseline's (K, a) command for the agents' (K, n) observations (a: an agent's action
+        size); a new episode at ``core.steps == 0``."""
+        return self.policy.act(np.asarray(obs, dtype=np.float64).ravel(), core).reshape(core.size, core.action_size)
 
     def observe(self, obs: np.ndarray, core) -> tuple:
         """``(command, inputs)`` for the agents' (K, n) observations: the baseline's (K, 3) command
-        and each agent's observation followed by its :meth:`features`, (K, n + 3 + e) in float64."""
+        and each agent's observation followed by its :meth:`features`, (K, n + a + e) in float64."""
         agents = np.asarray(obs, dtype=np.float64).reshape(core.size, -1)
         command = self.act(agents, core)
         return command, np.concatenate([agents, self.features(core, command)], axis=1)
 
     def apply(self, command: np.ndarray, residual: np.ndarray, scale: float) -> np.ndarray:
-        """The (K, 3) action :func:`combine` makes of ``command`` and ``residual``, told to the
+        """The (K, a) action :func:`combine` makes of ``command`` and ``residual``, told to the
         baseline's filter (its model's input for the next estimate)."""
         total = combine(command, np.asarray(residual, dtype=np.float64).reshape(command.shape), scale)
         self.policy.design.record_applied(total.ravel())
         return total
 
     def features(self, core, command: np.ndarray) -> np.ndarray:
-        """(K, 3 + e): each agent's command, then the filter's estimate (e = 0 without one) with its pivot first."""
+        """(K, a + e): each agent's command, then the filter's estimate (e = 0 without one) with its pivot first."""
         estimate = getattr(self.policy.design, "estimate", None)
         if estimate is None:
             return np.asarray(command, dtype=np.float64)
@@ -65,9 +68,10 @@ class TeamBase:
         return np.stack(rows)
 
 
-def feature_size(size: int, observation: str) -> int:
-    """The length 3 + e of :meth:`TeamBase.features` for a team of ``size`` in ``observation`` mode."""
-    return 3 + (reduced_layout(size).size if observation != "full" else 0)
+def feature_size(size: int, observation: str, action_size: int = 3) -> int:
+    """The length a + e of :meth:`TeamBase.features` for a team of ``size`` in ``observation`` mode
+    whose agents act with ``action_size`` numbers."""
+    return action_size + (reduced_layout(size).size if observation != "full" else 0)
 
 
 class TeamResidualParallelEnv(ParallelEnv):
@@ -82,13 +86,13 @@ class TeamResidualParallelEnv(ParallelEnv):
             raise ValueError(f"residual_scale must be > 0, got {scale!r}")
         self.env, self.scale = env, float(scale)
         self.core = env.core
-        self.base = TeamBase(self.core.observation)
+        self.base = TeamBase(self.core.observation, self.core.drones)
         self.possible_agents = list(env.possible_agents)
         self.agents = []
         self.render_mode = None
-        #: the baseline's command (K, 3) for the last observations
+        #: the baseline's command (K, a) for the last observations
         self.command = None
-        self._extra = feature_size(self.core.size, self.core.observation)
+        self._extra = feature_size(self.core.size, self.core.observation, self.core.action_size)
 
     @functools.lru_cache(maxsize=None)
     def observation_space(self, agent):
@@ -119,7 +123,7 @@ class TeamResidualParallelEnv(ParallelEnv):
 
 
 def combine(command: np.ndarray, residual: np.ndarray, scale: float) -> np.ndarray:
-    """clip(command + scale clip(residual, -1, 1), -1, 1), each (K, 3)."""
+    """clip(command + scale clip(residual, -1, 1), -1, 1), each (K, a)."""
     return np.clip(command + scale * np.clip(residual, -1.0, 1.0), -1.0, 1.0)
 
 

@@ -4,9 +4,11 @@ every agent acting with one shared policy (parameter sharing), on this machine o
     python -m agents.team_train --team 3 --task transport --preset hard --iterations 100
     python -m agents.team_train --team 3 --iterations 20 --set lr=1e-4 num_env_runners=2
     python -m agents.team_train --team 3 --task transport --preset hard --residual --time-limit 60
+    python -m agents.team_train --team 3 --actuation thrust_rates --preset hard --residual --time-limit 60
 
 ``--residual`` trains a residual on the team's baseline (agents/team_residual.py: the agents' actions
-added, scaled by ``--residual-scale``, to the LQR's, or with the hook observation the LQG's);
+added, scaled by ``--residual-scale``, to the LQR's, or with the hook observation the LQG's; a
+drone team's (``--actuation``) to the drones' cascade's);
 the checkpoint then carries residual.json and every evaluation adds the same baseline.
 ``--central-critic`` gives the network a critic that also reads the team's true state
 (agents/team_critic.py); the checkpoint then carries central_critic.json.
@@ -65,6 +67,9 @@ class Settings:
     team: int = field(default=3, metadata={"help": "strings K (1-6)", "type": int, "min": 1})
     task: str = field(default="transport", metadata={"help": "task", "choices": sorted(TEAM_TASKS)})
     preset: Optional[str] = field(default=None, metadata={"help": "the team's preset", "choices": ["hard"]})
+    actuation: Optional[str] = field(default=None, metadata={
+        "help": "the pivots are drones flown so (default: point pivots pushed by forces)",
+        "choices": ["thrust_rates", "thrust_torque", "motors"]})
     iterations: int = field(default=100, metadata={
         "help": "training iterations (each samples train_batch_size_per_learner steps)", "type": int, "min": 1})
     time_limit: Optional[float] = field(default=None, metadata={
@@ -118,8 +123,13 @@ def make_team_env(env_config: dict):
     return ParallelPettingZooEnv(team_parallel_env(env_config))
 
 
+def env_options(s: Settings) -> dict:
+    """The team env's options of the run (its preset and actuation), as agents/team_evaluate.py takes them."""
+    return {**({"preset": s.preset} if s.preset else {}), **({"actuation": s.actuation} if s.actuation else {})}
+
+
 def env_config(s: Settings) -> dict:
-    return {"team": s.team, "task": s.task, **({"preset": s.preset} if s.preset else {}),
+    return {"team": s.team, "task": s.task, **env_options(s),
             **({"residual_scale": s.residual_scale} if s.residual else {}),
             **({"central_critic": True} if s.central_critic else {})}
 
@@ -181,13 +191,14 @@ class TeamRLlibPolicy:
         agents = np.asarray(obs, dtype=np.float64).reshape(core.size, -1)
         if self.scale is not None:
             if self.base is None:
-                self.base = TeamBase(core.observation)
+                self.base = TeamBase(core.observation, core.drones)
             command, agents = self.base.observe(agents, core)
         if self.critic is not None:
             agents = np.concatenate([agents, np.zeros((core.size, self.critic["state_size"]))], axis=1)
         with torch.no_grad():
             out = self.module.forward_inference({Columns.OBS: torch.from_numpy(agents.astype(np.float32))})
-        mean = out[Columns.ACTION_DIST_INPUTS].numpy()[:, :3].astype(np.float64)  # a diagonal Gaussian's (mean, log std)
+        # a diagonal Gaussian's (mean, log std)
+        mean = out[Columns.ACTION_DIST_INPUTS].numpy()[:, :core.action_size].astype(np.float64)
         if self.scale is None:
             return np.clip(mean, -1.0, 1.0).ravel()
         return self.base.apply(command, mean, self.scale).ravel()
@@ -252,9 +263,10 @@ def _record(s: Settings, cfg: RLlibRunConfig, run_dir: Path, argv: Optional[list
     (run_dir / "command.txt").write_text(shlex.join([sys.executable, "-m", "agents.team_train", *args]) + "\n")
     from esp_gym.team.env import TEAM_PRESETS
 
-    kwargs = {"preset": s.preset} if s.preset else {}
+    kwargs = env_options(s)
     observation = TEAM_PRESETS.get(s.preset, {}).get("observation", "full")
-    baseline = next(iter(team_baselines(observation).values()))  # the LQR, or the LQG with hook observations
+    # the LQR, or the LQG with hook observations; a drone team's cascade
+    baseline = next(iter(team_baselines(observation, s.actuation is not None).values()))
     refs = {name: summarize(run_team_episodes(policy, s.team, s.task, s.reference_episodes, EVAL_SEED, kwargs),
                             s.task)["mean_return"]
             for name, policy in (("baseline_return", baseline), ("zero_return", TeamZero()))}
@@ -299,13 +311,14 @@ def run(s: Settings, cfg: RLlibRunConfig, run_dir: Path, algo, argv: Optional[li
             write_critic(run_dir / "checkpoint", env.actor_inputs, env.state_size)
         (run_dir / "training.json").write_text(json.dumps(
             {"wall_time_s": wall, "iterations": done, "timesteps": steps, "address": s.address}, indent=2))
-        kwargs = {"preset": s.preset} if s.preset else {}
+        kwargs = env_options(s)
         stats = summarize(run_team_episodes(TeamRLlibPolicy(run_dir / "checkpoint"), s.team, s.task, s.eval_episodes,
                                             EVAL_SEED, kwargs), s.task)
         (run_dir / "evaluation.json").write_text(json.dumps({**stats, "seed": EVAL_SEED}, indent=2))
         kind = ("shared residual on the baseline" if s.residual else "shared") + \
             (", centralised critic" if s.central_critic else "")
-        plot_curve(run_dir, f"{TEAM_ENV_ID} team of {s.team} {s.task} {s.preset or 'nominal'}: RLlib PPO, {kind} "
+        drones = f" drones ({s.actuation})" if s.actuation else ""
+        plot_curve(run_dir, f"{TEAM_ENV_ID} team of {s.team}{drones} {s.task} {s.preset or 'nominal'}: RLlib PPO, {kind} "
                             f"(seed {s.seed})")
         write_status(run_dir, "finished", iterations=done, timesteps=steps)
     except BaseException as err:  # Ctrl-C too: the directory says why it stopped

@@ -176,3 +176,36 @@ def test_the_cascades_filter_estimates_the_load_the_drones_do_not_see():
         assert not terminated
     assert total > 380.0  # measured 419.7
     assert np.median(errors[250:]) < 0.04  # measured 0.018 m
+
+
+def test_a_residual_drone_team_adds_its_actions_to_the_cascades():
+    """agents/team_residual.py on drones (the hard preset): PettingZoo's API test passes, each agent
+    sees its observation, its cascade command (4) and the filter's estimate, and a zero residual
+    flies the cascade's episode, bit for bit."""
+    from agents.team_evaluate import TeamCascadeLQGPolicy
+    from agents.team_residual import TeamResidualParallelEnv, feature_size
+
+    def residual_env():
+        return TeamResidualParallelEnv(parallel_env(team=3, preset="hard", **DRONES))
+
+    parallel_api_test(residual_env(), num_cycles=20)
+    env = residual_env()
+    obs, _ = env.reset(seed=100002)
+    n = env.env.observation_space("pivot_0").shape[0]
+    assert env.observation_space("pivot_0").shape == (n + feature_size(3, "hook", 4),)
+    total = 0.0
+    for _ in range(40):
+        obs, rewards, *_ = env.step({a: np.zeros(4, np.float32) for a in env.possible_agents})
+        total += rewards["pivot_0"]
+    alone = ElasticStringTeamEnv(3, preset="hard", **DRONES)
+    obs, _ = alone.reset(seed=100002)
+    policy, expected = TeamCascadeLQGPolicy(), 0.0
+    for _ in range(40):
+        obs, reward, *_ = alone.step(policy.act(obs, alone.core))
+        expected += reward
+    assert total == expected
+    # negative control: a residual of 0.1 on every thrust flies another episode
+    env.reset(seed=100002)
+    moved = sum(env.step({a: np.array([0.1, 0.0, 0.0, 0.0], np.float32) for a in env.possible_agents})[1]["pivot_0"]
+                for _ in range(40))
+    assert moved != expected

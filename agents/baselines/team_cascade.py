@@ -167,6 +167,10 @@ class TeamCascade:
         return self.command(reduced_from_observation(point, core), self.applied(kin["drone_attitudes"],
                                                                                 kin["drone_thrust"]), core)
 
+    def record_applied(self, action: np.ndarray) -> None:
+        """The action given at the last :meth:`act` was ``action`` (a residual's sum): nothing to
+        keep, the law measures the thrusts it makes (its queue keeps the forces it asked for)."""
+
     def act(self, obs: np.ndarray, core: TeamCore) -> np.ndarray:
         """The drone team's action (4K,) for its centralised ``full`` observation."""
         kin = core.kinematics()
@@ -211,8 +215,22 @@ class TeamCascadeLQG:
         self.thrusts = None
         self.law.reset()
 
+    def given_thrusts(self, action: np.ndarray, core: TeamCore) -> np.ndarray:
+        """Each drone's collective thrust (K,) [N] that the drone team's ``action`` (4K,) asks for."""
+        a = np.asarray(action, dtype=np.float64).reshape(core.size, 4)
+        hover = core.drive.hover
+        if core.actuation == "motors":
+            return 0.25 * hover * np.clip(1.0 + a, 0.0, None).sum(axis=1)
+        return np.clip(hover * (1.0 + a[:, 0]), 0.0, None)
+
+    def record_applied(self, action: np.ndarray) -> None:
+        """The action given at the last :meth:`act` was ``action`` (a residual's sum): its thrusts
+        are what the filter predicts with once they act."""
+        self.thrusts[-1] = self.given_thrusts(action, self._core)
+
     def act(self, obs: np.ndarray, core: TeamCore) -> np.ndarray:
         """The drone team's action (4K,) for its centralised observation (hook or full)."""
+        self._core = core
         K, L = core.size, core.layout
         agents = np.asarray(obs, dtype=np.float64).reshape(K, -1)
         if self.thrusts is None:
@@ -233,8 +251,5 @@ class TeamCascadeLQG:
         self.estimate = prior + self.gain @ (y - self.C @ prior)
         self.last_applied = applied
         action = self.law.drive(self.law.command(self.estimate, applied, core), attitudes, rates, core)
-        a = action.reshape(K, 4)
-        given = (0.25 * core.drive.hover * np.clip(1.0 + a, 0.0, None).sum(axis=1) if core.actuation == "motors"
-                 else np.clip(core.drive.hover * (1.0 + a[:, 0]), 0.0, None))
-        self.thrusts = self.thrusts[1:] + [given]
+        self.thrusts = self.thrusts[1:] + [self.given_thrusts(action, core)]
         return action
