@@ -190,6 +190,10 @@ def drone_solve(DR, P, h, compensated, thrust):
     return status, iters, dP, c
 
 
+# drone_start views the pivot force pair as one (2, 3) block of INPUTS
+assert IN_PIVOT_FORCE_END == IN_PIVOT_FORCE + 3
+
+
 @kernel(inline="always")
 def drone_start(DR, P, inputs, h, compensated):
     """:func:`drone_solve` before the string's step of :func:`drone_substep`, its thrust pair into

@@ -254,8 +254,9 @@ def team_substep(S, W, P, T, A, inputs, h, free, forced, coupled, compensated):
     strings on one body"): string 0 and the body as :func:`~.lgvi.lgvi_substep` with the body's
     inertia augmented (``T``), the other strings (``A``) reduced to their ends before Newton and
     back-substituted after it. ``inputs`` (:data:`~.layout.INPUTS`) push string 0's pivot and
-    turn the body; ``A.force`` pushes the other pivots (its pair, as string 0's). Flags as in ``lgvi_substep``; a failing
-    step leaves the state untouched. Returns ``(status, newton_iterations)``."""
+    turn the body; ``A.force`` pushes the other pivots (its pair, as string 0's). Flags as in
+    ``lgvi_substep``; a failing step leaves the state untouched. Returns ``(status,
+    newton_iterations)``."""
     R = S.R
     first = 0 if free else 1
     held = held_inputs(inputs, forced)

@@ -77,7 +77,8 @@ class TeamCore:
             raise ValueError(f"team must be a number of strings (1-{MAX_STRINGS}) or a TeamScene, got {team!r}")
         kinds = {p.kind for p in scene.pivots()}
         if kinds not in ({"free"}, {"drone"}):
-            raise ValueError(f"team: a team environment's pivots are all free points or all drones, got {sorted(kinds)}")
+            raise ValueError(f"team: a team environment's pivots are all free points or all drones, got "
+                             f"{sorted(kinds)}")
         #: whether the pivots are drones, and how the agents drive them
         self.drones = kinds == {"drone"}
         self.actuation = actuation or ("thrust_rates" if self.drones else "force")

@@ -132,8 +132,9 @@ class Fleet:
         ``drone_attitudes`` R_q (n, 3, 3)."""
         D = self.arrays.arrays
         rates = np.einsum("dij,dj->di", D.inertia_inv, D.Pi)
+        thrust = D.consts[:, Q_THRUST_COEFFICIENT] * np.einsum("di,di->d", D.thrust_scale, D.speed ** 2)
         return dict(kinetic_drones=0.5 * np.einsum("di,di->d", D.Pi, rates),
                     pi3_drones=np.einsum("i,dij,dj->d", np.array([0.0, 0.0, 1.0]), D.R, D.Pi),
                     orthogonality_drones=np.linalg.norm(np.swapaxes(D.R, 1, 2) @ D.R - np.eye(3), axis=(1, 2)),
-                    drone_thrust=D.consts[:, Q_THRUST_COEFFICIENT] * np.einsum("di,di->d", D.thrust_scale, D.speed ** 2),
+                    drone_thrust=thrust,
                     drone_rates=rates, rotor_speeds=D.speed.copy(), drone_attitudes=D.R.copy())

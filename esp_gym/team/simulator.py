@@ -236,8 +236,8 @@ class TeamSimulator:
         made into held commands through A^-1 (clipped to each rotor's range); or ``thrust`` with
         ``rates`` (n_drones, 3) [rad/s], the rate controller setting the commands before every
         step (kernels/drone.py ``actuate``). None of them keeps the last call's (at first
-        hover: :meth:`Fleet.shares <esp_gym.team.fleet.Fleet.shares>`). Raises :class:`~esp_gym.errors.SimulationError` on failure
-        (the state is then the last good one)."""
+        hover: :meth:`Fleet.shares <esp_gym.team.fleet.Fleet.shares>`). Raises
+        :class:`~esp_gym.errors.SimulationError` on failure (the state is then the last good one)."""
         n = int(n)
         if n < 0:
             raise ValueError(f"n must be >= 0, got {n}")
