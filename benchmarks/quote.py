@@ -477,6 +477,11 @@ def compare_drone(data: dict) -> str:
 TEAM_COMPARE_FILE = "docs/compare/compare_team3_transport_hard.json"
 TEAM_COMPARE_COMMAND = ("python -m agents.compare --team 3 --task transport --preset hard --episodes 100 "
                         "--model models/team3_transport_hard_rllib/checkpoint --out docs/compare")
+#: The shipped drone team's comparison (docs/team.md "Training").
+DRONE_TEAM_COMPARE_FILE = "docs/compare/compare_team3_transport_thrust_rates_hard.json"
+DRONE_TEAM_COMPARE_COMMAND = ("python -m agents.compare --team 3 --actuation thrust_rates --task transport --preset "
+                              "hard --episodes 100 --model models/team3_drones_transport_hard_rllib/checkpoint "
+                              "--out docs/compare")
 
 
 #: The team's baselines on each task and preset compared (docs/team.md "The baseline").
@@ -517,7 +522,8 @@ def compare_team_table(data: dict) -> str:
 def compare_team_readme(data: dict) -> str:
     policies, best = data["policies"], data["best_baseline"]
     low, high = data["paired_ci95"]
-    return (f"{policies['policy']['mean_return']:.1f} against the {best.upper()}'s {policies[best]['mean_return']:.1f}, "
+    label = best.upper() if best in ("lqr", "lqg") else best.replace("_", " ")
+    return (f"{policies['policy']['mean_return']:.1f} against the {label}'s {policies[best]['mean_return']:.1f}, "
             f"**{signed(data['paired_diff_mean'])} [{signed(low)}, {signed(high)}]**")
 
 
@@ -764,6 +770,9 @@ QUOTES = {
                                     "--episodes 100 --out docs/compare", team_baselines_table),
     "compare.team3_transport_hard": Quote(TEAM_COMPARE_FILE, TEAM_COMPARE_COMMAND, compare_team_table),
     "compare.team_readme": Quote(TEAM_COMPARE_FILE, TEAM_COMPARE_COMMAND, compare_team_readme),
+    "compare.team3_drones_transport_hard": Quote(DRONE_TEAM_COMPARE_FILE, DRONE_TEAM_COMPARE_COMMAND,
+                                                 compare_team_table),
+    "compare.drone_team_readme": Quote(DRONE_TEAM_COMPARE_FILE, DRONE_TEAM_COMPARE_COMMAND, compare_team_readme),
     "stability.long_run": Quote("docs/img/stability.json", "python -m benchmarks.stability --out docs/img",
                                 stability_long_run),
     "stability.readme": Quote("docs/img/stability.json", "python -m benchmarks.stability --out docs/img",

@@ -401,44 +401,49 @@ def test_a_residual_team_starts_as_its_baseline_and_tells_it_what_was_applied():
         TeamResidualParallelEnv(parallel_env(team=2), scale=0.0)
 
 
-#: The shipped team model and its documented comparison (docs/team.md "Training"; the full rerun:
-#: agents.compare --team 3 --task transport --preset hard --episodes 100 --model MODEL/checkpoint --out docs/compare).
-TEAM_MODEL = "team3_transport_hard_rllib"
+#: The shipped team models and their documented comparisons (docs/team.md "Training"; the full
+#: rerun: agents.compare --team 3 --task transport --preset hard [--actuation thrust_rates]
+#: --episodes 100 --model MODEL/checkpoint --out docs/compare): model, file, env options, baseline.
+TEAM_MODELS = {
+    "points": ("team3_transport_hard_rllib", "compare_team3_transport_hard.json", {"preset": "hard"}, "lqg"),
+    "drones": ("team3_drones_transport_hard_rllib", "compare_team3_transport_thrust_rates_hard.json",
+               {"preset": "hard", "actuation": "thrust_rates"}, "cascade_lqg"),
+}
 
 
-def test_the_documented_team_comparison_is_todays_model_and_baselines():
-    """docs/compare/compare_team3_transport_hard.json was written by the shipped team model and
-    today's baselines on the held-out seeds: its first two episodes, rerun, give each policy's
-    recorded returns, and the model beats the LQG there with the paired CI above zero; one seed
-    later (the negative control) they do not match. BLAS on one thread, as the comparison was
-    written (with two the LQG's episodes round differently; the kernels: the Makefile's
-    OPENBLAS_CORETYPE)."""
+@pytest.mark.parametrize("team", sorted(TEAM_MODELS))
+def test_the_documented_team_comparison_is_todays_model_and_baselines(team):
+    """docs/compare/compare_team3_transport[_thrust_rates]_hard.json was written by the shipped team
+    model and today's baselines on the held-out seeds: its first two episodes, rerun, give each
+    policy's recorded returns, and the model beats the baseline there with the paired CI above
+    zero; one seed later (the negative control) they do not match. BLAS on one thread, as the
+    comparison was written (with two the LQG's episodes round differently; the kernels: the
+    Makefile's OPENBLAS_CORETYPE)."""
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=1, user_api="blas"):
-        _rerun_the_documented_team_comparison()
+        _rerun_the_documented_team_comparison(*TEAM_MODELS[team])
 
 
-def _rerun_the_documented_team_comparison():
+def _rerun_the_documented_team_comparison(model: str, name: str, options: dict, baseline: str):
     from agents import ROOT
     from agents.compare import HELD_OUT_SEED
-    from agents.team_evaluate import TeamLQGPolicy, TeamLQRPolicy
+    from agents.team_evaluate import team_baselines
     from agents.team_train import TeamRLlibPolicy
 
-    doc = json.loads((ROOT / "docs" / "compare" / "compare_team3_transport_hard.json").read_text())
-    assert (doc["team"], doc["task"], doc["preset"], doc["episodes"], doc["seed"]) == (
-        3, "transport", "hard", 100, HELD_OUT_SEED)
-    assert doc["model"].endswith(f"models/{TEAM_MODEL}/checkpoint")
-    assert doc["best_baseline"] == "lqg" and doc["paired_ci95"][0] > 0.0
-    policies = {"zero": TeamZero(), "lqg": TeamLQGPolicy(), "lqr_true_state": TeamLQRPolicy(),
-                "policy": TeamRLlibPolicy(ROOT / "models" / TEAM_MODEL / "checkpoint")}
+    doc = json.loads((ROOT / "docs" / "compare" / name).read_text())
+    assert (doc["team"], doc["task"], doc["preset"], doc["episodes"], doc["seed"], doc["actuation"]) == (
+        3, "transport", "hard", 100, HELD_OUT_SEED, options.get("actuation"))
+    assert doc["model"].endswith(f"models/{model}/checkpoint")
+    assert doc["best_baseline"] == baseline and doc["paired_ci95"][0] > 0.0
+    policies = {"zero": TeamZero(), **team_baselines("hook", "actuation" in options),
+                "policy": TeamRLlibPolicy(ROOT / "models" / model / "checkpoint")}
     assert set(policies) == set(doc["policies"])
-    for name, policy in policies.items():
-        recorded = doc["policies"][name]["returns"]
-        rerun = [e.ret for e in run_team_episodes(policy, 3, "transport", 2, doc["seed"], {"preset": "hard"})]
-        assert rerun == pytest.approx(recorded[:2], rel=1e-6), name
-    shifted = [e.ret for e in run_team_episodes(policies["policy"], 3, "transport", 1, doc["seed"] + 1,
-                                                {"preset": "hard"})]
+    for policy_name, policy in policies.items():
+        recorded = doc["policies"][policy_name]["returns"]
+        rerun = [e.ret for e in run_team_episodes(policy, 3, "transport", 2, doc["seed"], options)]
+        assert rerun == pytest.approx(recorded[:2], rel=1e-6), policy_name
+    shifted = [e.ret for e in run_team_episodes(policies["policy"], 3, "transport", 1, doc["seed"] + 1, options)]
     assert shifted != pytest.approx(doc["policies"]["policy"]["returns"][:1], rel=1e-6)
 
 

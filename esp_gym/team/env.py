@@ -153,8 +153,7 @@ class TeamCore:
         return st.lead.r[-1] + st.lead.R @ np.asarray(self.scene.scene.body.rho_c, dtype=float)
 
     def kinematics(self) -> dict:
-        """Positions, velocities and tensions of the current state (spatial frame, SI), and a
-        drone team's attitudes, rates and thrusts."""
+        """Positions, velocities, tensions (drones: attitudes, rates, thrusts) now (spatial, SI)."""
         st = self.sim.state
         T = self.sim.params
         v_lead, v_other, Omega = self.sim.velocities()
@@ -283,8 +282,8 @@ class TeamCore:
         return up
 
     def true_observations(self) -> np.ndarray:
-        """The ``full`` observation of the current state without noise (K, 27 + 3(K-1)): what a
-        centralised controller with the true state reads (agents/baselines/team_lqr.py)."""
+        """The ``full`` observation of the current state without noise (K, 27 + 3(K-1), + 9 with
+        drones): what a centralised controller with the true state reads (agents/baselines)."""
         mode, layout = self.observation, self.layout
         self.observation, self.layout = "full", agent_layout(self.size, "full", self.drones)
         try:
