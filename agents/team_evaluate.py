@@ -35,84 +35,75 @@ def nominal_core(core, **options):
     return nominal
 
 
-class TeamLQRPolicy:
-    """The team's LQR (agents/baselines/team_lqr.py), designed the first time it acts for the
-    nominal team of the env's size, task and control period, and its action latency. It reads the true state: from the
-    ``full`` observation, and with the ``hook`` observation (the hard preset) from the core
-    (:meth:`~esp_gym.team.env.TeamCore.true_observations`, no estimator yet: an optimistic
-    baseline there)."""
+class DesignedPolicy:
+    """A team baseline designed (:meth:`build`) the first time it acts, on the nominal team of the
+    env's size, task, control period and actuation; reset at each episode's first step. With
+    ``true_state`` it reads the true state whatever the observation
+    (:meth:`~esp_gym.team.env.TeamCore.true_observations` in the ``hook`` mode: no estimator, an
+    optimistic reference)."""
+
+    true_state = False
 
     def __init__(self):
         self.design = None
 
+    def build(self, core):
+        raise NotImplementedError
+
     def act(self, obs, core):
+        if self.design is None:
+            self.design = self.build(core)
+        if core.steps == 0:
+            self.design.reset()
+        if self.true_state and core.observation != "full":
+            obs = core.true_observations().ravel()
+        return self.design.act(obs, core)
+
+
+class TeamLQRPolicy(DesignedPolicy):
+    """The team's LQR (agents/baselines/team_lqr.py) with the env's action latency, reading the
+    true state."""
+
+    true_state = True
+
+    def build(self, core):
         from agents.baselines.team_lqr import TeamLQR
 
-        if self.design is None:
-            self.design = TeamLQR.design(nominal_core(core), latency=core.action_latency)
-        if core.steps == 0:
-            self.design.reset()
-        if core.observation != "full":
-            obs = core.true_observations().ravel()
-        return self.design.act(obs, core)
+        return TeamLQR.design(nominal_core(core), latency=core.action_latency)
 
 
-class TeamLQGPolicy:
+class TeamLQGPolicy(DesignedPolicy):
     """The team's LQG (agents/baselines/team_lqg.py) for the env's observation mode, sensor noise
-    and latency, designed the first time it acts on the nominal team; reset at each episode's
-    first step."""
+    and latency."""
 
-    def __init__(self):
-        self.design = None
-
-    def act(self, obs, core):
+    def build(self, core):
         from agents.baselines.team_lqg import TeamLQG
 
-        if self.design is None:
-            nominal = nominal_core(core, observation=core.observation, sensor_noise=core.sensor_noise)
-            self.design = TeamLQG.design(nominal, latency=core.action_latency)
-        if core.steps == 0:
-            self.design.reset()
-        return self.design.act(obs, core)
+        nominal = nominal_core(core, observation=core.observation, sensor_noise=core.sensor_noise)
+        return TeamLQG.design(nominal, latency=core.action_latency)
 
 
-class TeamCascadePolicy:
-    """A drone team's cascade (agents/baselines/team_cascade.py), designed the first time it acts
-    for the nominal drone team of the env's size, task, control period and actuation."""
+class TeamCascadePolicy(DesignedPolicy):
+    """A drone team's cascade (agents/baselines/team_cascade.py) with the env's action latency,
+    reading the true state."""
 
-    def __init__(self):
-        self.design = None
+    true_state = True
 
-    def act(self, obs, core):
+    def build(self, core):
         from agents.baselines.team_cascade import TeamCascade
 
-        if self.design is None:
-            self.design = TeamCascade.design(nominal_core(core, action_latency=core.action_latency))
-        if core.steps == 0:
-            self.design.reset()
-        if core.observation != "full":
-            obs = core.true_observations().ravel()
-        return self.design.act(obs, core)
+        return TeamCascade.design(nominal_core(core, action_latency=core.action_latency))
 
 
-class TeamCascadeLQGPolicy:
+class TeamCascadeLQGPolicy(DesignedPolicy):
     """A drone team's cascade on a Kalman filter's estimate (agents/baselines/team_cascade.py
-    ``TeamCascadeLQG``) for the env's observation mode, sensor noise and latency, designed the
-    first time it acts on the nominal drone team; reset at each episode's first step."""
+    ``TeamCascadeLQG``) for the env's observation mode, sensor noise and latency."""
 
-    def __init__(self):
-        self.design = None
-
-    def act(self, obs, core):
+    def build(self, core):
         from agents.baselines.team_cascade import TeamCascadeLQG
 
-        if self.design is None:
-            self.design = TeamCascadeLQG.design(nominal_core(core, observation=core.observation,
-                                                             sensor_noise=core.sensor_noise,
-                                                             action_latency=core.action_latency))
-        if core.steps == 0:
-            self.design.reset()
-        return self.design.act(obs, core)
+        return TeamCascadeLQG.design(nominal_core(core, observation=core.observation, sensor_noise=core.sensor_noise,
+                                                  action_latency=core.action_latency))
 
 
 def team_baselines(observation: str = "full", drones: bool = False) -> dict:

@@ -21,9 +21,7 @@ import numpy as np
 
 from .jit import kernel
 from .layout import B_ANGULAR_IMPULSE_Z, B_GRAVITY_IMPULSE, B_PIVOT_IMPULSE, B_WORK
-from .disturbance import kick
 from .lgvi import end_shift, rigid_increments
-from .loops import finish
 from .so3 import cross, unrotated
 from .status import BLOW_UP, NON_FINITE, OK
 from .step_shared import (body_momentum_increment, commit_body, commit_node, commit_string, guarded_forces,
@@ -293,48 +291,6 @@ def team_substep(S, W, P, T, A, inputs, h, free, forced, coupled, compensated):
     commit_others(T, A, h, forced, compensated)
     commit_body(S, W.Rn, W.RF, dP, compensated)
     return OK, iters
-
-
-@kernel(inline="always")
-def kick_before(S, W, P, nsteps, disturbed):
-    """The first half kick of a run of steps' held force on the load (``disturbed``, ``nsteps`` > 0):
-    kernels/disturbance.py's :func:`kick` of h/2."""
-    if disturbed and nsteps > 0:
-        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, 0.5 * P.h, 0 if P.first == 0 else 1)
-
-
-@kernel(inline="always")
-def kick_after(S, W, P, status, k, nsteps, disturbed):
-    """After step ``k`` of ``nsteps`` with ``status``: the kicks around it (``disturbed``): on
-    success the next step's first half and this one's second (h), or the last half (h/2); on
-    failure the pending half taken back (-h/2)."""
-    if disturbed:
-        hh = 0.5 * P.h
-        c = -hh if status != OK else (P.h if k < nsteps - 1 else hh)
-        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, c, 0 if P.first == 0 else 1)
-
-
-@kernel(entry=True)
-def team_advance(S, W, P, T, A, inputs, nsteps, stats, disturbed):
-    """Take up to ``nsteps`` team steps with constant inputs; stop at the first failure with the
-    last good state (a failing step moves nothing). ``stats`` as kernels/loops.py's. Every term
-    is in (the general path): forced, coupled, the pivot and the compensation read from ``P``.
-    ``disturbed``: the held force on the load's centre of mass ``W.ext[N+1]`` (wind, a push;
-    string 0's rows of ``W.ext`` zero) acts too, as kicks of h/2 on both sides of every step
-    (:func:`kick_before`, :func:`kick_after`), the pending half taken back after a failure."""
-    free = P.first == 0
-    kick_before(S, W, P, nsteps, disturbed)
-    total = 0
-    most = 0
-    for k in range(nsteps):
-        status, iters = team_substep(S, W, P, T, A, inputs, P.h, free, True, True, P.compensated)
-        total += iters
-        most = max(most, iters)
-        kick_after(S, W, P, status, k, nsteps, disturbed)
-        if status != OK:
-            finish(stats, status, k, total, most)
-            return
-    finish(stats, OK, nsteps, total, most)
 
 
 @kernel(entry=True)

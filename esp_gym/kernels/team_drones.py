@@ -5,16 +5,14 @@ its rotors' torque and its translation is its pivot's, pushed by the thrust pair
 u_k = -f_k R_{q,k} e3, u_{k+1} = -f_{k+1} R_{q,k+1} e3 (kernels/drone.py). A step: every drone's
 rotors over the step and its rotation solved (nothing committed), the thrust pairs into the
 pivots' forces, the team's step (kernels/team.py), then every drone committed; a failure anywhere
-leaves all of it untouched.
+leaves all of it untouched (the run of steps: kernels/team_loops.py).
 """
 from collections import namedtuple
 
-from .drone import THRUST_RATES, actuate, drone_at, drone_finish, drone_solve, start_wrench
+from .drone import THRUST_RATES, actuate, drone_at, drone_finish, drone_solve
 from .jit import kernel
 from .layout import IN_PIVOT_FORCE
-from .loops import finish
 from .status import OK
-from .team import kick_after, kick_before, team_substep
 
 #: A team's drones: ``arrays`` their :class:`~.drone.DroneArrays` stacked (every field's first
 #: index the drone), ``pivot`` (n,) int64 the pivot each flies (0: string 0's; j >= 1: string j's),
@@ -52,31 +50,3 @@ def drones_finish(S, TD, h, compensated):
         q = TD.pending[d]
         drone_finish(S, drone_at(TD.arrays, d), h, (q[0, 0], q[0, 1], q[0, 2]), (q[1, 0], q[1, 1], q[1, 2]),
                      compensated)
-
-
-@kernel(entry=True)
-def team_drone_advance(S, W, P, T, A, TD, inputs, nsteps, stats, disturbed, rates):
-    """kernels/team.py's ``team_advance`` with drones at the pivots ``TD.pivot``, their motor
-    commands held (``rates``: the rate controller sets them before every step from the setpoint);
-    every other free pivot pushed by its held force. ``stats`` as kernels/loops.py's, the drones'
-    Newton iterations with the team's."""
-    free = P.first == 0
-    for d in range(TD.pivot.shape[0]):
-        start_wrench(drone_at(TD.arrays, d))
-    kick_before(S, W, P, nsteps, disturbed)
-    total = 0
-    most = 0
-    for k in range(nsteps):
-        status, iters = drones_solve(TD, P, A, inputs, P.h, rates, P.compensated)
-        if status == OK:
-            status, team_iters = team_substep(S, W, P, T, A, inputs, P.h, free, True, True, P.compensated)
-            iters += team_iters
-            if status == OK:
-                drones_finish(S, TD, P.h, P.compensated)
-        total += iters
-        most = max(most, iters)
-        kick_after(S, W, P, status, k, nsteps, disturbed)
-        if status != OK:
-            finish(stats, status, k, total, most)
-            return
-    finish(stats, OK, nsteps, total, most)

@@ -12,8 +12,8 @@ from scipy.linalg import solve_banded
 from ..drone import DroneState
 from ..kernels.layout import BALANCE, INPUTS, LOOP_REPORT_SIZE, R_NEWTON_TOTAL, R_STATUS, R_STEPS
 from ..kernels.status import OK
-from ..kernels.team import TeamArrays, team_advance, team_forces
-from ..kernels.team_drones import team_drone_advance
+from ..kernels.team import TeamArrays, team_forces
+from ..kernels.team_loops import team_advance, team_drone_advance
 from ..model import SimulationError, Simulator
 from ..stability import hat
 from ..state import State, cross3, legendre_momenta

@@ -1,0 +1,82 @@
+"""A team's runs of steps (docs/physics.md, "A team: several strings on one body", "Drones at a
+team's pivots"): one loop, :func:`team_steps`, serves the point pivots' entry
+(:func:`team_advance`, compiled without the drones: their branches are pruned for ``None``) and
+the drones' (:func:`team_drone_advance`).
+"""
+from .disturbance import kick
+from .drone import drone_at, start_wrench
+from .jit import kernel
+from .loops import finish
+from .status import OK
+from .team import team_substep
+from .team_drones import drones_finish, drones_solve
+
+
+@kernel(inline="always")
+def kick_before(S, W, P, nsteps, disturbed):
+    """The first half kick of a run of steps' held force on the load (``disturbed``, ``nsteps`` > 0):
+    kernels/disturbance.py's :func:`kick` of h/2."""
+    if disturbed and nsteps > 0:
+        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, 0.5 * P.h, 0 if P.first == 0 else 1)
+
+
+@kernel(inline="always")
+def kick_after(S, W, P, status, k, nsteps, disturbed):
+    """After step ``k`` of ``nsteps`` with ``status``: the kicks around it (``disturbed``): on
+    success the next step's first half and this one's second (h), or the last half (h/2); on
+    failure the pending half taken back (-h/2)."""
+    if disturbed:
+        hh = 0.5 * P.h
+        c = -hh if status != OK else (P.h if k < nsteps - 1 else hh)
+        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, c, 0 if P.first == 0 else 1)
+
+
+@kernel(forceinline=True)
+def team_steps(S, W, P, T, A, TD, inputs, nsteps, stats, disturbed, rates):
+    """Up to ``nsteps`` team steps (kernels/team.py ``team_substep``), each with the drones of
+    ``TD`` (kernels/team_drones.py; ``None``: point pivots only) solved before it and committed
+    after it, the rate controller first when ``rates``; stop at the first failure with the last
+    good state (a failing step moves nothing). ``stats`` as kernels/loops.py's, the drones'
+    Newton iterations with the team's. ``disturbed``: the held force on the load's centre of
+    mass ``W.ext[N+1]`` acts too, as kicks of h/2 on both sides of every step, the pending half
+    taken back after a failure."""
+    free = P.first == 0
+    if TD is not None:
+        for d in range(TD.pivot.shape[0]):
+            start_wrench(drone_at(TD.arrays, d))
+    kick_before(S, W, P, nsteps, disturbed)
+    total = 0
+    most = 0
+    for k in range(nsteps):
+        status = OK
+        iters = 0
+        if TD is not None:
+            status, iters = drones_solve(TD, P, A, inputs, P.h, rates, P.compensated)
+        if status == OK:
+            status, team_iters = team_substep(S, W, P, T, A, inputs, P.h, free, True, True, P.compensated)
+            iters += team_iters
+            if TD is not None and status == OK:
+                drones_finish(S, TD, P.h, P.compensated)
+        total += iters
+        most = max(most, iters)
+        kick_after(S, W, P, status, k, nsteps, disturbed)
+        if status != OK:
+            finish(stats, status, k, total, most)
+            return
+    finish(stats, OK, nsteps, total, most)
+
+
+@kernel(entry=True)
+def team_advance(S, W, P, T, A, inputs, nsteps, stats, disturbed):
+    """Take up to ``nsteps`` team steps with constant inputs (:func:`team_steps`, no drones). Every
+    term is in (the general path): forced, coupled, the pivot and the compensation read from
+    ``P``; ``disturbed``: the held force on the load (string 0's rows of ``W.ext`` zero)."""
+    team_steps(S, W, P, T, A, None, inputs, nsteps, stats, disturbed, False)
+
+
+@kernel(entry=True)
+def team_drone_advance(S, W, P, T, A, TD, inputs, nsteps, stats, disturbed, rates):
+    """:func:`team_advance` with the drones of ``TD`` at their pivots, their motor commands held
+    (``rates``: the rate controller sets them before every step from the setpoint); every other
+    free pivot pushed by its held force."""
+    team_steps(S, W, P, T, A, TD, inputs, nsteps, stats, disturbed, rates)
