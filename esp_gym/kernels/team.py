@@ -50,6 +50,15 @@ TeamArrays = namedtuple("TeamArrays", "r p rc pc f fn X Y c dr0 force")
 
 
 @kernel(inline="always")
+def pivot_rows(T, j):
+    """String j's rows that do not move by the solve: 0 below a free pivot, 1 below a fixed one.
+    The select of two constants lets the compiler prove every row index from it non-negative, so
+    the loops over a string's rows drop the negative-index wraparound that ``T.first[j]`` (read
+    from memory) would cost on each access."""
+    return 0 if T.first[j] == 0 else 1
+
+
+@kernel(inline="always")
 def end_loads(R, T, A, h, forced):
     """Each string j >= 1 reduced to its end: the solve of its rows before the end,
     X = M_II^-1 (p + h/2 f (+ h/2 u at a free pivot)), its coupling c_j = off X_last (into
@@ -62,7 +71,7 @@ def end_loads(R, T, A, h, forced):
     for j in range(T.first.shape[0]):
         s = T.start[j]
         e = T.start[j + 1] - 1
-        first = T.first[j]
+        first = pivot_rows(T, j)
         X = A.X[s:e]
         string_solve(T.inv[s:e], T.cp[s:e], first, A.p[s:e], A.f[s:e], hh, A.force[j, 0, 0], A.force[j, 0, 1],
                      A.force[j, 0, 2], first == 0 and forced, X)
@@ -114,45 +123,49 @@ def other_increments(S, W, T, A, h, forced, compensated):
     dx0 = W.Y[n, 0]
     dx1 = W.Y[n, 1]
     dx2 = W.Y[n, 2]
-    X = A.X
-    Y = A.Y
     for j in range(T.first.shape[0]):
         s = T.start[j]
-        e = T.start[j + 1] - 1
-        first = T.first[j]
+        e = T.start[j + 1]
+        first = pivot_rows(T, j)
+        r = A.r[s:e]  # string j's rows, its end last (local row index `end`)
+        rc = A.rc[s:e]
+        X = A.X[s:e]
+        Y = A.Y[s:e]
+        w = T.w_end[s:e]
+        end = e - s - 1
         _, _, _, q0, q1, q2 = end_shift(S.R, W.FmI, T.rho[j])
         d0 = dx0 + q0
         d1 = dx1 + q1
         d2 = dx2 + q2
         o = T.off[j]
         if first == 0:  # the free pivot's displacement (its row's increment, before any remainder)
-            A.dr0[j, 0] = h * X[s, 0] - o * T.w_end[s] * d0
-            A.dr0[j, 1] = h * X[s, 1] - o * T.w_end[s] * d1
-            A.dr0[j, 2] = h * X[s, 2] - o * T.w_end[s] * d2
+            A.dr0[j, 0] = h * X[0, 0] - o * w[0] * d0
+            A.dr0[j, 1] = h * X[0, 1] - o * w[0] * d1
+            A.dr0[j, 2] = h * X[0, 2] - o * w[0] * d2
         else:
             A.dr0[j, 0] = 0.0
             A.dr0[j, 1] = 0.0
             A.dr0[j, 2] = 0.0
-        for a in range(s, s + first):  # a fixed pivot stays where it is
+        for a in range(first):  # a fixed pivot stays where it is
             for i in range(3):
-                X[a, i] = A.r[a, i]
-        for a in range(s + first, e):  # one pass: each row's increment, then its new position
-            y0 = h * X[a, 0] - o * T.w_end[a] * d0
-            y1 = h * X[a, 1] - o * T.w_end[a] * d1
-            y2 = h * X[a, 2] - o * T.w_end[a] * d2
+                X[a, i] = r[a, i]
+        for a in range(first, end):  # one pass: each row's increment, then its new position
+            y0 = h * X[a, 0] - o * w[a] * d0
+            y1 = h * X[a, 1] - o * w[a] * d1
+            y2 = h * X[a, 2] - o * w[a] * d2
             if compensated:
-                y0 = y0 + A.rc[a, 0]
-                y1 = y1 + A.rc[a, 1]
-                y2 = y2 + A.rc[a, 2]
+                y0 = y0 + rc[a, 0]
+                y1 = y1 + rc[a, 1]
+                y2 = y2 + rc[a, 2]
             Y[a, 0] = y0
             Y[a, 1] = y1
             Y[a, 2] = y2
-            X[a, 0] = A.r[a, 0] + y0
-            X[a, 1] = A.r[a, 1] + y1
-            X[a, 2] = A.r[a, 2] + y2
-        Y[e, 0] = d0
-        Y[e, 1] = d1
-        Y[e, 2] = d2
+            X[a, 0] = r[a, 0] + y0
+            X[a, 1] = r[a, 1] + y1
+            X[a, 2] = r[a, 2] + y2
+        Y[end, 0] = d0
+        Y[end, 1] = d1
+        Y[end, 2] = d2
 
 
 @kernel(inline="always")
@@ -230,20 +243,29 @@ def commit_others(T, A, h, forced, compensated):
     hh = 0.5 * h
     for j in range(T.first.shape[0]):
         s = T.start[j]
-        e = T.start[j + 1] - 1
-        first = T.first[j]
-        for a in range(s + first, e):
+        e = T.start[j + 1]
+        first = pivot_rows(T, j)
+        r = A.r[s:e]  # string j's rows, its end last (local row index `end`)
+        p = A.p[s:e]
+        rc = A.rc[s:e]
+        pc = A.pc[s:e]
+        f = A.f[s:e]
+        fn = A.fn[s:e]
+        X = A.X[s:e]
+        Y = A.Y[s:e]
+        end = e - s - 1
+        for a in range(first, end):
             for i in range(3):
                 impulse = 0.0
-                if forced and a == s:
+                if forced and a == 0:
                     impulse = hh * (A.force[j, 0, i] + A.force[j, 1, i])
-                commit_node(A.r, A.p, A.rc, A.pc, A.f, A.fn, A.f, A.fn, A.X, A.Y, a, i, impulse, hh, compensated)
+                commit_node(r, p, rc, pc, f, fn, f, fn, X, Y, a, i, impulse, hh, compensated)
         for i in range(3):
-            for a in range(s, s + first):
-                A.f[a, i] = A.fn[a, i]
-            A.r[e, i] = A.X[e, i]
-            A.rc[e, i] = 0.0
-            A.f[e, i] = A.fn[e, i]
+            for a in range(first):
+                f[a, i] = fn[a, i]
+            r[end, i] = X[end, i]
+            rc[end, i] = 0.0
+            f[end, i] = fn[end, i]
 
 
 @kernel(forceinline=True)
