@@ -204,7 +204,8 @@ def winch_step(S, W, P, WA, D, inputs, speed, free, compensated, implicit):
             break
         if not implicit:
             if v != 0.0:
-                kahan_add(S.acc, S.accc, B_WINCH_WORK, hi * v * midpoint_dH_dl(S, W, P, WA, hi, la, lb, first))
+                dH_dl = midpoint_dH_dl(S.r, W.Y, st, WA.coef, P.slack, P.g, hi, la, lb, first)
+                kahan_add(S.acc, S.accc, B_WINCH_WORK, hi * v * dH_dl)
             st[WN_LENGTH] = lb
     return status, total
 

@@ -97,19 +97,25 @@ def end_loads(R, T, A, h, forced):
 
 
 @kernel(inline="always")
+def add_end_loads(X, w0, E, first, others):
+    """X += w0 E on rows ``first..N``: the other strings' left loads ``E`` on string 0's
+    attachment row, through its solve's last column w0, by linearity (nothing when ``others`` is 0)."""
+    if others > 0:
+        E0, E1, E2 = E
+        for a in range(first, X.shape[0]):
+            X[a, 0] += w0[a] * E0
+            X[a, 1] += w0[a] * E1
+            X[a, 2] += w0[a] * E2
+
+
+@kernel(inline="always")
 def lead_solve(S, W, P, T, h, up, E, free, forced):
     """String 0's solve of (1) with F_k = I: M'^-1 (p + h/2 f (+ h/2 u_p at a free pivot)) into
-    ``W.X``, plus w0 ``E`` (the other strings' left loads on the attachment row), by linearity."""
+    ``W.X``, plus w0 ``E`` (the other strings' left loads on the attachment row)."""
     first = 0 if free else 1
     up0, up1, up2 = up
     string_solve(T.inv0, T.cp0, first, S.p, S.f, 0.5 * h, up0, up1, up2, free and forced, W.X)
-    if T.first.shape[0] > 0:
-        E0, E1, E2 = E
-        X = W.X
-        for a in range(first, X.shape[0]):
-            X[a, 0] += T.w0[a] * E0
-            X[a, 1] += T.w0[a] * E1
-            X[a, 2] += T.w0[a] * E2
+    add_end_loads(W.X, T.w0, E, first, T.first.shape[0])
 
 
 @kernel(inline="always")
@@ -169,17 +175,13 @@ def other_increments(S, W, T, A, h, forced, compensated):
 
 
 @kernel(inline="always")
-def other_forces(S, W, P, T, A, h):
+def other_forces(S, W, P, T, A):
     """The other strings' ends placed on the body at x_{k+1} + R_{k+1} rho_j (``W.Rn`` holds
-    R_{k+1}), their forces at the new positions into ``A.fn`` and their guards. Returns
-    ``(status, the right load's torque (2/h) sum rho_j x R_{k+1}^T (h/2 fn_end + c_j) (body frame)
-    [N m], the attachment row's impulse h/2 sum (f_end + fn_end) [N s])``."""
+    R_{k+1}), their forces at the new positions (string j's constants ``T.kappa[j]``, ``T.u[j]``,
+    ``T.m[j]``) into ``A.fn``, and their guards. Returns the status."""
     n = S.r.shape[0] - 1
-    hh = 0.5 * h
     Rn = W.Rn
     X = A.X
-    t0 = t1 = t2 = 0.0
-    i0 = i1 = i2 = 0.0
     for j in range(T.first.shape[0]):
         s = T.start[j]
         e = T.start[j + 1] - 1
@@ -189,20 +191,35 @@ def other_forces(S, W, P, T, A, h):
         total, longest = nodal_forces(X[s:e + 1], T.kappa[j], T.u[j], T.m[j], 0.0, T.Mp[j], P.g, T.slack[j],
                                       A.fn[s:e + 1])
         if not np.isfinite(total):
-            return NON_FINITE, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+            return NON_FINITE
         if longest > T.max_len2[j]:
-            return BLOW_UP, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-        l0 = hh * A.fn[e, 0] + A.c[j, 0]
-        l1 = hh * A.fn[e, 1] + A.c[j, 1]
-        l2 = hh * A.fn[e, 2] + A.c[j, 2]
-        m0, m1, m2 = cross(rho, unrotated(Rn, (l0, l1, l2)))  # rho_j x R_{k+1}^T l
+            return BLOW_UP
+    return OK
+
+
+@kernel(inline="always")
+def right_loads(W, T, A, h, fl, fr):
+    """The other strings' right loads on the body, h/2 fr_end + c_j, as ``(their torque (2/h) sum
+    rho_j x R_{k+1}^T (h/2 fr_end + c_j) (body frame) [N m], the attachment row's impulse
+    h/2 sum (fl_end + fr_end) [N s])``: ``fl``, ``fr`` the forces whose mean is a string's
+    impulse (A.f, A.fn; a reeling string's with its convective terms: kernels/team_winch.py)."""
+    hh = 0.5 * h
+    Rn = W.Rn
+    t0 = t1 = t2 = 0.0
+    i0 = i1 = i2 = 0.0
+    for j in range(T.first.shape[0]):
+        e = T.start[j + 1] - 1
+        l0 = hh * fr[e, 0] + A.c[j, 0]
+        l1 = hh * fr[e, 1] + A.c[j, 1]
+        l2 = hh * fr[e, 2] + A.c[j, 2]
+        m0, m1, m2 = cross(T.rho[j], unrotated(Rn, (l0, l1, l2)))  # rho_j x R_{k+1}^T l
         t0 += m0
         t1 += m1
         t2 += m2
-        i0 += hh * (A.f[e, 0] + A.fn[e, 0])
-        i1 += hh * (A.f[e, 1] + A.fn[e, 1])
-        i2 += hh * (A.f[e, 2] + A.fn[e, 2])
-    return OK, t0 / hh, t1 / hh, t2 / hh, i0, i1, i2
+        i0 += hh * (fl[e, 0] + fr[e, 0])
+        i1 += hh * (fl[e, 1] + fr[e, 1])
+        i2 += hh * (fl[e, 2] + fr[e, 2])
+    return t0 / hh, t1 / hh, t2 / hh, i0, i1, i2
 
 
 @kernel(inline="always")
@@ -236,8 +253,9 @@ def other_balances(S, P, T, A, h, forced):
 
 
 @kernel(inline="always")
-def commit_others(T, A, h, forced, compensated):
-    """Write the other strings' new positions and momenta (:func:`commit_node`; a free pivot's
+def commit_others(T, A, h, forced, compensated, fl, fr):
+    """Write the other strings' new positions and momenta (:func:`commit_node`, the impulse
+    h/2 (fl + fr): A.f and A.fn, or a reeling string's with its convective terms; a free pivot's
     row with its impulse h/2 (u_k + u_{k+1}), h u bit for bit when held), their ends' positions
     (no momentum of their own), and f <- fn."""
     hh = 0.5 * h
@@ -251,6 +269,8 @@ def commit_others(T, A, h, forced, compensated):
         pc = A.pc[s:e]
         f = A.f[s:e]
         fn = A.fn[s:e]
+        left = fl[s:e]
+        right = fr[s:e]
         X = A.X[s:e]
         Y = A.Y[s:e]
         end = e - s - 1
@@ -259,7 +279,7 @@ def commit_others(T, A, h, forced, compensated):
                 impulse = 0.0
                 if forced and a == 0:
                     impulse = hh * (A.force[j, 0, i] + A.force[j, 1, i])
-                commit_node(r, p, rc, pc, f, fn, f, fn, X, Y, a, i, impulse, hh, compensated)
+                commit_node(r, p, rc, pc, f, fn, left, right, X, Y, a, i, impulse, hh, compensated)
         for i in range(3):
             for a in range(first):
                 f[a, i] = fn[a, i]
@@ -297,9 +317,10 @@ def team_substep(S, W, P, T, A, inputs, h, free, forced, coupled, compensated):
     if status != OK:
         return status, iters
     next_attitude(S.R, S.Rc, W.FmI, W.RF, W.Rn, compensated)
-    status, b0, b1, b2, i0, i1, i2 = other_forces(S, W, P, T, A, h)
+    status = other_forces(S, W, P, T, A)
     if status != OK:
         return status, iters
+    b0, b1, b2, i0, i1, i2 = right_loads(W, T, A, h, A.f, A.fn)
     # the right torque: tau_g(R_{k+1}) + tau^+, and the other strings' right loads
     m0, m1, m2, n0, n1, n2 = left_torque(W.Rn, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
     dP = body_momentum_increment(S.Pi, W.FmI, T.mass, T.rho_inertial, h, (t0, t1, t2), (n0 + b0, n1 + b1, n2 + b2),
@@ -310,7 +331,7 @@ def team_substep(S, W, P, T, A, inputs, h, free, forced, coupled, compensated):
                    forced)
     other_balances(S, P, T, A, h, forced)
     commit_string(S, W, h, held, S.f, W.fn, free, forced, compensated, (i0, i1, i2))
-    commit_others(T, A, h, forced, compensated)
+    commit_others(T, A, h, forced, compensated, A.f, A.fn)
     commit_body(S, W.Rn, W.RF, dP, compensated)
     return OK, iters
 

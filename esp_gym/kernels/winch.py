@@ -115,29 +115,29 @@ def add_convective_impulse(X, dr, coef, theta1, c, h, fl, first):
 
 
 @kernel(inline="always")
-def factor_tridiagonal(P, WA, m, skew, first, n, inv, cp, w, jeff, lower, upper, diag):
-    """Thomas factors of the mass matrix at element mass ``m`` plus the skew part ``skew`` (C - C^T)
-    (the step's matrix of (1w); ``skew = 0``: the symmetric mass matrix at that length), on rows
-    ``first..N``; its attachment column ``w`` = A^-1 e_N and ``jeff`` = J + M^2 w_N rho^ rho^,
-    and its ``diag``onal. Every output is a parameter: written as ``WA.diag[a]`` here, the
-    diagonal stayed zero in the batched entry point (numba 0.68.1, parallel=True, this function
-    inlined in the prange body), while the single environment's was right."""
-    st = WA.state
-    coef = WA.coef
-    end = st[WN_END_SHARE] * m
-    off = st[WN_OFF_SHARE] * m
+def factor_string(m, skew, end_share, off_share, coef, first, n, pivot_mass, end_mass, lower, upper, diag, inv, cp,
+                  w):
+    """Thomas factors of one string's step matrix, the mass matrix at element mass ``m`` [kg] plus
+    the skew part ``skew`` (C - C^T) ((1w); ``skew = 0``: the symmetric mass matrix), on rows
+    ``first..n``, row 0 carrying ``pivot_mass`` and row n ``end_mass`` [kg] besides the elements'
+    shares; its sub- and super-diagonals into ``lower``, ``upper``, its ``diag``onal, and its
+    last column ``w`` = A^-1 e_n. A string with its body (``end_mass`` the body's mass), or a
+    team's string block before its end (``n`` the row before the end, ``end_mass`` an element's
+    share: an interior row; kernels/team_winch.py)."""
+    end = end_share * m
+    off = off_share * m
     prev = 0.0
     for a in range(first, n + 1):
         d = 2.0 * end
         if a == n:
-            d = end + P.M
+            d = end + end_mass
         if a == 0:
-            d = end + P.Mp
+            d = end + pivot_mass
         lo = 0.0
         if a > first:
             lo = off - skew * (coef[a - 1, 0] + coef[a - 1, 1])
-        up = off  # row N: kernels/string.py's symmetric sweeps read cp_N = off inv_N
-        if a < n:
+        up = off  # row n: kernels/string.py's symmetric sweeps read cp_n = off inv_n
+        if a < coef.shape[0]:
             up = off + skew * (coef[a, 0] + coef[a, 1])
         lower[a] = lo
         upper[a] = up
@@ -149,12 +149,29 @@ def factor_tridiagonal(P, WA, m, skew, first, n, inv, cp, w, jeff, lower, upper,
     for k in range(n - first):
         a = n - 1 - k
         w[a] = -cp[a] * w[a + 1]
-    s = inv[n]
-    rho = P.rho
+
+
+@kernel(inline="always")
+def factor_tridiagonal(P, WA, m, skew, first, n, inv, cp, w, jeff, lower, upper, diag):
+    """:func:`factor_string` of the single string with its load (row N carries P.M), and
+    ``jeff`` = J + M^2 w_N rho^ rho^ of its Schur complement. Every output is a parameter:
+    written as ``WA.diag[a]`` here, the diagonal stayed zero in the batched entry point (numba
+    0.68.1, parallel=True, this function inlined in the prange body), while the single
+    environment's was right."""
+    st = WA.state
+    factor_string(m, skew, st[WN_END_SHARE], st[WN_OFF_SHARE], WA.coef, first, n, P.Mp, P.M, lower, upper, diag,
+                  inv, cp, w)
+    body_schur(jeff, P.J, P.M, P.rho, inv[n])
+
+
+@kernel(inline="always")
+def body_schur(jeff, J, M, rho, s):
+    """``jeff`` = J + M^2 s rho^ rho^ (3, 3) [kg m^2]: the body's inertia about the attachment
+    point after the Schur complement over the string, s = (A^-1)_{N,N} of the step's matrix."""
     rr = rho[0] * rho[0] + rho[1] * rho[1] + rho[2] * rho[2]
     for i in range(3):
         for j in range(3):
-            jeff[i, j] = P.J[i, j] + P.M * P.M * s * (rho[i] * rho[j] - (rr if i == j else 0.0))
+            jeff[i, j] = J[i, j] + M * M * s * (rho[i] * rho[j] - (rr if i == j else 0.0))
 
 
 @kernel(inline="always")
@@ -179,18 +196,17 @@ def length_params(P, WA, length, m_mean, first, n, diagnostic):
 
 
 @kernel(inline="always")
-def step_solve(S, W, WA, c, hh, up0, up1, up2, push_pivot, first, n):
-    """X = A^-1 B of (1w), B = p + h/2 f~ - c C^T r (+ h/2 u_p on a pushed free pivot), with the
-    step's factors (WA.lower, WA.inv, WA.cp) and f~ in ``W.fl``; three columns at once."""
-    X = W.X
-    lower = WA.lower
-    inv = WA.inv
-    cp = WA.cp
+def convective_solve(p, r, fl, coef, c, hh, lower, inv, cp, up, push_pivot, first, last, X):
+    """X = A^-1 B on rows ``first..last`` of one string (``last`` its end, or the row before a
+    team's slaved end), B = p + h/2 f~ - c C^T r (+ h/2 u_p on a pushed free pivot, ``up``),
+    with the step's factors (``lower``, ``inv``, ``cp``) and f~ in ``fl``; three columns at once.
+    ``r`` holds the whole string (C^T r on row ``last`` reads the row after it)."""
+    up0, up1, up2 = up
     y0 = y1 = y2 = 0.0
-    for a in range(first, n + 1):
-        b0 = S.p[a, 0] + hh * W.fl[a, 0] - c * convective_momentum(S.r, WA.coef, a, 0)
-        b1 = S.p[a, 1] + hh * W.fl[a, 1] - c * convective_momentum(S.r, WA.coef, a, 1)
-        b2 = S.p[a, 2] + hh * W.fl[a, 2] - c * convective_momentum(S.r, WA.coef, a, 2)
+    for a in range(first, last + 1):
+        b0 = p[a, 0] + hh * fl[a, 0] - c * convective_momentum(r, coef, a, 0)
+        b1 = p[a, 1] + hh * fl[a, 1] - c * convective_momentum(r, coef, a, 1)
+        b2 = p[a, 2] + hh * fl[a, 2] - c * convective_momentum(r, coef, a, 2)
         if push_pivot and a == 0:
             b0 += hh * up0
             b1 += hh * up1
@@ -201,14 +217,22 @@ def step_solve(S, W, WA, c, hh, up0, up1, up2, push_pivot, first, n):
         X[a, 0] = y0
         X[a, 1] = y1
         X[a, 2] = y2
-    for k in range(n - first):
-        a = n - 1 - k
+    for k in range(last - first):
+        a = last - 1 - k
         y0 = X[a, 0] - cp[a] * y0
         y1 = X[a, 1] - cp[a] * y1
         y2 = X[a, 2] - cp[a] * y2
         X[a, 0] = y0
         X[a, 1] = y1
         X[a, 2] = y2
+
+
+@kernel(inline="always")
+def step_solve(S, W, WA, c, hh, up0, up1, up2, push_pivot, first, n):
+    """X = A^-1 B of (1w) for the single string (:func:`convective_solve` on rows first..N into
+    ``W.X``, f~ in ``W.fl``)."""
+    convective_solve(S.p, S.r, W.fl, WA.coef, c, hh, WA.lower, WA.inv, WA.cp, (up0, up1, up2), push_pivot, first, n,
+                     W.X)
 
 
 @kernel
@@ -374,16 +398,16 @@ def length_shift(S, P, WA, D, l0, l1, v):
 
 
 @kernel(forceinline=True)
-def midpoint_dH_dl(S, W, P, WA, h, l0, l1, first):
-    """dH/dl [J/m] at the midpoint of the step just taken (l0 -> l1 in ``h``): positions
-    r_k + dr/2, velocities dr/h (second-order accurate there), length (l0 + l1)/2; the formula
-    of :func:`winch_energy` without its solve for the velocities. The midpoint rule of
-    v dH/dl over the step is the explicit string's winch work, second order as the step (the
-    implicit string's is counted per step: :func:`length_shift`, kernels/winch_implicit.py)."""
-    r = S.r
-    Y = W.Y  # dr (+ the remainders), so r_k + dr/2 = r_{k+1} - dr/2
+def midpoint_dH_dl(r, Y, st, coef, slack, g, h, l0, l1, first):
+    """dH/dl [J/m] of one string at the midpoint of the step just taken (l0 -> l1 in ``h``):
+    positions r_k + dr/2, velocities dr/h (second-order accurate there), length (l0 + l1)/2; the
+    formula of :func:`winch_energy` without its solve for the velocities. ``r`` the string's
+    nodes after the step, ``Y`` its increments dr (+ the remainders, so r_k + dr/2 =
+    r_{k+1} - dr/2; rows before ``first`` do not move), ``st`` its WINCH vector, ``coef`` its
+    :func:`convective_weights`. The midpoint rule of v dH/dl over the step is the explicit
+    string's winch work, second order as the step (the implicit string's is counted per step:
+    :func:`length_shift`, kernels/winch_implicit.py)."""
     n = r.shape[0] - 1
-    st = WA.state
     mu = st[WN_MASS_PER_LENGTH]
     length = 0.5 * (l0 + l1)
     u = length / n
@@ -409,9 +433,9 @@ def midpoint_dH_dl(S, W, P, WA, h, l0, l1, first):
         x1 = (r[e + 1, 1] - r[e, 1]) - 0.5 * h * (b1 - a1)
         x2 = (r[e + 1, 2] - r[e, 2]) - 0.5 * h * (b2 - a2)
         s = x0 * x0 + x1 * x1 + x2 * x2
-        convective += WA.coef[e, 2] * s
+        convective += coef[e, 2] * s
         vz += (r[e, 2] - 0.5 * h * a2) + (r[e + 1, 2] - 0.5 * h * b2)
         eps = np.sqrt(s) / u - 1.0
-        if not (P.slack and eps < 0.0):
+        if not (slack and eps < 0.0):
             de += eps + 0.5 * eps * eps
-    return (-0.5 * kinetic + 0.5 * theta * convective - P.g * 0.5 * m * vz) / length - st[WN_EA] / n * de
+    return (-0.5 * kinetic + 0.5 * theta * convective - g * 0.5 * m * vz) / length - st[WN_EA] / n * de

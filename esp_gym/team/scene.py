@@ -14,7 +14,7 @@ from typing import Any, Optional
 import numpy as np
 from pydantic import Field, ValidationError, model_validator
 
-from ..params import PivotParams, Scene, StringParams
+from ..params import PivotParams, Scene, StringParams, WinchParams
 from ..scene_input import Frozen, vector
 
 Point3 = vector("coordinate")
@@ -24,12 +24,14 @@ MAX_STRINGS = 6
 
 
 class TeamString(Frozen):
-    """One more string of a team: its string, its pivot (fixed, or a free point mass) and its
-    attachment point on the body (body frame, from the body's centre of mass) [m]. It starts
-    straight from its pivot to that point, at rest but for its end, which moves with the body."""
+    """One more string of a team: its string, its pivot (fixed, or a free point mass), its
+    winch at the pivot (range and top speed, as a scene's) and its attachment point on the body
+    (body frame, from the body's centre of mass) [m]. It starts straight from its pivot to that
+    point, at rest but for its end, which moves with the body."""
 
     string: StringParams
     pivot: PivotParams = PivotParams()
+    winch: WinchParams = WinchParams()
     attachment: Point3 = Field(description="attachment point, body frame, from the centre of mass [m]")
 
 
@@ -130,7 +132,8 @@ class TeamScene(Frozen):
             return self.scene
         s = self.strings[k - 1]
         data = self.scene.model_dump()
-        data.update(string=s.string.model_dump(), pivot=s.pivot.model_dump(), name=f"{self.scene.name}[{k}]")
+        data.update(string=s.string.model_dump(), pivot=s.pivot.model_dump(), winch=s.winch.model_dump(),
+                    name=f"{self.scene.name}[{k}]")
         data["initial"] = {}
         return Scene.model_validate(data)
 

@@ -5,21 +5,24 @@ compiled team step (esp_gym/kernels/team.py) and reports its diagnostics and bal
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Optional
 
 import numpy as np
-from scipy.linalg import solve_banded
-
 from ..drone import DroneState
-from ..kernels.layout import BALANCE, INPUTS, LOOP_REPORT_SIZE, R_NEWTON_TOTAL, R_STATUS, R_STEPS
+from ..kernels.layout import BALANCE, INPUTS, LOOP_REPORT_SIZE, R_NEWTON_TOTAL, R_STATUS, R_STEPS, WINCH
 from ..kernels.status import OK
 from ..kernels.team import TeamArrays, team_forces
-from ..kernels.team_loops import team_advance, team_drone_advance
+from ..kernels.team_loops import team_advance, team_drone_advance, team_winch_advance
+from ..kernels.team_winch import team_winch_forces
 from ..model import SimulationError, Simulator
-from ..stability import hat
 from ..state import State, cross3, legendre_momenta
-from .assembly import banded, build_team, string_mass
+from .assembly import build_team, string_mass
 from .fleet import Fleet
 from .scene import TeamScene
+from .velocities import team_velocities
+from .winches import TeamWinches
+
+WINCH_SPEED = WINCH.scalar("reel_speed")
 
 
 @dataclass
@@ -29,16 +32,21 @@ class TeamState:
     every string end's share), and the other strings' positions ``r`` and momenta ``p``, stacked by
     rows (each string's end last, its momentum row 0); ``drones``: each drone's
     :data:`~esp_gym.drone.DroneState` in the order of :attr:`TeamSimulator.drone_pivots` (empty
-    without drones)."""
+    without drones); ``lengths`` (K,) each string's unstretched length [m] and ``reel_speeds`` (K,)
+    the reel speeds its momenta were made with [m/s] (None: the scenes' lengths, at rest)."""
 
     lead: State
     r: np.ndarray
     p: np.ndarray
     drones: tuple = field(default_factory=tuple)
+    lengths: Optional[np.ndarray] = None
+    reel_speeds: Optional[np.ndarray] = None
 
     def copy(self) -> "TeamState":
         return TeamState(self.lead.copy(), self.r.copy(), self.p.copy(),
-                         tuple(DroneState(*(a.copy() for a in d)) for d in self.drones))
+                         tuple(DroneState(*(a.copy() for a in d)) for d in self.drones),
+                         None if self.lengths is None else self.lengths.copy(),
+                         None if self.reel_speeds is None else self.reel_speeds.copy())
 
 
 class TeamSimulator:
@@ -70,6 +78,10 @@ class TeamSimulator:
         self.fleet = Fleet(team, self.h) if any(p.is_drone for p in team.pivots()) else None
         #: The pivots that are drones (0: string 0's), in the order of the drones' arrays.
         self.drone_pivots = self.fleet.pivots if self.fleet else []
+        #: Each string's winch (esp_gym/team/winches.py): :meth:`step`'s ``reel_speeds``.
+        self.winches = TeamWinches(team, np.concatenate([[self._P.max_len2], self.params.max_len2]),
+                                   self.params.start)
+        self._winch_jumps = 0.0  # H's jumps at fixed (q, p) where the reel speeds changed [J]
         self.set_state(self.initial_state())
 
     # -- state ------------------------------------------------------------------------------
@@ -153,7 +165,8 @@ class TeamSimulator:
         """A copy of the current state (without the summation remainders)."""
         S = self._S
         return TeamState(State(S.r.copy(), S.p.copy(), S.R.copy(), S.Pi.copy(), self._step), self._A.r.copy(),
-                         self._A.p.copy(), self.fleet.states() if self.fleet else ())
+                         self._A.p.copy(), self.fleet.states() if self.fleet else (), self.winches.lengths,
+                         self.winches.reel_speeds)
 
     def set_state(self, state: TeamState) -> None:
         """Replace the state (copied; remainders and balances restart at 0). The other strings'
@@ -171,6 +184,7 @@ class TeamSimulator:
                 raise ValueError(f"state.{name} has shape {given.shape}, expected {getattr(A, name).shape}")
             if not np.all(np.isfinite(given)):
                 raise ValueError(f"state.{name} is not finite")
+        self.winches.set(state.lengths, state.reel_speeds)
         self._lead.set_state(state.lead)
         A.r[...] = state.r
         A.p[...] = state.p
@@ -182,7 +196,10 @@ class TeamSimulator:
         A.rc[...] = 0.0
         A.pc[...] = 0.0
         self._step = int(state.lead.step)
-        team_forces(self._S, self._P, self.params, A)
+        if self.winches.idle:
+            team_forces(self._S, self._P, self.params, A)
+        else:
+            team_winch_forces(self._S, self._P, self.params, A, self.winches.arrays)
         self.reset_balances()
 
     def load_position(self) -> np.ndarray:
@@ -192,6 +209,7 @@ class TeamSimulator:
     def reset_balances(self) -> None:
         """Start the input balances (work, impulses) afresh from the current state."""
         self._load_work = 0.0
+        self._winch_jumps = 0.0
         self._S.acc[...] = 0.0
         self._S.accc[...] = 0.0
         d = self._diagnostics()
@@ -227,7 +245,7 @@ class TeamSimulator:
         self._A.force[:, 1] = u[1:]
 
     def step(self, n: int = 1, pivot_forces=None, load_force=None, rotor_commands=None, thrust=None, torque=None,
-             rates=None) -> None:
+             rates=None, reel_speeds=None) -> None:
         """Advance ``n`` steps with each pivot's force (K, 3) held (spatial) [N]; fixed pivots'
         and drones' rows must be 0; ``load_force`` (3,) a force on the load's centre of mass
         (spatial) [N] held too (wind, a push: its impulse joins the balances' ``external_impulse``).
@@ -236,11 +254,20 @@ class TeamSimulator:
         made into held commands through A^-1 (clipped to each rotor's range); or ``thrust`` with
         ``rates`` (n_drones, 3) [rad/s], the rate controller setting the commands before every
         step (kernels/drone.py ``actuate``). None of them keeps the last call's (at first
-        hover: :meth:`Fleet.shares <esp_gym.team.fleet.Fleet.shares>`). Raises
+        hover: :meth:`Fleet.shares <esp_gym.team.fleet.Fleet.shares>`). ``reel_speeds`` (K,)
+        [m/s]: each string's winch reels it out (> 0) or in, held, within its ``winch`` section
+        (None: at rest; docs/physics.md, "Winches on a team's strings"). Raises
         :class:`~esp_gym.errors.SimulationError` on failure (the state is then the last good one)."""
         n = int(n)
         if n < 0:
             raise ValueError(f"n must be >= 0, got {n}")
+        speeds = np.zeros(self.team.size) if reel_speeds is None else self.winches.check_speeds(reel_speeds)
+        reeling = bool(np.any(speeds != 0.0)) or not self.winches.idle
+        if reeling:
+            if self.fleet:
+                raise ValueError("reel_speeds: a team's drones do not reel yet (docs/physics.md, \"What a team does "
+                                 "not do yet\")")
+            self.winches.check_scene(self.h)
         self._set_forces(pivot_forces)
         drive = dict(rotor_commands=rotor_commands, thrust=thrust, torque=torque, rates=rates)
         if self.fleet:
@@ -256,7 +283,9 @@ class TeamSimulator:
             self._W.ext[...] = 0.0
             self._W.ext[-1] = F
             before = self.load_position()
-        if self.fleet is None:
+        if reeling:
+            self._reel(n, speeds, disturbed)
+        elif self.fleet is None:
             team_advance(self._S, self._W, self._P, self.params, self._A, self._inputs, n, self._stats, disturbed)
         else:
             team_drone_advance(self._S, self._W, self._P, self.params, self._A, self.fleet.arrays, self._inputs,
@@ -269,65 +298,79 @@ class TeamSimulator:
             raise SimulationError(status, self._step, self.time, int(self._stats[R_NEWTON_TOTAL]))
 
     # -- diagnostics ------------------------------------------------------------------------
-    def velocities(self):
+    def _reel(self, n: int, speeds: np.ndarray, disturbed: bool) -> None:
+        """:meth:`step`'s ``n`` steps while the winches reel at ``speeds`` (kernels/team_loops.py
+        ``team_winch_advance``); a step that would pass an end of a winch's range is cut to end on
+        it at its own speed, that string then stops, each change of the reel speeds with H's jump
+        at fixed (q, p). On return ``_stats`` counts every step taken (``_step`` not yet moved)."""
+        winches = self.winches
+        taken = 0
+        self._change_speeds(winches.held(speeds))
+        while taken < n:
+            cut = winches.cut_speeds(self.h)
+            steps = n - taken
+            if not np.array_equal(cut, winches.state[:, WINCH_SPEED]):  # the next step ends on a range's end
+                self._change_speeds(cut)
+                steps = 1
+            team_winch_advance(self._S, self._W, self._P, self.params, self._A, winches.arrays, self._inputs, steps,
+                               self._stats, disturbed)
+            taken += int(self._stats[R_STEPS])
+            if int(self._stats[R_STATUS]) != OK:
+                break
+            self._change_speeds(winches.held(speeds))
+        self._stats[R_STEPS] = taken
+
+    def _change_speeds(self, speeds: np.ndarray) -> None:
+        """Set the state's reel speeds, adding H's jump at fixed (q, p) to the winch work."""
+        if np.array_equal(speeds, self.winches.state[:, WINCH_SPEED]):
+            return
+        before = self._diagnostics()["energy"]
+        self.winches.state[:, WINCH_SPEED] = speeds
+        self._winch_jumps += self._diagnostics()["energy"] - before
+
+    def velocities(self, reel_speeds=None):
         """The inverse of the continuous Legendre transform (docs/physics.md, "Diagnostics of a
-        team"): ``(string 0's node velocities (N+1, 3), the others' (rows, 3), Omega (3,))``
-        [m/s, rad/s]."""
+        team"; while the winches reel, of p = M(l) v + c C^T r at each string's length and reel
+        speed, ``reel_speeds`` (K,) instead of the state's if given): ``(string 0's node
+        velocities (N+1, 3), the others' (rows, 3), Omega (3,))`` [m/s, rad/s]."""
+        v0, vo, Omega, _, _, _ = self._kinematics(reel_speeds)
+        return v0, vo, Omega
+
+    def _kinematics(self, reel_speeds=None):
+        """:meth:`velocities` with the momenta they invert: ``(v0, v_others, Omega, string 0's
+        momenta less the flow's, the others' (their ends' rows 0), Pi less the ends' flow)``."""
         S, A, T = self._S, self._A, self.params
-        R, Pi = S.R, S.Pi
-        scene = self.team.scene
-        diag0, off0, end0 = string_mass(scene.string, scene.pivot)
-        members = [(diag0, off0, 0 if scene.pivot.is_free else 1, S.p, np.zeros(3))]
-        for j in range(len(self.team.strings)):
-            a, b = T.start[j], T.start[j + 1]
-            diag, off, _, first = self._strings[j]
-            members.append((diag, off, first, A.p[a:b], T.rho[j]))
-        solves, mus, cs = [], [], []
-        for diag, off, first, p, rho in members:
-            n = diag.shape[0] - 1
-            lo = first
-            if n - 1 >= lo:
-                ab = banded(diag[lo:n], off)
-                y = solve_banded((1, 1), ab, p[lo:n])
-                e = np.zeros(n - lo)
-                e[-1] = 1.0
-                col = solve_banded((1, 1), ab, e)
-                mu, c = diag[n] - off * off * col[-1], off * y[-1]
+        R = S.R
+        speeds = self.winches.reel_speeds if reel_speeds is None else reel_speeds
+        p0, po, Pi = S.p.copy(), A.p.copy(), S.Pi.copy()
+        if np.any(speeds != 0.0):  # the momenta of the material's flow, c C^T r, are not the nodes'
+            q0, qo = self.winches.flow_momenta(S.r, A.r, speeds)
+            p0 -= q0
+            for j in range(len(self.team.strings)):
+                e = T.start[j + 1] - 1
+                p0[-1] -= qo[e]
+                Pi -= cross3(T.rho[j], R.T @ qo[e])
+                qo[e] = 0.0
+            po -= qo
+        members = []
+        for k, (_, string, pivot) in enumerate(self._members()):
+            diag, off, _ = string_mass(string, pivot)
+            if k == 0:
+                members.append((diag, off, 0 if pivot.is_free else 1, p0, np.zeros(3)))
             else:
-                ab, y, col, mu, c = None, None, None, float(diag[n]), np.zeros(3)
-            solves.append((ab, y, col, lo, n))
-            mus.append(mu)
-            cs.append(c)
-        M, rho_c, J = self._P.M, self._P.rho, self._P.J
-        rhos = [m[4] for m in members]
-        Mt = M + sum(mus)
-        St = M * rho_c + sum(mu * r for mu, r in zip(mus, rhos))
-        Jt = J + sum(mu * (r @ r * np.eye(3) - np.outer(r, r)) for mu, r in zip(mus, rhos))
-        px = S.p[-1] - sum(cs)
-        Pt = Pi - sum(cross3(r, R.T @ c) for r, c in zip(rhos, cs))
-        K6 = np.zeros((6, 6))
-        K6[:3, :3] = Mt * np.eye(3)
-        K6[:3, 3:] = -hat(St)
-        K6[3:, :3] = hat(St)
-        K6[3:, 3:] = Jt
-        sol = np.linalg.solve(K6, np.concatenate([R.T @ px, Pt]))
-        V, Omega = R @ sol[:3], sol[3:]
-        out = []
-        for (diag, off, first, p, rho), (ab, y, col, lo, n) in zip(members, solves):
-            v = np.zeros((n + 1, 3))
-            v[n] = V + R @ cross3(Omega, rho)
-            if ab is not None:
-                v[lo:n] = y - off * col[:, None] * v[n]
-            out.append(v)
-        lead, *rest = out
-        return lead, (np.concatenate(rest) if rest else np.zeros((0, 3))), Omega
+                a, b = T.start[k - 1], T.start[k]
+                members.append((diag, off, 0 if pivot.is_free else 1, po[a:b], T.rho[k - 1]))
+        (v0, *rest), Omega = team_velocities(members, self._P.M, self._P.rho, self._P.J, R, p0[-1], Pi)
+        return v0, (np.concatenate(rest) if rest else np.zeros((0, 3))), Omega, p0, po, Pi
 
     def _members(self) -> list:
-        """Each string's ``(nodes (N_k+1, 3) [m], its string section, its pivot section)``, string 0 first."""
+        """Each string's ``(nodes (N_k+1, 3) [m], its string section at its current length, its pivot
+        section)``, string 0 first."""
         S, A, T = self._S, self._A, self.params
-        scene = self.team.scene
-        return [(S.r, scene.string, scene.pivot)] + [
-            (A.r[T.start[j]:T.start[j + 1]], s.string, s.pivot) for j, s in enumerate(self.team.strings)]
+        strings = self.winches.strings_at_length()
+        pivots = self.team.pivots()
+        return [(S.r, strings[0], pivots[0])] + [
+            (A.r[T.start[j]:T.start[j + 1]], strings[j + 1], pivots[j + 1]) for j in range(len(self.team.strings))]
 
     @staticmethod
     def _stretch(r: np.ndarray, string) -> np.ndarray:
@@ -341,11 +384,14 @@ class TeamSimulator:
         first: what a frame draws (esp_gym/viz/render.py ``render_team``)."""
         return [(r.copy(), 0.5 * string.kappa * self._stretch(r, string) ** 2) for r, string, _ in self._members()]
 
-    def _diagnostics(self) -> dict:
+    def _diagnostics(self, reel_speeds=None) -> dict:
+        """The state's energy terms, momenta and pi3; while the winches reel, the energy is the
+        Hamiltonian H = T2 - T0 + V (docs/physics.md, "The winch"), at ``reel_speeds`` if given."""
         S, A = self._S, self._A
         P = self._P
-        v0, vo, Omega = self.velocities()
-        kinetic = 0.5 * (np.sum(S.p * v0) + np.sum(A.p * vo) + float(S.Pi @ Omega))
+        speeds = self.winches.reel_speeds if reel_speeds is None else reel_speeds
+        v0, vo, Omega, p0, po, Pi = self._kinematics(speeds)
+        kinetic = 0.5 * (np.sum(p0 * v0) + np.sum(po * vo) + float(Pi @ Omega))
         g = P.g
         elastic = gravity = 0.0
         for r, string, pivot in self._members():
@@ -364,8 +410,9 @@ class TeamSimulator:
             out.update(self.fleet.diagnostics())
             kinetic += float(out["kinetic_drones"].sum())
             pi3 += float(out["pi3_drones"].sum())
+        convective = self.winches.convective_energy(S.r, A.r, speeds)
         out.update(kinetic=float(kinetic), potential_elastic=elastic, potential_gravity=gravity,
-                   energy=float(kinetic) + elastic + gravity, linear_momentum=momentum, pi3=pi3)
+                   energy=float(kinetic) - convective + elastic + gravity, linear_momentum=momentum, pi3=pi3)
         return out
 
     def diagnostics(self) -> dict:
@@ -382,8 +429,10 @@ class TeamSimulator:
         acc = self._S.acc  # (the load force's work is summed here, per call of step)
         work = float(acc[BALANCE["work"]][0]) + self._load_work
         impulse = acc[BALANCE["gravity_impulse"]] + acc[BALANCE["pivot_impulse"]] + acc[BALANCE["external_impulse"]]
+        winch_work = float(acc[BALANCE["winch_work"]][0]) + self._winch_jumps
         d.update(work=work, angular_impulse_z=float(acc[BALANCE["angular_impulse_z"]][0]),
-                 energy_balance_residual=d["energy"] - self._E0 - work,
+                 unstretched_lengths=self.winches.lengths, reel_speeds=self.winches.reel_speeds,
+                 winch_work=winch_work, energy_balance_residual=d["energy"] - self._E0 - work - winch_work,
                  pi3_balance_residual=d["pi3"] - self._pi3_0 - float(acc[BALANCE["angular_impulse_z"]][0]),
                  momentum_balance_residual=d["linear_momentum"] - self._P0 - impulse)
         return d

@@ -1,0 +1,357 @@
+"""A team's step while its winches reel (docs/physics.md, "Winches on a team's strings").
+
+Every string k has its own winch at its pivot, with its unstretched length l_k and reel speed
+v_k (a string whose reel is at rest takes the fixed-length step at its length). Each string's
+step matrix is the single winch's (1w), A_k = Mbar_k - (h c_k / 2)(C_k - C_k^T), factored every
+step (kernels/winch.py :func:`~.winch.factor_string`): strings 1..K-1 on their rows before the
+slaved end, which reduces each to an end mass mu_k and a coupling, and string 0 with the body
+whose inertia carries those end masses (as kernels/team.py's, recomputed per step). The stages
+after Newton are kernels/team.py's with the step's constants (a :data:`~.team.TeamParams` of
+this step's arrays); the convective terms join the loads and impulses:
+the left load h/2 f~_e(r_k) - c*_k - c_k (C^T r_k)_e, the right one
+h/2 (f~_e(r_{k+1}) + (2/h) c_k (C dr)_e) + c*_k + c_k (C^T r_k)_e.
+
+With K = 1 the step is the single winch's :func:`~.winch.winch_substep`, bit for bit.
+"""
+from collections import namedtuple
+
+import numpy as np
+
+from .jit import kernel
+from .layout import (B_GRAVITY_IMPULSE, B_WINCH_WORK, WN_EA, WN_END_SHARE, WN_LENGTH, WN_MASS_PER_LENGTH,
+                     WN_MAX_LENGTH, WN_MAX_STRETCH, WN_MIN_LENGTH, WN_OFF_SHARE, WN_REEL_SPEED)
+from .lgvi import rigid_increments
+from .so3 import cross, unrotated
+from .status import NON_FINITE, OK
+from .string import nodal_forces
+from .step_shared import (body_momentum_increment, commit_body, commit_string, guarded_forces, held_inputs,
+                          input_balances, left_torque, new_positions, next_attitude)
+from .sums import kahan_add
+from .team import (TeamParams, add_end_loads, commit_others, other_balances, other_forces, other_increments,
+                   pivot_rows, right_loads)
+from .winch import (add_convective_forces, add_convective_impulse, body_schur, convective_momentum, convective_solve,
+                    factor_string, length_params, midpoint_dH_dl)
+
+#: A team's winches: ``lead`` string 0's :data:`~.layout.WinchArrays` (its ``state`` row 0 of
+#: ``state``); ``state`` (K, WINCH.size) every string's WINCH vector (length, reel speed, its
+#: constants, its range); per stacked row of strings 1..K-1 (kernels/team.py's rows) the
+#: convective weights ``coef`` (row s + e: element e of the string starting at row s), the step's
+#: factors ``lower``, ``upper``, ``diag``, ``inv``, ``cp``, the block's last column ``w`` and the
+#: forces ``fl`` = f~ at r_k, ``fr`` = f~ at r_{k+1} with the convective impulse (2/h) c C dr;
+#: per string 1..K-1 its end mass ``mu`` [kg], its coupling ``off`` = A_{e-1,e} [kg] and its
+#: constants at the step's end length ``kappa`` [N/m], ``u`` [m], ``m`` [kg], ``max_len2``
+#: [m^2]; the body's inertia with the end masses ``body`` (M' [kg], rho' (3) [m]) and ``J`` J'
+#: (3, 3) [kg m^2]; ``target`` (K,) each string's length at the step's end [m].
+TeamWinch = namedtuple("TeamWinch", "lead state coef lower upper diag inv cp w fl fr mu off kappa u m max_len2 body J "
+                                    "target")
+
+
+@kernel(inline="always")
+def reel_terms(st, l0, l1, h, n):
+    """A string's ``(v, c = mu v / N, the mean length's element mass m [kg])`` over a step
+    l0 -> l1 of length ``h`` [m/s, kg/s, kg]."""
+    mu = st[WN_MASS_PER_LENGTH]
+    v = (l1 - l0) / h
+    return v, mu * v / n, mu * (0.5 * (l0 + l1)) / n
+
+
+@kernel(inline="always")
+def reduce_others(T, TW, h):
+    """Each string j >= 1's step matrix on its rows before the end (:func:`~.winch.factor_string`),
+    its end mass mu_j = A_ee - A_{e,e-1} A_{e-1,e} (A_II^-1)_{last,last} (into ``TW.mu``), its
+    coupling A_{e-1,e} (``TW.off``; A_{e,e-1} into ``TW.lower`` at its end row), its constants
+    at the step's end length, and its forces f~ at r_k (``TW.fl``: ``A.f`` + grad T0 at l_0)
+    are set by :func:`reeling_forces`."""
+    for j in range(T.first.shape[0]):
+        st = TW.state[j + 1]
+        s = T.start[j]
+        e = T.start[j + 1]
+        n = e - s - 1  # elements; the end's local row
+        first = pivot_rows(T, j)
+        l0 = st[WN_LENGTH]
+        l1 = TW.target[j + 1]
+        _, c, m = reel_terms(st, l0, l1, h, n)
+        skew = 0.5 * h * c
+        end = st[WN_END_SHARE] * m
+        coef = TW.coef[s:e - 1]
+        lower = TW.lower[s:e]
+        upper = TW.upper[s:e]
+        w = TW.w[s:e]
+        mu = end
+        coupling = 0.0
+        lower[n] = 0.0
+        if n - 1 >= first:  # a moving row next to the end
+            factor_string(m, skew, st[WN_END_SHARE], st[WN_OFF_SHARE], coef, first, n - 1, T.Mp[j], end, lower, upper,
+                          TW.diag[s:e], TW.inv[s:e], TW.cp[s:e], w)
+            lower[n] = st[WN_OFF_SHARE] * m - skew * (coef[n - 1, 0] + coef[n - 1, 1])
+            coupling = upper[n - 1]
+            mu = end - lower[n] * coupling * w[n - 1]
+        TW.mu[j] = mu
+        TW.off[j] = coupling
+        u = l1 / n
+        TW.u[j] = u
+        TW.m[j] = st[WN_MASS_PER_LENGTH] * u
+        TW.kappa[j] = st[WN_EA] / u
+        TW.max_len2[j] = (st[WN_MAX_STRETCH] * u) ** 2
+
+
+@kernel(inline="always")
+def assemble_body(P, T, TW):
+    """The body's inertia with the other strings' end masses (docs/physics.md, "The assembled
+    body", with this step's mu_j): M' and rho' into ``TW.body``, J' into ``TW.J``. With K = 1,
+    P's own M, rho and J, bit for bit. Returns M'."""
+    mass = P.M
+    s0 = s1 = s2 = 0.0
+    J = TW.J
+    for a in range(3):
+        for b in range(3):
+            J[a, b] = P.J[a, b]
+    for j in range(T.first.shape[0]):
+        mu = TW.mu[j]
+        rho = T.rho[j]
+        mass += mu
+        s0 += mu * (rho[0] - P.rho[0])
+        s1 += mu * (rho[1] - P.rho[1])
+        s2 += mu * (rho[2] - P.rho[2])
+        rr = rho[0] * rho[0] + rho[1] * rho[1] + rho[2] * rho[2]
+        for a in range(3):
+            for b in range(3):
+                J[a, b] += mu * ((rr if a == b else 0.0) - rho[a] * rho[b])
+    TW.body[0] = mass
+    TW.body[1] = P.rho[0] + s0 / mass
+    TW.body[2] = P.rho[1] + s1 / mass
+    TW.body[3] = P.rho[2] + s2 / mass
+    return mass
+
+
+@kernel(inline="always")
+def reeling_forces(S, W, T, A, TW, h, first):
+    """f~ = f + grad T0 at every string's r_k and l_0 (the reel's at rest: f itself): string
+    0's into ``W.fl``, the others' into ``TW.fl``."""
+    st = TW.state[0]
+    n = S.r.shape[0] - 1
+    for a in range(n + 1):
+        for i in range(3):
+            W.fl[a, i] = S.f[a, i]
+    l0 = st[WN_LENGTH]
+    v = (TW.target[0] - l0) / h
+    if v != 0.0:
+        add_convective_forces(S.r, TW.lead.coef, st[WN_MASS_PER_LENGTH] * v * v / (n * l0), W.fl, first)
+    for a in range(A.f.shape[0]):
+        for i in range(3):
+            TW.fl[a, i] = A.f[a, i]
+    for j in range(T.first.shape[0]):
+        st = TW.state[j + 1]
+        s = T.start[j]
+        e = T.start[j + 1]
+        nj = e - s - 1
+        l0 = st[WN_LENGTH]
+        v = (TW.target[j + 1] - l0) / h
+        if v != 0.0:
+            add_convective_forces(A.r[s:e], TW.coef[s:e - 1], st[WN_MASS_PER_LENGTH] * v * v / (nj * l0),
+                                  TW.fl[s:e], pivot_rows(T, j))
+
+
+@kernel(inline="always")
+def reeling_end_loads(R, T, A, TW, h, forced):
+    """Each string j >= 1 reduced to its end with its step's matrix: X_I = A_II^-1 B_I
+    (:func:`~.winch.convective_solve`), its coupling momentum c*_j = A_{e,e-1} X_last plus its end's
+    convective momentum c_j (C^T r_k)_e (into ``A.c``) and its left load h/2 f~_e - A.c[j].
+    Returns as kernels/team.py's ``end_loads``: the sum of the left loads and their torque."""
+    hh = 0.5 * h
+    E0 = E1 = E2 = 0.0
+    t0 = t1 = t2 = 0.0
+    for j in range(T.first.shape[0]):
+        st = TW.state[j + 1]
+        s = T.start[j]
+        e = T.start[j + 1]
+        n = e - s - 1
+        first = pivot_rows(T, j)
+        _, c, _ = reel_terms(st, st[WN_LENGTH], TW.target[j + 1], h, n)
+        r = A.r[s:e]
+        X = A.X[s:e]
+        coef = TW.coef[s:e - 1]
+        up = (A.force[j, 0, 0], A.force[j, 0, 1], A.force[j, 0, 2])
+        convective_solve(A.p[s:e], r, TW.fl[s:e], coef, c, hh, TW.lower[s:e], TW.inv[s:e], TW.cp[s:e], up,
+                         first == 0 and forced, first, n - 1, X)
+        lower = TW.lower[s + n]
+        c0 = c * convective_momentum(r, coef, n, 0)
+        c1 = c * convective_momentum(r, coef, n, 1)
+        c2 = c * convective_momentum(r, coef, n, 2)
+        if n - 1 >= first:
+            c0 += lower * X[n - 1, 0]
+            c1 += lower * X[n - 1, 1]
+            c2 += lower * X[n - 1, 2]
+        A.c[j, 0] = c0
+        A.c[j, 1] = c1
+        A.c[j, 2] = c2
+        l0 = hh * TW.fl[e - 1, 0] - c0
+        l1 = hh * TW.fl[e - 1, 1] - c1
+        l2 = hh * TW.fl[e - 1, 2] - c2
+        E0 += l0
+        E1 += l1
+        E2 += l2
+        m0, m1, m2 = cross(T.rho[j], unrotated(R, (l0, l1, l2)))  # rho_j x R_k^T l
+        t0 += m0
+        t1 += m1
+        t2 += m2
+    return E0, E1, E2, t0 / hh, t1 / hh, t2 / hh
+
+
+@kernel(inline="always")
+def reeling_right_forces(T, A, TW, h):
+    """``TW.fr`` = f~ at r_{k+1} and l_1 plus the convective impulse (2/h) c C dr on every row
+    of strings 1..K-1 that moves (``A.fn`` the forces at the new positions, ``A.Y`` the
+    increments)."""
+    for a in range(A.fn.shape[0]):
+        for i in range(3):
+            TW.fr[a, i] = A.fn[a, i]
+    for j in range(T.first.shape[0]):
+        st = TW.state[j + 1]
+        s = T.start[j]
+        e = T.start[j + 1]
+        n = e - s - 1
+        l1 = TW.target[j + 1]
+        v, c, _ = reel_terms(st, st[WN_LENGTH], l1, h, n)
+        if v != 0.0:
+            add_convective_impulse(A.X[s:e], A.Y[s:e], TW.coef[s:e - 1], st[WN_MASS_PER_LENGTH] * v * v / (n * l1), c,
+                                   h, TW.fr[s:e], pivot_rows(T, j))
+
+
+@kernel(forceinline=True)
+def team_winch_substep(S, W, P, T, A, TW, inputs, h, free, forced, coupled, compensated):
+    """Advance a team by one step of length ``h`` while string k's length goes
+    ``TW.state[k, length] -> TW.target[k]``, in place (docs/physics.md, "Winches on a team's
+    strings"); as kernels/team.py's ``team_substep`` otherwise (``S.f``, ``A.f`` the forces at
+    the state's lengths on entry and at the targets on success; a failure leaves everything
+    untouched, lengths too). Returns ``(status, newton_iterations)``."""
+    R = S.R
+    n = S.r.shape[0] - 1
+    first = 0 if free else 1
+    hh = 0.5 * h
+    WA = TW.lead
+    st = TW.state[0]
+    l0 = st[WN_LENGTH]
+    l1 = TW.target[0]
+    v, c, m_mean = reel_terms(st, l0, l1, h, n)
+    reeling_forces(S, W, T, A, TW, h, first)
+    reduce_others(T, TW, h)
+    mass = assemble_body(P, T, TW)
+    rho_inertial = TW.body[1:]
+    factor_string(m_mean, 0.5 * h * c, st[WN_END_SHARE], st[WN_OFF_SHARE], WA.coef, first, n, P.Mp, mass, WA.lower,
+                  WA.upper, WA.diag, WA.inv, WA.cp, WA.w)
+    body_schur(WA.jeff, TW.J, mass, rho_inertial, WA.inv[n])
+    held = held_inputs(inputs, forced)
+    up0, up1, up2, _, _, _, tb0, tb1, tb2, ts0, ts1, ts2 = held
+    l_0, l_1, l_2, t0, t1, t2 = left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
+    E0, E1, E2, a0, a1, a2 = reeling_end_loads(R, T, A, TW, h, forced)
+    t0 = t0 + a0
+    t1 = t1 + a1
+    t2 = t2 + a2
+    convective_solve(S.p, S.r, W.fl, WA.coef, c, hh, WA.lower, WA.inv, WA.cp, (up0, up1, up2), free and forced, first,
+                     n, W.X)
+    add_end_loads(W.X, WA.w, (E0, E1, E2), first, T.first.shape[0])
+    c0, c1, c2, e0, e1, e2, dr00, dr01, dr02, iters, status = rigid_increments(
+        S, W, P, h, mass, rho_inertial, WA.jeff, WA.w, t0, t1, t2, free, forced, coupled)
+    if status != OK:
+        return status, iters
+    Ts = TeamParams(T.start, T.first, TW.kappa, TW.u, TW.m, T.Mp, TW.off, T.slack, TW.max_len2, T.rho, TW.inv, TW.cp,
+                    TW.w, mass, rho_inertial, WA.jeff, WA.inv, WA.cp, WA.w)
+    other_increments(S, W, Ts, A, h, forced, compensated)
+    new_positions(S, W, first, compensated)
+    # string 0's impulse h/2 (f~_k + f~_{k+1}) + c C dr, f_{k+1} added by the commit (as winch_substep)
+    if v != 0.0:
+        add_convective_impulse(W.X, W.Y, WA.coef, st[WN_MASS_PER_LENGTH] * v * v / (n * l1), c, h, W.fl, first)
+    P1 = length_params(P, WA, l1, m_mean, first, n, False)
+    status = guarded_forces(W.X, P1, W.fn)
+    if status != OK:
+        return status, iters
+    next_attitude(S.R, S.Rc, W.FmI, W.RF, W.Rn, compensated)
+    status = other_forces(S, W, P, Ts, A)
+    if status != OK:
+        return status, iters
+    reeling_right_forces(T, A, TW, h)
+    b0, b1, b2, i0, i1, i2 = right_loads(W, Ts, A, h, TW.fl, TW.fr)
+    m0, m1, m2, n0, n1, n2 = left_torque(W.Rn, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
+    dP = body_momentum_increment(S.Pi, W.FmI, mass, rho_inertial, h, (t0, t1, t2), (n0 + b0, n1 + b1, n2 + b2),
+                                 (e0, e1, e2), forced, coupled)
+    if not np.isfinite(dP[0] + dP[1] + dP[2]):
+        return NON_FINITE, iters
+    input_balances(S, P1, S.R, W.Rn, h, (c0, c1, c2), (l_0, l_1, l_2), (m0, m1, m2), held, (dr00, dr01, dr02), free,
+                   forced)
+    other_balances(S, P, Ts, A, h, forced)
+    commit_string(S, W, h, held, W.fl, W.fn, free, forced, compensated, (i0, i1, i2))
+    commit_others(Ts, A, h, forced, compensated, TW.fl, TW.fr)
+    commit_body(S, W.Rn, W.RF, dP, compensated)
+    weight_at_mean_lengths(S, P, T, TW, h, m_mean, P1.m)
+    return OK, iters
+
+
+@kernel(inline="always")
+def weight_at_mean_lengths(S, P, T, TW, h, m_mean, m1):
+    """The commit counted each string's weight impulse at its end length; the step's is at its
+    mean length (as the single winch's)."""
+    n = S.r.shape[0] - 1
+    kahan_add(S.acc, S.accc, B_GRAVITY_IMPULSE + 2, h * P.g * n * (m_mean - m1))
+    for j in range(T.first.shape[0]):
+        st = TW.state[j + 1]
+        nj = T.start[j + 1] - T.start[j] - 1
+        _, _, mj = reel_terms(st, st[WN_LENGTH], TW.target[j + 1], h, nj)
+        kahan_add(S.acc, S.accc, B_GRAVITY_IMPULSE + 2, h * P.g * nj * (mj - TW.m[j]))
+
+
+@kernel(inline="always")
+def reeled_work(S, W, P, T, A, TW, h):
+    """After a step: each reeling string's winch work, the midpoint rule h v dH/dl
+    (:func:`~.winch.midpoint_dH_dl`), into ``S.acc`` (B_WINCH_WORK), and its length moved to
+    its target."""
+    first = 0 if P.first == 0 else 1
+    for k in range(TW.state.shape[0]):
+        st = TW.state[k]
+        l0 = st[WN_LENGTH]
+        l1 = TW.target[k]
+        if l1 != l0:
+            v = (l1 - l0) / h
+            if k == 0:
+                dH = midpoint_dH_dl(S.r, W.Y, st, TW.lead.coef, P.slack, P.g, h, l0, l1, first)
+            else:
+                s = T.start[k - 1]
+                e = T.start[k]
+                dH = midpoint_dH_dl(A.r[s:e], A.Y[s:e], st, TW.coef[s:e - 1], T.slack[k - 1], P.g, h, l0, l1,
+                                    pivot_rows(T, k - 1))
+            kahan_add(S.acc, S.accc, B_WINCH_WORK, h * v * dH)
+        st[WN_LENGTH] = l1
+
+
+@kernel(inline="always")
+def reel_targets(TW, h):
+    """Each string's length after the next step at its reel speed (WINCH ``reel_speed``), into
+    ``TW.target``, held in its winch's range. Returns False if one was held there (that step's
+    speed is not the state's: the Python side takes it, with H's jump; esp_gym/team/winches.py)."""
+    inside = True
+    for k in range(TW.state.shape[0]):
+        st = TW.state[k]
+        l1 = st[WN_LENGTH] + h * st[WN_REEL_SPEED]
+        if l1 > st[WN_MAX_LENGTH]:
+            l1 = st[WN_MAX_LENGTH]
+            inside = False
+        elif l1 < st[WN_MIN_LENGTH]:
+            l1 = st[WN_MIN_LENGTH]
+            inside = False
+        TW.target[k] = l1
+    return inside
+
+
+@kernel(entry=True)
+def team_winch_forces(S, P, T, A, TW):
+    """The forces at the state's positions and every string's length: string 0's into ``S.f``,
+    the others' into ``A.f`` (a state just set)."""
+    n = S.r.shape[0] - 1
+    Pl = length_params(P, TW.lead, TW.state[0, WN_LENGTH], 0.0, P.first, n, False)
+    nodal_forces(S.r, Pl.kappa, Pl.u, Pl.m, Pl.M, Pl.Mp, Pl.g, Pl.slack, S.f)
+    for j in range(T.first.shape[0]):
+        st = TW.state[j + 1]
+        s = T.start[j]
+        e = T.start[j + 1]
+        u = st[WN_LENGTH] / (e - s - 1)
+        nodal_forces(A.r[s:e], st[WN_EA] / u, u, st[WN_MASS_PER_LENGTH] * u, 0.0, T.Mp[j], P.g, T.slack[j], A.f[s:e])
