@@ -34,7 +34,7 @@ from esp_gym.tasks import TASKS
 MODELS = ROOT / "models"
 HELD_OUT_SEED = 100_000
 DEFAULT_SCENE = EnvOptions.model_fields["scene"].default
-NOT_BASELINES = ("zero", "policy", "lqr_true_state", "cascade_true_state")
+NOT_BASELINES = ("zero", "policy", "lqr_true_state", "cascade_true_state", "hoist_true_state")
 
 
 def configuration_name(task: str, preset: Optional[str] = None, scene: Optional[str] = None,
@@ -121,9 +121,11 @@ def compare_team(team: int, task: str, preset: Optional[str] = None, episodes: i
     if actuation:
         env_kwargs["actuation"] = actuation
     from esp_gym.team.env import TEAM_PRESETS
+    from esp_gym.team.tasks import get_team_task
 
     drones = actuation not in (None, "force")
-    policies = {"zero": TeamZero(), **team_baselines(TEAM_PRESETS.get(preset, {}).get("observation", "full"), drones)}
+    observation = TEAM_PRESETS.get(preset, {}).get("observation", "full")
+    policies = {"zero": TeamZero(), **team_baselines(observation, drones, get_team_task(task).needs_winch)}
     if model is not None:
         from agents.team_train import TeamRLlibPolicy
 

@@ -106,13 +106,43 @@ class TeamCascadeLQGPolicy(DesignedPolicy):
                                                   action_latency=core.action_latency))
 
 
-def team_baselines(observation: str = "full", drones: bool = False) -> dict:
+class TeamHoistPolicy(DesignedPolicy):
+    """A lift's baseline (agents/baselines/team_hoist.py): the team's LQR on the pivots (``lqg``:
+    its LQG for the env's observation, noise and latency) and a reel law on each winch. The base
+    is designed about the load hanging in formation (on the nominal ``transport`` team with
+    winches, whose targets hang): the lift's target is above it, where the strings' scene lengths
+    do not reach."""
+
+    def __init__(self, base: str = "lqr", true_state: bool = False):
+        super().__init__()
+        self.base, self.true_state = base, true_state
+
+    def build(self, core):
+        from agents.baselines.team_hoist import TeamHoist
+        from agents.baselines.team_lqg import TeamLQG
+        from agents.baselines.team_lqr import TeamLQR
+        from esp_gym.team.env import TeamCore
+
+        options = dict(observation=core.observation, sensor_noise=core.sensor_noise) if self.base == "lqg" else {}
+        nominal = TeamCore(core.size, "transport", control_period=core.control_period, force_limit=core.force_limit,
+                           winch=True, **options)
+        nominal.reset(seed=0)
+        design = (TeamLQG if self.base == "lqg" else TeamLQR).design(nominal, latency=core.action_latency)
+        return TeamHoist.design(design, nominal)
+
+
+def team_baselines(observation: str = "full", drones: bool = False, winch: bool = False) -> dict:
     """The team's classical baselines by name for an observation mode: the LQR with the ``full``
     observation; with the ``hook`` one the LQG, and the LQR reading the true state as
     ``lqr_true_state`` (a reference, not a baseline a policy is compared with: it reads what the
     agents do not see). A drone team's (``drones``): the cascade with the ``full`` observation; with
     the ``hook`` one the cascade on its filter's estimate, and the cascade reading the true state
-    as ``cascade_true_state``."""
+    as ``cascade_true_state``. With winches (``lift``): the hoist on the LQR (``full``), on the LQG
+    (``hook``, with ``hoist_true_state`` its reference)."""
+    if winch:
+        if observation == "full":
+            return {"hoist": TeamHoistPolicy()}
+        return {"hoist_lqg": TeamHoistPolicy("lqg"), "hoist_true_state": TeamHoistPolicy(true_state=True)}
     if drones:
         if observation == "full":
             return {"cascade": TeamCascadePolicy()}

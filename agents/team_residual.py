@@ -31,11 +31,11 @@ RESIDUAL_FILE = "residual.json"
 
 
 class TeamBase:
-    """The centralised baseline of a team core's observation mode (of its drones, with ``drones``),
-    acting for every agent at once."""
+    """The centralised baseline of a team core's observation mode (of its drones, with ``drones``;
+    of its winches, the lift's hoist, with ``winch``), acting for every agent at once."""
 
-    def __init__(self, observation: str, drones: bool = False):
-        self.policy = next(iter(team_baselines(observation, drones).values()))
+    def __init__(self, observation: str, drones: bool = False, winch: bool = False):
+        self.policy = next(iter(team_baselines(observation, drones, winch).values()))
 
     def act(self, obs: np.ndarray, core) -> np.ndarray:
         """The baseline's (K, a) command for the agents' (K, n) observations (a: an agent's action
@@ -86,7 +86,7 @@ class TeamResidualParallelEnv(ParallelEnv):
             raise ValueError(f"residual_scale must be > 0, got {scale!r}")
         self.env, self.scale = env, float(scale)
         self.core = env.core
-        self.base = TeamBase(self.core.observation, self.core.drones)
+        self.base = TeamBase(self.core.observation, self.core.drones, self.core.winch)
         self.possible_agents = list(env.possible_agents)
         self.agents = []
         self.render_mode = None

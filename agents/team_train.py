@@ -191,7 +191,7 @@ class TeamRLlibPolicy:
         agents = np.asarray(obs, dtype=np.float64).reshape(core.size, -1)
         if self.scale is not None:
             if self.base is None:
-                self.base = TeamBase(core.observation, core.drones)
+                self.base = TeamBase(core.observation, core.drones, core.winch)
             command, agents = self.base.observe(agents, core)
         if self.critic is not None:
             agents = np.concatenate([agents, np.zeros((core.size, self.critic["state_size"]))], axis=1)
@@ -265,8 +265,11 @@ def _record(s: Settings, cfg: RLlibRunConfig, run_dir: Path, argv: Optional[list
 
     kwargs = env_options(s)
     observation = TEAM_PRESETS.get(s.preset, {}).get("observation", "full")
-    # the LQR, or the LQG with hook observations; a drone team's cascade
-    baseline = next(iter(team_baselines(observation, s.actuation is not None).values()))
+    # the LQR, or the LQG with hook observations; a drone team's cascade; the lift's hoist
+    from esp_gym.team.tasks import get_team_task
+
+    winch = get_team_task(s.task).needs_winch
+    baseline = next(iter(team_baselines(observation, s.actuation is not None, winch).values()))
     refs = {name: summarize(run_team_episodes(policy, s.team, s.task, s.reference_episodes, EVAL_SEED, kwargs),
                             s.task)["mean_return"]
             for name, policy in (("baseline_return", baseline), ("zero_return", TeamZero()))}

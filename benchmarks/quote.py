@@ -449,7 +449,7 @@ def team_step_table(data: dict) -> str:
         cells = []
         for kind in kinds:
             r = next(r for r in rows if r["K"] == K and r["elements"] == kind)
-            cells.append(f" {r['team_us']:.2f} µs ({r['ratio']:.2f}) |")
+            cells.append(f" {r['team_us']:.2f} µs ({r['ratio']:.2f}; {r['bound_ratio']:.2f}) |")
         lines.append(f"| {K} |" + "".join(cells))
     auto = next((r["N"] for r in rows if r["elements"] == "auto"), None)
     if auto is not None:
@@ -487,14 +487,15 @@ DRONE_TEAM_COMPARE_COMMAND = ("python -m agents.compare --team 3 --actuation thr
 #: The team's baselines on each task and preset compared (docs/team.md "The baseline").
 TEAM_BASELINE_FILES = tuple(f"docs/compare/compare_team3_{task}{suffix}.json"
                             for task in ("transport", "track")
-                            for suffix in ("", "_hard", "_thrust_rates", "_thrust_rates_hard"))
+                            for suffix in ("", "_hard", "_thrust_rates", "_thrust_rates_hard")) + tuple(
+    f"docs/compare/compare_team3_lift{suffix}.json" for suffix in ("", "_hard"))
 
 
 def team_baselines_table(data: dict) -> str:
     """The zero action, the baseline and, with the hook observation, the LQR on the true state, per
     configuration of TEAM_BASELINE_FILES."""
-    rows = ["| configuration | zero action | the baseline | its success | the LQR (drones: cascade) reading the true "
-            "state (reference) |",
+    rows = ["| configuration | zero action | the baseline | its success | the LQR (drones: cascade; lift: hoist) reading "
+            "the true state (reference) |",
             "|---|---|---|---|---|"]
     for name in TEAM_BASELINE_FILES:
         d = data[name]
@@ -503,7 +504,8 @@ def team_baselines_table(data: dict) -> str:
         def cell(p):
             return f"{policies[p]['mean_return']:.1f} ± {policies[p]['std_return']:.1f}"
 
-        true_state = next((p for p in ("lqr_true_state", "cascade_true_state") if p in policies), None)
+        true_state = next((p for p in ("lqr_true_state", "cascade_true_state", "hoist_true_state") if p in policies),
+                          None)
         reference = (f"{cell(true_state)} ({policies[true_state]['success_rate'] * 100:.0f} %)" if true_state
                      else "(the baseline)")
         drones = f", drones ({d['actuation']})" if d.get("actuation") else ""

@@ -139,7 +139,7 @@ def test_compare_takes_a_team(capsys):
     with pytest.raises(SystemExit):
         main(["--team", "7", "--task", "transport", "--episodes", "2"])
     with pytest.raises(SystemExit):
-        main(["--team", "3", "--task", "lift", "--episodes", "2"])
+        main(["--team", "3", "--task", "lower", "--episodes", "2"])
     with pytest.raises(SystemExit):  # not an agents.team_train checkpoint
         main(["--team", "2", "--task", "transport", "--episodes", "2", "--model", "models"])
 
@@ -452,7 +452,8 @@ def _rerun_the_documented_team_comparison(model: str, name: str, options: dict, 
                                                      ("transport", None, "thrust_rates"),
                                                      ("track", None, "thrust_rates"),
                                                      ("transport", "hard", "thrust_rates"),
-                                                     ("track", "hard", "thrust_rates")])
+                                                     ("track", "hard", "thrust_rates"),
+                                                     ("lift", None, None), ("lift", "hard", None)])
 def test_the_documented_team_baselines_are_todays(task, preset, actuation):
     """docs/compare/compare_team3_{task}[_thrust_rates][_hard].json (the table of docs/team.md's
     baselines): each baseline's and the zero action's first recorded episode, rerun, gives its
@@ -468,8 +469,8 @@ def test_the_documented_team_baselines_are_todays(task, preset, actuation):
     assert (doc["team"], doc["task"], doc["preset"], doc["episodes"], doc["actuation"]) == (3, task, preset, 100,
                                                                                           actuation)
     kwargs = {**({"preset": preset} if preset else {}), **({"actuation": actuation} if actuation else {})}
-    core = ElasticStringTeamEnv(3, **kwargs).core
-    policies = {"zero": TeamZero(), **team_baselines(core.observation, core.drones)}
+    core = ElasticStringTeamEnv(3, task=task, **kwargs).core
+    policies = {"zero": TeamZero(), **team_baselines(core.observation, core.drones, core.winch)}
     with threadpool_limits(limits=1, user_api="blas"):
         for policy_name, policy in policies.items():
             recorded = doc["policies"][policy_name]["returns"]

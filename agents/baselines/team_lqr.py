@@ -34,9 +34,20 @@ def reduced_layout(size: int) -> Layout:
                   ("attitude", 3), ("rates", 3))
 
 
+def full_layout(obs: np.ndarray, core: TeamCore) -> Layout:
+    """The agents' ``full`` layout of a centralised observation of ``core``'s team: its own (with its
+    drones' fields and its strings' lengths), or its point twin's (the drones' cascade,
+    agents/baselines/team_cascade.py, hands the LQR a point pivots' observation)."""
+    for drones in (core.drones, False):
+        layout = agent_layout(core.size, "full", drones, core.winch)
+        if layout.size * core.size == np.size(obs):
+            return layout
+    raise ValueError(f"obs has {np.size(obs)} entries: no full observation of a team of {core.size}")
+
+
 def reduced_from_observation(obs: np.ndarray, core: TeamCore) -> np.ndarray:
     """z from the centralised ``full`` observation (the agents' observations one after the other)."""
-    K, L = core.size, agent_layout(core.size)
+    K, L = core.size, full_layout(obs, core)
     o = np.asarray(obs, dtype=np.float64).reshape(K, L.size)
     Z = reduced_layout(K)
     z = np.empty(Z.size)
@@ -81,7 +92,7 @@ def probe(core: TeamCore, observation: str = "full") -> TeamCore:
     """A core of ``core``'s team, control period, force limit and targets, in the ``observation``
     mode, noiseless: where a design lifts reduced states (:func:`lift`) and steps or observes them."""
     out = TeamCore(core.scene, core.task.name, control_period=core.control_period, force_limit=core.force_limit,
-                   observation=observation)
+                   observation=observation, winch=core.winch)
     out.load_target, out.pivot_targets = core.load_target.copy(), core.pivot_targets.copy()
     return out
 
@@ -200,7 +211,7 @@ class TeamLQR:
         plus the moving reference's :func:`reference_feedforward`, z relative to the reference
         (:func:`relative_to_reference`). The queue holds the actions less their feedforward (the
         model's input: the error dynamics)."""
-        obs = relative_to_reference(obs, core, agent_layout(core.size))
+        obs = relative_to_reference(obs, core, full_layout(obs, core))
         self.feedforward = reference_feedforward(core, self.latency)
         state = np.concatenate([reduced_from_observation(obs, core)] + self.queue)
         action = np.clip(-(self.K @ state) + self.feedforward, -1.0, 1.0)

@@ -20,13 +20,14 @@ from ..kernels.env_arrays import TARGET
 from ..kernels.reference import reference_at
 from ..model import SimulationError
 from ..setup import DRONE_FLIP_TILT
-from ..stepsize import explicit_substeps
+from ..stepsize import explicit_substeps, shortest
 from ..tasks import track_reference
-from ..wind import drag_areas, wind_options
+from ..wind import wind_options
+from .gusts import TeamWind
 from .scene import MAX_STRINGS, TeamScene, draw_team, team_scene
 from .simulator import TeamSimulator
 from .spaces import ACTUATIONS, TEAM_UNIT_NOISE, DroneDrive, action_size, agent_layout
-from .tasks import get_team_task
+from .tasks import get_team_task, hanging_rise
 
 #: Pivots closer than this are penalised (the reward's separation term) [m].
 SEPARATION = 0.4
@@ -53,12 +54,14 @@ class TeamCore:
     draws its team, :func:`draw_team`; ``team`` a number then), ``observation`` (``"full"`` or
     ``"hook"``), ``sensor_noise`` (times :data:`TEAM_UNIT_NOISE`), ``action_latency`` (control
     steps, 0-50) and ``wind`` (esp_gym/wind.py's options: the mean wind, gusts and pushes, on the
-    load)."""
+    load). ``winch``: each point pivot's string reels on its winch, its reel speed (x its
+    ``winch.max_speed``) each agent's last action and its unstretched length in its observation
+    (None: as the task needs, True for ``lift``)."""
 
     def __init__(self, team=3, task: str = "transport", control_period: float = 0.02, force_limit: float = 0.6,
                  preset: Optional[str] = None, randomize: Optional[bool] = None, observation: Optional[str] = None,
                  sensor_noise: Optional[float] = None, action_latency: Optional[int] = None, wind=None,
-                 actuation: Optional[str] = None):
+                 actuation: Optional[str] = None, winch: Optional[bool] = None):
         if preset is not None and preset not in TEAM_PRESETS:
             raise ValueError(f"preset must be one of {sorted(TEAM_PRESETS)} or None, got {preset!r}")
         given = dict(randomize=randomize, observation=observation, sensor_noise=sensor_noise,
@@ -86,7 +89,15 @@ class TeamCore:
             raise ValueError(f"actuation {self.actuation!r} does not fly the team's "
                              f"{'drones' if self.drones else 'point pivots'} (point pivots take 'force', drones "
                              f"one of {ACTUATIONS[1:]})")
-        self.action_size = action_size(self.actuation)
+        self.task = get_team_task(task)
+        self.winch = self.task.needs_winch if winch is None else winch
+        if not isinstance(self.winch, (bool, np.bool_)):
+            raise ValueError(f"winch must be True, False or None, got {winch!r}")
+        if self.task.needs_winch and not self.winch:
+            raise ValueError(f"winch: task {task!r} reels the strings and needs winch=True")
+        if self.winch and self.drones:
+            raise ValueError("winch: a team's drones do not reel yet (docs/physics.md, \"What a team does not do yet\")")
+        self.action_size = action_size(self.actuation, self.winch)
         if not (np.isfinite(control_period) and control_period > 0):
             raise ValueError(f"control_period must be > 0 s, got {control_period}")
         if not (np.isfinite(force_limit) and force_limit > 0):
@@ -100,12 +111,12 @@ class TeamCore:
         if isinstance(latency, bool) or not isinstance(latency, (int, np.integer)) or not 0 <= latency <= 50:
             raise ValueError(f"action_latency must be a whole number of control steps in [0, 50], got {latency!r}")
         self.wind = wind_options(options["wind"])
+        self._wind = TeamWind(self.wind) if self.wind is not None else None
         self.randomize, self.observation = bool(options["randomize"]), options["observation"]
         self.sensor_noise, self.action_latency = float(noise), int(latency)
-        self.task = get_team_task(task)
         self.size = scene.size
         self.control_period, self.force_limit = control_period, force_limit
-        self.layout = agent_layout(self.size, self.observation, self.drones)
+        self.layout = agent_layout(self.size, self.observation, self.drones, self.winch)
         self._noise = np.concatenate([np.full(s.stop - s.start, self.sensor_noise * TEAM_UNIT_NOISE[name])
                                       for name, s in self.layout.structure().items()])
         self._use_scene(scene)
@@ -126,7 +137,10 @@ class TeamCore:
     def _use_scene(self, scene: TeamScene) -> None:
         """Step ``scene`` from its initial state: h the largest within half of every string's
         stability bound that divides the control period, the hover forces, the formation."""
-        substeps = max(explicit_substeps(scene.member_scene(k), self.control_period, 0.5) for k in range(self.size))
+        members = [scene.member_scene(k) for k in range(self.size)]
+        if self.winch:  # stable at each winch's shortest string
+            members = [shortest(m) for m in members]
+        substeps = max(explicit_substeps(m, self.control_period, 0.5) for m in members)
         scene = scene.model_copy(update={"scene": scene.scene.model_copy(update={"h": self.control_period / substeps})})
         self.scene, self.substeps = scene, substeps
         self.sim = TeamSimulator(scene)
@@ -161,7 +175,7 @@ class TeamCore:
         rho_c = np.asarray(self.scene.scene.body.rho_c, dtype=float)
         rows = [0] + [int(T.start[j]) for j in range(self.size - 1)]
         nodes = [st.lead.r] + [st.r[T.start[j]:T.start[j + 1]] for j in range(self.size - 1)]
-        strings = [self.scene.scene.string] + [s.string for s in self.scene.strings]
+        strings = self.sim.winches.strings_at_length()
         tension = np.zeros((self.size, 3))
         stretched = np.zeros(self.size)
         for k, (r, string) in enumerate(zip(nodes, strings)):
@@ -169,7 +183,7 @@ class TeamCore:
             length = np.linalg.norm(x)
             tension[k] = string.kappa * max(length - string.u, 0.0) * x / length
             stretched[k] = np.linalg.norm(np.diff(r, axis=0), axis=1).sum() / string.length
-        out = dict(pivot=np.vstack([st.lead.r[0]] + [st.r[i] for i in rows[1:]]),
+        out = dict(lengths=st.lengths, pivot=np.vstack([st.lead.r[0]] + [st.r[i] for i in rows[1:]]),
                    pivot_velocity=np.vstack([v_lead[0]] + [v_other[i] for i in rows[1:]]),
                    load=st.lead.r[-1] + R @ rho_c, load_velocity=v_lead[-1] + R @ np.cross(Omega, rho_c),
                    R=R, Omega=Omega, tension=tension, stretch=stretched)
@@ -202,6 +216,12 @@ class TeamCore:
             self.reference = track_reference(rng, 0.0)
             self.reference[TARGET["centre"]] += load - self.reference[TARGET["load"]]
             self._follow_reference(0.0)
+        elif task.needs_winch:  # every string to the same share of its length; the pivots stay
+            self.reference = None
+            self.reel_targets = self.sim.winches.lengths * (1.0 + rng.uniform(*task.reel_range))
+            rise = hanging_rise(self.kinematics(), self.scene.attachments(), self.reel_targets)
+            self.load_target = load + np.array([0.0, 0.0, rise])
+            self.pivot_targets = self.pivot_positions()
         else:
             self.reference = None
             self.load_target = load + rng.uniform(-1.0, 1.0, 3) * np.asarray(task.target_box)
@@ -211,11 +231,7 @@ class TeamCore:
         self._queue = deque([np.zeros((self.size, self.action_size))] * self.action_latency)
         self.load_force = np.zeros(3)
         if self.wind is not None:
-            o = self.wind
-            azimuth = o.direction if o.direction is not None else 2.0 * math.pi * rng.random()
-            self._mean_wind = o.speed * np.array([math.cos(azimuth), math.sin(azimuth), 0.0])
-            self._gust = o.gusts * rng.standard_normal(3)
-            info.update(wind_speed=float(o.speed), wind_direction=float(azimuth))
+            info.update(self._wind.reset(rng))
         kin = self.kinematics()
         info.update(load_target=self.load_target.copy(), pivot_targets=self.pivot_targets.copy())
         return self.observations(kin), info
@@ -241,6 +257,8 @@ class TeamCore:
                 o[L["drone_attitude_6d"]] = kin["drone_attitudes"][k][:, :2].T.ravel()
                 o[L["drone_rates"]] = kin["drone_rates"][k]
             o[L["hook_tension"]] = kin["tension"][k]
+            if self.winch:
+                o[L["string_length"]] = kin["lengths"][k]
             if self.observation == "full":
                 o[L["load_offset"]] = kin["load"] - kin["pivot"][k]
                 o[L["load_position_error"]] = kin["load"] - self.load_target
@@ -275,7 +293,7 @@ class TeamCore:
         """Each pivot's force above hover (K, 3) (spatial) [N]: a point pivot's of the action
         applied last, a drone's thrust -f R_q e3 less its hover share's -f_hover e3."""
         if not self.drones:
-            return self.force_scale * self.last_action
+            return self.force_scale * self.last_action[:, :3]
         d = self.sim.fleet.diagnostics()
         up = -d["drone_attitudes"][:, :, 2] * d["drone_thrust"][:, None]
         up[:, 2] += self.drive.hover
@@ -285,7 +303,7 @@ class TeamCore:
         """The ``full`` observation of the current state without noise (K, 27 + 3(K-1), + 9 with
         drones): what a centralised controller with the true state reads (agents/baselines)."""
         mode, layout = self.observation, self.layout
-        self.observation, self.layout = "full", agent_layout(self.size, "full", self.drones)
+        self.observation, self.layout = "full", agent_layout(self.size, "full", self.drones, self.winch)
         try:
             return self.observations(self.kinematics(), noisy=False)
         finally:
@@ -325,29 +343,6 @@ class TeamCore:
         distances = np.array([np.linalg.norm(pivots[i] - pivots[j]) for i, j in pairs])
         return distances, pairs
 
-    def wind_force(self, kin: dict) -> np.ndarray:
-        """The force on the load over the next control step [N], and the gusts and pushes drawn
-        for it from ``np_random``: drag 1/2 rho C_d A(n) |v| v of the air's velocity v relative to
-        the load (A the load's projected area across n = v/|v|, esp_gym/wind.py's law), plus a
-        push (Poisson, a horizontal force changing the load's velocity by 0.5-1.5 x push_speed
-        over the step, in a random azimuth)."""
-        o, rng, T = self.wind, self.np_random, self.control_period
-        decay = math.exp(-T / o.gust_time)
-        self._gust = decay * self._gust + o.gusts * math.sqrt(1.0 - decay * decay) * rng.standard_normal(3)
-        relative = self._mean_wind + self._gust - kin["load_velocity"]
-        speed = float(np.linalg.norm(relative))
-        force = np.zeros(3)
-        if speed > 0.0:
-            n = kin["R"].T @ (relative / speed)
-            faces, side, (a, b), round_ = drag_areas(self.scene.scene)
-            area = faces @ np.abs(n) + side * math.hypot(a * n[1], b * n[0]) + round_
-            force = 0.5 * o.air_density * o.load_drag_coefficient * area * speed * relative
-        chance, azimuth, size = rng.random(3)
-        if chance < -math.expm1(-o.push_rate * T):
-            push = self.scene.scene.body.mass * o.push_speed * (0.5 + size) / T
-            force = force + push * np.array([math.cos(2 * math.pi * azimuth), math.sin(2 * math.pi * azimuth), 0.0])
-        return force
-
     def step(self, action):
         """Apply each pivot's force (K, 3), or each drone's action (K, 4), in [-1, 1] (clipped;
         after ``action_latency`` steps) over one control period; returns ``(observations, reward,
@@ -365,12 +360,15 @@ class TeamCore:
         if self.drones:
             drive = self.drive(a)
         else:
-            forces = self.force_scale * a
+            forces = self.force_scale * a[:, :3]
             forces[:, 2] -= self.hover  # e3 points down: the hover force is -e3
             drive = {"pivot_forces": forces}
+        if self.winch:
+            drive["reel_speeds"] = self.sim.winches.max_speeds * a[:, -1]
         reason = ""
         if self.wind is not None:
-            self.load_force = self.wind_force(self.kinematics())
+            self.load_force = self._wind.force(self.np_random, self.kinematics(), self.scene.scene,
+                                               self.control_period)
         try:
             self.sim.step(self.substeps, load_force=self.load_force if self.wind is not None else None, **drive)
         except SimulationError as error:

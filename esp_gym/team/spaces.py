@@ -15,17 +15,20 @@ ACTUATIONS = ("force",) + DRONE_ACTUATIONS
 #: Sensor noise per field at ``sensor_noise=1`` (as esp_gym/observe.py's UNIT_NOISE) [SI].
 TEAM_UNIT_NOISE = {"pivot_position_error": 0.01, "pivot_velocity": 0.05, "hook_tension": 0.1, "load_offset": 0.01,
                    "load_position_error": 0.01, "load_velocity": 0.05, "load_attitude_6d": 0.01, "load_rates": 0.05,
-                   "load_target_offset": 0.01, "neighbours": 0.01, "drone_attitude_6d": 0.01, "drone_rates": 0.05}
+                   "load_target_offset": 0.01, "neighbours": 0.01, "drone_attitude_6d": 0.01, "drone_rates": 0.05,
+                   "string_length": 0.005}
 
 
-def action_size(actuation: str) -> int:
-    """One agent's action size: 3 for a point pivot's force, 4 for a drone."""
-    return 3 if actuation == "force" else 4
+def action_size(actuation: str, winch: bool = False) -> int:
+    """One agent's action size: 3 for a point pivot's force, 4 for a drone; with ``winch`` one
+    more, its string's reel speed."""
+    return (3 if actuation == "force" else 4) + int(winch)
 
 
-def agent_layout(size: int, observation: str = "full", drones: bool = False) -> Layout:
+def agent_layout(size: int, observation: str = "full", drones: bool = False, winch: bool = False) -> Layout:
     """One agent's observation: its pivot's position error and velocity, with ``drones`` its
-    drone's attitude (R_q's first two columns) and body rates, its string's hook tension, then
+    drone's attitude (R_q's first two columns) and body rates, its string's hook tension (with
+    ``winch`` and its unstretched length), then
     in the ``full`` mode the load relative to it and the load's error, velocity, attitude and
     rates, in the ``hook`` mode only the load's target relative to it; and the other pivots
     relative to it (the next one first)."""
@@ -33,6 +36,8 @@ def agent_layout(size: int, observation: str = "full", drones: bool = False) -> 
     if drones:
         fields += [("drone_attitude_6d", 6), ("drone_rates", 3)]
     fields.append(("hook_tension", 3))
+    if winch:
+        fields.append(("string_length", 1))
     if observation == "full":
         fields += [("load_offset", 3), ("load_position_error", 3), ("load_velocity", 3), ("load_attitude_6d", 6),
                    ("load_rates", 3)]

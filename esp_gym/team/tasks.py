@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 
 @dataclass(frozen=True)
 class TeamTask:
@@ -35,6 +37,13 @@ class TeamTask:
     #: (esp_gym/tasks.py ``track_reference``), starting where the load starts; the velocity term is
     #: then relative to the reference's velocity
     moving: bool = False
+    #: lift: each string's winch must reel it to this many times its length, uniform in the range
+    #: (the same for every string), the load rising with it and the pivots held where they are
+    reel_range: tuple = (0.0, 0.0)
+
+    @property
+    def needs_winch(self) -> bool:
+        return self.reel_range != (0.0, 0.0)
 
     @property
     def max_reward(self) -> float:
@@ -50,6 +59,10 @@ TEAM_TASKS = {
     # carry a load hanging at rest along a circle or a figure-eight, the pivots in formation around it
     "track": TeamTask("track", moving=True, w_load_position=0.5, w_load_velocity=0.15, w_pivot_position=0.15,
                       w_tilt=0.15, w_spin=0.05),
+    # hoist a load hanging at rest by reeling every string in to 55-75 % of its length, the pivots
+    # held where they are, with little tilt and swing (winch=True)
+    "lift": TeamTask("lift", reel_range=(-0.45, -0.25), w_load_position=0.45, w_load_velocity=0.1,
+                     w_pivot_position=0.2, w_tilt=0.2, w_spin=0.05),
 }
 
 
@@ -57,3 +70,18 @@ def get_team_task(name: str) -> TeamTask:
     if name not in TEAM_TASKS:
         raise ValueError(f"task must be one of {sorted(TEAM_TASKS)}, got {name!r}")
     return TEAM_TASKS[name]
+
+
+def hanging_rise(kin: dict, attachments: np.ndarray, lengths: np.ndarray) -> float:
+    """The load's change of depth [m] (< 0: up) when every string of a team hanging as ``kin``
+    (TeamCore.kinematics) goes to ``lengths`` (K,) [m], each keeping its stretch and its
+    horizontal span: the mean over strings of the change of sqrt((s l)^2 - d^2), s its stretch, d
+    its span; ``attachments`` (K, 3) body frame, from the centre of mass [m]."""
+    ends = kin["load"] + (kin["R"] @ np.asarray(attachments, dtype=float).T).T
+    rise = []
+    for k, (pivot, end) in enumerate(zip(kin["pivot"], ends)):
+        chord = end - pivot
+        span2 = chord[0] ** 2 + chord[1] ** 2
+        stretch = np.linalg.norm(chord) / kin["lengths"][k]
+        rise.append(np.sqrt((stretch * lengths[k]) ** 2 - span2) - abs(chord[2]))
+    return float(np.mean(rise))
