@@ -43,7 +43,61 @@ def base_policy(name: str, task: str, env_kwargs: Optional[dict] = None):
         needs = ("a drone's scene (with a winch, the full observation)" if name == "geometric"
                  else "the hook observation (env_kwargs observation: hook or preset: hard)")
         raise ValueError(f"residual {name!r} needs {needs}; with {env_kwargs or {}} the baselines are {sorted(known)}")
-    return known[name]()
+    base = known[name]()
+    if task == "track" and not hasattr(base, "clone"):  # a law that holds no reference: tell the network it
+        return ReferenceContext(base)
+    return base
+
+
+#: What :class:`ReferenceContext` tells a residual network of a ``track`` reference: its velocity
+#: [m/s] and acceleration [m/s^2] now and its displacement [m] over the next PREVIEW_TIMES [s]
+#: (agents/baselines/lqr.py's, the LQR tracker's preview).
+TRACK_CONTEXT = (("reference_velocity", 3), ("reference_acceleration", 3), ("reference_ahead", 6))
+
+
+class ReferenceContext:
+    """A stateless law on ``track`` (the drone's geometric cascade, which reads the errors against
+    the moving target but not its curve) as a residual's stateful base: one copy per environment
+    following its episode's reference (:meth:`start` with the live TARGET view), the law's action
+    unchanged, and the reference's TRACK_CONTEXT as its :attr:`features`, as the LQR tracker tells
+    its network the reference's REFERENCE_CONTEXT."""
+
+    def __init__(self, law):
+        self.law = law
+        self.start(None)
+
+    def clone(self) -> "ReferenceContext":
+        return ReferenceContext(self.law)
+
+    def reset(self, env) -> None:
+        if hasattr(self.law, "reset"):
+            self.law.reset(env)
+        self.start(env.control.target)
+
+    def start(self, target) -> None:
+        self._target = target
+        self._context = np.zeros(sum(size for _, size in TRACK_CONTEXT))
+
+    def applied(self, action) -> None:
+        """The law holds no estimate: what was applied changes nothing."""
+
+    @property
+    def features(self) -> np.ndarray:
+        return self._context
+
+    def act(self, obs, setup) -> np.ndarray:
+        from agents.baselines.lqr import PREVIEW_TIMES, REDUCED, reference_basis, reference_map
+        from esp_gym.kernels.env_arrays import TARGET
+        from esp_gym.tasks import reference_acceleration
+
+        target = self._target
+        if target is not None and target[TARGET.scalar("rate")] != 0.0:
+            z = reference_map(target, np.array((0.0,) + PREVIEW_TIMES)) @ reference_basis(target)
+            place = REDUCED["pivot_error"]
+            self._context = np.concatenate((z[0, REDUCED["pivot_velocity"]],
+                                            reference_acceleration(target, float(target[TARGET.scalar("clock")])),
+                                            (z[1:, place] - z[0, place]).ravel()))
+        return self.law.act(obs, setup)
 
 
 def nominal_lqr(task: str, env_kwargs: Optional[dict] = None):

@@ -18,7 +18,8 @@ def summed_rewards(wrapped, value: float, steps: int = 60):
     rewards and the last step's (obs, dones, infos)."""
     returns = np.zeros(wrapped.num_envs)
     for _ in range(steps):
-        obs, rewards, dones, infos = wrapped.step(np.full((wrapped.num_envs, 6), value, np.float32))
+        obs, rewards, dones, infos = wrapped.step(np.full((wrapped.num_envs,) + wrapped.action_space.shape, value,
+                                                          np.float32))
         returns += rewards
     return returns, obs, dones, infos
 
@@ -164,6 +165,41 @@ def test_the_track_lqr_base_follows_each_episodes_reference_as_the_registrys_lqr
                        venv.control.target[1][TARGET["velocity"]], atol=1e-6)
     single = [e.ret for e in run_episodes(baselines("track")["lqr"], "track", 2, seed=700,
                                           env_kwargs={"max_episode_steps": 60})]
+    assert_zero_network_is_the_base(wrapped, venv, 700, single)
+
+
+def test_a_drone_cascade_on_track_tells_its_network_the_reference():
+    """residual=geometric on the drone's track (full observation): the cascade, which holds no
+    reference, runs one ReferenceContext per environment; with a zero network the returns are the
+    cascade's own, and the observation carries the reference's velocity (the TARGET's), its
+    acceleration (the velocity's central difference over two control steps, to 1e-3 m/s^2) and its
+    displacement ahead; a small constant residual (the negative control) changes the returns."""
+    from agents.baselines.registry import baselines
+    from agents.evaluate import run_episodes
+    from agents.residual import TRACK_CONTEXT, base_policy
+    from esp_gym.kernels.env_arrays import TARGET
+
+    kwargs = {"scene": "quadrotor_load", "actuation": "thrust_rates"}
+    venv = ElasticStringPendulumSB3VecEnv(num_envs=2, task="track", max_episode_steps=60, **kwargs)
+    venv.seed(700)
+    wrapped = ResidualVecEnv(venv, base_policy("geometric", "track", kwargs), venv.setup)
+    size = sum(n for _, n in TRACK_CONTEXT)
+    obs = wrapped.reset()
+    assert obs.shape == (2, venv.observation_space.shape[0] + size)
+    velocities, accelerations = [], []
+    for _ in range(3):
+        context = obs[1, -size:].astype(np.float64)
+        assert np.allclose(context[:3], venv.control.target[1][TARGET["velocity"]], atol=1e-6)
+        velocities.append(context[:3])
+        accelerations.append(context[3:6])
+        obs = wrapped.step(np.zeros((2, 4), np.float32))[0]
+    dt = venv.setup.control_period
+    assert np.allclose((velocities[2] - velocities[0]) / (2 * dt), accelerations[1], atol=1e-3)
+    assert np.abs(accelerations[1]).max() > 0.05
+    venv.seed(700)
+    wrapped.reset()
+    single = [e.ret for e in run_episodes(baselines("track", kwargs)["geometric"], "track", 2, seed=700,
+                                          env_kwargs={"max_episode_steps": 60, **kwargs})]
     assert_zero_network_is_the_base(wrapped, venv, 700, single)
 
 

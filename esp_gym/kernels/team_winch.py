@@ -57,11 +57,10 @@ def reel_terms(st, l0, l1, h, n):
 
 @kernel(inline="always")
 def reduce_others(T, TW, h):
-    """Each string j >= 1's step matrix on its rows before the end (:func:`~.winch.factor_string`),
-    its end mass mu_j = A_ee - A_{e,e-1} A_{e-1,e} (A_II^-1)_{last,last} (into ``TW.mu``), its
-    coupling A_{e-1,e} (``TW.off``; A_{e,e-1} into ``TW.lower`` at its end row), its constants
-    at the step's end length, and its forces f~ at r_k (``TW.fl``: ``A.f`` + grad T0 at l_0)
-    are set by :func:`reeling_forces`."""
+    """Each string j >= 1's step matrix factored on its rows before the end
+    (:func:`~.winch.factor_string`), its end mass mu_j = A_ee - A_{e,e-1} A_{e-1,e} (A_II^-1)_{last,last}
+    (into ``TW.mu``), its coupling A_{e-1,e} (``TW.off``; A_{e,e-1} into ``TW.lower`` at its end
+    row) and its constants at the step's end length (``TW.kappa``, ``u``, ``m``, ``max_len2``)."""
     for j in range(T.first.shape[0]):
         st = TW.state[j + 1]
         s = T.start[j]

@@ -9,7 +9,7 @@ from typing import Optional
 
 import numpy as np
 from ..drone import DroneState
-from ..kernels.layout import BALANCE, INPUTS, LOOP_REPORT_SIZE, R_NEWTON_TOTAL, R_STATUS, R_STEPS, WINCH
+from ..kernels.layout import BALANCE, INPUTS, LOOP_REPORT_SIZE, R_NEWTON_TOTAL, R_STATUS, R_STEPS
 from ..kernels.status import OK
 from ..kernels.team import TeamArrays, team_forces
 from ..kernels.team_loops import team_advance, team_drone_advance, team_winch_advance
@@ -21,8 +21,6 @@ from .fleet import Fleet
 from .scene import TeamScene
 from .velocities import team_velocities
 from .winches import TeamWinches
-
-WINCH_SPEED = WINCH.scalar("reel_speed")
 
 
 @dataclass
@@ -309,7 +307,7 @@ class TeamSimulator:
         while taken < n:
             cut = winches.cut_speeds(self.h)
             steps = n - taken
-            if not np.array_equal(cut, winches.state[:, WINCH_SPEED]):  # the next step ends on a range's end
+            if not np.array_equal(cut, winches.reel_speeds):  # the next step ends on a range's end
                 self._change_speeds(cut)
                 steps = 1
             team_winch_advance(self._S, self._W, self._P, self.params, self._A, winches.arrays, self._inputs, steps,
@@ -322,10 +320,10 @@ class TeamSimulator:
 
     def _change_speeds(self, speeds: np.ndarray) -> None:
         """Set the state's reel speeds, adding H's jump at fixed (q, p) to the winch work."""
-        if np.array_equal(speeds, self.winches.state[:, WINCH_SPEED]):
+        if np.array_equal(speeds, self.winches.reel_speeds):
             return
         before = self._diagnostics()["energy"]
-        self.winches.state[:, WINCH_SPEED] = speeds
+        self.winches.use_speeds(speeds)
         self._winch_jumps += self._diagnostics()["energy"] - before
 
     def velocities(self, reel_speeds=None):
@@ -421,8 +419,9 @@ class TeamSimulator:
         their rotations, and each drone's (:meth:`Fleet.diagnostics
         <esp_gym.team.fleet.Fleet.diagnostics>`), the work and angular impulse with the rotors'
         thrust and torque; and the input
-        balances since the last reset with their residuals: ``energy_balance_residual`` =
-        E - E0 - work, ``pi3_balance_residual`` = pi3 - pi3_0 - the angular impulse about e3 (exact with free
+        balances since the last reset with their residuals: the winches' ``unstretched_lengths``
+        (K,) [m], ``reel_speeds`` (K,) [m/s] and ``winch_work`` [J]; ``energy_balance_residual`` =
+        E - E0 - work - winch_work (E the Hamiltonian while the winches reel), ``pi3_balance_residual`` = pi3 - pi3_0 - the angular impulse about e3 (exact with free
         pivots only), ``momentum_balance_residual`` = P - P0 - the gravity and pivot impulses
         (with free pivots only: a fixed pivot's reaction is not an input)."""
         d = self._diagnostics()

@@ -19,7 +19,7 @@ from ..stepsize import shortest
 from ..winch import winch_state
 from .scene import TeamScene
 
-LENGTH, SPEED, MASS_PER_LENGTH = WINCH.scalar("length"), WINCH.scalar("reel_speed"), WINCH.scalar("mass_per_length")
+LENGTH, SPEED = WINCH.scalar("length"), WINCH.scalar("reel_speed")
 
 
 class TeamWinches:
@@ -69,6 +69,10 @@ class TeamWinches:
     def idle(self) -> bool:
         """Every string at its scene's length and at rest: the fixed-length step runs."""
         return bool(np.all(self.state[:, LENGTH] == self.scene_lengths) and np.all(self.state[:, SPEED] == 0.0))
+
+    def use_speeds(self, speeds: np.ndarray) -> None:
+        """Set the state's reel speeds (K,) [m/s], unchecked (the simulator's own: :meth:`held`, :meth:`cut_speeds`)."""
+        self.state[:, SPEED] = speeds
 
     def set(self, lengths=None, reel_speeds=None) -> None:
         """Set the lengths (K,) [m] (None: the scenes') and the state's reel speeds (K,) [m/s]
