@@ -182,19 +182,24 @@ def hard_lift_figure(out: Path, seed: int, steps: int, model: Path) -> dict:
 def team_figure(out: Path, size: int, seed: int, steps: int, preset=None, task: str = "transport",
                 actuation=None) -> dict:
     """``team_{task}.png``: one episode of a team of ``size`` pivots (docs/team.md) under the
-    team's LQR (with a drone ``actuation``, ``team_drones_{task}.png`` under the drones' cascade):
+    team's LQR (the lift's under its hoist; with a drone ``actuation``, ``team_drones_{task}.png``
+    under the drones' cascade):
     the top view of every pivot's and the load's path with their targets (a moving target's path
     dashed), the load's distance to its target, each string's pull on its pivot, and the smallest
     distance between two pivots with the separation and collision distances."""
-    from agents.team_evaluate import TeamCascadePolicy, TeamLQRPolicy
+    from agents.team_evaluate import TeamCascadePolicy, TeamHoistPolicy, TeamLQRPolicy
     from esp_gym.team.env import COLLISION, SEPARATION, ElasticStringTeamEnv
     from esp_gym.viz.figures import new_figure, save_figure
 
     options = {**({"preset": preset} if preset else {}), **({"actuation": actuation} if actuation else {})}
     env = ElasticStringTeamEnv(size, task=task, **options)
     core = env.core
-    policy, who, what = ((TeamCascadePolicy(), "drones' cascade", f"drones_{task}") if core.drones
-                         else (TeamLQRPolicy(), "team's LQR", task))
+    if core.drones:
+        policy, who, what = TeamCascadePolicy(), "drones' cascade", f"drones_{task}"
+    elif core.winch:
+        policy, who, what = TeamHoistPolicy(), "team's hoist", task
+    else:
+        policy, who, what = TeamLQRPolicy(), "team's LQR", task
     obs, _ = env.reset(seed=seed)
     pivots, load, tension, separation, total = [core.pivot_positions()], [core.load_position()], [], [], 0.0
     targets = [core.load_target.copy()]

@@ -135,16 +135,20 @@ def test_the_hard_lift_figure_draws_the_evaluated_episodes_of_the_hoist_and_the_
 
 def test_the_team_figure_draws_the_evaluated_team_episode(tmp_path):
     """``--team K --team-task T``: team_T.png, the episode agents.team_evaluate scores under the
-    team's LQR; a task a team does not have is one line naming the argument."""
+    team's LQR (the lift's under its hoist); a task a team does not have is one line naming the
+    argument."""
     from agents import task_figures
-    from agents.team_evaluate import TeamLQRPolicy, run_team_episodes
+    from agents.team_evaluate import TeamHoistPolicy, TeamLQRPolicy, run_team_episodes
 
     result = task_figures.main(["--out", str(tmp_path), "--team", "3", "--team-task", "track", "--seed", "4"])
     assert result["return"] == pytest.approx(run_team_episodes(TeamLQRPolicy(), 3, "track", 1, seed=4)[0].ret,
                                              rel=1e-12)
     assert (tmp_path / "team_track.png").stat().st_size > 10_000
+    lifted = task_figures.main(["--out", str(tmp_path), "--team", "3", "--team-task", "lift", "--seed", "4"])
+    assert lifted["return"] == pytest.approx(run_team_episodes(TeamHoistPolicy(), 3, "lift", 1, seed=4)[0].ret,
+                                             rel=1e-12)
     with pytest.raises(SystemExit):
-        task_figures.main(["--out", str(tmp_path), "--team", "3", "--team-task", "lift"])
+        task_figures.main(["--out", str(tmp_path), "--team", "3", "--team-task", "lower"])
 
 
 def test_the_drone_team_figure_draws_the_evaluated_episode_under_the_cascade(tmp_path):

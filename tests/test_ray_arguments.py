@@ -40,7 +40,7 @@ def run(module, *args, timeout=120) -> subprocess.CompletedProcess:
     ("agents.team_train", ["--set", "lr_rate=3"], ["--set", "'lr_rate'"]),
     ("agents.team_train", ["--time-limit", "0"], ["--time-limit"]),
     ("agents.team_train", ["--residual", "--residual-scale", "-1"], ["--residual-scale"]),
-    ("agents.team_train", ["--task", "lift"], ["--task", "lift"]),
+    ("agents.team_train", ["--task", "lower"], ["--task", "lower"]),
     ("agents.team_sweep", ["--space", '{"lr": ["fast"]}'], ["--space", "lr"]),
     ("agents.team_sweep", ["--space", '{"lr_rate": [0.1]}'], ["--space", "'lr_rate'"]),
     ("agents.team_sweep", ["--space", '{"seed": [0]}', "--set", "minibatch_size=100000"], ["--set", "minibatch_size"]),
