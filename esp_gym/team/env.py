@@ -130,6 +130,7 @@ class TeamCore:
         #: vector of esp_gym/kernels/env_arrays.py; None for a fixed target)
         self.target_velocity = np.zeros(3)
         self.reference = None
+        self.reel_targets = None  #: a lift's target lengths (K,) [m], None for the other tasks
         self.load_force = np.zeros(3)
         #: the FrameRenderer of :meth:`frame` (made by its first call)
         self.renderer = None
