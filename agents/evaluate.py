@@ -27,11 +27,13 @@ from typing import Optional
 
 import gymnasium as gym
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 import esp_gym
 from agents.artifacts import (ConfigurationError, ModelFileError, check_configuration, load_model, model_configuration,
                               stats_path_for)
 from agents.cli import ArgumentParser
+from agents.mlp import actor_of_sb3
 from agents.baselines.pd import ZeroPolicy
 from agents.baselines.registry import baseline
 from agents.normalization import NormalizationFileError, NormStats
@@ -42,6 +44,11 @@ from esp_gym.tasks import TASKS
 
 SUCCESS_DISTANCE = 0.1  #: [m]
 SUCCESS_SWING_DEG = 5.0
+#: Episodes run with BLAS on one thread: a matrix product's sums (the LQR's and LQG's) then come in
+#: the same order on any number of cores. OpenBLAS splits a product among its threads by size and
+#: count, and a chaotic closed-loop episode grows a last-bit difference into another return, so the
+#: documented comparisons (docs/compare) hold on any machine only so.
+ONE_BLAS_THREAD = threadpool_limits.wrap(limits=1, user_api="blas")
 
 
 class SB3Policy:
@@ -53,6 +60,8 @@ class SB3Policy:
     def __init__(self, path: str | Path):
         path = Path(path)
         self.model = load_model(path)
+        #: the network's deterministic action in float64, the same on every processor (agents/mlp.py)
+        self.actor = actor_of_sb3(self.model)
         stats = stats_path_for(path)
         #: agents.normalization.NormStats, or None when the model has no statistics beside it
         self.normalization = NormStats.load(stats) if stats else None
@@ -108,7 +117,8 @@ class SB3Policy:
             self._stack[..., :-n] = self._stack[..., n:]  # as SB3 VecFrameStack: oldest first, zeros at the start
             self._stack[..., -n:] = obs
             obs = self._stack
-        action, _ = self.model.predict(obs, deterministic=True)
+        space = self.model.action_space
+        action = np.clip(self.actor(obs), space.low, space.high)
         if self.residual is not None:
             action = np.clip(action + base, -1.0, 1.0)
             if hasattr(self.residual, "applied"):
@@ -158,6 +168,7 @@ class EpisodeResult:
     peak_tension_N: float
 
 
+@ONE_BLAS_THREAD
 def run_episodes(policy, task: str = "stabilize", episodes: int = 50, seed: int = 0,
                  record: Optional[str] = None, env_kwargs: Optional[dict] = None) -> list:
     """Run ``episodes`` seeded episodes (seed + i) of ``policy`` (None: the task's PD baseline)

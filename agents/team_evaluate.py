@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from agents.evaluate import SUCCESS_DISTANCE, SUCCESS_SWING_DEG, EpisodeResult
+from agents.evaluate import ONE_BLAS_THREAD, SUCCESS_DISTANCE, SUCCESS_SWING_DEG, EpisodeResult
 from esp_gym.team.env import MAX_EPISODE_STEPS, ElasticStringTeamEnv
 
 
@@ -158,6 +158,7 @@ def load_tilt(core) -> float:
     return math.acos(min(1.0, max(-1.0, float(R[2, 2]))))
 
 
+@ONE_BLAS_THREAD
 def run_team_episodes(policy, team: int = 3, task: str = "transport", episodes: int = 10, seed: int = 0,
                       env_kwargs=None) -> list:
     """``episodes`` seeded episodes (seed + i) of ``policy`` on a team of ``team`` strings:

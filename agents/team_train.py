@@ -46,8 +46,9 @@ from agents.distributed.cluster import AddressError, check_address
 from agents.distributed.rllib import RLlibRunConfig, load_rllib_config
 from agents.distributed.train import PROGRESS_FIELDS, build, plot_curve, progress_row, rllib_main
 from agents.evaluate import summarize
+from agents.mlp import actor_of_rllib
 from agents.runs import new_run_dir, write_status, write_stopped
-from agents.team_critic import CRITIC_FILE, read_critic, write_critic
+from agents.team_critic import CRITIC_FILE, write_critic
 from agents.team_evaluate import TeamZero, run_team_episodes, team_baselines
 from agents.team_residual import RESIDUAL_FILE, RESIDUAL_SCALE, TeamBase, read_residual, write_residual
 from esp_gym.team.tasks import TEAM_TASKS
@@ -169,36 +170,31 @@ def team_ppo_config(cfg: RLlibRunConfig, s: Settings):
 
 class TeamRLlibPolicy:
     """The shared module of a checkpoint as a centralised policy of agents/team_evaluate.py: each
-    agent's observation through the module, the action distribution's mean (deterministic),
-    clipped to [-1, 1]. A checkpoint with residual.json (``--residual``) adds that share of it to
-    the team's baseline, whose features it appends to each agent's observation, as in training;
-    one with central_critic.json (``--central-critic``) gets zeros where its critic read the
-    team's state (its actor never reads them)."""
+    agent's observation through the module's actor, the action distribution's mean
+    (deterministic), clipped to [-1, 1], evaluated in float64 by agents/mlp.py. A checkpoint with
+    residual.json (``--residual``) adds that share of it to the team's baseline, whose features it
+    appends to each agent's observation, as in training; a centralised critic's
+    (``--central-critic``) actor reads the agent's observation alone, as in training."""
 
     def __init__(self, checkpoint):
         from ray.rllib.core.rl_module.rl_module import RLModule
 
         checkpoint = Path(checkpoint).resolve()  # an absolute path: RLlib reads it as a URI
         self.module = RLModule.from_checkpoint(checkpoint / MODULE_PATH)
+        #: the actor in float64, the same on every processor (agents/mlp.py): the mean of the
+        #: module's Gaussian, its first half of outputs
+        self.actor = actor_of_rllib(self.module, self.module.action_space.shape[0])
         self.scale = read_residual(checkpoint)
-        self.critic = read_critic(checkpoint)
         self.base = None
 
     def act(self, obs, core) -> np.ndarray:
-        import torch
-        from ray.rllib.core.columns import Columns
-
         agents = np.asarray(obs, dtype=np.float64).reshape(core.size, -1)
         if self.scale is not None:
             if self.base is None:
                 self.base = TeamBase(core.observation, core.drones, core.winch)
             command, agents = self.base.observe(agents, core)
-        if self.critic is not None:
-            agents = np.concatenate([agents, np.zeros((core.size, self.critic["state_size"]))], axis=1)
-        with torch.no_grad():
-            out = self.module.forward_inference({Columns.OBS: torch.from_numpy(agents.astype(np.float32))})
-        # a diagonal Gaussian's (mean, log std)
-        mean = out[Columns.ACTION_DIST_INPUTS].numpy()[:, :core.action_size].astype(np.float64)
+        # a centralised critic's actor reads the agent's observation only (agents/team_critic.py)
+        mean = self.actor(agents.astype(np.float32))
         if self.scale is None:
             return np.clip(mean, -1.0, 1.0).ravel()
         return self.base.apply(command, mean, self.scale).ravel()

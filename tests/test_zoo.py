@@ -112,3 +112,59 @@ def test_a_comparison_of_other_episodes_does_not_pass_for_the_documented_one():
     for policy_name, policy in baselines("stabilize").items():
         shifted = [e.ret for e in run_episodes(policy, "stabilize", 1, doc["seed"] + 1)]
         assert shifted != pytest.approx(doc["policies"][policy_name]["returns"][:1], rel=1e-6)
+
+
+def test_a_changed_model_or_environment_does_not_pass_for_the_documented_comparison():
+    """The negative control of the rerun above for what it guards: the shipped policy with its
+    last layer's biases moved by 1e-4 (a model retrained or evaluated otherwise), and the same
+    policy on a load 0.1 % heavier (the environment changed), miss the recorded first episode."""
+    import dataclasses
+
+    from agents.evaluate import SB3Policy, run_episodes
+
+    doc = comparison("stabilize")
+    recorded = doc["policies"]["policy"]["returns"][:1]
+    policy = SB3Policy(MODELS / "stabilize_ppo" / "model.zip")
+    assert [e.ret for e in run_episodes(policy, "stabilize", 1, doc["seed"])] == pytest.approx(recorded, rel=1e-6)
+    heavier = {"scene_overrides": {"body.mass": 1.001 * 0.5}}
+    assert [e.ret for e in run_episodes(policy, "stabilize", 1, doc["seed"], env_kwargs=heavier)] != pytest.approx(
+        recorded, rel=1e-6)
+    actor = policy.actor
+    policy.actor = dataclasses.replace(actor, biases=actor.biases[:-1] + (actor.biases[-1] + 1e-4,))
+    assert [e.ret for e in run_episodes(policy, "stabilize", 1, doc["seed"])] != pytest.approx(recorded, rel=1e-6)
+
+
+def test_a_shipped_policy_loaded_by_name_acts_as_in_the_documented_comparison():
+    """esp_gym.zoo.load's predict, and esp_gym.zoo.baseline's, in a plain Gymnasium loop on the
+    environment of esp_gym.zoo.make, give the documented first episode of a hard configuration (its
+    base a Kalman filter, which restarts at each episode by itself: the policy twice in a row); BLAS
+    on one thread, as the comparison ran. Names and refusals."""
+    from threadpoolctl import threadpool_limits
+
+    import esp_gym.zoo
+
+    def episode(policy, env, seed):
+        obs, _ = env.reset(seed=seed)
+        total, done = 0.0, False
+        while not done:
+            action, state = policy.predict(obs, deterministic=True)
+            obs, reward, terminated, truncated, _ = env.step(action)
+            total, done = total + reward, terminated or truncated
+        return total
+
+    assert esp_gym.zoo.names() == sorted(p.name for p in MODELS.iterdir() if p.is_dir())
+    doc = comparison("stabilize_hard")
+    env = esp_gym.zoo.make("stabilize_hard_ppo")
+    policy, base = esp_gym.zoo.load("stabilize_hard_ppo", env), esp_gym.zoo.baseline("stabilize_hard_ppo", env)
+    with threadpool_limits(limits=1, user_api="blas"):
+        returns = [episode(policy, env, doc["seed"]) for _ in range(2)]
+        base_return = episode(base, env, doc["seed"])
+    assert returns == pytest.approx(doc["policies"]["policy"]["returns"][:1] * 2, rel=1e-6)
+    assert base_return == pytest.approx(doc["policies"]["lqg"]["returns"][0], rel=1e-6)
+    obs = env.reset(seed=0)[0]
+    with pytest.raises(ValueError, match="no shipped policy 'stabilise_ppo'"):
+        esp_gym.zoo.load("stabilise_ppo")
+    with pytest.raises(ValueError, match="deterministic=False"):
+        policy.predict(obs, deterministic=False)
+    with pytest.raises(RuntimeError, match=r"reset\(env\)"):
+        esp_gym.zoo.load("stabilize_ppo").predict(obs)
