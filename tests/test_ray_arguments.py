@@ -1,7 +1,9 @@
 """The Ray scripts' arguments (agents.distributed.train and .sweep, agents.team_train and
 agents.team_sweep): bad input is one line naming the argument, with exit status 2, before anything
 is written or a cluster is joined; and the sweeps' spaces. No cluster: these run with the others
-(tests/test_ray.py starts one)."""
+(tests/test_ray.py starts one). Each script's main runs here (tests/script_main.py), but for one
+case per script that runs ``python -m`` in a subprocess."""
+import importlib
 import os
 import subprocess
 import sys
@@ -11,6 +13,7 @@ import pytest
 
 from agents.distributed.cluster import free_port
 from agents.distributed.sweep import parse_space
+from script_main import call_main
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -20,7 +23,14 @@ def run(module, *args, timeout=120) -> subprocess.CompletedProcess:
                           timeout=timeout, env={**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"})
 
 
-@pytest.mark.parametrize("module, args, names", [
+#: The case of each script run by ``python -m`` in a subprocess: one that reaches its settings' checks.
+END_TO_END = {("agents.distributed.train", "--set", "env_kwargs.wnd=3"),
+              ("agents.distributed.sweep", "--set", "residual=lqg"),
+              ("agents.team_train", "--task", "lower"),
+              ("agents.team_sweep", "--space", '{"minibatch_size": [1000, 100000]}')}
+
+
+CASES = [
     ("agents.distributed.train", ["--address", "127.0.0.1:{port}"], ["--address", "127.0.0.1:{port}"]),
     ("agents.distributed.train", ["--address", "nohostport"], ["--address", "HOST:PORT"]),
     ("agents.distributed.train", ["--task", "balance"], ["--task", "balance"]),
@@ -47,18 +57,29 @@ def run(module, *args, timeout=120) -> subprocess.CompletedProcess:
     ("agents.team_sweep", ["--space", '{"minibatch_size": [1000, 100000]}'], ["--space", "'minibatch_size' = 100000"]),
     ("agents.team_sweep", ["--team", "7", "--space", '{"seed": [0]}'], ["--team", "1 to 6"]),
     ("agents.team_sweep", ["--space", '{"seed": [0]}', "--address", "127.0.0.1:{port}"], ["--address"]),
-])
-def test_bad_input_is_one_line_naming_the_argument_and_writes_nothing(tmp_path, module, args, names):
+]
+
+
+@pytest.mark.parametrize("module, args, names", CASES)
+def test_bad_input_is_one_line_naming_the_argument_and_writes_nothing(tmp_path, capfd, module, args, names):
     port = str(free_port())  # nothing listens there
     fill = [a.replace("{port}", port) for a in args]
     out = ["--runs", tmp_path / "runs"] if module in ("agents.distributed.train", "agents.team_train") else ["--out", tmp_path / "sweep"]
-    proc = run(module, *fill, *out, timeout=120)
+    if (module, *args[:2]) in END_TO_END:
+        proc = run(module, *fill, *out, timeout=120)
+    else:
+        proc = call_main(importlib.import_module(module).main, [*fill, *out], capfd)
     assert proc.returncode == 2, proc.stderr[-3000:]
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1, proc.stderr[-3000:]
     for name in names:
         assert name.replace("{port}", port) in lines[0], lines[0]
     assert list(tmp_path.iterdir()) == []
+
+
+def test_each_script_has_one_case_in_a_subprocess():
+    alone = [module for module, args, _ in CASES if (module, *args[:2]) in END_TO_END]
+    assert sorted(alone) == sorted({module for module, *_ in CASES})
 
 
 def test_a_space_key_may_complete_what_the_base_settings_lack():
