@@ -1,12 +1,25 @@
 """Agents for ElasticStringPendulum-v0: SB3 training and evaluation, classical baselines, and
 training on a Ray cluster (the subpackage agents.distributed, the ``ray`` extra).
 
-Run from the repository root as modules: ``python -m agents.train``, ``python -m agents.evaluate``,
-``python -m agents.compare``, ``python -m agents.zoo``, ``python -m agents.baselines.gain_search``, ``python -m agents.distributed.train``,
+Installed with the ``agents`` extra (``pip install 'esp_gym[agents]'``) or run from a checkout, as
+modules: ``python -m agents.train``, ``python -m agents.evaluate``, ``python -m agents.compare``,
+``python -m agents.zoo``, ``python -m agents.baselines.gain_search``, ``python -m agents.distributed.train``,
 ``python -m agents.distributed.sweep`` (``--help`` for the options of each).
+
+The shipped data, the agents' configs and the trained models, is read from the names below and
+nowhere else: in a wheel they are package data beside this file (``agents/configs``,
+``agents/models``, mapped from the repository's ``configs/agents`` and ``models`` by
+pyproject.toml), in a checkout the repository's own directories.
 """
 from pathlib import Path
 
-#: The repository root, and where the agents' configs live (light: no import of torch or SB3).
-ROOT = Path(__file__).resolve().parent.parent
-CONFIG_DIR = ROOT / "configs" / "agents"
+PACKAGE = Path(__file__).resolve().parent
+#: True when installed from a wheel (the data beside the modules), False in a checkout.
+INSTALLED = (PACKAGE / "configs").is_dir()
+#: The checkout's root, or the current directory when installed: where the commands write by
+#: default (runs/, sweeps/), never into site-packages.
+ROOT = Path() if INSTALLED else PACKAGE.parent
+#: The agents' configs (ALGO.yaml, zoo.yaml) and the shipped models (NAME_ppo, team3_*_rllib); light:
+#: no import of torch or SB3.
+CONFIG_DIR = PACKAGE / "configs" if INSTALLED else ROOT / "configs" / "agents"
+MODELS = PACKAGE / "models" if INSTALLED else ROOT / "models"

@@ -24,14 +24,13 @@ from typing import Optional
 import numpy as np
 
 from agents.cli import ArgumentParser
-from agents import ROOT
+from agents import MODELS
 from agents.baselines.pd import ZeroPolicy
 from agents.baselines.registry import baselines
 from agents.evaluate import SB3Policy, run_episodes, summarize
 from esp_gym.options import EnvOptions
 from esp_gym.tasks import TASKS
 
-MODELS = ROOT / "models"
 HELD_OUT_SEED = 100_000
 DEFAULT_SCENE = EnvOptions.model_fields["scene"].default
 NOT_BASELINES = ("zero", "policy", "lqr_true_state", "cascade_true_state", "hoist_true_state")

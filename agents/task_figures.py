@@ -25,7 +25,7 @@ import gymnasium as gym
 import numpy as np
 
 import esp_gym
-from agents import ROOT
+from agents import MODELS
 from agents.cli import ArgumentParser
 from agents.baselines.pd import ZeroPolicy
 from agents.baselines.registry import baseline, baselines
@@ -266,7 +266,7 @@ def main(argv=None) -> dict:
                     help="only drone_transport.png: quadrotor_load's transport under the geometric cascade")
     ap.add_argument("--hard-lift", action="store_true",
                     help="only lift_hard.png: the hard preset's lift under the hoist and the policy of --model")
-    ap.add_argument("--model", default=str(ROOT / "models" / "lift_hard_ppo" / "model.zip"),
+    ap.add_argument("--model", default=str(MODELS / "lift_hard_ppo" / "model.zip"),
                     help="the policy of --hard-lift (default: the shipped one; left out if absent)")
     ap.add_argument("--team", type=int, default=None, metavar="K",
                     help="only team_TASK.png: a team of K pivots (docs/team.md) under the team's LQR")

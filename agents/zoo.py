@@ -31,11 +31,11 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field
 
 from agents.cli import ArgumentParser
-from agents import CONFIG_DIR, ROOT
+from agents import CONFIG_DIR, INSTALLED, MODELS, ROOT
 
 ZOO_FILE = CONFIG_DIR / "zoo.yaml"
-MODELS = ROOT / "models"
-COMPARE_DIR = ROOT / "docs" / "compare"
+#: The docs' comparisons in a checkout (rewritten with their quotes); installed, out/compare.
+COMPARE_DIR = ROOT / "out" / "compare" if INSTALLED else ROOT / "docs" / "compare"
 #: What a shipped model directory holds of its run (the rest, checkpoints and logs, stays in runs/).
 SHIPPED_FILES = ("model.zip", "vecnormalize.npz", "config.yaml", "args.json", "command.txt", "residual.json",
                  "training.json", "evaluations.npz", "learning_curve.png", "references.json")
@@ -153,7 +153,8 @@ def train(zoo: Zoo, names: list, runs: Path, models: Path, jobs: int = 1, extra:
 
     runs.mkdir(parents=True, exist_ok=True)
     waiting, running, shipped, failed = list(names), {}, {}, {}
-    env = {**os.environ, **ONE_THREAD, "PYTHONPATH": os.pathsep.join(filter(None, (str(ROOT),
+    checkout = None if INSTALLED else str(ROOT)  # installed, agents imports from site-packages
+    env = {**os.environ, **ONE_THREAD, "PYTHONPATH": os.pathsep.join(filter(None, (checkout,
                                                                                   os.environ.get("PYTHONPATH"))))}
     with tqdm(total=len(names), desc="zoo training", unit="model", disable=not progress) as bar:
         while waiting or running:
@@ -224,8 +225,10 @@ def main(argv=None) -> dict:
                     help="more agents.train --set items for every training (e.g. a smaller total_timesteps)")
     ap.add_argument("--zoo", default=str(ZOO_FILE), help="the zoo file (default: configs/agents/zoo.yaml)")
     ap.add_argument("--runs", default=str(ROOT / "runs"), help="where run directories go (default: runs/)")
-    ap.add_argument("--models", default=str(MODELS), help="where models are shipped and read (default: models/)")
-    ap.add_argument("--out", default=str(COMPARE_DIR), help="where the comparisons go (default: docs/compare)")
+    ap.add_argument("--models", default=None, help="where models are shipped and read (default: the shipped models; "
+                    "installed, models/ with --train)")
+    ap.add_argument("--out", default=str(COMPARE_DIR), help="where the comparisons go (default: docs/compare; "
+                    "installed, out/compare)")
     ap.add_argument("--episodes", type=int, default=100, help="held-out episodes per comparison (default: 100)")
     ap.add_argument("--seed", type=int, default=HELD_OUT_SEED, help=f"first held-out seed (default: {HELD_OUT_SEED})")
     ap.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bars")
@@ -238,6 +241,8 @@ def main(argv=None) -> dict:
         zoo = load_zoo(Path(a.zoo))
     except ValueError as err:  # pydantic's ValidationError is one
         ap.error(f"argument --zoo: {err}")
+    # --train writes under ROOT: in a checkout that is MODELS, an install's shipped models stay as they are
+    models = Path(a.models or (ROOT / "models" if a.train else MODELS))
     names = a.only or list(zoo.configurations)
     unknown = [n for n in names if n not in zoo.configurations]
     if unknown:
@@ -249,14 +254,14 @@ def main(argv=None) -> dict:
         for name in names:
             print(f"{name}: python -m agents.train {shlex.join(train_argv(zoo, name, Path(a.runs), tuple(a.set)))}")
     if a.train:
-        out["shipped"] = {n: str(p) for n, p in train(zoo, names, Path(a.runs), Path(a.models), a.jobs,
+        out["shipped"] = {n: str(p) for n, p in train(zoo, names, Path(a.runs), models, a.jobs,
                                                       tuple(a.set), a.progress).items()}
     if a.compare:
-        out["compared"] = compare_all(zoo, names, Path(a.models), Path(a.out), a.episodes, a.seed, a.jobs,
+        out["compared"] = compare_all(zoo, names, models, Path(a.out), a.episodes, a.seed, a.jobs,
                                       a.progress)
         for c in out["compared"].values():
             print(markdown(c) + "\n")
-        if Path(a.out).resolve() == COMPARE_DIR.resolve():
+        if not INSTALLED and Path(a.out).resolve() == COMPARE_DIR.resolve():
             from benchmarks.quote import main as quote_main
 
             quote_main(["--write"])

@@ -64,7 +64,7 @@ class Settings:
     out: str = str(DEFAULT_OUT)
     """output directory"""
     scene: str = "paper_example"
-    """scene name (configs/scenes), run with string.mass_model = lumped"""
+    """scene name (esp_gym/scenes), run with string.mass_model = lumped"""
     t_final: float = 1.0
     """work-precision horizon [s]"""
     sample: float = 0.01

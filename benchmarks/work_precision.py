@@ -57,7 +57,7 @@ class Settings:
     out: str = str(DEFAULT_OUT)
     """output directory"""
     scene: str = "paper_example"
-    """scene name (configs/scenes)"""
+    """scene name (esp_gym/scenes)"""
     t_final: float = 1.0
     """work-precision horizon [s]"""
     sample: float = 0.01

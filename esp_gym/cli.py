@@ -18,7 +18,7 @@ Subcommands:
     ===================  ==================================================================
 
 ``esp-gym record --scene NAME --t-final T --out FILE.rrd [--record-every K] [--no-progress]``
-    Simulate scene NAME (a name under configs/scenes or a YAML path) for T seconds without
+    Simulate scene NAME (a shipped scene, esp_gym/scenes, or a YAML path) for T seconds without
     inputs and write a Rerun recording (esp_gym/viz/recording.py): the 3-D scene and the
     energy and momentum diagnostics every K physics steps (default: ~50 samples per simulated
     second) and at the end. Open it with ``rerun FILE.rrd``.
@@ -414,7 +414,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "coloured by strain, the posed body, the load's trail and the energy and "
                                    "momentum diagnostics.")
     p.add_argument("--scene", default=PAPER["scene"],
-                   help="scene name under configs/scenes or a YAML path (default: %(default)s)")
+                   help="a shipped scene's name (esp_gym/scenes) or a YAML path (default: %(default)s)")
     p.add_argument("--t-final", type=_seconds, default=PAPER["t_final"],
                    help="simulated time [s], a whole number of steps (default: %(default)s)")
     p.add_argument("--out", default="out/recording.rrd", help="output .rrd file (default: %(default)s)")

@@ -116,7 +116,7 @@ class ElasticStringPendulumEnv(gym.Env):
     ## Arguments
     | argument | default | meaning |
     |---|---|---|
-    | `scene` | `"drone_load"` | scene name under configs/scenes, YAML path or `Scene`; needs a free pivot |
+    | `scene` | `"drone_load"` | shipped scene name (esp_gym/scenes), YAML path or `Scene`; needs a free pivot |
     | `task` | `"stabilize"` | `"stabilize"`, `"transport"`, `"track"`; with `winch=True` also `"lift"`, `"lower"` |
     | `control_period` | 0.02 | seconds per `step` (a whole number of physics steps) |
     | `h` | None | physics step; None: the largest dividing the control period under `safety` x the stability bound (with `scene_overrides={"solver": {"string": "implicit"}}`, under 0.9 x the implicit string's transverse bound: docs/physics.md) |

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Mapping
+from importlib import resources
 from pathlib import Path
 from typing import Any, Literal, Optional
 
@@ -38,7 +39,9 @@ MIN_INERTIA_SHARE = 1e-10
 #: have different fields).
 KINDS = ("body.shape",)
 
-SCENES_DIR = Path(__file__).resolve().parent.parent / "configs" / "scenes"
+#: The shipped scenes, package data of esp_gym (esp_gym/scenes/NAME.yaml): a Traversable, read
+#: through importlib.resources.
+SCENES_DIR = resources.files(__package__) / "scenes"
 
 
 class StringParams(_Frozen):
@@ -385,8 +388,8 @@ def scene_from_dict(data: Any, source: str = "<dict>") -> Scene:
 
 
 def available_scenes() -> list[str]:
-    """Names of the scenes under ``configs/scenes``."""
-    return sorted(p.stem for p in SCENES_DIR.glob("*.yaml"))
+    """Names of the shipped scenes (esp_gym/scenes)."""
+    return sorted(p.name.removesuffix(".yaml") for p in SCENES_DIR.iterdir() if p.name.endswith(".yaml"))
 
 
 def override_scene(scene: Scene, overrides: Optional[Mapping[str, Any]] = None) -> Scene:
@@ -400,7 +403,7 @@ def override_scene(scene: Scene, overrides: Optional[Mapping[str, Any]] = None) 
 
 
 def load_scene(name_or_path: str | Path | Scene, **overrides: Any) -> Scene:
-    """Load a scene by name (``configs/scenes/NAME.yaml``) or YAML path (.yaml or .yml, in any
+    """Load a scene by name (a shipped one, esp_gym/scenes/NAME.yaml) or YAML path (.yaml or .yml, in any
     case), with overrides; a :class:`Scene` is taken as it is (then see :func:`override_scene`).
 
     Overrides are validated like the file: top-level fields (``h=2.5e-5``), sections merged
@@ -419,7 +422,8 @@ def load_scene(name_or_path: str | Path | Scene, **overrides: Any) -> Scene:
             raise SceneError(f"no scene {str(name_or_path)!r}: not a YAML file and not one of {known}")
         what = "a directory" if path.is_dir() else "no such file"
         raise SceneError(f"no scene file {str(name_or_path)!r}: {what} (the scenes by name: {known})")
-    data = read_scene_file(path)
-    data.setdefault("name", path.stem)
+    with resources.as_file(path) as file:  # a shipped scene as a file (it is one, but for a zipped install)
+        data = read_scene_file(file)
+    data.setdefault("name", Path(path.name).stem)
     data = merge_overrides(data, overrides, Scene.model_fields, KINDS)
     return scene_from_dict(data, source=f"{data.get('name')!r} ({path})")

@@ -10,14 +10,16 @@ from typing import Any, Optional, Sequence
 
 import gymnasium as gym
 import numpy as np
-from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
 from . import MAX_EPISODE_STEPS
 from .control import INFO_REWARD_KEYS, ControlStep
 from .setup import make_setup
 from .errors import termination_reason
+from .extras import require
 from .options import check_count
 from .vector import reset_sub_env
+
+VecEnv = require("stable_baselines3.common.vec_env.base_vec_env", "esp_gym.sb3_vector").VecEnv
 
 
 class ElasticStringPendulumSB3VecEnv(VecEnv):

@@ -16,8 +16,10 @@ SERIAL_TESTS = {"test_a_randomised_reset_costs_at_most_two_and_a_half_plain_ones
 
 
 #: Modules that run the scripts end to end in subprocesses (the command lines, the benchmarks' and
-#: the training's smoke runs): marked slow, which `make check` leaves to `make test`.
-SLOW_MODULES = {"test_cli.py", "test_agents.py", "test_agents_cli.py", "test_mujoco_chain.py", "test_ray_arguments.py"}
+#: the training's smoke runs, the wheel installed in a new environment): marked slow, which `make check`
+#: leaves to `make test`.
+SLOW_MODULES = {"test_cli.py", "test_agents.py", "test_agents_cli.py", "test_mujoco_chain.py", "test_ray_arguments.py",
+                "test_wheel.py"}
 
 
 def pytest_collection_modifyitems(items):
@@ -36,7 +38,7 @@ settings.register_profile("explore", derandomize=False)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 
-#: The paper's example and two scenes far from it (see configs/scenes/*.yaml).
+#: The paper's example and two scenes far from it (see esp_gym/scenes/*.yaml).
 INVARIANT_SCENES = ["paper_example", "short_stiff", "large_offset"]
 
 

@@ -26,7 +26,8 @@ import uuid
 from pathlib import Path
 from typing import Optional
 
-ROOT = Path(__file__).resolve().parents[2]  # the repository (agents/distributed/cluster.py)
+from agents import PACKAGE
+
 #: What a Ray worker of these jobs runs with: one numba and one torch thread per CPU it holds.
 WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
@@ -71,7 +72,7 @@ def connect(address: Optional[str]) -> None:
     token_auth(address)
     import ray
 
-    runtime_env = {"py_modules": [str(ROOT / "agents")], "env_vars": dict(WORKER_ENV)}
+    runtime_env = {"py_modules": [str(PACKAGE)], "env_vars": dict(WORKER_ENV)}
     # Ray on this machine listens on a loopback address (Ray would take the machine's network
     # address, and replaces 127.0.0.1 by it); a cluster's nodes have their own addresses
     local = {"_node_ip_address": node_ip(0)} if address is None else {}

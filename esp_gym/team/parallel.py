@@ -9,9 +9,11 @@ from typing import Optional
 
 import gymnasium as gym
 import numpy as np
-from pettingzoo import ParallelEnv
 
+from ..extras import require
 from .env import MAX_EPISODE_STEPS, TeamCore
+
+ParallelEnv = require("pettingzoo", "esp_gym.team.parallel_env").ParallelEnv
 
 
 class ElasticStringTeamParallelEnv(ParallelEnv):

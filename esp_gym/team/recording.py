@@ -15,9 +15,11 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
-import rerun as rr
 
+from ..extras import require
 from ..params import Box
+
+rr = require("rerun", "esp_gym.team.recording")
 
 
 class RecordTeamRerun(gym.Wrapper):

@@ -206,7 +206,7 @@ RANDOM_FACTORS = dict(EA=(0.5, 2.0, "log"), mass_per_length=(0.5, 2.0, "log"), l
                       pivot_mass=(0.8, 1.25, "uniform"), body_mass=(0.7, 1.5, "uniform"))
 
 def quadrotor() -> tuple:
-    """``(mass [kg], DroneParams)`` of the quadrotor of ``quadrotor_load`` (configs/scenes: PX4's
+    """``(mass [kg], DroneParams)`` of the quadrotor of ``quadrotor_load`` (esp_gym/scenes: PX4's
     1.5 kg x500), a team's drone by default."""
     from ..params import load_scene
 

@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..extras import require
 from ..params import Scene
 
 #: MuJoCo's names of its integrators (``<option integrator=...>``); all but RK4 are first order.
@@ -49,21 +50,14 @@ from ..params import Scene
 #: there; large_offset's spins, and they do not. "discrete" needs MuJoCo >= 3.13.
 INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast", "discrete")
 
-_INSTALL_HINT = ("the MuJoCo comparison needs the optional dependency mujoco: "
-                 "pip install esp_gym[bench] (or pip install mujoco)")
-
 #: Rotational inertia [kg m^2] given to the point-mass node bodies: MuJoCo requires a positive
 #: one, and with slide joints only no force can rotate them, so its value never enters.
 _NODE_INERTIA = 1e-9
 
 
 def import_mujoco():
-    """The ``mujoco`` module, or an ImportError that says how to install it."""
-    try:
-        import mujoco
-    except ImportError as err:
-        raise ImportError(_INSTALL_HINT) from err
-    return mujoco
+    """The ``mujoco`` module, or an ImportError that names the ``bench`` extra."""
+    return require("mujoco", "the MuJoCo comparison (esp_gym.verify.mujoco_chain)")
 
 
 def _num(x: float) -> str:

@@ -17,8 +17,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Optional, Sequence
 
-import matplotlib
 import numpy as np
+
+from ..extras import require
+
+matplotlib = require("matplotlib", "esp_gym.viz.figures")  # the plot extra, then the parts used
 from matplotlib import colors as mcolors
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.cm import ScalarMappable
