@@ -1,6 +1,9 @@
 """The agent scripts' arguments and files: ``--set`` (repeatable, dotted keys, YAML values,
 checked keys), errors that are one line naming the argument and write nothing, model files named
-when they cannot be loaded, and normalisation statistics read as data, never unpickled."""
+when they cannot be loaded, and normalisation statistics read as data, never unpickled. The
+one-line errors are checked on each script's main in the test's process (tests/script_main.py),
+but for one case per script that runs ``python -m`` in a subprocess."""
+import importlib
 import json
 import pickle
 import re
@@ -15,6 +18,7 @@ import pytest
 
 from agents.common import load_run_config
 from agents.evaluate import SB3Policy
+from script_main import call_main
 
 ROOT = Path(__file__).resolve().parent.parent
 ENV_ID = "ElasticStringPendulum-v0"
@@ -28,6 +32,11 @@ TINY_OPTIONS = ["--reference-episodes", "1", "--eval-episodes", "1", "--no-progr
 def cli(module: str, *args) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", module, *map(str, args)], capture_output=True, text=True,
                           timeout=900, cwd=ROOT)
+
+
+def main_of(module: str, capfd, *args) -> subprocess.CompletedProcess:
+    """``module``'s main with ``args`` in this process, read as :func:`cli` reads a subprocess."""
+    return call_main(importlib.import_module(module).main, args, capfd)
 
 
 def assert_usage_error(proc: subprocess.CompletedProcess, *names: str) -> str:
@@ -121,7 +130,7 @@ def _fake_run(tmp_path: Path) -> Path:
                                   "run_exists", "algorithm_rejects", "resume_not_a_checkpoint_name",
                                   "resume_outside_a_run", "resume_missing", "resume_with_run_setting",
                                   "residual_without_its_observation", "batch_past_memory"])
-def test_train_errors_are_one_line_and_write_nothing(tmp_path, case):
+def test_train_errors_are_one_line_and_write_nothing(tmp_path, capfd, case):
     run = _fake_run(tmp_path)
     shutil.copy(SHIPPED, run / "checkpoints" / "model.zip")
     (tmp_path / "loose").mkdir()
@@ -147,11 +156,13 @@ def test_train_errors_are_one_line_and_write_nothing(tmp_path, case):
                               ["--set", "num_envs = 100000000 environments", "GiB"]),
     }[case]
     before = tree(tmp_path)
-    assert_usage_error(cli("agents.train", *args), *names)
+    # one case runs python -m agents.train (tests/test_agents.py runs its successes so)
+    proc = cli("agents.train", *args) if case == "unknown_key_in_an_earlier_set" else main_of("agents.train", capfd, *args)
+    assert_usage_error(proc, *names)
     assert tree(tmp_path) == before
 
 
-def test_evaluate_flies_the_drone_with_the_geometric_controller():
+def test_evaluate_flies_the_drone_with_the_geometric_controller(capfd):
     """The drone's interface (issue 34): ``--policy geometric --scene quadrotor_load --actuation
     thrust_rates`` runs and reports its configuration; a point pivot has no geometric controller."""
     proc = cli("agents.evaluate", "--policy", "geometric", "--scene", "quadrotor_load", "--actuation", "thrust_rates",
@@ -160,18 +171,25 @@ def test_evaluate_flies_the_drone_with_the_geometric_controller():
     stats = json.loads(proc.stdout.strip().splitlines()[-1])
     assert (stats["policy"], stats["scene"], stats["actuation"]) == ("geometric", "quadrotor_load", "thrust_rates")
     assert stats["mean_return"] > 300.0
-    assert_usage_error(cli("agents.evaluate", "--policy", "geometric", "--episodes", "1"), "--policy", "'geometric'")
-    assert_usage_error(cli("agents.evaluate", "--scene", "quadrotor_load", "--actuation", "force", "--episodes", "1"),
-                       "--scene/--actuation", "does not fly")
+    assert_usage_error(main_of("agents.evaluate", capfd, "--policy", "geometric", "--episodes", "1"),
+                       "--policy", "'geometric'")
+    assert_usage_error(main_of("agents.evaluate", capfd, "--scene", "quadrotor_load", "--actuation", "force",
+                               "--episodes", "1"), "--scene/--actuation", "does not fly")
 
 
 def test_evaluate_rejects_policy_names_it_does_not_know():
+    # agents.evaluate's usage error in a subprocess (the others run its main here)
     line = assert_usage_error(cli("agents.evaluate", "--policy", "baselineXYZ", "--episodes", "1"),
                               "--policy", "baselineXYZ")
     assert "zero" in line and "baseline" in line
 
 
-@pytest.mark.parametrize("module, args, names", [
+#: The case of each script run by ``python -m`` in a subprocess (agents.evaluate's: the test above).
+END_TO_END = {("agents.compare", "--task", "stabilize"), ("agents.task_figures", "--out", "{missing}/figures"),
+              ("agents.baselines.gain_search", "--grid", '{"kq": [1]}')}
+
+
+SCRIPT_ERRORS = [
     ("agents.evaluate", ["--episodes", "0"], ["--episodes"]),
     ("agents.evaluate", ["--policy", "zero", "--episodes", "1", "--record", "{missing}/x.rrd"], ["--record", "{missing}"]),
     ("agents.evaluate", ["--policy", "lqr", "--preset", "hard", "--episodes", "1"], ["--policy", "'lqr'", "lqg"]),
@@ -197,15 +215,25 @@ def test_evaluate_rejects_policy_names_it_does_not_know():
                                       "--grid", '{"kp": [1]}'], ["--grid", "'kp'", "k_load"]),
     ("agents.compare", ["--scene", "quadrotor_load", "--actuation", "force", "--episodes", "2"],
      ["--scene/--actuation", "does not fly"]),
-])
-def test_script_errors_are_one_line(tmp_path, module, args, names):
+]
+
+
+@pytest.mark.parametrize("module, args, names", SCRIPT_ERRORS)
+def test_script_errors_are_one_line(tmp_path, capfd, module, args, names):
     missing = tmp_path / "missing"  # a directory that does not exist
 
     def fill(text):
         return str(text).replace("{missing}", str(missing)).replace("{tmp}", str(tmp_path))
 
-    assert_usage_error(cli(module, *map(fill, args)), *map(fill, names))
+    alone = (module, *map(str, args[:2])) in END_TO_END
+    proc = cli(module, *map(fill, args)) if alone else main_of(module, capfd, *map(fill, args))
+    assert_usage_error(proc, *map(fill, names))
     assert not missing.exists()
+
+
+def test_each_script_has_one_error_case_in_a_subprocess():
+    alone = [module for module, args, _ in SCRIPT_ERRORS if (module, *map(str, args[:2])) in END_TO_END]
+    assert sorted(alone) == sorted({module for module, *_ in SCRIPT_ERRORS} - {"agents.evaluate"})
 
 
 def test_a_model_knows_its_configuration_and_says_where_it_is_run_elsewhere():
@@ -247,9 +275,9 @@ def test_unloadable_model_files_are_errors_naming_the_file(tmp_path, name):
         SB3Policy(path)
 
 
-def test_evaluate_names_an_unloadable_model_file(tmp_path):
+def test_evaluate_names_an_unloadable_model_file(tmp_path, capfd):
     path = _damaged_models(tmp_path)["empty_archive"]
-    assert_usage_error(cli("agents.evaluate", "--policy", path, "--episodes", "1"), "--policy", str(path))
+    assert_usage_error(main_of("agents.evaluate", capfd, "--policy", path, "--episodes", "1"), "--policy", str(path))
 
 
 # --- normalisation statistics -------------------------------------------------------------------
