@@ -31,7 +31,8 @@ demo: $(VENV)/.installed
 # suite, then the clock-sensitive modules alone (tests/conftest.py); both parts always run, and the
 # target fails if either did
 # OpenBLAS's Haswell kernels on every x86-64 machine: the documented comparisons (docs/compare) were
-# written with them, and an AVX-512 CPU's own kernels round differently, which a chaotic hard episode
+# written with them (the baselines' products; the policies run in float64 loops of their own,
+# agents/mlp.py), and an AVX-512 CPU's own kernels round differently, which a chaotic hard episode
 # grows into a different return (tests/test_zoo.py, tests/test_team_env.py rerun them to 1e-6)
 test: export OPENBLAS_CORETYPE = Haswell
 test: $(VENV)/.installed-test

@@ -119,7 +119,7 @@ class MLPActor:
         return out.reshape(x.shape[:-1] + out.shape[-1:])
 
 
-def _dense_chain(modules, where: str) -> tuple:
+def dense_chain(modules, where: str) -> tuple:
     """(weights, biases, activations) of a torch chain of Linear layers, each followed by at most
     one activation (none: Identity)."""
     weights, biases, activations = [], [], []
@@ -139,7 +139,7 @@ def _dense_chain(modules, where: str) -> tuple:
     return weights, biases, activations
 
 
-def _kept_inputs(extractor, where: str):
+def kept_inputs(extractor, where: str):
     kind = type(extractor).__name__
     if kind == "FlattenExtractor":
         return None
@@ -156,17 +156,17 @@ def actor_of_sb3(model) -> MLPActor:
         actor = policy.actor
         if getattr(actor, "use_sde", False):
             raise UnsupportedNetwork(f"{kind}: gSDE actors")
-        kept = _kept_inputs(actor.features_extractor, kind)
-        w1, b1, a1 = _dense_chain(actor.latent_pi, f"{kind}.actor.latent_pi")
-        w2, b2, a2 = _dense_chain([actor.mu], f"{kind}.actor.mu")
+        kept = kept_inputs(actor.features_extractor, kind)
+        w1, b1, a1 = dense_chain(actor.latent_pi, f"{kind}.actor.latent_pi")
+        w2, b2, a2 = dense_chain([actor.mu], f"{kind}.actor.mu")
         return MLPActor(tuple(w1 + w2), tuple(b1 + b2), tuple(a1 + a2), kept, squash=True)
     if not (hasattr(policy, "mlp_extractor") and hasattr(policy, "action_net")):
         raise UnsupportedNetwork(f"{kind}: not an actor-critic MLP policy nor SAC's")
     if getattr(policy, "use_sde", False) or getattr(policy, "squash_output", False):
         raise UnsupportedNetwork(f"{kind}: gSDE or squashed outputs")
-    kept = _kept_inputs(policy.pi_features_extractor, kind)
-    w1, b1, a1 = _dense_chain(policy.mlp_extractor.policy_net, f"{kind}.mlp_extractor.policy_net")
-    w2, b2, a2 = _dense_chain([policy.action_net], f"{kind}.action_net")
+    kept = kept_inputs(policy.pi_features_extractor, kind)
+    w1, b1, a1 = dense_chain(policy.mlp_extractor.policy_net, f"{kind}.mlp_extractor.policy_net")
+    w2, b2, a2 = dense_chain([policy.action_net], f"{kind}.action_net")
     return MLPActor(tuple(w1 + w2), tuple(b1 + b2), tuple(a1 + a2), kept)
 
 
@@ -185,7 +185,7 @@ def actor_of_rllib(module, action_size: int) -> MLPActor:
         raise UnsupportedNetwork(f"{kind}: neither RLlib's default PPO module nor CentralCriticModule")
     weights, biases, activations = [], [], []
     for chain, where in chains:
-        w, b, a = _dense_chain(chain, where)
+        w, b, a = dense_chain(chain, where)
         weights += w
         biases += b
         activations += a

@@ -3,8 +3,9 @@
 Each configuration of the environment's compiled step (with or without the winch, on the
 explicit or the implicit string, single or batched: ``ENTRY_POINTS`` in esp_gym/kernels/env_step.py;
 with a drone at the pivot, single or batched: ``DRONE_ENTRY_POINTS`` in esp_gym/kernels/drone_env.py;
-a drone at an offset hook: ``HOOK_ENTRY_POINTS`` there)
-compiles on its first step and is cached on disk (docs/performance.md, "Start-up"). This takes
+a drone at an offset hook: ``HOOK_ENTRY_POINTS`` there; a team's, of point pivots, of drones or on
+winches: ``team_advance``, ``team_drone_advance`` and ``team_winch_advance`` in
+esp_gym/kernels/team_loops.py) compiles on its first step and is cached on disk (docs/performance.md, "Start-up"). This takes
 them all in worker processes, so that a machine (a container image, a CI run, a cluster's nodes)
 pays the compile once, in parallel, instead of at the first step of each.
 """
@@ -25,33 +26,42 @@ class Configuration:
     batched: bool
     drone: bool = False
     hook: bool = False  #: the drone's hook off its centre of mass (pivot.drone.rho_q)
+    team: bool = False  #: a team of TEAM_SIZE strings on one load (ElasticStringTeam-v0)
 
     @property
     def name(self) -> str:
         kind = ("drone-winch" if self.winch else "drone-hook" if self.hook else "drone") if self.drone \
             else "winch" if self.winch else "fixed"
+        if self.team:
+            return f"team-{kind}"
         return "-".join((kind, "implicit" if self.implicit else "explicit", "batched" if self.batched else "single"))
 
 
 #: Every configuration, the first environment's (no winch, explicit, single) first; a drone's
-#: (explicit, with or without the winch, then at an offset hook) last.
+#: (explicit, with or without the winch, then at an offset hook), then a team's (point pivots,
+#: drones, winches: a team's step is one compiled loop whether one or many teams run) last.
 CONFIGURATIONS = (tuple(Configuration(w, i, b) for w in (False, True) for i in (False, True) for b in (False, True))
                   + tuple(Configuration(w, False, b, True) for w in (False, True) for b in (False, True))
-                  + tuple(Configuration(False, False, b, True, True) for b in (False, True)))
+                  + tuple(Configuration(False, False, b, True, True) for b in (False, True))
+                  + (Configuration(False, False, False, team=True), Configuration(False, False, False, True, team=True),
+                     Configuration(True, False, False, team=True)))
+#: The strings of the team the team configurations compile with (any size: the same kernels).
+TEAM_SIZE = 3
 #: The offset hook the hook configurations compile with [m] (any non-zero one: the same kernels).
 OFFSET_HOOK = [0.0, 0.0, 0.05]
 
 
-def compile_configuration(config: Configuration) -> float:
-    """Build an environment of ``config``, reset it and take one step (which compiles, or loads,
-    its kernels); returns the seconds it took. Runs in a worker process."""
-    start = time.perf_counter()
+def make_env(config: Configuration):
+    """An environment that runs ``config``'s compiled step."""
     import gymnasium as gym
 
     import esp_gym
-    from esp_gym.kernels import jit
 
-    jit.COMPILE_NOTICE = False  # the command reports its own progress
+    if config.team:
+        options = {"task": "lift", "winch": True} if config.winch else {"task": "transport"}
+        if config.drone:
+            options["actuation"] = "thrust_rates"
+        return gym.make(esp_gym.TEAM_ENV_ID, team=TEAM_SIZE, disable_env_checker=True, **options)
     options = {"task": "lift" if config.winch else "stabilize"}
     if config.drone:
         options["scene"] = "quadrotor_load"
@@ -60,9 +70,18 @@ def compile_configuration(config: Configuration) -> float:
     if config.hook:
         options["scene_overrides"] = {"pivot": {"drone": {"rho_q": OFFSET_HOOK}}}
     if config.batched:
-        env = gym.make_vec(esp_gym.ENV_ID, num_envs=2, **options)
-    else:
-        env = gym.make(esp_gym.ENV_ID, disable_env_checker=True, **options)
+        return gym.make_vec(esp_gym.ENV_ID, num_envs=2, **options)
+    return gym.make(esp_gym.ENV_ID, disable_env_checker=True, **options)
+
+
+def compile_configuration(config: Configuration) -> float:
+    """Build an environment of ``config``, reset it and take one step (which compiles, or loads,
+    its kernels); returns the seconds it took. Runs in a worker process."""
+    start = time.perf_counter()
+    from esp_gym.kernels import jit
+
+    jit.COMPILE_NOTICE = False  # the command reports its own progress
+    env = make_env(config)
     env.reset(seed=0)
     env.step(env.action_space.sample())
     env.close()
