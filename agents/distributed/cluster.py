@@ -246,8 +246,13 @@ class LocalCluster:
             return []
 
     def stop(self, grace: float = 10.0) -> None:
-        """SIGTERM to every process of :meth:`processes`, SIGKILL to those alive after ``grace``
-        seconds; then the temporary directory goes."""
+        """SIGTERM to each node's ``ray start`` process, which stops its node's processes in
+        order; then SIGTERM to every process of :meth:`processes` still running, SIGKILL to those
+        alive after ``grace`` seconds; then the temporary directory goes. (Signalled all at once,
+        a node's processes wait for each other: measured on two nodes, the raylets took 10 s and
+        the GCS and ``ray start`` outlived 15 s; the ``ray start`` processes alone end both nodes
+        within 2 s.)"""
+        _end([p for proc in self.procs for p in self._tree(proc)[:1]], grace)
         _end(self.processes(), grace, again=self.processes)
         for proc in self.procs:
             try:
