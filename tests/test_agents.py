@@ -13,6 +13,7 @@ from agents.common import load_run_config
 from agents.baselines.pd import ZeroPolicy
 from agents.evaluate import SB3Policy, evaluate_policy
 from esp_gym.tasks import TASKS
+from script_main import call_main
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -193,7 +194,7 @@ def test_shipped_policies_beat_the_zero_action(run):
     assert trained["mean_return"] > zero["mean_return"] + 20, (trained["mean_return"], zero["mean_return"])
 
 
-def test_the_zoo_command_trains_ships_and_compares(tmp_path):
+def test_the_zoo_command_trains_ships_and_compares(tmp_path, capfd):
     """python -m agents.zoo --train --compare on one configuration and a tiny budget: the run
     ships its files to --models, and the comparison (written to --out, not to the docs) has the
     shipped model as its policy."""
@@ -213,8 +214,9 @@ def test_the_zoo_command_trains_ships_and_compares(tmp_path):
     result = json.loads((out / "compare_stabilize.json").read_text())
     assert result["model"] == str(shipped / "model.zip") and result["episodes"] == 2
     assert set(result["policies"]) == {"zero", "pd", "lqr", "policy"}
-    bad = subprocess.run([sys.executable, "-m", "agents.zoo", "--train", "--only", "stabilise"], capture_output=True,
-                         text=True, timeout=120, cwd=ROOT)
+    from agents.zoo import main
+
+    bad = call_main(main, ["--train", "--only", "stabilise"], capfd)  # python -m agents.zoo ran above
     assert bad.returncode == 2 and "--only" in bad.stderr and "'stabilise'" in bad.stderr
 
 

@@ -164,9 +164,10 @@ def test_train_errors_are_one_line_and_write_nothing(tmp_path, capfd, case):
 
 def test_evaluate_flies_the_drone_with_the_geometric_controller(capfd):
     """The drone's interface (issue 34): ``--policy geometric --scene quadrotor_load --actuation
-    thrust_rates`` runs and reports its configuration; a point pivot has no geometric controller."""
-    proc = cli("agents.evaluate", "--policy", "geometric", "--scene", "quadrotor_load", "--actuation", "thrust_rates",
-               "--task", "stabilize", "--episodes", "1")
+    thrust_rates`` runs and reports its configuration; a point pivot has no geometric controller
+    (its main here: tests/test_agents.py runs python -m agents.evaluate)."""
+    proc = main_of("agents.evaluate", capfd, "--policy", "geometric", "--scene", "quadrotor_load", "--actuation",
+                   "thrust_rates", "--task", "stabilize", "--episodes", "1")
     assert proc.returncode == 0, proc.stderr[-3000:]
     stats = json.loads(proc.stdout.strip().splitlines()[-1])
     assert (stats["policy"], stats["scene"], stats["actuation"]) == ("geometric", "quadrotor_load", "thrust_rates")
