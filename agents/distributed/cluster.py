@@ -247,13 +247,20 @@ class LocalCluster:
 
     def stop(self, grace: float = 10.0) -> None:
         """SIGTERM to each node's ``ray start`` process, which stops its node's processes in
-        order; then SIGTERM to every process of :meth:`processes` still running, SIGKILL to those
-        alive after ``grace`` seconds; then the temporary directory goes. (Signalled all at once,
-        a node's processes wait for each other: measured on two nodes, the raylets took 10 s and
-        the GCS and ``ray start`` outlived 15 s; the ``ray start`` processes alone end both nodes
-        within 2 s.)"""
-        _end([p for proc in self.procs for p in self._tree(proc)[:1]], grace)
-        _end(self.processes(), grace, again=self.processes)
+        order, and up to ``grace`` seconds for them to end; then SIGTERM to every process of
+        :meth:`processes` (as found before the first signal, so none is lost to an exited parent)
+        still running, SIGKILL to those alive after another ``grace`` seconds; then the temporary
+        directory goes. (Signalled all at once, a node's processes wait for each other: measured
+        on two nodes, the raylets took 10 s and the GCS and ``ray start`` outlived 15 s; the
+        ``ray start`` processes alone end both nodes within 2 s.)"""
+        import psutil
+
+        procs = self.processes()
+        tops = [p for proc in self.procs for p in self._tree(proc)[:1]]
+        for p in tops:
+            _signal(p, signal.SIGTERM)
+        psutil.wait_procs(tops, timeout=grace)
+        _end(procs, grace, again=self.processes)
         for proc in self.procs:
             try:
                 proc.wait(timeout=grace)
