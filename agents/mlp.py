@@ -19,6 +19,7 @@ half of its output is the mean). Anything else raises :class:`UnsupportedNetwork
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -55,7 +56,7 @@ def mlp_forward(x, params, widths, activations, out, a, b):
                 for k in range(n_in):
                     s += params[row + k] * a[k]
                 if activations[layer] == 1:
-                    s = np.tanh(s)
+                    s = math.tanh(s)
                 elif activations[layer] == 2 and s < 0.0:
                     s = 0.0
                 b[j] = s
@@ -71,15 +72,14 @@ class MLPActor:
     """A chain of dense layers: ``weights[l]`` (out, in) and ``biases[l]`` (out,) as float64,
     ``activations[l]`` a key of ACTIVATIONS; ``inputs_kept``: None, or a 0/1 mask of the inputs
     the actor reads (the rest are set to 0 first); ``outputs``: how many leading outputs are the
-    action (RLlib's head also gives the log standard deviations); ``squash``: tanh on the action
-    (SAC)."""
+    action (RLlib's head also gives the log standard deviations). SAC's squashed action is a last
+    layer with Tanh."""
 
     weights: tuple
     biases: tuple
     activations: tuple
     inputs_kept: np.ndarray | None = None
     outputs: int | None = None
-    squash: bool = False
 
     def __post_init__(self):
         widths = [self.weights[0].shape[1]] + [w.shape[0] for w in self.weights]
@@ -114,8 +114,6 @@ class MLPActor:
         scratch = int(self._widths.max())
         mlp_forward(rows, self._params, self._widths, self._codes, out, np.empty(scratch), np.empty(scratch))
         out = out[:, :self.outputs] if self.outputs is not None else out
-        if self.squash:
-            out = np.tanh(out)
         return out.reshape(x.shape[:-1] + out.shape[-1:])
 
 
@@ -158,8 +156,9 @@ def actor_of_sb3(model) -> MLPActor:
             raise UnsupportedNetwork(f"{kind}: gSDE actors")
         kept = kept_inputs(actor.features_extractor, kind)
         w1, b1, a1 = dense_chain(actor.latent_pi, f"{kind}.actor.latent_pi")
-        w2, b2, a2 = dense_chain([actor.mu], f"{kind}.actor.mu")
-        return MLPActor(tuple(w1 + w2), tuple(b1 + b2), tuple(a1 + a2), kept, squash=True)
+        w2, b2, _ = dense_chain([actor.mu], f"{kind}.actor.mu")
+        # the squash in the loops (the C library's tanh), not NumPy's, whose code path is the processor's
+        return MLPActor(tuple(w1 + w2), tuple(b1 + b2), tuple(a1) + ("Tanh",), kept)
     if not (hasattr(policy, "mlp_extractor") and hasattr(policy, "action_net")):
         raise UnsupportedNetwork(f"{kind}: not an actor-critic MLP policy nor SAC's")
     if getattr(policy, "use_sde", False) or getattr(policy, "squash_output", False):

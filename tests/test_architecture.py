@@ -135,6 +135,28 @@ def test_nobody_edits_sys_path():
     assert offenders == []
 
 
+#: NumPy's transcendental ufuncs, whose code path is the processor's (SVML on AVX-512, the C
+#: library elsewhere: agents/baselines/libm.py); the kernels' calls compile to the C library's.
+NUMPY_TRANSCENDENTAL = re.compile(r"\bnp\.(sin|cos|tan|arcsin|arccos|arctan|arctan2|sinh|cosh|tanh|arcsinh|arccosh|"
+                                  r"arctanh|exp|exp2|expm1|log|log2|log10|log1p|power|cbrt)\(")
+
+
+def numpy_transcendentals(text: str) -> list:
+    return [line.strip() for line in text.splitlines() if NUMPY_TRANSCENDENTAL.search(line.split("#")[0])]
+
+
+def test_the_episode_path_calls_no_numpy_transcendental():
+    """The environments and the agents (not the compiled kernels, the verification rigs or the
+    figures) compute sin, exp and their kin with the C library, so an episode is the same bits on
+    every x86-64 processor; a NumPy call is found (the negative control)."""
+    exempt = ("esp_gym/kernels/", "esp_gym/verify/", "esp_gym/viz/", "agents/task_figures.py")
+    offenders = {str(p.relative_to(ROOT)): numpy_transcendentals(p.read_text()) for p in sources(("esp_gym", "agents"))
+                 if not str(p.relative_to(ROOT)).startswith(exempt)}
+    assert {path: lines for path, lines in offenders.items() if lines} == {}
+    assert numpy_transcendentals("    c = np.cos(w * t)  # a reference") == ["c = np.cos(w * t)  # a reference"]
+    assert numpy_transcendentals("    c = math.cos(w)  # np.cos(w) differs by processor") == []
+
+
 def test_the_import_graph_has_no_cycle():
     parsed = list(_parsed())
     known = {m for _, m, _, _ in parsed}

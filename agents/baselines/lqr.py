@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from agents.baselines import libm
 from esp_gym.control import ControlStep
 from esp_gym.kernels.layout import Layout
 from esp_gym.kernels.env_arrays import ACTION, OBSERVATION, TARGET
@@ -277,7 +278,7 @@ def reference_map(target: np.ndarray, times: np.ndarray) -> np.ndarray:
     ax, ay = target[TARGET["amplitude"]]
     c, s = math.cos(target[TARGET.scalar("orientation")]), math.sin(target[TARGET.scalar("orientation")])
     times = np.asarray(times, dtype=np.float64)
-    cx, sx, cy, sy = np.cos(w * times), np.sin(w * times), np.cos(m * w * times), np.sin(m * w * times)
+    cx, sx, cy, sy = libm.cos(w * times), libm.sin(w * times), libm.cos(m * w * times), libm.sin(m * w * times)
     zero = np.zeros_like(times)
     # the curve's own frame, rows x and y, columns b = [sin u, cos u, sin v, cos v]
     offset = np.stack([np.stack([ax * cx, ax * sx, zero, zero], -1), np.stack([zero, zero, ay * cy, ay * sy], -1)], 1)

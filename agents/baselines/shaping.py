@@ -20,11 +20,13 @@ that path and adds the affine LQR's preview feed-forward of the path (as LQRTrac
 """
 from __future__ import annotations
 
+import cmath
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from agents.baselines import libm
 from agents.baselines.lqr import LQR, REDUCED, preview_feedforward, preview_terms, reduced_state
 
 #: Shaper names -> builders.
@@ -61,9 +63,9 @@ class Shaper:
         """V(omega): the residual vibration of a mode (omega, zeta) after the shaped move, as a
         share of the unshaped one's (module docstring)."""
         wd = omega * math.sqrt(1.0 - zeta ** 2)
-        growth = np.exp(zeta * omega * self.times)
-        c = np.sum(self.amplitudes * growth * np.cos(wd * self.times))
-        s = np.sum(self.amplitudes * growth * np.sin(wd * self.times))
+        growth = libm.exp(zeta * omega * self.times)
+        c = np.sum(self.amplitudes * growth * libm.cos(wd * self.times))
+        s = np.sum(self.amplitudes * growth * libm.sin(wd * self.times))
         return float(math.exp(-zeta * omega * self.duration) * math.hypot(c, s))
 
     def progress(self, t, move_time: float) -> tuple:
@@ -74,9 +76,9 @@ class Shaper:
         v = np.zeros_like(t)
         for a, t0 in zip(self.amplitudes, self.times):
             u = np.clip((t - t0) / move_time, 0.0, 1.0)
-            s += a * 0.5 * (1.0 - np.cos(math.pi * u))
+            s += a * 0.5 * (1.0 - libm.cos(math.pi * u))
             inside = (t - t0 > 0.0) & (t - t0 < move_time)
-            v += a * np.where(inside, 0.5 * math.pi / move_time * np.sin(math.pi * u), 0.0)
+            v += a * np.where(inside, 0.5 * math.pi / move_time * libm.sin(math.pi * u), 0.0)
         return s, v
 
 
@@ -87,7 +89,7 @@ def pendulum_mode(A: np.ndarray, period: float) -> tuple:
     free[REDUCED["pivot_error"]] = False
     free[REDUCED["pivot_velocity"]] = False
     eig = np.linalg.eigvals(A[np.ix_(free, free)])
-    s = np.log(eig.astype(complex)) / period
+    s = np.array([cmath.log(e) for e in eig.astype(complex)]) / period  # the C library's, as libm.py says
     oscillatory = s[s.imag > 1e-9]
     slowest = oscillatory[np.argmin(np.abs(oscillatory))]
     omega = float(abs(slowest))

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
 import numpy as np
 import scipy.linalg
 
@@ -112,7 +113,7 @@ class TeamCascade:
         twin.load_target, twin.pivot_targets = core.load_target.copy(), core.pivot_targets.copy()
         A, B = linearize(twin)
         Q, R = reward_weights(twin)
-        decay = np.tile(np.exp(-core.control_period / np.array([lag[0], lag[0], lag[1]])), core.size)
+        decay = np.tile([math.exp(-core.control_period / tau) for tau in (lag[0], lag[0], lag[1])], core.size)
         return cls(lagged_gain(A, B, Q, R, decay, core.action_latency), twin, inner, max_tilt, core.action_latency,
                    (A, B))
 
@@ -145,7 +146,7 @@ class TeamCascade:
         forces[:, 2] -= self.twin.hover
         vertical = np.maximum(-forces[:, 2], 0.0)
         horizontal = np.linalg.norm(forces[:, :2], axis=1)
-        forces[:, :2] *= np.minimum(1.0, np.tan(self.max_tilt) * vertical / np.maximum(horizontal, 1e-12))[:, None]
+        forces[:, :2] *= np.minimum(1.0, math.tan(self.max_tilt) * vertical / np.maximum(horizontal, 1e-12))[:, None]
         return forces
 
     def drive(self, forces: np.ndarray, attitudes: np.ndarray, rates: np.ndarray, core: TeamCore) -> np.ndarray:

@@ -21,6 +21,7 @@ down, a 3x3 Schur complement there and back substitution: O(N) per iteration. Th
 the step around it (the first guess, the new positions, the commit); kernels/cutback.py cuts a
 step that fails back.
 """
+import math
 import numpy as np
 
 from .jit import kernel
@@ -36,7 +37,7 @@ from .string import string_solve
 CUTBACKS = 6
 #: The transverse limit of the variational form: h omega_t <= this (omega_t^2 = 12 T_max / (u m)),
 #: under a quarter turn per step, below its parametric resonances (docs/physics.md, "The transverse step").
-TRANSVERSE_LIMIT = 0.9 * 2.0 * float(np.sin(np.pi / 8.0))
+TRANSVERSE_LIMIT = 0.9 * 2.0 * math.sin(math.pi / 8.0)
 #: Status of a step that broke the transverse bound (internal: it is cut back, never reported).
 TOO_TENSE = -1
 

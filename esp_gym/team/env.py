@@ -319,7 +319,7 @@ class TeamCore:
             return 1.0 / (1.0 + (x / scale) ** 2)
 
         pivot_errors = np.linalg.norm(kin["pivot"] - self.pivot_targets, axis=1)
-        tilt = float(np.arccos(np.clip(kin["R"][2, 2], -1.0, 1.0)))
+        tilt = math.acos(min(1.0, max(-1.0, float(kin["R"][2, 2]))))  # the C library's: NumPy's differs by processor
         distances, pairs = self.separations(kin["pivot"])
         crowding = np.maximum(0.0, 1.0 - distances / SEPARATION) ** 2
         per_agent_crowding = np.zeros(self.size)

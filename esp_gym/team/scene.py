@@ -158,7 +158,8 @@ def symmetric_team(size: int = 3, length: float = 1.0, mass_per_length: float = 
         stretch = static_stretch(size, length, mass_per_length, EA, body_mass, pivot_radius - attachment_radius,
                                  scene.get("gravity", 9.81))
     angles = 2.0 * np.pi * np.arange(size) / size
-    ring = np.stack([np.cos(angles), np.sin(angles), np.zeros(size)], axis=1)
+    # the C library's cos and sin: NumPy's take processor-specific paths (agents/baselines/libm.py)
+    ring = np.array([[math.cos(a), math.sin(a), 0.0] for a in angles])
     attach = attachment_radius * ring - np.array([0.0, 0.0, 0.5 * body_size[2]])
     pivots = pivot_radius * ring
     span = np.hypot(pivot_radius - attachment_radius, 0.0)
