@@ -20,17 +20,18 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 
-#: The interpreter's warning filters when started without -W or -X dev (the reverse of
-#: warnings.filters' order: each filterwarnings call inserts at the front).
-DEFAULT_FILTERS = [("ignore", ResourceWarning), ("ignore", ImportWarning), ("ignore", PendingDeprecationWarning),
-                   ("ignore", DeprecationWarning)]
+#: The interpreter's warning filters when started without -W or -X dev (but the one that shows
+#: DeprecationWarning in __main__, which a script's main called here is not); any other warning
+#: is printed, once per location.
+DEFAULT_FILTERS = [("ignore", DeprecationWarning), ("ignore", PendingDeprecationWarning), ("ignore", ImportWarning),
+                   ("ignore", ResourceWarning)]
 
 
 def call_main(main, args, capfd) -> subprocess.CompletedProcess:
     """``main(list(map(str, args)))`` here: ``CompletedProcess(args, returncode, stdout, stderr)``."""
-    argv = [str(a) for a in args]
     import torch  # the agents' scripts set its threads; imported here, its default is known
 
+    argv = [str(a) for a in args]
     environ = dict(os.environ)
     threads = torch.get_num_threads()
     cwd = os.getcwd()
