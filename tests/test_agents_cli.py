@@ -157,7 +157,8 @@ def test_train_errors_are_one_line_and_write_nothing(tmp_path, capfd, case):
     }[case]
     before = tree(tmp_path)
     # one case runs python -m agents.train (tests/test_agents.py runs its successes so)
-    proc = cli("agents.train", *args) if case == "unknown_key_in_an_earlier_set" else main_of("agents.train", capfd, *args)
+    alone = case == "unknown_key_in_an_earlier_set"
+    proc = cli("agents.train", *args) if alone else main_of("agents.train", capfd, *args)
     assert_usage_error(proc, *names)
     assert tree(tmp_path) == before
 
