@@ -27,6 +27,7 @@ import numpy as np
 import esp_gym
 from agents import MODELS
 from agents.cli import ArgumentParser
+from agents.evaluate import ONE_BLAS_THREAD
 from agents.baselines.pd import ZeroPolicy
 from agents.baselines.registry import baseline, baselines
 from esp_gym.tasks import TASKS
@@ -36,6 +37,7 @@ from esp_gym.team.tasks import TEAM_TASKS
 COLOURS = {"pivot": "tab:blue", "load": "tab:red", "target": "black"}
 
 
+@ONE_BLAS_THREAD  # the episode agents.evaluate scores, to the bit
 def rollout(task: str, policy, seed: int, steps: int, env_kwargs=None) -> dict:
     """One seeded episode of ``task`` (at most ``steps`` control steps) under ``policy``: the
     pivot's and the load's positions, the pivot and load targets (all spatial [m], (T+1, 3)),
@@ -179,6 +181,7 @@ def hard_lift_figure(out: Path, seed: int, steps: int, model: Path) -> dict:
     return results
 
 
+@ONE_BLAS_THREAD  # the episode agents.team_evaluate scores, to the bit
 def team_figure(out: Path, size: int, seed: int, steps: int, preset=None, task: str = "transport",
                 actuation=None) -> dict:
     """``team_{task}.png``: one episode of a team of ``size`` pivots (docs/team.md) under the
