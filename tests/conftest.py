@@ -22,22 +22,12 @@ SLOW_MODULES = {"test_cli.py", "test_agents.py", "test_agents_cli.py", "test_muj
                 "test_wheel.py"}
 
 
-#: The longest modules under `make test` (seconds on 2 cores, `--durations`: the wheel 97, the command
-#: lines 66, the implicit string 52, the agents 38, MuJoCo 28, the team 27, the specialised kernels 20,
-#: the properties 17), collected first: pytest-xdist hands out whole modules in collection order, and a
-#: long one handed out last keeps one worker busy after the other has finished (longest first).
-LONGEST_FIRST = ("test_wheel.py", "test_cli.py", "test_implicit.py", "test_agents.py", "test_mujoco_chain.py",
-                 "test_team_env.py", "test_specialised.py", "test_properties.py")
-
-
 def pytest_collection_modifyitems(items):
     for item in items:
         if item.path.name in SERIAL_MODULES or item.name in SERIAL_TESTS:
             item.add_marker(pytest.mark.serial)
         if item.path.name in SLOW_MODULES:
             item.add_marker(pytest.mark.slow)
-    rank = {name: k for k, name in enumerate(LONGEST_FIRST)}
-    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # stable: each module's order kept
 
 
 #: Hypothesis draws the same examples on every run (profile "ci", the default: a red CI is a
