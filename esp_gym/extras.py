@@ -16,6 +16,7 @@ EXTRAS = {
     "pyarrow": ("record", "the Rerun SDK"),
     "stable_baselines3": ("agents", "Stable-Baselines3"),
     "torch": ("agents", "PyTorch"),
+    "threadpoolctl": ("agents", "threadpoolctl"),
     "pettingzoo": ("team", "PettingZoo"),
     "mujoco": ("bench", "MuJoCo"),
 }

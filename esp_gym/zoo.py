@@ -22,18 +22,17 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
+from .extras import require
+
 
 def _agents():
-    try:
-        import agents.zoo
-        import stable_baselines3  # noqa: F401  (the shipped policies' archives)
-    except ImportError as err:
-        raise ImportError(f"esp_gym.zoo needs the agents extra ({err.name} is missing): "
-                          f"pip install 'esp_gym[agents]'") from err
+    """agents.zoo, once the agents extra (SB3 and torch, which the archives need) is there."""
+    require("stable_baselines3", "esp_gym.zoo")
+    import agents.zoo
+
     return agents.zoo
 
 

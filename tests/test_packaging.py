@@ -115,3 +115,13 @@ def test_the_agents_data_is_the_checkouts_in_a_checkout():
     assert not agents.INSTALLED and agents.ROOT == ROOT
     assert agents.CONFIG_DIR == ROOT / "configs" / "agents" and (agents.CONFIG_DIR / "zoo.yaml").is_file()
     assert agents.MODELS == ROOT / "models" and (agents.MODELS / "stabilize_ppo" / "model.zip").is_file()
+
+
+def test_the_zoo_says_it_needs_the_agents_extra(monkeypatch):
+    """esp_gym.zoo imports (it is the core's), and its first use without SB3 names the extra."""
+    import esp_gym.zoo
+
+    blocked(monkeypatch, "stable_baselines3")
+    with pytest.raises(ImportError) as err:
+        esp_gym.zoo.names()
+    assert str(err.value) == "esp_gym.zoo needs Stable-Baselines3: pip install 'esp_gym[agents]'"
