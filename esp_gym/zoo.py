@@ -25,21 +25,17 @@ from pathlib import Path
 
 import numpy as np
 
+from . import ENV_ID, TEAM_ENV_ID
 from .extras import require
-
-
-def _agents():
-    """agents.zoo, once the agents extra (SB3 and torch, which the archives need) is there."""
-    require("stable_baselines3", "esp_gym.zoo")
-    import agents.zoo
-
-    return agents.zoo
 
 
 def models_dir() -> Path:
     """Where the shipped policies are (inside the installed ``agents`` package, or the checkout's
-    ``models/``)."""
-    return _agents().MODELS
+    ``models/``), once the agents extra (SB3 and torch, which the archives need) is there."""
+    require("stable_baselines3", "esp_gym.zoo")
+    import agents
+
+    return agents.MODELS
 
 
 def names() -> list:
@@ -54,18 +50,23 @@ def _path(name: str) -> Path:
     return models_dir() / name
 
 
+def _is_team(path: Path) -> bool:
+    """A team's RLlib checkpoint (``team3_*_rllib``), not a single environment's SB3 archive."""
+    return (path / "checkpoint").is_dir()
+
+
 def configuration(name: str) -> dict:
     """``{"env_id", "task", "env_kwargs"}`` of the environment ``name`` was trained for (and, for a
     team, ``"team"``)."""
     path = _path(name)
-    if name.endswith("_rllib"):  # agents.team_train's arguments
+    if _is_team(path):  # agents.team_train's arguments
         run = json.loads((path / "args.json").read_text())
-        return {"env_id": "ElasticStringTeam-v0", "team": run["team"], "task": run["task"],
+        return {"env_id": TEAM_ENV_ID, "team": run["team"], "task": run["task"],
                 "env_kwargs": {k: run[k] for k in ("preset", "actuation") if run.get(k) is not None}}
     from agents.artifacts import model_configuration
 
     c = model_configuration(path / "model.zip")
-    return {"env_id": "ElasticStringPendulum-v0", "task": c["task"], "env_kwargs": dict(c.get("env_kwargs") or {})}
+    return {"env_id": ENV_ID, "task": c["task"], "env_kwargs": dict(c.get("env_kwargs") or {})}
 
 
 def make(name: str, **overrides):
@@ -85,17 +86,17 @@ class ZooPolicy:
     def __init__(self, name: str, policy, env=None):
         self.name, self.policy = name, policy
         self._env = None
-        self._team = name.endswith("_rllib")
         if env is not None:
             self.reset(env)
 
     def reset(self, env) -> None:
         """Act in ``env`` from now on; its next step is an episode's first."""
         self._env = env.unwrapped
+        self._team = hasattr(self._env, "core")  # ElasticStringTeam-v0 (its TeamCore)
         self._last_step = None
 
     def _new_episode(self) -> bool:
-        step = self._env.core.steps if self._team else self._env.sim.step_count
+        step = self._env.sim.step_count
         new = self._last_step is None or step == 0 or step < self._last_step
         self._last_step = step
         return new
@@ -122,8 +123,7 @@ class ZooPolicy:
 def load(name: str, env=None) -> ZooPolicy:
     """The shipped policy ``name`` (one of :func:`names`), acting in ``env`` if given."""
     path = _path(name)
-    _agents()
-    if name.endswith("_rllib"):
+    if _is_team(path):
         from agents.team_train import TeamRLlibPolicy
 
         return ZooPolicy(name, TeamRLlibPolicy(path / "checkpoint"), env)
@@ -136,10 +136,9 @@ def baseline(name: str, env=None) -> ZooPolicy:
     """The classical controller the single-environment policy ``name`` adds its residual to (its
     configuration's best baseline), acting in ``env`` if given."""
     path = _path(name)
-    _agents()
     from agents.residual import residual_for
 
-    base = residual_for(path / "model.zip") if not name.endswith("_rllib") else None
+    base = None if _is_team(path) else residual_for(path / "model.zip")
     if base is None:
         raise ValueError(f"{name} has no base controller (only the single environment's residual policies do)")
     # a stateful base is shared with the policy's (agents.baselines.registry): a copy of its own
