@@ -121,7 +121,7 @@ class ElasticStringPendulumEnv(gym.Env):
     | `control_period` | 0.02 | seconds per `step` (a whole number of physics steps) |
     | `h` | None | physics step; None: the largest dividing the control period under `safety` x the stability bound (with `scene_overrides={"solver": {"string": "implicit"}}`, under 0.9 x the implicit string's transverse bound: docs/physics.md) |
     | `safety` | None | margin under the stability bound for the automatic h; None: 0.5 (long runs of the tension-only string under random inputs gain spurious energy above ~0.6: 0.8 J in 10 s at 0.8), or the resolution rule's with `string.elements: auto` (0.35 for the tension-only string: docs/physics.md) |
-    | `force_limit` | 0.6 W | [N] per axis at action 1 |
+    | `force_limit` | 0.6 W | [N] per axis at action 1, at most 1000 W (options.py `MAX_FORCE_SHARE`) |
     | `torque_limit` | 0.02 | [N m] per axis at action 1 |
     | `scene_overrides` | None | dict of scene overrides, validated as in `esp_gym.load_scene` |
     | `randomize` | None | None: the preset's, else False. True: each episode draws the string's length, EA, mass per length, the load's mass, box and attachment offset, and the pivot mass from default ranges around the scene's values; a dict name -> (low, high) sets ranges (esp_gym/randomize.py, docs/environment.md) |

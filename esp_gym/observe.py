@@ -68,9 +68,9 @@ class Observer:
                 if name not in self.layout:
                     raise ValueError(f"sensor_noise: {name!r} is not a field of the {mode!r} observation "
                                      f"({list(self.layout.names)})")
-                std[self.layout[name]] = _deviation(f"sensor_noise[{name!r}]", value)
+                std[self.layout[name]] = standard_deviation(f"sensor_noise[{name!r}]", value)
         else:
-            level = _deviation("sensor_noise", sensor_noise)
+            level = standard_deviation("sensor_noise", sensor_noise)
             for name in self.layout.names:
                 std[self.layout[name]] = level * UNIT_NOISE[name]
         #: Standard deviation of each entry's noise (its unit).
@@ -104,7 +104,9 @@ class Observer:
         return out.astype(np.float32)
 
 
-def _deviation(name: str, value: Any) -> float:
+def standard_deviation(name: str, value: Any) -> float:
+    """``value`` as a noise's standard deviation, or a noise level (a factor of each field's unit
+    noise): a real number in [0, MAX_NOISE] (NumPy's too); ValueError naming ``name`` otherwise."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise ValueError(f"{name} must be a real number >= 0, got {value!r}")
     if not (math.isfinite(float(value)) and 0.0 <= float(value) <= MAX_NOISE):

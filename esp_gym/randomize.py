@@ -109,8 +109,9 @@ def default_ranges(scene: Scene) -> dict:
     return out
 
 
-def _pair(name: str, given: Any) -> tuple:
-    """A user's range: two finite real numbers, low <= high (positive unless signed)."""
+def check_range(name: str, given: Any) -> tuple:
+    """A user's range of ``name``: two finite real numbers, low <= high (positive unless signed);
+    ValueError naming it otherwise."""
     what = f"randomize: {name}"
     if not isinstance(given, (tuple, list, np.ndarray)) or len(given) != 2:  # a set has no order
         raise ValueError(f"{what} must be a pair (low, high): a tuple, list or array, got {given!r}")
@@ -129,6 +130,40 @@ def _pair(name: str, given: Any) -> tuple:
     return low, high
 
 
+def user_ranges(spec: Any, names: tuple, refused: Optional[Mapping[str, str]] = None) -> dict:
+    """The ranges a ``randomize`` argument sets: none for True (the defaults), name -> (low, high)
+    for a mapping (:func:`check_range`). ValueError naming the bad entry: neither True nor a
+    mapping, a name of ``refused`` (name -> why this environment does not draw it), a name not in
+    ``names``. Both environments read ``randomize`` here (the team's: esp_gym/team/randomize.py)."""
+    if spec is True:
+        return {}
+    if not isinstance(spec, Mapping):
+        raise ValueError(f"randomize must be False, True or a mapping name -> (low, high), got {spec!r}")
+    out = {}
+    for name, given in spec.items():
+        if refused and name in refused:
+            raise ValueError(f"randomize: {name} {refused[name]}")
+        if name not in names:
+            raise ValueError(f"randomize: unknown parameter {name!r}; choose from {list(names)}")
+        out[name] = check_range(name, given)
+    return out
+
+
+def draw_in_ranges(rng: np.random.Generator, low: np.ndarray, high: np.ndarray, log: np.ndarray) -> np.ndarray:
+    """One value in each range [low_i, high_i], one uniform draw of ``rng`` each, in order:
+    log-uniform where ``log`` (a scale), uniform elsewhere; a range of one value takes no chance
+    (but its draw, so that the others' stream stays the same)."""
+    unit = rng.random(len(low))
+    out = np.empty(len(low))
+    for i in range(len(low)):
+        lo, hi = low[i], high[i]
+        if log[i]:
+            out[i] = math.exp(math.log(lo) + unit[i] * (math.log(hi) - math.log(lo))) if hi > lo else lo
+        else:
+            out[i] = lo + unit[i] * (hi - lo)
+    return out
+
+
 class Randomizer:
     """The ranges of one environment and the draw of an episode's scene from them.
 
@@ -141,16 +176,9 @@ class Randomizer:
         #: The names of an episode's values, in their order (:func:`episode_param_names`).
         self.names = episode_param_names(scene)
         ranges = default_ranges(scene)
-        if isinstance(spec, Mapping):
-            for name, given in spec.items():
-                if name not in self.names:
-                    raise ValueError(f"randomize: unknown parameter {name!r}; choose from {list(self.names)}")
-                if name in BOX_ONLY and name not in ranges:
-                    raise ValueError(f"randomize: {name} needs a box-shaped load given by its shape "
-                                     f"(scene {scene.name!r} has {scene.body.shape!r})")
-                ranges[name] = _pair(name, given)
-        elif spec is not True:
-            raise ValueError(f"randomize must be False, True or a mapping name -> (low, high), got {spec!r}")
+        boxless = {name: f"needs a box-shaped load given by its shape (scene {scene.name!r} has {scene.body.shape!r})"
+                   for name in BOX_ONLY if name not in ranges}
+        ranges.update(user_ranges(spec, self.names, boxless))
         #: name -> (low, high), SI; names without a range keep the nominal value
         self.ranges = ranges
         nominal = nominal_values(scene)
@@ -180,15 +208,7 @@ class Randomizer:
 
     def draw(self, rng: np.random.Generator) -> np.ndarray:
         """One episode's values (:attr:`names` order), one uniform draw per name."""
-        unit = rng.random(len(self.names))
-        out = np.empty(len(self.names))
-        for i in range(len(self.names)):
-            lo, hi = self._low[i], self._high[i]
-            if self._log[i]:
-                out[i] = math.exp(math.log(lo) + unit[i] * (math.log(hi) - math.log(lo))) if hi > lo else lo
-            else:
-                out[i] = lo + unit[i] * (hi - lo)
-        return out
+        return draw_in_ranges(rng, self._low, self._high, self._log)
 
     def scene(self, values: np.ndarray, h: Optional[float] = None) -> Scene:
         """The nominal scene with ``values`` (:attr:`names` order) and step ``h``: copies of its

@@ -21,7 +21,7 @@ from .kernels.drone import ACTUATIONS
 from .kernels.drone_env import DRONE_ACTION_PARAMS, DRONE_ACTION_SIZE, DRONE_WINCH_ACTION_SIZE
 from .kernels.env_arrays import ACTION_PARAMS, ACTION_SIZE, WINCH_ACTION
 from .observe import Observer
-from .options import MAX_SUBSTEPS, env_options
+from .options import MAX_FORCE_SHARE, check_substeps, env_options
 from .params import Scene, load_scene, override_scene, scene_from_dict
 from .randomize import Randomizer, episode_param_names, nominal_values
 from .state import build_params
@@ -85,12 +85,18 @@ def check_lift(scene: Scene, randomizer: Optional[Randomizer]) -> None:
     high = {k: ranges.get(k, (v, v))[1] for k, v in nominal.items()}
     weakest = ranges.get("rotor_coefficient_scale", (1.0, 1.0))[0]
     weight = scene.gravity * (high["pivot_mass"] + high["load_mass"] + high["mass_per_length"] * high["string_length"])
-    thrust = weakest * scene.pivot.drone.max_thrust
+    where = " at the randomize ranges' heaviest, weakest corner" if randomizer is not None else ""
+    check_thrust("ElasticStringPendulum-v0: the drone", weakest * scene.pivot.drone.max_thrust, weight, where)
+
+
+def check_thrust(drone: str, thrust: float, weight: float, where: str = "") -> None:
+    """ValueError unless a drone's rotors, ``thrust`` at most [N], lift the ``weight`` it carries
+    [N] with :data:`MIN_THRUST_TO_WEIGHT` to spare (the single env's drone, each drone of a team:
+    esp_gym/team/randomize.py); ``drone`` and ``where`` name them in the message."""
     if thrust < MIN_THRUST_TO_WEIGHT * weight:
-        where = " at the randomize ranges' heaviest, weakest corner" if randomizer is not None else ""
-        raise ValueError(f"ElasticStringPendulum-v0: the drone cannot carry the rig: its rotors push {thrust:.4g} N "
-                         f"against a weight of {weight:.4g} N{where}, under the {MIN_THRUST_TO_WEIGHT:g} times the "
-                         f"weight a controller needs; lighten the rig or narrow the ranges")
+        raise ValueError(f"{drone} cannot carry the rig: its rotors push {thrust:.4g} N against a weight of "
+                         f"{weight:.4g} N{where}, under the {MIN_THRUST_TO_WEIGHT:g} times the weight a controller "
+                         f"needs; lighten the rig or narrow the ranges")
 
 
 def action_params(hover: np.ndarray, force_limit: float, torque_limit: float, max_reel_speed: float) -> np.ndarray:
@@ -331,10 +337,8 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
             raise ValueError(f"h = {h} s is above the stability bound {bound:.4g} s of the stiffest string of the "
                              "randomize ranges (shortest, lightest, largest EA, lightest ends) and the winch's "
                              "shortest: leave h to the environment, narrow the ranges or raise winch.min_length")
-    if wanted > MAX_SUBSTEPS:
-        raise ValueError(f"ElasticStringPendulum-v0: control_period = {control_period} s with {what} needs "
-                         f"{wanted:.3g} physics steps per step (at most {MAX_SUBSTEPS:,}): use a larger h or "
-                         f"safety, a shorter control_period, or a softer, longer or coarser string")
+    check_substeps("ElasticStringPendulum-v0", control_period, what, wanted,
+                   "use a larger h or safety, a shorter control_period, or a softer, longer or coarser string")
     if h is None:
         substeps = scheme_substeps(shortest(resolved) if winch else resolved, control_period, safety)
     else:
@@ -345,6 +349,9 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
                                 "allow_unstable_h": keep_unstable}, source=repr(resolved.name))
     weight = total_weight(resolved)
     force_limit = o.force_limit if o.force_limit is not None else (0.6 * weight if weight > 0 else 1.0)
+    if weight > 0 and force_limit > MAX_FORCE_SHARE * weight:
+        raise ValueError(f"ElasticStringPendulum-v0: force_limit = {force_limit:g} N is {force_limit / weight:.3g} "
+                         f"times the rig's weight {weight:.4g} N, above the {MAX_FORCE_SHARE:g} times a pivot can push")
     wind_given = wind_options(o.wind)
     if wind_given is not None:
         drag_areas(resolved)  # the load needs a shape (a randomised episode keeps its kind)

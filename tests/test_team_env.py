@@ -153,7 +153,8 @@ def test_import_esp_gym_registers_the_team_env():
 def test_the_hard_preset_draws_each_team_and_hides_the_load():
     team = parallel_env(team=3, preset="hard")
     core = team.core
-    assert (core.randomize, core.observation, core.sensor_noise, core.action_latency) == (True, "hook", 1.0, 1)
+    assert core.randomizer is not None
+    assert (core.observation, core.sensor_noise, core.action_latency) == ("hook", 1.0, 1)
     assert list(team.observation_structure) == ["pivot_position_error", "pivot_velocity", "hook_tension",
                                                 "load_target_offset", "neighbours"]
     _, info = team.reset(seed=3)

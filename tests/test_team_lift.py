@@ -65,7 +65,7 @@ def test_what_cannot_lift_says_why():
         TeamCore(3, "lift", winch=False)
     with pytest.raises(ValueError, match="winch: a team's drones do not reel"):
         TeamCore(3, "lift", actuation="thrust_rates")
-    with pytest.raises(ValueError, match="winch must be"):
+    with pytest.raises(ValueError, match="winch: Input should be a valid boolean"):
         TeamCore(3, "transport", winch="yes")
     core = TeamCore(3, "transport", winch=True)  # any task may reel
     assert core.action_size == 4 and "string_length" in core.layout

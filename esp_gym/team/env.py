@@ -11,20 +11,26 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Mapping
 from typing import Optional
 
 import gymnasium as gym
 import numpy as np
 
+from .. import TEAM_ENV_ID
+from ..control import raw_actions
 from ..kernels.env_arrays import TARGET
 from ..kernels.reference import reference_at
 from ..model import SimulationError
+from ..observe import standard_deviation
+from ..options import check_substeps, team_options
 from ..setup import DRONE_FLIP_TILT
-from ..stepsize import explicit_substeps, shortest
 from ..tasks import track_reference
 from ..wind import wind_options
+from .fleet import check_lift
 from .gusts import TeamWind
-from .scene import MAX_STRINGS, TeamScene, draw_team, team_scene
+from .randomize import TeamRandomizer
+from .scene import MAX_STRINGS, TeamScene, team_scene, team_substeps
 from .simulator import TeamSimulator
 from .spaces import ACTUATIONS, TEAM_UNIT_NOISE, DroneDrive, action_size, agent_layout
 from .tasks import get_team_task, hanging_rise
@@ -50,32 +56,33 @@ class TeamCore:
     :data:`ACTUATIONS`; ``team`` = K then flies :func:`~esp_gym.team.scene.quadrotor` s; a drone
     team's default ``thrust_rates``); ``force_limit``: each point pivot's force at
     action 1, as a share of its hover force (its share of the rig's weight) [-]; ``preset``:
-    ``"hard"`` (:data:`TEAM_PRESETS`) sets the options left None: ``randomize`` (each episode
-    draws its team, :func:`draw_team`; ``team`` a number then), ``observation`` (``"full"`` or
-    ``"hook"``), ``sensor_noise`` (times :data:`TEAM_UNIT_NOISE`), ``action_latency`` (control
+    ``"hard"`` (:data:`TEAM_PRESETS`) sets the options left None: ``randomize`` (True or name ->
+    (low, high), as the single env's: each episode draws its team, esp_gym/team/randomize.py;
+    ``team`` a number then), ``observation`` (``"full"`` or ``"hook"``), ``sensor_noise`` (a
+    level, times :data:`TEAM_UNIT_NOISE`), ``action_latency`` (control
     steps, 0-50) and ``wind`` (esp_gym/wind.py's options: the mean wind, gusts and pushes, on the
     load). ``winch``: each point pivot's string reels on its winch, its reel speed (x its
     ``winch.max_speed``) each agent's last action and its unstretched length in its observation
-    (None: as the task needs, True for ``lift``)."""
+    (None: as the task needs, True for ``lift``). Checked as the single env's options are
+    (esp_gym/options.py ``TeamOptions``; ``others``: its options a team lacks, refused with why)."""
 
     def __init__(self, team=3, task: str = "transport", control_period: float = 0.02, force_limit: float = 0.6,
-                 preset: Optional[str] = None, randomize: Optional[bool] = None, observation: Optional[str] = None,
+                 preset: Optional[str] = None, randomize=None, observation: Optional[str] = None,
                  sensor_noise: Optional[float] = None, action_latency: Optional[int] = None, wind=None,
-                 actuation: Optional[str] = None, winch: Optional[bool] = None):
-        if preset is not None and preset not in TEAM_PRESETS:
-            raise ValueError(f"preset must be one of {sorted(TEAM_PRESETS)} or None, got {preset!r}")
-        given = dict(randomize=randomize, observation=observation, sensor_noise=sensor_noise,
-                     action_latency=action_latency, wind=wind)
-        options = {**dict(randomize=False, observation="full", sensor_noise=0.0, action_latency=0, wind=None),
-                   **(TEAM_PRESETS[preset] if preset else {}), **{k: v for k, v in given.items() if v is not None}}
-        if actuation is not None and actuation not in ACTUATIONS:
-            raise ValueError(f"actuation must be one of {ACTUATIONS} or None, got {actuation!r}")
+                 actuation: Optional[str] = None, winch: Optional[bool] = None, **others):
+        given = {name: value for name, value in dict(randomize=randomize, observation=observation,
+                                                     sensor_noise=sensor_noise, action_latency=action_latency,
+                                                     wind=wind).items() if value is not None}
+        o = team_options(control_period=control_period, force_limit=force_limit, preset=preset, actuation=actuation,
+                         winch=winch, **given, **others)
+        if o.preset is not None:  # the value given, else the preset's, else the default
+            o = o.model_copy(update={name: v for name, v in TEAM_PRESETS[o.preset].items() if name not in given})
         if isinstance(team, TeamScene):
             scene = team
-            if options["randomize"]:
+            if o.randomize is not False:
                 raise ValueError("randomize: a randomised team is drawn from team = K, not from a given TeamScene")
         elif isinstance(team, (int, np.integer)) and not isinstance(team, bool) and 1 <= team <= MAX_STRINGS:
-            scene = team_scene(int(team), drones=actuation not in (None, "force"))
+            scene = team_scene(int(team), drones=o.actuation not in (None, "force"))
         else:
             raise ValueError(f"team must be a number of strings (1-{MAX_STRINGS}) or a TeamScene, got {team!r}")
         kinds = {p.kind for p in scene.pivots()}
@@ -84,38 +91,38 @@ class TeamCore:
                              f"{sorted(kinds)}")
         #: whether the pivots are drones, and how the agents drive them
         self.drones = kinds == {"drone"}
-        self.actuation = actuation or ("thrust_rates" if self.drones else "force")
+        self.actuation = o.actuation or ("thrust_rates" if self.drones else "force")
         if self.drones == (self.actuation == "force"):
             raise ValueError(f"actuation {self.actuation!r} does not fly the team's "
                              f"{'drones' if self.drones else 'point pivots'} (point pivots take 'force', drones "
                              f"one of {ACTUATIONS[1:]})")
         self.task = get_team_task(task)
-        self.winch = self.task.needs_winch if winch is None else winch
-        if not isinstance(self.winch, (bool, np.bool_)):
-            raise ValueError(f"winch must be True, False or None, got {winch!r}")
+        self.winch = self.task.needs_winch if o.winch is None else o.winch
         if self.task.needs_winch and not self.winch:
             raise ValueError(f"winch: task {task!r} reels the strings and needs winch=True")
         if self.winch and self.drones:
             raise ValueError("winch: a team's drones do not reel yet (docs/physics.md, \"What a team does not do yet\")")
         self.action_size = action_size(self.actuation, self.winch)
-        if not (np.isfinite(control_period) and control_period > 0):
-            raise ValueError(f"control_period must be > 0 s, got {control_period}")
-        if not (np.isfinite(force_limit) and force_limit > 0):
-            raise ValueError(f"force_limit must be > 0, got {force_limit}")
-        if options["observation"] not in ("full", "hook"):
-            raise ValueError(f"observation must be 'full' or 'hook', got {options['observation']!r}")
-        noise = options["sensor_noise"]
-        if isinstance(noise, bool) or not isinstance(noise, (int, float)) or not 0.0 <= noise <= 100.0:
-            raise ValueError(f"sensor_noise must be a number in [0, 100], got {noise!r}")
-        latency = options["action_latency"]
-        if isinstance(latency, bool) or not isinstance(latency, (int, np.integer)) or not 0 <= latency <= 50:
-            raise ValueError(f"action_latency must be a whole number of control steps in [0, 50], got {latency!r}")
-        self.wind = wind_options(options["wind"])
+        if isinstance(o.sensor_noise, Mapping):
+            raise ValueError(f"sensor_noise: a team takes one level (times each field's TEAM_UNIT_NOISE) for now, "
+                             f"got {o.sensor_noise!r}")
+        self.sensor_noise = standard_deviation("sensor_noise", o.sensor_noise)
+        self.observation, self.action_latency = o.observation, o.action_latency
+        self.wind = wind_options(o.wind)
         self._wind = TeamWind(self.wind) if self.wind is not None else None
-        self.randomize, self.observation = bool(options["randomize"]), options["observation"]
-        self.sensor_noise, self.action_latency = float(noise), int(latency)
+        #: each episode's draws (esp_gym/team/randomize.py), or None: the team given
+        self.randomizer = None if o.randomize is False else TeamRandomizer(scene.size, self.drones, o.randomize)
         self.size = scene.size
-        self.control_period, self.force_limit = control_period, force_limit
+        self.control_period, self.force_limit = o.control_period, o.force_limit
+        # the episodes' stiffest and heaviest teams, checked before anything is built
+        corner = "" if self.randomizer is None else " at the randomize ranges' {} corner"
+        stiffest, heaviest = (scene, scene) if self.randomizer is None else (self.randomizer.stiffest,
+                                                                             self.randomizer.heaviest)
+        check_substeps(TEAM_ENV_ID, self.control_period, "h within half of every string's stability bound"
+                       + corner.format("stiffest"), team_substeps(stiffest, self.control_period, self.winch),
+                       "use a shorter control_period, or softer, longer or coarser strings")
+        if self.drones:
+            check_lift(heaviest, corner.format("heaviest"))
         self.layout = agent_layout(self.size, self.observation, self.drones, self.winch)
         self._noise = np.concatenate([np.full(s.stop - s.start, self.sensor_noise * TEAM_UNIT_NOISE[name])
                                       for name, s in self.layout.structure().items()])
@@ -138,10 +145,7 @@ class TeamCore:
     def _use_scene(self, scene: TeamScene) -> None:
         """Step ``scene`` from its initial state: h the largest within half of every string's
         stability bound that divides the control period, the hover forces, the formation."""
-        members = [scene.member_scene(k) for k in range(self.size)]
-        if self.winch:  # stable at each winch's shortest string
-            members = [shortest(m) for m in members]
-        substeps = max(explicit_substeps(m, self.control_period, 0.5) for m in members)
+        substeps = team_substeps(scene, self.control_period, self.winch)
         scene = scene.model_copy(update={"scene": scene.scene.model_copy(update={"h": self.control_period / substeps})})
         self.scene, self.substeps = scene, substeps
         self.sim = TeamSimulator(scene)
@@ -202,8 +206,8 @@ class TeamCore:
             self.np_random = np.random.default_rng(seed)
         rng, task = self.np_random, self.task
         info = {}
-        if self.randomize:
-            scene, info["team_draws"] = draw_team(self.size, rng, self.drones)
+        if self.randomizer is not None:
+            scene, info["team_draws"] = self.randomizer.draw(rng)
             self._use_scene(scene)
             self.renderer = None  # the team changes with the episode
         self.sim.set_state(self._start.copy())
@@ -348,12 +352,10 @@ class TeamCore:
         """Apply each pivot's force (K, 3), or each drone's action (K, 4), in [-1, 1] (clipped;
         after ``action_latency`` steps) over one control period; returns ``(observations, reward,
         terminated, truncated, info)`` with the per-agent terms in ``info["agents"]``."""
-        a = np.asarray(action, dtype=np.float64)
-        if a.shape != (self.size, self.action_size):
-            raise ValueError(f"action must have shape ({self.size}, {self.action_size}) (one "
-                             f"{'drone action' if self.drones else 'pivot force'} per agent), got {a.shape}")
+        a = raw_actions(action, (self.size, self.action_size),
+                        f"action (one {'drone action' if self.drones else 'pivot force'} per agent)")
         if not np.all(np.isfinite(a)):
-            raise ValueError("action must be finite")
+            raise ValueError(f"action must be finite, got {a.tolist()}")
         a = np.clip(a, -1.0, 1.0)
         if self.action_latency:
             self._queue.append(a)
@@ -414,7 +416,7 @@ class ElasticStringTeamEnv(gym.Env):
     Observations ``Box(-inf, inf, (K n,))``: the agents' observations (:func:`agent_layout`) one
     after the other. The reward is the team's; ``info["agents"]`` holds each agent's terms.
     Arguments (``options``: control_period, force_limit, preset, randomize, observation,
-    sensor_noise, action_latency, wind, actuation) as :class:`TeamCore`'s."""
+    sensor_noise, action_latency, wind, actuation, winch) as :class:`TeamCore`'s, checked alike."""
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
 
@@ -438,9 +440,7 @@ class ElasticStringTeamEnv(gym.Env):
         return obs.ravel(), info
 
     def step(self, action):
-        a = np.asarray(action, dtype=np.float64)
-        if a.shape != self.action_space.shape:
-            raise ValueError(f"action must have shape {self.action_space.shape}, got {a.shape}")
+        a = raw_actions(action, self.action_space.shape)
         obs, reward, terminated, truncated, info = self.core.step(a.reshape(self.core.size, self.core.action_size))
         return obs.ravel(), reward, terminated, truncated, info
 

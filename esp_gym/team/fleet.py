@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import TEAM_ENV_ID
 from ..drone import DroneState, drone_view, stacked_drone_arrays, use_drone
 from ..kernels.drone import Q_THRUST_COEFFICIENT
 from ..kernels.team_drones import TeamDrones
 from ..model import ROTATION_TOL
 from ..params import check_rotation
+from ..setup import check_thrust
 
 
 def finite(name: str, value, shape: tuple) -> np.ndarray:
@@ -18,6 +20,25 @@ def finite(name: str, value, shape: tuple) -> np.ndarray:
     if arr.shape != shape or not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must be finite of shape {shape}, got {value!r}")
     return arr
+
+
+def hover_shares(team) -> np.ndarray:
+    """The weight each pivot of ``team`` (a :class:`~esp_gym.team.scene.TeamScene`) carries at
+    hover (K,) [N]: its own, its string's and the load's K-th share."""
+    sections = team.pivots()
+    strings = [team.scene.string] + [s.string for s in team.strings]
+    g = team.scene.gravity
+    return np.array([g * (sections[k].mass + strings[k].length * strings[k].mass_per_length
+                          + team.scene.body.mass / team.size) for k in range(team.size)])
+
+
+def check_lift(team, where: str = "") -> None:
+    """ValueError unless every drone of ``team`` lifts its :func:`hover_shares` with the single
+    drone's margin (esp_gym/setup.py ``check_thrust``); ``where``: which team, for the message."""
+    shares = hover_shares(team)
+    for k, pivot in enumerate(team.pivots()):
+        if pivot.is_drone:
+            check_thrust(f"{TEAM_ENV_ID}: drone {k}", pivot.drone.max_thrust, shares[k], where)
 
 
 class Fleet:
@@ -32,10 +53,7 @@ class Fleet:
         self._sections = [sections[k] for k in self.pivots]
         #: each drone's parameters (esp_gym/pivot_params.py ``DroneParams``)
         self.drone_params = [pivot.drone for pivot in self._sections]
-        strings = [team.scene.string] + [s.string for s in team.strings]
-        g = team.scene.gravity
-        self._shares = np.array([g * (sections[k].mass + strings[k].length * strings[k].mass_per_length
-                                      + team.scene.body.mass / team.size) for k in self.pivots])
+        self._shares = hover_shares(team)[self.pivots]
         n = len(self.pivots)
         self.arrays = TeamDrones(arrays=stacked_drone_arrays(n), pivot=np.array(self.pivots, dtype=np.int64),
                                  pending=np.zeros((n, 2, 3)))

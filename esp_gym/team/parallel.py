@@ -10,6 +10,7 @@ from typing import Optional
 import gymnasium as gym
 import numpy as np
 
+from ..control import raw_actions
 from ..extras import require
 from .env import MAX_EPISODE_STEPS, TeamCore
 
@@ -26,8 +27,8 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
     after ``max_cycles`` steps (500: 10 s) and terminated for the whole team (collision, an
     overstretched string, the workspace left, a drone flipped, a failed step:
     ``infos[agent]["termination_reason"]``). Arguments (``options``: control_period,
-    force_limit, preset, randomize, observation, sensor_noise, action_latency, wind, actuation)
-    as :class:`~esp_gym.team.env.TeamCore`'s."""
+    force_limit, preset, randomize, observation, sensor_noise, action_latency, wind, actuation,
+    winch) as :class:`~esp_gym.team.env.TeamCore`'s, checked alike."""
 
     metadata = {"name": "elastic_string_team_v0", "render_modes": ["rgb_array"], "render_fps": 50,
                 "is_parallelizable": True}
@@ -70,7 +71,8 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
         unknown = [a for a in actions if a not in self.possible_agents]
         if unknown:
             raise ValueError(f"actions: unknown agents {unknown}")
-        action = np.stack([np.asarray(actions[a], dtype=np.float64).reshape(-1) for a in self.possible_agents])
+        shape = (self.core.action_size,)
+        action = np.stack([raw_actions(actions[a], shape, f"actions[{a!r}]") for a in self.possible_agents])
         obs, reward, terminated, _, info = self.core.step(action)
         truncated = not terminated and self.core.steps >= self.max_cycles
         agents = list(self.agents)

@@ -16,6 +16,7 @@ from pydantic import Field, ValidationError, model_validator
 
 from ..params import PivotParams, Scene, StringParams, WinchParams
 from ..scene_input import Frozen, vector
+from ..stepsize import explicit_substeps, shortest
 
 Point3 = vector("coordinate")
 
@@ -200,11 +201,7 @@ def static_stretch(size: int, length: float, mass_per_length: float, EA: float, 
 
 #: The default team's strings, pivots and load (:func:`team_scene`).
 NOMINAL = dict(length=1.0, mass_per_length=0.05, EA=200.0, pivot_mass=1.0, body_mass=1.0)
-#: The hard preset's draws per episode (``randomize``): each string's EA and mass per length
-#: log-uniform, its length uniform, each pivot's mass uniform, the load's mass uniform, as
-#: factors of :data:`NOMINAL`.
-RANDOM_FACTORS = dict(EA=(0.5, 2.0, "log"), mass_per_length=(0.5, 2.0, "log"), length=(0.9, 1.1, "uniform"),
-                      pivot_mass=(0.8, 1.25, "uniform"), body_mass=(0.7, 1.5, "uniform"))
+
 
 def quadrotor() -> tuple:
     """``(mass [kg], DroneParams)`` of the quadrotor of ``quadrotor_load`` (esp_gym/scenes: PX4's
@@ -216,14 +213,16 @@ def quadrotor() -> tuple:
 
 
 def team_scene(size: int, strings=None, pivot_masses=None, body_mass: float = NOMINAL["body_mass"],
-               drones: bool = False) -> TeamScene:
+               drones: bool = False, allow_unstable_h: bool = False) -> TeamScene:
     """A team of ``size`` free pivots holding a 1 kg-class box (0.4 x 0.4 x 0.1 m) at points 0.15 m
     from its centre line on its top face, each on a tension-only string (``drone_load``'s by
     default: 1 m, 50 g/m, EA = 200 N, 8 elements) from a pivot (1 kg; with ``drones``, the
     :func:`quadrotor` of 1.5 kg, its hook at its centre of mass) on a circle of 0.6 m radius at
     rest. ``strings``: per string ``{length, mass_per_length, EA}``, ``pivot_masses`` per pivot
     [kg]: each string keeps its nominal direction from its attachment point and starts at the
-    stretch that carries its share of the load (its pivot moved along it)."""
+    stretch that carries its share of the load (its pivot moved along it); ``allow_unstable_h``:
+    its h (the default team's) need not be stable for those strings, as where an environment
+    chooses each episode's own (esp_gym/team/randomize.py)."""
     size = int(size)
     if drones:
         mass, drone = quadrotor()
@@ -257,27 +256,18 @@ def team_scene(size: int, strings=None, pivot_masses=None, body_mass: float = NO
     body["mass"] = float(body_mass)
     scene = lead.model_validate({**lead.model_dump(), "string": string0, "body": body,
                                  "pivot": {**kind, "mass": mass0, "position": list(pivot0)},
-                                 "initial": {"direction": list(d0), "stretch": stretch0}})
+                                 "initial": {"direction": list(d0), "stretch": stretch0},
+                                 "allow_unstable_h": allow_unstable_h})
     return TeamScene(scene=scene, strings=[
         TeamString(string=string, pivot={**kind, "mass": mass, "position": tuple(pivot)},
                    attachment=tuple(attachments[k + 1]))
         for k, (string, pivot, _, _, mass) in enumerate(others)])
 
 
-def draw_team(size: int, rng: np.random.Generator, drones: bool = False) -> tuple:
-    """One randomised episode's team (:data:`RANDOM_FACTORS`; with ``drones``, each pivot's mass a
-    factor of the :func:`quadrotor`'s) and its draws by name."""
-    def factor(name):
-        low, high, law = RANDOM_FACTORS[name]
-        return math.exp(rng.uniform(math.log(low), math.log(high))) if law == "log" else rng.uniform(low, high)
-
-    def draw(name):
-        return NOMINAL[name] * factor(name)
-
-    strings = [{"EA": draw("EA"), "mass_per_length": draw("mass_per_length"), "length": draw("length")}
-               for _ in range(size)]
-    pivot_mass = quadrotor()[0] if drones else NOMINAL["pivot_mass"]
-    pivot_masses = [pivot_mass * factor("pivot_mass") for _ in range(size)]
-    body_mass = draw("body_mass")
-    return (team_scene(size, strings, pivot_masses, body_mass, drones),
-            {"strings": strings, "pivot_masses": pivot_masses, "body_mass": body_mass})
+def team_substeps(scene: TeamScene, control_period: float, winch: bool) -> int:
+    """Physics steps per control period of ``scene``: the fewest that keep h within half of every
+    string's stability bound (with ``winch``, at its winch's shortest length)."""
+    members = [scene.member_scene(k) for k in range(scene.size)]
+    if winch:
+        members = [shortest(m) for m in members]
+    return max(explicit_substeps(m, control_period, 0.5) for m in members)

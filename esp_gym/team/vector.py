@@ -1,7 +1,9 @@
 """``gym.make_vec("ElasticStringTeam-v0", num_envs=n)``: n teams stepped in turn in one process, with
 Gymnasium's next-step autoreset, each from its own seed (``seed + i``), so that every sub-env
-repeats the single env's episodes bit for bit (docs/team.md). The teams' steps are not yet one
-compiled call for the batch, as ``ElasticStringPendulum-v0``'s are."""
+repeats the single env's episodes bit for bit, and their infos in Gymnasium's vector convention
+(each key an array over the sub-envs with its ``_key`` mask, as ``ElasticStringPendulum-v0``'s
+vector env gives them; docs/team.md). The teams' steps are not yet one compiled call for the
+batch, as ``ElasticStringPendulum-v0``'s are."""
 from __future__ import annotations
 
 from typing import Optional
@@ -10,6 +12,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from ..control import raw_actions
 from ..vector import sub_env_seeds
 from .env import MAX_EPISODE_STEPS, ElasticStringTeamEnv
 
@@ -36,29 +39,37 @@ class ElasticStringTeamVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._elapsed = np.zeros(self.num_envs, dtype=np.int64)
+        self._was_reset = False  # stepping teams that were never reset is an error
 
     def reset(self, *, seed=None, options: Optional[dict] = None):
         seeds = sub_env_seeds(seed, self.num_envs)
-        obs = [env.reset(seed=s)[0] for env, s in zip(self.envs, seeds)]
+        obs, infos = [], {}
+        for i, (env, s) in enumerate(zip(self.envs, seeds)):
+            o, info = env.reset(seed=s)
+            obs.append(o)
+            infos = self._add_info(infos, info, i)
         self._autoreset[:] = False
         self._elapsed[:] = 0
-        return np.stack(obs), {}
+        self._was_reset = True
+        return np.stack(obs), infos
 
     def step(self, actions):
-        actions = np.asarray(actions)
-        if actions.shape != self.action_space.shape:
-            raise ValueError(f"actions must have shape {self.action_space.shape}, got {actions.shape}")
+        if not self._was_reset:
+            raise RuntimeError("call reset() before step()")
+        actions = raw_actions(actions, self.action_space.shape, "actions")
         obs = np.empty(self.observation_space.shape, dtype=np.float32)
         rewards = np.zeros(self.num_envs)
         terminated = np.zeros(self.num_envs, dtype=bool)
         truncated = np.zeros(self.num_envs, dtype=bool)
+        infos = {}
         for i, env in enumerate(self.envs):
-            if self._autoreset[i]:
-                obs[i], _ = env.reset()
+            if self._autoreset[i]:  # the reset's info, as Gymnasium's own vector envs give it
+                obs[i], info = env.reset()
                 self._elapsed[i] = 0
-                continue
-            obs[i], rewards[i], terminated[i], truncated[i], _ = env.step(actions[i])
-            self._elapsed[i] += 1
-            truncated[i] |= self._elapsed[i] >= self.max_episode_steps
+            else:
+                obs[i], rewards[i], terminated[i], truncated[i], info = env.step(actions[i])
+                self._elapsed[i] += 1
+                truncated[i] |= self._elapsed[i] >= self.max_episode_steps
+            infos = self._add_info(infos, info, i)
         self._autoreset = terminated | truncated
-        return obs, rewards, terminated, truncated, {}
+        return obs, rewards, terminated, truncated, infos
