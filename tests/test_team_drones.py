@@ -12,14 +12,9 @@ from esp_gym.team import TeamScene, TeamSimulator, TeamString
 from esp_gym.team.scene import team_scene
 
 
-def plain_quadrotor_load():
-    """``quadrotor_load`` with the plain slack switch (a team's)."""
-    scene = load_scene("quadrotor_load")
-    return scene.model_copy(update={"solver": scene.solver.model_copy(update={"slack_switch": "plain"})})
-
-
-def test_a_team_of_one_drone_flies_as_the_single_drone_bit_for_bit():
-    scene = plain_quadrotor_load()
+@pytest.mark.parametrize("switch", ["settled", "plain"])
+def test_a_team_of_one_drone_flies_as_the_single_drone_bit_for_bit(switch):
+    scene = load_scene("quadrotor_load", solver={"slack_switch": switch})
     team = TeamSimulator(TeamScene(scene=scene))
     single = DroneSimulator(scene, specialise=False)
     assert team.drone_pivots == [0]

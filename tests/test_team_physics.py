@@ -314,9 +314,6 @@ def test_a_team_refuses_what_its_step_does_not_do():
     one = base.strings[0]
     with pytest.raises(ValueError, match="at most 6"):
         TeamScene(scene=base.scene, strings=[one] * 6)
-    with pytest.raises(ValueError, match="slack_switch: plain"):
-        TeamScene(scene=base.scene, strings=[one.model_copy(update={"string": one.string.model_copy(
-            update={"law": "slack"})})])
     composed = base.scene.model_copy(update={"solver": base.scene.solver.model_copy(update={"order": 4})})
     with pytest.raises(ValueError, match="order 2"):
         TeamScene(scene=composed)

@@ -24,17 +24,26 @@ def node_velocities(p, Pi0, Pi1, Pi2, R, P, V):
     momenta ``p`` (N+1, 3) [kg m/s] and ``Pi`` (body frame) [kg m^2/s] at the attitude R, by the
     step's Schur complement (module docstring); rows of fixed nodes are 0. Returns the body's
     angular velocity Omega (body frame) [rad/s] and R (rho_c x Omega) [m/s], six scalars."""
-    n = p.shape[0] - 1
     first = P.first
-    M = P.M
-    rho0 = P.rho[0]
-    rho1 = P.rho[1]
-    rho2 = P.rho[2]
     tridiag_solve(P.inv, P.cp, P.off, first, p, V)
     for a in range(first):
         V[a, 0] = 0.0
         V[a, 1] = 0.0
         V[a, 2] = 0.0
+    return body_velocities(V, Pi0, Pi1, Pi2, R, P.M, P.rho, P.Jeff, P.w, first)
+
+
+@kernel(inline="always")
+def body_velocities(V, Pi0, Pi1, Pi2, R, M, rho, Jeff, w, first):
+    """:func:`node_velocities` once ``V`` holds y = M_tot^-1 p: Omega from J_eff Omega = Pi -
+    M rho x (R^T y_{N+1}) and v = y + M w R (rho x Omega) on rows ``first..N``, for a body of
+    inertial mass ``M`` [kg] at ``rho`` (body frame) [m] with ``Jeff`` (3, 3) and the string's
+    column ``w`` = M_tot^-1 e_{N+1} (P's; a team's assembled body: kernels/team_switch.py).
+    Returns as :func:`node_velocities`."""
+    n = V.shape[0] - 1
+    rho0 = rho[0]
+    rho1 = rho[1]
+    rho2 = rho[2]
     y0 = V[n, 0]
     y1 = V[n, 1]
     y2 = V[n, 2]
@@ -42,7 +51,7 @@ def node_velocities(p, Pi0, Pi1, Pi2, R, P, V):
     e1 = R[0, 1] * y0 + R[1, 1] * y1 + R[2, 1] * y2
     e2 = R[0, 2] * y0 + R[1, 2] * y1 + R[2, 2] * y2
     w0, w1, w2 = solve3(
-        P.Jeff,
+        Jeff,
         Pi0 - M * (rho1 * e2 - rho2 * e1),
         Pi1 - M * (rho2 * e0 - rho0 * e2),
         Pi2 - M * (rho0 * e1 - rho1 * e0),
@@ -53,7 +62,6 @@ def node_velocities(p, Pi0, Pi1, Pi2, R, P, V):
     q0 = R[0, 0] * x0 + R[0, 1] * x1 + R[0, 2] * x2
     q1 = R[1, 0] * x0 + R[1, 1] * x1 + R[1, 2] * x2
     q2 = R[2, 0] * x0 + R[2, 1] * x1 + R[2, 2] * x2
-    w = P.w
     for a in range(first, n + 1):
         V[a, 0] += M * w[a] * q0
         V[a, 1] += M * w[a] * q1

@@ -80,6 +80,18 @@ def switch_errors(r0, r1, kappa0, u0, kappa1, u1, reel_work, owed, errors):
     return count
 
 
+@kernel(inline="always")
+def switch_root(e, B, A):
+    """The extra tension d [N] whose impulse d j changes the kinetic energy by d B + d^2 A = -e
+    (``B`` = j . v [J/N], ``A`` = j . M^-1 j / 2 [J/N^2], ``e`` the error [J]): the root of smaller
+    magnitude, written without cancellation; where there is none, the vertex -B / 2A, which
+    removes the most it can. Returns ``(d, what is still owed [J])``."""
+    disc = B * B - 4.0 * A * e
+    if disc >= 0.0:
+        return -2.0 * e / (B + math.copysign(math.sqrt(disc), B)), 0.0
+    return -B / (2.0 * A), e - B * B / (4.0 * A)
+
+
 # Not inlined: it runs only on steps with a switch, and inlined into every specialised step it
 # cost 20 % more compile time at the first step (docs/performance.md).
 @kernel
@@ -127,12 +139,7 @@ def settle_switches(S, P, h, momenta, errors, owed, V, Z):
         A = -0.5 * (j0 * Z[a + 1, 0] + j1 * Z[a + 1, 1] + j2 * Z[a + 1, 2])
         if a >= first:
             A += 0.5 * (j0 * Z[a, 0] + j1 * Z[a, 1] + j2 * Z[a, 2])
-        disc = B * B - 4.0 * A * e
-        if disc >= 0.0:  # the root of smaller magnitude, written without cancellation
-            d = -2.0 * e / (B + math.copysign(math.sqrt(disc), B))
-        else:
-            d = -B / (2.0 * A)
-            owed[a] = e - B * B / (4.0 * A)
+        d, owed[a] = switch_root(e, B, A)
         if a >= first:
             p[a, 0] += d * j0
             p[a, 1] += d * j1

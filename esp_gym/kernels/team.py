@@ -3,20 +3,19 @@ strings on one body").
 
 String 0 and the body are a single string's arrays (StateArrays, Work, LGVIParams: the lead scene's)
 and run through the single string's stages (kernels/lgvi.py, kernels/step_shared.py), with the
-body's inertia augmented by the other strings' effective end masses (:data:`TeamParams`
-``mass``, ``rho_inertial``, ``jeff``, and string 0's factors ``inv0``, ``cp0``, ``w0`` with that
-mass on its last row). Gravity keeps the body's own mass and offset (P.M, P.rho).
+body's inertia augmented by the other strings' effective end masses
+(:data:`~.team_arrays.TeamParams` ``mass``, ``rho_inertial``, ``jeff``, and string 0's factors
+``inv0``, ``cp0``, ``w0`` with that mass on its last row). Gravity keeps the body's own mass and
+offset (P.M, P.rho).
 
-The other strings 1..K-1 are stacked by rows in :data:`TeamArrays`: string j owns rows
-``start[j] .. start[j+1] - 1``, its pivot first and its end, slaved to the body at ``rho[j]``
+The other strings 1..K-1 are stacked by rows in :data:`~.team_arrays.TeamArrays`: string j owns
+rows ``start[j] .. start[j+1] - 1``, its pivot first and its end, slaved to the body at ``rho[j]``
 from string 0's attachment point (body frame), last. A slaved end carries no momentum of its
 own: its row of ``p`` stays 0 and its share is in the body's (S.p[N], S.Pi).
 
 With K = 1 every loop below is empty and every addition an exact zero: the step is the single
 string's general-path step, bit for bit.
 """
-from collections import namedtuple
-
 import numpy as np
 
 from .jit import kernel
@@ -28,35 +27,8 @@ from .step_shared import (body_momentum_increment, commit_body, commit_node, com
                           held_inputs, input_balances, left_torque, new_positions, next_attitude)
 from .string import nodal_forces, string_solve
 from .sums import kahan_add
-
-#: Constants of a team's strings 1..K-1 (per string j: ``first`` its first unknown row, 0 for a
-#: free pivot of mass ``Mp``; ``kappa`` [N/m], ``u`` [m], ``m`` [kg] its elements'; ``off`` its
-#: mass matrix's off-diagonal [kg]; ``slack`` tension only; ``max_len2`` its blow-up guard [m^2];
-#: ``rho`` (K-1, 3) its attachment point from string 0's, body frame [m]) and per stacked row the
-#: Thomas factors ``inv``, ``cp`` of the rows before the end and ``w_end`` = M_II^-1 e_last, that
-#: block's last column. The body's inertia with the strings' end masses: ``mass`` M' [kg],
-#: ``rho_inertial`` rho' [m], ``jeff`` (3, 3), and string 0's Thomas factors ``inv0``, ``cp0`` and
-#: attachment column ``w0`` with M' on its last row.
-TeamParams = namedtuple("TeamParams", "start first kappa u m Mp off slack max_len2 rho inv cp w_end "
-                                      "mass rho_inertial jeff inv0 cp0 w0")
-
-#: The state and scratch of strings 1..K-1, stacked by rows (rows, 3): positions ``r``, momenta
-#: ``p`` (0 on the ends), their remainders ``rc``, ``pc``, the forces ``f`` at r and ``fn`` at the
-#: step's new positions ``X`` (increments ``Y``) [N, m]; per string the coupling momentum ``c``
-#: (K-1, 3) = M_eI M_II^-1 b_I [kg m/s], the pivot's displacement ``dr0`` over the step [m] and
-#: the pivot force ``force`` (K-1, 2, 3) at the step's start u_k and its end u_{k+1} (spatial) [N]
-#: (equal for a held force; a drone's thrust turns with it: kernels/team_drones.py).
-TeamArrays = namedtuple("TeamArrays", "r p rc pc f fn X Y c dr0 force")
-
-
-@kernel(inline="always")
-def pivot_rows(T, j):
-    """String j's rows that do not move by the solve: 0 below a free pivot, 1 below a fixed one.
-    The select of two constants lets the compiler prove every row index from it non-negative, so
-    the loops over a string's rows drop the negative-index wraparound that ``T.first[j]`` (read
-    from memory) would cost on each access."""
-    return 0 if T.first[j] == 0 else 1
-
+from .team_arrays import add_end_loads, pivot_rows
+from .team_switch import settle_team_switches, team_switch_errors
 
 @kernel(inline="always")
 def end_loads(R, T, A, h, forced):
@@ -94,18 +66,6 @@ def end_loads(R, T, A, h, forced):
         t1 += m1
         t2 += m2
     return E0, E1, E2, t0 / hh, t1 / hh, t2 / hh
-
-
-@kernel(inline="always")
-def add_end_loads(X, w0, E, first, others):
-    """X += w0 E on rows ``first..N``: the other strings' left loads ``E`` on string 0's
-    attachment row, through its solve's last column w0, by linearity (nothing when ``others`` is 0)."""
-    if others > 0:
-        E0, E1, E2 = E
-        for a in range(first, X.shape[0]):
-            X[a, 0] += w0[a] * E0
-            X[a, 1] += w0[a] * E1
-            X[a, 2] += w0[a] * E2
 
 
 @kernel(inline="always")
@@ -294,8 +254,9 @@ def team_substep(S, W, P, T, A, inputs, h, free, forced, coupled, compensated):
     strings on one body"): string 0 and the body as :func:`~.lgvi.lgvi_substep` with the body's
     inertia augmented (``T``), the other strings (``A``) reduced to their ends before Newton and
     back-substituted after it. ``inputs`` (:data:`~.layout.INPUTS`) push string 0's pivot and
-    turn the body; ``A.force`` pushes the other pivots (its pair, as string 0's). Flags as in
-    ``lgvi_substep``; a failing step leaves the state untouched. Returns ``(status,
+    turn the body; ``A.force`` pushes the other pivots (its pair, as string 0's). Every slack string settles its
+    switches (kernels/team_switch.py) as ``lgvi_substep`` does. Flags as in ``lgvi_substep``; a
+    failing step leaves the state untouched. Returns ``(status,
     newton_iterations)``."""
     R = S.R
     first = 0 if free else 1
@@ -320,6 +281,7 @@ def team_substep(S, W, P, T, A, inputs, h, free, forced, coupled, compensated):
     status = other_forces(S, W, P, T, A)
     if status != OK:
         return status, iters
+    unsettled = team_switch_errors(S, W, P, T, A, None)  # the slack switches (kernels/team_switch.py)
     b0, b1, b2, i0, i1, i2 = right_loads(W, T, A, h, A.f, A.fn)
     # the right torque: tau_g(R_{k+1}) + tau^+, and the other strings' right loads
     m0, m1, m2, n0, n1, n2 = left_torque(W.Rn, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
@@ -333,6 +295,8 @@ def team_substep(S, W, P, T, A, inputs, h, free, forced, coupled, compensated):
     commit_string(S, W, h, held, S.f, W.fn, free, forced, compensated, (i0, i1, i2))
     commit_others(T, A, h, forced, compensated, A.f, A.fn)
     commit_body(S, W.Rn, W.RF, dP, compensated)
+    if unsettled > 0:
+        settle_team_switches(S, W, P, T, A, h, S.p, A.p, S.Pi, P.off)
     return OK, iters
 
 

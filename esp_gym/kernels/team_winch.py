@@ -27,8 +27,9 @@ from .string import nodal_forces
 from .step_shared import (body_momentum_increment, commit_body, commit_string, guarded_forces, held_inputs,
                           input_balances, left_torque, new_positions, next_attitude)
 from .sums import kahan_add
-from .team import (TeamParams, add_end_loads, commit_others, other_balances, other_forces, other_increments,
-                   pivot_rows, right_loads)
+from .team import commit_others, other_balances, other_forces, other_increments, right_loads
+from .team_arrays import TeamParams, add_end_loads, pivot_rows
+from .team_switch import settle_team_switches, team_switch_errors
 from .winch import (add_convective_forces, add_convective_impulse, body_schur, convective_momentum, convective_solve,
                     factor_string, length_params, midpoint_dH_dl)
 
@@ -56,11 +57,13 @@ def reel_terms(st, l0, l1, h, n):
 
 
 @kernel(inline="always")
-def reduce_others(T, TW, h):
+def reduce_others(T, TW, h, symmetric):
     """Each string j >= 1's step matrix factored on its rows before the end
     (:func:`~.winch.factor_string`), its end mass mu_j = A_ee - A_{e,e-1} A_{e-1,e} (A_II^-1)_{last,last}
     (into ``TW.mu``), its coupling A_{e-1,e} (``TW.off``; A_{e,e-1} into ``TW.lower`` at its end
-    row) and its constants at the step's end length (``TW.kappa``, ``u``, ``m``, ``max_len2``)."""
+    row) and its constants at the step's end length (``TW.kappa``, ``u``, ``m``, ``max_len2``).
+    ``symmetric``: its mass matrix at that length instead (the velocities of the step's new
+    state: :func:`settle_reeling_team`)."""
     for j in range(T.first.shape[0]):
         st = TW.state[j + 1]
         s = T.start[j]
@@ -71,6 +74,9 @@ def reduce_others(T, TW, h):
         l1 = TW.target[j + 1]
         _, c, m = reel_terms(st, l0, l1, h, n)
         skew = 0.5 * h * c
+        if symmetric:
+            m = st[WN_MASS_PER_LENGTH] * l1 / n
+            skew = 0.0
         end = st[WN_END_SHARE] * m
         coef = TW.coef[s:e - 1]
         lower = TW.lower[s:e]
@@ -234,7 +240,7 @@ def team_winch_substep(S, W, P, T, A, TW, inputs, h, free, forced, coupled, comp
     l1 = TW.target[0]
     v, c, m_mean = reel_terms(st, l0, l1, h, n)
     reeling_forces(S, W, T, A, TW, h, first)
-    reduce_others(T, TW, h)
+    reduce_others(T, TW, h, False)
     mass = assemble_body(P, T, TW)
     rho_inertial = TW.body[1:]
     factor_string(m_mean, 0.5 * h * c, st[WN_END_SHARE], st[WN_OFF_SHARE], WA.coef, first, n, P.Mp, mass, WA.lower,
@@ -255,7 +261,7 @@ def team_winch_substep(S, W, P, T, A, TW, inputs, h, free, forced, coupled, comp
     if status != OK:
         return status, iters
     Ts = TeamParams(T.start, T.first, TW.kappa, TW.u, TW.m, T.Mp, TW.off, T.slack, TW.max_len2, T.rho, TW.inv, TW.cp,
-                    TW.w, mass, rho_inertial, WA.jeff, WA.inv, WA.cp, WA.w)
+                    TW.w, mass, rho_inertial, WA.jeff, WA.inv, WA.cp, WA.w, T.settle)
     other_increments(S, W, Ts, A, h, forced, compensated)
     new_positions(S, W, first, compensated)
     # string 0's impulse h/2 (f~_k + f~_{k+1}) + c C dr, f_{k+1} added by the commit (as winch_substep)
@@ -269,6 +275,7 @@ def team_winch_substep(S, W, P, T, A, TW, inputs, h, free, forced, coupled, comp
     status = other_forces(S, W, P, Ts, A)
     if status != OK:
         return status, iters
+    unsettled = team_switch_errors(S, W, P, Ts, A, TW)  # with each reel's share (kernels/team_switch.py)
     reeling_right_forces(T, A, TW, h)
     b0, b1, b2, i0, i1, i2 = right_loads(W, Ts, A, h, TW.fl, TW.fr)
     m0, m1, m2, n0, n1, n2 = left_torque(W.Rn, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
@@ -283,7 +290,80 @@ def team_winch_substep(S, W, P, T, A, TW, inputs, h, free, forced, coupled, comp
     commit_others(Ts, A, h, forced, compensated, TW.fl, TW.fr)
     commit_body(S, W.Rn, W.RF, dP, compensated)
     weight_at_mean_lengths(S, P, T, TW, h, m_mean, P1.m)
+    if unsettled > 0:
+        settle_reeling_team(S, W, P, T, A, TW, h)
     return OK, iters
+
+
+# Not inlined, as kernels/switch.py's settle_switches: it runs only on steps with a switch.
+@kernel
+def settle_reeling_team(S, W, P, T, A, TW, h):
+    """:func:`~.team_switch.settle_team_switches` of a reeling step just committed, with the team's
+    inverse Legendre transform at every string's new length (:func:`velocity_params`) on the
+    momenta less the flow's (:func:`flow_free_momenta`), as kernels/winch.py's
+    ``settle_reeling_switches``."""
+    first = 0 if P.first == 0 else 1
+    Td, off0 = velocity_params(S, P, T, TW, h, first)
+    Pi = flow_free_momenta(S, T, A, TW, h, first)
+    settle_team_switches(S, W, P, Td, A, h, TW.lead.pshift, TW.fl, Pi, off0)
+
+
+@kernel(inline="always")
+def velocity_params(S, P, T, TW, h, first):
+    """The team's constants at every string's length ``TW.target`` with its symmetric mass matrix
+    (the continuous Legendre transform's), the body's with those end masses: into the step's
+    factors (made anew by the next step), string 0's into the diagnostics' ``TW.lead.d*``.
+    Returns ``(TeamParams, string 0's off-diagonal [kg])``."""
+    n = S.r.shape[0] - 1
+    WA = TW.lead
+    st = TW.state[0]
+    reduce_others(T, TW, h, True)
+    mass = assemble_body(P, T, TW)
+    rho = TW.body[1:]
+    m = st[WN_MASS_PER_LENGTH] * TW.target[0] / n
+    factor_string(m, 0.0, st[WN_END_SHARE], st[WN_OFF_SHARE], WA.coef, first, n, P.Mp, mass, WA.lower, WA.upper,
+                  WA.diag, WA.dinv, WA.dcp, WA.dw)
+    body_schur(WA.djeff, TW.J, mass, rho, WA.dinv[n])
+    return TeamParams(T.start, T.first, TW.kappa, TW.u, TW.m, T.Mp, TW.off, T.slack, TW.max_len2, T.rho, TW.inv,
+                      TW.cp, TW.w, mass, rho, WA.djeff, WA.dinv, WA.dcp, WA.dw, T.settle), st[WN_OFF_SHARE] * m
+
+
+@kernel(inline="always")
+def flow_free_momenta(S, T, A, TW, h, first):
+    """The momenta less the material's flow, p - c C^T r, at the step's reel speeds (docs/physics.md,
+    "Winches on a team's strings"): string 0's into ``TW.lead.pshift`` (N+1, 3), the others' rows
+    before their ends into ``TW.fl`` (their ends' rows 0), each end's flow c_j (C^T r)_e taken out
+    of the body's p_x (string 0's last row) and, with its moment rho_j x R^T(.), out of Pi, which
+    is returned (body frame) [kg m^2/s]."""
+    n = S.r.shape[0] - 1
+    ps = TW.lead.pshift
+    st = TW.state[0]
+    _, c, _ = reel_terms(st, st[WN_LENGTH], TW.target[0], h, n)
+    for a in range(n + 1):
+        for i in range(3):
+            ps[a, i] = S.p[a, i] - (c * convective_momentum(S.r, TW.lead.coef, a, i) if a >= first else 0.0)
+    t0, t1, t2 = S.Pi[0], S.Pi[1], S.Pi[2]
+    for j in range(T.first.shape[0]):
+        s = T.start[j]
+        e = T.start[j + 1] - 1  # the end's row
+        st = TW.state[j + 1]
+        _, c, _ = reel_terms(st, st[WN_LENGTH], TW.target[j + 1], h, e - s)
+        r = A.r[s:e + 1]
+        coef = TW.coef[s:e]
+        fj = pivot_rows(T, j)
+        for a in range(e - s):
+            for i in range(3):
+                TW.fl[s + a, i] = A.p[s + a, i] - (c * convective_momentum(r, coef, a, i) if a >= fj else 0.0)
+        q = (c * convective_momentum(r, coef, e - s, 0), c * convective_momentum(r, coef, e - s, 1),
+             c * convective_momentum(r, coef, e - s, 2))
+        for i in range(3):
+            ps[n, i] -= q[i]
+            TW.fl[e, i] = 0.0
+        m0, m1, m2 = cross(T.rho[j], unrotated(S.R, q))
+        t0 -= m0
+        t1 -= m1
+        t2 -= m2
+    return t0, t1, t2
 
 
 @kernel(inline="always")

@@ -4,7 +4,7 @@ body"), for :class:`~esp_gym.team.simulator.TeamSimulator`."""
 import numpy as np
 
 from ..kernels.string import tridiag_factor
-from ..kernels.team import TeamParams
+from ..kernels.team_arrays import TeamParams
 from ..stability import hat
 from ..state import attachment_column, mass_matrix
 
@@ -78,7 +78,7 @@ def build_team(team, lead_params):
         max_len2=np.array([(team.scene.solver.max_stretch * s.string.u) ** 2 for s in strings], dtype=float),
         rho=np.ascontiguousarray(rho.reshape(-1, 3)), inv=cat(inv), cp=cat(cp), w_end=cat(w_end),
         mass=float(mass), rho_inertial=np.ascontiguousarray(rho_inertial, dtype=float), jeff=jeff,
-        inv0=inv0, cp0=cp0, w0=w0)
+        inv0=inv0, cp0=cp0, w0=w0, settle=team.scene.solver.slack_switch == "settled")
     return T, data
 
 def banded(diag, off):

@@ -89,12 +89,6 @@ class TeamScene(Frozen):
             if pivot.is_drone and pivot.drone.offset_hook:
                 raise ValueError(f"{name}.drone.rho_q: a team's drone carries its string at its centre of mass "
                                  "(docs/physics.md, \"What a team does not do yet\")")
-        laws = [("scene.string.law", lead.string)] + [(f"strings[{i}].string.law", s.string)
-                                                      for i, s in enumerate(self.strings)]
-        for name, string in laws:
-            if string.law == "slack" and lead.solver.slack_switch == "settled":
-                raise ValueError(f"{name}: a team's slack string takes scene.solver.slack_switch: plain (the "
-                                 "settled switch does not yet see the other strings)")
         for i, s in enumerate(self.strings):
             try:
                 self.member_scene(i + 1)  # the string's own stability bound and ranges at this h
@@ -149,9 +143,9 @@ def symmetric_team(size: int = 3, length: float = 1.0, mass_per_length: float = 
     2 pi k / size; each string straight from its pivot to its attachment point, of unstretched
     ``length`` [m] stretched by ``stretch`` (``"static"``: about where the strings carry the load
     at rest, :func:`static_stretch`). ``pivot``: the pivots' section (default fixed; e.g.
-    ``{"kind": "free", "mass": 0.5}``); ``law`` the strings' (``slack`` takes ``solver:
-    {slack_switch: plain}`` in ``scene``). ``scene``: more of the lead scene's sections (solver,
-    gravity, ...)."""
+    ``{"kind": "free", "mass": 0.5}``); ``law`` the strings' (``slack``: their switches settled,
+    or ``solver: {slack_switch: plain}`` in ``scene``). ``scene``: more of the lead scene's sections
+    (solver, gravity, ...)."""
     if not 1 <= int(size) <= MAX_STRINGS:
         raise ValueError(f"size must be 1..{MAX_STRINGS}, got {size}")
     size = int(size)
@@ -232,7 +226,7 @@ def team_scene(size: int, strings=None, pivot_masses=None, body_mass: float = NO
     nominal = symmetric_team(size, length=NOMINAL["length"], mass_per_length=NOMINAL["mass_per_length"],
                              EA=NOMINAL["EA"], elements=8, body_mass=NOMINAL["body_mass"], body_size=(0.4, 0.4, 0.1),
                              pivot_radius=0.6, attachment_radius=0.15, pivot={**kind, "mass": mass}, h=2e-4,
-                             stretch="static", law="slack", solver={"slack_switch": "plain"})
+                             stretch="static", law="slack")
     if strings is None and pivot_masses is None and body_mass == NOMINAL["body_mass"]:
         return nominal
     strings = strings or [{k: NOMINAL[k] for k in ("length", "mass_per_length", "EA")}] * size

@@ -11,7 +11,8 @@ import numpy as np
 from ..drone import DroneState
 from ..kernels.layout import BALANCE, INPUTS, LOOP_REPORT_SIZE, R_NEWTON_TOTAL, R_STATUS, R_STEPS
 from ..kernels.status import OK
-from ..kernels.team import TeamArrays, team_forces
+from ..kernels.team import team_forces
+from ..kernels.team_arrays import TeamArrays
 from ..kernels.team_loops import team_advance, team_drone_advance, team_winch_advance
 from ..kernels.team_winch import team_winch_forces
 from ..model import SimulationError, Simulator
@@ -68,7 +69,7 @@ class TeamSimulator:
         K1 = len(team.strings)
         self._A = TeamArrays(r=z((rows, 3)), p=z((rows, 3)), rc=z((rows, 3)), pc=z((rows, 3)), f=z((rows, 3)),
                              fn=z((rows, 3)), X=z((rows, 3)), Y=z((rows, 3)), c=z((K1, 3)), dr0=z((K1, 3)),
-                             force=z((K1, 2, 3)))
+                             force=z((K1, 2, 3)), switch=z(rows), owed=z(rows))
         self._inputs = z(INPUTS.size)
         self._stats = np.zeros(LOOP_REPORT_SIZE, dtype=np.int64)
         self._step = 0
@@ -193,6 +194,7 @@ class TeamSimulator:
             A.p[e] = 0.0
         A.rc[...] = 0.0
         A.pc[...] = 0.0
+        A.owed[...] = 0.0  # as the lead's remainders (its owed energies among them)
         self._step = int(state.lead.step)
         if self.winches.idle:
             team_forces(self._S, self._P, self.params, A)
