@@ -15,7 +15,7 @@ import esp_gym
 import esp_gym.stepsize
 from agents.baselines.pd import AntiSwayPD, Hoist
 from esp_gym.kernels.status import BLOW_UP, ENERGY_BALANCE
-from esp_gym.watchdog import STANDARD_GRAVITY, WATCH_EVERY, energy_scale, task_constants
+from esp_gym.watchdog import STANDARD_GRAVITY, WATCH_EVERY, energy_scale, task_constants, team_energy_scale
 
 ENV_ID = esp_gym.ENV_ID
 
@@ -248,3 +248,55 @@ def test_the_stiff_implicit_string_under_exploration_noise_keeps_its_energy(task
     reason = info.get("termination_reason", "")
     assert reason != "energy_balance" and not reason.startswith("physics_failure"), reason
     assert worst < 0.01, worst
+
+
+def broken_team_episode(monkeypatch, watchdog, broken: bool, steps: int = 60):
+    """A team's ``stabilize`` episode (three point pivots, hovering) under zero actions, its
+    watchdog ``solver.energy_watchdog`` = ``watchdog``; ``broken``: every compiled run of steps
+    ends by scaling every momentum by 1.02 (a step that pumps energy in, 4 % of the kinetic
+    energy per control step). Returns (termination reason, control steps, the balance over the
+    bound at each step, the env)."""
+    from esp_gym.kernels.team_loops import team_advance as real
+    from esp_gym.team import simulator
+    from esp_gym.team.env import ElasticStringTeamEnv
+    from esp_gym.team.scene import team_scene
+
+    if broken:
+        def pumping(S, W, P, T, A, inputs, n, stats, disturbed):
+            real(S, W, P, T, A, inputs, n, stats, disturbed)
+            for momenta in (S.p, S.Pi, A.p):
+                momenta *= 1.02
+        monkeypatch.setattr(simulator, "team_advance", pumping)
+    team = team_scene(3)
+    team = team.model_copy(update={"scene": team.scene.model_copy(update={"solver": team.scene.solver.model_copy(
+        update={"energy_watchdog": watchdog})})})
+    env = ElasticStringTeamEnv(team, task="stabilize")
+    env.reset(seed=0)
+    core, ratio = env.core, []
+    for k in range(steps):
+        _, _, terminated, _, info = env.step(np.zeros(env.action_space.shape, np.float32))
+        d = core.sim.diagnostics()
+        work = d["work"] + d["winch_work"]
+        ratio.append(abs(d["energy_balance_residual"]) / (0.01 * (team_energy_scale(team) + abs(work))))
+        if terminated:
+            return info["termination_reason"], k + 1, np.array(ratio), env
+    return "", steps, np.array(ratio), env
+
+
+def test_the_team_environment_ends_a_broken_steps_energy_gain(monkeypatch):
+    """The team env's watchdog is the single env's (esp_gym/watchdog.py, through the team's
+    simulator): a broken step ends the episode with ``energy_balance`` at the control step where
+    |E - E0 - W| first passes 0.01 (the team's scale 40.7 J + |W|), and the simulator then says
+    so with the team's scale; the same broken episode without the watchdog runs on (negative
+    control), and so does the unbroken one with it (its balance 1e-4 of the bound)."""
+    reason, ended, _, env = broken_team_episode(monkeypatch, 0.01, True)
+    assert reason == "energy_balance" and ended < 60, (reason, ended)
+    with pytest.raises(esp_gym.SimulationError, match=r"energy scale 40\.7 J") as error:
+        env.core.sim.step(env.core.substeps)
+    assert error.value.status == ENERGY_BALANCE
+    reason_off, ran, ratio, _ = broken_team_episode(monkeypatch, None, True, ended + 5)
+    assert reason_off == "" and ran == ended + 5
+    assert np.argmax(ratio > 1.0) + 1 == ended and ratio[:ended - 1].max() <= 1.0
+    monkeypatch.undo()
+    reason_good, ran, ratio, _ = broken_team_episode(monkeypatch, 0.01, False, ended + 5)
+    assert reason_good == "" and ran == ended + 5 and ratio.max() < 1e-2, ratio.max()

@@ -19,8 +19,10 @@ import numpy as np
 
 from .. import TEAM_ENV_ID
 from ..control import raw_actions
+from ..errors import termination_reason
 from ..kernels.env_arrays import TARGET
 from ..kernels.reference import reference_at
+from ..kernels.status import ENERGY_BALANCE
 from ..model import SimulationError
 from ..observe import standard_deviation
 from ..options import check_substeps, team_options
@@ -149,6 +151,7 @@ class TeamCore:
         scene = scene.model_copy(update={"scene": scene.scene.model_copy(update={"h": self.control_period / substeps})})
         self.scene, self.substeps = scene, substeps
         self.sim = TeamSimulator(scene)
+        self.sim.watch_every = 1  # the energy watchdog at every control step, as the single env's
         pivots = [scene.scene.pivot] + [s.pivot for s in scene.strings]
         strings = [scene.scene.string] + [s.string for s in scene.strings]
         weight = scene.scene.gravity * (scene.scene.body.mass + sum(p.mass for p in pivots)
@@ -374,8 +377,9 @@ class TeamCore:
                                                self.control_period)
         try:
             self.sim.step(self.substeps, load_force=self.load_force if self.wind is not None else None, **drive)
-        except SimulationError as error:
-            reason = f"simulation_failed: {error}"
+        except SimulationError as error:  # the energy watchdog's (finite, the steps taken) as the single env's
+            reason = termination_reason(error.status) if error.status == ENERGY_BALANCE else \
+                f"simulation_failed: {error}"
         self.steps += 1
         self.last_action = a
         if self.reference is not None:

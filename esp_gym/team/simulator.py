@@ -17,6 +17,7 @@ from ..kernels.team_loops import team_advance, team_drone_advance, team_winch_ad
 from ..kernels.team_winch import team_winch_forces
 from ..model import SimulationError, Simulator
 from ..state import State, cross3, legendre_momenta
+from ..watchdog import WATCH_EVERY, check_team_balance
 from .assembly import build_team, string_mass
 from .fleet import Fleet
 from .scene import TeamScene
@@ -81,6 +82,10 @@ class TeamSimulator:
         self.winches = TeamWinches(team, np.concatenate([[self._P.max_len2], self.params.max_len2]),
                                    self.params.start)
         self._winch_jumps = 0.0  # H's jumps at fixed (q, p) where the reel speeds changed [J]
+        self._unwatched = 0  # steps since the energy watchdog last looked
+        #: The energy watchdog looks at the end of the call in which this many steps have passed
+        #: since it last did (esp_gym/watchdog.py; an environment's: 1, every control step).
+        self.watch_every = WATCH_EVERY
         self.set_state(self.initial_state())
 
     # -- state ------------------------------------------------------------------------------
@@ -291,11 +296,15 @@ class TeamSimulator:
             team_drone_advance(self._S, self._W, self._P, self.params, self._A, self.fleet.arrays, self._inputs,
                                n, self._stats, disturbed, self.fleet.rates)
         self._step += int(self._stats[R_STEPS])
+        self._unwatched += int(self._stats[R_STEPS])
         if disturbed:  # a held force's work: F . the displacement of its point
             self._load_work += float(F @ (self.load_position() - before))
         status = int(self._stats[R_STATUS])
         if status != OK:
             raise SimulationError(status, self._step, self.time, int(self._stats[R_NEWTON_TOTAL]))
+        if self._unwatched >= self.watch_every:  # the energy watchdog, as the single simulator's
+            self._unwatched = 0
+            check_team_balance(self.team, self.diagnostics, self._step, self.time, self.winches.lengths)
 
     # -- diagnostics ------------------------------------------------------------------------
     def _reel(self, n: int, speeds: np.ndarray, disturbed: bool) -> None:
