@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import tempfile
 from pathlib import Path
 from typing import Optional
 
@@ -70,11 +71,12 @@ class ArgumentParser(argparse.ArgumentParser):
                 self.error(f"argument {option_name(name)}: must be >= {low}, got {values[name]}")
 
     def check_out_dir(self, option: str, path: Optional[str]) -> None:
-        """An error unless ``path`` (None: no output) is a directory or can be made in an
-        existing one."""
+        """An error unless ``path`` (None: no output) is a directory, or can be made in an
+        existing one, that this process can write in."""
         if path and Path(path).exists() and not Path(path).is_dir():
             self.error(f"argument {option}: {path} is not a directory")
         self.check_parent_dir(option, path)
+        self.check_writable_dir(option, path)
 
     def check_file(self, option: str, path: Optional[str]) -> None:
         """An error unless ``path`` (None: not given) is an existing file."""
@@ -83,15 +85,23 @@ class ArgumentParser(argparse.ArgumentParser):
 
     def check_new_file(self, option: str, path: Optional[str]) -> None:
         """An error unless a file can be written at ``path`` (None: no file): its directory
-        exists and ``path`` is not a directory."""
+        exists, this process can write in it, and ``path`` is not a directory."""
         if path and Path(path).is_dir():
             self.error(f"argument {option}: {path} is a directory, not a file")
         self.check_parent_dir(option, path)
+        self.check_writable_dir(option, path and Path(path).resolve().parent)
 
     def check_parent_dir(self, option: str, path: Optional[str]) -> None:
         """An error unless the directory a file ``path`` is to be written in exists (None: no file)."""
         if path and not Path(path).resolve().parent.is_dir():
             self.error(f"argument {option}: no directory {Path(path).resolve().parent} for {path}")
+
+    def check_writable_dir(self, option: str, path) -> None:
+        """An error unless a directory ``path`` can be made (with its missing parents) and
+        written in (:func:`cannot_write`; None or empty: no directory)."""
+        problem = cannot_write(path) if path else None
+        if problem:
+            self.error(f"argument {option}: {problem}")
 
 
 class SettingsError(ValueError):
@@ -101,6 +111,27 @@ class SettingsError(ValueError):
     def __init__(self, option: Optional[str], message: str):
         super().__init__(f"argument {option}: {message}" if option else message)
         self.option = option
+
+
+def cannot_write(path) -> Optional[str]:
+    """Why a directory ``path`` could not be made (with its missing parents) and written in, or
+    None if it can. A probe file is created and removed in the nearest directory that exists:
+    nothing is left behind, and what the file system itself refuses is found (os.access lets root
+    pass on a read-only or virtual file system, where writing then fails)."""
+    base = Path(path).absolute()
+    try:
+        while not base.exists():
+            base = base.parent
+    except OSError as err:  # a parent that cannot be looked at
+        return f"cannot look at {base} ({err.strerror or err})"
+    if not base.is_dir():
+        return f"{base} is not a directory"
+    try:
+        with tempfile.NamedTemporaryFile(dir=base, prefix=".write-probe-"):
+            pass
+    except OSError as err:
+        return f"cannot write in {base} ({err.strerror or err})"
+    return None
 
 
 def one_line(text) -> str:

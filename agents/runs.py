@@ -25,7 +25,7 @@ from stable_baselines3.common.monitor import ResultsWriter
 from stable_baselines3.common.vec_env import VecMonitor
 
 import esp_gym
-from agents.cli import SettingsError, one_line
+from agents.cli import SettingsError, cannot_write, one_line
 from agents.artifacts import checkpoint_files, checkpoint_steps, stats_path_for
 from agents.normalization import NormalizationFileError, NormStats
 
@@ -42,12 +42,15 @@ def write_status(run_dir: Path, status: str, **details) -> None:
 def new_run_dir(runs: str, run_name: Optional[str], algo: str, task: str, seed: int) -> Path:
     """``runs/run_name`` (default ``{env}__{algo}__{task}__{seed}__{time}``), checked before anything
     is written: SettingsError naming ``--run-name`` (not a plain directory name, or taken) or
-    ``--runs`` (not a directory, or the default name taken)."""
+    ``--runs`` (not a directory this process can make and write in, or the default name taken)."""
     if run_name is not None and (Path(run_name).name != run_name or run_name in ("", ".", "..")):
         raise SettingsError("--run-name", f"{run_name!r} is not a directory name")
     root = Path(runs)
     if root.exists() and not root.is_dir():
         raise SettingsError("--runs", f"{root} is not a directory")
+    problem = cannot_write(root)
+    if problem:
+        raise SettingsError("--runs", problem)
     run_dir = root / (run_name or f"{esp_gym.ENV_ID}__{algo}__{task}__{seed}__{time.strftime('%Y%m%d-%H%M%S')}")
     if run_dir.exists():
         raise SettingsError("--run-name" if run_name else "--runs", f"{run_dir} already exists")

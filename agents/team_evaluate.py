@@ -190,3 +190,18 @@ def run_team_episodes(policy, team: int = 3, task: str = "transport", episodes: 
         out.append(EpisodeResult(seed + i, total, success, final, math.degrees(tilt_sum / steps),
                                  settled_at * core.control_period, peak))
     return out
+
+
+def main(argv=None):
+    """``python -m agents.team_evaluate``: a library, not a command. One line names the command
+    that evaluates a team (agents.compare --team runs these episodes for the baselines and a
+    checkpoint), with exit code 2, a usage error (it printed nothing and exited 0)."""
+    import sys
+
+    print("python -m agents.team_evaluate: error: a library module, not a command: evaluate a team with "
+          "python -m agents.compare --team K [--model CHECKPOINT]", file=sys.stderr)
+    raise SystemExit(2)
+
+
+if __name__ == "__main__":
+    main()

@@ -27,6 +27,9 @@ from agents.team_evaluate import team_baselines
 
 #: The network's share of the action box by default: its unit action moves a pivot's command by this much.
 RESIDUAL_SCALE = 0.3
+#: The largest share: the box [-1, 1] is 2 wide, so at 2 the residual alone takes any command to
+#: either end; a larger scale only saturates the sum at the network's smaller outputs.
+MAX_RESIDUAL_SCALE = 2.0
 RESIDUAL_FILE = "residual.json"
 
 
@@ -82,8 +85,8 @@ class TeamResidualParallelEnv(ParallelEnv):
     metadata = {"name": "elastic_string_team_residual_v0", "render_modes": [], "is_parallelizable": True}
 
     def __init__(self, env, scale: float = RESIDUAL_SCALE):
-        if not (np.isfinite(scale) and scale > 0):
-            raise ValueError(f"residual_scale must be > 0, got {scale!r}")
+        if not 0 < scale <= MAX_RESIDUAL_SCALE:  # NaN fails too
+            raise ValueError(f"residual_scale must be in (0, {MAX_RESIDUAL_SCALE:g}], got {scale!r}")
         self.env, self.scale = env, float(scale)
         self.core = env.core
         self.base = TeamBase(self.core.observation, self.core.drones, self.core.winch)

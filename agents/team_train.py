@@ -44,13 +44,14 @@ from agents.cli import SettingsError, settings_parser
 from agents.common import CONFIG_DIR, ConfigError, json_default
 from agents.distributed.cluster import AddressError, check_address
 from agents.distributed.rllib import RLlibRunConfig, load_rllib_config
-from agents.distributed.train import PROGRESS_FIELDS, build, plot_curve, progress_row, rllib_main
+from agents.distributed.train import PROGRESS_FIELDS, build, check_local_runners, plot_curve, progress_row, rllib_main
 from agents.evaluate import summarize
 from agents.mlp import actor_of_rllib
 from agents.runs import new_run_dir, write_status, write_stopped
 from agents.team_critic import CRITIC_FILE, write_critic
 from agents.team_evaluate import TeamZero, run_team_episodes, team_baselines
-from agents.team_residual import RESIDUAL_FILE, RESIDUAL_SCALE, TeamBase, read_residual, write_residual
+from agents.team_residual import (MAX_RESIDUAL_SCALE, RESIDUAL_FILE, RESIDUAL_SCALE, TeamBase, read_residual,
+                                  write_residual)
 from esp_gym.team.tasks import TEAM_TASKS
 
 ALGO = "rllib_team_ppo"
@@ -91,7 +92,8 @@ class Settings:
     residual: bool = field(default=False, metadata={
         "help": "train a residual on the team's baseline (the LQR; with the hook observation the LQG)"})
     residual_scale: float = field(default=RESIDUAL_SCALE, metadata={
-        "help": "the residual's share of the action box (with --residual)", "type": float})
+        "help": f"the residual's share of the action box, at most {MAX_RESIDUAL_SCALE:g} (with --residual)",
+        "type": float})
     central_critic: bool = field(default=False, metadata={
         "help": "a centralised critic: the value function also reads the team's true state (agents/team_critic.py)"})
     progress: bool = field(default=True, metadata={"help": "show a progress bar"})
@@ -238,12 +240,17 @@ def check_settings(s: Settings) -> tuple:
         raise SettingsError("--team", f"a team has 1 to {MAX_STRINGS} strings, got {s.team}")
     if s.time_limit is not None and not s.time_limit > 0:
         raise SettingsError("--time-limit", f"must be > 0 minutes, got {s.time_limit}")
-    if not (np.isfinite(s.residual_scale) and s.residual_scale > 0):
-        raise SettingsError("--residual-scale", f"must be > 0, got {s.residual_scale}")
+    if not 0 < s.residual_scale <= MAX_RESIDUAL_SCALE:  # NaN fails too
+        raise SettingsError("--residual-scale", f"must be in (0, {MAX_RESIDUAL_SCALE:g}] (the action box is 2 wide), "
+                                                f"got {s.residual_scale}")
+    # without --residual the scale is not read: one other than the default would be given for nothing
+    if s.residual_scale != RESIDUAL_SCALE and not s.residual:
+        raise SettingsError("--residual-scale", "only with --residual (the residual's share of the action box)")
     try:
         cfg = load_rllib_config(s.task, s.set, CONFIG_FILE, TEAM_ENV_ID)
     except ConfigError as err:
         raise SettingsError("--set" if err.override else None, str(err)) from None
+    check_local_runners(s.address, cfg)
     run_dir = new_run_dir(s.runs, s.run_name, ALGO, s.task, s.seed)
     try:
         check_address(s.address)

@@ -115,7 +115,9 @@ class Prepared:
     model: object
 
 
-def _config(s: Settings) -> RunConfig:
+def run_config(s: Settings) -> RunConfig:
+    """The run's hyper-parameters (``--set`` over the config file) and environment options,
+    checked; SettingsError naming ``--set`` (or the config file) otherwise."""
     try:
         cfg = load_run_config(s.algo, esp_gym.ENV_ID, s.task, s.set)
     except ConfigError as err:
@@ -153,7 +155,7 @@ def prepare(s: Settings, given: frozenset = frozenset()) -> Prepared:
             raise SettingsError("--resume", str(err)) from None
         saved = {k: v for k, v in resume.saved.items() if k in RUN_SETTINGS}
         s = dataclasses.replace(s, **saved, set=list(resume.saved["set"]) + list(s.set))
-    cfg = _config(s)
+    cfg = run_config(s)
     if resume:
         run_dir = resume.run_dir
         if cfg.total_timesteps <= resume.steps:

@@ -7,14 +7,15 @@
 
 ``--train`` runs ``python -m agents.train`` per configuration with the recipe's settings and the
 configuration's own (its residual base, privileged critic, environment options and ``set``),
-``--jobs`` at a time (each with one thread per library; comparisons too), into ``--runs`` (run directories
-``zoo_NAME``, their output in ``zoo_NAME.log``), and ships each finished run to
+``--jobs`` at a time (at most the CPUs; each with one thread per library; comparisons too), into
+``--runs`` (run directories ``zoo_NAME``, their output in ``zoo_NAME.log``), and ships each finished run to
 ``--models``/NAME_ppo: the model, its normalisation statistics, the resolved config, the
 command, the training statistics and the learning curve (with the base controller's return
 drawn as a line). ``--compare`` runs agents.compare on every configuration's shipped model over
 ``--episodes`` held-out episodes from ``--seed`` into ``--out`` (compare_NAME.md/.json), then
 rewrites the docs' and the README's quotes of them (benchmarks.quote) when ``--out`` is the
-docs' own directory.
+docs' own directory. The paths, the models to compare and every training's settings are
+checked before the first training or comparison starts.
 """
 from __future__ import annotations
 
@@ -30,8 +31,10 @@ from typing import Literal, Optional
 import yaml
 from pydantic import BaseModel, ConfigDict, Field
 
-from agents.cli import ArgumentParser
+from agents.artifacts import ModelFileError, model_algorithm
+from agents.cli import ArgumentParser, SettingsError
 from agents import CONFIG_DIR, INSTALLED, MODELS, ROOT
+from esp_gym.workers import jobs_argument, worker_count
 
 ZOO_FILE = CONFIG_DIR / "zoo.yaml"
 #: The docs' comparisons in a checkout (rewritten with their quotes); installed, out/compare.
@@ -128,6 +131,20 @@ def train_argv(zoo: Zoo, name: str, runs: Path, extra: tuple = ()) -> list:
             f"zoo_{name}", "--time-limit", str(r.time_limit), "--no-progress", "--set", *items]
 
 
+def check_trainings(zoo: Zoo, names: list, runs: Path, extra: tuple = ()) -> None:
+    """What agents.train checks first (its config with every ``--set`` item, its environment
+    options), for each of ``names``, before any training starts: SettingsError naming the
+    configuration that would not train."""
+    from agents.train import parse_args, run_config
+
+    for name in names:
+        s, _, _ = parse_args(train_argv(zoo, name, runs, extra))
+        try:
+            run_config(s)
+        except SettingsError as err:
+            raise SettingsError(None, f"configuration {name!r} would not train: {err}") from None
+
+
 def ship(run_dir: Path, target: Path) -> Path:
     """Copy the finished run ``run_dir``'s SHIPPED_FILES (those it has) into ``target``, which
     is replaced; returns ``target``."""
@@ -147,10 +164,12 @@ def ship(run_dir: Path, target: Path) -> Path:
 
 def train(zoo: Zoo, names: list, runs: Path, models: Path, jobs: int = 1, extra: tuple = (),
           progress: bool = True) -> dict:
-    """Train ``names`` (``jobs`` at a time) and ship each finished one; returns {name: model
-    directory} for those shipped. A failed training is reported with its log and ships nothing."""
+    """Train ``names`` (``jobs`` at a time, at most the CPUs) and ship each finished one; returns
+    {name: model directory} for those shipped. A failed training is reported with its log and ships
+    nothing."""
     from tqdm import tqdm
 
+    jobs = worker_count("jobs", jobs, len(names))
     runs.mkdir(parents=True, exist_ok=True)
     waiting, running, shipped, failed = list(names), {}, {}, {}
     checkout = None if INSTALLED else str(ROOT)  # installed, agents imports from site-packages
@@ -181,14 +200,20 @@ def train(zoo: Zoo, names: list, runs: Path, models: Path, jobs: int = 1, extra:
     return shipped
 
 
+def shipped_model(models: Path, name: str) -> Path:
+    """Configuration ``name``'s model under ``models``, checked to be a PPO or SAC archive (its
+    metadata read, nothing unpickled); ModelFileError naming the file otherwise."""
+    model = models / f"{name}_ppo" / "model.zip"
+    model_algorithm(model)
+    return model
+
+
 def compare_one(zoo: Zoo, name: str, models: Path, out: Path, episodes: int, seed: int, progress: bool) -> dict:
     """agents.compare on configuration ``name``'s model under ``models``, written to ``out``."""
     from agents.compare import compare, write_comparison
 
     c = zoo.configurations[name]
-    model = models / f"{name}_ppo" / "model.zip"
-    if not model.is_file():
-        raise FileNotFoundError(f"configuration {name!r} has no model at {model}: train it first (--train)")
+    model = shipped_model(models, name)
     result = compare(c.task, c.preset, episodes, seed, str(model), progress, c.scene, c.actuation)
     write_comparison(result, out)
     return result
@@ -197,7 +222,11 @@ def compare_one(zoo: Zoo, name: str, models: Path, out: Path, episodes: int, see
 def compare_all(zoo: Zoo, names: list, models: Path, out: Path, episodes: int, seed: int, jobs: int = 1,
                 progress: bool = True) -> dict:
     """:func:`compare_one` for each of ``names``, ``jobs`` at a time (each in a process of its own
-    when more than one); returns {name: comparison} in ``names``' order."""
+    when more than one, at most one per configuration and the CPUs); returns {name: comparison} in
+    ``names``' order. Every model is checked before the first comparison."""
+    jobs = worker_count("jobs", jobs, len(names))
+    for name in names:
+        shipped_model(models, name)
     if jobs == 1:
         return {name: compare_one(zoo, name, models, out, episodes, seed, progress) for name in names}
     from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -220,7 +249,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--train", action="store_true", help="train every configuration (or --only's) and ship it")
     ap.add_argument("--compare", action="store_true", help="compare every configuration's model with its baselines")
     ap.add_argument("--only", nargs="+", default=None, metavar="NAME", help="these configurations (default: all)")
-    ap.add_argument("--jobs", type=int, default=1, help="trainings, or comparisons, at once (default: 1)")
+    ap.add_argument("--jobs", type=jobs_argument, default=1, help="trainings, or comparisons, at once, each a "
+                    "process: at most the CPUs (default: 1)")
     ap.add_argument("--set", nargs="+", default=[], action="extend", metavar="KEY=VALUE",
                     help="more agents.train --set items for every training (e.g. a smaller total_timesteps)")
     ap.add_argument("--zoo", default=str(ZOO_FILE), help="the zoo file (default: configs/agents/zoo.yaml)")
@@ -233,7 +263,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--seed", type=int, default=HELD_OUT_SEED, help=f"first held-out seed (default: {HELD_OUT_SEED})")
     ap.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bars")
     a = ap.parse_args(argv)
-    ap.check_minimums(vars(a), jobs=1, episodes=2, seed=0)
+    ap.check_minimums(vars(a), episodes=2, seed=0)
     ap.check_file("--zoo", a.zoo)
     if not (a.list or a.train or a.compare):
         ap.error("nothing to do: give --list, --train and/or --compare")
@@ -247,8 +277,21 @@ def main(argv=None) -> dict:
     unknown = [n for n in names if n not in zoo.configurations]
     if unknown:
         ap.error(f"argument --only: unknown configuration(s) {unknown}; the zoo has {list(zoo.configurations)}")
+    if a.train:  # what a training would fail on, before the first starts
+        ap.check_writable_dir("--runs", a.runs)
+        ap.check_writable_dir("--models", models)
+        try:
+            check_trainings(zoo, names, Path(a.runs), tuple(a.set))
+        except SettingsError as err:
+            ap.error(str(err))
     if a.compare:
         ap.check_out_dir("--out", a.out)
+    if a.compare and not a.train:  # with --train, the models are shipped before the comparisons
+        for name in names:
+            try:
+                shipped_model(models, name)
+            except ModelFileError as err:
+                ap.error(f"argument --models: configuration {name!r}: {err}; train it with --train")
     out = {}
     if a.list:
         for name in names:

@@ -24,8 +24,8 @@ Subcommands:
     second) and at the end. Open it with ``rerun FILE.rrd``.
 
 ``esp-gym compile [--jobs 2] [--no-progress]``
-    Compile every configuration of the environment's step into the kernel cache ahead of use,
-    in worker processes (esp_gym/precompile.py), and print the seconds of each as one JSON line.
+    Compile every configuration of the environment's step into the kernel cache ahead of use, in
+    worker processes, at most the CPUs (esp_gym/precompile.py), and print their seconds as one JSON line.
 
 Every argument is checked before anything is created on disk or allocated: times must be
 positive and finite, ``--out`` must name a directory (``paper``) or a file (``record``) that can
@@ -56,6 +56,8 @@ from pathlib import Path
 from typing import Optional, Sequence
 
 import numpy as np
+
+from .workers import jobs_argument
 
 #: The paper's example: scene name, elements, time step [s], duration [s].
 PAPER = dict(scene="paper_example", N=20, h=1e-4, t_final=5.0)
@@ -423,11 +425,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(handler=_cmd_record)
     p = sub.add_parser("compile", help="compile every configuration of the environment's step ahead of use",
-                       epilog=epilog,
-                       description="Compile the environment's step for every configuration (with or without the "
-                                   "winch, explicit or implicit string, single or batched) into the kernel cache, "
-                                   "in worker processes; prints the seconds of each as one JSON line.")
-    p.add_argument("--jobs", type=_steps, default=2, help="worker processes (default: %(default)s)")
+                       epilog=epilog, description="Compile every configuration of the environment's step (esp_gym/"
+                       "precompile.py) into the kernel cache, in worker processes; prints their seconds as one JSON line.")
+    p.add_argument("--jobs", type=jobs_argument, default=None, help="worker processes, at most the CPUs (default: 2)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(handler=_cmd_compile)
     return parser

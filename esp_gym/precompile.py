@@ -15,6 +15,9 @@ import concurrent.futures
 import multiprocessing
 import time
 from dataclasses import dataclass
+from typing import Optional
+
+from .workers import available_cpus, worker_count
 
 
 @dataclass(frozen=True)
@@ -47,6 +50,8 @@ CONFIGURATIONS = (tuple(Configuration(w, i, b) for w in (False, True) for i in (
                      Configuration(True, False, False, team=True)))
 #: The strings of the team the team configurations compile with (any size: the same kernels).
 TEAM_SIZE = 3
+#: Worker processes by default; fewer on a machine with fewer CPUs (:func:`default_jobs`).
+DEFAULT_JOBS = 2
 #: The offset hook the hook configurations compile with [m] (any non-zero one: the same kernels).
 OFFSET_HOOK = [0.0, 0.0, 0.05]
 
@@ -88,16 +93,22 @@ def compile_configuration(config: Configuration) -> float:
     return time.perf_counter() - start
 
 
-def precompile(jobs: int = 2, configurations=CONFIGURATIONS, progress: bool = True) -> dict:
-    """Compile ``configurations`` in ``jobs`` worker processes (spawned: each a fresh
-    interpreter, as a user's would be). Returns the seconds of each, by name."""
-    if not isinstance(jobs, int) or isinstance(jobs, bool) or jobs < 1:
-        raise ValueError(f"jobs must be a whole number >= 1, got {jobs!r}")
+def default_jobs() -> int:
+    """:data:`DEFAULT_JOBS`, or fewer on a machine with fewer CPUs."""
+    return min(DEFAULT_JOBS, available_cpus())
+
+
+def precompile(jobs: Optional[int] = None, configurations=CONFIGURATIONS, progress: bool = True) -> dict:
+    """Compile ``configurations`` in ``jobs`` worker processes (spawned: each a fresh interpreter,
+    as a user's would be; default :func:`default_jobs`; never more than the configurations).
+    Returns the seconds of each, by name. ValueError naming ``jobs`` unless it is a whole number
+    from 1 to the CPUs, before any process starts."""
+    workers = worker_count("jobs", default_jobs() if jobs is None else jobs, len(configurations))
     from tqdm import tqdm
 
     seconds = {}
     context = multiprocessing.get_context("spawn")
-    with concurrent.futures.ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
+    with concurrent.futures.ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
         futures = {pool.submit(compile_configuration, c): c for c in configurations}
         with tqdm(total=len(futures), desc="compiling esp_gym's environment", unit="configuration",
                   disable=not progress) as bar:

@@ -356,3 +356,94 @@ def test_statistics_files_holding_pickled_objects_are_refused(tmp_path):
     np.savez(path, obs_mean=np.array([object()], dtype=object))  # an object array is a pickle inside
     with pytest.raises(ValueError, match=re.escape(str(path))):
         NormStats.load(path)
+
+
+# --- issue 54: worker counts and outputs checked before any work ----------------------------------
+
+#: A directory in which no process creates files, root's included (file modes do not stop root).
+UNWRITABLE = Path("/proc")
+
+
+@pytest.fixture
+def no_work(monkeypatch):
+    """The zoo's and compare's work (process pools, trainings, episodes) replaced by errors: a
+    refusal must come before it. Returns the worker counts of the pools asked for (none started)."""
+    import concurrent.futures
+
+    from agents import compare, zoo
+
+    made = []
+
+    def no_pool(max_workers=None, **kwargs):
+        made.append(max_workers)
+        raise RuntimeError(f"a pool of {max_workers} worker processes was made")
+
+    def started(*args, **kwargs):
+        raise AssertionError("the work started before the arguments were refused")
+
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", no_pool)
+    for module, name in ((zoo, "train"), (compare, "compare"), (compare, "compare_team")):
+        monkeypatch.setattr(module, name, started)
+    return made
+
+
+def test_zoo_comparisons_take_at_most_one_worker_per_configuration(monkeypatch, tmp_path, no_work):
+    """compare_all's pool has min(jobs, configurations) workers, and a count above the CPUs is
+    refused before any pool (the fork bomb of --jobs 100000)."""
+    import esp_gym.workers
+    from agents import MODELS, zoo
+
+    monkeypatch.setattr(esp_gym.workers, "available_cpus", lambda: 8)  # the same on any machine
+    names = ["stabilize", "transport"]
+    with pytest.raises(RuntimeError, match="pool of 2 worker"):
+        zoo.compare_all(zoo.load_zoo(), names, MODELS, tmp_path, 2, 0, jobs=8, progress=False)
+    with pytest.raises(ValueError, match=r"jobs .*8 CPUs.*got 9"):
+        zoo.compare_all(zoo.load_zoo(), names, MODELS, tmp_path, 2, 0, jobs=9, progress=False)
+    assert no_work == [2]
+
+
+@pytest.mark.parametrize("action", ["--compare", "--train"])
+def test_the_zoo_refuses_more_jobs_than_cpus_before_any_worker(tmp_path, capfd, no_work, action):
+    from esp_gym.workers import available_cpus
+
+    jobs = available_cpus() + 1
+    proc = main_of("agents.zoo", capfd, action, "--jobs", jobs, "--only", "stabilize", "--runs", tmp_path / "runs",
+                   "--models", tmp_path / "models" if action == "--train" else ROOT / "models",
+                   "--out", tmp_path / "out", "--no-progress")
+    assert_usage_error(proc, "--jobs", f"{available_cpus()} CPUs", f"got {jobs}")
+    assert no_work == [] and list(tmp_path.iterdir()) == []
+
+
+#: Paths and settings that failed only after the work (a traceback after every episode, or after a
+#: training started), each refused first: (module, arguments, what the line names).
+BAD_BEFORE_WORK = [
+    ("agents.zoo", ["--compare", "--only", "stabilize", "--models", "{missing}"],
+     ["--models", "'stabilize'", "{missing}/stabilize_ppo/model.zip"]),
+    ("agents.zoo", ["--compare", "--only", "stabilize", "--out", f"{UNWRITABLE}/compare"], ["--out", str(UNWRITABLE)]),
+    ("agents.zoo", ["--train", "--only", "stabilize", "--runs", f"{UNWRITABLE}/runs", "--models", "{tmp}/models"],
+     ["--runs", str(UNWRITABLE)]),
+    ("agents.zoo", ["--train", "--only", "stabilize", "--runs", "{tmp}/runs", "--models", f"{UNWRITABLE}/models"],
+     ["--models", str(UNWRITABLE)]),
+    ("agents.zoo", ["--train", "--only", "stabilize", "--runs", "{tmp}/runs", "--models", "{tmp}/models", "--set",
+                    "bogus_key=1"], ["'stabilize'", "--set", "'bogus_key'"]),
+    ("agents.zoo", ["--train", "--only", "stabilize", "--runs", "{tmp}/runs", "--models", "{tmp}/models", "--set",
+                    "total_timesteps=-5"], ["'stabilize'", "--set", "total_timesteps"]),
+    ("agents.compare", ["--team", "2", "--episodes", "2", "--out", f"{UNWRITABLE}/compare"], ["--out", str(UNWRITABLE)]),
+    ("agents.compare", ["--episodes", "2", "--out", f"{UNWRITABLE}/compare"], ["--out", str(UNWRITABLE)]),
+]
+
+
+@pytest.mark.parametrize("module, args, names", BAD_BEFORE_WORK)
+def test_bad_paths_and_settings_are_refused_before_any_work(tmp_path, capfd, no_work, module, args, names):
+    def fill(text):
+        return str(text).replace("{missing}", str(tmp_path / "missing")).replace("{tmp}", str(tmp_path))
+
+    assert_usage_error(main_of(module, capfd, *map(fill, args), "--no-progress"), *map(fill, names))
+    assert list(tmp_path.iterdir()) == [] and no_work == []
+
+
+def test_team_evaluate_says_it_is_a_library_not_a_command(capfd):
+    """python -m agents.team_evaluate printed nothing and exited 0, as though it had run."""
+    from agents import team_evaluate
+
+    assert_usage_error(call_main(team_evaluate.main, ["--help"], capfd), "library", "agents.compare --team")

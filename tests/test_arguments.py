@@ -204,3 +204,17 @@ def test_fuzzed_environment_options_give_a_working_env_or_a_named_error(options)
     obs, _ = env.reset(seed=0)
     obs, reward, *_ = env.step(np.full(6, 0.5))
     assert np.all(np.isfinite(obs)) and np.isfinite(reward)
+
+
+# -- worker counts (issue 54): as many as the work needs, never more than the CPUs ----------------
+def test_a_worker_count_is_at_most_the_work_and_refused_above_the_cpus(monkeypatch):
+    from esp_gym import workers
+
+    monkeypatch.setattr(workers, "available_cpus", lambda: 4)  # the same answer on any machine
+    assert workers.worker_count("jobs", 4, tasks=2) == 2  # no idle worker per missing task
+    assert workers.worker_count("jobs", 4, tasks=17) == 4  # negative control: the CPUs' count passes
+    with pytest.raises(ValueError, match=r"jobs must be at most the 4 CPUs .*got 5"):
+        workers.worker_count("jobs", 5, tasks=17)
+    for bad in (0, 2.5, True, "2"):
+        with pytest.raises(ValueError, match="jobs must be a whole number"):
+            workers.worker_count("jobs", bad, tasks=17)

@@ -305,6 +305,33 @@ def test_compile_takes_every_configuration_of_the_environment(tmp_path):
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "--jobs" in bad.stderr, bad.stderr
 
 
+def test_compile_refuses_more_jobs_than_cpus_before_starting_a_worker(monkeypatch, capsys):
+    """issue 54: precompile's jobs above the CPUs is a ValueError naming jobs, esp-gym compile's
+    --jobs one line with exit code 2, both before any worker process; and the pool has one worker
+    per configuration at most."""
+    import concurrent.futures
+
+    from esp_gym import precompile, workers
+    from esp_gym.cli import EXIT_USAGE, main
+
+    made = []
+
+    def no_pool(max_workers=None, **kwargs):
+        made.append(max_workers)
+        raise RuntimeError(f"a pool of {max_workers} worker processes was made")
+
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", no_pool)
+    monkeypatch.setattr(workers, "available_cpus", lambda: 4)  # the same answer on any machine
+    with pytest.raises(ValueError, match=r"jobs must be at most the 4 CPUs.*got 5"):
+        precompile.precompile(jobs=5, progress=False)
+    assert main(["compile", "--jobs", "5", "--no-progress"]) == EXIT_USAGE
+    assert "--jobs" in _one_line(capsys)
+    assert made == []
+    with pytest.raises(RuntimeError, match="pool of 2 worker"):  # negative control: 4 jobs pass, 2 needed
+        precompile.precompile(jobs=4, configurations=precompile.CONFIGURATIONS[:2], progress=False)
+    assert made == [2]
+
+
 def test_team_step_quick_runs(tmp_path):
     result = quick_benchmark("team_step", tmp_path, "team_step")
     assert [(r["K"], r["N"]) for r in result["rows"]] == [(1, 10), (3, 10)]

@@ -99,3 +99,48 @@ def test_a_sweep_space_is_a_mapping_of_lists():
     for bad in ("[1, 2]", "{}", '{"seed": []}', "{a: [1}"):
         with pytest.raises(ValueError):
             parse_space(bad)
+
+
+#: Settings refused before Ray starts (issue 54): each used to be ignored, accepted, or found
+#: after Ray had started (a run directory the process cannot create, runners the machine cannot host).
+#: No process creates files in /proc, root's included (file modes do not stop root).
+BEFORE_RAY = [
+    ("agents.team_train", ["--residual-scale", "0.5"], ["--residual-scale", "--residual"]),
+    ("agents.team_train", ["--residual", "--residual-scale", "1e300"], ["--residual-scale", "1e+300"]),
+    ("agents.team_train", ["--set", "lr=-1"], ["--set", "lr", "-1"]),
+    ("agents.team_train", ["--set", "gamma=1.5"], ["--set", "gamma", "1.5"]),
+    ("agents.team_train", ["--set", "num_env_runners=100000"], ["--set", "num_env_runners", "100000", "CPUs"]),
+    ("agents.team_train", ["--runs", "/proc/runs"], ["--runs", "/proc"]),
+    ("agents.distributed.train", ["--set", "num_env_runners=100000"], ["--set", "num_env_runners", "CPUs"]),
+    ("agents.distributed.train", ["--runs", "/proc/runs"], ["--runs", "/proc"]),
+]
+
+
+@pytest.mark.parametrize("module, args, names", BEFORE_RAY)
+def test_settings_are_refused_before_ray_starts(monkeypatch, tmp_path, capfd, module, args, names):
+    import agents.distributed.train as distributed_train
+
+    def no_ray(address):
+        raise AssertionError("Ray was joined before the settings were refused")
+
+    monkeypatch.setattr(distributed_train, "connect", no_ray)
+    runs = [] if "--runs" in args else ["--runs", tmp_path / "runs"]
+    proc = call_main(importlib.import_module(module).main, [*args, *runs, "--no-progress"], capfd)
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr[-3000:]
+    for name in names:
+        assert name in lines[0], lines[0]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_residual_scale_within_the_box_is_accepted(tmp_path):
+    """The negative control of the refusals above: a residual scale of 2 (the box's width: a
+    residual can take any command to either end) with the config file's runners and rates and a
+    writable --runs passes every check; a scale above 2 is refused."""
+    from agents.cli import SettingsError
+    from agents.team_train import Settings, check_settings
+
+    check_settings(Settings(residual=True, residual_scale=2.0, runs=str(tmp_path)))
+    with pytest.raises(SettingsError, match="--residual-scale"):
+        check_settings(Settings(residual=True, residual_scale=2.5, runs=str(tmp_path)))

@@ -15,7 +15,7 @@ import copy
 import dataclasses
 import inspect
 from pathlib import Path
-from typing import Optional
+from typing import Annotated, Optional, Union
 
 import gymnasium as gym
 import numpy as np
@@ -24,6 +24,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 import esp_gym
 from agents.common import CONFIG_DIR, ConfigError, ValueLoader, apply_override, first_unknown_key, valid_keys
+from esp_gym.scene_input import Count, Real
 
 CONFIG_FILE = CONFIG_DIR / "rllib_ppo.yaml"
 #: The name the environment creator is registered under with Ray Tune's registry.
@@ -54,6 +55,38 @@ class RLlibRunConfig(BaseModel):
     #: RLlib's DefaultModelConfig (fcnet_hiddens, vf_share_layers, ...)
     model: dict = {}
     training: dict = {}
+
+
+#: A rate, a clip or a target: a positive, finite number.
+Positive = Annotated[Real, Field(gt=0, allow_inf_nan=False)]
+#: A loss coefficient: a finite number >= 0.
+NonNegative = Annotated[Real, Field(ge=0, allow_inf_nan=False)]
+#: A discount or GAE's lambda: a number from 0 to 1.
+Fraction = Annotated[Real, Field(ge=0, le=1)]
+#: A number of samples or epochs: a whole number >= 1.
+Samples = Annotated[Count, Field(ge=1)]
+
+
+class PPOTraining(BaseModel):
+    """Bounds on the PPOConfig.training() values RLlib takes unchecked (``lr=-1`` was accepted, and
+    would train away from the objective). Other keys pass: their names are checked by
+    :func:`rllib_valid_keys`, their values by RLlib; so are ``lr``'s and ``entropy_coeff``'s
+    schedules (RLlib's ``[[step, value], ...]``)."""
+
+    model_config = ConfigDict(extra="allow")
+    lr: Optional[Union[Positive, list]] = None
+    entropy_coeff: Optional[Union[NonNegative, list]] = None
+    gamma: Optional[Fraction] = None
+    lambda_: Optional[Fraction] = None
+    clip_param: Optional[Positive] = None
+    vf_clip_param: Optional[Positive] = None
+    grad_clip: Optional[Positive] = None  #: None: no clipping
+    kl_coeff: Optional[NonNegative] = None
+    kl_target: Optional[Positive] = None
+    vf_loss_coeff: Optional[NonNegative] = None
+    train_batch_size_per_learner: Optional[Samples] = None
+    minibatch_size: Optional[Samples] = None
+    num_epochs: Optional[Samples] = None
 
 
 def _training_keys() -> set:
@@ -92,12 +125,16 @@ def apply_rllib_override(tree: dict, item: str) -> None:
 
 def _build(raw: dict) -> RLlibRunConfig:
     top = set(RLlibRunConfig.model_fields) - {"training"}
+    training = {k: v for k, v in raw.items() if k not in top}
     try:
-        return RLlibRunConfig(**{k: v for k, v in raw.items() if k in top},
-                              training={k: v for k, v in raw.items() if k not in top})
+        PPOTraining.model_validate(training)
+        return RLlibRunConfig(**{k: v for k, v in raw.items() if k in top}, training=training)
     except ValidationError as err:
-        raise ValueError("; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']} (got {e.get('input')!r})"
-                                   for e in err.errors())) from None
+        first = {}  # a key's first error: a number-or-schedule key fails both ways
+        for e in err.errors():
+            first.setdefault(e["loc"][0], e)
+        raise ValueError("; ".join(f"{key}: {e['msg'].removeprefix('Value error, ')} (got {e.get('input')!r})"
+                                   for key, e in first.items())) from None
 
 
 def load_rllib_config(task: str, overrides: list, path: Path = CONFIG_FILE, env_id: str = esp_gym.ENV_ID) -> RLlibRunConfig:

@@ -37,7 +37,7 @@ import yaml
 
 import esp_gym
 from agents.artifacts import checkpoint_steps
-from agents.cli import SettingsError, one_line, option_name, parse_settings, settings_parser
+from agents.cli import SettingsError, cannot_write, one_line, option_name, parse_settings, settings_parser
 from agents import ROOT
 from agents.common import ConfigError, load_run_config
 from agents.distributed.sweep_results import gather
@@ -215,12 +215,15 @@ def run_trial(config: dict, spec: Spec) -> dict:
 
 def new_out(out: Optional[str], default: str) -> Path:
     """A new sweep's directory: ``out``, or ``sweeps/{default}__{time}``; SettingsError naming
-    ``--out`` if it exists or its parent does not."""
+    ``--out`` if it exists, its parent does not, or this process cannot write there."""
     out = Path(out) if out else ROOT / "sweeps" / f"{default}__{time.strftime('%Y%m%d-%H%M%S')}"
     if out.exists():
         raise SettingsError("--out", f"{out} already exists (--resume {out} continues a sweep)")
     if not out.resolve().parent.is_dir():
         raise SettingsError("--out", f"no directory {out.resolve().parent} for {out}")
+    problem = cannot_write(out)
+    if problem:
+        raise SettingsError("--out", problem)
     return out
 
 

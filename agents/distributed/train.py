@@ -42,6 +42,7 @@ from agents.distributed.cluster import AddressError, check_address, cluster_node
 from agents.distributed.rllib import CONFIG_FILE, RLlibPolicy, RLlibRunConfig, load_rllib_config, ppo_config, runner_steps
 from agents.runs import new_run_dir, write_status, write_stopped
 from esp_gym.tasks import TASKS
+from esp_gym.workers import check_within_cpus
 
 ALGO = "rllib_ppo"
 #: Seeds of the final evaluation and of the reference returns (episode i: seed + i), as agents.train's.
@@ -90,12 +91,26 @@ def check_settings(s: Settings) -> tuple:
     except (ValueError, TypeError) as err:
         raise SettingsError("--set", f"env_kwargs {cfg.env_kwargs}: {one_line(err)} (from --set or {CONFIG_FILE})") \
             from None
+    check_local_runners(s.address, cfg)
     run_dir = new_run_dir(s.runs, s.run_name, ALGO, s.task, s.seed)
     try:
         check_address(s.address)
     except AddressError as err:
         raise SettingsError("--address", str(err)) from None
     return cfg, run_dir
+
+
+def check_local_runners(address: Optional[str], cfg: RLlibRunConfig) -> None:
+    """SettingsError naming ``--set`` when Ray, started on this machine (no ``address``), would be
+    asked for more env runners (one CPU each) than the CPUs: they would wait for a CPU forever. A
+    cluster's runners (``address`` given) are placed on its nodes, whose CPUs cannot be counted
+    from here, so Ray is left to place them."""
+    if address is None:
+        try:
+            check_within_cpus("num_env_runners", cfg.num_env_runners)
+        except ValueError as err:
+            raise SettingsError("--set", f"{err} (Ray on this machine, one CPU per env runner; or join a "
+                                         f"cluster with --address)") from None
 
 
 def build(s, cfg: RLlibRunConfig, make_config=None):
