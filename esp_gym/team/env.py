@@ -19,11 +19,9 @@ import numpy as np
 
 from .. import TEAM_ENV_ID
 from ..control import raw_actions
-from ..errors import termination_reason
+from ..errors import SimulationError, failure_reason
 from ..kernels.env_arrays import TARGET
 from ..kernels.reference import reference_at
-from ..kernels.status import ENERGY_BALANCE
-from ..model import SimulationError
 from ..observe import standard_deviation
 from ..options import check_substeps, team_options
 from ..setup import DRONE_FLIP_TILT
@@ -377,9 +375,8 @@ class TeamCore:
                                                self.control_period)
         try:
             self.sim.step(self.substeps, load_force=self.load_force if self.wind is not None else None, **drive)
-        except SimulationError as error:  # the energy watchdog's (finite, the steps taken) as the single env's
-            reason = termination_reason(error.status) if error.status == ENERGY_BALANCE else \
-                f"simulation_failed: {error}"
+        except SimulationError as error:  # the energy watchdog's: energy_balance, as the single env's
+            reason = failure_reason(error)
         self.steps += 1
         self.last_action = a
         if self.reference is not None:
