@@ -15,6 +15,10 @@ Prints a table and writes ``OUT/env_throughput.json`` and ``OUT/env_throughput.p
 * ``--drone`` (alone): quadrotor_load's drone in each actuation against the same rig with a
   point-mass pivot, single and 8 batched, random actions of amplitude 0.2, interleaved; writes
   ``OUT/env_throughput_drone.json``;
+* ``--threads`` (alone): the batched env in one thread (``threads=1``, the default) against numba's
+  threads (``threads`` = the CPUs), 8 and 64 environments, on an idle machine and beside one busy
+  process (a CPU-bound loop at the same priority, as a learner or a second run would be), the runs
+  of one repeat interleaved; writes ``OUT/env_throughput_threads.json``;
 * ``--realism`` (alone): the plain environment against the realism options (``randomize=True``,
   then with the ``hook`` observation and sensor noise too, then randomisation, the hard preset's
   wind and pushes and the ``hook`` observation (the issue's bar), then ``preset="hard"``),
@@ -22,9 +26,14 @@ Prints a table and writes ``OUT/env_throughput.json`` and ``OUT/env_throughput.p
   starting an episode); writes ``OUT/env_throughput_realism.json``.
 
 Each figure is the median of ``--repeats`` timed runs after a warm-up (compilation excluded).
-Usage: ``python -m benchmarks.env_throughput [--quick] [--ea-sweep | --realism | --drone] [--out DIR]``.
+Usage: ``python -m benchmarks.env_throughput [--quick] [--ea-sweep | --realism | --drone | --threads] [--out DIR]``.
 """
 from __future__ import annotations
+
+import contextlib
+import subprocess
+import sys
+import time
 
 import gymnasium as gym
 import numpy as np
@@ -33,6 +42,7 @@ import esp_gym
 from benchmarks.common import arg_parser, figure, finish, machine, wall_times
 from esp_gym.sb3_vector import ElasticStringPendulumSB3VecEnv
 from esp_gym.setup import PRESETS
+from esp_gym.workers import available_cpus
 
 
 def _rate(fn, steps: int, repeats: int) -> float:
@@ -81,7 +91,11 @@ def main(argv=None) -> dict:
                     help="only the realism options (randomize, ...) against the plain environment")
     ap.add_argument("--drone", action="store_true",
                     help="only a drone at the pivot against the same rig with a point-mass pivot")
+    ap.add_argument("--threads", action="store_true",
+                    help="only the batched env in one thread against numba's threads, idle and beside a busy process")
     args = ap.parse_args(argv)
+    if args.threads:
+        return threads(args)
     if args.ea_sweep:
         return ea_sweep(args)
     if args.realism:
@@ -247,6 +261,49 @@ def drone(args) -> dict:
     finish(args.out, "env_throughput_drone", {"table": table, "substeps": substeps, "steps": steps,
                                               "repeats": repeats, "amplitude": DRONE_AMPLITUDE,
                                               "machine": machine("gymnasium")}, {})
+    return {"table": table}
+
+
+#: The batch sizes of ``--threads``.
+THREAD_BATCHES = (8, 64)
+
+
+@contextlib.contextmanager
+def busy_process():
+    """One CPU-bound process at this one's priority while the block runs, stopped by its id after."""
+    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        time.sleep(0.5)  # running before the timing starts
+        yield
+    finally:
+        busy.kill()
+        busy.wait()
+
+
+def threads(args) -> dict:
+    """Steps/s of the batched env with ``threads`` 1 and the CPUs, THREAD_BATCHES environments, idle
+    and beside :func:`busy_process`, the runs of one repeat interleaved (module docstring)."""
+    steps = 400 if args.quick else 10_000
+    repeats = 1 if args.quick else args.repeats
+    batches = THREAD_BATCHES[:1] if args.quick else THREAD_BATCHES
+    counts = sorted({1, available_cpus()})
+    envs = {(b, t): gym.make_vec(esp_gym.ENV_ID, num_envs=b, threads=t) for b in batches for t in counts}
+    rates = {(c, b, t): [] for c in ("idle", "busy") for b in batches for t in counts}
+    for condition in ("idle", "busy"):
+        with busy_process() if condition == "busy" else contextlib.nullcontext():
+            for _ in range(repeats):
+                for (b, t), env in envs.items():
+                    rates[(condition, b, t)].append(batched(lambda n, e=env: e, b, steps, 1, False))
+    table = [{"condition": c, "envs": b, "threads": t, "steps_per_s": float(np.median(r))}
+             for (c, b, t), r in rates.items()]
+    print(f"batched env, steps/s (median of {repeats}), {available_cpus()} CPUs")
+    print(f"{'machine':26s} {'envs':>4s} " + " ".join(f"{f'threads={t}':>10s}" for t in counts))
+    for c in ("idle", "busy"):
+        for b in batches:
+            row = " ".join(f"{float(np.median(rates[(c, b, t)])):10,.0f}" for t in counts)
+            print(f"{'idle' if c == 'idle' else 'beside one busy process':26s} {b:4d} {row}")
+    finish(args.out, "env_throughput_threads", {"table": table, "steps": steps, "repeats": repeats,
+                                                "machine": machine("gymnasium", "numba")}, {})
     return {"table": table}
 
 

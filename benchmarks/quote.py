@@ -696,6 +696,20 @@ def env_throughput_realism(data: dict) -> str:
     return "\n".join(lines)
 
 
+def env_throughput_threads(data: dict) -> str:
+    rows = data["table"]
+    threads = sorted({row["threads"] for row in rows})
+    rate = {(row["condition"], row["envs"], row["threads"]): row["steps_per_s"] for row in rows}
+    where = {"idle": "idle", "busy": "beside one busy process"}
+    lines = ["| machine | envs | " + " | ".join(f"`threads={t}` [steps/s]" for t in threads) + " |",
+             "|---|---|" + "---|" * len(threads)]
+    for condition in ("idle", "busy"):
+        for envs in sorted({row["envs"] for row in rows}):
+            lines.append(f"| {where[condition]} | {envs} | "
+                         + " | ".join(steps_per_second(rate[(condition, envs, t)]) for t in threads) + " |")
+    return "\n".join(lines)
+
+
 def env_throughput_drone(data: dict) -> str:
     lines = [f"| pivot ({data['substeps']} physics steps per control step) | one env [steps/s] | ratio "
              "| 8 batched [steps/s] | ratio |", "|---|---|---|---|---|"]
@@ -809,6 +823,9 @@ QUOTES = {
     "env_throughput.realism": Quote("docs/img/env_throughput_realism.json",
                                     "python -m benchmarks.env_throughput --realism --repeats 5 --out docs/img",
                                     env_throughput_realism),
+    "env_throughput.threads": Quote("docs/img/env_throughput_threads.json",
+                                    "python -m benchmarks.env_throughput --threads --repeats 5 --out docs/img",
+                                    env_throughput_threads),
     "env_throughput.drone": Quote("docs/img/env_throughput_drone.json",
                                   "python -m benchmarks.env_throughput --drone --repeats 5 --out docs/img",
                                   env_throughput_drone),

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from typing import Optional
 
+import numba
 import numpy as np
 
 from .kernels.layout import INPUTS, R_TERMINATION, REPORT, LGVIParams
@@ -34,6 +35,7 @@ from .kernels.drone_env import DRONE_ENTRY_POINTS, DRONE_SENSORS, HOOK_ENTRY_POI
 from .drone import DroneSimulator, drone_view, hover_at_rest, use_drone_scene, use_hook_scene
 from .model import Simulator
 from .options import check_count
+from .workers import check_within_cpus
 from .setup import Episode, EnvSetup
 from .state import State, check_memory
 from .params import Scene
@@ -72,14 +74,28 @@ def read_only(a: np.ndarray) -> np.ndarray:
     return view
 
 
+def check_threads(threads, num_envs: Optional[int]) -> int:
+    """``threads``, the numba threads a batch of ``num_envs`` steps on: a whole number from 1 to
+    the CPUs this process may use (and numba's NUMBA_NUM_THREADS); a single environment takes 1.
+    ValueError naming ``threads`` otherwise."""
+    threads = check_count("threads", threads)
+    if num_envs is None and threads != 1:
+        raise ValueError(f"threads is for batches (num_envs given), got {threads}")
+    check_within_cpus("threads", threads)
+    if threads > numba.config.NUMBA_NUM_THREADS:
+        raise ValueError(f"threads must be at most numba's {numba.config.NUMBA_NUM_THREADS} (NUMBA_NUM_THREADS), "
+                         f"got {threads}")
+    return threads
+
+
 class ControlStep:
     """The compiled control step of one environment, or of ``num_envs`` stacked ones.
 
     One environment (``num_envs=None``) steps the :class:`~esp_gym.model.Simulator`
     :attr:`sim` in place (its step counter and Newton totals follow). A batch keeps stacked
-    copies of a simulator's arrays and steps every active sub-environment in one parallel
-    call; both run the same compiled control step (esp_gym/kernels/env_step.py), so their
-    numbers agree bit for bit.
+    copies of a simulator's arrays and steps every active sub-environment in one compiled call, in
+    one thread or on ``threads`` of numba's (docs/performance.md, "Threads"); both run the same
+    compiled control step (esp_gym/kernels/env_step.py), so their numbers agree bit for bit.
 
     Each (sub-)environment carries its episode's run-time physics (:class:`Episode`: the
     stepper's constants, its number of physics steps, the task's and the action path's
@@ -93,9 +109,11 @@ class ControlStep:
     external forces of the last step; zeros in still air).
     """
 
-    def __init__(self, setup: EnvSetup, num_envs: Optional[int] = None):
+    def __init__(self, setup: EnvSetup, num_envs: Optional[int] = None, threads: int = 1):
         self.setup = setup
         self.num_envs = None if num_envs is None else check_count("num_envs", num_envs)
+        #: numba threads a batch steps on (1: its own thread, no pool)
+        self.threads = check_threads(threads, self.num_envs)
         batch = () if self.num_envs is None else (self.num_envs,)
         check_memory(setup.scene.string.elements, self.num_envs)
         #: The simulator stepped in place (one environment), or the template of the batch's arrays;
@@ -153,9 +171,11 @@ class ControlStep:
         #: a drone's rotors draw their thrust noise before every control step (setup.thrust_noise)
         self._noisy_thrust = setup.drone and setup.thrust_noise > 0.0
         #: the compiled step and batched step (kernels/env_step.py), and their ``scheme``
-        self._step_kernel, self._batch_kernel = (HOOK_ENTRY_POINTS if self._hook is not None
-                                                 else DRONE_ENTRY_POINTS[bool(setup.winch)] if setup.drone
-                                                 else ENTRY_POINTS[(bool(setup.winch), bool(self.sim.implicit))])
+        entries = (HOOK_ENTRY_POINTS if self._hook is not None
+                   else DRONE_ENTRY_POINTS[bool(setup.winch)] if setup.drone
+                   else ENTRY_POINTS[(bool(setup.winch), bool(self.sim.implicit))])
+        self._step_kernel = entries.step
+        self._batch_kernel = entries.batch if self.threads == 1 else entries.threaded_batch
         self._scheme = SCHEME_DISTURBED if self._windy else 0
         self._was_reset = z(batch, dtype=bool)  # stepping a state that was never set is an error
         self._ready = False  # all of _was_reset, kept as a bool: step checks it every call
@@ -341,6 +361,8 @@ class ControlStep:
         if self._noisy_thrust:  # each sub-environment's own draws, in the single environment's order
             for i in np.flatnonzero(active):
                 self._drone.thrust_scale[i] = 1.0 + self.setup.thrust_noise * self._rngs[i].standard_normal(4)
+        if self.threads > 1:  # numba's thread count is per calling thread: set where the call is made
+            numba.set_num_threads(self.threads)
         if self._drone_tuple is None:
             self._batch_kernel(s, w, p, d, wa, e, raw, active, self._scheme)
         elif self._hook_tuple is not None:

@@ -7,7 +7,8 @@ a drone at an offset hook: ``HOOK_ENTRY_POINTS`` there; a team's, of point pivot
 winches: ``team_advance``, ``team_drone_advance`` and ``team_winch_advance`` in
 esp_gym/kernels/team_loops.py) compiles on its first step and is cached on disk (docs/performance.md, "Start-up"). This takes
 them all in worker processes, so that a machine (a container image, a CI run, a cluster's nodes)
-pays the compile once, in parallel, instead of at the first step of each.
+pays the compile once, in parallel, instead of at the first step of each. A vector env's threaded
+entry (``threads`` > 1, docs/performance.md "Threads") is left to its first use.
 """
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """The batched ElasticStringPendulum-v0 as a Stable-Baselines3 ``VecEnv`` (SB3 cannot use
-Gymnasium vector envs): the sub-environments step in one compiled, parallel call
-(:class:`~esp_gym.control.ControlStep`), done ones reset at once and their final observation goes
+Gymnasium vector envs): the sub-environments step in one compiled call, on ``threads`` numba
+threads (default 1: docs/performance.md, "Threads"; :class:`~esp_gym.control.ControlStep`), done ones reset at once and their final observation goes
 to ``info["terminal_observation"]``. Seeds and results are those of
 :class:`esp_gym.vector.ElasticStringPendulumVectorEnv` and of the single environment, bit for bit.
 """
@@ -31,12 +31,13 @@ class ElasticStringPendulumSB3VecEnv(VecEnv):
     ``infos[i]["TimeLimit.truncated"]`` tells a time-limit end from a termination.
     """
 
-    def __init__(self, num_envs: int = 1, max_episode_steps: Optional[int] = MAX_EPISODE_STEPS, **kwargs: Any):
+    def __init__(self, num_envs: int = 1, max_episode_steps: Optional[int] = MAX_EPISODE_STEPS, threads: int = 1,
+                 **kwargs: Any):
         num_envs = check_count("num_envs", num_envs)
         if max_episode_steps is not None:
             max_episode_steps = check_count("max_episode_steps", max_episode_steps)
         self.setup = make_setup(**kwargs)
-        self.control = ControlStep(self.setup, num_envs)
+        self.control = ControlStep(self.setup, num_envs, threads)
         super().__init__(num_envs, self.setup.observation_space, self.setup.action_space)
         self.max_episode_steps = max_episode_steps
         self._rngs = [np.random.default_rng() for _ in range(self.num_envs)]

@@ -1,4 +1,4 @@
-"""Batched ElasticStringPendulum-v0: all sub-environments step in one compiled, parallel call.
+"""Batched ElasticStringPendulum-v0: all sub-environments step in one compiled call.
 
 :class:`ElasticStringPendulumVectorEnv` is a Gymnasium ``VectorEnv`` (the registration's
 ``vector_entry_point``, so ``gymnasium.make_vec("ElasticStringPendulum-v0", num_envs=8)`` uses
@@ -52,23 +52,26 @@ def sub_env_seeds(seed, n) -> list:
 
 
 class ElasticStringPendulumVectorEnv(VectorEnv):
-    """``num_envs`` ElasticStringPendulum-v0 environments stepped in one parallel compiled call.
+    """``num_envs`` ElasticStringPendulum-v0 environments stepped in one compiled call.
 
-    Takes the single environment's arguments plus ``num_envs`` and ``max_episode_steps``.
+    Takes the single environment's arguments plus ``num_envs``, ``max_episode_steps`` and
+    ``threads``: the numba threads the batch steps on (default 1, its own thread; more pay only on
+    a machine with CPUs to spare: docs/performance.md, "Threads").
     Autoreset: next step (Gymnasium's default) -- the step after an episode ends resets that
     sub-environment and returns its first observation with reward 0.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
 
-    def __init__(self, num_envs: int = 1, max_episode_steps: Optional[int] = MAX_EPISODE_STEPS, render_mode=None, **kwargs: Any):
+    def __init__(self, num_envs: int = 1, max_episode_steps: Optional[int] = MAX_EPISODE_STEPS, render_mode=None,
+                 threads: int = 1, **kwargs: Any):
         if render_mode is not None:
             raise ValueError("the vector environment does not render; use the single environment")
         self.num_envs = check_count("num_envs", num_envs)
         if max_episode_steps is not None:
             max_episode_steps = check_count("max_episode_steps", max_episode_steps)
         self.setup = make_setup(**kwargs)
-        self.control = ControlStep(self.setup, self.num_envs)
+        self.control = ControlStep(self.setup, self.num_envs, threads)
         self.single_observation_space = self.setup.observation_space
         self.single_action_space = self.setup.action_space
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)

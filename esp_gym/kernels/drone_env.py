@@ -21,7 +21,7 @@ from .drone import (MOTORS, THRUST_RATES, THRUST_TORQUE, DroneArrays, actuate, d
                     drone_winch_step, max_rotor_thrust, rate_actuate, start_wrench, Q_THRUST_COEFFICIENT, QD_RATES)
 from .drone_hook import HookArrays, hook_diagnostics, hook_substep, hook_velocities
 from .env_arrays import O_UNSTRETCHED_LENGTH, SCHEME_DISTURBED, SENSORS, TP_ENERGY_ORIGIN, TP_STRING_LENGTH, EnvArrays
-from .env_step import (close_balances, diag_row, energy_watchdog, env_prepare,
+from .env_step import (EntryPoints, close_balances, diag_row, energy_watchdog, env_prepare,
                        env_row, params_row, state_row, winch_row, work_row)
 from .jit import announce_compile, kernel
 from .layout import (D_ENERGY, R_TERMINATION, WN_LENGTH, WN_MASS_PER_LENGTH, WN_REEL_SPEED, DiagWork, Layout,
@@ -308,8 +308,9 @@ def drone_env_step(S, W, P, D, WA, E, DR, HK, raw, scheme, winched, hooked):
 
 @kernel(inline="always")
 def drone_env_batch(S, W, P, D, WA, E, Q, K, raw, active, scheme, winched, hooked):
-    """:func:`drone_env_step` for every environment b with ``active[b]``, in parallel (each
-    struct's row b by its row function; the raw actions must be finite)."""
+    """:func:`drone_env_step` for every environment b with ``active[b]`` (each struct's row b by
+    its row function; the raw actions must be finite). A ``prange``: on numba's threads in an entry
+    compiled with ``parallel=True``, a plain loop in one without."""
     for b in prange(raw.shape[0]):
         if active[b]:
             if winched:
@@ -344,38 +345,60 @@ def hook_env_step(s, w, p, d, e, q, k, raw, scheme):
                           DroneArrays(*q), HookArrays(*k), raw, scheme, False, True)
 
 
-@kernel(parallel=True, entry=True)
+# The batches in one thread, and on numba's threads (``threads`` > 1: docs/performance.md,
+# "Threads"): other functions, not one with two options, as numba's cache keys a function by its
+# code, not its options.
+@kernel(entry=True)
 def drone_batch(s, w, p, d, e, q, raw, active, scheme):
     drone_env_batch(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), None, EnvArrays(*e), DroneArrays(*q),
                     None, raw, active, scheme, False, False)
 
 
-@kernel(parallel=True, entry=True)
+@kernel(entry=True)
 def drone_winch_batch(s, w, p, d, wa, e, q, raw, active, scheme):
     drone_env_batch(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), EnvArrays(*e),
                     DroneArrays(*q), None, raw, active, scheme, True, False)
 
 
-@kernel(parallel=True, entry=True)
+@kernel(entry=True)
 def hook_batch(s, w, p, d, e, q, k, raw, active, scheme):
     drone_env_batch(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), None, EnvArrays(*e), DroneArrays(*q),
                     HookArrays(*k), raw, active, scheme, False, True)
 
 
-#: The drone environment's (step, batch) entry points by ``winched`` (each compiled when first
-#: asked for; kernels/env_step.py's ENTRY_POINTS give the arguments).
+@kernel(parallel=True, entry=True)
+def threaded_drone_batch(s, w, p, d, e, q, raw, active, scheme):
+    drone_env_batch(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), None, EnvArrays(*e), DroneArrays(*q),
+                    None, raw, active, scheme, False, False)
+
+
+@kernel(parallel=True, entry=True)
+def threaded_drone_winch_batch(s, w, p, d, wa, e, q, raw, active, scheme):
+    drone_env_batch(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), EnvArrays(*e),
+                    DroneArrays(*q), None, raw, active, scheme, True, False)
+
+
+@kernel(parallel=True, entry=True)
+def threaded_hook_batch(s, w, p, d, e, q, k, raw, active, scheme):
+    drone_env_batch(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), None, EnvArrays(*e), DroneArrays(*q),
+                    HookArrays(*k), raw, active, scheme, False, True)
+
+
+def _entries(step, batch, threaded_batch, what):
+    """:class:`~.env_step.EntryPoints`, each announced when it first compiles (``what``: the rig)."""
+    return EntryPoints(announce_compile(step, "the environment's step with " + what, COLD_DRONE_ENV_STEP_S),
+                       announce_compile(batch, "the batched environment's step with " + what, COLD_DRONE_BATCH_STEP_S),
+                       announce_compile(threaded_batch, "the threaded batched environment's step with " + what,
+                                        COLD_DRONE_BATCH_STEP_S))
+
+
+#: The drone environment's ``(step, batch, threaded_batch)`` entry points by ``winched`` (each
+#: compiled when first asked for; kernels/env_step.py's ENTRY_POINTS give the arguments).
 DRONE_ENTRY_POINTS = {
-    False: (announce_compile(drone_step, "the environment's step with a drone", COLD_DRONE_ENV_STEP_S),
-            announce_compile(drone_batch, "the batched environment's step with a drone", COLD_DRONE_BATCH_STEP_S)),
-    True: (announce_compile(drone_winch_env_step, "the environment's step with a drone and the winch",
-                            COLD_DRONE_ENV_STEP_S),
-           announce_compile(drone_winch_batch, "the batched environment's step with a drone and the winch",
-                            COLD_DRONE_BATCH_STEP_S)),
+    False: _entries(drone_step, drone_batch, threaded_drone_batch, "a drone"),
+    True: _entries(drone_winch_env_step, drone_winch_batch, threaded_drone_winch_batch, "a drone and the winch"),
 }
 
-#: The entry points of a drone at an offset hook (no winch), (step, batch): their arguments are the
-#: drone's, then the hook's ``k`` (HookArrays).
-HOOK_ENTRY_POINTS = (announce_compile(hook_env_step, "the environment's step with a drone at an offset hook",
-                                      COLD_DRONE_ENV_STEP_S),
-                     announce_compile(hook_batch, "the batched environment's step with a drone at an offset hook",
-                                      COLD_DRONE_BATCH_STEP_S))
+#: The entry points of a drone at an offset hook (no winch), ``(step, batch, threaded_batch)``:
+#: their arguments are the drone's, then the hook's ``k`` (HookArrays).
+HOOK_ENTRY_POINTS = _entries(hook_env_step, hook_batch, threaded_hook_batch, "a drone at an offset hook")

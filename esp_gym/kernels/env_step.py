@@ -9,6 +9,8 @@ kernels/layout.py); every packed vector is laid out by name: the action paramete
 (ACTION_PARAMS) and the task parameters (TASK_PARAMS, from esp_gym/tasks.py) in
 kernels/env_arrays.py, the inputs (INPUTS) and the step report (REPORT) in kernels/layout.py.
 """
+from typing import Any, NamedTuple
+
 import numpy as np
 from numba import prange
 
@@ -188,8 +190,31 @@ params_row = row_function(LGVIParams)
 env_row = row_function(EnvArrays)
 
 
+@kernel(inline="always")
+def batch_loop(S, W, P, D, WA, E, raw, active, disturbed, winched, implicit):
+    """:func:`take_action` and :func:`control_step` for every environment b with ``active[b]``
+    (each struct's row b by its row function, kernels/rows.py). A ``prange``: on numba's threads
+    in an entry compiled with ``parallel=True``, a plain loop in one without."""
+    for b in prange(raw.shape[0]):
+        if active[b]:
+            Eb = env_row(E, b)
+            reel = take_action(raw[b], Eb.ap, Eb.action, Eb.inputs)
+            if reel != -np.inf:
+                control_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), winch_row(WA, b),
+                             Eb, reel, disturbed, winched, implicit)
+
+
+class EntryPoints(NamedTuple):
+    """A rig's compiled entry points: one environment's step, a batch's in one thread, and a
+    batch's on numba's threads (a vector env's ``threads`` > 1)."""
+
+    step: Any
+    batch: Any
+    threaded_batch: Any
+
+
 def _entry_points(winched: bool, implicit: bool):
-    """``(step, batch)``, the compiled entry points of the environment without or with the winch,
+    """:class:`EntryPoints` ``(step, batch, threaded_batch)``, the compiled entry points of the environment without or with the winch,
     on the explicit or the implicit string (closure constants: each configuration compiles only
     its own loop and string step, when it is first asked for: :func:`control_step`).
 
@@ -204,11 +229,12 @@ def _entry_points(winched: bool, implicit: bool):
     ``scheme`` (int, bits SCHEME_*) turns on wind and pushes. It is an argument, not a
     compile-time constant: their code is small, and one compile serves both values.
 
-    ``batch(s, w, p, d, wa, e, raw, active, scheme)``: the same for every environment b with
-    ``active[b]``, in parallel (the raw actions (B, ACTION) must be finite:
+    ``batch(s, w, p, d, wa, e, raw, active, scheme)``: :func:`batch_loop`, the same for every
+    environment b with ``active[b]`` in turn (the raw actions (B, ACTION) must be finite:
     :func:`actions_finite`); every array of the six structs carries a leading batch axis (the
-    constants of LGVIParams too), and each environment's row is taken by the structs' row
-    functions (kernels/rows.py).
+    constants of LGVIParams too). ``threaded_batch``, the same on numba's threads, is what a vector
+    env with ``threads`` > 1 calls: on a machine shared with other work its threads wait for each
+    other, so one thread is the default (docs/performance.md, "Threads").
     """
 
     # Both take control_step with ``winched`` and ``implicit`` as closure constants (numba prunes the
@@ -225,36 +251,32 @@ def _entry_points(winched: bool, implicit: bool):
                      (scheme & SCHEME_DISTURBED) != 0, winched, implicit)
         return True
 
-    @kernel(parallel=True, entry=True)
+    @kernel(entry=True)
     def batch(s, w, p, d, wa, e, raw, active, scheme):
-        disturbed = (scheme & SCHEME_DISTURBED) != 0
-        S = StateArrays(*s)
-        W = Work(*w)
-        D = DiagWork(*d)
-        P = LGVIParams(*p)
-        WA = WinchArrays(*wa)
-        E = EnvArrays(*e)
-        for b in prange(raw.shape[0]):
-            if active[b]:
-                Eb = env_row(E, b)
-                reel = take_action(raw[b], Eb.ap, Eb.action, Eb.inputs)
-                if reel != -np.inf:
-                    control_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), winch_row(WA, b),
-                                 Eb, reel, disturbed, winched, implicit)
+        batch_loop(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), EnvArrays(*e), raw,
+                   active, (scheme & SCHEME_DISTURBED) != 0, winched, implicit)
+
+    # another function, not batch with another option: numba's cache keys a function by its code,
+    # not by its options, so the two would load each other's machine code
+    @kernel(parallel=True, entry=True)
+    def threaded_batch(s, w, p, d, wa, e, raw, active, scheme):
+        batch_loop(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), EnvArrays(*e), raw,
+                   active, (scheme & SCHEME_DISTURBED) != 0, winched, implicit)
 
     # the cold first steps of benchmarks.cold_start (docs/performance.md, "Start-up")
     which = ("the environment's step" + (" on the implicit string" if implicit else "")
              + (" with the winch" if winched else ""))
-    return (announce_compile(step, which, COLD_ENV_STEP_S),
-            announce_compile(batch, "the batched " + which[4:], COLD_BATCH_STEP_S))
+    return EntryPoints(announce_compile(step, which, COLD_ENV_STEP_S),
+                       announce_compile(batch, "the batched " + which[4:], COLD_BATCH_STEP_S),
+                       announce_compile(threaded_batch, "the threaded batched " + which[4:], COLD_BATCH_STEP_S))
 
 
-#: The seconds to the first step of an environment and of a vector environment on an empty cache
-#: (2 cores; docs/performance.md, "Start-up"), said when their entry points first compile.
+#: The seconds to the first step of an environment and of a vector environment on an empty cache (2 cores; docs/performance.md, "Start-up"), said when their entry
+#: points first compile.
 COLD_ENV_STEP_S = 19
 COLD_BATCH_STEP_S = 28
 
-#: The entry points by (winched, implicit) (see :func:`_entry_points`); each compiles only for
-#: environments that use it.
+#: The entry points ``(step, batch, threaded_batch)`` by (winched, implicit) (see
+#: :func:`_entry_points`); each compiles only for environments that use it.
 ENTRY_POINTS = {(winched, implicit): _entry_points(winched, implicit) for winched in (False, True)
                 for implicit in (False, True)}
