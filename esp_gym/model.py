@@ -95,7 +95,7 @@ class Simulator:
                           elim=z((n + 1, 3, 3)), taut=z(n), ext=z((n + 2, 3)), switch=z(n))
         self._diag = DiagWork(V=z((n + 1, 3)), strain=z(n), omega=z(3), out=z(DIAG.size))
         self._inputs = z(INPUTS.size)
-        self._forced = False  #: any input non-zero (picks the forced or the unforced kernels)
+        self._forced = False  #: any input non-zero (an unforced call then zeroes them, once)
         self._coupled = bool(np.any(self.params.rho != 0.0))  # rho_c != 0: rotation coupled
         self._kernel_cache: dict = {}
         self._stats = np.zeros(LOOP_REPORT_SIZE, dtype=np.int64)
@@ -199,10 +199,10 @@ class Simulator:
 
     # -- stepping ---------------------------------------------------------------------------
     def _kernels(self):
-        """``(advance, record)`` for this scene and the current inputs."""
+        """``(advance, record)`` for this scene (its body's coupling, its sums, its string's scheme)."""
         if not self.specialise:
             return general_kernels(self.implicit)
-        key = (self.params.first == 0, self._forced, self._coupled, self.params.compensated, self.implicit)
+        key = (self._coupled, self.params.compensated, self.implicit)
         kernels = self._kernel_cache.get(key)
         if kernels is None:
             kernels = self._kernel_cache[key] = specialised_kernels(*key)

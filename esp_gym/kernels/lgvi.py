@@ -176,8 +176,9 @@ def lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated):
     """Advance the state ``S`` (:class:`StateArrays`) by one LGVI step of length ``h``, in place.
 
     ``inputs`` (9,): pivot force u_p (spatial) [N], body torque tau (body frame) [N m], spatial
-    torque T [N m], held over the step. The flags say what the scene needs (see
-    :func:`specialised_kernels`; passed as constants, the compiler drops what is off):
+    torque T [N m], held over the step. The flags say what the scene needs (passed as constants,
+    the compiler drops what is off; :func:`specialised_kernels` fixes ``coupled`` and
+    ``compensated``, and passes the others as run-time values):
     ``free`` the pivot is a free point mass (``P.first == 0``), ``forced`` the inputs are
     read (else they are taken as zero and the input balances are not updated), ``coupled``
     rho_c != 0 (else the body's rotation is decoupled from the string: no gravity torque, no

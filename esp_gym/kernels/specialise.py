@@ -4,17 +4,20 @@ from .jit import announce_compile, kernel
 from .loops import advance_loop, lgvi_advance, lgvi_record, record_loop
 
 
-def _compile_specialised(free: bool, forced: bool, coupled: bool, compensated: bool, implicit: bool):
+def _compile_specialised(coupled: bool, compensated: bool, implicit: bool):
     """``(advance, record)`` compiled with the flags as constants (closure variables are
-    compile-time constants in numba, and its cache keys closures by their values)."""
+    compile-time constants in numba, and its cache keys closures by their values). The pivot
+    (``P.first``) is read at run time and the inputs are always added (all zero, they add exact
+    zeros): a free pivot or inputs saved at most 7 % of a step as constants, and each was another
+    compile of the whole loop (docs/performance.md, "Specialised kernels")."""
 
     @kernel(entry=True)
     def advance(S, W, P, inputs, nsteps, stats):
-        advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, False, implicit)
+        advance_loop(S, W, P, inputs, nsteps, stats, P.first == 0, True, coupled, compensated, False, implicit)
 
     @kernel(entry=True)
     def record(S, W, P, inputs, every, D, snap, stats):
-        record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled, compensated, implicit)
+        record_loop(S, W, P, inputs, every, D, snap, stats, P.first == 0, True, coupled, compensated, implicit)
 
     return announced(advance, record)
 
@@ -59,14 +62,14 @@ _SPECIALISED = {}
 _GENERAL_EXPLICIT = announced(lgvi_advance, lgvi_record)
 
 
-def specialised_kernels(free: bool, forced: bool, coupled: bool, compensated: bool = True, implicit: bool = False):
+def specialised_kernels(coupled: bool, compensated: bool = True, implicit: bool = False):
     """``(advance, record)`` with the signatures of :func:`lgvi_advance`/:func:`lgvi_record`,
-    compiled for one kind of scene: ``free`` pivot or fixed, inputs ``forced`` or all zero,
-    body ``coupled`` to the string (rho_c != 0) or not, state updates ``compensated`` or plain
-    (as ``P.compensated`` must say), the string ``implicit`` or explicit (the scheme, not a term). What a flag turns off is not computed at all; the
-    results are those of the general path (tests/test_specialised.py).
-    Compiled on first use (and cached on disk); created once per process."""
-    key = (bool(free), bool(forced), bool(coupled), bool(compensated), bool(implicit))
+    compiled for one kind of scene: body ``coupled`` to the string (rho_c != 0) or not, state
+    updates ``compensated`` or plain (as ``P.compensated`` must say), the string ``implicit`` or
+    explicit (the scheme, not a term). What a flag turns off is not computed at all; the results
+    are those of the general path (tests/test_specialised.py). Compiled on first use (and cached
+    on disk); created once per process."""
+    key = (bool(coupled), bool(compensated), bool(implicit))
     if key not in _SPECIALISED:
         _SPECIALISED[key] = _compile_specialised(*key)
     return _SPECIALISED[key]
