@@ -152,3 +152,30 @@ def test_an_internal_kernel_refuses_python_and_its_callable_copy_runs():
     assert python_callable(actions_finite) is actions_finite
     with pytest.raises(TypeError, match="python_callable takes a kernel"):
         python_callable(len)
+
+
+def test_the_same_sources_installed_elsewhere_load_the_machine_code_compiled_for_them(tmp_path):
+    """The cache's subdirectories are named by package path (kernels/jit.py, PackageCacheLocator),
+    not by place on disk: a copy of a package in another directory (a wheel in a virtual
+    environment, another clone) loads what the first compiled. Negative control: the copy with its
+    source changed compiles anew (numba checks each file's hash)."""
+    source = ("from esp_gym.kernels.jit import announce_compile, kernel\n"
+              "@kernel(entry=True)\n"
+              "def double(x):\n"
+              "    return 2 * x\n"
+              "announce_compile(double, 'a test kernel', 3)\n")
+
+    def run(root: Path, text: str) -> subprocess.CompletedProcess:
+        (root / "copied").mkdir(parents=True, exist_ok=True)
+        (root / "copied" / "__init__.py").write_text("")
+        (root / "copied" / "kernels.py").write_text(text)
+        env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"),
+               "PYTHONPATH": os.pathsep.join([str(root), str(ROOT)])}
+        done = subprocess.run([sys.executable, "-c", "from copied.kernels import double; print(double(2))"],
+                              capture_output=True, text=True, cwd=root, env=env, timeout=600)
+        assert done.returncode == 0 and done.stdout.split() == ["4"], done
+        return done
+
+    assert "esp_gym: compiling" in run(tmp_path / "first", source).stderr
+    assert "esp_gym: compiling" not in run(tmp_path / "second", source).stderr
+    assert "esp_gym: compiling" in run(tmp_path / "third", source.replace("2 * x", "x + x")).stderr

@@ -34,7 +34,7 @@ from pathlib import Path
 import numba
 from llvmlite import ir
 from numba import njit, types
-from numba.core import cgutils, event
+from numba.core import caching, cgutils, event
 from numba.core.registry import CPUDispatcher
 from numba.extending import intrinsic
 
@@ -122,6 +122,30 @@ def choose_cache_dir(environ=os.environ, package_dir: Path = _HERE) -> tuple:
                   "); kernels compile in every process. Set NUMBA_CACHE_DIR to a writable directory.")
 
 
+def package_path(source: str) -> str:
+    """The directory of the file ``source`` as a package path (``esp_gym/kernels``): its parents
+    up to the first one that is not a package (no ``__init__.py``), the directory on sys.path."""
+    directory = Path(source).resolve().parent
+    parts = []
+    while (directory / "__init__.py").is_file() and directory.parent != directory:
+        parts.append(directory.name)
+        directory = directory.parent
+    return "/".join(reversed(parts)) or Path(source).resolve().parent.name
+
+
+class PackageCacheLocator(caching.UserProvidedCacheLocator):
+    """numba's locator for a cache directory it is given, with each source's subdirectory named
+    after its package path instead of its place on disk. The same sources, installed elsewhere (a
+    wheel in a virtual environment, another clone), then find the machine code compiled for them:
+    the directory's name already holds the hash of every kernel source, and numba checks each
+    file's own hash too."""
+
+    @classmethod
+    def get_suitable_cache_subpath(cls, py_file):
+        package = package_path(py_file)
+        return package.replace("/", "_") + "_" + hashlib.sha1(package.encode()).hexdigest()[:16]
+
+
 #: Where every kernel's compiled code is cached (see esp_gym/kernels/__init__.py); None: no cache.
 CACHE_DIR, _CACHE_WARNING = choose_cache_dir()
 if _CACHE_WARNING:
@@ -162,14 +186,15 @@ def kernel(fn=None, entry: bool = False, **extra):
         options["no_cpython_wrapper"] = True
 
     def compile_(f):
-        # cache=True fixes the cache location when the function is decorated: set ours for
-        # that moment, then give numba its setting back.
-        previous = numba.config.CACHE_DIR
-        numba.config.CACHE_DIR = CACHE_DIR or previous
+        # cache=True fixes the cache location when the function is decorated: set ours (the
+        # directory and its locator) for that moment, then give numba its settings back.
+        previous = numba.config.CACHE_DIR, numba.config.CACHE_LOCATOR_CLASSES
+        numba.config.CACHE_DIR = CACHE_DIR or previous[0]
+        numba.config.CACHE_LOCATOR_CLASSES = f"{__name__}.{PackageCacheLocator.__name__}" if CACHE_DIR else previous[1]
         try:
             dispatcher = njit(**options)(f)
         finally:
-            numba.config.CACHE_DIR = previous
+            numba.config.CACHE_DIR, numba.config.CACHE_LOCATOR_CLASSES = previous
         if internal:
             dispatcher.__class__ = InternalKernel
         return dispatcher
