@@ -26,7 +26,7 @@ install: $(VENV)/.installed
 demo: $(VENV)/.installed
 	$(BIN)/esp-gym paper --out $(OUT)/paper
 
-# the environment's configurations compiled first, in two processes (esp-gym compile: each compiles
+# the environment's configurations compiled first, in up to two processes (esp-gym compile: each compiles
 # once instead of in whichever test worker meets it first); then two processes for most of the
 # suite, then the clock-sensitive modules alone (tests/conftest.py); both parts always run, and the
 # target fails if either did
@@ -36,7 +36,7 @@ demo: $(VENV)/.installed
 # grows into a different return (tests/test_zoo.py, tests/test_team_env.py rerun them to 1e-6)
 test: export OPENBLAS_CORETYPE = Haswell
 test: $(VENV)/.installed-test
-	$(BIN)/esp-gym compile --jobs 2 --no-progress
+	$(BIN)/esp-gym compile --no-progress
 	$(BIN)/python -m pytest -n 2 --dist loadfile -m "not serial"; parallel=$$?; \
 	$(BIN)/python -m pytest -p no:xdist -m serial; serial=$$?; \
 	test $$parallel -eq 0 -a $$serial -eq 0
