@@ -31,6 +31,7 @@ Usage: ``python -m benchmarks.env_throughput [--quick] [--ea-sweep | --realism |
 from __future__ import annotations
 
 import contextlib
+import os
 import subprocess
 import sys
 import time
@@ -289,7 +290,9 @@ def threads(args) -> dict:
     counts = sorted({1, available_cpus()})
     envs = {(b, t): gym.make_vec(esp_gym.ENV_ID, num_envs=b, threads=t) for b in batches for t in counts}
     rates = {(c, b, t): [] for c in ("idle", "busy") for b in batches for t in counts}
+    load = {}  # the 1-minute load average as each condition starts: "idle" is only as idle as that
     for condition in ("idle", "busy"):
+        load[condition] = os.getloadavg()[0]
         with busy_process() if condition == "busy" else contextlib.nullcontext():
             for _ in range(repeats):
                 for (b, t), env in envs.items():
@@ -302,7 +305,8 @@ def threads(args) -> dict:
         for b in batches:
             row = " ".join(f"{float(np.median(rates[(c, b, t)])):10,.0f}" for t in counts)
             print(f"{'idle' if c == 'idle' else 'beside one busy process':26s} {b:4d} {row}")
-    finish(args.out, "env_throughput_threads", {"table": table, "steps": steps, "repeats": repeats,
+    print(f"load average as each started: idle {load['idle']:.2f}, beside the busy process {load['busy']:.2f}")
+    finish(args.out, "env_throughput_threads", {"table": table, "load_average": load, "steps": steps, "repeats": repeats,
                                                 "machine": machine("gymnasium", "numba")}, {})
     return {"table": table}
 

@@ -700,7 +700,9 @@ def env_throughput_threads(data: dict) -> str:
     rows = data["table"]
     threads = sorted({row["threads"] for row in rows})
     rate = {(row["condition"], row["envs"], row["threads"]): row["steps_per_s"] for row in rows}
-    where = {"idle": "idle", "busy": "beside one busy process"}
+    load = data["load_average"]
+    where = {"idle": f"alone (load average {load['idle']:.1f})",
+             "busy": f"beside one busy process (load average {load['busy']:.1f})"}
     lines = ["| machine | envs | " + " | ".join(f"`threads={t}` [steps/s]" for t in threads) + " |",
              "|---|---|" + "---|" * len(threads)]
     for condition in ("idle", "busy"):
