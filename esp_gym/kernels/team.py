@@ -296,7 +296,7 @@ def team_substep(S, W, P, T, A, inputs, h, free, forced, coupled, compensated):
     commit_others(T, A, h, forced, compensated, A.f, A.fn)
     commit_body(S, W.Rn, W.RF, dP, compensated)
     if unsettled > 0:
-        settle_team_switches(S, W, P, T, A, h, S.p, A.p, S.Pi, P.off)
+        settle_team_switches(S, W, P, T, A, h, S.p, A.p, (S.Pi[0], S.Pi[1], S.Pi[2]), P.off)
     return OK, iters
 
 

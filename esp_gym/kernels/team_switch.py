@@ -26,7 +26,8 @@ from .switch import switch_errors, switch_root
 from .team_arrays import add_end_loads, pivot_rows
 
 
-@kernel(inline="always")
+# Not inlined: the same signature serves the state's velocities and each impulse's, compiled once.
+@kernel
 def team_node_velocities(p0, po, Pi, R, first, off0, T, V0, Vo):
     """The team's continuous Legendre transform inverted (docs/physics.md, "Diagnostics of a
     team"), with the step's factors ``T`` (:data:`~.team_arrays.TeamParams`: each string's M_II, the
@@ -68,6 +69,13 @@ def team_node_velocities(p0, po, Pi, R, first, off0, T, V0, Vo):
     w0, w1, w2, _, _, _ = body_velocities(V0, t0, t1, t2, R, T.mass, T.rho_inertial, T.jeff, T.w0, first)
     other_velocities(T, R, (V0[n, 0], V0[n, 1], V0[n, 2]), (w0, w1, w2), Vo)
     return w0, w1, w2
+
+
+@kernel(entry=True)
+def node_velocities_entry(p0, po, Pi, R, first, off0, T, V0, Vo):
+    """:func:`team_node_velocities` called from Python (its tests), compiled and cached as an
+    entry point."""
+    return team_node_velocities(p0, po, Pi, R, first, off0, T, V0, Vo)
 
 
 @kernel(inline="always")
@@ -162,7 +170,9 @@ def node_row(V0, Vo, T, k, b):
     return Vo[T.start[k] + b]
 
 
-@kernel(inline="always")
+# Not inlined, and called from one site: compiled once per team (inlined at two sites, the
+# reeling team's first start compiled 39 s longer).
+@kernel
 def settle_element(S, P, T, A, W, h, k, a, errors, owed, off0, Vo, Zo):
     """Settle element ``a`` of string ``k`` (-1: string 0) with ``errors[a]`` [J] (module
     docstring): its impulse into ``S.p``, ``A.p`` (and the body's ``S.Pi`` at the end), the
@@ -228,13 +238,14 @@ def settle_team_switches(S, W, P, T, A, h, p0, po, Pi, off0):
     ``A.p``, ``S.Pi``, or a reeling team's less the flow's) with the factors of ``T`` and string
     0's off-diagonal ``off0`` [kg]."""
     team_node_velocities(p0, po, Pi, S.R, P.first, off0, T, W.dy, A.X)
-    if P.settle:
-        for a in range(S.r.shape[0] - 1):
-            settle_element(S, P, T, A, W, h, -1, a, W.switch, S.owed, off0, A.X, A.fn)
-    if T.settle:
-        for k in range(T.first.shape[0]):
-            if T.slack[k]:
-                s = T.start[k]
-                e = T.start[k + 1]
-                for a in range(e - s - 1):
-                    settle_element(S, P, T, A, W, h, k, a, A.switch[s:e], A.owed[s:e], off0, A.X, A.fn)
+    for k in range(-1, T.first.shape[0]):  # string 0 (k = -1), then the others: one call site
+        errors = W.switch
+        owed = S.owed
+        settled = P.settle
+        if k >= 0:
+            errors = A.switch[T.start[k]:T.start[k + 1]]
+            owed = A.owed[T.start[k]:T.start[k + 1]]
+            settled = T.settle and T.slack[k]
+        if settled:
+            for a in range(errors.shape[0] - (0 if k < 0 else 1)):
+                settle_element(S, P, T, A, W, h, k, a, errors, owed, off0, A.X, A.fn)
