@@ -17,6 +17,15 @@ from .scene_input import Frozen, Real, bounded, vector
 
 #: Positive per-axis values (principal inertias [kg m^2], rate gains [1/s]).
 Positive3 = vector()
+#: A drone's reach, in arm lengths: its rotors are one arm length from its centre of mass and its
+#: propellers shorter than an arm (in an X layout neighbours are sqrt(2) arm lengths apart), so all
+#: of its mass, and its hook, lie within 2 arm lengths of the centre of mass. A principal moment is
+#: then at most m_q (2 l)^2, and |rho_q| at most 2 l.
+DRONE_REACH = 2.0
+#: The largest rate gain K_Omega [1/s]: the rates' time constant 1/K_Omega is then no shorter
+#: than 1 ms, the period of a 1 kHz rate loop (a flight controller's, sampling its gyroscope); a
+#: loop cannot track faster than it samples.
+MAX_RATE_GAIN = 1e3
 Point3 = vector("coordinate")
 Velocity3 = vector("speed")
 
@@ -28,7 +37,9 @@ class DroneParams(Frozen):
     (spinning up) or t_down (spinning down); 0 makes the speed the command."""
 
     inertia: Positive3 = Field(description="principal moments of inertia about the centre of mass, body axes "
-                                           "b1 (forward), b2 (right), b3 (down) [kg m^2]")
+                                           "b1 (forward), b2 (right), b3 (down) [kg m^2]; each at most "
+                                           "pivot.mass (2 arm_length)^2, as the drone's mass lies within "
+                                           "DRONE_REACH = 2 arm lengths of its centre")
     arm_length: Real = Field(gt=0.0, le=1e3, description="centre of mass -> rotor axis [m] (X layout)")
     thrust_coefficient: Real = Field(gt=0.0, le=1e3, description="k_f: rotor thrust / omega^2 [N s^2/rad^2]")
     torque_coefficient: Real = Field(gt=0.0, le=1e3, description="k_m: rotor drag torque / omega^2 [N m s^2/rad^2]")
@@ -37,10 +48,13 @@ class DroneParams(Frozen):
     motor_time_constant_down: Real = Field(0.0, ge=0.0, le=1e3, description="motor lag spinning down [s]")
     rho_q: Point3 = Field((0.0, 0.0, 0.0), description="the hook -> the centre of mass, body frame [m]: (0, 0, 0) "
                                                    "hangs the string from the centre of mass; (0, 0, -0.05) from "
-                                                   "5 cm below it (b3 points down)")
+                                                   "5 cm below it (b3 points down); |rho_q| at most 2 arm_length, the "
+                                                   "hook being a point of the drone (DRONE_REACH)")
     rate_gain: Positive3 = Field((20.0, 20.0, 10.0), description="the rate controller's K_Omega per body axis "
                                                                  "[1/s] (docs/physics.md, 'Actuation and the "
-                                                                 "rate controller')")
+                                                                 "rate controller'), at most MAX_RATE_GAIN = "
+                                                                 "1e3: a time constant of 1 ms or more, a "
+                                                                 "1 kHz rate loop's period")
 
     @model_validator(mode="after")
     def _a_rigid_body_with_invertible_rotors(self) -> "DroneParams":
@@ -48,6 +62,14 @@ class DroneParams(Frozen):
             value = getattr(self, name)
             if not all(v > 0.0 for v in value):
                 raise ValueError(f"pivot.drone.{name} must be three values > 0, got {list(value)}")
+        if max(self.rate_gain) > MAX_RATE_GAIN:
+            raise ValueError(f"pivot.drone.rate_gain must be at most {MAX_RATE_GAIN:g} 1/s per axis, got "
+                             f"{list(self.rate_gain)}: a time constant under 1 ms, faster than a 1 kHz rate loop")
+        reach = DRONE_REACH * self.arm_length
+        if math.hypot(*self.rho_q) > reach:
+            raise ValueError(f"pivot.drone.rho_q {list(self.rho_q)} is {math.hypot(*self.rho_q):g} m from the centre "
+                             f"of mass, beyond the drone ({DRONE_REACH:g} arm lengths = {reach:g} m): the hook is "
+                             "a point of the drone")
         J = self.inertia
         if not (J[0] + J[1] >= J[2] and J[1] + J[2] >= J[0] and J[2] + J[0] >= J[1]):
             raise ValueError(f"pivot.drone.inertia {list(J)} breaks the triangle inequality of principal "
@@ -120,6 +142,12 @@ class PivotParams(Frozen):
         if (self.kind == "drone") != (self.drone is not None):
             raise ValueError("pivot.drone (the quadrotor's parameters) belongs to pivot.kind: drone, and it needs "
                              f"them; got kind {self.kind!r} with{'' if self.drone is not None else 'out'} pivot.drone")
+        if self.drone is not None:
+            largest = self.mass * (DRONE_REACH * self.drone.arm_length) ** 2
+            if max(self.drone.inertia) > largest:
+                raise ValueError(f"pivot.drone.inertia {list(self.drone.inertia)} exceeds pivot.mass (2 arm_length)^2 "
+                                 f"= {largest:.3g} kg m^2: no drone of {self.mass:g} kg within {DRONE_REACH:g} arm "
+                                 "lengths of its centre has so large a moment")
         return self
 
     @property

@@ -244,8 +244,9 @@ class Randomizer:
         return base.model_copy(update=sections)
 
     def _check_corners(self) -> None:
-        """Validate the extreme scenes: all lows, all highs, and the one with the smallest box
-        and the largest offsets (where the body's inertia is least well conditioned)."""
+        """Validate the extreme scenes: all lows, all highs, the one with the smallest box and the
+        largest offsets (where the body's inertia is least well conditioned), and with a drone the
+        largest inertia on the lightest drone (its bound scales with the drone's mass)."""
         lows, highs = self._low.copy(), self._high.copy()
         thin = highs.copy()
         for i, name in enumerate(self.names):
@@ -259,7 +260,12 @@ class Randomizer:
             if offset > half:
                 raise ValueError(f"randomize: attachment_offset_{axis} reaches {offset:g} m, off the load's face "
                                  f"(half its {axis} size is {half:g} m at the smallest box)")
-        for what, values in (("the lows", lows), ("the highs", highs), ("the smallest box, largest offset", thin)):
+        corners = [("the lows", lows), ("the highs", highs), ("the smallest box, largest offset", thin)]
+        if "drone_inertia_scale" in names:
+            light = highs.copy()
+            light[names.index("pivot_mass")] = lows[names.index("pivot_mass")]
+            corners.append(("the largest drone inertia, lightest drone", light))
+        for what, values in corners:
             data = self.scene(values).model_dump()
             data["allow_unstable_h"] = True  # the environment chooses each episode's h
             scene_from_dict(data, source=f"at {what} of the randomize ranges")  # ValueError naming the field

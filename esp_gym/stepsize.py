@@ -67,6 +67,14 @@ class StepChoice:
 #: per step, compensated) accumulated over a pilot run's 1e4-1e6 steps is of this order; a target of
 #: 1e-20 m asked for pilot runs that did not end in 20 minutes.
 MIN_ACCURACY = 1e-12
+#: The longest horizon [s] choose_h and choose_resolution take: an hour. The error models are fitted
+#: over PROTOCOL_HORIZON and extrapolated linearly, which says nothing about hours of drift, and
+#: choose_h's pilot runs step through the whole horizon (1e300 s overflowed the element count).
+MAX_HORIZON = 3600.0
+#: The smallest safety [fraction of the stability bound] they take: the rules use 0.35-0.7, and a
+#: step 1000 times under the bound is already stable with room; below, the only effect is the cost
+#: (1e-300 gave h = 2e-303 s).
+MIN_SAFETY = 1e-3
 
 #: Load positions held at once while comparing the pilot pair (bounds its memory, whatever the
 #: horizon: the runs go in chunks of at most this many coarse steps' samples of the whole string).
@@ -76,16 +84,33 @@ PILOT_CHUNK_FLOATS = 1 << 22
 def checked_targets(accuracy, horizon, divides, safety) -> tuple:
     """``(accuracy, horizon, divides, safety)`` of :func:`choose_h` and :func:`choose_resolution` as
     floats (None stays None): ValueError naming the first that is not a finite positive real number,
-    an accuracy below MIN_ACCURACY [m] or a safety above 1."""
+    an accuracy below MIN_ACCURACY [m], a horizon above MAX_HORIZON [s], a period ``divides``
+    longer than the horizon or a safety outside [MIN_SAFETY, 1]."""
     accuracy, divides, safety = (None if v is None else real_number(name, v, positive=True)
                                  for name, v in (("accuracy", accuracy), ("divides", divides), ("safety", safety)))
     horizon = real_number("horizon", horizon, positive=True)
     if accuracy is not None and accuracy < MIN_ACCURACY:
         raise ValueError(f"accuracy must be at least {MIN_ACCURACY:g} m, got {accuracy:g}: below it the pilot "
                          "runs' own rounding decides, and their length grows without bound")
-    if safety is not None and safety > 1.0:
-        raise ValueError(f"safety must be in (0, 1], got {safety}")
+    if horizon > MAX_HORIZON:
+        raise ValueError(f"horizon must be at most {MAX_HORIZON:g} s, got {horizon:g}: the error models grow "
+                         f"linearly from their {PROTOCOL_HORIZON:g}-s fit, and past an hour they predict nothing")
+    if divides is not None and divides > horizon:
+        raise ValueError(f"divides must be at most the horizon ({horizon:g} s), got {divides:g}: it is a period "
+                         "(a control step) of the run the accuracy is asked over")
+    if safety is not None and not MIN_SAFETY <= safety <= 1.0:
+        raise ValueError(f"safety must be in [{MIN_SAFETY:g}, 1], got {safety:g}: it is the fraction of the "
+                         "stability bound a step may take, and below the least the step only multiplies the cost")
     return accuracy, horizon, divides, safety
+
+
+def divided(h: float, divides: Optional[float]) -> tuple:
+    """``(h, substeps)``: the largest step at most ``h`` [s] that divides ``divides`` [s] a whole
+    number of times, and that number (``(h, None)`` without ``divides``)."""
+    if divides is None:
+        return h, None
+    substeps = math.ceil(divides / h - 1e-9)
+    return divides / substeps, substeps
 
 
 def pilot_error(scene: Scene, h: float, horizon: float) -> float:
@@ -142,8 +167,7 @@ def choose_h(scene: Scene, accuracy: Optional[float] = None, horizon: float = 0.
             pilot_h = h_acc
         if h_acc < h_stable:
             h, limited = h_acc, "accuracy"
-    if divides is not None:
-        h = divides / math.ceil(divides / h - 1e-9)
+    h, _ = divided(h, divides)
     if pilot_err is not None:
         estimate = pilot_err * (h / pilot_h) ** scene.solver.scheme.order
     return StepChoice(h=h, h_stable=h_stable, h_accurate=h_acc, error_estimate=estimate, limited_by=limited,
@@ -324,10 +348,7 @@ def choose_resolution(scene: Scene, accuracy: float = 5e-3, horizon: float = PRO
     h_stable = safety * at_n.stability_bound
     h_accurate = accurate_step(at_n, accuracy, horizon)
     h, limited = (h_stable, "stability") if h_stable <= h_accurate else (h_accurate, "accuracy")
-    substeps = None
-    if divides is not None:
-        substeps = math.ceil(divides / h - 1e-9)
-        h = divides / substeps
+    h, substeps = divided(h, divides)
     e_space, e_step = spatial_error(at_n, elements, horizon), step_error(at_n, h, horizon)
     met = e_space <= 0.5 * accuracy * (1 + 1e-12)
     reason = (f"N = {elements}, explicit, h = {h:.4g} s ({limited}): predicted load error {e_space:.2g} m "

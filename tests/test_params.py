@@ -5,6 +5,7 @@ from hypothesis import assume, given, settings, strategies as st
 
 import esp_gym
 from esp_gym.params import BOUNDS, SCENES_DIR, SceneError, load_scene, override_scene, scene_from_dict
+from esp_gym.pivot_params import DRONE_REACH, MAX_RATE_GAIN
 
 
 @pytest.mark.parametrize("overrides, needle", [
@@ -307,3 +308,42 @@ def test_overrides_of_a_scene_object_merge_like_load_scene():
                         ({"h.x": 1}, "override 'h.x': 'h' is not a section"), ({"EA": True}, "string.EA")]:
         with pytest.raises(SceneError, match=needle):
             override_scene(base, bad)
+
+
+def _drone_limits(scene_name):
+    """(the largest principal moment [kg m^2], the largest |rho_q| [m]) of a shipped drone scene:
+    its mass within DRONE_REACH arm lengths of its centre (esp_gym/pivot_params.py)."""
+    scene = load_scene(scene_name)
+    reach = DRONE_REACH * scene.pivot.drone.arm_length
+    return scene.pivot.mass * reach ** 2, reach
+
+
+@pytest.mark.parametrize("scene_name", ["quadrotor_load", "crazyflie_load"])
+@pytest.mark.parametrize("field, value, needle", [
+    # each was accepted: inertia 1e300 ended every episode at step 1 (the Cayley Newton failed),
+    # rho_q 1e5 m within 160 steps (energy_balance); rate_gain 1e300 ran as if it were sane
+    ("pivot.drone.inertia", [1e300] * 3, "pivot.drone.inertia"),
+    ("pivot.drone.inertia", "just above", "pivot.drone.inertia"),
+    ("pivot.drone.rate_gain", [1e300] * 3, "pivot.drone.rate_gain must be at most 1000 1/s"),
+    ("pivot.drone.rate_gain", [20.0, 20.0, 1.001 * MAX_RATE_GAIN], "pivot.drone.rate_gain must be at most"),
+    ("pivot.drone.rho_q", [0.0, 0.0, 1e5], "pivot.drone.rho_q"),
+    ("pivot.drone.rho_q", "just above", "pivot.drone.rho_q"),
+])
+def test_drone_magnitudes_are_bounded_and_named(scene_name, field, value, needle):
+    largest, reach = _drone_limits(scene_name)
+    if value == "just above":
+        value = [1.001 * largest] * 3 if field.endswith("inertia") else [0.0, 0.6 * reach, 0.8 * reach * 1.001]
+    with pytest.raises(SceneError, match=needle) as err:
+        load_scene(scene_name, **{field: value})
+    assert len(str(err.value).splitlines()) == 2  # the header and one line for the field
+
+
+@pytest.mark.parametrize("scene_name", ["quadrotor_load", "crazyflie_load"])
+def test_drone_values_just_inside_the_bounds_load(scene_name):
+    """Negative control: the shipped drones load, and so does each value just inside its bound."""
+    largest, reach = _drone_limits(scene_name)
+    for field, value in (("pivot.drone.inertia", [0.999 * largest] * 3),
+                         ("pivot.drone.rate_gain", [MAX_RATE_GAIN] * 3),
+                         ("pivot.drone.rho_q", [0.0, 0.6 * reach * 0.999, 0.8 * reach * 0.999])):
+        scene = load_scene(scene_name, **{field: value})
+        assert getattr(scene.pivot.drone, field.split(".")[-1]) == tuple(value)

@@ -143,6 +143,22 @@ def test_bad_ranges_are_named(randomize, match):
         ElasticStringPendulumEnv(randomize=randomize)
 
 
+@pytest.mark.parametrize("randomize, match", [
+    # was accepted: every episode ended at step 1 (the drone's Cayley Newton did not converge)
+    ({"drone_inertia_scale": (1e300, 1e300)}, "(?s)at the lows of the randomize ranges.*pivot.drone.inertia"),
+    # the highs alone pass: the bound is m_q (2 l)^2, and here the lightest drone carries the largest inertia
+    ({"drone_inertia_scale": (1.0, 5.0), "pivot_mass": (0.3, 1.5)},
+     "(?s)largest drone inertia, lightest drone.*pivot.drone.inertia"),
+])
+def test_drone_ranges_beyond_a_drone_are_named(randomize, match):
+    with pytest.raises(ValueError, match=match):
+        ElasticStringPendulumEnv(scene="quadrotor_load", randomize=randomize)
+    # negative control: the same scales on a drone heavy enough for them (m_q (2 l)^2 = 0.363 kg m^2
+    # at 1.5 kg against 5 x 0.0552), and the defaults
+    ElasticStringPendulumEnv(scene="quadrotor_load", randomize={"drone_inertia_scale": (1.0, 5.0)})
+    ElasticStringPendulumEnv(scene="quadrotor_load", randomize=True)
+
+
 def test_the_hanging_check_has_its_edge_where_it_says():
     """The stretch g (M + mu l) / EA of the ranges' worst corner against half the task's limit
     (0.25 of the length): just under it the environment is made, just over it refused; the

@@ -9,7 +9,7 @@ import pytest
 
 import esp_gym
 from esp_gym import choose_resolution, load_scene
-from esp_gym.stepsize import SLACK_SAFETY, spatial_error, step_error
+from esp_gym.stepsize import MAX_HORIZON, MIN_SAFETY, SLACK_SAFETY, spatial_error, step_error
 
 ENV_ID = "ElasticStringPendulum-v0"
 
@@ -73,10 +73,26 @@ def test_the_error_models_scale_as_measured():
 @pytest.mark.parametrize("bad,message", [
     (dict(accuracy=True), "accuracy must be a real number"), (dict(accuracy="1e-3"), "accuracy must be a real"),
     (dict(accuracy=1e-20), "at least 1e-12 m"), (dict(accuracy=-1.0), "accuracy"), (dict(horizon=0.0), "horizon"),
-    (dict(divides=float("nan")), "divides"), (dict(safety=2.0), "safety")])
-def test_bad_arguments_name_themselves(bad, message):
+    (dict(divides=float("nan")), "divides"), (dict(safety=2.0), "safety"),
+    # each was accepted or a raw error: an OverflowError, 1.46e15 substeps, h = 1.95e-303 s
+    (dict(horizon=1e300), "horizon must be at most 3600 s"), (dict(horizon=1.001 * MAX_HORIZON), "horizon"),
+    (dict(divides=1e12), r"divides must be at most the horizon \(.* s\), got 1e\+12"),
+    (dict(horizon=1.0, divides=1.001), "divides must be at most the horizon"),
+    (dict(safety=1e-300), r"safety must be in \[0.001, 1\]"), (dict(safety=0.999 * MIN_SAFETY), "safety")])
+@pytest.mark.parametrize("rule", [choose_resolution, esp_gym.choose_h])
+def test_bad_arguments_name_themselves(rule, bad, message):
     with pytest.raises(ValueError, match=message):
-        choose_resolution(load_scene("drone_load"), **bad)
+        rule(load_scene("drone_load"), **bad)
+
+
+def test_arguments_just_inside_their_bounds_are_taken():
+    """Negative control: the longest horizon, the least safety and a period as long as the horizon."""
+    scene = load_scene("drone_load")
+    assert choose_resolution(scene, horizon=MAX_HORIZON).elements >= choose_resolution(scene).elements
+    tiny = choose_resolution(scene, safety=MIN_SAFETY)
+    assert tiny.h == pytest.approx(MIN_SAFETY * load_scene("drone_load", N=tiny.elements).stability_bound)
+    whole = choose_resolution(scene, horizon=1.0, divides=1.0)
+    assert whole.substeps * whole.h == pytest.approx(1.0)
 
 
 def test_auto_elements_refuse_the_implicit_string_and_warn_when_the_accuracy_is_out_of_reach():
