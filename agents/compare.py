@@ -187,8 +187,10 @@ def main(argv=None) -> dict:
     ap.add_argument("--out", default=None, metavar="DIR", help="also write compare_TASK[_PRESET].md and .json here")
     ap.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
     ap.add_scene_options()
+    from esp_gym.team.tasks import TEAM_TASKS
+
     ap.add_argument("--team", type=int, default=None, metavar="K",
-                    help="a team of K strings (1-6) carrying one load (esp_gym/team; tasks stabilize, transport)")
+                    help=f"a team of K strings (1-6) carrying one load (esp_gym/team; tasks {', '.join(sorted(TEAM_TASKS))})")
     a = ap.parse_args(argv)
     ap.check_out_dir("--out", a.out)
     if a.team is None:

@@ -4,6 +4,7 @@ agents.train).
 
     python -m agents.team_sweep --team 3 --task transport --preset hard --residual --iterations 200 \\
         --space '{"lr": [1e-4, 3e-4], "seed": [0, 1]}'
+    python -m agents.team_sweep --team 3 --actuation thrust_rates --task track --space '{"seed": [0, 1]}'
     python -m agents.team_sweep --resume sweeps/team
 
 ``--space`` maps keys to lists of values (JSON or YAML): every combination is a trial. A key is a
@@ -35,10 +36,13 @@ from agents.common import ConfigError
 from agents.distributed.rllib import load_rllib_config
 from agents.distributed.sweep import (METRICS, Spec, checked_space, new_out, override, start_or_resume,
                                       sweep_main)
+from esp_gym.options import ACTUATION_CHOICES
 from esp_gym.team.tasks import TEAM_TASKS
 
 #: What every trial sets over ``--set`` and the space: sampling in the trial's own process (one CPU).
 TRIAL_OVERRIDES = ("num_env_runners=0",)
+#: ``--actuation``'s choices: a drone team's (every actuation but the point pivot's force).
+DRONE_ACTUATIONS = [name for name in ACTUATION_CHOICES if name != "force"]
 
 
 @dataclass
@@ -49,6 +53,9 @@ class Settings:
     task: str = field(default="transport", metadata={"help": "task", "choices": sorted(TEAM_TASKS), "run": True})
     preset: Optional[str] = field(default=None, metadata={"help": "the team's preset", "choices": ["hard"],
                                                           "run": True})
+    actuation: Optional[str] = field(default=None, metadata={
+        "help": "the pivots are drones flown so, as agents.team_train's (default: point pivots pushed by forces)",
+        "choices": DRONE_ACTUATIONS, "run": True})
     residual: bool = field(default=False, metadata={"help": "train residuals on the team's baseline", "run": True})
     central_critic: bool = field(default=False, metadata={"help": "trials with a centralised critic", "run": True})
     iterations: int = field(default=100, metadata={"help": "training iterations of each trial", "type": int,
@@ -79,11 +86,21 @@ def trial_settings(s: Settings, config: dict, runs: Path, name: str):
     from agents import team_train
 
     overrides = list(s.set) + [override(k, v) for k, v in config.items() if k != "seed"] + list(TRIAL_OVERRIDES)
-    return team_train.Settings(team=s.team, task=s.task, preset=s.preset, iterations=s.iterations,
+    return team_train.Settings(team=s.team, task=s.task, preset=s.preset, actuation=s.actuation,
+                               iterations=s.iterations,
                                time_limit=s.time_limit, seed=int(config.get("seed", 0)), set=overrides,
                                runs=str(runs), run_name=name, eval_episodes=s.eval_episodes,
                                reference_episodes=s.reference_episodes, residual=s.residual,
                                central_critic=s.central_critic, progress=False)
+
+
+def trial_argv(ts) -> list:
+    """The agents.team_train command line of a trial's settings ``ts``, saved with its run."""
+    return ["--team", str(ts.team), "--task", ts.task, *(["--preset", ts.preset] if ts.preset else []),
+            *(["--actuation", ts.actuation] if ts.actuation else []),
+            *(["--residual"] if ts.residual else []), *(["--central-critic"] if ts.central_critic else []),
+            "--iterations", str(ts.iterations),
+            "--seed", str(ts.seed), "--runs", str(ts.runs), "--run-name", ts.run_name, "--set", *ts.set]
 
 
 def check_trial(s: Settings, point: dict) -> None:
@@ -142,11 +159,7 @@ def run_trial(config: dict, spec: Spec) -> dict:
         cfg = load_rllib_config(ts.task, ts.set, team_train.CONFIG_FILE, team_train.TEAM_ENV_ID)
         algo = team_train.team_ppo_config(cfg, ts).build_algo()
         try:
-            argv = ["--team", str(ts.team), "--task", ts.task, *(["--preset", ts.preset] if ts.preset else []),
-                    *(["--residual"] if ts.residual else []), *(["--central-critic"] if ts.central_critic else []),
-                    "--iterations", str(ts.iterations),
-                    "--seed", str(ts.seed), "--runs", str(runs), "--run-name", name, "--set", *ts.set]
-            team_train.run(ts, cfg, run_dir, algo, argv=argv, report=lambda row: tune.report(
+            team_train.run(ts, cfg, run_dir, algo, argv=trial_argv(ts), report=lambda row: tune.report(
                 {"timesteps": row["env_steps"], "mean_return": row["episode_return_mean"]}))
         finally:
             algo.stop()

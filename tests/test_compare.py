@@ -58,6 +58,17 @@ def test_compare_rejects_a_missing_model(capsys):
     assert "--model" in capsys.readouterr().err
 
 
+def test_the_help_names_every_team_task(capsys):
+    """--team's help lists the team's tasks from esp_gym/team/tasks.py (it named stabilize and
+    transport only, though track and lift run)."""
+    from esp_gym.team.tasks import TEAM_TASKS
+
+    with pytest.raises(SystemExit):
+        compare.main(["--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert f"(esp_gym/team; tasks {', '.join(sorted(TEAM_TASKS))})" in text and {"track", "lift"} <= set(TEAM_TASKS)
+
+
 def test_frame_stacked_policy_sees_what_training_showed(tmp_path):
     """SB3Policy stacks the normalised observations as VecFrameStack did in training: the same
     inputs, step by step, including the zeros before the first observation."""

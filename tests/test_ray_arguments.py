@@ -144,3 +144,23 @@ def test_a_residual_scale_within_the_box_is_accepted(tmp_path):
     check_settings(Settings(residual=True, residual_scale=2.0, runs=str(tmp_path)))
     with pytest.raises(SettingsError, match="--residual-scale"):
         check_settings(Settings(residual=True, residual_scale=2.5, runs=str(tmp_path)))
+
+
+@pytest.mark.parametrize("actuation", [None, "thrust_rates", "motors"])
+def test_team_sweep_passes_the_actuation_to_each_trial(actuation):
+    """agents.team_sweep --actuation reaches each trial's agents.team_train settings, its saved
+    command line and the environment its config builds, with agents.team_train's choices (it had
+    no --actuation). None, point pivots, is the negative control: no --actuation anywhere."""
+    import dataclasses
+
+    from agents import team_sweep, team_train
+
+    choices = {f.name: f.metadata.get("choices") for f in dataclasses.fields(team_train.Settings)}["actuation"]
+    assert sorted(team_sweep.DRONE_ACTUATIONS) == sorted(choices)
+    s = team_sweep.Settings(team=2, task="track", actuation=actuation)
+    ts = team_sweep.trial_settings(s, {"seed": 1}, Path("runs"), "trial")
+    argv = team_sweep.trial_argv(ts)
+    assert ts.actuation == actuation and team_train.env_options(ts).get("actuation") == actuation
+    assert (argv[argv.index("--actuation") + 1] if "--actuation" in argv else None) == actuation
+    assert "actuation" in team_sweep.SWEEP_SETTINGS  # a resumed sweep keeps it
+    team_sweep.check_trial(s, {})  # RLlib's validation of the trial's config, no Ray started
