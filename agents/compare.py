@@ -27,7 +27,7 @@ from agents.cli import ArgumentParser
 from agents import MODELS
 from agents.baselines.pd import ZeroPolicy
 from agents.baselines.registry import baselines
-from agents.evaluate import SB3Policy, run_episodes, summarize
+from agents.evaluate import MODEL_ERRORS, SB3Policy, run_episodes, summarize
 from esp_gym.options import EnvOptions
 from esp_gym.tasks import TASKS
 
@@ -219,7 +219,7 @@ def main(argv=None) -> dict:
     ap.environment_options(a)  # checked before any episode
     try:
         c = compare(a.task, a.preset, a.episodes, a.seed, a.model, a.progress, a.scene, a.actuation)
-    except ValueError as err:  # ModelFileError, NormalizationFileError
+    except MODEL_ERRORS as err:  # the model's; an error inside an episode (a baseline's) is not
         ap.error(f"argument --model: {err}")
     print(json.dumps(c) if a.json else markdown(c))
     if a.out:

@@ -33,7 +33,7 @@ import esp_gym
 from agents.artifacts import (ConfigurationError, ModelFileError, check_configuration, load_model, model_configuration,
                               stats_path_for)
 from agents.cli import ArgumentParser
-from agents.mlp import actor_of_sb3
+from agents.mlp import UnsupportedNetwork, actor_of_sb3
 from agents.baselines.pd import ZeroPolicy
 from agents.baselines.registry import baseline
 from agents.normalization import NormalizationFileError, NormStats
@@ -49,6 +49,11 @@ SUCCESS_SWING_DEG = 5.0
 #: count, and a chaotic closed-loop episode grows a last-bit difference into another return, so the
 #: documented comparisons (docs/compare) hold on any machine only so.
 ONE_BLAS_THREAD = threadpool_limits.wrap(limits=1, user_api="blas")
+
+
+#: What loading a model or checking it against a configuration raises (each a ValueError): the
+#: model's faults, where an error inside an episode is not.
+MODEL_ERRORS = (ModelFileError, NormalizationFileError, ConfigurationError, UnsupportedNetwork)
 
 
 class SB3Policy:

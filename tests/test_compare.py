@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from agents import compare
+from script_main import call_main
 
 
 def test_paired_ci_covers_a_known_difference():
@@ -153,3 +154,18 @@ def test_configuration_names_leave_out_the_defaults():
     assert name("track", "hard") == name("track", "hard", "drone_load", "force") == "track_hard"
     assert name("stabilize", "hard", "quadrotor_load", "thrust_rates") == name("stabilize", "hard", "quadrotor_load")
     assert name("stabilize", None, "quadrotor_load", "motors") == "stabilize_quadrotor_load_motors"
+
+
+def test_a_failing_baseline_is_not_blamed_on_the_model(monkeypatch, capfd):
+    """An error inside an episode (here a baseline's NaN action, as crazyflie_load's hard preset
+    gave the geometric cascade) propagates as itself: it used to exit 2 as ``argument --model``,
+    with no --model given. A missing model file is still the model's (the negative control)."""
+    def failing(policy, task, episodes, seed, env_kwargs=None):
+        raise ValueError("action must be finite, got [nan, 0.0, 0.0, 0.0]")
+
+    monkeypatch.setattr(compare, "run_episodes", failing)
+    with pytest.raises(ValueError, match="action must be finite"):
+        call_main(compare.main, ["--task", "stabilize", "--episodes", "2", "--no-progress"], capfd)
+    proc = call_main(compare.main, ["--task", "stabilize", "--episodes", "2", "--model", "nowhere.zip"], capfd)
+    assert proc.returncode == 2 and "--model" in proc.stderr
+

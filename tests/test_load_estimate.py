@@ -8,8 +8,8 @@ import pytest
 
 import esp_gym
 from agents.baselines.geometric import HOOK_ESTIMATOR, HookGeometricController, hook_geometric_controller
-from agents.baselines.load_estimate import ESTIMATE, LoadEstimator, steady_gain
-from agents.baselines.registry import baseline
+from agents.baselines.load_estimate import ESTIMATE, LoadEstimator, nominal_load_mass, steady_gain
+from agents.baselines.registry import baseline, baselines
 from esp_gym.kernels.env_arrays import OBSERVATION
 
 
@@ -17,7 +17,8 @@ def estimate_errors(seed: int, sensor_noise: float) -> dict:
     """RMS errors over steps 25-499 of a PD-flown quadrotor_load stabilize episode (hook observation)
     of the filter's and the hanging guess's load place [m] and velocity [m/s], and the weighed mass."""
     env = gym.make(esp_gym.ENV_ID, scene="quadrotor_load", observation="hook", sensor_noise=sensor_noise).unwrapped
-    estimator = LoadEstimator(env.setup.control_period, env.scene.gravity, **HOOK_ESTIMATOR)
+    estimator = LoadEstimator(env.setup.control_period, env.scene.gravity, nominal_load_mass(env.scene),
+                              **HOOK_ESTIMATOR)
     pd = baseline("stabilize", drone=True)
     layout = env.setup.observer.layout
     obs, _ = env.reset(seed=seed)
@@ -32,8 +33,7 @@ def estimate_errors(seed: int, sensor_noise: float) -> dict:
         obs, *_ = env.step(pd.act(obs, env.setup))
     rms = np.sqrt(np.mean(np.square(rows[25:]), axis=0))
     return {"place": rms[0], "velocity": rms[1], "hanging_place": rms[2], "hanging_velocity": rms[3],
-            "mass": estimator.load_mass, "true_mass": env.scene.body.mass + env.scene.string.mass_per_length
-            * env.scene.string.length}
+            "mass": estimator.load_mass, "true_mass": nominal_load_mass(env.scene)}
 
 
 @pytest.mark.parametrize("seed", [1, 2])
@@ -64,7 +64,8 @@ def test_the_hook_estimate_follows_a_reeled_load_with_the_reels_length(seed):
     from esp_gym.tasks import hanging_depth
 
     env = gym.make(esp_gym.ENV_ID, scene="quadrotor_load", observation="hook", task="lower", winch=True).unwrapped
-    reeled, fixed = (LoadEstimator(env.setup.control_period, env.scene.gravity, **HOOK_ESTIMATOR) for _ in range(2))
+    reeled, fixed = (LoadEstimator(env.setup.control_period, env.scene.gravity, nominal_load_mass(env.scene),
+                                   **HOOK_ESTIMATOR) for _ in range(2))
     hoist = baseline("lower", winch=True, drone=True)
     layout = env.setup.observer.layout
     excess = hanging_depth(env.setup.scene) - env.setup.scene.string.length
@@ -100,7 +101,7 @@ def test_the_steady_gain_is_the_kalman_filters():
 
 def test_the_estimator_names_a_bad_noise():
     with pytest.raises(ValueError, match="position_std"):
-        LoadEstimator(0.02, 9.81, position_std=0.0)
+        LoadEstimator(0.02, 9.81, 0.5, position_std=0.0)
 
 
 def test_the_hook_cascade_starts_each_episode_afresh_and_shows_its_estimate():
@@ -117,3 +118,41 @@ def test_the_hook_cascade_starts_each_episode_afresh_and_shows_its_estimate():
     np.testing.assert_array_equal(twin.features, np.zeros(ESTIMATE.size))
     law.start(None)
     np.testing.assert_array_equal(law.features, np.zeros(ESTIMATE.size))
+
+
+def test_the_hook_cascade_flies_a_load_lighter_than_the_load_cells_noise():
+    """crazyflie_load's load pulls 0.049 N, the hard preset's load cell has 0.1 N of noise: on
+    seed 101 the first reading pulls upwards (it weighed the load 0 kg and the law's action was
+    NaN at step 0). The cascade starts from the nominal load's mass and flies finite actions,
+    with a positive weight, through its first steps."""
+    env = gym.make(esp_gym.ENV_ID, scene="crazyflie_load", preset="hard", task="transport").unwrapped
+    law = baselines("transport", {"scene": "crazyflie_load", "preset": "hard"})["geometric"]
+    obs, _ = env.reset(seed=101)
+    assert obs[env.setup.observer.layout["hook_tension"]][2] <= 0  # the case: a reading that weighs nothing
+    law.reset(env)
+    for _ in range(5):
+        action = law.act(obs, env.setup)
+        assert np.all(np.isfinite(action)), action
+        assert law.features[ESTIMATE.scalar("load_mass")] > 0
+        obs, *_ = env.step(action)
+
+
+def test_the_first_reading_weighs_the_load_and_a_weightless_one_takes_the_nominal_mass():
+    """A first pull of 0.5 N down weighs 0.5 / g kg, as before (the negative control: the nominal
+    mass is not read then); one that pulls up or not at all weighs nothing, and the estimate starts
+    from the nominal mass; the 2 s low-pass keeps it positive after readings of no weight."""
+    g, nominal = 9.81, 0.007
+    for pull, weighed in ((0.5, 0.5 / g), (-0.2, nominal), (0.0, nominal)):
+        estimator = LoadEstimator(0.02, g, nominal)
+        estimator.update(np.zeros(3), np.array([0.0, 0.0, pull]), np.array([0.0, 0.0, 1.0]))
+        assert estimator.load_mass == weighed
+        for _ in range(1000):
+            estimator.update(np.zeros(3), np.array([0.0, 0.0, -0.3]), np.array([0.0, 0.0, 1.0]))
+        assert estimator.load_mass > 0 and np.all(np.isfinite(estimator.features))
+
+
+def test_the_estimator_names_a_weighing_time_shorter_than_its_step():
+    with pytest.raises(ValueError, match="weighing_time"):
+        LoadEstimator(0.02, 9.81, 0.007, weighing_time=0.01)
+    with pytest.raises(ValueError, match="nominal_mass"):
+        LoadEstimator(0.02, 9.81, 0.0)

@@ -31,7 +31,7 @@ from typing import Optional
 
 import numpy as np
 
-from agents.baselines.load_estimate import LoadEstimator
+from agents.baselines.load_estimate import LoadEstimator, nominal_load_mass
 from esp_gym.kernels.drone_env import DRONE_ACTION_PARAMS
 from esp_gym.setup import total_weight
 from esp_gym.tasks import hanging_depth
@@ -201,7 +201,7 @@ class GeometricLoadController:
             wanted *= self.max_load_acceleration / size
         force = m_load * (wanted - g * E3 - (0.0 if disturbance is None else disturbance))
         tension = np.linalg.norm(force)
-        q_d = -force / tension
+        q_d = -force / tension if tension > 0 else E3  # no force wanted: the string hangs
         # 2. the drone's place on that direction, at the distance it has now
         r = e_load - e_drone + depth * E3  # drone -> load
         place = r - np.linalg.norm(r) * q_d  # x_d - x
@@ -231,8 +231,10 @@ class HookGeometricController:
 
     @classmethod
     def for_setup(cls, setup, law: GeometricLoadController, **noise) -> "HookGeometricController":
-        """``law`` with a filter at ``setup``'s control period (``noise``: LoadEstimator's)."""
-        return cls(law, LoadEstimator(setup.control_period, setup.scene.gravity, **noise))
+        """``law`` with a filter at ``setup``'s control period and its nominal load (``noise``:
+        LoadEstimator's)."""
+        scene = setup.scene
+        return cls(law, LoadEstimator(setup.control_period, scene.gravity, nominal_load_mass(scene), **noise))
 
     def clone(self) -> "HookGeometricController":
         return HookGeometricController(self.law, self.estimator.clone())

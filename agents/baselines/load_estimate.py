@@ -17,8 +17,11 @@ string's direction noise sets (|noise of T| / |T| rad times l).
 
 What the hook does not say the first observation does: the load's weight m g is the first
 reading's downward pull, then a low-pass of it (time constant ``weighing_time``; over a swing its
-mean is the weight), and l is the depth of the load's target below the drone's
-((load_target_offset + pivot_position_error) . e3, the episode's hanging depth). With a winch l
+mean is the weight). A first reading that pulls up or not at all (a load lighter than the load
+cell's noise: crazyflie_load's pulls 0.049 N, the hard preset's noise is 0.1 N) weighs nothing;
+the estimate then starts from the nominal load's mass (``nominal_mass``, the nominal scene's), and
+the low-pass, a convex mean while ``weighing_time`` exceeds the period, keeps it positive. And l
+is the depth of the load's target below the drone's ((load_target_offset + pivot_position_error) . e3, the episode's hanging depth). With a winch l
 follows the reel instead (the caller gives it each step: the observed unstretched length plus the
 nominal excess of the hanging depth over it), and the load's target stays at the first depth.
 Nothing of the episode's true parameters is read.
@@ -42,6 +45,11 @@ ESTIMATE = Layout(("load_position_error", 3), ("load_velocity", 3), ("unmodelled
                   ("load_mass", 1))
 
 
+def nominal_load_mass(scene) -> float:
+    """What the hook weighs of ``scene``'s rig at rest [kg]: the load and its string."""
+    return scene.body.mass + scene.string.mass_per_length * scene.string.length
+
+
 def axis_model(period: float) -> tuple:
     """``(F, G)`` of one axis over a step of ``period`` [s]: x+ = F x + G a (module docstring)."""
     h = period
@@ -63,14 +71,17 @@ def steady_gain(period: float, position_std: float, acceleration_std: float, dri
 
 @dataclass
 class LoadEstimator:
-    """The filter of the module docstring for a control period ``period`` [s] and gravity
-    ``gravity`` [m/s^2]. Noise: ``position_std`` [m] of the position fix, ``acceleration_std``
-    [m/s^2] of the load cell's acceleration, ``drift_std`` of the left-out acceleration;
-    ``weighing_time`` [s] the weight's low-pass; below ``taut_fraction`` of the weight the pull
+    """The filter of the module docstring for a control period ``period`` [s], gravity
+    ``gravity`` [m/s^2] and the nominal load's mass ``nominal_mass`` [kg] (the string's included;
+    the start of the weight when the first reading weighs nothing). Noise: ``position_std`` [m] of
+    the position fix, ``acceleration_std`` [m/s^2] of the load cell's acceleration, ``drift_std``
+    of the left-out acceleration; ``weighing_time`` [s] the weight's low-pass (longer than the
+    period); below ``taut_fraction`` of the weight the pull
     is too slack to fix the load's place (the filter predicts only)."""
 
     period: float
     gravity: float
+    nominal_mass: float
     position_std: float = 0.05
     acceleration_std: float = 1.0
     drift_std: float = 1.0
@@ -84,9 +95,13 @@ class LoadEstimator:
     _depth: float = field(default=0.0, init=False, repr=False)
 
     def __post_init__(self):
-        for name in ("period", "gravity", "position_std", "acceleration_std", "drift_std", "weighing_time"):
+        for name in ("period", "gravity", "nominal_mass", "position_std", "acceleration_std", "drift_std",
+                     "weighing_time"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"LoadEstimator {name} must be > 0, got {getattr(self, name)!r}")
+        if not self.weighing_time > self.period:  # the weight's low-pass stays a mean of the readings
+            raise ValueError(f"LoadEstimator weighing_time must exceed the period {self.period!r}, "
+                             f"got {self.weighing_time!r}")
         self._gain = steady_gain(self.period, self.position_std, self.acceleration_std, self.drift_std)  # [p, v, b]
         self._F, self._G = axis_model(self.period)
 
@@ -154,6 +169,8 @@ class LoadEstimator:
             self._length = max(float(length), 0.0)
         if self._state is None:
             self._mass = max(float(tension[2]), 0.0) / self.gravity
+            if not self._mass > 0:  # a load lighter than the cell's noise (module docstring)
+                self._mass = float(self.nominal_mass)
             self._depth = max(float(load_target_offset[2] + drone_error[2]), 0.0)
             if length is None:
                 self._length = self._depth
