@@ -383,6 +383,46 @@ def compare_zoo_readme(data: dict) -> str:
     return text + ("; not yet: " + ", ".join(rest) if rest else "")
 
 
+#: Other held-out seed sets nominal ``stabilize`` was compared on (issue 54: its win on the zoo's
+#: seeds was a tie on others), 100 episodes each, in ``docs/compare/stabilize_seeds/SEED/``.
+STABILIZE_SEED_SETS = (100100, 400000, 500000)
+STABILIZE_SEED_FILES = ("docs/compare/compare_stabilize.json",) + tuple(
+    f"docs/compare/stabilize_seeds/{seed}/compare_stabilize.json" for seed in STABILIZE_SEED_SETS)
+STABILIZE_SEEDS_COMMAND = ("python -m agents.compare --task stabilize --episodes 100 --seed SEED "
+                           "--out docs/compare/stabilize_seeds/SEED")
+
+
+def _seed_set(result: dict) -> str:
+    return f"{result['seed']}–{result['seed'] + result['episodes'] - 1}"
+
+
+def _paired(result: dict) -> str:
+    """policy − best baseline with its CI, to 0.01 (the CI's lower end is this close to zero)."""
+    low, high = result["paired_ci95"]
+    return f"{signed(result['paired_diff_mean'], 2)} [{signed(low, 2)}, {signed(high, 2)}]"
+
+
+def compare_stabilize_seeds(data: dict) -> str:
+    """Nominal stabilize's policy against its best baseline on the zoo's seeds and on the others."""
+    lines = ["| held-out seeds | best baseline | its return | policy | policy − best baseline (95 % CI) |",
+             "|---|---|---|---|---|"]
+    for i, source in enumerate(STABILIZE_SEED_FILES):
+        r = data[source]
+        best, which = r["best_baseline"], " (the zoo's)" if i == 0 else ""
+        lines.append(f"| {_seed_set(r)}{which} | {best} | "
+                     f"{r['policies'][best]['mean_return']:.1f} | {r['policies']['policy']['mean_return']:.1f} | "
+                     f"{_paired(r)} |")
+    return "\n".join(lines)
+
+
+def compare_stabilize_seeds_readme(data: dict) -> str:
+    """On how many of the other seed sets nominal stabilize's win holds (CI above zero)."""
+    others = [data[source] for source in STABILIZE_SEED_FILES[1:]]
+    held = sum(r["paired_ci95"][0] > 0 for r in others)
+    return (f"nominal `stabilize`'s win holds on {held} of {len(others)} other held-out seed sets of 100 ("
+            + ", ".join(f"{_seed_set(r)}: {_paired(r)}" for r in others) + ")")
+
+
 def zoo_training_files() -> tuple:
     """The training statistics (agents.train's training.json) of every shipped model of the zoo."""
     from agents.zoo import configuration_names
@@ -780,6 +820,9 @@ QUOTES = {
     "zoo.curves": Quote(zoo_training_files(), "python -m agents.zoo --train", zoo_curves),
     "compare.returns": Quote(zoo_compare_files(), "python -m agents.zoo --compare", compare_returns_table),
     "compare.zoo_readme": Quote(zoo_compare_files(), "python -m agents.zoo --compare", compare_zoo_readme),
+    "compare.stabilize_seeds": Quote(STABILIZE_SEED_FILES, STABILIZE_SEEDS_COMMAND, compare_stabilize_seeds),
+    "compare.stabilize_seeds_readme": Quote(STABILIZE_SEED_FILES, STABILIZE_SEEDS_COMMAND,
+                                            compare_stabilize_seeds_readme),
     "compare.drone": Quote(tuple(drone_compare_file(task) for task in DRONE_COMPARED),
                            "python -m agents.compare --scene quadrotor_load --actuation thrust_rates --preset hard "
                            "--task T --episodes 100", compare_drone),
