@@ -138,14 +138,21 @@ def check_configuration(model: str | Path, trained: Optional[dict], task: str, e
         return
     was = describe_configuration(trained["task"], trained["env_kwargs"])
     now = describe_configuration(task, env_kwargs)
-    differ = [f"{name} {now[name]!r} (trained with {was[name]!r})" for name in CONFIGURATION_FIELDS
-              if now[name] != was[name]]
+    judge_configuration(model, was, now, CONFIGURATION_FIELDS, lambda configuration: configuration["layout"])
+
+
+def judge_configuration(model, was: dict, now: dict, fields, sizes) -> None:
+    """The verdict on a model trained in the configuration ``was`` run in ``now`` (dicts holding
+    ``fields``): nothing where they agree; where they differ, ConfigurationError naming the
+    differences where ``sizes(configuration)`` (the observation and action sizes) differ too, else
+    a warning naming them. ``sizes`` is called only then (it may build an environment)."""
+    differ = [f"{name} {now[name]!r} (trained with {was[name]!r})" for name in fields if now[name] != was[name]]
     if not differ:
         return
     text = f"{model} was trained on another configuration: " + ", ".join(differ)
-    if now["layout"] != was["layout"]:
-        raise ConfigurationError(f"{text}; its observations and actions (sizes {was['layout']}) do not fit these "
-                                 f"({now['layout']})")
+    trained, running = sizes(was), sizes(now)
+    if running != trained:
+        raise ConfigurationError(f"{text}; its observations and actions (sizes {trained}) do not fit these ({running})")
     import warnings
 
-    warnings.warn(f"{text}; it runs (the sizes fit), but it did not learn this configuration", stacklevel=3)
+    warnings.warn(f"{text}; it runs (the sizes fit), but it did not learn this configuration", stacklevel=4)

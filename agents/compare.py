@@ -25,6 +25,7 @@ import numpy as np
 
 from agents.cli import ArgumentParser
 from agents import MODELS
+from agents.artifacts import ConfigurationError
 from agents.baselines.pd import ZeroPolicy
 from agents.baselines.registry import baselines
 from agents.evaluate import MODEL_ERRORS, SB3Policy, run_episodes, summarize
@@ -57,6 +58,14 @@ def shipped_model(task: str, preset: Optional[str] = None, scene: Optional[str] 
                   actuation: Optional[str] = None) -> Path:
     """Where the policy shipped for the configuration (:func:`configuration_name`) lives."""
     return MODELS / f"{configuration_name(task, preset, scene, actuation)}_ppo" / "model.zip"
+
+
+def shipped_team_model(team: int, task: str, preset: Optional[str] = None, actuation: Optional[str] = None) -> Path:
+    """Where the team checkpoint shipped for the configuration lives:
+    ``models/team{K}[_drones[_{actuation}]]_{task}[_{preset}]_rllib/checkpoint`` (the drones'
+    actuation named when it is not ``thrust_rates``)."""
+    drones = "" if actuation in (None, "force") else "drones_" if actuation == "thrust_rates" else f"drones_{actuation}_"
+    return MODELS / f"team{team}_{drones}{task}{'_' + preset if preset else ''}_rllib" / "checkpoint"
 
 
 def paired_ci(differences, confidence: float = 0.95, resamples: int = 10_000, seed: int = 0) -> tuple:
@@ -111,7 +120,9 @@ def compare_team(team: int, task: str, preset: Optional[str] = None, episodes: i
     """:func:`compare` for a team of ``team`` strings (esp_gym/team/env.py): zero, the team's
     baselines (agents/team_evaluate.py), ``preset`` the team's (esp_gym/team/env.py TEAM_PRESETS),
     ``actuation`` a drone team's (None: point pivots), and ``model``, an agents.team_train
-    checkpoint directory; the same keys, with ``team``."""
+    checkpoint directory (default :func:`shipped_team_model`; left out when there is none),
+    checked against the configuration before any episode (ConfigurationError where its sizes do
+    not fit, a warning where only the configuration differs); the same keys, with ``team``."""
     from tqdm import tqdm
 
     from agents.team_evaluate import TeamZero, run_team_episodes, team_baselines
@@ -125,9 +136,12 @@ def compare_team(team: int, task: str, preset: Optional[str] = None, episodes: i
     drones = actuation not in (None, "force")
     observation = TEAM_PRESETS.get(preset, {}).get("observation", "full")
     policies = {"zero": TeamZero(), **team_baselines(observation, drones, get_team_task(task).needs_winch)}
+    if model is None and shipped_team_model(team, task, preset, actuation).is_dir():
+        model = str(shipped_team_model(team, task, preset, actuation))
     if model is not None:
-        from agents.team_train import TeamRLlibPolicy
+        from agents.team_train import TeamRLlibPolicy, check_team_checkpoint
 
+        check_team_checkpoint(model, team, task, env_kwargs)  # before any episode
         policies["policy"] = TeamRLlibPolicy(model)
     results = {name: run_team_episodes(policy, team, task, episodes, seed, env_kwargs)
                for name, policy in tqdm(policies.items(), desc=f"compare team {team} {task}", disable=not progress)}
@@ -182,7 +196,8 @@ def main(argv=None) -> dict:
     ap = ArgumentParser(prog="python -m agents.compare", description=__doc__.split("\n\n")[0])
     ap.add_episode_options(TASKS, episodes=100, preset=True, default_seed=HELD_OUT_SEED)
     ap.minimums["episodes"] = 2  # a paired bootstrap interval needs two differences
-    ap.add_argument("--model", default=None, help="model .zip (default: the shipped one for the task and preset)")
+    ap.add_argument("--model", default=None, help="model .zip, with --team an agents.team_train checkpoint directory "
+                                                  "(default: the one shipped for the configuration, if any)")
     ap.add_argument("--json", action="store_true", help="print one JSON object instead of the Markdown table")
     ap.add_argument("--out", default=None, metavar="DIR", help="also write compare_TASK[_PRESET].md and .json here")
     ap.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
@@ -211,7 +226,17 @@ def main(argv=None) -> dict:
                      f"pivots; got {a.actuation!r}")
         if a.model is not None and not (Path(a.model) / "learner_group").is_dir():
             ap.error(f"argument --model: with --team, an agents.team_train checkpoint directory, got {a.model}")
-        c = compare_team(a.team, a.task, a.preset, a.episodes, a.seed, a.progress, a.model, a.actuation)
+        from agents.team_train import check_team_env
+
+        options = {name: value for name, value in (("preset", a.preset), ("actuation", a.actuation)) if value}
+        try:  # the environment built once, before any episode
+            check_team_env(a.team, a.task, options)
+        except ValueError as err:
+            ap.error(str(err))
+        try:
+            c = compare_team(a.team, a.task, a.preset, a.episodes, a.seed, a.progress, a.model, a.actuation)
+        except ConfigurationError as err:
+            ap.error(f"argument --model: {err}")
         print(json.dumps(c) if a.json else markdown(c))
         if a.out:
             write_comparison(c, a.out)

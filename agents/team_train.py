@@ -40,6 +40,7 @@ import numpy as np
 import yaml
 
 from agents import ROOT
+from agents.artifacts import judge_configuration
 from agents.cli import SettingsError, settings_parser
 from agents.common import CONFIG_DIR, ConfigError, json_default
 from agents.distributed.cluster import AddressError, check_address
@@ -170,6 +171,55 @@ def team_ppo_config(cfg: RLlibRunConfig, s: Settings):
             .debugging(seed=s.seed, log_level="ERROR"))
 
 
+def check_team_env(team: int, task: str, env_kwargs: dict) -> None:
+    """Build the team's environment of these options once (no episode): ValueError naming them,
+    with the environment's reason, where it refuses the combination (a winch's task for drones)."""
+    from esp_gym.team import parallel_env
+
+    try:
+        parallel_env(team=team, task=task, **env_kwargs)
+    except ValueError as err:
+        given = " ".join(f"--{name} {value}" for name, value in (("team", team), ("task", task), *env_kwargs.items()))
+        raise ValueError(f"the team's environment refuses {given}: {err}") from None
+
+
+#: What a team checkpoint's configuration is compared by: its args.json's (agents.team_train's
+#: arguments) that choose the environment.
+TEAM_CONFIGURATION_FIELDS = ("team", "task", "preset", "actuation")
+
+
+def team_checkpoint_configuration(checkpoint) -> Optional[dict]:
+    """The :data:`TEAM_CONFIGURATION_FIELDS` a checkpoint was trained with, from the run's args.json
+    (beside ``checkpoint/`` or in it); None where there is none (nothing to check)."""
+    checkpoint = Path(checkpoint)
+    for directory in (checkpoint.parent, checkpoint):
+        if (directory / "args.json").is_file():
+            run = json.loads((directory / "args.json").read_text())
+            return {name: run.get(name) for name in TEAM_CONFIGURATION_FIELDS}
+    return None
+
+
+def check_team_checkpoint(checkpoint, team: int, task: str, env_kwargs: dict) -> None:
+    """Before running ``checkpoint`` on a team of ``team`` on ``task`` with ``env_kwargs``:
+    ConfigurationError where its agents' observations or actions (with a residual's features) do
+    not fit these, a warning where only the configuration differs (as a single model's,
+    agents.artifacts.check_configuration). Reads args.json and residual.json, not the module."""
+    trained = team_checkpoint_configuration(checkpoint)
+    if trained is None:
+        return
+    scale = read_residual(checkpoint)
+
+    def sizes(c: dict) -> tuple:
+        options = {name: c[name] for name in ("preset", "actuation") if c[name] is not None}
+        env = team_parallel_env({"team": c["team"], "task": c["task"], **options,
+                                 **({"residual_scale": scale} if scale is not None else {})})
+        agent = env.possible_agents[0]
+        return env.observation_space(agent).shape[0], env.action_space(agent).shape[0]
+
+    now = {"team": team, "task": task, "preset": env_kwargs.get("preset"), "actuation": env_kwargs.get("actuation")}
+    judge_configuration(checkpoint, trained, now, TEAM_CONFIGURATION_FIELDS, sizes)
+
+
 class TeamRLlibPolicy:
     """The shared module of a checkpoint as a centralised policy of agents/team_evaluate.py: each
     agent's observation through the module's actor, the action distribution's mean
@@ -246,6 +296,10 @@ def check_settings(s: Settings) -> tuple:
     # without --residual the scale is not read: one other than the default would be given for nothing
     if s.residual_scale != RESIDUAL_SCALE and not s.residual:
         raise SettingsError("--residual-scale", "only with --residual (the residual's share of the action box)")
+    try:  # the environment built once: a combination it refuses is found before Ray starts
+        check_team_env(s.team, s.task, env_options(s))
+    except ValueError as err:
+        raise SettingsError(None, str(err)) from None
     try:
         cfg = load_rllib_config(s.task, s.set, CONFIG_FILE, TEAM_ENV_ID)
     except ConfigError as err:

@@ -169,3 +169,90 @@ def test_a_failing_baseline_is_not_blamed_on_the_model(monkeypatch, capfd):
     proc = call_main(compare.main, ["--task", "stabilize", "--episodes", "2", "--model", "nowhere.zip"], capfd)
     assert proc.returncode == 2 and "--model" in proc.stderr
 
+
+@pytest.fixture
+def no_team_episode(monkeypatch):
+    """The team's episodes fail the test: what is refused is refused before any of them."""
+    import agents.team_evaluate
+
+    def ran(*args, **kwargs):
+        raise AssertionError("an episode ran before the arguments were checked")
+
+    monkeypatch.setattr(agents.team_evaluate, "run_team_episodes", ran)
+
+
+TEAM_POINTS, TEAM_DRONES = "models/team3_transport_hard_rllib/checkpoint", "models/team3_drones_transport_hard_rllib/checkpoint"
+
+
+@pytest.mark.parametrize("model, args, names", [
+    (TEAM_POINTS, ["--team", "3", "--task", "transport"], ["preset None (trained with 'hard')", "sizes"]),
+    (TEAM_POINTS, ["--team", "2", "--task", "transport", "--preset", "hard"], ["team 2 (trained with 3)", "sizes"]),
+    (TEAM_DRONES, ["--team", "3", "--task", "transport", "--preset", "hard"],
+     ["actuation None (trained with 'thrust_rates')", "sizes"]),
+])
+def test_a_team_checkpoint_of_other_sizes_is_refused_in_one_line(capfd, no_team_episode, model, args, names):
+    """Each used to end in an 81-line torch shape traceback after the baselines' episodes."""
+    proc = call_main(compare.main, [*args, "--model", model, "--episodes", "2", "--no-progress"], capfd)
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "--model" in lines[0], proc.stderr[-3000:]
+    for name in names:
+        assert name in lines[0], lines[0]
+
+
+def test_a_team_checkpoint_of_the_same_sizes_on_another_task_is_a_warning():
+    """The hard transport checkpoint on hard track: the sizes fit, so it runs, with a warning naming
+    the task (it used to run silently); on its own configuration nothing is said (the negative control)."""
+    import warnings
+
+    from agents.team_train import check_team_checkpoint
+
+    with pytest.warns(UserWarning, match="task 'track' \\(trained with 'transport'\\)"):
+        check_team_checkpoint(TEAM_POINTS, 3, "track", {"preset": "hard"})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_team_checkpoint(TEAM_POINTS, 3, "transport", {"preset": "hard"})
+        check_team_checkpoint(TEAM_DRONES, 3, "transport", {"preset": "hard", "actuation": "thrust_rates"})
+
+
+def test_the_team_compare_finds_the_shipped_checkpoint(monkeypatch, capfd):
+    """Without --model the team compare runs the shipped checkpoint of its configuration, as the
+    single compare runs the zoo's model; a configuration with none ships runs the baselines alone."""
+    import agents.team_evaluate
+    import agents.team_train
+
+    seen = {}
+
+    class Loaded:
+        def __init__(self, checkpoint):
+            seen["model"] = str(checkpoint)
+
+    class Stop(Exception):
+        pass
+
+    def first(policy, *args, **kwargs):
+        raise Stop
+
+    monkeypatch.setattr(agents.team_train, "TeamRLlibPolicy", Loaded)
+    monkeypatch.setattr(agents.team_evaluate, "run_team_episodes", first)
+    for actuation, model in (([], TEAM_POINTS), (["--actuation", "thrust_rates"], TEAM_DRONES)):
+        seen.clear()
+        with pytest.raises(Stop):
+            call_main(compare.main, ["--team", "3", "--task", "transport", "--preset", "hard", *actuation,
+                                     "--episodes", "2", "--no-progress"], capfd)
+        assert seen["model"].endswith(model), seen
+    seen.clear()
+    with pytest.raises(Stop):
+        call_main(compare.main, ["--team", "2", "--task", "transport", "--episodes", "2", "--no-progress"], capfd)
+    assert seen == {}
+    assert compare.shipped_team_model(3, "transport", "hard", None).is_dir()
+
+
+def test_a_team_option_combination_the_env_refuses_is_one_line(capfd, no_team_episode):
+    """Drones with a winch's task: the env is built once while the arguments are checked (it used
+    to be a 23-line traceback from the first episode)."""
+    proc = call_main(compare.main, ["--team", "3", "--actuation", "thrust_rates", "--task", "lift", "--episodes", "2"],
+                     capfd)
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "--task lift" in lines[0] and "do not reel" in lines[0], proc.stderr[-3000:]
