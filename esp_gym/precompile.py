@@ -94,6 +94,22 @@ def compile_configuration(config: Configuration) -> float:
     return time.perf_counter() - start
 
 
+def rig_groups(configurations) -> list:
+    """``configurations`` in groups of one rig each (its single and batched steps), in order of first
+    appearance. A group compiles in one worker, its single step first: the batched step then loads
+    every kernel below its loop from the cache, where two workers running them at once each compiled
+    them all."""
+    groups = {}
+    for config in configurations:
+        groups.setdefault((config.winch, config.implicit, config.drone, config.hook, config.team), []).append(config)
+    return [tuple(sorted(group, key=lambda c: c.batched)) for group in groups.values()]
+
+
+def compile_group(configs) -> dict:
+    """:func:`compile_configuration` of each of ``configs`` in turn: their seconds by name."""
+    return {config.name: compile_configuration(config) for config in configs}
+
+
 def default_jobs() -> int:
     """:data:`DEFAULT_JOBS`, or fewer on a machine with fewer CPUs."""
     return min(DEFAULT_JOBS, available_cpus())
@@ -101,19 +117,22 @@ def default_jobs() -> int:
 
 def precompile(jobs: Optional[int] = None, configurations=CONFIGURATIONS, progress: bool = True) -> dict:
     """Compile ``configurations`` in ``jobs`` worker processes (spawned: each a fresh interpreter,
-    as a user's would be; default :func:`default_jobs`; never more than the configurations).
+    as a user's would be; default :func:`default_jobs`; never more than the rigs), a rig's
+    configurations in one worker (:func:`rig_groups`).
     Returns the seconds of each, by name. ValueError naming ``jobs`` unless it is a whole number
     from 1 to the CPUs, before any process starts."""
-    workers = worker_count("jobs", default_jobs() if jobs is None else jobs, len(configurations))
+    groups = rig_groups(configurations)
+    workers = worker_count("jobs", default_jobs() if jobs is None else jobs, len(groups))
     from tqdm import tqdm
 
     seconds = {}
     context = multiprocessing.get_context("spawn")
     with concurrent.futures.ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-        futures = {pool.submit(compile_configuration, c): c for c in configurations}
-        with tqdm(total=len(futures), desc="compiling esp_gym's environment", unit="configuration",
+        futures = [pool.submit(compile_group, group) for group in groups]
+        with tqdm(total=len(configurations), desc="compiling esp_gym's environment", unit="configuration",
                   disable=not progress) as bar:
             for future in concurrent.futures.as_completed(futures):
-                seconds[futures[future].name] = future.result()
-                bar.update(1)
+                done = future.result()
+                seconds.update(done)
+                bar.update(len(done))
     return seconds

@@ -308,7 +308,7 @@ def test_compile_takes_every_configuration_of_the_environment(tmp_path):
 def test_compile_refuses_more_jobs_than_cpus_before_starting_a_worker(monkeypatch, capsys):
     """issue 54: precompile's jobs above the CPUs is a ValueError naming jobs, esp-gym compile's
     --jobs one line with exit code 2, both before any worker process; and the pool has one worker
-    per configuration at most."""
+    per rig at most."""
     import concurrent.futures
 
     from esp_gym import precompile, workers
@@ -327,9 +327,20 @@ def test_compile_refuses_more_jobs_than_cpus_before_starting_a_worker(monkeypatc
     assert main(["compile", "--jobs", "5", "--no-progress"]) == EXIT_USAGE
     assert "--jobs" in _one_line(capsys)
     assert made == []
-    with pytest.raises(RuntimeError, match="pool of 2 worker"):  # negative control: 4 jobs pass, 2 needed
-        precompile.precompile(jobs=4, configurations=precompile.CONFIGURATIONS[:2], progress=False)
+    with pytest.raises(RuntimeError, match="pool of 2 worker"):  # negative control: 4 jobs pass, 2 rigs need 2
+        precompile.precompile(jobs=4, configurations=precompile.CONFIGURATIONS[:4], progress=False)
     assert made == [2]
+
+
+def test_compile_takes_a_rigs_single_step_then_its_batch_in_one_worker():
+    """The batched step loads what the single step compiled (esp_gym/precompile.py, rig_groups):
+    every configuration in exactly one group, a group one rig's, its single step first."""
+    from esp_gym.precompile import CONFIGURATIONS, rig_groups
+
+    groups = rig_groups(CONFIGURATIONS)
+    assert sorted(c.name for g in groups for c in g) == sorted(c.name for c in CONFIGURATIONS)
+    assert [[c.batched for c in g] for g in groups] == [[False, True]] * 7 + [[False]] * 3
+    assert all(len({c.name.rsplit("-", 1)[0] for c in g}) == 1 for g in groups)
 
 
 def test_team_step_quick_runs(tmp_path):
