@@ -6,9 +6,10 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import tempfile
 from pathlib import Path
 from typing import Optional
+
+from esp_gym.paths import cannot_write
 
 
 class ArgumentParser(argparse.ArgumentParser):
@@ -111,27 +112,6 @@ class SettingsError(ValueError):
     def __init__(self, option: Optional[str], message: str):
         super().__init__(f"argument {option}: {message}" if option else message)
         self.option = option
-
-
-def cannot_write(path) -> Optional[str]:
-    """Why a directory ``path`` could not be made (with its missing parents) and written in, or
-    None if it can. A probe file is created and removed in the nearest directory that exists:
-    nothing is left behind, and what the file system itself refuses is found (os.access lets root
-    pass on a read-only or virtual file system, where writing then fails)."""
-    base = Path(path).absolute()
-    try:
-        while not base.exists():
-            base = base.parent
-    except OSError as err:  # a parent that cannot be looked at
-        return f"cannot look at {base} ({err.strerror or err})"
-    if not base.is_dir():
-        return f"{base} is not a directory"
-    try:
-        with tempfile.NamedTemporaryFile(dir=base, prefix=".write-probe-"):
-            pass
-    except OSError as err:
-        return f"cannot write in {base} ({err.strerror or err})"
-    return None
 
 
 def one_line(text) -> str:

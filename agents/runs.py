@@ -25,7 +25,8 @@ from stable_baselines3.common.monitor import ResultsWriter
 from stable_baselines3.common.vec_env import VecMonitor
 
 import esp_gym
-from agents.cli import SettingsError, cannot_write, one_line
+from agents.cli import SettingsError, one_line
+from esp_gym.paths import cannot_write
 from agents.artifacts import checkpoint_files, checkpoint_steps, stats_path_for
 from agents.normalization import NormalizationFileError, NormStats
 

@@ -57,6 +57,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from .paths import cannot_write
 from .workers import jobs_argument
 
 #: The paper's example: scene name, elements, time step [s], duration [s].
@@ -177,10 +178,9 @@ def check_output(out: str, directory: bool) -> Path:
         raise ValueError(f"--out {out}: is a directory; name the file to write")
     if not directory and exists and not os.access(path, os.W_OK):
         raise ValueError(f"--out {out}: the file exists and is not writable")
-    if not base.is_dir():
-        raise ValueError(f"--out {out}: {base} is not a directory")
-    if not os.access(base, os.W_OK | os.X_OK):
-        raise ValueError(f"--out {out}: {base} is not writable")
+    problem = cannot_write(base)  # not a directory, or the file system refuses a file in it
+    if problem:
+        raise ValueError(f"--out {out}: {problem}")
     return path
 
 

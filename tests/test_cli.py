@@ -203,18 +203,23 @@ def test_bad_arguments_exit_2_with_one_line_and_create_nothing(tmp_path, capsys,
 
 
 def test_a_read_only_output_directory_is_refused(tmp_path, capsys, monkeypatch):
-    import os
+    import tempfile
 
     from esp_gym.cli import EXIT_USAGE, main
 
     ro = tmp_path / "ro"
     ro.mkdir()
-    real = os.access
-    # chmod does not stop root, so the check's answer is what is simulated
-    monkeypatch.setattr(os, "access", lambda p, mode, **kw: False if Path(p) == ro else real(p, mode, **kw))
+    real = tempfile.NamedTemporaryFile
+
+    def refused(*args, dir=None, **kwargs):  # chmod does not stop root: the file system's refusal is simulated
+        if dir is not None and Path(dir) == ro:
+            raise PermissionError(13, "Permission denied")
+        return real(*args, dir=dir, **kwargs)
+
+    monkeypatch.setattr(tempfile, "NamedTemporaryFile", refused)
     for argv in (["record", "--out", str(ro / "x.rrd")], ["paper", "--out", str(ro / "paper")]):
         assert main(argv) == EXIT_USAGE
-        assert f"{ro} is not writable" in _one_line(capsys)
+        assert f"cannot write in {ro} (Permission denied)" in _one_line(capsys)
     assert _tree(tmp_path) == ["ro"]
 
 

@@ -37,7 +37,8 @@ import yaml
 
 import esp_gym
 from agents.artifacts import checkpoint_steps
-from agents.cli import SettingsError, cannot_write, one_line, option_name, parse_settings, settings_parser
+from agents.cli import SettingsError, one_line, option_name, parse_settings, settings_parser
+from esp_gym.paths import cannot_write
 from agents import ROOT
 from agents.common import ConfigError, load_run_config
 from agents.distributed.sweep_results import gather
