@@ -179,3 +179,70 @@ def test_the_same_sources_installed_elsewhere_load_the_machine_code_compiled_for
     assert "esp_gym: compiling" in run(tmp_path / "first", source).stderr
     assert "esp_gym: compiling" not in run(tmp_path / "second", source).stderr
     assert "esp_gym: compiling" in run(tmp_path / "third", source.replace("2 * x", "x + x")).stderr
+
+
+_RACING_KERNELS = '''
+import sys, time
+from numba.core import caching
+from esp_gym.kernels.jit import kernel
+
+def variant(which):
+    @kernel(entry=True)
+    def value():
+        return which
+    return value
+
+def slowed(load_index, write_data, hold):
+    """Widen the window between reading the index and writing the data file (the save of one
+    process then spans the other's whole save)."""
+    def load(self):
+        overloads = load_index(self)
+        time.sleep(1.5)
+        return overloads
+    def write(self, name, data):
+        time.sleep(hold)
+        return write_data(self, name, data)
+    return load, write
+'''
+
+
+def test_processes_compiling_one_kernels_overloads_at_once_each_load_their_own_code(tmp_path):
+    """Two processes compile two overloads of one kernel (two closures of one function: the
+    environment's entry points for two rigs) and save them at the same moment; a third loads
+    each. numba's own cache file reads the index, picks the first free data file and writes it,
+    with nothing held between: both took the same file, and the index named one overload's data
+    for the other's key, so a rig ran another rig's machine code (on the implicit string, the
+    explicit string's step: a physics failure at the first step). kernels/jit.py's cache file
+    saves under a lock and checks the key it loads. Negative control: the same race on numba's
+    cache file gives one process the other's code."""
+    (tmp_path / "racing.py").write_text(_RACING_KERNELS)
+    race = ("import sys, time; from numba.core import caching; import racing; from esp_gym.kernels import jit\n"
+            "which, delay, hold, stock = int(sys.argv[1]), float(sys.argv[2]), float(sys.argv[3]), sys.argv[4] == 'stock'\n"
+            "cls = caching.IndexDataCacheFile if stock else jit.KernelCacheFile\n"
+            "cls._load_index, cls._save_data = racing.slowed(cls._load_index, cls._save_data, hold)\n"
+            "if stock: jit.KernelCache.file_class = caching.IndexDataCacheFile\n"
+            "time.sleep(delay)\n"
+            "print(racing.variant(which)())\n")
+    check = ("import sys; from numba.core import caching; import racing; from esp_gym.kernels import jit\n"
+             "if sys.argv[1] == 'stock': jit.KernelCache.file_class = caching.IndexDataCacheFile\n"
+             "print(racing.variant(0)(), racing.variant(1)())\n")
+
+    def environ(mode: str) -> dict:
+        return {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / mode),
+                "PYTHONPATH": os.pathsep.join([str(tmp_path), str(ROOT)])}
+
+    # the first to read the index (0) writes its data last, after the second's whole save
+    racers = [subprocess.Popen([sys.executable, "-c", race, str(which), str(delay), str(hold), mode], env=environ(mode),
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+              for mode in ("ours", "stock") for which, delay, hold in ((0, 0.0, 3.0), (1, 0.75, 0.0))]
+    for racer in racers:
+        _, err = racer.communicate(timeout=600)
+        assert racer.returncode == 0, err[-2000:]
+    loaded = {}
+    for mode in ("ours", "stock"):
+        done = subprocess.run([sys.executable, "-c", check, mode], capture_output=True, text=True, env=environ(mode),
+                              timeout=600)
+        assert done.returncode == 0, done.stderr[-2000:]
+        loaded[mode] = done.stdout.split()
+    assert loaded["ours"] == ["0", "1"]
+    assert loaded["stock"] != ["0", "1"], loaded

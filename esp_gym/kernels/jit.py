@@ -22,6 +22,7 @@ machine code, bit for bit, at a fraction of the compile time. The substep is com
 small helpers keep ``inline="always"``. numba lets the callees of a ``forceinline`` function
 inherit the flag.
 """
+import contextlib
 import hashlib
 import os
 import re
@@ -37,6 +38,11 @@ from numba import njit, types
 from numba.core import caching, cgutils, event
 from numba.core.registry import CPUDispatcher
 from numba.extending import intrinsic
+
+try:
+    import fcntl
+except ImportError:  # not POSIX: saves are not serialised, the key check below still holds
+    fcntl = None
 
 _HERE = Path(__file__).resolve().parent
 _DIGEST = hashlib.sha256(b"".join(p.read_bytes() for p in sorted(_HERE.glob("*.py")))).hexdigest()[:16]
@@ -146,6 +152,53 @@ class PackageCacheLocator(caching.UserProvidedCacheLocator):
         return package.replace("/", "_") + "_" + hashlib.sha1(package.encode()).hexdigest()[:16]
 
 
+class KernelCacheFile(caching.IndexDataCacheFile):
+    """numba's cache file (an index of overloads by key, a data file per overload), safe for
+    processes that save overloads of one kernel at the same moment (the two workers of
+    ``esp-gym compile``, pytest's workers, a user's vector env subprocesses).
+
+    numba's own ``save`` reads the index, takes the first data file the index does not name,
+    writes the index and then the data, with nothing held in between: two processes saving two
+    overloads (the entry points of two rigs are closures of one function) both took the same data
+    file, and the index could name one overload's machine code for the other's key, which then
+    ran another rig's physics. Here a save holds an exclusive lock on the cache directory's
+    ``.lock`` file from reading the index to writing the data, and each data file holds its key,
+    which a load checks: a mismatch is a miss (a compile), never another overload's code."""
+
+    def save(self, key, data):
+        with self._saving():
+            super().save(key, (key, data))
+
+    def load(self, key):
+        stored = super().load(key)
+        if isinstance(stored, tuple) and len(stored) == 2 and stored[0] == key:
+            return stored[1]
+        return None
+
+    @contextlib.contextmanager
+    def _saving(self):
+        if fcntl is None:
+            yield
+            return
+        with open(os.path.join(self._cache_path, ".lock"), "ab") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            try:
+                yield
+            finally:
+                fcntl.flock(lock, fcntl.LOCK_UN)
+
+
+class KernelCache(caching.FunctionCache):
+    """numba's per-function cache with :class:`KernelCacheFile` (``file_class``) as its file."""
+
+    file_class = KernelCacheFile
+
+    def __init__(self, py_func):
+        super().__init__(py_func)
+        self._cache_file = self.file_class(cache_path=self._cache_path, filename_base=self._impl.filename_base,
+                                           source_stamp=self._impl.locator.get_source_stamp())
+
+
 #: Where every kernel's compiled code is cached (see esp_gym/kernels/__init__.py); None: no cache.
 CACHE_DIR, _CACHE_WARNING = choose_cache_dir()
 if _CACHE_WARNING:
@@ -193,6 +246,8 @@ def kernel(fn=None, entry: bool = False, **extra):
         numba.config.CACHE_LOCATOR_CLASSES = f"{__name__}.{PackageCacheLocator.__name__}" if CACHE_DIR else previous[1]
         try:
             dispatcher = njit(**options)(f)
+            if options.get("cache"):
+                dispatcher._cache = KernelCache(f)
         finally:
             numba.config.CACHE_DIR, numba.config.CACHE_LOCATOR_CLASSES = previous
         if internal:
