@@ -239,7 +239,8 @@ def _entry_points(winched: bool, implicit: bool):
 
     # Both take control_step with ``winched`` and ``implicit`` as closure constants (numba prunes the
     # other loops' calls); the closures hold nothing but the two bools, so numba caches them (it
-    # keys a closure by its cells, and a compiled function in a cell is another key in every process).
+    # keys a closure by its cells, and a compiled function in a cell is another key in every process),
+    # and kernel() names each configuration after them (jit.name_closure: step__implicit0_winched1).
 
     @kernel(entry=True)
     def step(s, w, p, d, wa, e, raw, scheme):

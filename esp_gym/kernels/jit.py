@@ -221,6 +221,29 @@ class InternalKernel(CPUDispatcher):
                         f"(...) in a test")
 
 
+def name_closure(f) -> None:
+    """Give the closure ``f`` (a kernel a factory compiles once per configuration) a name of its
+    own per configuration: ``step`` capturing ``winched=True, implicit=False`` becomes
+    ``step__winched1_implicit0``, in its ``__qualname__`` and ``__name__``. numba names a compiled
+    function's symbol by its qualified name, its argument types and a counter of the process that
+    compiled it. Two configurations compiled in two processes (the workers of ``esp-gym compile``,
+    pytest's) could therefore carry one symbol name; a process that loaded both from the cache
+    then ran the first one's machine code for both (an environment on the implicit string ran the
+    explicit string's step). Closures may capture only bools and ints, which the name spells out."""
+    if not f.__closure__:
+        return
+    parts = []
+    for variable, cell in zip(f.__code__.co_freevars, f.__closure__):
+        value = cell.cell_contents
+        if not isinstance(value, (bool, int)):
+            raise TypeError(f"kernel {f.__qualname__} captures {variable}={value!r}: a compiled closure may capture "
+                            f"only bools and ints (they name its configuration; pass anything else as an argument)")
+        parts.append(f"{variable}{int(value)}")
+    suffix = "__" + "_".join(parts)
+    f.__qualname__ += suffix
+    f.__name__ += suffix
+
+
 def kernel(fn=None, entry: bool = False, **extra):
     """Compile ``fn`` as an esp_gym kernel (nopython, cached); ``extra`` adds or overrides
     numba options.
@@ -239,6 +262,7 @@ def kernel(fn=None, entry: bool = False, **extra):
         options["no_cpython_wrapper"] = True
 
     def compile_(f):
+        name_closure(f)
         # cache=True fixes the cache location when the function is decorated: set ours (the
         # directory and its locator) for that moment, then give numba its settings back.
         previous = numba.config.CACHE_DIR, numba.config.CACHE_LOCATOR_CLASSES
