@@ -4,7 +4,11 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 # torch comes from constraints.txt: 2.13.0 is the only CPU build here; unpinned pulls CUDA.
-PIP := $(BIN)/python -m pip install --disable-pip-version-check -q -c constraints.txt
+# --no-compile: the installed modules are byte-compiled when first imported, not all at install
+# (torch, Ray and MuJoCo ship thousands that nothing here imports: 42 -> 23 s for the extras);
+# that needs Python allowed to write its bytecode, whatever the shell says
+PIP := $(BIN)/python -m pip install --disable-pip-version-check -q --no-compile -c constraints.txt
+export PYTHONDONTWRITEBYTECODE =
 OUT ?= out
 
 .PHONY: demo test check fuzz bench install clean
@@ -17,9 +21,11 @@ $(VENV)/.installed: pyproject.toml constraints.txt | $(BIN)/python
 	$(PIP) -e ".[all]"
 	touch $@
 
-$(VENV)/.installed-test: $(VENV)/.installed
+# one resolve for a fresh venv: the test extras with the rest, not after it
+$(VENV)/.installed-test: pyproject.toml constraints.txt | $(BIN)/python
+	$(PIP) torch==2.13.0
 	$(PIP) -e ".[all,test]"
-	touch $@
+	touch $(VENV)/.installed $@
 
 install: $(VENV)/.installed
 

@@ -17,9 +17,10 @@ Prints three tables and writes ``OUT/step_cost.json`` and ``OUT/step_cost.png``
 5. the kernels specialised for a scene (fixed/free pivot, inputs or none, rho_c = 0, a
    composition) against the general kernel, and the cost of diagnostics.
 
-Usage: ``python -m benchmarks.step_cost [--quick] [--out DIR]``. ``--quick`` runs N in {5, 20},
-fewer steps and repeats, a 5,000-step paper run and start-up to the first step only: a smoke
-test, not a measurement.
+Usage: ``python -m benchmarks.step_cost [--quick] [--no-startup] [--out DIR]``. ``--quick`` runs N
+in {5, 20}, fewer steps and repeats, a 5,000-step paper run and start-up to the first step only: a
+smoke test, not a measurement. ``--no-startup`` leaves out 2 (its cold child compiles everything:
+about 12 s; ``benchmarks.cold_start`` measures start-up on its own).
 """
 from __future__ import annotations
 
@@ -192,6 +193,11 @@ def plot(results: dict, path) -> None:
     a.legend(fontsize=8)
 
     su = results["startup"]
+    if su is None:
+        b.set_axis_off()
+        b.text(0.5, 0.5, "start-up not measured (--no-startup)", ha="center", va="center")
+        fig.savefig(path)
+        return
     keys = [k for k in ("first_step_s", "first_run_s") if su["cold"][k] is not None]
     labels = [{"first_step_s": "first step", "first_run_s": "first recorded run"}[k] for k in keys]
     x = np.arange(len(labels))
@@ -210,22 +216,29 @@ def plot(results: dict, path) -> None:
     fig.savefig(path)
 
 
+def measure_startup(quick: bool) -> dict:
+    """Table 2: ``{"cold": ..., "cached": ...}`` of :func:`startup`, printed."""
+    with tempfile.TemporaryDirectory(prefix="esp_gym_numba_cache_") as cache:
+        starts = {"cold": startup(cache, first_run=not quick), "cached": startup(cache, first_run=not quick)}
+    print("start-up: seconds from process start (fresh NUMBA_CACHE_DIR, then the same one)")
+    print(f"{'':8} {'imports':>8} {'first step':>11} {'first recorded run':>19}")
+    for name, s in starts.items():
+        run = "(skipped)" if s["first_run_s"] is None else f"{s['first_run_s']:.2f}"
+        print(f"{name:8} {s['import_s']:8.2f} {s['first_step_s']:11.2f} {run:>19}")
+    return starts
+
+
 def main(argv=None) -> int:
-    args = arg_parser(__doc__).parse_args(argv)
+    parser = arg_parser(__doc__)
+    parser.add_argument("--no-startup", action="store_true", help="leave out the start-up measurement (table 2)")
+    args = parser.parse_args(argv)
 
     elements = (5, 20) if args.quick else (5, 10, 20, 40, 80)
     steps, repeats = (2_000, 3) if args.quick else (20_000, 7)
     paper_steps = 5_000 if args.quick else 50_000
 
     # start-up first, while the parent has compiled nothing (the children do not share its state)
-    with tempfile.TemporaryDirectory(prefix="esp_gym_numba_cache_") as cache:
-        cold = startup(cache, first_run=not args.quick)
-        cached = startup(cache, first_run=not args.quick)
-    print("start-up: seconds from process start (fresh NUMBA_CACHE_DIR, then the same one)")
-    print(f"{'':8} {'imports':>8} {'first step':>11} {'first recorded run':>19}")
-    for name, s in (("cold", cold), ("cached", cached)):
-        run = "(skipped)" if s["first_run_s"] is None else f"{s['first_run_s']:.2f}"
-        print(f"{name:8} {s['import_s']:8.2f} {s['first_step_s']:11.2f} {run:>19}")
+    starts = None if args.no_startup else measure_startup(args.quick)
 
     rows = []
     for n in elements:
@@ -266,7 +279,7 @@ def main(argv=None) -> int:
         "diagnostics_us_per_step": diag,
         "quick": args.quick,
         "step_cost": rows,
-        "startup": {"cold": cold, "cached": cached},
+        "startup": starts,
         "paper_example": paper,
         "machine": machine(),
     }
