@@ -10,7 +10,7 @@ import esp_gym
 #: Modules whose tests hold wall-clock limits on signals and subprocesses, or start a Ray
 #: cluster: `make test` runs them after the others, in one process (the rest on two, with
 #: pytest-xdist), so another worker's load cannot stretch their clocks (docs/testing.md).
-SERIAL_MODULES = {"test_interrupt.py", "test_recording_failures.py", "test_ray.py", "test_cache.py"}
+SERIAL_MODULES = {"test_interrupt.py", "test_recording_failures.py", "test_ray.py"}
 #: Single tests that bound a wall time of their own (a median over repeats), run with them.
 SERIAL_TESTS = {"test_a_randomised_reset_costs_at_most_two_and_a_half_plain_ones"}
 
