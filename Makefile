@@ -34,10 +34,8 @@ demo: $(VENV)/.installed
 
 # the environment's configurations compiled first, in up to two processes (esp-gym compile: each compiles
 # once instead of in whichever test worker meets it first); then two processes for most of the
-# suite and, beside them, a third for the Ray cluster's tests (about 40 % of their 98 s alone is
-# waiting on process starts and the cluster: run beside, the machine stays busy); then the
-# clock-sensitive modules alone (tests/conftest.py); every part always runs, and the target fails
-# if any did
+# suite, then the clock-sensitive modules alone (tests/conftest.py); both parts always run, and the
+# target fails if either did
 # OpenBLAS's Haswell kernels on every x86-64 machine: the documented comparisons (docs/compare) were
 # written with them (the baselines' products; the policies run in float64 loops of their own,
 # agents/mlp.py), and an AVX-512 CPU's own kernels round differently, which a chaotic hard episode
@@ -45,18 +43,15 @@ demo: $(VENV)/.installed
 test: export OPENBLAS_CORETYPE = Haswell
 test: $(VENV)/.installed-test
 	$(BIN)/esp-gym compile --no-progress
-	log=$$(mktemp); \
-	$(BIN)/python -m pytest -p no:xdist -p no:cacheprovider -m cluster > $$log 2>&1 & cluster=$$!; \
-	$(BIN)/python -m pytest -n 2 --dist loadfile -m "not serial and not cluster"; parallel=$$?; \
-	wait $$cluster; cluster=$$?; echo "== the Ray cluster's tests, run beside the above"; cat $$log; rm -f $$log; \
+	$(BIN)/python -m pytest -n 2 --dist loadfile -m "not serial"; parallel=$$?; \
 	$(BIN)/python -m pytest -p no:xdist -m serial; serial=$$?; \
-	test $$parallel -eq 0 -a $$cluster -eq 0 -a $$serial -eq 0
+	test $$parallel -eq 0 -a $$serial -eq 0
 
 # the quick inner loop: the suite without the scripts' end-to-end runs (slow) and the clock-sensitive
 # modules (serial); under a minute with a warm kernel cache
 check: export OPENBLAS_CORETYPE = Haswell
 check: $(VENV)/.installed-test
-	$(BIN)/python -m pytest -n 2 --dist loadfile -m "not serial and not slow and not cluster" -q
+	$(BIN)/python -m pytest -n 2 --dist loadfile -m "not serial and not slow" -q
 
 # the property and fuzz tests with fresh examples (make test draws the same ones every run)
 fuzz: $(VENV)/.installed-test

@@ -7,13 +7,10 @@ from hypothesis import settings
 
 import esp_gym
 
-#: Modules whose tests hold wall-clock limits on signals and subprocesses: `make test` runs them
-#: after the others, in one process (the rest on two, with pytest-xdist), so another worker's load
-#: cannot stretch their clocks (docs/testing.md).
-SERIAL_MODULES = {"test_interrupt.py", "test_recording_failures.py"}
-#: Modules that start a Ray cluster (their waits are minutes long, not clocks): `make test` runs
-#: them in a process of their own beside the two workers.
-CLUSTER_MODULES = {"test_ray.py"}
+#: Modules whose tests hold wall-clock limits on signals and subprocesses, or start a Ray
+#: cluster: `make test` runs them after the others, in one process (the rest on two, with
+#: pytest-xdist), so another worker's load cannot stretch their clocks (docs/testing.md).
+SERIAL_MODULES = {"test_interrupt.py", "test_recording_failures.py", "test_ray.py"}
 #: Single tests that bound a wall time of their own (a median over repeats), run with them.
 SERIAL_TESTS = {"test_a_randomised_reset_costs_at_most_two_and_a_half_plain_ones"}
 
@@ -35,8 +32,6 @@ def pytest_collection_modifyitems(items):
     for item in items:
         if item.path.name in SERIAL_MODULES or item.name in SERIAL_TESTS:
             item.add_marker(pytest.mark.serial)
-        if item.path.name in CLUSTER_MODULES:
-            item.add_marker(pytest.mark.cluster)
         if item.path.name in SLOW_MODULES:
             item.add_marker(pytest.mark.slow)
     rank = {name: k for k, name in enumerate(LONGEST_FIRST)}
