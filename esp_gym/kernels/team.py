@@ -30,7 +30,7 @@ from .sums import kahan_add
 from .team_arrays import add_end_loads, pivot_rows
 from .team_switch import settle_team_switches, team_switch_errors
 
-@kernel(inline="always")
+@kernel(forceinline=True)
 def end_loads(R, T, A, h, forced):
     """Each string j >= 1 reduced to its end: the solve of its rows before the end,
     X = M_II^-1 (p + h/2 f (+ h/2 u at a free pivot)), its coupling c_j = off X_last (into
@@ -68,7 +68,7 @@ def end_loads(R, T, A, h, forced):
     return E0, E1, E2, t0 / hh, t1 / hh, t2 / hh
 
 
-@kernel(inline="always")
+@kernel(forceinline=True)
 def lead_solve(S, W, P, T, h, up, E, free, forced):
     """String 0's solve of (1) with F_k = I: M'^-1 (p + h/2 f (+ h/2 u_p at a free pivot)) into
     ``W.X``, plus w0 ``E`` (the other strings' left loads on the attachment row)."""
@@ -78,7 +78,7 @@ def lead_solve(S, W, P, T, h, up, E, free, forced):
     add_end_loads(W.X, T.w0, E, first, T.first.shape[0])
 
 
-@kernel(inline="always")
+@kernel(forceinline=True)
 def other_increments(S, W, T, A, h, forced, compensated):
     """Once Newton has F_k: each string j >= 1's end moves by dr_e = dr_x + R_k (F_k - I) rho_j,
     its other rows by h X - off w_end dr_e; ``A.Y`` gets the increments, ``A.X`` the new positions
@@ -134,7 +134,7 @@ def other_increments(S, W, T, A, h, forced, compensated):
         Y[end, 2] = d2
 
 
-@kernel(inline="always")
+@kernel(forceinline=True)
 def other_forces(S, W, P, T, A):
     """The other strings' ends placed on the body at x_{k+1} + R_{k+1} rho_j (``W.Rn`` holds
     R_{k+1}), their forces at the new positions (string j's constants ``T.kappa[j]``, ``T.u[j]``,
@@ -157,7 +157,7 @@ def other_forces(S, W, P, T, A):
     return OK
 
 
-@kernel(inline="always")
+@kernel(forceinline=True)
 def right_loads(W, T, A, h, fl, fr):
     """The other strings' right loads on the body, h/2 fr_end + c_j, as ``(their torque (2/h) sum
     rho_j x R_{k+1}^T (h/2 fr_end + c_j) (body frame) [N m], the attachment row's impulse
@@ -182,7 +182,7 @@ def right_loads(W, T, A, h, fl, fr):
     return t0 / hh, t1 / hh, t2 / hh, i0, i1, i2
 
 
-@kernel(inline="always")
+@kernel(forceinline=True)
 def other_balances(S, P, T, A, h, forced):
     """The other strings' shares of the input balances: their weight's impulse along +e3, and
     with ``forced`` their free pivots' work u_bar . dr_0, impulse h u_bar and angular impulse
@@ -212,7 +212,7 @@ def other_balances(S, P, T, A, h, forced):
             kahan_add(acc, accc, B_PIVOT_IMPULSE + 2, h * u2)
 
 
-@kernel(inline="always")
+@kernel(forceinline=True)
 def commit_others(T, A, h, forced, compensated, fl, fr):
     """Write the other strings' new positions and momenta (:func:`commit_node`, the impulse
     h/2 (fl + fr): A.f and A.fn, or a reeling string's with its convective terms; a free pivot's
@@ -246,6 +246,32 @@ def commit_others(T, A, h, forced, compensated, fl, fr):
             r[end, i] = X[end, i]
             rc[end, i] = 0.0
             f[end, i] = fn[end, i]
+
+
+# A stage of its own (compiled once, inlined by LLVM: kernels/jit.py), not spliced into
+# team_substep's IR: spliced, team_substep alone took 13 s of the team's first compile.
+@kernel(forceinline=True)
+def commit_team_step(S, W, P, T, A, h, held, c, left, torque, e, dr0, flags):
+    """The end of a team's step (:func:`team_substep`): the other strings' right loads, the body's
+    right torque tau_g(R_{k+1}) + tau^+ and Pi_{k+1}, the input balances and the write-back of
+    string 0, the other strings and the body. ``c`` the Cayley vector, ``left`` string 0's left
+    pivot load, ``torque`` the body's left torque (with the ends' loads), ``e`` = R_k^T dr_{N+1},
+    ``dr0`` the pivot's displacement, ``held`` :func:`~.step_shared.held_inputs`'s, ``flags`` =
+    (free, forced, coupled, compensated). Returns the status (the state untouched unless OK)."""
+    free, forced, coupled, compensated = flags
+    _, _, _, _, _, _, tb0, tb1, tb2, ts0, ts1, ts2 = held
+    b0, b1, b2, i0, i1, i2 = right_loads(W, T, A, h, A.f, A.fn)
+    m0, m1, m2, n0, n1, n2 = left_torque(W.Rn, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
+    dP = body_momentum_increment(S.Pi, W.FmI, T.mass, T.rho_inertial, h, torque, (n0 + b0, n1 + b1, n2 + b2), e,
+                                 forced, coupled)
+    if not np.isfinite(dP[0] + dP[1] + dP[2]):
+        return NON_FINITE
+    input_balances(S, P, S.R, W.Rn, h, c, left, (m0, m1, m2), held, dr0, free, forced)
+    other_balances(S, P, T, A, h, forced)
+    commit_string(S, W, h, held, S.f, W.fn, free, forced, compensated, (i0, i1, i2))
+    commit_others(T, A, h, forced, compensated, A.f, A.fn)
+    commit_body(S, W.Rn, W.RF, dP, compensated)
+    return OK
 
 
 @kernel(forceinline=True)
@@ -282,19 +308,10 @@ def team_substep(S, W, P, T, A, inputs, h, free, forced, coupled, compensated):
     if status != OK:
         return status, iters
     unsettled = team_switch_errors(S, W, P, T, A, None)  # the slack switches (kernels/team_switch.py)
-    b0, b1, b2, i0, i1, i2 = right_loads(W, T, A, h, A.f, A.fn)
-    # the right torque: tau_g(R_{k+1}) + tau^+, and the other strings' right loads
-    m0, m1, m2, n0, n1, n2 = left_torque(W.Rn, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
-    dP = body_momentum_increment(S.Pi, W.FmI, T.mass, T.rho_inertial, h, (t0, t1, t2), (n0 + b0, n1 + b1, n2 + b2),
-                                 (e0, e1, e2), forced, coupled)
-    if not np.isfinite(dP[0] + dP[1] + dP[2]):
-        return NON_FINITE, iters
-    input_balances(S, P, S.R, W.Rn, h, (c0, c1, c2), (l0, l1, l2), (m0, m1, m2), held, (dr00, dr01, dr02), free,
-                   forced)
-    other_balances(S, P, T, A, h, forced)
-    commit_string(S, W, h, held, S.f, W.fn, free, forced, compensated, (i0, i1, i2))
-    commit_others(T, A, h, forced, compensated, A.f, A.fn)
-    commit_body(S, W.Rn, W.RF, dP, compensated)
+    status = commit_team_step(S, W, P, T, A, h, held, (c0, c1, c2), (l0, l1, l2), (t0, t1, t2), (e0, e1, e2),
+                              (dr00, dr01, dr02), (free, forced, coupled, compensated))
+    if status != OK:
+        return status, iters
     if unsettled > 0:
         settle_team_switches(S, W, P, T, A, h, S.p, A.p, (S.Pi[0], S.Pi[1], S.Pi[2]), P.off)
     return OK, iters
