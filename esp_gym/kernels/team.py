@@ -251,25 +251,30 @@ def commit_others(T, A, h, forced, compensated, fl, fr):
 # A stage of its own (compiled once, inlined by LLVM: kernels/jit.py), not spliced into
 # team_substep's IR: spliced, team_substep alone took 13 s of the team's first compile.
 @kernel(forceinline=True)
-def commit_team_step(S, W, P, T, A, h, held, c, left, torque, e, dr0, flags):
-    """The end of a team's step (:func:`team_substep`): the other strings' right loads, the body's
-    right torque tau_g(R_{k+1}) + tau^+ and Pi_{k+1}, the input balances and the write-back of
-    string 0, the other strings and the body. ``c`` the Cayley vector, ``left`` string 0's left
-    pivot load, ``torque`` the body's left torque (with the ends' loads), ``e`` = R_k^T dr_{N+1},
-    ``dr0`` the pivot's displacement, ``held`` :func:`~.step_shared.held_inputs`'s, ``flags`` =
-    (free, forced, coupled, compensated). Returns the status (the state untouched unless OK)."""
+def commit_team_step(S, W, P, balance_params, T, A, h, held, c, left, torque, e, dr0, lead_force, other_forces,
+                     flags):
+    """The end of a team's step (:func:`team_substep`, kernels/team_winch.py's
+    ``team_winch_substep``): the other strings' right loads, the body's right torque
+    tau_g(R_{k+1}) + tau^+ and Pi_{k+1}, the input balances and the write-back of string 0, the
+    other strings and the body. ``c`` the Cayley vector, ``left`` string 0's left pivot load,
+    ``torque`` the body's left torque (with the ends' loads), ``e`` = R_k^T dr_{N+1}, ``dr0`` the
+    pivot's displacement, ``held`` :func:`~.step_shared.held_inputs`'s; ``balance_params`` the
+    parameters of string 0's input balances (``P``, or at the reeled length), ``lead_force``
+    string 0's force at the start (its impulse's left half), ``other_forces`` the other strings'
+    (left, right) forces; ``flags`` = (free, forced, coupled, compensated). Returns the status
+    (the state untouched unless OK)."""
     free, forced, coupled, compensated = flags
     _, _, _, _, _, _, tb0, tb1, tb2, ts0, ts1, ts2 = held
-    b0, b1, b2, i0, i1, i2 = right_loads(W, T, A, h, A.f, A.fn)
+    b0, b1, b2, i0, i1, i2 = right_loads(W, T, A, h, other_forces[0], other_forces[1])
     m0, m1, m2, n0, n1, n2 = left_torque(W.Rn, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
     dP = body_momentum_increment(S.Pi, W.FmI, T.mass, T.rho_inertial, h, torque, (n0 + b0, n1 + b1, n2 + b2), e,
                                  forced, coupled)
     if not np.isfinite(dP[0] + dP[1] + dP[2]):
         return NON_FINITE
-    input_balances(S, P, S.R, W.Rn, h, c, left, (m0, m1, m2), held, dr0, free, forced)
+    input_balances(S, balance_params, S.R, W.Rn, h, c, left, (m0, m1, m2), held, dr0, free, forced)
     other_balances(S, P, T, A, h, forced)
-    commit_string(S, W, h, held, S.f, W.fn, free, forced, compensated, (i0, i1, i2))
-    commit_others(T, A, h, forced, compensated, A.f, A.fn)
+    commit_string(S, W, h, held, lead_force, W.fn, free, forced, compensated, (i0, i1, i2))
+    commit_others(T, A, h, forced, compensated, other_forces[0], other_forces[1])
     commit_body(S, W.Rn, W.RF, dP, compensated)
     return OK
 
@@ -308,8 +313,8 @@ def team_substep(S, W, P, T, A, inputs, h, free, forced, coupled, compensated):
     if status != OK:
         return status, iters
     unsettled = team_switch_errors(S, W, P, T, A, None)  # the slack switches (kernels/team_switch.py)
-    status = commit_team_step(S, W, P, T, A, h, held, (c0, c1, c2), (l0, l1, l2), (t0, t1, t2), (e0, e1, e2),
-                              (dr00, dr01, dr02), (free, forced, coupled, compensated))
+    status = commit_team_step(S, W, P, P, T, A, h, held, (c0, c1, c2), (l0, l1, l2), (t0, t1, t2), (e0, e1, e2),
+                              (dr00, dr01, dr02), S.f, (A.f, A.fn), (free, forced, coupled, compensated))
     if status != OK:
         return status, iters
     if unsettled > 0:

@@ -22,12 +22,11 @@ from .layout import (B_GRAVITY_IMPULSE, B_WINCH_WORK, WN_EA, WN_END_SHARE, WN_LE
                      WN_MAX_LENGTH, WN_MAX_STRETCH, WN_MIN_LENGTH, WN_OFF_SHARE, WN_REEL_SPEED)
 from .lgvi import rigid_increments
 from .so3 import cross, unrotated
-from .status import NON_FINITE, OK
+from .status import OK
 from .string import nodal_forces
-from .step_shared import (body_momentum_increment, commit_body, commit_string, guarded_forces, held_inputs,
-                          input_balances, left_torque, new_positions, next_attitude)
+from .step_shared import guarded_forces, held_inputs, left_torque, new_positions, next_attitude
 from .sums import kahan_add
-from .team import commit_others, other_balances, other_forces, other_increments, right_loads
+from .team import commit_team_step, other_forces, other_increments
 from .team_arrays import TeamParams, add_end_loads, pivot_rows
 from .team_switch import settle_team_switches, team_switch_errors
 from .winch import (add_convective_forces, add_convective_impulse, body_schur, convective_momentum, convective_solve,
@@ -56,7 +55,7 @@ def reel_terms(st, l0, l1, h, n):
     return v, mu * v / n, mu * (0.5 * (l0 + l1)) / n
 
 
-@kernel(inline="always")
+@kernel(forceinline=True)
 def reduce_others(T, TW, h, symmetric):
     """Each string j >= 1's step matrix factored on its rows before the end
     (:func:`~.winch.factor_string`), its end mass mu_j = A_ee - A_{e,e-1} A_{e-1,e} (A_II^-1)_{last,last}
@@ -100,7 +99,7 @@ def reduce_others(T, TW, h, symmetric):
         TW.max_len2[j] = (st[WN_MAX_STRETCH] * u) ** 2
 
 
-@kernel(inline="always")
+@kernel(forceinline=True)
 def assemble_body(P, T, TW):
     """The body's inertia with the other strings' end masses (docs/physics.md, "The assembled
     body", with this step's mu_j): M' and rho' into ``TW.body``, J' into ``TW.J``. With K = 1,
@@ -129,7 +128,7 @@ def assemble_body(P, T, TW):
     return mass
 
 
-@kernel(inline="always")
+@kernel(forceinline=True)
 def reeling_forces(S, W, T, A, TW, h, first):
     """f~ = f + grad T0 at every string's r_k and l_0 (the reel's at rest: f itself): string
     0's into ``W.fl``, the others' into ``TW.fl``."""
@@ -157,7 +156,7 @@ def reeling_forces(S, W, T, A, TW, h, first):
                                   TW.fl[s:e], pivot_rows(T, j))
 
 
-@kernel(inline="always")
+@kernel(forceinline=True)
 def reeling_end_loads(R, T, A, TW, h, forced):
     """Each string j >= 1 reduced to its end with its step's matrix: X_I = A_II^-1 B_I
     (:func:`~.winch.convective_solve`), its coupling momentum c*_j = A_{e,e-1} X_last plus its end's
@@ -203,7 +202,7 @@ def reeling_end_loads(R, T, A, TW, h, forced):
     return E0, E1, E2, t0 / hh, t1 / hh, t2 / hh
 
 
-@kernel(inline="always")
+@kernel(forceinline=True)
 def reeling_right_forces(T, A, TW, h):
     """``TW.fr`` = f~ at r_{k+1} and l_1 plus the convective impulse (2/h) c C dr on every row
     of strings 1..K-1 that moves (``A.fn`` the forces at the new positions, ``A.Y`` the
@@ -277,18 +276,10 @@ def team_winch_substep(S, W, P, T, A, TW, inputs, h, free, forced, coupled, comp
         return status, iters
     unsettled = team_switch_errors(S, W, P, Ts, A, TW)  # with each reel's share (kernels/team_switch.py)
     reeling_right_forces(T, A, TW, h)
-    b0, b1, b2, i0, i1, i2 = right_loads(W, Ts, A, h, TW.fl, TW.fr)
-    m0, m1, m2, n0, n1, n2 = left_torque(W.Rn, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
-    dP = body_momentum_increment(S.Pi, W.FmI, mass, rho_inertial, h, (t0, t1, t2), (n0 + b0, n1 + b1, n2 + b2),
-                                 (e0, e1, e2), forced, coupled)
-    if not np.isfinite(dP[0] + dP[1] + dP[2]):
-        return NON_FINITE, iters
-    input_balances(S, P1, S.R, W.Rn, h, (c0, c1, c2), (l_0, l_1, l_2), (m0, m1, m2), held, (dr00, dr01, dr02), free,
-                   forced)
-    other_balances(S, P, Ts, A, h, forced)
-    commit_string(S, W, h, held, W.fl, W.fn, free, forced, compensated, (i0, i1, i2))
-    commit_others(Ts, A, h, forced, compensated, TW.fl, TW.fr)
-    commit_body(S, W.Rn, W.RF, dP, compensated)
+    status = commit_team_step(S, W, P, P1, Ts, A, h, held, (c0, c1, c2), (l_0, l_1, l_2), (t0, t1, t2), (e0, e1, e2),
+                              (dr00, dr01, dr02), W.fl, (TW.fl, TW.fr), (free, forced, coupled, compensated))
+    if status != OK:
+        return status, iters
     weight_at_mean_lengths(S, P, T, TW, h, m_mean, P1.m)
     if unsettled > 0:
         settle_reeling_team(S, W, P, T, A, TW, h)
@@ -366,7 +357,7 @@ def flow_free_momenta(S, T, A, TW, h, first):
     return t0, t1, t2
 
 
-@kernel(inline="always")
+@kernel(forceinline=True)
 def weight_at_mean_lengths(S, P, T, TW, h, m_mean, m1):
     """The commit counted each string's weight impulse at its end length; the step's is at its
     mean length (as the single winch's)."""
