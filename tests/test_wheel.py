@@ -56,6 +56,11 @@ def report():
     print("wheel test phases [s]:", json.dumps(TIMES))
 
 
+#: pip install into the new environment, torch pinned by constraints.txt; --no-compile, as the
+#: Makefile: modules are byte-compiled when first imported (torch 20 -> 8 s).
+PIP_INSTALL = ["-m", "pip", "install", "-q", "--no-compile", "-c", str(ROOT / "constraints.txt")]
+
+
 @pytest.fixture(scope="module")
 def install(tmp_path_factory):
     """``(python, wheel, work)``: the new environment's interpreter with the core installed from the
@@ -74,9 +79,7 @@ def install(tmp_path_factory):
     wheel, = (base / "dist").glob("esp_gym-*.whl")
     timed("venv", [sys.executable, "-m", "venv", str(base / "venv")], base)
     python = base / "venv" / "bin" / "python"
-    # --no-compile, as the Makefile: modules are byte-compiled when first imported (torch 20 -> 8 s)
-    timed("core install", [str(python), "-m", "pip", "install", "-q", "--no-compile", "-c", str(ROOT / "constraints.txt"), str(wheel)],
-          base)
+    timed("core install", [str(python), *PIP_INSTALL, str(wheel)], base)
     work = base / "work"
     work.mkdir()
     return python, wheel, work
@@ -166,8 +169,7 @@ print(md.version("pettingzoo"))
 
 def test_the_team_extras_lowest_pettingzoo_passes_its_api_and_seed_tests(install):
     python, wheel, work = install
-    timed("team install", [str(python), "-m", "pip", "install", "-q", "--no-compile", "-c", str(ROOT / "constraints.txt"),
-                           f"{wheel}[team]", f"pettingzoo=={PETTINGZOO_LOW}"], work)
+    timed("team install", [str(python), *PIP_INSTALL, f"{wheel}[team]", f"pettingzoo=={PETTINGZOO_LOW}"], work)
     assert timed("team tests", [str(python), "-c", PETTINGZOO_TESTS], work,
                  shared_cache=True).splitlines()[-1] == PETTINGZOO_LOW
     report()
@@ -182,8 +184,7 @@ subprocess.run([sys.executable, "-m", "agents.zoo", "--list", "--only", "stabili
 
 def test_the_agents_extra_installs_torch_from_the_constraints_and_runs_the_agents(install):
     python, wheel, work = install
-    timed("agents install", [str(python), "-m", "pip", "install", "-q", "--no-compile", "-c", str(ROOT / "constraints.txt"),
-                             f"{wheel}[agents]"], work)
+    timed("agents install", [str(python), *PIP_INSTALL, f"{wheel}[agents]"], work)
     lines = timed("agents zoo --list", [str(python), "-c", AGENTS], work).splitlines()
     assert lines[0] == "2.13.0+cpu" and lines[1].startswith("stabilize: python -m agents.train")
     report()
