@@ -10,6 +10,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -28,10 +29,14 @@ SB3_OPTIONS = ["--episodes", "1", "--eval-freq", "128", "--eval-episodes", "1", 
                "--checkpoint-freq", "128"]
 
 
+def child_env(env=None) -> dict:
+    """A command's environment: ours with one thread for numba and OpenMP, and ``env``."""
+    return {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", **(env or {})}
+
+
 def run(module, *args, env=None, timeout=300) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", module, *map(str, args)], capture_output=True, text=True, cwd=ROOT,
-                          timeout=timeout, env={**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
-                                                **(env or {})})
+                          timeout=timeout, env=child_env(env))
 
 
 def sampling_nodes(training: dict) -> set:
@@ -96,49 +101,84 @@ def test_rllib_ppo_samples_on_both_nodes_and_checkpoints(cluster, tmp_path):
     assert sampling_nodes({"env_runners": [{"node_id": "a", "env_steps": 5}, {"node_id": "b", "env_steps": 0}]}) == {"a"}
 
 
-@pytest.mark.parametrize("residual, critic", [(False, True), (True, False)], ids=["central-critic", "residual"])
-def test_a_team_trains_with_one_shared_policy_and_checkpoints(cluster, tmp_path, residual, critic):
+def start(module, *args, env=None) -> tuple:
+    """:func:`run`'s command started, not waited for (runs that sample in their own processes at
+    once): its Popen, its output going to two temporary files (a pipe left unread would stall it)."""
+    out, err = tempfile.TemporaryFile("w+"), tempfile.TemporaryFile("w+")
+    proc = subprocess.Popen([sys.executable, "-m", module, *map(str, args)], stdout=out, stderr=err, text=True,
+                            cwd=ROOT, env=child_env(env))
+    return proc, out, err
+
+
+def finished(started: dict, timeout=300) -> dict:
+    """Each of ``started`` (:func:`start`'s by name) waited for: its ``(returncode, stdout, stderr)``."""
+    results = {}
+    try:
+        for name, (proc, out, err) in started.items():
+            proc.wait(timeout=timeout)
+            out.seek(0), err.seek(0)
+            results[name] = (proc.returncode, out.read(), err.read())
+    finally:
+        for proc, out, err in started.values():
+            if proc.poll() is None:
+                proc.kill()
+            out.close(), err.close()
+    return results
+
+
+#: The team trainings' variants: (--residual, --central-critic) by name.
+TEAM_VARIANTS = {"central-critic": (False, True), "residual": (True, False)}
+
+
+def test_a_team_trains_with_one_shared_policy_and_checkpoints(cluster, tmp_path):
     """agents.team_train: RLlib PPO on the PettingZoo team, one module for every agent (with
     --residual, on the team's LQR: the checkpoint says so and the compare adds the LQR; with
     --central-critic, the critic reads the team's state: the checkpoint says so and the compare
-    acts without it)."""
-    proc = run("agents.team_train", "--team", "2", "--task", "transport", "--iterations", "2", "--address",
-               cluster.address, "--runs", tmp_path, "--run-name", "t", "--eval-episodes", "1",
-               "--reference-episodes", "1", "--no-progress", *(["--residual"] if residual else []),
-               *(["--central-critic"] if critic else []), "--set",
-               "num_env_runners=0", "train_batch_size_per_learner=200", "minibatch_size=100", "num_epochs=1",
-               env=cluster.env)
-    assert proc.returncode == 0, proc.stderr[-4000:]
-    run_dir = tmp_path / "t"
-    assert json.loads((run_dir / "status.json").read_text())["status"] == "finished"
-    with open(run_dir / "progress.csv") as fh:
-        rows = list(csv.DictReader(fh))
-    assert [int(r["iteration"]) for r in rows] == [1, 2] and int(rows[1]["env_steps"]) >= 400
-    assert (run_dir / "checkpoint" / "learner_group" / "learner" / "rl_module" / "shared").is_dir()
-    assert (run_dir / "checkpoint" / "residual.json").is_file() == residual
-    assert (run_dir / "checkpoint" / "central_critic.json").is_file() == critic
-    refs = json.loads((run_dir / "references.json").read_text())
-    assert refs["baseline_return"] > 300.0 > 50.0 > refs["zero_return"]  # the team's LQR, the zero action
-    evaluation = json.loads((run_dir / "evaluation.json").read_text())
-    assert evaluation["episodes"] == 1 and -100.0 <= evaluation["mean_return"] <= 500.0
-    if residual:  # two iterations move the LQR by a little: the team still carries the load
-        assert evaluation["mean_return"] > 200.0
-    for name in ("config.yaml", "args.json", "command.txt", "training.json", "learning_curve.png"):
-        assert (run_dir / name).is_file(), name
-    # the checkpoint (with --residual: as shipped) as agents.compare's team policy, paired with the baseline;
-    # its first episode is the run's own evaluation's (seed 10000)
-    checkpoint = run_dir / "checkpoint"
-    if residual or critic:
-        from agents.team_train import ship
+    acts without it). The two variants' runs sample in their own processes (no env runners), so
+    they run at the same time, one per CPU."""
+    trainings = finished({
+        name: start("agents.team_train", "--team", "2", "--task", "transport", "--iterations", "2", "--address",
+                    cluster.address, "--runs", tmp_path / name, "--run-name", "t", "--eval-episodes", "1",
+                    "--reference-episodes", "1", "--no-progress", *(["--residual"] if residual else []),
+                    *(["--central-critic"] if critic else []), "--set",
+                    "num_env_runners=0", "train_batch_size_per_learner=200", "minibatch_size=100", "num_epochs=1",
+                    env=cluster.env)
+        for name, (residual, critic) in TEAM_VARIANTS.items()})
+    compares, evaluations = {}, {}
+    for name, (residual, critic) in TEAM_VARIANTS.items():
+        returncode, _, stderr = trainings[name]
+        assert returncode == 0, (name, stderr[-4000:])
+        run_dir = tmp_path / name / "t"
+        assert json.loads((run_dir / "status.json").read_text())["status"] == "finished"
+        with open(run_dir / "progress.csv") as fh:
+            rows = list(csv.DictReader(fh))
+        assert [int(r["iteration"]) for r in rows] == [1, 2] and int(rows[1]["env_steps"]) >= 400
+        assert (run_dir / "checkpoint" / "learner_group" / "learner" / "rl_module" / "shared").is_dir()
+        assert (run_dir / "checkpoint" / "residual.json").is_file() == residual
+        assert (run_dir / "checkpoint" / "central_critic.json").is_file() == critic
+        refs = json.loads((run_dir / "references.json").read_text())
+        assert refs["baseline_return"] > 300.0 > 50.0 > refs["zero_return"]  # the team's LQR, the zero action
+        evaluation = evaluations[name] = json.loads((run_dir / "evaluation.json").read_text())
+        assert evaluation["episodes"] == 1 and -100.0 <= evaluation["mean_return"] <= 500.0
+        if residual:  # two iterations move the LQR by a little: the team still carries the load
+            assert evaluation["mean_return"] > 200.0
+        for file in ("config.yaml", "args.json", "command.txt", "training.json", "learning_curve.png"):
+            assert (run_dir / file).is_file(), (name, file)
+        # the checkpoint (with --residual: as shipped) as agents.compare's team policy, paired with the
+        # baseline; its first episode is the run's own evaluation's (seed 10000)
+        checkpoint = run_dir / "checkpoint"
+        if residual or critic:
+            from agents.team_train import ship
 
-        checkpoint = ship(run_dir, tmp_path / "model") / "checkpoint"
-        assert (checkpoint / "central_critic.json").is_file() == critic
-    proc = run("agents.compare", "--team", "2", "--task", "transport", "--episodes", "2", "--seed", "10000",
-               "--model", checkpoint, "--json", "--no-progress")
-    assert proc.returncode == 0, proc.stderr[-4000:]
-    c = json.loads(proc.stdout)
-    assert c["best_baseline"] == "lqr" and len(c["policies"]["policy"]["returns"]) == 2 and c["paired_ci95"]
-    assert c["policies"]["policy"]["returns"][0] == pytest.approx(evaluation["mean_return"], abs=1e-9)
+            checkpoint = ship(run_dir, tmp_path / name / "model") / "checkpoint"
+            assert (checkpoint / "central_critic.json").is_file() == critic
+        compares[name] = start("agents.compare", "--team", "2", "--task", "transport", "--episodes", "2", "--seed",
+                               "10000", "--model", checkpoint, "--json", "--no-progress")
+    for name, (returncode, stdout, stderr) in finished(compares).items():
+        assert returncode == 0, (name, stderr[-4000:])
+        c = json.loads(stdout)
+        assert c["best_baseline"] == "lqr" and len(c["policies"]["policy"]["returns"]) == 2 and c["paired_ci95"]
+        assert c["policies"]["policy"]["returns"][0] == pytest.approx(evaluations[name]["mean_return"], abs=1e-9)
 
 
 def _wait_for(predicate, timeout: float, what: str) -> None:
@@ -152,8 +192,7 @@ def _wait_for(predicate, timeout: float, what: str) -> None:
 def interrupt_sweep(module: str, args: list, cluster, ready, what: str) -> list:
     """Run the sweep ``module`` with ``args``, Ctrl-C it once ``ready()`` (or once it ends: Tune
     saves its state and stops), and return its two trials' run directories."""
-    env = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", **cluster.env}
-    sweep = subprocess.Popen([sys.executable, "-m", module, *map(str, args)], cwd=ROOT, env=env,
+    sweep = subprocess.Popen([sys.executable, "-m", module, *map(str, args)], cwd=ROOT, env=child_env(cluster.env),
                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
         _wait_for(lambda: ready() or sweep.poll() is not None, 240, what)
@@ -252,8 +291,8 @@ def test_a_node_that_fails_to_start_every_time_is_an_error_quoting_its_last_atte
         flaky.__enter__()
     assert not flaky.root.exists()
     # one that hangs is ended after the timeout and started again; every time, an error too
-    hanging = FlakyCluster(fail={(0, 0), (0, 1)}, failure=FlakyCluster.HANGS, nodes=1, cpus=1, attempts=2, timeout=2)
-    with pytest.raises(RuntimeError, match=r"(?s)did not start within 2 s 2 times in all.*raylet hangs"):
+    hanging = FlakyCluster(fail={(0, 0), (0, 1)}, failure=FlakyCluster.HANGS, nodes=1, cpus=1, attempts=2, timeout=1)
+    with pytest.raises(RuntimeError, match=r"(?s)did not start within 1 s 2 times in all.*raylet hangs"):
         hanging.__enter__()
     assert all(p.poll() is not None for p in hanging.procs)
     with pytest.raises(ValueError, match="attempts=0"):
