@@ -9,7 +9,7 @@ from gymnasium.envs.registration import register, registry
 from .params import Scene, SceneError, available_scenes, load_scene
 
 __all__ = ["Scene", "SceneError", "Simulator", "SimulationError", "StepChoice", "Trajectory", "available_scenes", "choose_h",
-           "choose_resolution", "ResolutionChoice", "load_scene"]
+           "choose_resolution", "ResolutionChoice", "load_scene", "rigs"]
 __version__ = "0.1.0"
 
 ENV_ID = "ElasticStringPendulum-v0"
@@ -39,4 +39,8 @@ def __getattr__(name):
         from . import stepsize
 
         return getattr(stepsize, name)
+    if name == "rigs":
+        from .rig import rigs
+
+        return rigs
     raise AttributeError(f"module 'esp_gym' has no attribute {name!r}")

@@ -29,9 +29,8 @@ from .kernels.env_arrays import OBSERVATION, REWARD, REWARD_TERMS, SCHEME_DISTUR
 from .kernels.disturbance import DISTURBANCE, DISTURBANCE_PARAMS, DRAWS
 from .kernels.string import state_forces
 from .kernels.env_arrays import FEATURES, EnvArrays
-from .kernels.env_step import ENTRY_POINTS, actions_finite, env_reset_observe
-from .kernels.drone_env import DRONE_ENTRY_POINTS, DRONE_SENSORS, HOOK_ENTRY_POINTS, drone_reset_observe, \
-    hook_reset_observe
+from .kernels.env_step import actions_finite
+from .kernels.drone_env import DRONE_SENSORS
 from .drone import DroneSimulator, drone_view, hover_at_rest, use_drone_scene, use_hook_scene
 from .model import Simulator
 from .options import check_count
@@ -170,10 +169,9 @@ class ControlStep:
         self._windy = setup.wind is not None
         #: a drone's rotors draw their thrust noise before every control step (setup.thrust_noise)
         self._noisy_thrust = setup.drone and setup.thrust_noise > 0.0
-        #: the compiled step and batched step (kernels/env_step.py), and their ``scheme``
-        entries = (HOOK_ENTRY_POINTS if self._hook is not None
-                   else DRONE_ENTRY_POINTS[bool(setup.winch)] if setup.drone
-                   else ENTRY_POINTS[(bool(setup.winch), bool(self.sim.implicit))])
+        #: the rig (esp_gym/rig.py): its compiled step and batched step, the structs they take
+        self.rig = setup.rig
+        entries = self.rig.entries
         self._step_kernel = entries.step
         self._batch_kernel = entries.batch if self.threads == 1 else entries.threaded_batch
         self._scheme = SCHEME_DISTURBED if self._windy else 0
@@ -189,11 +187,7 @@ class ControlStep:
                          ds=self._disturbance, draws=self._draws, drawn=self._drawn)
 
     def _make_views(self) -> None:
-        # plain tuples: numba's dispatcher types them ~2x faster than namedtuples (kernels/env_step.py)
-        self._kernel_tuples = (tuple(self._state), tuple(self._work), tuple(self._params), tuple(self._diag),
-                               tuple(self._winch), tuple(self._env_arrays()))
-        self._drone_tuple = None if self._drone is None else tuple(self._drone)
-        self._hook_tuple = None if self._hook is None else tuple(self._hook)
+        self._pack_structs()
         self.observation = read_only(self._obs)
         self.reward_terms = read_only(self._terms)
         self.action = read_only(self._action)
@@ -205,8 +199,16 @@ class ControlStep:
         self.scene_params = read_only(self._scene_params)
         self.disturbance = read_only(self._disturbance)
 
+    def _pack_structs(self) -> None:
+        """The structs the rig's entry points take, in its order (esp_gym/rig.py STRUCTS), each
+        as a plain tuple: numba's dispatcher types them ~2x faster than namedtuples
+        (kernels/env_step.py)."""
+        arrays = {"state": self._state, "work": self._work, "params": self._params, "diag": self._diag,
+                  "winch": self._winch, "env": self._env_arrays(), "drone": self._drone, "hook": self._hook}
+        self._structs = tuple(tuple(arrays[name]) for name in self.rig.structs)
+
     # a pickled view would come back as a copy: pickle the arrays, rebuild the views
-    _VIEWS = ("_kernel_tuples", "_drone_tuple", "_hook_tuple", "observation", "reward_terms", "action", "inputs",
+    _VIEWS = ("_structs", "observation", "reward_terms", "action", "inputs",
               "target", "report", "sensors", "features", "scene_params", "disturbance")
 
     def __getstate__(self) -> dict:
@@ -249,8 +251,7 @@ class ControlStep:
             if episode.scene is not self.sim.scene:
                 self.sim.use_scene(episode.scene, episode.params)
                 self._params = self.sim.params
-                state, work, _, diag, winch, env = self._kernel_tuples  # only the constants changed
-                self._kernel_tuples = (state, work, tuple(self._params), diag, winch, env)
+                self._pack_structs()
             self._substeps[...] = episode.substeps
         else:
             for stacked, value in zip(self._params, episode.params):
@@ -301,12 +302,8 @@ class ControlStep:
             self._was_reset[() if index is None else int(index)] = True
             self._ready = bool(self._was_reset.all())
         WA = self.sim.winch.arrays if index is None else type(self._winch)(*(a[int(index)] for a in self._winch))
-        if self._hook is not None:
-            HK = self._hook if index is None else type(self._hook)(*(a[int(index)] for a in self._hook))
-            return int(hook_reset_observe(S, P, D, DR, HK, E))
-        if DR is not None:
-            return int(drone_reset_observe(S, P, D, WA, DR, E, self.setup.winch))
-        return int(env_reset_observe(S, P, D, WA, E, self.setup.winch))
+        HK = self._hook if self._hook is None or index is None else type(self._hook)(*(a[int(index)] for a in self._hook))
+        return self.rig.reset_observe(S, P, D, WA, E, DR, HK)
 
     # -- step -------------------------------------------------------------------------------------
     def step(self, actions, active: Optional[np.ndarray] = None) -> None:
@@ -314,7 +311,6 @@ class ControlStep:
         any float array; clipped to the box in the compiled step. ValueError, with nothing
         changed, if its shape is wrong or an entry is not finite. ``active`` (batch only, bool
         (num_envs,)): the sub-environments to step (default: all); the others are untouched."""
-        s, w, p, d, wa, e = self._kernel_tuples
         if not self._ready:
             never = "" if self.num_envs is None else f" (sub-environments {np.flatnonzero(~self._was_reset).tolist()})"
             raise RuntimeError(f"call reset() before step(){never}")
@@ -332,16 +328,7 @@ class ControlStep:
                 if not actions_finite(raw[None]):
                     raise ValueError(f"action must be finite, got {raw.tolist()}")
                 self._drone.thrust_scale[...] = 1.0 + self.setup.thrust_noise * self._rngs[0].standard_normal(4)
-            q = self._drone_tuple
-            if q is None:
-                done = self._step_kernel(s, w, p, d, wa, e, raw, self._scheme)
-            elif self._hook_tuple is not None:
-                done = self._step_kernel(s, w, p, d, e, q, self._hook_tuple, raw, self._scheme)
-            elif self.setup.winch:
-                done = self._step_kernel(s, w, p, d, wa, e, q, raw, self._scheme)
-            else:
-                done = self._step_kernel(s, w, p, d, e, q, raw, self._scheme)
-            if not done:
+            if not self._step_kernel(*self._structs, raw, self._scheme):
                 raise ValueError(f"action must be finite, got {raw.tolist()}")
             self.sim.count_steps(self._report)
             return
@@ -363,14 +350,7 @@ class ControlStep:
                 self._drone.thrust_scale[i] = 1.0 + self.setup.thrust_noise * self._rngs[i].standard_normal(4)
         if self.threads > 1:  # numba's thread count is per calling thread: set where the call is made
             numba.set_num_threads(self.threads)
-        if self._drone_tuple is None:
-            self._batch_kernel(s, w, p, d, wa, e, raw, active, self._scheme)
-        elif self._hook_tuple is not None:
-            self._batch_kernel(s, w, p, d, e, self._drone_tuple, self._hook_tuple, raw, active, self._scheme)
-        elif self.setup.winch:
-            self._batch_kernel(s, w, p, d, wa, e, self._drone_tuple, raw, active, self._scheme)
-        else:
-            self._batch_kernel(s, w, p, d, e, self._drone_tuple, raw, active, self._scheme)
+        self._batch_kernel(*self._structs, raw, active, self._scheme)
 
     @staticmethod
     def _delay(raw: np.ndarray, pending: np.ndarray) -> np.ndarray:

@@ -1,12 +1,10 @@
 """Compiling the environment's configurations ahead of use (``esp-gym compile``).
 
-Each configuration of the environment's compiled step (with or without the winch, on the
-explicit or the implicit string, single or batched: ``ENTRY_POINTS`` in esp_gym/kernels/env_step.py;
-with a drone at the pivot, single or batched: ``DRONE_ENTRY_POINTS`` in esp_gym/kernels/drone_env.py;
-a drone at an offset hook: ``HOOK_ENTRY_POINTS`` there; a team's, of point pivots, of drones or on
-winches: ``team_advance``, ``team_drone_advance`` and ``team_winch_advance`` in
-esp_gym/kernels/team_loops.py) compiles on its first step and is cached on disk (docs/performance.md, "Start-up"). This takes
-them all in worker processes, so that a machine (a container image, a CI run, a cluster's nodes)
+Each configuration of the environment's compiled step (each rig of esp_gym/rig.py, single or
+batched; a team's, of point pivots, of drones or on winches: ``team_advance``,
+``team_drone_advance`` and ``team_winch_advance`` in esp_gym/kernels/team_loops.py) compiles on its
+first step and is cached on disk (docs/performance.md, "Start-up"). This takes them all in worker
+processes, so that a machine (a container image, a CI run, a cluster's nodes)
 pays the compile once, in parallel, instead of at the first step of each. A vector env's threaded
 entry (``threads`` > 1, docs/performance.md "Threads") is left to its first use.
 """
@@ -18,6 +16,7 @@ import time
 from dataclasses import dataclass
 from typing import Optional
 
+from .rig import RIGS
 from .workers import available_cpus, worker_count
 
 
@@ -41,12 +40,11 @@ class Configuration:
         return "-".join((kind, "implicit" if self.implicit else "explicit", "batched" if self.batched else "single"))
 
 
-#: Every configuration, the first environment's (no winch, explicit, single) first; a drone's
-#: (explicit, with or without the winch, then at an offset hook), then a team's (point pivots,
-#: drones, winches: a team's step is one compiled loop whether one or many teams run) last.
-CONFIGURATIONS = (tuple(Configuration(w, i, b) for w in (False, True) for i in (False, True) for b in (False, True))
-                  + tuple(Configuration(w, False, b, True) for w in (False, True) for b in (False, True))
-                  + tuple(Configuration(False, False, b, True, True) for b in (False, True))
+#: Every configuration: each rig of the table (esp_gym/rig.py RIGS, the first environment's
+#: first), single and batched, then a team's (point pivots, drones, winches: a team's step is one
+#: compiled loop whether one or many teams run) last.
+CONFIGURATIONS = (tuple(Configuration(rig.winch, rig.string == "implicit", batched, rig.pivot == "drone", rig.hook)
+                        for rig in RIGS for batched in (False, True))
                   + (Configuration(False, False, False, team=True), Configuration(False, False, False, True, team=True),
                      Configuration(True, False, False, team=True)))
 #: The strings of the team the team configurations compile with (any size: the same kernels).

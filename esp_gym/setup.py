@@ -24,6 +24,7 @@ from .observe import Observer
 from .options import MAX_FORCE_SHARE, check_substeps, env_options
 from .params import Scene, load_scene, override_scene, scene_from_dict
 from .randomize import Randomizer, episode_param_names, nominal_values
+from .rig import Rig, find_rig
 from .state import build_params
 from .stepsize import auto_elements, resolution_safety, scheme_substeps, shortest
 from .tasks import Task, get_task, hanging_depth
@@ -185,6 +186,13 @@ class EnvSetup:
         return self.actuation != "force"
 
     @property
+    def rig(self) -> Rig:
+        """The rig this setup runs (esp_gym/rig.py): its pivot, string scheme, winch and hook."""
+        pivot = self.scene.pivot
+        return find_rig("drone" if self.drone else "point", self.scene.solver.string, self.winch,
+                        self.drone and pivot.drone.offset_hook)
+
+    @property
     def param_names(self) -> tuple:
         """The names of the reset info's ``"scene_params"``: SCENE_PARAMS (DRONE_SCENE_PARAMS after
         them with a drone: esp_gym/randomize.py), then WIND_INFO with wind."""
@@ -295,14 +303,13 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
     if "thrust_noise" in given and given["thrust_noise"] != 0 and not resolved.pivot.is_drone:
         raise ValueError(f"ElasticStringPendulum-v0: thrust_noise={given['thrust_noise']!r} is a drone's rotors' noise: "
                          f"scene {resolved.name!r}'s pivot is {resolved.pivot.kind!r}")
-    if resolved.pivot.is_drone and (resolved.solver.string != "explicit" or resolved.solver.order != 2):
+    hooked = resolved.pivot.is_drone and resolved.pivot.drone.offset_hook
+    find_rig("drone" if resolved.pivot.is_drone else "point", resolved.solver.string, winch, hooked,
+             f"scene {resolved.name!r}: solver.string {resolved.solver.string!r}, winch={winch}"
+             + (f", pivot.drone.rho_q = {list(resolved.pivot.drone.rho_q)}" if hooked else ""))
+    if resolved.pivot.is_drone and resolved.solver.order != 2:
         raise ValueError(f"ElasticStringPendulum-v0: a drone at the pivot flies the explicit string of order 2 "
-                         f"for now (scene {resolved.name!r}: solver.string {resolved.solver.string!r}, order "
-                         f"{resolved.solver.order})")
-    if resolved.pivot.is_drone and resolved.pivot.drone.offset_hook and winch:
-        raise ValueError(f"ElasticStringPendulum-v0: pivot.drone.rho_q = {list(resolved.pivot.drone.rho_q)} with "
-                         f"winch=True: the winch reels from a drone whose hook is its centre of mass (rho_q = "
-                         f"[0, 0, 0]) for now (scene {resolved.name!r})")
+                         f"(scene {resolved.name!r}: solver.order {resolved.solver.order})")
     if t.needs_winch and not winch:
         raise ValueError(f"ElasticStringPendulum-v0: task={o.task!r} reels the string: it needs winch=True")
     randomizer = None if o.randomize is False else Randomizer(resolved, o.randomize)
