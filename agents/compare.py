@@ -118,7 +118,7 @@ def compare(task: str, preset: Optional[str] = None, episodes: int = 100, seed: 
 def compare_team(team: int, task: str, preset: Optional[str] = None, episodes: int = 100, seed: int = HELD_OUT_SEED,
                  progress: bool = True, model: Optional[str] = None, actuation: Optional[str] = None) -> dict:
     """:func:`compare` for a team of ``team`` strings (esp_gym/team/env.py): zero, the team's
-    baselines (agents/team_evaluate.py), ``preset`` the team's (esp_gym/team/env.py TEAM_PRESETS),
+    baselines (agents/team_evaluate.py), ``preset`` the team's (esp_gym/team/tasks.py TEAM_PRESETS),
     ``actuation`` a drone team's (None: point pivots), and ``model``, an agents.team_train
     checkpoint directory (default :func:`shipped_team_model`; left out when there is none),
     checked against the configuration before any episode (ConfigurationError where its sizes do
@@ -130,7 +130,7 @@ def compare_team(team: int, task: str, preset: Optional[str] = None, episodes: i
     env_kwargs = {"preset": preset} if preset else {}
     if actuation:
         env_kwargs["actuation"] = actuation
-    from esp_gym.team.env import TEAM_PRESETS
+    from esp_gym.team.tasks import TEAM_PRESETS
     from esp_gym.team.tasks import get_team_task
 
     drones = actuation not in (None, "force")

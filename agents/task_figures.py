@@ -191,7 +191,8 @@ def team_figure(out: Path, size: int, seed: int, steps: int, preset=None, task: 
     dashed), the load's distance to its target, each string's pull on its pivot, and the smallest
     distance between two pivots with the separation and collision distances."""
     from agents.team_evaluate import TeamCascadePolicy, TeamHoistPolicy, TeamLQRPolicy
-    from esp_gym.team.env import COLLISION, SEPARATION, ElasticStringTeamEnv
+    from esp_gym.team.env import ElasticStringTeamEnv
+    from esp_gym.team.tasks import COLLISION, SEPARATION
     from esp_gym.viz.figures import new_figure, save_figure
 
     options = {**({"preset": preset} if preset else {}), **({"actuation": actuation} if actuation else {})}

@@ -318,7 +318,7 @@ def _record(s: Settings, cfg: RLlibRunConfig, run_dir: Path, argv: Optional[list
     (run_dir / "config.yaml").write_text(yaml.safe_dump(cfg.model_dump(), sort_keys=False))
     (run_dir / "args.json").write_text(json.dumps(dataclasses.asdict(s), indent=2, default=json_default))
     (run_dir / "command.txt").write_text(shlex.join([sys.executable, "-m", "agents.team_train", *args]) + "\n")
-    from esp_gym.team.env import TEAM_PRESETS
+    from esp_gym.team.tasks import TEAM_PRESETS
 
     kwargs = env_options(s)
     observation = TEAM_PRESETS.get(s.preset, {}).get("observation", "full")

@@ -57,6 +57,8 @@ class CommonOptions(BaseModel):
     winch: Optional[Flag] = None
     #: None: the pivot's ("force" for a free point mass, "thrust_rates" for a drone)
     actuation: Optional[Literal[ACTUATION_CHOICES]] = None
+    #: the automatic h's margin under the stability bound (a fraction); None: each env's default
+    safety: Optional[Real] = Field(None, gt=0, le=1, allow_inf_nan=False)
 
 
 class EnvOptions(CommonOptions):
@@ -65,7 +67,6 @@ class EnvOptions(CommonOptions):
     scene: Union[Scene, Path, str] = "drone_load"
     task: str = "stabilize"
     h: Optional[Real] = Field(None, gt=0, allow_inf_nan=False, description="physics step [s]")
-    safety: Optional[Real] = Field(None, gt=0, le=1, allow_inf_nan=False)
     force_limit: Optional[Real] = Field(None, gt=0, allow_inf_nan=False, description="[N] at action 1")
     torque_limit: Real = Field(0.02, ge=0, allow_inf_nan=False, description="[N m] at action 1")
     scene_overrides: Optional[dict] = None
@@ -79,9 +80,8 @@ class EnvOptions(CommonOptions):
 TEAM_LACKS = {
     "scene": "a team's rig is its team argument: a number of strings or a TeamScene",
     "scene_overrides": "a team's rig is its team argument: build a TeamScene with the values wanted",
-    "h": "a team chooses its own physics step: the largest within half of every string's stability bound that "
-         "divides control_period",
-    "safety": "a team keeps its physics step within half of every string's stability bound (no other margin yet)",
+    "h": "a team chooses its own physics step: the largest within safety (default 0.5) x every string's stability "
+         "bound that divides control_period",
     "torque_limit": "a team's point pivots push without turning the load (a drone team's torques are its actuation's)",
     "thrust_noise": "a team's drones fly on noiseless rotors for now",
     "moving_target": "a team's lift holds its target for now; task 'track' moves the target",
@@ -97,7 +97,6 @@ class TeamOptions(CommonOptions):
     scene: Any = None
     scene_overrides: Any = None
     h: Any = None
-    safety: Any = None
     torque_limit: Any = None
     thrust_noise: Any = None
     moving_target: Any = None

@@ -12,6 +12,7 @@ from esp_gym.env import ElasticStringPendulumEnv
 from esp_gym.options import MAX_SUBSTEPS
 from esp_gym.team import parallel_env
 from esp_gym.team.env import ElasticStringTeamEnv, TeamCore
+from esp_gym.team.scene import TEAM_SAFETY
 
 
 def detail(error: pytest.ExceptionInfo) -> str:
@@ -120,12 +121,27 @@ def test_good_team_options_are_read_as_numbers():
     assert type(core.control_period) is float and type(core.sensor_noise) is float
 
 
-@pytest.mark.parametrize("name, value", [("h", 1e-4), ("safety", 0.4), ("torque_limit", 0.01),
+@pytest.mark.parametrize("name, value", [("h", 1e-4), ("torque_limit", 0.01),
                                          ("thrust_noise", 0.05), ("moving_target", True)])
 def test_options_a_team_lacks_are_refused_with_the_reason(name, value):
     with pytest.raises(ValueError, match=rf"^{esp_gym.TEAM_ENV_ID}: {name}: a team"):
         TeamCore(2, **{name: value})
     TeamCore(2, **{name: None})  # negative control: not given
+
+
+def test_safety_sets_the_teams_margin_under_every_strings_stability_bound():
+    """The fewest steps that keep h within ``safety`` x each string's bound: twice as many at
+    half the safety, or one more (the count is whole); a bad one is named, as the single env's."""
+    nominal, finer = TeamCore(2), TeamCore(2, safety=0.25)
+    assert nominal.safety == TEAM_SAFETY == 0.5 and finer.safety == 0.25
+    assert 2 * nominal.substeps - 1 <= finer.substeps <= 2 * nominal.substeps
+    bound = min(finer.scene.member_scene(k).stability_bound for k in range(2))
+    assert finer.scene.scene.h <= 0.25 * bound < nominal.scene.scene.h <= 0.5 * bound
+    for bad in (0.0, 1.5, float("nan"), True, "0.3"):
+        with pytest.raises(ValueError, match=rf"^{esp_gym.TEAM_ENV_ID}: safety: "):
+            TeamCore(2, safety=bad)
+        with pytest.raises(ValueError, match=rf"^{esp_gym.ENV_ID}: safety: "):  # the single env's, alike
+            gym.make(esp_gym.ENV_ID, safety=bad)
 
 
 def test_an_unknown_team_option_is_named():

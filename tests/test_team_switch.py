@@ -203,3 +203,16 @@ def test_the_team_energy_benchmark_runs_quick(tmp_path):
     assert [(row["run"], row["switch"]) for row in result["runs"]] == [("transport K=2", s) for s in SWITCHES]
     assert all(row["t"] == pytest.approx([0.0, 0.5, 1.0]) and row["worst"] < 1e-3 for row in result["runs"])
     assert (tmp_path / "team_energy.json").exists() and (tmp_path / "team_energy.png").stat().st_size > 0
+
+
+def test_a_failing_teams_balance_converges_as_h_shrinks():
+    """Two point pivots under the LQR + 0.3 x noise (seed 205) fail within 10 s, and the residual's
+    largest swing comes in that violent end: above 0.1 J at the default safety (0.24 J measured),
+    below 0.05 J at an eighth of the bound (0.026 J): a bounded error of the step, not a gain
+    (docs/physics.md, "The slack switch of a team's strings")."""
+    from benchmarks.team_energy import run
+
+    coarse, fine = (run("K=2", 2, "transport", False, "lqr", "settled", 60.0, 0.3, 205, safety=safety)
+                    for safety in (0.5, 0.125))
+    assert coarse["reason"] and fine["reason"] and coarse["t"][-1] < 15.0 and fine["t"][-1] < 15.0
+    assert coarse["worst"] > 0.1 > 0.05 > fine["worst"], (coarse["worst"], fine["worst"])

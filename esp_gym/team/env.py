@@ -24,30 +24,16 @@ from ..kernels.env_arrays import TARGET
 from ..kernels.reference import reference_at
 from ..observe import standard_deviation
 from ..options import check_substeps, team_options
-from ..setup import DRONE_FLIP_TILT
 from ..tasks import track_reference
 from ..wind import wind_options
 from .fleet import check_lift
 from .gusts import TeamWind
 from .randomize import TeamRandomizer
-from .scene import MAX_STRINGS, TeamScene, team_scene, team_substeps
+from .scene import MAX_STRINGS, TEAM_SAFETY, TeamScene, team_scene, team_substeps
 from .simulator import TeamSimulator
 from .spaces import ACTUATIONS, TEAM_UNIT_NOISE, DroneDrive, action_size, agent_layout
-from .tasks import get_team_task, hanging_rise
-
-#: Pivots closer than this are penalised (the reward's separation term) [m].
-SEPARATION = 0.4
-#: Pivots closer than this have collided: the episode ends [m].
-COLLISION = 0.15
-#: A drone whose body axis b3 tilts past this from the downward vertical has flipped: the episode
-#: ends (the single drone's DRONE_FLIP_TILT).
-FLIP_COSINE = math.cos(math.radians(DRONE_FLIP_TILT))
-#: The time limit of an episode [control steps]: 10 s at the default 20 ms.
-MAX_EPISODE_STEPS = 500
-
-
-TEAM_PRESETS = {"hard": {"randomize": True, "observation": "hook", "sensor_noise": 1.0, "action_latency": 1,
-                         "wind": {"speed": 6.0, "gust_std": 1.5, "push_rate": 0.2, "push_speed": 0.5}}}
+from .tasks import COLLISION, FLIP_COSINE, MAX_EPISODE_STEPS, SEPARATION, TEAM_PRESETS, get_team_task, \
+    hanging_rise
 
 class TeamCore:
     """A team's episode (module docstring). ``team``: K or a :class:`TeamScene` whose pivots are
@@ -56,12 +42,13 @@ class TeamCore:
     :data:`ACTUATIONS`; ``team`` = K then flies :func:`~esp_gym.team.scene.quadrotor` s; a drone
     team's default ``thrust_rates``); ``force_limit``: each point pivot's force at
     action 1, as a share of its hover force (its share of the rig's weight) [-]; ``preset``:
-    ``"hard"`` (:data:`TEAM_PRESETS`) sets the options left None: ``randomize`` (True or name ->
+    ``"hard"`` (:data:`~.tasks.TEAM_PRESETS`) sets the options left None: ``randomize`` (True or name ->
     (low, high), as the single env's: each episode draws its team, esp_gym/team/randomize.py;
     ``team`` a number then), ``observation`` (``"full"`` or ``"hook"``), ``sensor_noise`` (a
     level, times :data:`TEAM_UNIT_NOISE`), ``action_latency`` (control
     steps, 0-50) and ``wind`` (esp_gym/wind.py's options: the mean wind, gusts and pushes, on the
-    load). ``winch``: each point pivot's string reels on its winch, its reel speed (x its
+    load), ``safety`` (h's margin under every string's stability bound, default
+    :data:`~.scene.TEAM_SAFETY`). ``winch``: each point pivot's string reels on its winch, its reel speed (x its
     ``winch.max_speed``) each agent's last action and its unstretched length in its observation
     (None: as the task needs, True for ``lift``). Checked as the single env's options are
     (esp_gym/options.py ``TeamOptions``; ``others``: its options a team lacks, refused with why)."""
@@ -114,12 +101,15 @@ class TeamCore:
         self.randomizer = None if o.randomize is False else TeamRandomizer(scene.size, self.drones, o.randomize)
         self.size = scene.size
         self.control_period, self.force_limit = o.control_period, o.force_limit
+        #: h's margin under every string's stability bound (docs/physics.md on a team's balance)
+        self.safety = TEAM_SAFETY if o.safety is None else float(o.safety)
         # the episodes' stiffest and heaviest teams, checked before anything is built
         corner = "" if self.randomizer is None else " at the randomize ranges' {} corner"
         stiffest, heaviest = (scene, scene) if self.randomizer is None else (self.randomizer.stiffest,
                                                                              self.randomizer.heaviest)
-        check_substeps(TEAM_ENV_ID, self.control_period, "h within half of every string's stability bound"
-                       + corner.format("stiffest"), team_substeps(stiffest, self.control_period, self.winch),
+        check_substeps(TEAM_ENV_ID, self.control_period, f"h within {self.safety:g} x every string's stability "
+                       "bound" + corner.format("stiffest"),
+                       team_substeps(stiffest, self.control_period, self.winch, self.safety),
                        "use a shorter control_period, or softer, longer or coarser strings")
         if self.drones:
             check_lift(heaviest, corner.format("heaviest"))
@@ -143,9 +133,9 @@ class TeamCore:
         self.renderer = None
 
     def _use_scene(self, scene: TeamScene) -> None:
-        """Step ``scene`` from its initial state: h the largest within half of every string's
+        """Step ``scene`` from its initial state: h the largest within ``safety`` x every string's
         stability bound that divides the control period, the hover forces, the formation."""
-        substeps = team_substeps(scene, self.control_period, self.winch)
+        substeps = team_substeps(scene, self.control_period, self.winch, self.safety)
         scene = scene.model_copy(update={"scene": scene.scene.model_copy(update={"h": self.control_period / substeps})})
         self.scene, self.substeps = scene, substeps
         self.sim = TeamSimulator(scene)

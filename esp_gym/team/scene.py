@@ -258,10 +258,15 @@ def team_scene(size: int, strings=None, pivot_masses=None, body_mass: float = NO
         for k, (string, pivot, _, _, mass) in enumerate(others)])
 
 
-def team_substeps(scene: TeamScene, control_period: float, winch: bool) -> int:
-    """Physics steps per control period of ``scene``: the fewest that keep h within half of every
-    string's stability bound (with ``winch``, at its winch's shortest length)."""
+#: A team's default margin under its strings' stability bounds (the environment's ``safety``): a
+#: team's balance at it and below, docs/physics.md ("The slack switch of a team's strings").
+TEAM_SAFETY = 0.5
+
+
+def team_substeps(scene: TeamScene, control_period: float, winch: bool, safety: float = TEAM_SAFETY) -> int:
+    """Physics steps per control period of ``scene``: the fewest that keep h within ``safety`` x
+    every string's stability bound (with ``winch``, at its winch's shortest length)."""
     members = [scene.member_scene(k) for k in range(scene.size)]
     if winch:
         members = [shortest(m) for m in members]
-    return max(explicit_substeps(m, control_period, 0.5) for m in members)
+    return max(explicit_substeps(m, control_period, safety) for m in members)

@@ -1,10 +1,26 @@
-"""A team's tasks (docs/team.md): reward weights and scales, and the start and target
-distributions."""
+"""A team's tasks (docs/team.md): reward weights and scales, the start and target distributions,
+the thresholds that end an episode, its time limit and the presets."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from ..setup import DRONE_FLIP_TILT
+
+#: Pivots closer than this are penalised (the reward's separation term) [m].
+SEPARATION = 0.4
+#: Pivots closer than this have collided: the episode ends [m].
+COLLISION = 0.15
+#: A drone whose body axis b3 tilts past this from the downward vertical has flipped: the episode
+#: ends (the single drone's DRONE_FLIP_TILT).
+FLIP_COSINE = math.cos(math.radians(DRONE_FLIP_TILT))
+#: The time limit of an episode [control steps]: 10 s at the default 20 ms.
+MAX_EPISODE_STEPS = 500
+#: The options each preset sets (those given to the environment win).
+TEAM_PRESETS = {"hard": {"randomize": True, "observation": "hook", "sensor_noise": 1.0, "action_latency": 1,
+                         "wind": {"speed": 6.0, "gust_std": 1.5, "push_rate": 0.2, "push_speed": 0.5}}}
 
 
 @dataclass(frozen=True)
