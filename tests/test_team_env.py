@@ -15,7 +15,9 @@ import esp_gym
 from agents.baselines.team_lqr import TeamLQR
 from agents.team_evaluate import TeamZero, run_team_episodes
 from esp_gym.team import parallel_env, symmetric_team
-from esp_gym.team.env import COLLISION, SEPARATION, ElasticStringTeamEnv
+from esp_gym.team.env import ElasticStringTeamEnv
+from esp_gym.team.parallel import AGENT_TERMS, REWARD_TERMS
+from esp_gym.team.tasks import COLLISION, SEPARATION
 
 
 @pytest.mark.parametrize("team, task", [(1, "transport"), (3, "transport"), (3, "track")])
@@ -69,10 +71,12 @@ def test_observations_name_what_they_hold_and_the_reward_adds_up():
         assert np.allclose(o[L["hook_tension"]], pull, rtol=1e-6)
         assert pull[2] > 0.5 * core.scene.scene.body.mass * 9.81 / 3  # carries its share of the load
     info = infos["pivot_0"]
-    shared = sum(v for k, v in info["reward_terms"].items() if k not in ("pivot_position", "control", "separation"))
-    own = sum(sum(infos[a]["terms"].values()) for a in team.possible_agents)
+    shared = sum(info[f"reward_{k}"] for k in REWARD_TERMS if k not in AGENT_TERMS)
+    own = sum(infos[a][f"agent_{k}"] for a in team.possible_agents for k in AGENT_TERMS)
     assert rewards["pivot_0"] == pytest.approx(shared + own, abs=1e-12)
-    assert infos["pivot_1"]["terms"]["control"] == pytest.approx(-core.task.w_control * 0.12 / 9)
+    assert all(info[f"reward_{k}"] == pytest.approx(sum(infos[a][f"agent_{k}"] for a in team.possible_agents))
+               for k in AGENT_TERMS)
+    assert infos["pivot_1"]["agent_control"] == pytest.approx(-core.task.w_control * 0.12 / 9)
 
 
 def test_pivots_that_close_in_are_penalised_and_then_collide():
@@ -157,8 +161,8 @@ def test_the_hard_preset_draws_each_team_and_hides_the_load():
     assert (core.observation, core.sensor_noise, core.action_latency) == ("hook", 1.0, 1)
     assert list(team.observation_structure) == ["pivot_position_error", "pivot_velocity", "hook_tension",
                                                 "load_target_offset", "neighbours"]
-    _, info = team.reset(seed=3)
-    draws = info["pivot_0"]["team_draws"]
+    team.reset(seed=3)
+    draws = team.episode_info["team_draws"]
     EAs = [s["EA"] for s in draws["strings"]]
     assert len(set(EAs)) == 3 and all(100.0 <= e <= 400.0 for e in EAs)
     assert core.scene.strings[0].string.EA == EAs[1] and core.scene.scene.body.mass == draws["body_mass"]

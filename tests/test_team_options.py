@@ -29,8 +29,8 @@ def test_a_teams_randomize_ranges_are_drawn_for_every_string():
                                            "mass_per_length": [0.02, 0.03]})
     masses = set()
     for seed in range(3):
-        _, infos = team.reset(seed=seed)
-        draws = infos["pivot_0"]["team_draws"]
+        team.reset(seed=seed)
+        draws = team.episode_info["team_draws"]
         assert [s["EA"] for s in draws["strings"]] == [1000.0] * 3  # a pair (v, v) fixes v
         assert [s.string.EA for s in team.core.scene.strings] == [1000.0] * 2
         assert 2.0 <= draws["body_mass"] <= 3.0 and team.core.scene.scene.body.mass == draws["body_mass"]
@@ -39,8 +39,9 @@ def test_a_teams_randomize_ranges_are_drawn_for_every_string():
         masses.update(draws["pivot_masses"])  # a name not given keeps its default range
     assert len(masses) == 9 and all(0.8 <= m <= 1.25 for m in masses)
     # negative control: the defaults draw each string's EA around the nominal 200 N
-    _, infos = parallel_env(team=3, randomize=True).reset(seed=0)
-    EAs = [s["EA"] for s in infos["pivot_0"]["team_draws"]["strings"]]
+    team = parallel_env(team=3, randomize=True)
+    team.reset(seed=0)
+    EAs = [s["EA"] for s in team.episode_info["team_draws"]["strings"]]
     assert len(set(EAs)) == 3 and all(100.0 <= e <= 400.0 for e in EAs)
 
 

@@ -1,10 +1,10 @@
 """The team as a PettingZoo ``ParallelEnv`` (docs/team.md): agents ``pivot_0 .. pivot_{K-1}``, each
 pushing its own pivot or flying its drone and observing what :func:`~esp_gym.team.spaces.agent_layout`
-names; the reward
-is the team's, given to every agent, with each agent's own terms in its ``infos`` entry."""
+names; the reward is the team's, given to every agent, with each agent's own terms in its
+``infos`` entry. Every agent's info holds the same numbers at reset and at every step
+(:func:`agent_info`), so that libraries that turn infos into tensors (TorchRL, skrl) read them."""
 from __future__ import annotations
 
-import functools
 from typing import Optional
 
 import gymnasium as gym
@@ -12,7 +12,36 @@ import numpy as np
 
 from ..control import raw_actions
 from ..extras import require
-from .env import MAX_EPISODE_STEPS, TeamCore
+from .env import TeamCore
+from .spaces import agent_layout
+from .tasks import MAX_EPISODE_STEPS
+
+#: The team's reward terms (TeamCore.reward_terms), and those each agent has its own share of.
+REWARD_TERMS = ("load_position", "load_velocity", "tilt", "spin", "pivot_position", "control", "separation")
+AGENT_TERMS = ("pivot_position", "control", "separation")
+#: Why an episode ended, by the code of an info's ``"termination"`` (0: it goes on); a failed step's
+#: message is the env's ``termination_reason`` attribute.
+TERMINATIONS = ("", "collision", "drone_flipped", "overstretched", "left_workspace", "energy_balance",
+                "simulation_failed")
+
+
+def termination_code(reason: str) -> int:
+    """The index in :data:`TERMINATIONS` of ``reason`` (a failed step's ``simulation_failed: ...``
+    by its word before the colon)."""
+    return TERMINATIONS.index(reason.split(":", 1)[0])
+
+
+def agent_info(k: int, core: TeamCore, terms: dict, own: dict, min_separation: float, tension: np.ndarray,
+               applied: np.ndarray, reason: str) -> dict:
+    """Agent ``k``'s info: its index, the load's and its own target [m], the team's reward terms
+    (``reward_<term>``), its own shares (``agent_<term>``), the smallest distance between two
+    pivots [m], its string's pull at its hook (the first element's, (3,)) [N], the action applied to it (after the latency) and the
+    episode's ``termination`` code (:data:`TERMINATIONS`); numbers only, the same keys always."""
+    return {"agent": k, "load_target": core.load_target.copy(), "pivot_target": core.pivot_targets[k].copy(),
+            **{f"reward_{name}": float(terms[name]) for name in REWARD_TERMS},
+            **{f"agent_{name}": float(own[name]) for name in AGENT_TERMS},
+            "min_separation": float(min_separation), "tension": tension[k].copy(), "applied_action": applied[k].copy(),
+            "termination": termination_code(reason)}
 
 ParallelEnv = require("pettingzoo", "esp_gym.team.parallel_env").ParallelEnv
 
@@ -26,7 +55,10 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
     (``preset="hard"``: the hook observation, 12 + 3 (K - 1) (+ 9)). An episode is truncated
     after ``max_cycles`` steps (500: 10 s) and terminated for the whole team (collision, an
     overstretched string, the workspace left, a drone flipped, a failed step:
-    ``infos[agent]["termination_reason"]``). Arguments (``options``: control_period,
+    ``infos[agent]["termination"]``, a code of :data:`TERMINATIONS`, and :attr:`termination_reason`).
+    ``observation_spaces``, ``action_spaces`` and ``state_space`` (:meth:`state`'s) are the
+    spaces by name, as multi-agent libraries read them; :attr:`episode_info` is the core's reset
+    info (the episode's draws and wind). Arguments (``options``: control_period,
     force_limit, preset, randomize, observation, sensor_noise, action_latency, wind, actuation,
     winch) as :class:`~esp_gym.team.env.TeamCore`'s, checked alike."""
 
@@ -47,20 +79,37 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
         self.agents = []
         #: name -> slice of one agent's observation
         self.observation_structure = self.core.layout.structure()
+        core = self.core
+        self.observation_spaces = {a: gym.spaces.Box(-np.inf, np.inf, (core.layout.size,), np.float32)
+                                   for a in self.possible_agents}
+        self.action_spaces = {a: gym.spaces.Box(-1.0, 1.0, (core.action_size,), np.float32)
+                              for a in self.possible_agents}
+        full = agent_layout(core.size, "full", core.drones, core.winch).size
+        #: :meth:`state`'s space: every agent's ``full`` observation without noise
+        self.state_space = gym.spaces.Box(-np.inf, np.inf, (core.size * full,), np.float32)
+        #: the core's reset info of the episode (its draws with ``randomize``, its wind), and why it
+        #: ended ("" while it goes on; a failed step's message after ``simulation_failed: ``)
+        self.episode_info, self.termination_reason = {}, ""
 
-    @functools.lru_cache(maxsize=None)
     def observation_space(self, agent):
-        return gym.spaces.Box(-np.inf, np.inf, (self.core.layout.size,), np.float32)
+        return self.observation_spaces[agent]
 
-    @functools.lru_cache(maxsize=None)
     def action_space(self, agent):
-        return gym.spaces.Box(-1.0, 1.0, (self.core.action_size,), np.float32)
+        return self.action_spaces[agent]
 
     def reset(self, seed: Optional[int] = None, options: Optional[dict] = None):
-        obs, info = self.core.reset(seed=seed)
-        self.agents = list(self.possible_agents)
+        core = self.core
+        obs, self.episode_info = core.reset(seed=seed)
+        self.agents, self.termination_reason = list(self.possible_agents), ""
+        kin = core.kinematics()
+        terms = core.reward_terms(kin, np.zeros((core.size, core.action_size)))
+        distances, _ = core.separations(kin["pivot"])
+        own = [{name: terms[name][k] for name in AGENT_TERMS} for k in range(core.size)]
+        totals = {name: np.sum(v) for name, v in terms.items()}
+        gap = distances.min() if distances.size else np.inf
         return ({a: obs[k] for k, a in enumerate(self.agents)},
-                {a: {**info, "agent": k} for k, a in enumerate(self.agents)})
+                {a: agent_info(k, core, totals, own[k], gap, kin["tension"], core.last_action, "")
+                 for k, a in enumerate(self.agents)})
 
     def step(self, actions: dict):
         if not self.agents:
@@ -76,12 +125,10 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
         obs, reward, terminated, _, info = self.core.step(action)
         truncated = not terminated and self.core.steps >= self.max_cycles
         agents = list(self.agents)
-        infos = {}
-        for k, a in enumerate(agents):
-            infos[a] = {"terms": info["agents"][k], "reward_terms": info["reward_terms"],
-                        "min_separation": info["min_separation"]}
-            if terminated:
-                infos[a]["termination_reason"] = info["termination_reason"]
+        self.termination_reason = info.get("termination_reason", "")
+        infos = {a: agent_info(k, self.core, info["reward_terms"], info["agents"][k], info["min_separation"],
+                               info["tension"], info["applied_action"], self.termination_reason)
+                 for k, a in enumerate(agents)}
         out = ({a: obs[k] for k, a in enumerate(agents)}, {a: reward for a in agents},
                {a: terminated for a in agents}, {a: truncated for a in agents}, infos)
         if terminated or truncated:
