@@ -338,6 +338,39 @@ def test_a_team_recording_holds_every_string_pivot_and_pull(tmp_path):
         RecordTeamRerun(ElasticStringTeamEnv(2), tmp_path / "missing" / "x.rrd")
 
 
+def _series(path, entity: str) -> list:
+    from rerun.chunk import RrdReader
+
+    values = []
+    for chunk in RrdReader(path).stream():
+        if chunk.entity_path == entity and not chunk.is_static:
+            values += [v[0] for v in chunk.to_record_batch().column("Scalars:scalars").to_pylist()]
+    return values
+
+
+def test_the_pettingzoo_team_records_as_the_gymnasium_one_with_its_energy_balance(tmp_path):
+    """RecordTeamRerun of parallel_env: a ParallelEnv still (PettingZoo's API test passes through
+    it), the same pulls as its infos, and the energy and its balance after every reset and step,
+    as the simulator's diagnostics give them."""
+    from pettingzoo.utils.wrappers import BaseParallelWrapper
+
+    from esp_gym.team.recording import RecordTeamParallelRerun, RecordTeamRerun
+
+    path = tmp_path / "team.rrd"
+    env = RecordTeamRerun(parallel_env(team=2), path)
+    assert isinstance(env, RecordTeamParallelRerun) and isinstance(env, BaseParallelWrapper)
+    env.reset(seed=0)
+    balance, pulls = [env.unwrapped.core.sim.diagnostics()["energy_balance_residual"]], []
+    for _ in range(4):
+        *_, infos = env.step({a: np.full(3, 0.2, np.float32) for a in env.agents})
+        pulls.append(np.linalg.norm(infos["pivot_1"]["tension"]))
+        balance.append(env.unwrapped.core.sim.diagnostics()["energy_balance_residual"])
+    env.close()
+    assert _series(path, "/team/tension/pivot_1") == pulls
+    assert _series(path, "/team/energy/balance") == balance and len(_series(path, "/team/energy/total")) == 5
+    parallel_api_test(RecordTeamRerun(parallel_env(team=2), tmp_path / "api.rrd"), num_cycles=5)
+
+
 def test_a_team_frame_draws_every_string_and_pivot_where_they_are():
     """render_mode="rgb_array": uint8 frames of both envs, the same picture; every pivot's icon and
     every string's middle node drawn where they project, and a moved pivot moves its pixels."""

@@ -1,13 +1,14 @@
 """Rerun recordings of a team's episodes (docs/team.md): :class:`RecordTeamRerun` wraps
-``ElasticStringTeam-v0`` and logs, after every reset and step, every string's nodes, every pivot,
-the load (its box turned by R at its centre of mass), the targets, and as series each string's pull
-on its pivot, the closest two pivots and the reward. Read it with ``rerun FILE`` or
-``rerun.chunk.RrdReader``.
+``ElasticStringTeam-v0``, or the PettingZoo env (esp_gym.team.parallel_env), and logs, after every
+reset and step, every string's nodes, every pivot, the load (its box turned by R at its centre of
+mass), the targets, and as series each string's pull on its pivot, the closest two pivots, the
+reward and the energy balance. Read it with ``rerun FILE`` or ``rerun.chunk.RrdReader``.
 
 Entities: ``/world/strings/{k}`` (LineStrips3D), ``/world/pivots`` (Points3D), ``/world/load``
 (Transform3D; its box ``/world/load/box`` static), ``/world/targets`` (Points3D: the pivots' and
-the load's), ``/team/tension/pivot_{k}`` [N], ``/team/separation`` [m], ``/team/reward``
-(Scalars). Times: ``step`` (control steps since the recording began) and ``time`` [s].
+the load's), ``/team/tension/pivot_{k}`` [N], ``/team/separation`` [m], ``/team/reward``,
+``/team/energy/balance`` (E - E0 - W [J]) and ``/team/energy/total`` (E [J]) (Scalars). Times:
+``step`` (control steps since the recording began) and ``time`` [s].
 """
 from __future__ import annotations
 
@@ -20,30 +21,34 @@ from ..extras import require
 from ..params import Box
 
 rr = require("rerun", "esp_gym.team.recording")
+try:  # the PettingZoo env's face (without PettingZoo there is no such env to record)
+    from pettingzoo.utils.wrappers import BaseParallelWrapper
+except ImportError:
+    BaseParallelWrapper = object
 
 
-class RecordTeamRerun(gym.Wrapper):
-    """Record the wrapped team env's episodes to the ``.rrd`` file ``path`` (written by Rerun's
-    file sink; :meth:`close` flushes it)."""
+class TeamRecorder:
+    """The recording of one team (``core``: a :class:`~esp_gym.team.env.TeamCore`) to the ``.rrd``
+    file ``path`` (Rerun's file sink), whichever face steps it."""
 
-    def __init__(self, env: gym.Env, path):
-        super().__init__(env)
+    def __init__(self, core, path):
         self.path = Path(path)
         if not self.path.parent.is_dir():
             raise ValueError(f"path: the directory {self.path.parent} does not exist")
+        self.core = core
         self.rec = rr.RecordingStream("esp_gym_team")
         self.rec.save(str(self.path))
         self.samples = 0
-        core = env.unwrapped.core
         self.rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_DOWN, static=True)
         shape = core.scene.scene.body.shape
         if isinstance(shape, Box):
             self.rec.log("/world/load/box", rr.Boxes3D(half_sizes=[0.5 * np.asarray(shape.size)], fill_mode="solid"),
                          static=True)
 
-    def _log(self, reward: float | None = None, info: dict | None = None) -> None:
-        core = self.env.unwrapped.core
-        rec = self.rec
+    def log(self, reward: float | None = None, pulls=None, min_separation: float | None = None) -> None:
+        """The state now; after a step, its ``reward``, each pivot's string's pull [N] (K, 3) and
+        the closest two pivots' distance [m] too."""
+        core, rec = self.core, self.rec
         rec.set_time("step", sequence=self.samples)
         rec.set_time("time", duration=self.samples * core.control_period)
         st, T = core.sim.state, core.sim.params
@@ -54,24 +59,78 @@ class RecordTeamRerun(gym.Wrapper):
                                              labels=[f"pivot_{k}" for k in range(core.size)]))
         rec.log("/world/load", rr.Transform3D(translation=core.load_position(), mat3x3=st.lead.R))
         rec.log("/world/targets", rr.Points3D(np.vstack([core.pivot_targets, core.load_target]), radii=0.02))
-        if info is not None:
-            for k, pull in enumerate(np.linalg.norm(info["tension"], axis=1)):
+        d = core.sim.diagnostics()
+        rec.log("/team/energy/total", rr.Scalars(float(d["energy"])))
+        rec.log("/team/energy/balance", rr.Scalars(float(d["energy_balance_residual"])))
+        if reward is not None:
+            for k, pull in enumerate(np.linalg.norm(pulls, axis=1)):
                 rec.log(f"/team/tension/pivot_{k}", rr.Scalars(float(pull)))
-            rec.log("/team/separation", rr.Scalars(float(info["min_separation"])))
+            rec.log("/team/separation", rr.Scalars(float(min_separation)))
             rec.log("/team/reward", rr.Scalars(float(reward)))
         self.samples += 1
 
+    def close(self) -> None:
+        self.rec.flush()
+        self.rec.disconnect()
+
+
+class RecordTeamRerun(gym.Wrapper):
+    """Record the wrapped team env's episodes to the ``.rrd`` file ``path`` (:meth:`close`
+    flushes it). Given the PettingZoo env, this is a :class:`RecordTeamParallelRerun`."""
+
+    def __new__(cls, env, path):
+        if hasattr(env, "possible_agents"):  # a PettingZoo env
+            return RecordTeamParallelRerun(env, path)
+        return super().__new__(cls)
+
+    def __init__(self, env: gym.Env, path):
+        super().__init__(env)
+        self.recorder = TeamRecorder(env.unwrapped.core, path)
+
+    @property
+    def path(self) -> Path:
+        return self.recorder.path
+
     def reset(self, **kwargs):
         out = self.env.reset(**kwargs)
-        self._log()
+        self.recorder.log()
         return out
 
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
-        self._log(reward, info)
+        self.recorder.log(reward, info["tension"], info["min_separation"])
         return obs, reward, terminated, truncated, info
 
     def close(self):
-        self.rec.flush()
-        self.rec.disconnect()
+        self.recorder.close()
         super().close()
+
+
+class RecordTeamParallelRerun(BaseParallelWrapper):
+    """:class:`RecordTeamRerun` of the PettingZoo env ``env``: a ParallelEnv whose agents, spaces,
+    state and frames are ``env``'s, its episodes recorded to ``path``."""
+
+    def __init__(self, env, path):
+        super().__init__(env)
+        self.recorder = TeamRecorder(env.unwrapped.core, path)
+
+    @property
+    def path(self) -> Path:
+        return self.recorder.path
+
+    def reset(self, seed=None, options=None):
+        out = self.env.reset(seed=seed, options=options)
+        self.recorder.log()
+        return out
+
+    def step(self, actions: dict):
+        obs, rewards, terminations, truncations, infos = self.env.step(actions)
+        if infos:
+            first = next(iter(infos.values()))
+            self.recorder.log(next(iter(rewards.values())), np.stack([infos[a]["tension"] for a in infos]),
+                              first["min_separation"])
+        return obs, rewards, terminations, truncations, infos
+
+    def close(self):
+        self.recorder.close()
+        self.env.close()
