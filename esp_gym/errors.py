@@ -58,8 +58,3 @@ def termination_reason(code: int) -> str:
     return STATUS[code].reason
 
 
-def failure_reason(error: SimulationError) -> str:
-    """A team episode's ``info["termination_reason"]`` after ``error``: the energy watchdog's
-    ``energy_balance`` (:func:`termination_reason`, the single env's word; the steps were taken and
-    the state is finite), else ``simulation_failed: `` and the error's message."""
-    return termination_reason(error.status) if error.status == ENERGY_BALANCE else f"simulation_failed: {error}"

@@ -84,7 +84,7 @@ def test_a_zero_action_hovers_each_drone_on_its_share(actuation):
         _, _, terminated, _, info = core.step(roll)
         if terminated:
             break
-    assert info["termination_reason"] in ("drone_flipped", "collision", "left_workspace", "overstretched")
+    assert info["termination_reason"] in ("drone_flipped", "collision", "left_workspace", "string_overstretched")
 
 
 def test_a_drone_that_tips_past_the_horizontal_ends_the_episode():

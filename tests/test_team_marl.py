@@ -11,7 +11,9 @@ import pytest
 import torch
 
 from esp_gym.team import parallel_env
-from esp_gym.team.parallel import TERMINATIONS, ElasticStringTeamParallelEnv
+from esp_gym.errors import termination_reason
+from esp_gym.kernels.status import TERM_COLLISION
+from esp_gym.team.parallel import ElasticStringTeamParallelEnv
 
 warnings.filterwarnings("ignore", category=DeprecationWarning)
 
@@ -27,7 +29,7 @@ def test_every_agents_info_has_the_same_numbers_at_reset_and_at_each_step():
             assert all(np.issubdtype(np.asarray(v).dtype, np.number) for v in infos[a].values())
     assert shapes["applied_action"] == (4,) and first["pivot_2"]["agent"] == 2
     assert env.state().shape == env.state_space.shape and env.termination_reason == ""
-    assert TERMINATIONS[0] == "" and first["pivot_0"]["termination"] == 0
+    assert first["pivot_0"]["termination"] == 0 and termination_reason(0) == ""
 
 
 def test_a_collision_ends_with_its_code_and_its_reason():
@@ -38,7 +40,8 @@ def test_a_collision_ends_with_its_code_and_its_reason():
         _, _, terminated, _, infos = env.step(toward)
         if terminated["pivot_0"]:
             break
-    assert env.termination_reason == "collision" and infos["pivot_1"]["termination"] == TERMINATIONS.index("collision")
+    assert env.termination_reason == "collision" == termination_reason(infos["pivot_1"]["termination"])
+    assert infos["pivot_0"]["termination"] == TERM_COLLISION
 
 
 def test_torchrl_rolls_the_team_out_with_its_infos_and_state():

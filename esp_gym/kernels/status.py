@@ -1,6 +1,6 @@
 """Status and termination codes: what a kernel returns (``REPORT["status"]``) or an environment
-step ends with (``REPORT["termination"]``), with their messages (esp_gym/errors.py) and the
-environment's ``info["termination_reason"]``."""
+step ends with (``REPORT["termination"]``; a team's too), with their messages (esp_gym/errors.py)
+and the environments' ``info["termination_reason"]``."""
 from collections import namedtuple
 
 Status = namedtuple("Status", "name message reason")
@@ -19,6 +19,7 @@ STATUS = {
                                 "gaining energy)", "energy_balance"),
     7: Status("drone_flipped", "the drone tilted past the flip limit", "drone_flipped"),
     8: Status("hit_ground", "the pivot or the load reached the scene's ground plane", "hit_ground"),
+    9: Status("collision", "two pivots of a team came closer than its collision distance", "collision"),
 }
 OK = 0
 #: A control step that does not end the episode.
@@ -38,6 +39,8 @@ TERM_DRONE_FLIPPED = 7
 #: The pivot (the drone's centre) or the load's centre of mass reached the scene's ``ground`` plane
 #: (kernels/task_terms.py).
 TERM_GROUND = 8
+#: Two pivots of a team came closer than its collision distance (esp_gym/team/tasks.py COLLISION).
+TERM_COLLISION = 9
 #: Codes of the physics (failures of a step); the others are the environment's terminations.
 PHYSICS_FAILURES = (NEWTON_FAILED, NON_FINITE, BLOW_UP)
 

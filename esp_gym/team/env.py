@@ -19,7 +19,9 @@ import numpy as np
 
 from .. import TEAM_ENV_ID
 from ..control import raw_actions
-from ..errors import SimulationError, failure_reason
+from ..errors import SimulationError, termination_reason
+from ..kernels.status import PHYSICS_FAILURES, TERM_COLLISION, TERM_DRONE_FLIPPED, TERM_NONE, TERM_OVERSTRETCH, \
+    TERM_WORKSPACE
 from ..kernels.env_arrays import TARGET
 from ..kernels.reference import reference_at
 from ..observe import standard_deviation
@@ -119,7 +121,7 @@ class TeamCore:
         self._use_scene(scene)
         self.nominal_scene = self.scene
         self.np_random = np.random.default_rng()
-        self.steps = 0
+        self.steps, self.failure = 0, None
         self.last_action = np.zeros((self.size, self.action_size))
         self.load_target = self.load_position()
         self.pivot_targets = self.pivot_positions()
@@ -197,6 +199,8 @@ class TeamCore:
             self.np_random = np.random.default_rng(seed)
         rng, task = self.np_random, self.task
         info = {}
+        #: the SimulationError that ended the episode (its step, time and advice), or None
+        self.failure = None
         if self.randomizer is not None:
             scene, info["team_draws"] = self.randomizer.draw(rng)
             self._use_scene(scene)
@@ -359,14 +363,14 @@ class TeamCore:
             drive = {"pivot_forces": forces}
         if self.winch:
             drive["reel_speeds"] = self.sim.winches.max_speeds * a[:, -1]
-        reason = ""
+        code = TERM_NONE
         if self.wind is not None:
             self.load_force = self._wind.force(self.np_random, self.kinematics(), self.scene.scene,
                                                self.control_period)
         try:
             self.sim.step(self.substeps, load_force=self.load_force if self.wind is not None else None, **drive)
-        except SimulationError as error:  # the energy watchdog's: energy_balance, as the single env's
-            reason = failure_reason(error)
+        except SimulationError as error:  # a failed step, or the energy watchdog's energy_balance
+            code, self.failure = error.status, error
         self.steps += 1
         self.last_action = a
         if self.reference is not None:
@@ -376,26 +380,26 @@ class TeamCore:
         reward = float(sum(np.sum(v) for v in terms.values()))
         distances, _ = self.separations(kin["pivot"])
         task = self.task
-        if not reason:
+        if code == TERM_NONE:
             if distances.size and distances.min() < COLLISION:
-                reason = "collision"
+                code = TERM_COLLISION
             elif self.drones and np.any(kin["drone_attitudes"][:, 2, 2] < FLIP_COSINE):
-                reason = "drone_flipped"
+                code = TERM_DRONE_FLIPPED
             elif kin["stretch"].max() > task.max_stretch:
-                reason = "overstretched"
+                code = TERM_OVERSTRETCH
             elif (np.linalg.norm(kin["load"] - self.load_target) > task.workspace_radius or
                   np.linalg.norm(kin["pivot"] - self.pivot_targets, axis=1).max() > task.workspace_radius):
-                reason = "left_workspace"
-        terminated = bool(reason)
-        if reason.startswith("simulation_failed"):
+                code = TERM_WORKSPACE
+        terminated = code != TERM_NONE
+        if code in PHYSICS_FAILURES:
             reward = 0.0
         agents = [{name: float(terms[name][k]) for name in ("pivot_position", "control", "separation")}
                   for k in range(self.size)]
         info = {"reward_terms": {k: float(np.sum(v)) for k, v in terms.items()}, "agents": agents,
                 "min_separation": float(distances.min()) if distances.size else np.inf,
-                "tension": kin["tension"].copy(), "applied_action": a.copy()}
+                "tension": kin["tension"].copy(), "applied_action": a.copy(), "termination": code}
         if terminated:
-            info["termination_reason"] = reason
+            info["termination_reason"] = termination_reason(code)
         return self.observations(kin), reward, terminated, False, info
 
 

@@ -19,29 +19,22 @@ from .tasks import MAX_EPISODE_STEPS
 #: The team's reward terms (TeamCore.reward_terms), and those each agent has its own share of.
 REWARD_TERMS = ("load_position", "load_velocity", "tilt", "spin", "pivot_position", "control", "separation")
 AGENT_TERMS = ("pivot_position", "control", "separation")
-#: Why an episode ended, by the code of an info's ``"termination"`` (0: it goes on); a failed step's
-#: message is the env's ``termination_reason`` attribute.
-TERMINATIONS = ("", "collision", "drone_flipped", "overstretched", "left_workspace", "energy_balance",
-                "simulation_failed")
-
-
-def termination_code(reason: str) -> int:
-    """The index in :data:`TERMINATIONS` of ``reason`` (a failed step's ``simulation_failed: ...``
-    by its word before the colon)."""
-    return TERMINATIONS.index(reason.split(":", 1)[0])
 
 
 def agent_info(k: int, core: TeamCore, terms: dict, own: dict, min_separation: float, tension: np.ndarray,
-               applied: np.ndarray, reason: str) -> dict:
+               applied: np.ndarray, code: int) -> dict:
     """Agent ``k``'s info: its index, the load's and its own target [m], the team's reward terms
     (``reward_<term>``), its own shares (``agent_<term>``), the smallest distance between two
-    pivots [m], its string's pull at its hook (the first element's, (3,)) [N], the action applied to it (after the latency) and the
-    episode's ``termination`` code (:data:`TERMINATIONS`); numbers only, the same keys always."""
+    pivots [m], its string's pull at its hook (the first element's, (3,)) [N], the action applied
+    to it (after the latency) and the episode's ``termination`` code (0 while it goes on; the
+    single env's codes, esp_gym/kernels/status.py ``STATUS``, whose words
+    ``esp_gym.errors.termination_reason`` gives); numbers only, the same keys always."""
     return {"agent": k, "load_target": core.load_target.copy(), "pivot_target": core.pivot_targets[k].copy(),
             **{f"reward_{name}": float(terms[name]) for name in REWARD_TERMS},
             **{f"agent_{name}": float(own[name]) for name in AGENT_TERMS},
             "min_separation": float(min_separation), "tension": tension[k].copy(), "applied_action": applied[k].copy(),
-            "termination": termination_code(reason)}
+            "termination": int(code)}
+
 
 ParallelEnv = require("pettingzoo", "esp_gym.team.parallel_env").ParallelEnv
 
@@ -55,7 +48,7 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
     (``preset="hard"``: the hook observation, 12 + 3 (K - 1) (+ 9)). An episode is truncated
     after ``max_cycles`` steps (500: 10 s) and terminated for the whole team (collision, an
     overstretched string, the workspace left, a drone flipped, a failed step:
-    ``infos[agent]["termination"]``, a code of :data:`TERMINATIONS`, and :attr:`termination_reason`).
+    ``infos[agent]["termination"]``, the single env's code, and :attr:`termination_reason`).
     ``observation_spaces``, ``action_spaces`` and ``state_space`` (:meth:`state`'s) are the
     spaces by name, as multi-agent libraries read them; :attr:`episode_info` is the core's reset
     info (the episode's draws and wind). Arguments (``options``: control_period,
@@ -88,7 +81,7 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
         #: :meth:`state`'s space: every agent's ``full`` observation without noise
         self.state_space = gym.spaces.Box(-np.inf, np.inf, (core.size * full,), np.float32)
         #: the core's reset info of the episode (its draws with ``randomize``, its wind), and why it
-        #: ended ("" while it goes on; a failed step's message after ``simulation_failed: ``)
+        #: ended, in the single env's words ("" while it goes on; a failed step's error is ``core.failure``)
         self.episode_info, self.termination_reason = {}, ""
 
     def observation_space(self, agent):
@@ -108,7 +101,7 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
         totals = {name: np.sum(v) for name, v in terms.items()}
         gap = distances.min() if distances.size else np.inf
         return ({a: obs[k] for k, a in enumerate(self.agents)},
-                {a: agent_info(k, core, totals, own[k], gap, kin["tension"], core.last_action, "")
+                {a: agent_info(k, core, totals, own[k], gap, kin["tension"], core.last_action, 0)
                  for k, a in enumerate(self.agents)})
 
     def step(self, actions: dict):
@@ -127,7 +120,7 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
         agents = list(self.agents)
         self.termination_reason = info.get("termination_reason", "")
         infos = {a: agent_info(k, self.core, info["reward_terms"], info["agents"][k], info["min_separation"],
-                               info["tension"], info["applied_action"], self.termination_reason)
+                               info["tension"], info["applied_action"], info["termination"])
                  for k, a in enumerate(agents)}
         out = ({a: obs[k] for k, a in enumerate(agents)}, {a: reward for a in agents},
                {a: terminated for a in agents}, {a: truncated for a in agents}, infos)
