@@ -16,8 +16,7 @@ from agents.baselines.team_lqr import TeamLQR
 from agents.team_evaluate import TeamZero, run_team_episodes
 from esp_gym.team import parallel_env, symmetric_team
 from esp_gym.team.env import ElasticStringTeamEnv
-from esp_gym.team.parallel import AGENT_TERMS, REWARD_TERMS
-from esp_gym.team.tasks import COLLISION, SEPARATION
+from esp_gym.team.tasks import AGENT_TERMS, COLLISION, REWARD_TERMS, SEPARATION
 
 
 @pytest.mark.parametrize("team, task", [(1, "transport"), (3, "transport"), (3, "track")])
@@ -86,7 +85,7 @@ def test_pivots_that_close_in_are_penalised_and_then_collide():
     penalised = False
     for _ in range(200):
         _, _, terminated, _, info = env.step(toward)
-        penalised |= info["reward_terms"]["separation"] < 0.0 and info["min_separation"] < SEPARATION
+        penalised |= info["reward_separation"] < 0.0 and info["min_separation"] < SEPARATION
         if terminated:
             break
     assert penalised and terminated and info["termination_reason"] == "collision"

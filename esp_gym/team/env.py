@@ -34,8 +34,8 @@ from .randomize import TeamRandomizer
 from .scene import MAX_STRINGS, TEAM_SAFETY, TeamScene, team_scene, team_substeps
 from .simulator import TeamSimulator
 from .spaces import ACTUATIONS, TEAM_UNIT_NOISE, DroneDrive, action_size, agent_layout
-from .tasks import COLLISION, FLIP_COSINE, MAX_EPISODE_STEPS, SEPARATION, TEAM_PRESETS, get_team_task, \
-    hanging_rise
+from .tasks import AGENT_TERMS, COLLISION, FLIP_COSINE, MAX_EPISODE_STEPS, REWARD_TERMS, SEPARATION, \
+    TEAM_PRESETS, get_team_task, hanging_rise
 
 class TeamCore:
     """A team's episode (module docstring). ``team``: K or a :class:`TeamScene` whose pivots are
@@ -346,7 +346,8 @@ class TeamCore:
     def step(self, action):
         """Apply each pivot's force (K, 3), or each drone's action (K, 4), in [-1, 1] (clipped;
         after ``action_latency`` steps) over one control period; returns ``(observations, reward,
-        terminated, truncated, info)`` with the per-agent terms in ``info["agents"]``."""
+        terminated, truncated, info)``: the team's reward terms ``info["reward_<term>"]``, each
+        agent's own shares ``info["agent_<term>"]`` (K,), as the single env names them."""
         a = raw_actions(action, (self.size, self.action_size),
                         f"action (one {'drone action' if self.drones else 'pivot force'} per agent)")
         if not np.all(np.isfinite(a)):
@@ -393,9 +394,8 @@ class TeamCore:
         terminated = code != TERM_NONE
         if code in PHYSICS_FAILURES:
             reward = 0.0
-        agents = [{name: float(terms[name][k]) for name in ("pivot_position", "control", "separation")}
-                  for k in range(self.size)]
-        info = {"reward_terms": {k: float(np.sum(v)) for k, v in terms.items()}, "agents": agents,
+        info = {**{f"reward_{name}": float(np.sum(terms[name])) for name in REWARD_TERMS},
+                **{f"agent_{name}": np.asarray(terms[name], dtype=float).copy() for name in AGENT_TERMS},
                 "min_separation": float(distances.min()) if distances.size else np.inf,
                 "tension": kin["tension"].copy(), "applied_action": a.copy(), "termination": code}
         if terminated:
@@ -409,7 +409,7 @@ class ElasticStringTeamEnv(gym.Env):
     (spatial) on top of its hover force, ``force_limit`` of it at 1; with drones
     ``Box(-1, 1, (4K,))``, each drone's four numbers (esp_gym/team/spaces.py ``DroneDrive``).
     Observations ``Box(-inf, inf, (K n,))``: the agents' observations (:func:`agent_layout`) one
-    after the other. The reward is the team's; ``info["agents"]`` holds each agent's terms.
+    after the other. The reward is the team's; ``info["agent_<term>"]`` holds each agent's terms.
     Arguments (``options``: control_period, force_limit, preset, randomize, observation,
     sensor_noise, action_latency, wind, actuation, winch) as :class:`TeamCore`'s, checked alike."""
 

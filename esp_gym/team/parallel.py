@@ -14,24 +14,20 @@ from ..control import raw_actions
 from ..extras import require
 from .env import TeamCore
 from .spaces import agent_layout
-from .tasks import MAX_EPISODE_STEPS
-
-#: The team's reward terms (TeamCore.reward_terms), and those each agent has its own share of.
-REWARD_TERMS = ("load_position", "load_velocity", "tilt", "spin", "pivot_position", "control", "separation")
-AGENT_TERMS = ("pivot_position", "control", "separation")
+from .tasks import AGENT_TERMS, MAX_EPISODE_STEPS, REWARD_TERMS
 
 
-def agent_info(k: int, core: TeamCore, terms: dict, own: dict, min_separation: float, tension: np.ndarray,
+def agent_info(k: int, core: TeamCore, terms: dict, min_separation: float, tension: np.ndarray,
                applied: np.ndarray, code: int) -> dict:
     """Agent ``k``'s info: its index, the load's and its own target [m], the team's reward terms
-    (``reward_<term>``), its own shares (``agent_<term>``), the smallest distance between two
+    (``reward_<term>``), its own shares (``agent_<term>``, of ``terms``'s K of each), the smallest distance between two
     pivots [m], its string's pull at its hook (the first element's, (3,)) [N], the action applied
     to it (after the latency) and the episode's ``termination`` code (0 while it goes on; the
     single env's codes, esp_gym/kernels/status.py ``STATUS``, whose words
     ``esp_gym.errors.termination_reason`` gives); numbers only, the same keys always."""
     return {"agent": k, "load_target": core.load_target.copy(), "pivot_target": core.pivot_targets[k].copy(),
-            **{f"reward_{name}": float(terms[name]) for name in REWARD_TERMS},
-            **{f"agent_{name}": float(own[name]) for name in AGENT_TERMS},
+            **{f"reward_{name}": float(terms[f"reward_{name}"]) for name in REWARD_TERMS},
+            **{f"agent_{name}": float(terms[f"agent_{name}"][k]) for name in AGENT_TERMS},
             "min_separation": float(min_separation), "tension": tension[k].copy(), "applied_action": applied[k].copy(),
             "termination": int(code)}
 
@@ -97,11 +93,11 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
         kin = core.kinematics()
         terms = core.reward_terms(kin, np.zeros((core.size, core.action_size)))
         distances, _ = core.separations(kin["pivot"])
-        own = [{name: terms[name][k] for name in AGENT_TERMS} for k in range(core.size)]
-        totals = {name: np.sum(v) for name, v in terms.items()}
+        named = {**{f"reward_{name}": np.sum(terms[name]) for name in REWARD_TERMS},
+                 **{f"agent_{name}": terms[name] for name in AGENT_TERMS}}
         gap = distances.min() if distances.size else np.inf
         return ({a: obs[k] for k, a in enumerate(self.agents)},
-                {a: agent_info(k, core, totals, own[k], gap, kin["tension"], core.last_action, 0)
+                {a: agent_info(k, core, named, gap, kin["tension"], core.last_action, 0)
                  for k, a in enumerate(self.agents)})
 
     def step(self, actions: dict):
@@ -119,7 +115,7 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
         truncated = not terminated and self.core.steps >= self.max_cycles
         agents = list(self.agents)
         self.termination_reason = info.get("termination_reason", "")
-        infos = {a: agent_info(k, self.core, info["reward_terms"], info["agents"][k], info["min_separation"],
+        infos = {a: agent_info(k, self.core, info, info["min_separation"],
                                info["tension"], info["applied_action"], info["termination"])
                  for k, a in enumerate(agents)}
         out = ({a: obs[k] for k, a in enumerate(agents)}, {a: reward for a in agents},

@@ -18,6 +18,10 @@ COLLISION = 0.15
 FLIP_COSINE = math.cos(math.radians(DRONE_FLIP_TILT))
 #: The time limit of an episode [control steps]: 10 s at the default 20 ms.
 MAX_EPISODE_STEPS = 500
+#: The team's reward terms, in order (TeamCore.reward_terms: ``info["reward_<term>"]``), and those
+#: each agent has its own share of (``info["agent_<term>"]``, one per agent).
+REWARD_TERMS = ("load_position", "load_velocity", "tilt", "spin", "pivot_position", "control", "separation")
+AGENT_TERMS = ("pivot_position", "control", "separation")
 #: The options each preset sets (those given to the environment win).
 TEAM_PRESETS = {"hard": {"randomize": True, "observation": "hook", "sensor_noise": 1.0, "action_latency": 1,
                          "wind": {"speed": 6.0, "gust_std": 1.5, "push_rate": 0.2, "push_speed": 0.5}}}
