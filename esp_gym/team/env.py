@@ -24,6 +24,7 @@ from ..kernels.status import PHYSICS_FAILURES, TERM_COLLISION, TERM_DRONE_FLIPPE
     TERM_WORKSPACE
 from ..kernels.env_arrays import TARGET
 from ..kernels.reference import reference_at
+from ..kernels.tolerance import tolerance
 from ..observe import standard_deviation
 from ..options import check_substeps, team_options
 from ..tasks import track_reference
@@ -314,9 +315,7 @@ class TeamCore:
         docstring; docs/team.md)."""
         task = self.task
 
-        def closeness(x, scale):
-            return 1.0 / (1.0 + (x / scale) ** 2)
-
+        closeness = tolerance.py_func  # the single env's shaping (its kernel's formula), on arrays here
         pivot_errors = np.linalg.norm(kin["pivot"] - self.pivot_targets, axis=1)
         tilt = math.acos(min(1.0, max(-1.0, float(kin["R"][2, 2]))))  # the C library's: NumPy's differs by processor
         distances, pairs = self.separations(kin["pivot"])

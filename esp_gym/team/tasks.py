@@ -7,7 +7,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..setup import DRONE_FLIP_TILT
+from .. import MAX_EPISODE_STEPS
+from ..options import TEAM_LACKS
+from ..setup import DRONE_FLIP_TILT, PRESETS
 
 #: Pivots closer than this are penalised (the reward's separation term) [m].
 SEPARATION = 0.4
@@ -16,15 +18,13 @@ COLLISION = 0.15
 #: A drone whose body axis b3 tilts past this from the downward vertical has flipped: the episode
 #: ends (the single drone's DRONE_FLIP_TILT).
 FLIP_COSINE = math.cos(math.radians(DRONE_FLIP_TILT))
-#: The time limit of an episode [control steps]: 10 s at the default 20 ms.
-MAX_EPISODE_STEPS = 500
 #: The team's reward terms, in order (TeamCore.reward_terms: ``info["reward_<term>"]``), and those
 #: each agent has its own share of (``info["agent_<term>"]``, one per agent).
 REWARD_TERMS = ("load_position", "load_velocity", "tilt", "spin", "pivot_position", "control", "separation")
 AGENT_TERMS = ("pivot_position", "control", "separation")
-#: The options each preset sets (those given to the environment win).
-TEAM_PRESETS = {"hard": {"randomize": True, "observation": "hook", "sensor_noise": 1.0, "action_latency": 1,
-                         "wind": {"speed": 6.0, "gust_std": 1.5, "push_rate": 0.2, "push_speed": 0.5}}}
+#: The options each preset sets (those given to the environment win): the single env's, less what
+#: a team lacks (esp_gym/options.py TEAM_LACKS: the hard preset's thrust noise).
+TEAM_PRESETS = {name: {k: v for k, v in preset.items() if k not in TEAM_LACKS} for name, preset in PRESETS.items()}
 
 
 @dataclass(frozen=True)
