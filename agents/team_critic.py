@@ -13,7 +13,6 @@ A checkpoint trained so carries ``central_critic.json`` (the actor's and the sta
 """
 from __future__ import annotations
 
-import functools
 import json
 from pathlib import Path
 from typing import Optional
@@ -39,13 +38,17 @@ class CentralCriticParallelEnv(ParallelEnv):
         #: the length of an agent's own observation (what its actor reads) and of the appended state
         self.actor_inputs = env.observation_space(self.possible_agents[0]).shape[0]
         self.state_size = self.core.true_observations().size
+        # the spaces by name, as the team's own ParallelEnv gives them (esp_gym/team/parallel.py)
+        self.observation_spaces = {a: gym.spaces.Box(-np.inf, np.inf, (self.actor_inputs + self.state_size,),
+                                                     np.float32) for a in self.possible_agents}
+        self.action_spaces = {a: env.action_space(a) for a in self.possible_agents}
+        self.state_space = env.state_space
 
-    @functools.lru_cache(maxsize=None)
     def observation_space(self, agent):
-        return gym.spaces.Box(-np.inf, np.inf, (self.actor_inputs + self.state_size,), np.float32)
+        return self.observation_spaces[agent]
 
     def action_space(self, agent):
-        return self.env.action_space(agent)
+        return self.action_spaces[agent]
 
     def _append(self, obs: dict) -> dict:
         state = self.core.true_observations().ravel().astype(np.float32)

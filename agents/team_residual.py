@@ -13,7 +13,6 @@ network reads every agent's the same way.
 """
 from __future__ import annotations
 
-import functools
 import json
 from pathlib import Path
 from typing import Optional
@@ -96,13 +95,17 @@ class TeamResidualParallelEnv(ParallelEnv):
         #: the baseline's command (K, a) for the last observations
         self.command = None
         self._extra = feature_size(self.core.size, self.core.observation, self.core.action_size)
+        # the spaces by name, as the team's own ParallelEnv gives them (esp_gym/team/parallel.py)
+        self.observation_spaces = {a: gym.spaces.Box(-np.inf, np.inf, (env.observation_space(a).shape[0] + self._extra,),
+                                                     np.float32) for a in self.possible_agents}
+        self.action_spaces = {a: env.action_space(a) for a in self.possible_agents}
+        self.state_space = env.state_space
 
-    @functools.lru_cache(maxsize=None)
     def observation_space(self, agent):
-        return gym.spaces.Box(-np.inf, np.inf, (self.env.observation_space(agent).shape[0] + self._extra,), np.float32)
+        return self.observation_spaces[agent]
 
     def action_space(self, agent):
-        return self.env.action_space(agent)
+        return self.action_spaces[agent]
 
     def _observe(self, obs: dict) -> dict:
         self.command, inputs = self.base.observe(np.stack([obs[a] for a in self.possible_agents]), self.core)
