@@ -1,0 +1,142 @@
+"""What a team's state reads out (docs/physics.md, "Diagnostics of a team"): the inverse of its
+Legendre transform (the nodes' and the body's velocities from the momenta), each string's nodes and
+strain energy, and the energy, momenta and balances. :class:`TeamReadout` is the read-out half of
+:class:`~esp_gym.team.simulator.TeamSimulator` (the stepping half is there).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..kernels.layout import BALANCE
+from ..state import cross3
+from .assembly import string_mass
+from .velocities import team_velocities
+
+
+class TeamReadout:
+    """The read-outs of a :class:`~esp_gym.team.simulator.TeamSimulator`'s state. The inverse
+    Legendre transform is kept for the state it was taken at (its positions, momenta, reel speeds
+    and lengths, bit for bit): the watchdog's diagnostics and an environment's observation of one
+    state invert it once."""
+
+    _kinematics_key = None
+
+    def velocities(self, reel_speeds=None):
+        """The inverse of the continuous Legendre transform (docs/physics.md, "Diagnostics of a
+        team"; while the winches reel, of p = M(l) v + c C^T r at each string's length and reel
+        speed, ``reel_speeds`` (K,) instead of the state's if given): ``(string 0's node
+        velocities (N+1, 3), the others' (rows, 3), Omega (3,))`` [m/s, rad/s]."""
+        v0, vo, Omega, _, _, _ = self._kinematics(reel_speeds)
+        return v0, vo, Omega
+
+    def _kinematics(self, reel_speeds=None):
+        """:meth:`velocities` with the momenta they invert: ``(v0, v_others, Omega, string 0's
+        momenta less the flow's, the others' (their ends' rows 0), Pi less the ends' flow)``,
+        copies of those kept for the state and speeds they were taken at (the key: every input's
+        bits)."""
+        S, A = self._S, self._A
+        speeds = np.asarray(self.winches.reel_speeds if reel_speeds is None else reel_speeds, dtype=float)
+        key = b"".join(a.tobytes() for a in (S.r, A.r, S.p, A.p, S.R, S.Pi, speeds, self.winches.lengths))
+        if key != self._kinematics_key:
+            self._kinematics_key, self._kinematics_kept = key, self._invert(speeds)
+        return tuple(a.copy() for a in self._kinematics_kept)
+
+    def _invert(self, speeds):
+        """:meth:`_kinematics` taken anew at the reel ``speeds``."""
+        S, A, T = self._S, self._A, self.params
+        R = S.R
+        p0, po, Pi = S.p.copy(), A.p.copy(), S.Pi.copy()
+        if np.any(speeds != 0.0):  # the momenta of the material's flow, c C^T r, are not the nodes'
+            q0, qo = self.winches.flow_momenta(S.r, A.r, speeds)
+            p0 -= q0
+            for j in range(len(self.team.strings)):
+                e = T.start[j + 1] - 1
+                p0[-1] -= qo[e]
+                Pi -= cross3(T.rho[j], R.T @ qo[e])
+                qo[e] = 0.0
+            po -= qo
+        members = []
+        for k, (_, string, pivot) in enumerate(self._members()):
+            diag, off, _ = string_mass(string, pivot)
+            if k == 0:
+                members.append((diag, off, 0 if pivot.is_free else 1, p0, np.zeros(3)))
+            else:
+                a, b = T.start[k - 1], T.start[k]
+                members.append((diag, off, 0 if pivot.is_free else 1, po[a:b], T.rho[k - 1]))
+        (v0, *rest), Omega = team_velocities(members, self._P.M, self._P.rho, self._P.J, R, p0[-1], Pi)
+        return v0, (np.concatenate(rest) if rest else np.zeros((0, 3))), Omega, p0, po, Pi
+
+    def _members(self) -> list:
+        """Each string's ``(nodes (N_k+1, 3) [m], its string section at its current length, its pivot
+        section)``, string 0 first."""
+        S, A, T = self._S, self._A, self.params
+        strings = self.winches.strings_at_length()
+        pivots = self.team.pivots()
+        return [(S.r, strings[0], pivots[0])] + [
+            (A.r[T.start[j]:T.start[j + 1]], strings[j + 1], pivots[j + 1]) for j in range(len(self.team.strings))]
+
+    @staticmethod
+    def _stretch(r: np.ndarray, string) -> np.ndarray:
+        """Each element's stretch x = |r_{i+1} - r_i| - u [m] (clipped at 0 for a slack law): its
+        strain energy is kappa x^2 / 2."""
+        x = np.linalg.norm(np.diff(r, axis=0), axis=1) - string.u
+        return np.maximum(x, 0.0) if string.law == "slack" else x
+
+    def strings(self) -> list:
+        """Each string's ``(nodes (N_k+1, 3) [m], each element's strain energy (N_k,) [J])``, string 0
+        first: what a frame draws (esp_gym/viz/render.py ``render_team``)."""
+        return [(r.copy(), 0.5 * string.kappa * self._stretch(r, string) ** 2) for r, string, _ in self._members()]
+
+    def _diagnostics(self, reel_speeds=None) -> dict:
+        """The state's energy terms, momenta and pi3; while the winches reel, the energy is the
+        Hamiltonian H = T2 - T0 + V (docs/physics.md, "The winch"), at ``reel_speeds`` if given."""
+        S, A = self._S, self._A
+        P = self._P
+        speeds = self.winches.reel_speeds if reel_speeds is None else reel_speeds
+        v0, vo, Omega, p0, po, Pi = self._kinematics(speeds)
+        kinetic = 0.5 * (np.sum(p0 * v0) + np.sum(po * vo) + float(Pi @ Omega))
+        g = P.g
+        elastic = gravity = 0.0
+        for r, string, pivot in self._members():
+            x = self._stretch(r, string)
+            elastic += 0.5 * string.kappa * float(x @ x)
+            w = np.full(r.shape[0], string.m)
+            w[0] = w[-1] = 0.5 * string.m
+            w[0] += pivot.mass or 0.0
+            gravity -= g * float(w @ r[:, 2])
+        gravity -= g * P.M * float((S.r[-1] + S.R @ P.rho)[2])
+        momentum = S.p.sum(0) + A.p.sum(0)
+        pi3 = float(np.sum(S.r[:, 0] * S.p[:, 1] - S.r[:, 1] * S.p[:, 0]) +
+                    np.sum(A.r[:, 0] * A.p[:, 1] - A.r[:, 1] * A.p[:, 0]) + (S.R @ S.Pi)[2])
+        out = dict(orthogonality=float(np.linalg.norm(S.R.T @ S.R - np.eye(3))))
+        if self.fleet:  # each drone's rotation
+            out.update(self.fleet.diagnostics())
+            kinetic += float(out["kinetic_drones"].sum())
+            pi3 += float(out["pi3_drones"].sum())
+        convective = self.winches.convective_energy(S.r, A.r, speeds)
+        out.update(kinetic=float(kinetic), potential_elastic=elastic, potential_gravity=gravity,
+                   energy=float(kinetic) - convective + elastic + gravity, linear_momentum=momentum, pi3=pi3)
+        return out
+
+    def diagnostics(self) -> dict:
+        """Energy (kinetic, elastic, gravity) [J], linear momentum [kg m/s], pi3 (about the e3
+        axis through the origin) [kg m^2/s], ||R^T R - I||; with drones, the energy and pi3 with
+        their rotations, and each drone's (:meth:`Fleet.diagnostics
+        <esp_gym.team.fleet.Fleet.diagnostics>`), the work and angular impulse with the rotors'
+        thrust and torque; and the input
+        balances since the last reset with their residuals: the winches' ``unstretched_lengths``
+        (K,) [m], ``reel_speeds`` (K,) [m/s] and ``winch_work`` [J]; ``energy_balance_residual`` =
+        E - E0 - work - winch_work (E the Hamiltonian while the winches reel), ``pi3_balance_residual`` = pi3 - pi3_0 - the angular impulse about e3 (exact with free
+        pivots only), ``momentum_balance_residual`` = P - P0 - the gravity and pivot impulses
+        (with free pivots only: a fixed pivot's reaction is not an input)."""
+        d = self._diagnostics()
+        acc = self._S.acc  # (the load force's work is summed here, per call of step)
+        work = float(acc[BALANCE["work"]][0]) + self._load_work
+        impulse = acc[BALANCE["gravity_impulse"]] + acc[BALANCE["pivot_impulse"]] + acc[BALANCE["external_impulse"]]
+        winch_work = float(acc[BALANCE["winch_work"]][0]) + self._winch_jumps
+        d.update(work=work, angular_impulse_z=float(acc[BALANCE["angular_impulse_z"]][0]),
+                 unstretched_lengths=self.winches.lengths, reel_speeds=self.winches.reel_speeds,
+                 winch_work=winch_work, energy_balance_residual=d["energy"] - self._E0 - work - winch_work,
+                 pi3_balance_residual=d["pi3"] - self._pi3_0 - float(acc[BALANCE["angular_impulse_z"]][0]),
+                 momentum_balance_residual=d["linear_momentum"] - self._P0 - impulse)
+        return d
