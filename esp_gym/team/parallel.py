@@ -17,19 +17,19 @@ from .spaces import agent_layout
 from .tasks import AGENT_TERMS, MAX_EPISODE_STEPS, REWARD_TERMS
 
 
-def agent_info(k: int, core: TeamCore, terms: dict, min_separation: float, tension: np.ndarray,
-               applied: np.ndarray, code: int) -> dict:
-    """Agent ``k``'s info: its index, the load's and its own target [m], the team's reward terms
-    (``reward_<term>``), its own shares (``agent_<term>``, of ``terms``'s K of each), the smallest distance between two
-    pivots [m], its string's pull at its hook (the first element's, (3,)) [N], the action applied
-    to it (after the latency) and the episode's ``termination`` code (0 while it goes on; the
-    single env's codes, esp_gym/kernels/status.py ``STATUS``, whose words
-    ``esp_gym.errors.termination_reason`` gives); numbers only, the same keys always."""
+def agent_info(k: int, core: TeamCore, info: dict) -> dict:
+    """Agent ``k``'s info from the team's step ``info`` (TeamCore.step's): its index, the load's and
+    its own target [m], the team's reward terms (``reward_<term>``), its own shares
+    (``agent_<term>``), the smallest distance between two pivots [m], its string's pull at its hook
+    (the first element's, (3,)) [N], the action applied to it (after the latency) and the
+    episode's ``termination`` code (0 while it goes on; the single env's codes,
+    esp_gym/kernels/status.py ``STATUS``, whose words ``esp_gym.errors.termination_reason``
+    gives); numbers only, the same keys always."""
     return {"agent": k, "load_target": core.load_target.copy(), "pivot_target": core.pivot_targets[k].copy(),
-            **{f"reward_{name}": float(terms[f"reward_{name}"]) for name in REWARD_TERMS},
-            **{f"agent_{name}": float(terms[f"agent_{name}"][k]) for name in AGENT_TERMS},
-            "min_separation": float(min_separation), "tension": tension[k].copy(), "applied_action": applied[k].copy(),
-            "termination": int(code)}
+            **{f"reward_{name}": float(info[f"reward_{name}"]) for name in REWARD_TERMS},
+            **{f"agent_{name}": float(info[f"agent_{name}"][k]) for name in AGENT_TERMS},
+            "min_separation": float(info["min_separation"]), "tension": info["tension"][k].copy(),
+            "applied_action": info["applied_action"][k].copy(), "termination": int(info["termination"])}
 
 
 ParallelEnv = require("pettingzoo", "esp_gym.team.parallel_env").ParallelEnv
@@ -90,15 +90,16 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
         core = self.core
         obs, self.episode_info = core.reset(seed=seed)
         self.agents, self.termination_reason = list(self.possible_agents), ""
+        # the step's info of the state it starts from: its terms with no action, nothing ended
         kin = core.kinematics()
         terms = core.reward_terms(kin, np.zeros((core.size, core.action_size)))
         distances, _ = core.separations(kin["pivot"])
-        named = {**{f"reward_{name}": np.sum(terms[name]) for name in REWARD_TERMS},
-                 **{f"agent_{name}": terms[name] for name in AGENT_TERMS}}
-        gap = distances.min() if distances.size else np.inf
+        info = {**{f"reward_{name}": np.sum(terms[name]) for name in REWARD_TERMS},
+                **{f"agent_{name}": terms[name] for name in AGENT_TERMS},
+                "min_separation": distances.min() if distances.size else np.inf, "tension": kin["tension"],
+                "applied_action": core.last_action, "termination": 0}
         return ({a: obs[k] for k, a in enumerate(self.agents)},
-                {a: agent_info(k, core, named, gap, kin["tension"], core.last_action, 0)
-                 for k, a in enumerate(self.agents)})
+                {a: agent_info(k, core, info) for k, a in enumerate(self.agents)})
 
     def step(self, actions: dict):
         if not self.agents:
@@ -115,9 +116,7 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
         truncated = not terminated and self.core.steps >= self.max_cycles
         agents = list(self.agents)
         self.termination_reason = info.get("termination_reason", "")
-        infos = {a: agent_info(k, self.core, info, info["min_separation"],
-                               info["tension"], info["applied_action"], info["termination"])
-                 for k, a in enumerate(agents)}
+        infos = {a: agent_info(k, self.core, info) for k, a in enumerate(agents)}
         out = ({a: obs[k] for k, a in enumerate(agents)}, {a: reward for a in agents},
                {a: terminated for a in agents}, {a: truncated for a in agents}, infos)
         if terminated or truncated:
