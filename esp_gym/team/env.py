@@ -38,6 +38,7 @@ from .spaces import ACTUATIONS, TEAM_UNIT_NOISE, DroneDrive, action_size, agent_
 from .tasks import AGENT_TERMS, COLLISION, FLIP_COSINE, MAX_EPISODE_STEPS, REWARD_TERMS, SEPARATION, \
     TEAM_PRESETS, get_team_task, hanging_rise
 
+
 class TeamCore:
     """A team's episode (module docstring). ``team``: K or a :class:`TeamScene` whose pivots are
     all free points or all drones; ``task``: a name of :data:`~esp_gym.team.tasks.TEAM_TASKS`;
@@ -51,9 +52,9 @@ class TeamCore:
     level, times :data:`TEAM_UNIT_NOISE`), ``action_latency`` (control
     steps, 0-50) and ``wind`` (esp_gym/wind.py's options: the mean wind, gusts and pushes, on the
     load), ``safety`` (h's margin under every string's stability bound, default
-    :data:`~.scene.TEAM_SAFETY`). ``winch``: each point pivot's string reels on its winch, its reel speed (x its
-    ``winch.max_speed``) each agent's last action and its unstretched length in its observation
-    (None: as the task needs, True for ``lift``). Checked as the single env's options are
+    :data:`~.scene.TEAM_SAFETY`). ``winch``: each point pivot's string reels on its winch, its
+    reel speed (x its ``winch.max_speed``) each agent's last action and its unstretched length in
+    its observation (None: as the task needs, True for ``lift``). Checked as the single env's options are
     (esp_gym/options.py ``TeamOptions``; ``others``: its options a team lacks, refused with why)."""
 
     def __init__(self, team=3, task: str = "transport", control_period: float = 0.02, force_limit: float = 0.6,
