@@ -153,9 +153,11 @@ class ElasticStringPendulumEnv(gym.Env):
                  moving_target: Optional[bool] = None):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        self.setup = make_setup(scene, task, control_period, h, safety, force_limit, torque_limit, scene_overrides,
-                                randomize, observation, sensor_noise, action_latency, wind, preset, winch, actuation,
-                                thrust_noise, moving_target)
+        self.setup = make_setup(scene, task=task, control_period=control_period, h=h, safety=safety,
+                                force_limit=force_limit, torque_limit=torque_limit, scene_overrides=scene_overrides,
+                                randomize=randomize, observation=observation, sensor_noise=sensor_noise,
+                                action_latency=action_latency, wind=wind, preset=preset, winch=winch,
+                                actuation=actuation, thrust_noise=thrust_noise, moving_target=moving_target)
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.setup.control_period))}
         self.observation_space = self.setup.observation_space

@@ -259,7 +259,7 @@ class EnvSetup:
         return dataclasses.replace(episode, values=values)
 
 
-def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabilize",
+def make_setup(scene: Union[str, Path, Scene] = "drone_load", *, task: str = "stabilize",
                control_period: float = 0.02, h: Optional[float] = None, safety: Optional[float] = None,
                force_limit: Optional[float] = None, torque_limit: float = 0.02,
                scene_overrides: Optional[dict] = None, randomize: Union[bool, dict, None] = None,
@@ -269,33 +269,79 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
                actuation: Optional[str] = None, thrust_noise: Optional[float] = None,
                moving_target: Optional[bool] = None) -> EnvSetup:
     """Resolve the environment's arguments (see :class:`~esp_gym.env.ElasticStringPendulumEnv`),
-    validated by :class:`~esp_gym.options.EnvOptions` (ValueError naming each bad one). The
-    options a preset sets take, in this order: the value given (None: not given), the preset's,
-    EnvOptions' default."""
-    given = {name: value for name, value in dict(randomize=randomize, observation=observation,
-                                                 sensor_noise=sensor_noise, action_latency=action_latency,
-                                                 wind=wind, thrust_noise=thrust_noise,
-                                                 moving_target=moving_target).items() if value is not None}
-    o = env_options(scene=scene, task=task, control_period=control_period, h=h, safety=safety,
-                    force_limit=force_limit, torque_limit=torque_limit, scene_overrides=scene_overrides,
-                    preset=preset, winch=winch, actuation=actuation, **given)
-    if o.preset is not None:
-        preset = {**PRESETS[o.preset], **PRESET_TASK_OPTIONS[o.preset].get(o.task, {})}
-        o = o.model_copy(update={name: value for name, value in preset.items() if name not in given})
-    control_period, h, safety = o.control_period, o.h, o.safety
-    overrides = dict(o.scene_overrides or {})
-    base = o.scene if isinstance(o.scene, Scene) else load_scene(o.scene)
-    keep_unstable = overrides.get("allow_unstable_h", base.allow_unstable_h)
-    # the scene's own h is replaced below: it must not fail the bound of a stiffer override
-    overrides["allow_unstable_h"] = True
-    # a Scene object takes the same overrides as a file (aliases, dotted paths, merged sections)
-    resolved = override_scene(o.scene, overrides) if isinstance(o.scene, Scene) else load_scene(o.scene, **overrides)
-    if not resolved.pivot.is_free:
-        raise ValueError(f"ElasticStringPendulum-v0 moves the pivot: scene {resolved.name!r} needs pivot.kind: free "
-                         "or drone")
+    validated by :class:`~esp_gym.options.EnvOptions` (ValueError naming each bad one), in stages:
+    the options with the preset's (:func:`preset_options`), the scene with its overrides
+    (:func:`resolve_scene`), the rig's checks (:func:`check_rig`), the physics steps
+    (:func:`physics_steps`), then the action's scale."""
+    o, given = preset_options(scene=scene, task=task, control_period=control_period, h=h, safety=safety,
+                              force_limit=force_limit, torque_limit=torque_limit, scene_overrides=scene_overrides,
+                              randomize=randomize, observation=observation, sensor_noise=sensor_noise,
+                              action_latency=action_latency, wind=wind, preset=preset, winch=winch,
+                              actuation=actuation, thrust_noise=thrust_noise, moving_target=moving_target)
+    resolved, keep_unstable = resolve_scene(o)
     t = get_task(o.task, o.moving_target)
     winch = t.needs_winch if o.winch is None else o.winch
     actuation = o.actuation or ("thrust_rates" if resolved.pivot.is_drone else "force")
+    check_rig(resolved, o, t, winch, actuation, given)
+    randomizer = None if o.randomize is False else Randomizer(resolved, o.randomize)
+    check_hanging(resolved, t, randomizer)
+    if resolved.pivot.is_drone:
+        check_lift(resolved, randomizer)
+    resolved, randomizer, safety, substeps = physics_steps(resolved, o, randomizer, winch, keep_unstable)
+    weight = total_weight(resolved)
+    force_limit = o.force_limit if o.force_limit is not None else (0.6 * weight if weight > 0 else 1.0)
+    if weight > 0 and force_limit > MAX_FORCE_SHARE * weight:
+        raise ValueError(f"ElasticStringPendulum-v0: force_limit = {force_limit:g} N is {force_limit / weight:.3g} "
+                         f"times the rig's weight {weight:.4g} N, above the {MAX_FORCE_SHARE:g} times a pivot can push")
+    wind_given = wind_options(o.wind)
+    if wind_given is not None:
+        drag_areas(resolved)  # the load needs a shape (a randomised episode keeps its kind)
+    return EnvSetup(scene=resolved, task=t, task_params=t.params(resolved), control_period=float(o.control_period),
+                    substeps=substeps, hover=np.array([0.0, 0.0, -weight]), force_limit=float(force_limit),
+                    torque_limit=float(o.torque_limit), safety=float(safety), fixed_h=o.h, randomizer=randomizer,
+                    observer=Observer(o.observation, o.sensor_noise, winch, actuation != "force"),
+                    action_latency=o.action_latency,
+                    wind=None if wind_given is None else Wind(wind_given, o.control_period),
+                    winch=winch, actuation=actuation,
+                    thrust_noise=float(o.thrust_noise) if resolved.pivot.is_drone else 0.0)
+
+
+#: make_setup's arguments that a preset may set: the value given wins over the preset's.
+PRESET_SETS = ("randomize", "observation", "sensor_noise", "action_latency", "wind", "thrust_noise", "moving_target")
+
+
+def preset_options(**arguments) -> tuple:
+    """``(EnvOptions, the arguments of PRESET_SETS given)``: the options a preset sets take, in
+    this order, the value given (None: not given), the preset's (with its task's), EnvOptions'
+    default."""
+    given = {name: arguments.pop(name) for name in PRESET_SETS if arguments.get(name) is not None}
+    for name in PRESET_SETS:
+        arguments.pop(name, None)
+    o = env_options(**arguments, **given)
+    if o.preset is not None:
+        preset = {**PRESETS[o.preset], **PRESET_TASK_OPTIONS[o.preset].get(o.task, {})}
+        o = o.model_copy(update={name: value for name, value in preset.items() if name not in given})
+    return o, given
+
+
+def resolve_scene(o) -> tuple:
+    """``(the scene with its overrides, whether it allows an unstable h)``; its own h is replaced
+    later (:func:`physics_steps`), so it must not fail the bound of a stiffer override."""
+    overrides = dict(o.scene_overrides or {})
+    base = o.scene if isinstance(o.scene, Scene) else load_scene(o.scene)
+    keep_unstable = overrides.get("allow_unstable_h", base.allow_unstable_h)
+    overrides["allow_unstable_h"] = True
+    # a Scene object takes the same overrides as a file (aliases, dotted paths, merged sections)
+    resolved = override_scene(o.scene, overrides) if isinstance(o.scene, Scene) else load_scene(o.scene, **overrides)
+    return resolved, keep_unstable
+
+
+def check_rig(resolved: Scene, o, t: Task, winch: bool, actuation: str, given: dict) -> None:
+    """ValueError, naming what asked for it, unless the scene's pivot moves, the actuation flies
+    it, the rig exists (esp_gym/rig.py) and the task gets the winch it needs."""
+    if not resolved.pivot.is_free:
+        raise ValueError(f"ElasticStringPendulum-v0 moves the pivot: scene {resolved.name!r} needs pivot.kind: free "
+                         "or drone")
     if resolved.pivot.is_drone != (actuation != "force"):
         wanted = "one of " + ", ".join(map(repr, ACTUATIONS)) if resolved.pivot.is_drone else "'force'"
         raise ValueError(f"ElasticStringPendulum-v0: actuation={actuation!r} does not fly scene {resolved.name!r}'s "
@@ -312,14 +358,17 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
                          f"(scene {resolved.name!r}: solver.order {resolved.solver.order})")
     if t.needs_winch and not winch:
         raise ValueError(f"ElasticStringPendulum-v0: task={o.task!r} reels the string: it needs winch=True")
-    randomizer = None if o.randomize is False else Randomizer(resolved, o.randomize)
-    check_hanging(resolved, t, randomizer)
-    if resolved.pivot.is_drone:
-        check_lift(resolved, randomizer)
+
+
+def physics_steps(resolved: Scene, o, randomizer, winch: bool, keep_unstable: bool) -> tuple:
+    """``(the scene at its h, the randomizer, safety, physics steps per control step)``: with
+    ``elements: auto`` the resolution rule's N (docs/physics.md, "The string's resolution"), then
+    the steps that keep the stiffest episode (and the winch's shortest string) within ``safety`` x
+    its stability bound, or the user's ``h`` (which must divide the control period)."""
+    control_period, h, safety = o.control_period, o.h, o.safety
     if resolved.string.auto and resolved.solver.string == "explicit":
-        # the resolution rule (docs/physics.md, "The string's resolution"): N for the nominal scene
-        # (every episode keeps the arrays' shape), each episode's step for its own draw
-        # (EnvSetup.draw_episode, scheme_substeps)
+        # N for the nominal scene (every episode keeps the arrays' shape), each episode's step for
+        # its own draw (EnvSetup.draw_episode, scheme_substeps)
         elements = auto_elements(resolved)
         if elements != resolved.string.elements:
             resolved = resolved.model_copy(update={"string": resolved.string.model_copy(update={"elements": elements})})
@@ -354,18 +403,4 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", task: str = "stabi
             raise ValueError(f"h = {h} s must divide the control period {control_period} s")
     resolved = scene_from_dict({**resolved.model_dump(), "h": control_period / substeps,
                                 "allow_unstable_h": keep_unstable}, source=repr(resolved.name))
-    weight = total_weight(resolved)
-    force_limit = o.force_limit if o.force_limit is not None else (0.6 * weight if weight > 0 else 1.0)
-    if weight > 0 and force_limit > MAX_FORCE_SHARE * weight:
-        raise ValueError(f"ElasticStringPendulum-v0: force_limit = {force_limit:g} N is {force_limit / weight:.3g} "
-                         f"times the rig's weight {weight:.4g} N, above the {MAX_FORCE_SHARE:g} times a pivot can push")
-    wind_given = wind_options(o.wind)
-    if wind_given is not None:
-        drag_areas(resolved)  # the load needs a shape (a randomised episode keeps its kind)
-    return EnvSetup(scene=resolved, task=t, task_params=t.params(resolved), control_period=float(control_period),
-                    substeps=substeps, hover=np.array([0.0, 0.0, -weight]), force_limit=float(force_limit),
-                    torque_limit=float(o.torque_limit), safety=float(safety), fixed_h=h, randomizer=randomizer,
-                    observer=Observer(o.observation, o.sensor_noise, winch, actuation != "force"),
-                    action_latency=o.action_latency, wind=None if wind_given is None else Wind(wind_given, control_period),
-                    winch=winch, actuation=actuation,
-                    thrust_noise=float(o.thrust_noise) if resolved.pivot.is_drone else 0.0)
+    return resolved, randomizer, safety, substeps
