@@ -211,7 +211,7 @@ def main(argv=None) -> dict:
     if a.team is None:
         ap.check_file("--model", a.model)
     else:
-        from esp_gym.kernels.drone import ACTUATIONS as DRONE_ACTUATIONS
+        from esp_gym.layouts import ACTUATIONS as DRONE_ACTUATIONS
         from esp_gym.team import MAX_STRINGS
         from esp_gym.team.tasks import TEAM_TASKS
 

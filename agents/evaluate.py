@@ -38,7 +38,7 @@ from agents.baselines.pd import ZeroPolicy
 from agents.baselines.registry import baseline
 from agents.normalization import NormalizationFileError, NormStats
 from agents.residual import base_features, residual_for
-from esp_gym.kernels.env_arrays import SENSORS
+from esp_gym.layouts import SENSORS
 from esp_gym.setup import make_setup
 from esp_gym.tasks import TASKS
 

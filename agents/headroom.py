@@ -23,7 +23,7 @@ import numpy as np
 
 import esp_gym
 from agents.cli import ArgumentParser
-from esp_gym.kernels.env_arrays import ACTION_SIZE
+from esp_gym.layouts import ACTION_SIZE
 from esp_gym.tasks import TASKS
 
 

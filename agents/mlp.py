@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from esp_gym.kernels.jit import kernel
+from esp_gym.compiled import kernel
 
 #: Activation codes of :func:`mlp_forward` by the torch module's class name.
 ACTIVATIONS = {"Identity": 0, "Tanh": 1, "ReLU": 2}

@@ -87,7 +87,7 @@ class ReferenceContext:
 
     def act(self, obs, setup) -> np.ndarray:
         from agents.baselines.lqr import PREVIEW_TIMES, REDUCED, reference_basis, reference_map
-        from esp_gym.kernels.env_arrays import TARGET
+        from esp_gym.layouts import TARGET
         from esp_gym.tasks import reference_acceleration
 
         target = self._target

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .kernels.env_arrays import TARGET, TASK_PARAM_NAMES
-from .kernels.reference import reference_at
+from .kernels.reference import reference_at, reference_path
 from .stability import hat
 from .state import State, cross3, legendre_momenta
 from .params import Scene
@@ -115,6 +115,15 @@ def track_reference(rng: np.random.Generator, depth: float) -> np.ndarray:
     t[TARGET["depth"]] = depth
     reference_at(t, 0.0)
     return t
+
+
+def track_path(target: np.ndarray, times) -> tuple:
+    """The track reference of the TARGET vector ``target`` at each of ``times`` [s]: the pivot
+    target's offset from the centre [m] and its velocity [m/s], (len(times), 3) each, spatial."""
+    times = np.asarray(times, dtype=np.float64)
+    offset, velocity = np.empty((len(times), 3)), np.empty((len(times), 3))
+    reference_path(np.array(target, dtype=np.float64), times, offset, velocity)
+    return offset, velocity
 
 
 def reference_acceleration(target: np.ndarray, t: float) -> np.ndarray:

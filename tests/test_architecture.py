@@ -122,6 +122,28 @@ def _parsed():
         yield path, module, path.name == "__init__.py", ast.parse(path.read_text(), str(path))
 
 
+def kernel_imports(module: str, is_package: bool, tree: ast.AST) -> list:
+    """Imports of ``esp_gym.kernels`` (anywhere in the module, deferred ones too)."""
+    found = []
+    for node in ast.walk(tree):
+        names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+            [resolve(module, is_package, node)] if isinstance(node, ast.ImportFrom) else []
+        found += [f"{module}: {name}" for name in names if name == "esp_gym.kernels" or name.startswith("esp_gym.kernels.")]
+    return found
+
+
+def test_the_agents_read_the_layouts_from_their_public_face_not_from_the_kernels():
+    """agents/ imports esp_gym.layouts (and esp_gym.compiled), never esp_gym.kernels."""
+    bad = [line for path, module, is_package, tree in _parsed() if module.split(".")[0] == "agents"
+           for line in kernel_imports(module, is_package, tree)]
+    assert not bad, bad
+    # negative controls: both forms of the import are found, the public face is not
+    tree = ast.parse("import esp_gym.kernels.layout\nfrom esp_gym.kernels.env_arrays import ACTION\n"
+                     "def f():\n    from esp_gym.kernels import jit\nfrom esp_gym.layouts import TARGET\n")
+    assert kernel_imports("agents.x", False, tree) == [
+        "agents.x: esp_gym.kernels.layout", "agents.x: esp_gym.kernels.env_arrays", "agents.x: esp_gym.kernels"]
+
+
 def test_no_module_imports_a_private_name():
     bad = [b for _, m, pkg, tree in _parsed() for b in private_imports(m, pkg, tree)]
     assert bad == []

@@ -32,7 +32,7 @@ from typing import Optional
 import numpy as np
 
 from agents.baselines.load_estimate import LoadEstimator, nominal_load_mass
-from esp_gym.kernels.drone_env import DRONE_ACTION_PARAMS
+from esp_gym.layouts import DRONE_ACTION_PARAMS
 from esp_gym.setup import total_weight
 from esp_gym.tasks import hanging_depth
 

@@ -35,7 +35,7 @@ from typing import Optional
 import numpy as np
 import scipy.linalg
 
-from esp_gym.kernels.layout import Layout
+from esp_gym.layouts import Layout
 
 E3 = np.array([0.0, 0.0, 1.0])
 

@@ -33,7 +33,7 @@ import scipy.linalg
 from agents.baselines.lqr import (LQR, REDUCED, REFERENCE_CONTEXT, ReferencePreview, equilibrium_target, lift, lqr_solution,
                                   plain_setup, preview_terms, reward_weights)
 from esp_gym.control import ControlStep
-from esp_gym.kernels.env_arrays import ACTION
+from esp_gym.layouts import ACTION
 from esp_gym.observe import UNIT_NOISE
 from esp_gym.params import override_scene
 from esp_gym.tasks import hanging_depth

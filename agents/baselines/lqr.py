@@ -33,8 +33,7 @@ import scipy.linalg
 
 from agents.baselines import libm
 from esp_gym.control import ControlStep
-from esp_gym.kernels.layout import Layout
-from esp_gym.kernels.env_arrays import ACTION, OBSERVATION, TARGET
+from esp_gym.layouts import ACTION, OBSERVATION, TARGET, Layout
 from esp_gym.observe import Observer
 from esp_gym.state import State, cross3, legendre_momenta
 from esp_gym.tasks import hanging_axis, hanging_depth, rotation_between, static_node_depths
@@ -212,11 +211,10 @@ def reference_states(target: np.ndarray, times: np.ndarray) -> np.ndarray:
     """z of the moving reference (``track``; TARGET ``target``) at ``times`` [s], (T, 16): the
     pivot and the load on the curve (the load's rest offset below it is the equilibrium's, so 0
     here), both at the curve's velocity, the body hanging straight."""
-    from esp_gym.kernels.reference import reference_path
+    from esp_gym.tasks import track_path
 
     times = np.asarray(times, dtype=np.float64)
-    offset, velocity = np.empty((len(times), 3)), np.empty((len(times), 3))
-    reference_path(np.array(target, dtype=np.float64), times, offset, velocity)
+    offset, velocity = track_path(target, times)
     out = np.zeros((len(times), REDUCED.size))
     for name in ("pivot_error", "load_error"):
         out[:, REDUCED[name]] = offset

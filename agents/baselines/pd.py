@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from esp_gym.kernels.env_arrays import ACTION, WINCH_ACTION
+from esp_gym.layouts import ACTION, WINCH_ACTION
 
 
 @dataclass(frozen=True)
@@ -110,7 +110,7 @@ class Hoist:
         else:  # the hook: depth ~ length + (nominal hanging depth - nominal length)
             excess = hanging_depth(setup.scene) - setup.scene.string.length
             e_depth = obs[..., layout["unstretched_length"]][..., 0] + excess - obs[..., layout["load_target_offset"]][..., 2]
-        from esp_gym.kernels.drone_env import DRONE_WINCH_ACTION
+        from esp_gym.layouts import DRONE_WINCH_ACTION
 
         layout = DRONE_WINCH_ACTION if setup.drone else WINCH_ACTION
         reel = layout["reel_speed"]

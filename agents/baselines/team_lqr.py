@@ -20,7 +20,7 @@ import numpy as np
 import scipy.linalg
 from scipy.spatial.transform import Rotation
 
-from esp_gym.kernels.layout import Layout
+from esp_gym.layouts import Layout
 from esp_gym.tasks import reference_acceleration
 from esp_gym.team.env import TeamCore
 from esp_gym.team.spaces import agent_layout
