@@ -115,6 +115,23 @@ class ControlStep:
         self.threads = check_threads(threads, self.num_envs)
         batch = () if self.num_envs is None else (self.num_envs,)
         check_memory(setup.scene.string.elements, self.num_envs)
+        self._physics_structs(batch)
+        self._env_buffers(batch)
+        #: the rig (esp_gym/rig.py): its compiled step and batched step, the structs they take
+        self.rig = setup.rig
+        entries = self.rig.entries
+        self._step_kernel = entries.step
+        self._batch_kernel = entries.batch if self.threads == 1 else entries.threaded_batch
+        self._scheme = SCHEME_DISTURBED if self._windy else 0
+        self._was_reset = np.zeros(batch, dtype=bool)  # stepping a state that was never set is an error
+        self._ready = False  # all of _was_reset, kept as a bool: step checks it every call
+        self._make_views()
+
+    def _physics_structs(self, batch: tuple) -> None:
+        """The simulator and the physics' structs: its state, work, constants and diagnostics, the
+        winch's, the drone's and its hook's; for a batch, each stacked (``batch`` its leading axis),
+        the constants repeated per sub-environment."""
+        setup = self.setup
         #: The simulator stepped in place (one environment), or the template of the batch's arrays;
         #: a :class:`~esp_gym.drone.DroneSimulator` with a drone at the pivot.
         self.sim = DroneSimulator(setup.scene) if setup.drone else Simulator(setup.scene)
@@ -124,7 +141,6 @@ class ControlStep:
         self._drone = self.sim.drone if setup.drone else None
         #: The drone's hook constants (kernels/drone_hook.py) when it is off the centre of mass, else None.
         self._hook = self.sim.hook if setup.drone and setup.scene.pivot.drone.offset_hook else None
-        nominal = setup.nominal_episode
         if batch:
             def stack(t):
                 return type(t)(*(np.zeros(batch + a.shape) for a in t))
@@ -142,6 +158,13 @@ class ControlStep:
         self._state, self._diag, self._params = state, diag, params
         self._work = work
         self._winch = winch
+
+    def _env_buffers(self, batch: tuple) -> None:
+        """The environment's arrays (kernels/env_arrays.py EnvArrays: inputs, target, action,
+        observation, reward terms, report, sensors, features, the episode's run-time physics and
+        the wind's), the actions in flight and the generators, with the leading axis ``batch``."""
+        setup = self.setup
+        nominal = setup.nominal_episode
         z = np.zeros
         self._inputs = z(batch + (INPUTS.size,))
         self._target = z(batch + (TARGET.size,))
@@ -169,15 +192,6 @@ class ControlStep:
         self._windy = setup.wind is not None
         #: a drone's rotors draw their thrust noise before every control step (setup.thrust_noise)
         self._noisy_thrust = setup.drone and setup.thrust_noise > 0.0
-        #: the rig (esp_gym/rig.py): its compiled step and batched step, the structs they take
-        self.rig = setup.rig
-        entries = self.rig.entries
-        self._step_kernel = entries.step
-        self._batch_kernel = entries.batch if self.threads == 1 else entries.threaded_batch
-        self._scheme = SCHEME_DISTURBED if self._windy else 0
-        self._was_reset = z(batch, dtype=bool)  # stepping a state that was never set is an error
-        self._ready = False  # all of _was_reset, kept as a bool: step checks it every call
-        self._make_views()
 
     def _env_arrays(self) -> EnvArrays:
         """The environment's arrays as the compiled step takes them (kernels/env_arrays.py)."""
