@@ -32,7 +32,7 @@ from ..wind import wind_options
 from .fleet import check_lift
 from .gusts import TeamWind
 from .randomize import TeamRandomizer
-from .scene import MAX_STRINGS, TEAM_SAFETY, TeamScene, team_scene, team_substeps
+from .scene import TEAM_SAFETY, TeamScene, given_team, team_substeps
 from .simulator import TeamSimulator
 from .spaces import ACTUATIONS, TEAM_UNIT_NOISE, DroneDrive, action_size, agent_layout
 from .tasks import AGENT_TERMS, COLLISION, FLIP_COSINE, MAX_EPISODE_STEPS, REWARD_TERMS, SEPARATION, \
@@ -68,20 +68,9 @@ class TeamCore:
                          winch=winch, **given, **others)
         if o.preset is not None:  # the value given, else the preset's, else the default
             o = o.model_copy(update={name: v for name, v in TEAM_PRESETS[o.preset].items() if name not in given})
-        if isinstance(team, TeamScene):
-            scene = team
-            if o.randomize is not False:
-                raise ValueError("randomize: a randomised team is drawn from team = K, not from a given TeamScene")
-        elif isinstance(team, (int, np.integer)) and not isinstance(team, bool) and 1 <= team <= MAX_STRINGS:
-            scene = team_scene(int(team), drones=o.actuation not in (None, "force"))
-        else:
-            raise ValueError(f"team must be a number of strings (1-{MAX_STRINGS}) or a TeamScene, got {team!r}")
-        kinds = {p.kind for p in scene.pivots()}
-        if kinds not in ({"free"}, {"drone"}):
-            raise ValueError(f"team: a team environment's pivots are all free points or all drones, got "
-                             f"{sorted(kinds)}")
+        scene = given_team(team, o.actuation not in (None, "force"), o.randomize is not False)
         #: whether the pivots are drones, and how the agents drive them
-        self.drones = kinds == {"drone"}
+        self.drones = scene.scene.pivot.is_drone
         self.actuation = o.actuation or ("thrust_rates" if self.drones else "force")
         if self.drones == (self.actuation == "force"):
             raise ValueError(f"actuation {self.actuation!r} does not fly the team's "
@@ -107,16 +96,7 @@ class TeamCore:
         self.control_period, self.force_limit = o.control_period, o.force_limit
         #: h's margin under every string's stability bound (docs/physics.md on a team's balance)
         self.safety = TEAM_SAFETY if o.safety is None else float(o.safety)
-        # the episodes' stiffest and heaviest teams, checked before anything is built
-        corner = "" if self.randomizer is None else " at the randomize ranges' {} corner"
-        stiffest, heaviest = (scene, scene) if self.randomizer is None else (self.randomizer.stiffest,
-                                                                             self.randomizer.heaviest)
-        check_substeps(TEAM_ENV_ID, self.control_period, f"h within {self.safety:g} x every string's stability "
-                       "bound" + corner.format("stiffest"),
-                       team_substeps(stiffest, self.control_period, self.winch, self.safety),
-                       "use a shorter control_period, or softer, longer or coarser strings")
-        if self.drones:
-            check_lift(heaviest, corner.format("heaviest"))
+        self._check_extremes(scene)
         self.layout = agent_layout(self.size, self.observation, self.drones, self.winch)
         self._noise = np.concatenate([np.full(s.stop - s.start, self.sensor_noise * TEAM_UNIT_NOISE[name])
                                       for name, s in self.layout.structure().items()])
@@ -135,6 +115,19 @@ class TeamCore:
         self.load_force = np.zeros(3)
         #: the FrameRenderer of :meth:`frame` (made by its first call)
         self.renderer = None
+
+    def _check_extremes(self, scene: TeamScene) -> None:
+        """The episodes' stiffest and heaviest teams (``scene``, or the randomize ranges' corners),
+        checked before anything is built: their physics steps per control step, and each drone's lift."""
+        corner = "" if self.randomizer is None else " at the randomize ranges' {} corner"
+        stiffest, heaviest = (scene, scene) if self.randomizer is None else (self.randomizer.stiffest,
+                                                                             self.randomizer.heaviest)
+        check_substeps(TEAM_ENV_ID, self.control_period, f"h within {self.safety:g} x every string's stability "
+                       "bound" + corner.format("stiffest"),
+                       team_substeps(stiffest, self.control_period, self.winch, self.safety),
+                       "use a shorter control_period, or softer, longer or coarser strings")
+        if self.drones:
+            check_lift(heaviest, corner.format("heaviest"))
 
     def _use_scene(self, scene: TeamScene) -> None:
         """Step ``scene`` from its initial state: h the largest within ``safety`` x every string's

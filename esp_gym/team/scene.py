@@ -258,6 +258,25 @@ def team_scene(size: int, strings=None, pivot_masses=None, body_mass: float = NO
         for k, (string, pivot, _, _, mass) in enumerate(others)])
 
 
+def given_team(team, drones: bool, randomized: bool) -> TeamScene:
+    """The team of an environment's ``team`` argument: a :class:`TeamScene` (not with
+    ``randomized``: a randomised team is drawn from K) or K, the default team of K strings
+    (:func:`team_scene`, of ``drones``). ValueError naming ``team`` (or ``randomize``) unless its
+    pivots are all free points or all drones."""
+    if isinstance(team, TeamScene):
+        if randomized:
+            raise ValueError("randomize: a randomised team is drawn from team = K, not from a given TeamScene")
+        scene = team
+    elif isinstance(team, (int, np.integer)) and not isinstance(team, bool) and 1 <= team <= MAX_STRINGS:
+        scene = team_scene(int(team), drones=drones)
+    else:
+        raise ValueError(f"team must be a number of strings (1-{MAX_STRINGS}) or a TeamScene, got {team!r}")
+    kinds = {p.kind for p in scene.pivots()}
+    if kinds not in ({"free"}, {"drone"}):
+        raise ValueError(f"team: a team environment's pivots are all free points or all drones, got {sorted(kinds)}")
+    return scene
+
+
 #: A team's default margin under its strings' stability bounds (the environment's ``safety``): a
 #: team's balance at it and below, docs/physics.md ("The slack switch of a team's strings").
 TEAM_SAFETY = 0.5
