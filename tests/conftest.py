@@ -11,8 +11,16 @@ import esp_gym
 #: cluster: `make test` runs them after the others, in one process (the rest on two, with
 #: pytest-xdist), so another worker's load cannot stretch their clocks (docs/testing.md).
 SERIAL_MODULES = {"test_interrupt.py", "test_recording_failures.py", "test_ray.py"}
-#: Single tests that bound a wall time of their own (a median over repeats), run with them.
-SERIAL_TESTS = {"test_a_randomised_reset_costs_at_most_two_and_a_half_plain_ones"}
+#: Single tests that bound a wall time of their own (a median over repeats), run with them, by module.
+SERIAL_TESTS = {"test_randomize.py": {"test_a_randomised_reset_costs_at_most_two_and_a_half_plain_ones"}}
+
+
+def pytest_ignore_collect(collection_path, config):
+    """With ``-m serial`` (make test's second part), only the modules that hold serial tests are
+    collected: importing the others took about 5 s for nothing."""
+    if config.getoption("markexpr", "") == "serial" and collection_path.suffix == ".py":
+        return collection_path.name not in SERIAL_MODULES | set(SERIAL_TESTS)
+    return None
 
 
 #: Modules that run the scripts end to end in subprocesses (the command lines, the benchmarks' and
@@ -30,7 +38,7 @@ LONGEST_FIRST = ("test_cli.py", "test_wheel.py", "test_watchdog.py", "test_team_
 
 def pytest_collection_modifyitems(items):
     for item in items:
-        if item.path.name in SERIAL_MODULES or item.name in SERIAL_TESTS:
+        if item.path.name in SERIAL_MODULES or item.name in SERIAL_TESTS.get(item.path.name, ()):
             item.add_marker(pytest.mark.serial)
         if item.path.name in SLOW_MODULES:
             item.add_marker(pytest.mark.slow)
