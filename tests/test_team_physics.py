@@ -360,3 +360,27 @@ def test_elements_auto_chooses_each_strings_resolution_and_the_smallest_step():
     assert all(s.string.auto for s in team.strings)
     assert team.h == min(base.scene.h, *(a.h for a in alone)) < base.scene.h  # the stiff string's step
     TeamSimulator(team).step(10)
+
+
+def test_the_tridiagonal_solve_is_scipys_solve_banded_bit_for_bit():
+    """team/velocities.py's tridiagonal_solve against scipy.linalg.solve_banded((1, 1), ...) on
+    random string-like systems (1 x 1 to 17 x 17, a vector and three columns): equal bits; a NaN
+    and a singular matrix are refused as there. Negative control: another diagonal, other bits."""
+    from scipy.linalg import LinAlgError, solve_banded
+
+    from esp_gym.team.assembly import banded
+    from esp_gym.team.velocities import tridiagonal_solve
+
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 3, 8, 17):
+        for _ in range(50):
+            ab = banded(rng.uniform(0.01, 2.0, n), -rng.uniform(0.0, 0.004))
+            for b in (rng.normal(size=(n, 3)), rng.normal(size=n)):
+                assert np.array_equal(tridiagonal_solve(ab, b), solve_banded((1, 1), ab, b))
+    other = ab.copy()
+    other[1, 0] = np.nextafter(other[1, 0], 3.0)
+    assert not np.array_equal(tridiagonal_solve(other, b), solve_banded((1, 1), ab, b))
+    with pytest.raises(ValueError, match="infs or NaNs"):
+        tridiagonal_solve(ab, np.full(ab.shape[1], np.nan))
+    with pytest.raises(LinAlgError, match="singular"):
+        tridiagonal_solve(banded(np.zeros(3), 0.0), np.ones(3))

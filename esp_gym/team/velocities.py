@@ -3,11 +3,26 @@ team"): node velocities and the body's from the momenta, each string reduced to 
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import solve_banded
+from scipy.linalg import LinAlgError, lapack
 
 from ..stability import hat
 from ..state import cross3
 from .assembly import banded
+
+
+def tridiagonal_solve(ab, b):
+    """``scipy.linalg.solve_banded((1, 1), ab, b)``, bit for bit: the same LAPACK routine (gtsv)
+    on the same arrays, without the wrapper's per-call validation, which was half of a team
+    environment's inverse Legendre transform. ValueError for a non-finite entry, LinAlgError for
+    a singular matrix, as there."""
+    if not (np.isfinite(ab).all() and np.isfinite(b).all()):
+        raise ValueError("array must not contain infs or NaNs")
+    if ab.shape[1] == 1:  # a 1 x 1 matrix: SciPy divides
+        return b / ab[1, 0]
+    _, _, _, x, info = lapack.dgtsv(ab[2, :-1], ab[1, :], ab[0, 1:], b)
+    if info > 0:
+        raise LinAlgError("singular matrix")
+    return x
 
 
 def team_velocities(members, M: float, rho_c, J, R, px, Pi):
@@ -23,10 +38,10 @@ def team_velocities(members, M: float, rho_c, J, R, px, Pi):
         lo = first
         if n - 1 >= lo:
             ab = banded(diag[lo:n], off)
-            y = solve_banded((1, 1), ab, p[lo:n])
+            y = tridiagonal_solve(ab, p[lo:n])
             e = np.zeros(n - lo)
             e[-1] = 1.0
-            col = solve_banded((1, 1), ab, e)
+            col = tridiagonal_solve(ab, e)
             mu, c = diag[n] - off * off * col[-1], off * y[-1]
         else:
             ab, y, col, mu, c = None, None, None, float(diag[n]), np.zeros(3)
