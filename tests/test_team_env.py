@@ -352,8 +352,9 @@ def test_the_pettingzoo_team_records_as_the_gymnasium_one_with_its_energy_balanc
     it), the same pulls as its infos, and the energy and its balance after every reset and step,
     as the simulator's diagnostics give them."""
     from pettingzoo.utils.wrappers import BaseParallelWrapper
+    from rerun.chunk import RrdReader
 
-    from esp_gym.team.recording import RecordTeamParallelRerun, RecordTeamRerun
+    from esp_gym.team.recording import RecordTeamParallelRerun, RecordTeamRerun, team_eye
 
     path = tmp_path / "team.rrd"
     env = RecordTeamRerun(parallel_env(team=2), path)
@@ -365,9 +366,17 @@ def test_the_pettingzoo_team_records_as_the_gymnasium_one_with_its_energy_balanc
         pulls.append(np.linalg.norm(infos["pivot_1"]["tension"]))
         balance.append(env.unwrapped.core.sim.diagnostics()["energy_balance_residual"])
     env.close()
+    assert len(RrdReader(path).blueprints()) >= 1  # its layout (team_blueprint), with the data
     assert _series(path, "/team/tension/pivot_1") == pulls
     assert _series(path, "/team/energy/balance") == balance and len(_series(path, "/team/energy/total")) == 5
     parallel_api_test(RecordTeamRerun(parallel_env(team=2), tmp_path / "api.rrd"), num_cycles=5)
+    # the 3-D view's eye sees the whole team: every pivot and the load within 25 degrees of its axis
+    core = env.unwrapped.core
+    eye, target = team_eye(core)
+    axis = (target - eye) / np.linalg.norm(target - eye)
+    for point in [*core.pivot_positions(), core.load_position()]:
+        ray = (point - eye) / np.linalg.norm(point - eye)
+        assert np.degrees(np.arccos(np.clip(ray @ axis, -1.0, 1.0))) < 25.0
 
 
 def test_a_team_frame_draws_every_string_and_pivot_where_they_are():

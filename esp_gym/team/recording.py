@@ -2,7 +2,8 @@
 ``ElasticStringTeam-v0``, or the PettingZoo env (esp_gym.team.parallel_env), and logs, after every
 reset and step, every string's nodes, every pivot, the load (its box turned by R at its centre of
 mass), the targets, and as series each string's pull on its pivot, the closest two pivots, the
-reward and the energy balance. Read it with ``rerun FILE`` or ``rerun.chunk.RrdReader``.
+reward and the energy balance. The file carries its layout (:func:`team_blueprint`: the 3-D
+view in front, the whole team in view). Read it with ``rerun FILE`` or ``rerun.chunk.RrdReader``.
 
 Entities: ``/world/strings/{k}`` (LineStrips3D), ``/world/pivots`` (Points3D), ``/world/load``
 (Transform3D; its box ``/world/load/box`` static), ``/world/targets`` (Points3D: the pivots' and
@@ -19,12 +20,42 @@ import numpy as np
 
 from ..extras import require
 from ..params import Box
+from ..viz.entities import EYE_DIRECTION, EYE_DISTANCE
 
 rr = require("rerun", "esp_gym.team.recording")
 try:  # the PettingZoo env's face (without PettingZoo there is no such env to record)
     from pettingzoo.utils.wrappers import BaseParallelWrapper
 except ImportError:
     BaseParallelWrapper = object
+
+
+def team_eye(core) -> tuple:
+    """``(position, look_target)`` [m] of the 3-D view's eye: it looks at the middle of the team
+    (its pivots' and load's centre) from :data:`~esp_gym.viz.entities.EYE_DISTANCE` times the
+    rig's extent (at least 1 m) along the single env's direction, so every pivot, string and the
+    load are in view."""
+    points = np.vstack([core.pivot_positions(), core.load_position()[None]])
+    target = points.mean(axis=0)
+    extent = max(float(np.linalg.norm(points - target, axis=1).max()) * 2.0, 1.0)
+    return target + EYE_DISTANCE * extent * EYE_DIRECTION, target
+
+
+def team_blueprint(core):
+    """The recording's layout: the 3-D view in front (:func:`team_eye`), beside the energy and
+    its balance, each string's pull, the closest two pivots and the reward."""
+    import rerun.blueprint as rrb
+
+    ts = rrb.TimeSeriesView
+    position, target = team_eye(core)
+    eye = rrb.EyeControls3D(kind=rrb.Eye3DKind.Orbital, position=position, look_target=target,
+                            eye_up=[0.0, 0.0, -1.0])
+    panels = rrb.Vertical(rrb.Tabs(ts(origin="/team/energy/balance", name="E - E0 - W [J]"),
+                                   ts(origin="/team/energy/total", name="energy [J]")),
+                          ts(origin="/team/tension", name="string pulls [N]"),
+                          rrb.Tabs(ts(origin="/team/reward", name="reward"),
+                                   ts(origin="/team/separation", name="closest pivots [m]")))
+    view = rrb.Spatial3DView(origin="/world", name="3-D", eye_controls=eye)
+    return rrb.Blueprint(rrb.Horizontal(view, panels, column_shares=[3, 2]), collapse_panels=True)
 
 
 class TeamRecorder:
@@ -37,7 +68,7 @@ class TeamRecorder:
             raise ValueError(f"path: the directory {self.path.parent} does not exist")
         self.core = core
         self.rec = rr.RecordingStream("esp_gym_team")
-        self.rec.save(str(self.path))
+        self.rec.save(str(self.path), default_blueprint=team_blueprint(core))
         self.samples = 0
         self.rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_DOWN, static=True)
         shape = core.scene.scene.body.shape
