@@ -347,6 +347,27 @@ def _series(path, entity: str) -> list:
     return values
 
 
+def test_a_drone_teams_recording_draws_each_drone_at_its_pivot_turned_by_its_attitude(tmp_path):
+    from rerun.chunk import RrdReader
+
+    from esp_gym.team.recording import RecordTeamRerun
+
+    path = tmp_path / "drones.rrd"
+    env = RecordTeamRerun(ElasticStringTeamEnv(2, actuation="thrust_rates"), path)
+    env.reset(seed=0)
+    for _ in range(3):
+        env.step(np.full(8, 0.1))
+    core = env.unwrapped.core
+    last = core.sim.fleet.diagnostics()["drone_attitudes"][1]
+    env.close()
+    chunks = [c for c in RrdReader(path).stream() if c.entity_path.startswith("/world/drones/1")]
+    assert {c.entity_path for c in chunks} == {"/world/drones/1", "/world/drones/1/frame"}
+    mats = [m for c in chunks if c.entity_path == "/world/drones/1" for m in
+            c.to_record_batch().column("Transform3D:mat3x3").to_pylist()]
+    assert len(mats) == 4 and np.allclose(np.asarray(mats[-1][0], dtype=float).reshape(3, 3, order="F"), last)
+    assert not np.allclose(last, np.eye(3))  # it turned: the check can fail
+
+
 def test_the_pettingzoo_team_records_as_the_gymnasium_one_with_its_energy_balance(tmp_path):
     """RecordTeamRerun of parallel_env: a ParallelEnv still (PettingZoo's API test passes through
     it), the same pulls as its infos, and the energy and its balance after every reset and step,

@@ -5,7 +5,9 @@ mass), the targets, and as series each string's pull on its pivot, the closest t
 reward and the energy balance. The file carries its layout (:func:`team_blueprint`: the 3-D
 view in front, the whole team in view). Read it with ``rerun FILE`` or ``rerun.chunk.RrdReader``.
 
-Entities: ``/world/strings/{k}`` (LineStrips3D), ``/world/pivots`` (Points3D), ``/world/load``
+Entities: ``/world/strings/{k}`` (LineStrips3D), ``/world/pivots`` (Points3D), a drone team's
+``/world/drones/{k}`` (Transform3D: at its pivot, turned by R_q; its arms and rotors
+``/world/drones/{k}/frame`` static), ``/world/load``
 (Transform3D; its box ``/world/load/box`` static), ``/world/targets`` (Points3D: the pivots' and
 the load's), ``/team/tension/pivot_{k}`` [N], ``/team/separation`` [m], ``/team/reward``,
 ``/team/energy/balance`` (E - E0 - W [J]) and ``/team/energy/total`` (E [J]) (Scalars). Times:
@@ -20,7 +22,7 @@ import numpy as np
 
 from ..extras import require
 from ..params import Box
-from ..viz.entities import EYE_DIRECTION, EYE_DISTANCE
+from ..viz.entities import EYE_DIRECTION, EYE_DISTANCE, drone_frame
 
 rr = require("rerun", "esp_gym.team.recording")
 try:  # the PettingZoo env's face (without PettingZoo there is no such env to record)
@@ -75,6 +77,9 @@ class TeamRecorder:
         if isinstance(shape, Box):
             self.rec.log("/world/load/box", rr.Boxes3D(half_sizes=[0.5 * np.asarray(shape.size)], fill_mode="solid"),
                          static=True)
+        if core.drones:  # each drone drawn as the single env draws its own, in its body frame
+            for k, pivot in enumerate(core.scene.pivots()):
+                self.rec.log(f"/world/drones/{k}/frame", drone_frame(pivot.drone.rotor_positions()), static=True)
 
     def log(self, reward: float | None = None, pulls=None, min_separation: float | None = None) -> None:
         """The state now; after a step, its ``reward``, each pivot's string's pull [N] (K, 3) and
@@ -89,6 +94,10 @@ class TeamRecorder:
         rec.log("/world/pivots", rr.Points3D(core.pivot_positions(), radii=0.03,
                                              labels=[f"pivot_{k}" for k in range(core.size)]))
         rec.log("/world/load", rr.Transform3D(translation=core.load_position(), mat3x3=st.lead.R))
+        if core.drones:
+            attitudes = core.sim.fleet.diagnostics()["drone_attitudes"]
+            for k, (position, R_q) in enumerate(zip(core.pivot_positions(), attitudes)):
+                rec.log(f"/world/drones/{k}", rr.Transform3D(translation=position, mat3x3=R_q))
         rec.log("/world/targets", rr.Points3D(np.vstack([core.pivot_targets, core.load_target]), radii=0.02))
         d = core.sim.diagnostics()
         rec.log("/team/energy/total", rr.Scalars(float(d["energy"])))
