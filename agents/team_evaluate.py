@@ -14,8 +14,8 @@ import math
 import numpy as np
 
 from agents.evaluate import ONE_BLAS_THREAD, SUCCESS_DISTANCE, SUCCESS_SWING_DEG, EpisodeResult
+from esp_gym import MAX_EPISODE_STEPS
 from esp_gym.team.env import ElasticStringTeamEnv
-from esp_gym.team.tasks import MAX_EPISODE_STEPS
 
 
 class TeamZero:

@@ -82,6 +82,16 @@ def rigs() -> str:
     return "\n".join("  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip() for row in rows)
 
 
+def scene_rig(scene, winch: bool) -> Rig:
+    """The rig of a scene (its pivot, its solver's string scheme, a drone's hook) with or without
+    the winch; ValueError naming the scene's settings if there is none (:func:`find_rig`)."""
+    pivot = scene.pivot
+    hooked = pivot.is_drone and pivot.drone.offset_hook
+    return find_rig("drone" if pivot.is_drone else "point", scene.solver.string, winch, hooked,
+                    f"scene {scene.name!r}: solver.string {scene.solver.string!r}, winch={winch}"
+                    + (f", pivot.drone.rho_q = {list(pivot.drone.rho_q)}" if hooked else ""))
+
+
 def find_rig(pivot: str, string: str, winch: bool, hook: bool, settings: str = "",
              where: str = "ElasticStringPendulum-v0") -> Rig:
     """The rig of ``pivot`` (``"point"`` or ``"drone"``), ``string`` (``"explicit"`` or

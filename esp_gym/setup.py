@@ -24,7 +24,7 @@ from .observe import Observer
 from .options import MAX_FORCE_SHARE, check_substeps, env_options
 from .params import Scene, load_scene, override_scene, scene_from_dict
 from .randomize import Randomizer, episode_param_names, nominal_values
-from .rig import Rig, find_rig
+from .rig import Rig, scene_rig
 from .state import build_params
 from .stepsize import auto_elements, resolution_safety, scheme_substeps, shortest
 from .tasks import Task, get_task, hanging_depth
@@ -188,9 +188,7 @@ class EnvSetup:
     @property
     def rig(self) -> Rig:
         """The rig this setup runs (esp_gym/rig.py): its pivot, string scheme, winch and hook."""
-        pivot = self.scene.pivot
-        return find_rig("drone" if self.drone else "point", self.scene.solver.string, self.winch,
-                        self.drone and pivot.drone.offset_hook)
+        return scene_rig(self.scene, self.winch)
 
     @property
     def param_names(self) -> tuple:
@@ -314,9 +312,7 @@ def preset_options(**arguments) -> tuple:
     """``(EnvOptions, the arguments of PRESET_SETS given)``: the options a preset sets take, in
     this order, the value given (None: not given), the preset's (with its task's), EnvOptions'
     default."""
-    given = {name: arguments.pop(name) for name in PRESET_SETS if arguments.get(name) is not None}
-    for name in PRESET_SETS:
-        arguments.pop(name, None)
+    given = {name: value for name in PRESET_SETS if (value := arguments.pop(name, None)) is not None}
     o = env_options(**arguments, **given)
     if o.preset is not None:
         preset = {**PRESETS[o.preset], **PRESET_TASK_OPTIONS[o.preset].get(o.task, {})}
@@ -349,10 +345,7 @@ def check_rig(resolved: Scene, o, t: Task, winch: bool, actuation: str, given: d
     if "thrust_noise" in given and given["thrust_noise"] != 0 and not resolved.pivot.is_drone:
         raise ValueError(f"ElasticStringPendulum-v0: thrust_noise={given['thrust_noise']!r} is a drone's rotors' noise: "
                          f"scene {resolved.name!r}'s pivot is {resolved.pivot.kind!r}")
-    hooked = resolved.pivot.is_drone and resolved.pivot.drone.offset_hook
-    find_rig("drone" if resolved.pivot.is_drone else "point", resolved.solver.string, winch, hooked,
-             f"scene {resolved.name!r}: solver.string {resolved.solver.string!r}, winch={winch}"
-             + (f", pivot.drone.rho_q = {list(resolved.pivot.drone.rho_q)}" if hooked else ""))
+    scene_rig(resolved, winch)
     if resolved.pivot.is_drone and resolved.solver.order != 2:
         raise ValueError(f"ElasticStringPendulum-v0: a drone at the pivot flies the explicit string of order 2 "
                          f"(scene {resolved.name!r}: solver.order {resolved.solver.order})")

@@ -15,8 +15,6 @@ With K = 1 the step is the single winch's :func:`~.winch.winch_substep`, bit for
 """
 from collections import namedtuple
 
-import numpy as np
-
 from .jit import kernel
 from .layout import (B_GRAVITY_IMPULSE, B_WINCH_WORK, WN_EA, WN_END_SHARE, WN_LENGTH, WN_MASS_PER_LENGTH,
                      WN_MAX_LENGTH, WN_MAX_STRETCH, WN_MIN_LENGTH, WN_OFF_SHARE, WN_REEL_SPEED)

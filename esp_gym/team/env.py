@@ -35,8 +35,8 @@ from .randomize import TeamRandomizer
 from .scene import TEAM_SAFETY, TeamScene, given_team, team_substeps
 from .simulator import TeamSimulator
 from .spaces import ACTUATIONS, TEAM_UNIT_NOISE, DroneDrive, action_size, agent_layout
-from .tasks import AGENT_TERMS, COLLISION, FLIP_COSINE, MAX_EPISODE_STEPS, REWARD_TERMS, SEPARATION, \
-    TEAM_PRESETS, get_team_task, hanging_rise
+from .tasks import AGENT_TERMS, COLLISION, FLIP_COSINE, REWARD_TERMS, SEPARATION, TEAM_PRESETS, get_team_task, \
+    hanging_rise
 
 
 class TeamCore:

@@ -10,11 +10,12 @@ from typing import Optional
 import gymnasium as gym
 import numpy as np
 
+from .. import MAX_EPISODE_STEPS
 from ..control import raw_actions
 from ..extras import require
 from .env import TeamCore
 from .spaces import agent_layout
-from .tasks import AGENT_TERMS, MAX_EPISODE_STEPS, REWARD_TERMS
+from .tasks import AGENT_TERMS, REWARD_TERMS
 
 
 def agent_info(k: int, core: TeamCore, info: dict) -> dict:

@@ -1,5 +1,6 @@
 """A team's tasks (docs/team.md): reward weights and scales, the start and target distributions,
-the thresholds that end an episode, its time limit and the presets."""
+the thresholds that end an episode and the presets (the time limit is the single env's,
+esp_gym.MAX_EPISODE_STEPS)."""
 from __future__ import annotations
 
 import math
@@ -7,7 +8,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import MAX_EPISODE_STEPS
 from ..options import TEAM_LACKS
 from ..setup import DRONE_FLIP_TILT, PRESETS
 

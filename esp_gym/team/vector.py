@@ -14,7 +14,8 @@ from gymnasium.vector.utils import batch_space
 
 from ..control import raw_actions
 from ..vector import sub_env_seeds
-from .env import MAX_EPISODE_STEPS, ElasticStringTeamEnv
+from .. import MAX_EPISODE_STEPS
+from .env import ElasticStringTeamEnv
 
 
 class ElasticStringTeamVectorEnv(VectorEnv):
