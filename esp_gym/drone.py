@@ -12,8 +12,9 @@ from collections import namedtuple
 
 import numpy as np
 
-from .kernels.drone import DRONE, DRONE_DIAG, DroneArrays, drone_advance, drone_diagnostics
-from .kernels.drone_hook import HookArrays, hook_advance, hook_diagnostics
+from .kernels.drone import DRONE, DRONE_DIAG, DroneArrays, drone_diagnostics
+from .kernels.drone_hook import HookArrays, hook_diagnostics
+from .kernels.drone_loops import drone_advance
 from .kernels.string import tridiag_factor
 from .kernels.layout import DIAG
 from .model import ROTATION_TOL, Simulator
@@ -222,12 +223,9 @@ class DroneSimulator(Simulator):
         while n > 0:
             k = min(n, self.steps_per_call)
             n -= k
-            if self._hooked:
-                self._timed(hook_advance, (self._arrays, self._work, self.params, self.drone, self.hook, self._inputs,
-                                           k, self._stats, self._coupled), k)
-            else:
-                self._timed(drone_advance, (self._arrays, self._work, self.params, self.drone, self._inputs, k,
-                                            self._stats, self._coupled), k)
+            self._timed(drone_advance, (self._arrays, self._work, self.params, self._diag, self.drone,
+                                        self.hook if self._hooked else None, self._inputs, k, self._stats,
+                                        self._coupled), k)
 
     def run(self, *args, **kwargs):
         raise NotImplementedError("DroneSimulator records no trajectory yet: call step() and diagnostics()")

@@ -56,11 +56,9 @@ class Rig:
             from .kernels.env_step import env_reset_observe
 
             return int(env_reset_observe(S, P, D, WA, E, self.winch))
-        from .kernels.drone_env import drone_reset_observe, hook_reset_observe
+        from .kernels.drone_env import drone_reset_observe
 
-        if self.hook:
-            return int(hook_reset_observe(S, P, D, DR, HK, E))
-        return int(drone_reset_observe(S, P, D, WA, DR, E, self.winch))
+        return int(drone_reset_observe(S, P, D, WA if self.winch else None, DR, HK if self.hook else None, E))
 
 
 _POINT = ("state", "work", "params", "diag", "winch", "env")

@@ -24,6 +24,7 @@ import math
 
 from .jit import kernel
 from .layout import B_ANGULAR_IMPULSE_Z, B_EXTERNAL_IMPULSE, Layout
+from .status import OK
 from .sums import kahan_add
 
 #: An episode's wind and pushes (esp_gym/wind.py; kernels/disturbance.py): the mean wind [m/s]
@@ -220,3 +221,39 @@ def kick(r, p, R, Pi, acc, accc, rho, ext, c, first):
     kahan_add(acc, accc, B_EXTERNAL_IMPULSE + 1, c * (t1 + F1))
     kahan_add(acc, accc, B_EXTERNAL_IMPULSE + 2, c * (t2 + F2))
     kahan_add(acc, accc, B_ANGULAR_IMPULSE_Z, c * ang)
+
+
+# The kicks around a run of steps, for every loop (kernels/loops.py, kernels/drone_env.py,
+# kernels/team_loops.py): the held forces act as kicks of h/2 on both sides of each step, the two
+# between consecutive steps merged into one of h.
+@kernel(inline="always")
+def kick_before(S, W, P, nsteps, disturbed):
+    """The first step's first half kick (h/2) of a run of ``nsteps`` steps (``disturbed``)."""
+    if disturbed and nsteps > 0:
+        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, 0.5 * P.h, 0 if P.first == 0 else 1)
+
+
+@kernel(inline="always")
+def kick_back(S, W, P, disturbed):
+    """Take the pending half kick back (-h/2): after a failed step, or where a run stops early."""
+    if disturbed:
+        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, -0.5 * P.h, 0 if P.first == 0 else 1)
+
+
+@kernel(inline="always")
+def kick_next(S, W, P, k, nsteps, disturbed):
+    """After step ``k`` of ``nsteps`` succeeded (``disturbed``): its second half and the next
+    step's first (h), or the run's last half (h/2)."""
+    if disturbed:
+        c = P.h if k < nsteps - 1 else 0.5 * P.h
+        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, c, 0 if P.first == 0 else 1)
+
+
+@kernel(inline="always")
+def kick_after(S, W, P, status, k, nsteps, disturbed):
+    """After step ``k`` of ``nsteps`` with ``status``: :func:`kick_next` on success, else
+    :func:`kick_back`."""
+    if status != OK:
+        kick_back(S, W, P, disturbed)
+    else:
+        kick_next(S, W, P, k, nsteps, disturbed)

@@ -18,13 +18,12 @@ import math
 
 from .jit import kernel
 from .layout import B_ANGULAR_IMPULSE_Z, B_WORK, D_ENERGY, D_PI3, D_POTENTIAL_GRAVITY, IN_PIVOT_FORCE, IN_PIVOT_FORCE_END, Layout
-from .loops import finish, winch_step
+from .step import winch_step
 from .lgvi import lgvi_substep
 from .rotors import motor_lag, rate_command, rotor_wrench, wrench_command
 from .so3 import cayley_minus_identity, cayley_newton
 from .status import NEWTON_FAILED, OK
 from .step_shared import commit_rotation, free_body_increment, next_attitude, torque_work
-from .string import nodal_forces
 from .sums import kahan_add
 
 #: The drone's constants: k_f [N s^2/rad^2], the motor lag's decays over a step e^(-h/t_up) and
@@ -243,7 +242,7 @@ def drone_substep(S, W, P, DR, inputs, h, coupled, compensated):
 @kernel(forceinline=True)
 def drone_winch_step(S, W, P, WA, D, DR, inputs, speed, compensated):
     """:func:`drone_substep` while the winch reels at ``speed`` [m/s]: the string's step is the
-    winch's (kernels/loops.py ``winch_step``, the explicit string of order 2: one substep of
+    winch's (kernels/step.py ``winch_step``, the explicit string of order 2: one substep of
     ``P.h``); the drone is committed only when it succeeds."""
     status, iters, dP, c = drone_start(DR, P, inputs, P.h, compensated)
     if status != OK:
@@ -252,26 +251,6 @@ def drone_winch_step(S, W, P, WA, D, DR, inputs, speed, compensated):
     if status == OK:
         drone_finish(S, DR, P.h, dP, c, compensated)
     return status, iters + string_iters
-
-
-@kernel(entry=True)
-def drone_advance(S, W, P, DR, inputs, nsteps, stats, coupled):
-    """Take up to ``nsteps`` :func:`drone_substep` s of length ``P.h`` with the motor commands held;
-    stop at the first failure with the last good state. ``stats`` (int64, REPORT's first four):
-    status, steps taken, total and largest Newton iterations per step (the drone's and the
-    load's together)."""
-    nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
-    start_wrench(DR)
-    total = 0
-    most = 0
-    for k in range(nsteps):
-        status, iters = drone_substep(S, W, P, DR, inputs, P.h, coupled, P.compensated)
-        total += iters
-        most = max(most, iters)
-        if status != OK:
-            finish(stats, status, k, total, most)
-            return
-    finish(stats, OK, nsteps, total, most)
 
 
 @kernel(entry=True)

@@ -16,17 +16,16 @@ import numpy as np
 from numba import prange
 
 from .diagnostics import diagnostics
-from .disturbance import kick
-from .drone import (MOTORS, THRUST_RATES, THRUST_TORQUE, DroneArrays, actuate, drone_diagnostics, drone_substep,
-                    drone_winch_step, max_rotor_thrust, rate_actuate, start_wrench, Q_THRUST_COEFFICIENT, QD_RATES)
-from .drone_hook import HookArrays, hook_diagnostics, hook_substep, hook_velocities
+from .drone import (MOTORS, THRUST_RATES, THRUST_TORQUE, DroneArrays, actuate, drone_diagnostics, max_rotor_thrust,
+                    Q_THRUST_COEFFICIENT, QD_RATES)
+from .drone_hook import HookArrays, hook_diagnostics
+from .drone_loops import drone_steps
 from .env_arrays import O_UNSTRETCHED_LENGTH, SCHEME_DISTURBED, SENSORS, TP_ENERGY_ORIGIN, TP_STRING_LENGTH, EnvArrays
 from .env_step import (EntryPoints, close_balances, diag_row, energy_watchdog, env_prepare,
                        env_row, params_row, state_row, winch_row, work_row)
 from .jit import announce_compile, kernel
 from .layout import (D_ENERGY, R_TERMINATION, WN_LENGTH, WN_MASS_PER_LENGTH, WN_REEL_SPEED, DiagWork, Layout,
                      LGVIParams, StateArrays, WinchArrays, Work)
-from .loops import finish
 from .rows import row_function
 from .status import OK, TERM_DRONE_FLIPPED
 from .task_terms import observe_and_score
@@ -94,96 +93,6 @@ def drone_take_action(raw, qa, action, DR):
 
 
 @kernel(inline="always")
-def steps_start(S, W, P, DR, E, disturbed):
-    """Before a control step's physics steps: the first half kick of the held external forces
-    (``disturbed``), the rotors' wrench at the state. Returns (the first unknown node, h/2, the
-    number of steps, whether the rate controller runs)."""
-    first = 0 if P.first == 0 else 1
-    hh = 0.5 * P.h
-    nsub = E.nsub[0]
-    if disturbed and nsub > 0:
-        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, hh, first)
-    start_wrench(DR)
-    return first, hh, nsub, int(E.ap[QA_ACTUATION]) == THRUST_RATES
-
-
-@kernel(inline="always")
-def step_end(S, W, P, E, status, k, nsub, counts, disturbed, first, hh):
-    """After physics step ``k`` of ``nsub``: the kicks around it (a failure takes the pending half
-    back and fills ``E.result``). Returns True when the loop must stop."""
-    if status != OK:
-        if disturbed:
-            kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, -hh, first)
-        finish(E.result, status, k, counts[0], counts[1])
-        return True
-    if disturbed:
-        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, P.h if k + 1 < nsub else hh, first)
-    return False
-
-
-@kernel(inline="always")
-def drone_steps(S, W, P, WA, D, DR, E, reel, coupled, disturbed, winched):
-    """``E.nsub[0]`` steps of :func:`~.drone.drone_substep` (``winched``: of
-    :func:`~.drone.drone_winch_step`, reeling at ``reel`` [m/s]), the rate controller before each
-    in ``thrust_rates``; the held external forces (``disturbed``) as kicks of h/2 on both sides
-    of each step, as kernels/loops.py does. A failed step leaves the state after the last good
-    one (its pending half kick taken back). Fills ``E.result``'s first four entries."""
-    first, hh, nsub, rates = steps_start(S, W, P, DR, E, disturbed)
-    total = 0
-    most = 0
-    for k in range(nsub):
-        if rates:
-            actuate(DR, THRUST_RATES)
-        if winched:
-            status, iters = drone_winch_step(S, W, P, WA, D, DR, E.inputs, reel, P.compensated)
-        else:
-            status, iters = drone_substep(S, W, P, DR, E.inputs, P.h, coupled, P.compensated)
-        total += iters
-        most = max(most, iters)
-        if step_end(S, W, P, E, status, k, nsub, (total, most), disturbed, first, hh):
-            return
-    finish(E.result, OK, nsub, total, most)
-
-
-# Its own loop, not a flag of drone_steps: the flag doubled drone_loop's compile (3.7 -> 7.4 s).
-@kernel(inline="always")
-def hook_steps(S, W, P, D, DR, HK, E, coupled, disturbed):
-    """:func:`drone_steps` for a drone at an offset hook (no winch): :func:`~.drone_hook.hook_substep`,
-    the rate controller on the rates of the Legendre transform at both ends."""
-    first, hh, nsub, rates = steps_start(S, W, P, DR, E, disturbed)
-    total = 0
-    most = 0
-    for k in range(nsub):
-        if rates:
-            _, _, omega_q, _ = hook_velocities(S, P, DR, HK, D.V)
-            rate_actuate(DR, omega_q)
-        status, iters = hook_substep(S, W, P, DR, HK, E.inputs, P.h, coupled, P.compensated)
-        total += iters
-        most = max(most, iters)
-        if step_end(S, W, P, E, status, k, nsub, (total, most), disturbed, first, hh):
-            return
-    finish(E.result, OK, nsub, total, most)
-
-
-@kernel
-def drone_loop(S, W, P, D, DR, E, coupled, disturbed):
-    """:func:`drone_steps` without a winch."""
-    drone_steps(S, W, P, None, D, DR, E, 0.0, coupled, disturbed, False)
-
-
-@kernel
-def hook_loop(S, W, P, D, DR, HK, E, coupled, disturbed):
-    """:func:`drone_steps` at an offset hook."""
-    hook_steps(S, W, P, D, DR, HK, E, coupled, disturbed)
-
-
-@kernel
-def drone_winch_loop(S, W, P, WA, D, DR, E, reel, coupled, disturbed):
-    """:func:`drone_steps` with the winch reeling at ``reel`` [m/s]."""
-    drone_steps(S, W, P, WA, D, DR, E, reel, coupled, disturbed, True)
-
-
-@kernel(inline="always")
 def drone_sensors(DR, sensors):
     """The drone's fields of DRONE_SENSORS: R_q's first two columns and Omega_q (``DR.diag``
     filled by :func:`~.drone.drone_diagnostics`, J_q^-1 Pi_q, or at an offset hook by
@@ -194,14 +103,15 @@ def drone_sensors(DR, sensors):
         sensors[QS_DRONE_RATES + i] = DR.diag[QD_RATES + i]
 
 
-@kernel(inline="always")
-def drone_observe_stages(S, P, D, WA, DR, HK, E, winched, hooked):
-    """The diagnostics with the drone's share (``winched``: at the winch's length and reel speed,
-    the energy the Hamiltonian, as kernels/env_step.py's ``env_finish_winched``; ``hooked``: with
-    the Legendre transform at both ends, kernels/drone_hook.py), the tasks' stages, the drone's
-    sensors; returns the task's termination code, or TERM_DRONE_FLIPPED when
-    the drone's b3 is tilted from e3 past the limit (R_q[2, 2] below its cosine)."""
-    if winched:
+@kernel
+def drone_observe(S, P, D, WA, DR, HK, E):
+    """The diagnostics with the drone's share (with the winch ``WA``: at its length and reel speed,
+    the energy the Hamiltonian, as kernels/env_step.py's ``env_finish_winched``; at the offset hook
+    ``HK``: with the Legendre transform at both ends, kernels/drone_hook.py; each None where the
+    rig has none), the tasks' stages, the drone's sensors; returns the task's termination code,
+    or TERM_DRONE_FLIPPED when the drone's b3 is tilted from e3 past the limit (R_q[2, 2] below
+    its cosine)."""
+    if WA is not None:
         length = WA.state[WN_LENGTH]
         winch_energy(S, P, WA, D, length, WA.state[WN_REEL_SPEED])
         drone_diagnostics(DR, D.out)
@@ -211,7 +121,7 @@ def drone_observe_stages(S, P, D, WA, DR, HK, E, winched, hooked):
         code = observe_and_score(S, Pl, D, E, length)
         E.obs[O_UNSTRETCHED_LENGTH] = length
     else:
-        if hooked:
+        if HK is not None:
             hook_diagnostics(S, P, D, DR, HK)
         else:
             diagnostics(S, P, D)
@@ -223,62 +133,28 @@ def drone_observe_stages(S, P, D, WA, DR, HK, E, winched, hooked):
     return code
 
 
-@kernel
-def drone_observe(S, P, D, DR, E):
-    """:func:`drone_observe_stages` without a winch."""
-    return drone_observe_stages(S, P, D, None, DR, None, E, False, False)
-
-
-@kernel
-def hook_observe(S, P, D, DR, HK, E):
-    """:func:`drone_observe_stages` at an offset hook."""
-    return drone_observe_stages(S, P, D, None, DR, HK, E, False, True)
-
-
-@kernel
-def drone_winch_observe(S, P, D, WA, DR, E):
-    """:func:`drone_observe_stages` with a winch."""
-    return drone_observe_stages(S, P, D, WA, DR, None, E, True, False)
-
-
 @kernel(inline="always")
-def drone_control_step(S, W, P, D, WA, DR, HK, E, reel, disturbed, winched, hooked):
+def drone_control_step(S, W, P, D, WA, DR, HK, E, reel, disturbed):
     """One control step of one environment with a drone (the setpoint already taken from the
-    action; ``reel`` the reel speed [m/s] with a winch): wind and pushes, the physics steps, the
-    balances closed, the observation, reward terms and termination code (a physics failure's
-    status, else the watchdog's, else the task's or the flip)."""
+    action; ``reel`` the reel speed [m/s] with the winch ``WA``; ``WA``, ``HK`` None where the rig
+    has no winch, no offset hook): wind and pushes, the physics steps, the balances closed, the
+    observation, reward terms and termination code (a physics failure's status, else the
+    watchdog's, else the task's or the flip)."""
     phi = env_prepare(S, W, P, D, E, disturbed)
     coupled = P.rho[0] != 0.0 or P.rho[1] != 0.0 or P.rho[2] != 0.0
-    if winched:
-        drone_winch_loop(S, W, P, WA, D, DR, E, reel, coupled, disturbed)
-    elif hooked:
-        hook_loop(S, W, P, D, DR, HK, E, coupled, disturbed)
-    else:
-        drone_loop(S, W, P, D, DR, E, coupled, disturbed)
+    drone_steps(S, W, P, WA, D, DR, HK, E.inputs, E.nsub[0], E.result, reel, coupled, disturbed,
+                int(E.ap[QA_ACTUATION]) == THRUST_RATES)
     status = close_balances(S, W, P, E, phi, disturbed)
-    if winched:
-        code = drone_winch_observe(S, P, D, WA, DR, E)
-    elif hooked:
-        code = hook_observe(S, P, D, DR, HK, E)
-    else:
-        code = drone_observe(S, P, D, DR, E)
+    code = drone_observe(S, P, D, WA, DR, HK, E)
     E.result[R_TERMINATION] = status if status != OK else energy_watchdog(S, D, E.tp, code)
 
 
 @kernel(entry=True)
-def drone_reset_observe(S, P, D, WA, DR, E, winched):
-    """Observation of a freshly set state with its drone (no step; a winch at the scene's length
-    and at rest), whose energy, the drone's rotation in it, becomes the episode's E0. Returns the
-    termination code."""
-    code = drone_winch_observe(S, P, D, WA, DR, E) if winched else drone_observe(S, P, D, DR, E)
-    E.tp[TP_ENERGY_ORIGIN] = D.out[D_ENERGY]
-    return code
-
-
-@kernel(entry=True)
-def hook_reset_observe(S, P, D, DR, HK, E):
-    """:func:`drone_reset_observe` at an offset hook (no winch)."""
-    code = hook_observe(S, P, D, DR, HK, E)
+def drone_reset_observe(S, P, D, WA, DR, HK, E):
+    """Observation of a freshly set state with its drone (no step; a winch ``WA`` at the scene's
+    length and at rest; ``WA``, ``HK`` None where the rig has none), whose energy, the drone's
+    rotation in it, becomes the episode's E0. Returns the termination code."""
+    code = drone_observe(S, P, D, WA, DR, HK, E)
     E.tp[TP_ENERGY_ORIGIN] = D.out[D_ENERGY]
     return code
 
@@ -294,15 +170,14 @@ COLD_DRONE_ENV_STEP_S = 34
 COLD_DRONE_BATCH_STEP_S = 35
 
 @kernel(inline="always")
-def drone_env_step(S, W, P, D, WA, E, DR, HK, raw, scheme, winched, hooked):
+def drone_env_step(S, W, P, D, WA, E, DR, HK, raw, scheme):
     """:func:`drone_take_action` of the raw action, then :func:`drone_control_step`, for one
-    environment (``WA``: its winch's arrays, read only when ``winched``; ``HK``: the hook's, read
-    only when ``hooked``; both constants). Returns
-    False, with nothing changed, if the raw action is not finite."""
+    environment (``WA``: its winch's arrays, ``HK``: the hook's, each None where the rig has
+    none). Returns False, with nothing changed, if the raw action is not finite."""
     reel = drone_take_action(raw, E.ap, E.action, DR)
     if reel == -np.inf:
         return False
-    drone_control_step(S, W, P, D, WA, DR, HK, E, reel, (scheme & SCHEME_DISTURBED) != 0, winched, hooked)
+    drone_control_step(S, W, P, D, WA, DR, HK, E, reel, (scheme & SCHEME_DISTURBED) != 0)
     return True
 
 
@@ -316,7 +191,7 @@ def drone_env_batch(S, W, P, D, E, Q, raw, active, scheme):
     for b in prange(raw.shape[0]):
         if active[b]:
             drone_env_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), None, env_row(E, b),
-                           drone_row(Q, b), None, raw[b], scheme, False, False)
+                           drone_row(Q, b), None, raw[b], scheme)
 
 
 @kernel(inline="always")
@@ -325,7 +200,7 @@ def drone_winch_env_batch(S, W, P, D, WA, E, Q, raw, active, scheme):
     for b in prange(raw.shape[0]):
         if active[b]:
             drone_env_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), winch_row(WA, b),
-                           env_row(E, b), drone_row(Q, b), None, raw[b], scheme, True, False)
+                           env_row(E, b), drone_row(Q, b), None, raw[b], scheme)
 
 
 @kernel(inline="always")
@@ -334,7 +209,7 @@ def hook_env_batch(S, W, P, D, E, Q, K, raw, active, scheme):
     for b in prange(raw.shape[0]):
         if active[b]:
             drone_env_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), None, env_row(E, b),
-                           drone_row(Q, b), hook_row(K, b), raw[b], scheme, False, True)
+                           drone_row(Q, b), hook_row(K, b), raw[b], scheme)
 
 
 # The entry points: kernels/env_step.py's, with the drone's arrays ``q`` (DroneArrays) after the
@@ -343,19 +218,19 @@ def hook_env_batch(S, W, P, D, E, Q, K, raw, active, scheme):
 @kernel(entry=True)
 def drone_step(s, w, p, d, e, q, raw, scheme):
     return drone_env_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), None, EnvArrays(*e),
-                          DroneArrays(*q), None, raw, scheme, False, False)
+                          DroneArrays(*q), None, raw, scheme)
 
 
 @kernel(entry=True)
 def drone_winch_env_step(s, w, p, d, wa, e, q, raw, scheme):
     return drone_env_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), EnvArrays(*e),
-                          DroneArrays(*q), None, raw, scheme, True, False)
+                          DroneArrays(*q), None, raw, scheme)
 
 
 @kernel(entry=True)
 def hook_env_step(s, w, p, d, e, q, k, raw, scheme):
     return drone_env_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), None, EnvArrays(*e),
-                          DroneArrays(*q), HookArrays(*k), raw, scheme, False, True)
+                          DroneArrays(*q), HookArrays(*k), raw, scheme)
 
 
 # The batches in one thread, and on numba's threads (``threads`` > 1: docs/performance.md,

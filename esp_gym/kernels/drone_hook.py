@@ -30,15 +30,14 @@ import numpy as np
 from .jit import kernel
 from .layout import IN_PIVOT_FORCE, IN_PIVOT_FORCE_END
 from .lgvi import end_shift, load_rhs, string_increments
-from .loops import finish
 from .so3 import cayley_minus_identity, cayley_newton, cross, rotated, solve3, unrotated
 from .status import NEWTON_FAILED, NON_FINITE, OK
 from .step_shared import (body_momentum_increment, commit_rotation, commit_step, held_inputs, left_torque,
                           new_positions, next_attitude, weight_torque)
-from .string import nodal_forces, string_solve, tridiag_solve
+from .string import string_solve, tridiag_solve
 from .switch import settle_switches, switch_errors
 from .diagnostics import state_diagnostics
-from .drone import drone_balances, drone_share, rotor_ends, start_wrench
+from .drone import drone_balances, drone_share, rotor_ends
 
 #: The hook's constants: ``rho`` rho_q (3,), hook -> centre of mass (body frame) [m]; ``inertia``
 #: J_q^h about the hook and ``jeff`` J_q^h + m_q^2 (M_tot^-1)_{11} rho_q^ rho_q^ (3, 3) [kg m^2], the
@@ -219,25 +218,6 @@ def hook_substep(S, W, P, DR, HK, inputs, h, coupled, compensated):
         DR.speed[i] = DR.next_speed[i]
         wl[i] = wr[i]
     return OK, iters
-
-
-@kernel(entry=True)
-def hook_advance(S, W, P, DR, HK, inputs, nsteps, stats, coupled):
-    """Take up to ``nsteps`` :func:`hook_substep` s of length ``P.h`` with the motor commands held;
-    stop at the first failure with the last good state. ``stats`` as kernels/drone.py's
-    ``drone_advance``."""
-    nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
-    start_wrench(DR)
-    total = 0
-    most = 0
-    for k in range(nsteps):
-        status, iters = hook_substep(S, W, P, DR, HK, inputs, P.h, coupled, P.compensated)
-        total += iters
-        most = max(most, iters)
-        if status != OK:
-            finish(stats, status, k, total, most)
-            return
-    finish(stats, OK, nsteps, total, most)
 
 
 @kernel(inline="always")

@@ -18,11 +18,10 @@ Newton's method solves them together (kernels/implicit_newton.py, in stages; the
 its system in kernels/implicit_terms.py): the string's block-tridiagonal Jacobian bordered by the
 body's three unknowns (coupled to the attachment node only), by block elimination from the pivot
 down, a 3x3 Schur complement there and back substitution: O(N) per iteration. This module holds
-the step around it (the first guess, the new positions, the commit); kernels/cutback.py cuts a
+the step around it (the first guess, the new positions, the commit); kernels/step.py cuts a
 step that fails back.
 """
 import math
-import numpy as np
 
 from .jit import kernel
 from .implicit_newton import implicit_newton

@@ -1,49 +1,26 @@
-"""The loops around the step: many steps in one compiled call with failure recovery, at a fixed
-length (:func:`advance_loop`: the LGVI of kernels/lgvi.py, or the implicit string of
-kernels/implicit.py) or while the winch reels (:func:`winch_loop`: kernels/winch.py,
-kernels/winch_implicit.py), and the same with snapshots for a recorded run
+"""The loops around the step of kernels/step.py: many steps in one compiled call with failure
+recovery, at a fixed length (:func:`advance_loop` of ``lgvi_step``) or while the winch reels
+(:func:`winch_loop` of ``winch_step``), and the same with snapshots for a recorded run
 (:func:`record_loop`). A step that can fail part-way (composed, or cut back) is undone from a
 checkpoint (:func:`_checkpoint`, :func:`_rewind`): saved every ``CHECKPOINT`` steps with a replay
-at a fixed length, before every step while reeling (see :func:`winch_loop` for why). Also the
-general-path entry points :func:`lgvi_advance`, :func:`lgvi_record`, :func:`winch_advance` (the
-specialised ones are in kernels/specialise.py) and the environment's loops, one per
-configuration (:func:`shared_advance_loop`, :func:`shared_winch_loop`).
+at a fixed length, before every step while reeling (see :func:`winch_loop` for why). The drone's
+loop (kernels/drone_env.py ``drone_steps``) and the team's (kernels/team_loops.py ``team_steps``)
+need no recovery: their steps fail without moving the state. Every loop takes the held forces'
+kicks from kernels/disturbance.py (``kick_before``, ``kick_next``, ``kick_after``,
+``kick_back``). Also the general-path entry points :func:`lgvi_advance`, :func:`lgvi_record`,
+:func:`winch_advance` (the specialised ones are in kernels/specialise.py) and the environment's
+loops, one per configuration (:func:`shared_advance_loop`, :func:`shared_winch_loop`).
 
 ``stats`` is the first ``LOOP_REPORT_SIZE`` entries of a :data:`~.layout.REPORT` (int64).
 """
 from .jit import kernel
 from .diagnostics import diagnostics
-from .layout import (B_WINCH_WORK, D_ENERGY, D_ORTHOGONALITY, D_PI3, R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS,
-                     SD_ENERGY, SD_ORTHOGONALITY, SD_PI3, WN_LENGTH, WN_MAX_LENGTH, WN_MIN_LENGTH, WN_REEL_SPEED)
+from .layout import (D_ENERGY, D_ORTHOGONALITY, D_PI3, R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS, SD_ENERGY,
+                     SD_ORTHOGONALITY, SD_PI3)
 from .status import OK
-from .disturbance import kick
-from .cutback import implicit_substep, winch_implicit_substep
-from .lgvi import lgvi_substep
+from .disturbance import kick_after, kick_back, kick_before, kick_next
+from .step import lgvi_step, winch_step
 from .string import nodal_forces
-from .sums import kahan_add
-from .winch import midpoint_dH_dl, winch_energy, winch_substep
-
-
-@kernel(inline="always")
-def lgvi_step(S, W, P, inputs, free, forced, coupled, compensated, implicit=False):
-    """One step of length ``P.h``: the LGVI itself (one weight ``P.gammas == [1]``) or the
-    symmetric composition of LGVI substeps of lengths ``gamma_i h`` (esp_gym/compositions.py);
-    with ``implicit`` (a compile-time constant) the implicit string's step
-    (kernels/implicit.py; order 2 only). Flags as in :func:`lgvi_substep`. A failing LGVI step
-    leaves the state untouched; a composed step that fails in a later substep leaves it after
-    the last good substep, and the loops below bring it back (:func:`advance_loop`). Returns
-    ``(status, newton_iterations)``."""
-    if implicit:
-        return implicit_substep(S, W, P, inputs, P.h, free, forced, coupled, compensated)
-    gammas = P.gammas
-    total = 0
-    for i in range(gammas.shape[0]):  # one substep site: the substep is inlined once
-        # gamma = 1.0 for the plain LGVI, and 1.0 * h == h exactly
-        status, iters = lgvi_substep(S, W, P, inputs, gammas[i] * P.h, free, forced, coupled, compensated)
-        total += iters
-        if status != OK:
-            return status, total
-    return OK, total
 
 
 @kernel(entry=True)
@@ -162,55 +139,6 @@ def _rewind(S, W, WA, winched):
 
 
 @kernel(inline="always")
-def winch_step(S, W, P, WA, D, inputs, speed, free, compensated, implicit):
-    """One step of length ``P.h`` while the winch reels at ``speed`` [m/s], cut to end on the
-    winch's range (and then 0); H's jump at fixed (q, p) where the reel speed changes, and each
-    (sub)step's winch work, join ``S.acc`` (B_WINCH_WORK); the length follows. The explicit
-    string's steps (gamma_i h each, composed) count the midpoint rule of dH/dl; the implicit
-    string's pieces count their own (kernels/winch_implicit.py). Returns ``(status,
-    newton_iterations)``; a failing substep leaves the state as the fixed-length step's does."""
-    first = 0 if free else 1
-    st = WA.state
-    gammas = P.gammas
-    h = P.h
-    length = st[WN_LENGTH]
-    v = speed
-    end = length + h * v
-    if end >= st[WN_MAX_LENGTH]:
-        end = st[WN_MAX_LENGTH]
-        v = (end - length) / h
-    elif end <= st[WN_MIN_LENGTH]:
-        end = st[WN_MIN_LENGTH]
-        v = (end - length) / h
-    if v != st[WN_REEL_SPEED]:  # H jumps at fixed (q, p) when the reel speed changes
-        H_old, _ = winch_energy(S, P, WA, D, length, st[WN_REEL_SPEED])
-        H_new, _ = winch_energy(S, P, WA, D, length, v)
-        kahan_add(S.acc, S.accc, B_WINCH_WORK, H_new - H_old)
-        st[WN_REEL_SPEED] = v
-    total = 0
-    status = OK
-    reached = 0.0
-    for i in range(gammas.shape[0]):
-        hi = gammas[i] * h
-        la = length + reached * h * v
-        reached += gammas[i]
-        lb = end if i == gammas.shape[0] - 1 else length + reached * h * v
-        if implicit:  # its pieces add their work and move the length
-            status, it = winch_implicit_substep(S, W, P, WA, D, inputs, hi, la, lb, free, True, True, compensated)
-        else:
-            status, it = winch_substep(S, W, P, WA, inputs, hi, la, lb, free, True, True, compensated)
-        total += it
-        if status != OK:
-            break
-        if not implicit:
-            if v != 0.0:
-                dH_dl = midpoint_dH_dl(S.r, W.Y, st, WA.coef, P.slack, P.g, hi, la, lb, first)
-                kahan_add(S.acc, S.accc, B_WINCH_WORK, hi * v * dH_dl)
-            st[WN_LENGTH] = lb
-    return status, total
-
-
-@kernel(inline="always")
 def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, forces_ready=False,
                  implicit=False, disturbed=False):
     """Take up to ``nsteps`` steps (:func:`lgvi_step`) with constant ``inputs``; stop at the
@@ -233,10 +161,7 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
     every step (kernels/disturbance.py), the kicks between two steps merged into one; after a
     failure the pending half kick is taken back.
     """
-    first = 0 if free else 1
-    hh = 0.5 * P.h
-    if disturbed and nsteps > 0:
-        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, hh, first)
+    kick_before(S, W, P, nsteps, disturbed)
     if not forces_ready and not implicit:
         nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
     composed = P.gammas.shape[0] > 1 or implicit
@@ -256,8 +181,7 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
             most = max(most, iters)
         if status != OK:
             if failed != OK or not composed:  # (a replayed step cannot fail: it did not before)
-                if disturbed:
-                    kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, -hh, first)
+                kick_back(S, W, P, disturbed)
                 finish(stats, status, k, total, most)
                 return
             failed = status
@@ -265,11 +189,10 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
             _rewind(S, W, None, False)
             k = k0
             continue
+        kick_next(S, W, P, k, target, disturbed)
         k += 1
-        if disturbed:
-            kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, P.h if k < target else hh, first)
-    if disturbed and failed != OK and target == k0:  # rewound to a checkpoint, no step to replay
-        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, -hh, first)
+    if failed != OK and target == k0:  # rewound to a checkpoint, no step to replay
+        kick_back(S, W, P, disturbed)
     finish(stats, failed, target, total, most)
 
 
@@ -289,28 +212,22 @@ def winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed, implicit
     slower (49.05 -> 51.24 us, medians of 5 interleaved runs); a copy of the state is a small
     share of a reeling step."""
     free = P.first == 0
-    first = 0 if free else 1
     composed = P.gammas.shape[0] > 1 or implicit
-    hh = 0.5 * P.h
     total = 0
     most = 0
-    if disturbed and nsteps > 0:
-        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, hh, first)
+    kick_before(S, W, P, nsteps, disturbed)
     for k in range(nsteps):
         if composed:
             _checkpoint(S, W, WA, True)
         status, iters = winch_step(S, W, P, WA, D, inputs, speed, free, P.compensated, implicit)
         total += iters
         most = max(most, iters)
+        if status != OK and composed:
+            _rewind(S, W, WA, True)
+        kick_after(S, W, P, status, k, nsteps, disturbed)  # a failure's takes the pending half back
         if status != OK:
-            if composed:
-                _rewind(S, W, WA, True)
-            if disturbed:  # take the pending half kick back
-                kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, -hh, first)
             finish(stats, status, k, total, most)
             return
-        if disturbed:
-            kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, P.h if k + 1 < nsteps else hh, first)
     finish(stats, OK, nsteps, total, most)
 
 

@@ -4,7 +4,7 @@ pivots' entry (:func:`team_advance`, compiled without drones and winches: their 
 pruned for ``None``), the drones' (:func:`team_drone_advance`) and the winches'
 (:func:`team_winch_advance`).
 """
-from .disturbance import kick
+from .disturbance import kick_after, kick_back, kick_before
 from .drone import drone_at, start_wrench
 from .jit import kernel
 from .loops import finish
@@ -12,25 +12,6 @@ from .status import OK
 from .team import team_substep
 from .team_drones import drones_finish, drones_solve
 from .team_winch import reel_targets, reeled_work, team_winch_substep
-
-
-@kernel(inline="always")
-def kick_before(S, W, P, nsteps, disturbed):
-    """The first half kick of a run of steps' held force on the load (``disturbed``, ``nsteps`` > 0):
-    kernels/disturbance.py's :func:`kick` of h/2."""
-    if disturbed and nsteps > 0:
-        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, 0.5 * P.h, 0 if P.first == 0 else 1)
-
-
-@kernel(inline="always")
-def kick_after(S, W, P, status, k, nsteps, disturbed):
-    """After step ``k`` of ``nsteps`` with ``status``: the kicks around it (``disturbed``): on
-    success the next step's first half and this one's second (h), or the last half (h/2); on
-    failure the pending half taken back (-h/2)."""
-    if disturbed:
-        hh = 0.5 * P.h
-        c = -hh if status != OK else (P.h if k < nsteps - 1 else hh)
-        kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, c, 0 if P.first == 0 else 1)
 
 
 @kernel(forceinline=True)
@@ -57,8 +38,7 @@ def team_steps(S, W, P, T, A, TD, TW, inputs, nsteps, stats, disturbed, rates):
         iters = 0
         if TW is not None:
             if not reel_targets(TW, P.h) and k > 0:
-                if disturbed:  # the next step's half kick, given after the last, taken back
-                    kick(S.r, S.p, S.R, S.Pi, S.acc, S.accc, P.rho, W.ext, -0.5 * P.h, 0 if free else 1)
+                kick_back(S, W, P, disturbed)  # the next step's half kick, given after the last
                 finish(stats, OK, k, total, most)
                 return
         if TD is not None:

@@ -13,7 +13,7 @@ u = l / N at each end. Its equations are the implicit string's with the step's m
 
 and the momenta p_k+1 = p_k + h/2 (f~_k + f~_k+1) + c C dr as in (3w), f~ the tensions of the step
 along the elements at each end plus the weight and grad T0 at that end's length. The first guess
-is the explicit winch step with the last step's right forces. kernels/cutback.py cuts a step
+is the explicit winch step with the last step's right forces. kernels/step.py cuts a step
 that fails back, as the implicit string's, each piece reeling its share of the length, and counts
 the winch's work per piece: the elastic energy's change that the tensions' work does not account
 for (:func:`elastic_winch_work`), plus the mean over the piece's two states of H's change with
