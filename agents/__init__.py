@@ -23,3 +23,13 @@ ROOT = Path() if INSTALLED else PACKAGE.parent
 #: no import of torch or SB3.
 CONFIG_DIR = PACKAGE / "configs" if INSTALLED else ROOT / "configs" / "agents"
 MODELS = PACKAGE / "models" if INSTALLED else ROOT / "models"
+#: The model zoo's file: its recipe and configurations (agents/zoo.py).
+ZOO_FILE = CONFIG_DIR / "zoo.yaml"
+
+
+def zoo_configuration_names(path: Path = ZOO_FILE) -> list:
+    """The zoo's configuration names in the file's order, read without checking them (agents/zoo.py
+    checks them; benchmarks/quote.py reads them here, so it does not import the zoo's command)."""
+    import yaml
+
+    return list(yaml.safe_load(Path(path).read_text())["configurations"])

@@ -33,10 +33,9 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from agents.artifacts import ModelFileError, model_algorithm
 from agents.cli import ArgumentParser, SettingsError
-from agents import CONFIG_DIR, INSTALLED, MODELS, ROOT
+from agents import INSTALLED, MODELS, ROOT, ZOO_FILE
 from esp_gym.workers import jobs_argument, worker_count
 
-ZOO_FILE = CONFIG_DIR / "zoo.yaml"
 #: The docs' comparisons in a checkout (rewritten with their quotes); installed, out/compare.
 COMPARE_DIR = ROOT / "out" / "compare" if INSTALLED else ROOT / "docs" / "compare"
 #: What a shipped model directory holds of its run (the rest, checkpoints and logs, stays in runs/).
@@ -80,12 +79,6 @@ class Zoo(BaseModel):
     model_config = ConfigDict(extra="forbid")
     recipe: Recipe
     configurations: dict[str, Configuration]
-
-
-def configuration_names(path: Path = ZOO_FILE) -> list:
-    """The zoo's configuration names in the file's order, read without checking them (light:
-    benchmarks.quote reads them)."""
-    return list(yaml.safe_load(Path(path).read_text())["configurations"])
 
 
 def load_zoo(path: Path = ZOO_FILE) -> Zoo:

@@ -21,6 +21,8 @@ import sys
 from pathlib import Path
 from typing import Callable, NamedTuple
 
+from agents import zoo_configuration_names
+
 ROOT = Path(__file__).resolve().parent.parent
 
 #: A quote: ``<!-- quote FILE.PART -->`` content ``<!-- /quote -->`` (the content may span lines;
@@ -316,9 +318,8 @@ def mujoco_chain_long_run(data: dict) -> str:
 def zoo_compare_files() -> tuple:
     """``agents.compare``'s output file of every configuration of the model zoo
     (configs/agents/zoo.yaml), in the zoo's order."""
-    from agents.zoo import configuration_names
 
-    return tuple(f"docs/compare/compare_{name}.json" for name in configuration_names())
+    return tuple(f"docs/compare/compare_{name}.json" for name in zoo_configuration_names())
 
 
 def _difference(result: dict, with_ci: str = "95 % CI ") -> str:
@@ -425,9 +426,8 @@ def compare_stabilize_seeds_readme(data: dict) -> str:
 
 def zoo_training_files() -> tuple:
     """The training statistics (agents.train's training.json) of every shipped model of the zoo."""
-    from agents.zoo import configuration_names
 
-    return tuple(f"models/{name}_ppo/training.json" for name in configuration_names())
+    return tuple(f"models/{name}_ppo/training.json" for name in zoo_configuration_names())
 
 
 def zoo_training_table(data: dict) -> str:

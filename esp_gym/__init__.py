@@ -35,7 +35,11 @@ def __getattr__(name):
         from . import model
 
         return getattr(model, name)
-    if name in ("choose_h", "StepChoice", "choose_resolution", "ResolutionChoice"):
+    if name in ("choose_h", "StepChoice"):
+        from . import pilot
+
+        return getattr(pilot, name)
+    if name in ("choose_resolution", "ResolutionChoice"):
         from . import stepsize
 
         return getattr(stepsize, name)

@@ -17,12 +17,12 @@ from pathlib import Path
 from typing import Any, Literal, Optional
 
 import numpy as np
-from pydantic import Field, ValidationError, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from .pivot_params import DroneParams, PivotParams  # noqa: F401  (re-exported)
 from .compositions import COMPOSITIONS, DEFAULT_FOR_ORDER, Composition
 from .scene_input import (ALIASES, BOUNDS, Count, Flag, Frozen as _Frozen, Real, SceneError, bounded,  # noqa: F401
-                          is_yaml_path, matrix, merge_overrides, read_scene_file, validation_message, vector)
+                          is_yaml_path, matrix, merge_overrides, read_scene_file, validated, vector)
 from .shapes import (Box, Cylinder, EllipticCylinder, Shape, Sphere, attachment_inertia,  # noqa: F401
                      check_inertia, inertia_about_attachment)
 
@@ -379,12 +379,7 @@ class Scene(_Frozen):
 
 def scene_from_dict(data: Any, source: str = "<dict>") -> Scene:
     """Validate a plain dict into a :class:`Scene`, raising :class:`SceneError` on bad input."""
-    try:
-        return Scene.model_validate(data)
-    except ValidationError as err:
-        raise SceneError(validation_message(err, source)) from None
-    except RecursionError:
-        raise SceneError(f"invalid scene {source}: nested too deeply to be a scene") from None
+    return validated(Scene, data, source)
 
 
 def available_scenes() -> list[str]:

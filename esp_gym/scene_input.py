@@ -145,6 +145,17 @@ def validation_message(err: ValidationError, source: str) -> str:
     return "\n".join(lines)
 
 
+def validated(model: type, data: Any, source: str):
+    """``model`` (a scene's pydantic class) validated from a plain dict, raising :class:`SceneError`
+    with :func:`validation_message` on bad input."""
+    try:
+        return model.model_validate(data)
+    except ValidationError as err:
+        raise SceneError(validation_message(err, source)) from None
+    except RecursionError:
+        raise SceneError(f"invalid scene {source}: nested too deeply to be a scene") from None
+
+
 # -- files ------------------------------------------------------------------------------------------
 
 #: YAML 1.2 floats that YAML 1.1 reads as text: an exponent without a dot (1e-4) or without a

@@ -1,35 +1,22 @@
-"""Choosing the time step h from the stability bound and an accuracy target.
-
-Two limits decide h:
-
-* stability: the string update is explicit, so h omega_max must stay inside the scheme's
-  stability interval (2 for the LGVI; ``Scene.stability_bound`` already scales by a
-  composition's interval, esp_gym/compositions.py). Long runs need a margin: ``safety`` (default 0.7; benchmarks/stability.py measured
-  one blow-up in twelve 100-s runs at 0.8 of the bound and none at 0.7);
-* accuracy: the global error of an order-p scheme behaves like ``C h^p`` while h is in the
-  asymptotic range. A pilot pair of runs at ``h1`` and ``h1/2`` over ``horizon`` seconds from
-  the scene's initial state (no inputs) estimates the error of the ``h1`` run by Richardson's
-  formula ``|x_h1 - x_h1/2| 2^p / (2^p - 1)`` (x the load position, max over the common
-  samples); then ``h_acc = h1 (accuracy / e1)^(1/p)``, times 0.9 for margin. If that is
-  smaller than h1, the pilot is repeated at h_acc (h1 may lie outside the asymptotic range).
-
-The accuracy is an error in the load (attachment node) position [m] over the pilot horizon,
-the same measure as benchmarks/work_precision.py. The motion can be chaotic (the paper's example
-is after ~2 s), so a pointwise target only means something over a short horizon; for longer
-runs the LGVI's bounded energy error is the guarantee, not a pointwise one.
+"""The closed-form rules of the step and the resolution: the stability bound at a string's length
+(:func:`at_length`, :func:`shortest`), the environment's choice of string scheme and steps per
+control step (:func:`choose_scheme`, docs/physics.md, "The environment's choice"), and the
+resolution rule, the elements and the step for an accuracy (:func:`choose_resolution`,
+``elements: auto``). None of them runs the integrator, so the scene's validation can use them;
+:func:`~esp_gym.pilot.choose_h`, which runs a pilot pair, is esp_gym/pilot.py.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Optional
-
-import numpy as np
+from typing import TYPE_CHECKING, Optional
 
 from .kernels.implicit import TRANSVERSE_LIMIT
-from .params import Scene, scene_from_dict
-from .scene_input import real_number
+from .scene_input import real_number, validated
 from .stability import explicit_bound, transverse_bound
+
+if TYPE_CHECKING:  # the rules read a scene; params.py calls them to resolve ``elements: auto``
+    from .params import Scene
 
 
 def at_length(scene: Scene, length: float) -> Scene:
@@ -46,23 +33,6 @@ def shortest(scene: Scene) -> Scene:
     return at_length(scene, scene.winch_range[0])
 
 
-@dataclass(frozen=True)
-class StepChoice:
-    """The result of :func:`choose_h` (times in s, errors in m)."""
-
-    h: float  #: the chosen step
-    h_stable: float  #: safety x stability bound
-    h_accurate: Optional[float]  #: step meeting the accuracy target by the pilot estimate (None: no target)
-    error_estimate: Optional[float]  #: predicted load-position error at h over the horizon
-    limited_by: str  #: "stability" or "accuracy"
-    pilot_h: Optional[float] = None  #: h1 of the pilot pair
-    pilot_error: Optional[float] = None  #: Richardson estimate of the pilot run's error
-
-    def scene(self, scene: Scene) -> Scene:
-        """``scene`` with this h."""
-        return scene_from_dict({**scene.model_dump(), "h": self.h}, source=repr(scene.name))
-
-
 #: The smallest accuracy [m] choose_h takes: the positions' rounding (1e-16 of a metre-sized scene
 #: per step, compensated) accumulated over a pilot run's 1e4-1e6 steps is of this order; a target of
 #: 1e-20 m asked for pilot runs that did not end in 20 minutes.
@@ -75,11 +45,6 @@ MAX_HORIZON = 3600.0
 #: step 1000 times under the bound is already stable with room; below, the only effect is the cost
 #: (1e-300 gave h = 2e-303 s).
 MIN_SAFETY = 1e-3
-
-#: Load positions held at once while comparing the pilot pair (bounds its memory, whatever the
-#: horizon: the runs go in chunks of at most this many coarse steps' samples of the whole string).
-PILOT_CHUNK_FLOATS = 1 << 22
-
 
 def checked_targets(accuracy, horizon, divides, safety) -> tuple:
     """``(accuracy, horizon, divides, safety)`` of :func:`choose_h` and :func:`choose_resolution` as
@@ -111,67 +76,6 @@ def divided(h: float, divides: Optional[float]) -> tuple:
         return h, None
     substeps = math.ceil(divides / h - 1e-9)
     return divides / substeps, substeps
-
-
-def pilot_error(scene: Scene, h: float, horizon: float) -> float:
-    """max over the coarse steps of |x_h - x_h/2|, x the load (attachment node) position, of
-    two runs from the scene's initial state over ``horizon`` [s]; memory independent of the
-    horizon (the runs advance side by side in chunks)."""
-    from .model import Simulator
-
-    def sim(step: float) -> Simulator:
-        return Simulator(scene_from_dict({**scene.model_dump(), "h": step, "allow_unstable_h": True},
-                                         source=repr(scene.name)))
-
-    coarse, fine = sim(h), sim(h / 2)
-    steps = int(round(horizon / h))
-    chunk = max(1, PILOT_CHUNK_FLOATS // (3 * (scene.string.elements + 1)))
-    worst = 0.0
-    done = 0
-    while done < steps:
-        k = min(chunk, steps - done)
-        a = coarse.run(k * coarse.h, record_every=1).nodes[1:, -1]
-        b = fine.run(2 * k * fine.h, record_every=2).nodes[1:, -1]
-        worst = max(worst, float(np.linalg.norm(a - b, axis=1).max()))
-        done += k
-    return worst
-
-
-def choose_h(scene: Scene, accuracy: Optional[float] = None, horizon: float = 0.1, safety: float = 0.7,
-             divides: Optional[float] = None, reeling: bool = False) -> StepChoice:
-    """The largest h [s] that is stable with margin ``safety`` and, if ``accuracy`` [m] is given,
-    keeps the load-position error over ``horizon`` [s] below it (estimated by a pilot pair of
-    runs at the scene's length; see the module docstring). With ``divides`` [s] (e.g. a control
-    period) h is rounded down so that it divides that time. ``reeling``: stable for the shortest
-    string the scene's winch reaches too (the bound scales with the element length). Uses the
-    scene's integrator (its order and composition).
-
-    >>> choice = choose_h(load_scene("paper_example"), accuracy=1e-6)
-    >>> sim = Simulator(choice.scene(load_scene("paper_example")))
-    """
-    accuracy, horizon, divides, safety = checked_targets(accuracy, horizon, divides, safety)
-    h_stable = safety * (shortest(scene) if reeling else scene).stability_bound
-    h, limited, h_acc, estimate, pilot_h, pilot_err = h_stable, "stability", None, None, None, None
-    if accuracy is not None:
-        p = scene.solver.scheme.order
-        # the pilot step: stable, and at least 40 steps over the horizon. Far from the target the
-        # pilot h may be outside the asymptotic range: repeat the pilot at the predicted step
-        # (up to 3 times) until the predicted step is no smaller than the pilot's.
-        pilot_h = min(h_stable, horizon / 40)
-        for _ in range(3):
-            pilot_h = horizon / math.ceil(horizon / pilot_h - 1e-9)
-            pilot_err = pilot_error(scene, pilot_h, horizon) * 2 ** p / (2 ** p - 1)
-            h_acc = math.inf if pilot_err == 0.0 else 0.9 * pilot_h * (accuracy / pilot_err) ** (1.0 / p)
-            if h_acc >= pilot_h:
-                break
-            pilot_h = h_acc
-        if h_acc < h_stable:
-            h, limited = h_acc, "accuracy"
-    h, _ = divided(h, divides)
-    if pilot_err is not None:
-        estimate = pilot_err * (h / pilot_h) ** scene.solver.scheme.order
-    return StepChoice(h=h, h_stable=h_stable, h_accurate=h_acc, error_estimate=estimate, limited_by=limited,
-                      pilot_h=pilot_h, pilot_error=pilot_err)
 
 
 # -- the environment's choice of string scheme and step (docs/physics.md, "The environment's
@@ -287,7 +191,7 @@ class ResolutionChoice:
         data = scene.model_dump()
         data["string"] = {**data["string"], "elements": self.elements, "auto": True}
         data["solver"] = {**data["solver"], "string": self.string}
-        return scene_from_dict({**data, "h": self.h}, source=repr(scene.name))
+        return validated(type(scene), {**data, "h": self.h}, repr(scene.name))
 
 
 def spatial_error(scene: Scene, elements: int, horizon: float) -> float:

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 import esp_gym
-from esp_gym import stepsize
+from esp_gym import pilot
 from esp_gym.env import ElasticStringPendulumEnv
 from esp_gym.kernels.string import tridiag_factor
 from esp_gym.options import MAX_SUBSTEPS
@@ -166,12 +166,12 @@ def test_the_step_size_pilot_memory_does_not_grow_with_the_horizon(monkeypatch):
     pilot pair now advances side by side in chunks."""
     scene = esp_gym.load_scene("paper_example")
     h = 5e-4
-    whole = stepsize.pilot_error(scene, h, 1.6)  # one chunk
-    monkeypatch.setattr(stepsize, "PILOT_CHUNK_FLOATS", 3 * 21 * 50)  # chunks of 50 steps
+    whole = pilot.pilot_error(scene, h, 1.6)  # one chunk
+    monkeypatch.setattr(pilot, "PILOT_CHUNK_FLOATS", 3 * 21 * 50)  # chunks of 50 steps
     peaks = []
     for horizon in (0.1, 1.6):
         tracemalloc.start()
-        error = stepsize.pilot_error(scene, h, horizon)
+        error = pilot.pilot_error(scene, h, horizon)
         peaks.append(tracemalloc.get_traced_memory()[1])
         tracemalloc.stop()
     assert error == whole  # chunking changes nothing, bit for bit
