@@ -6,11 +6,11 @@ kernels/team_loops.py's loop is), served to the environment's control step
 A drone step fails without moving the state, so the loop needs no checkpoint (kernels/loops.py
 has the loops that do).
 """
-from .disturbance import kick_after, kick_before
+from .disturbance import kick_before
 from .drone import THRUST_RATES, actuate, drone_substep, drone_winch_step, rate_actuate, start_wrench
 from .drone_hook import hook_substep, hook_velocities
 from .jit import kernel
-from .loops import finish
+from .loops import finish, step_taken
 from .status import OK
 from .string import nodal_forces
 
@@ -45,11 +45,8 @@ def drone_steps(S, W, P, WA, D, DR, HK, inputs, nsteps, stats, reel, coupled, di
             status, iters = hook_substep(S, W, P, DR, HK, inputs, P.h, coupled, P.compensated)
         else:
             status, iters = drone_substep(S, W, P, DR, inputs, P.h, coupled, P.compensated)
-        total += iters
-        most = max(most, iters)
-        kick_after(S, W, P, status, k, nsteps, disturbed)
-        if status != OK:
-            finish(stats, status, k, total, most)
+        failed, total, most = step_taken(S, W, P, stats, status, iters, k, nsteps, total, most, disturbed)
+        if failed:
             return
     finish(stats, OK, nsteps, total, most)
 

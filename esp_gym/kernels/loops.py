@@ -117,6 +117,21 @@ def finish(stats, status, steps, total, most):
 
 
 @kernel(inline="always")
+def step_taken(S, W, P, stats, status, iters, k, nsteps, total, most, disturbed):
+    """After step ``k`` of a run of ``nsteps`` ended with ``status`` and ``iters`` Newton iterations:
+    those counted into ``total`` and ``most``, the held forces' kicks after it
+    (kernels/disturbance.py ``kick_after``) and, on a failure, ``stats`` filled with the ``k`` good
+    steps. Returns ``(failed, total, most)``."""
+    total += iters
+    most = max(most, iters)
+    kick_after(S, W, P, status, k, nsteps, disturbed)
+    if status != OK:
+        finish(stats, status, k, total, most)
+        return True, total, most
+    return False, total, most
+
+
+@kernel(inline="always")
 def _checkpoint(S, W, WA, winched):
     """Save the state (with its forces ``S.f``) and, ``winched``, the winch's state (its length
     and reel speed) for a replay."""
@@ -220,13 +235,10 @@ def winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed, implicit
         if composed:
             _checkpoint(S, W, WA, True)
         status, iters = winch_step(S, W, P, WA, D, inputs, speed, free, P.compensated, implicit)
-        total += iters
-        most = max(most, iters)
         if status != OK and composed:
             _rewind(S, W, WA, True)
-        kick_after(S, W, P, status, k, nsteps, disturbed)  # a failure's takes the pending half back
-        if status != OK:
-            finish(stats, status, k, total, most)
+        failed, total, most = step_taken(S, W, P, stats, status, iters, k, nsteps, total, most, disturbed)
+        if failed:  # (its kick took the pending half back)
             return
     finish(stats, OK, nsteps, total, most)
 

@@ -4,10 +4,10 @@ pivots' entry (:func:`team_advance`, compiled without drones and winches: their 
 pruned for ``None``), the drones' (:func:`team_drone_advance`) and the winches'
 (:func:`team_winch_advance`).
 """
-from .disturbance import kick_after, kick_back, kick_before
+from .disturbance import kick_back, kick_before
 from .drone import drone_at, start_wrench
 from .jit import kernel
-from .loops import finish
+from .loops import finish, step_taken
 from .status import OK
 from .team import team_substep
 from .team_drones import drones_finish, drones_solve
@@ -54,11 +54,8 @@ def team_steps(S, W, P, T, A, TD, TW, inputs, nsteps, stats, disturbed, rates):
             iters += team_iters
             if TD is not None and status == OK:
                 drones_finish(S, TD, P.h, P.compensated)
-        total += iters
-        most = max(most, iters)
-        kick_after(S, W, P, status, k, nsteps, disturbed)
-        if status != OK:
-            finish(stats, status, k, total, most)
+        failed, total, most = step_taken(S, W, P, stats, status, iters, k, nsteps, total, most, disturbed)
+        if failed:
             return
     finish(stats, OK, nsteps, total, most)
 
