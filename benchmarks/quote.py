@@ -86,7 +86,14 @@ _KERNEL_NAMES = {"_entry_points.<locals>.step": "the entry point `step`",
 def _compiles(data: dict, case: str, count: int) -> str:
     run = next(r for r in data["runs"] if r["case"] == case and r["cache"] == "cold")
     items = list(run["compile_s_by_kernel"].items())[:count]
-    return ", ".join(f"{_KERNEL_NAMES.get(name, name)} {seconds:.1f} s" for name, seconds in items)
+    return ", ".join(f"{_kernel_name(name)} {seconds:.1f} s" for name, seconds in items)
+
+
+def _kernel_name(name: str) -> str:
+    """The docs' name of a compiled kernel: a generated one (``f.<locals>.g__implicit0_winched0``, its
+    closure's constants after ``__``: esp_gym/kernels/jit.py) by the function it was made by."""
+    base = name.split("__")[0] if "<locals>." in name else name
+    return _KERNEL_NAMES.get(base, name)
 
 
 def cold_start_env_compiles(data: dict) -> str:

@@ -274,7 +274,7 @@ def _entry_points(winched: bool, implicit: bool):
 
 #: The seconds to the first step of an environment and of a vector environment on an empty cache
 #: (2 cores; docs/performance.md, "Start-up"), said when their entry points first compile.
-COLD_ENV_STEP_S = 21
+COLD_ENV_STEP_S = 19
 COLD_BATCH_STEP_S = 19
 #: ... and of a vector environment with threads > 1 (its threaded entry: numba's parallel transforms)
 COLD_THREADED_BATCH_STEP_S = 28
