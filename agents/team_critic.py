@@ -1,7 +1,7 @@
 """A centralised critic for a team (MAPPO with one shared network; docs/team.md, "Training"): each
 agent's actor reads its own observation only, its critic (the value function PPO's advantages come
 from) reads it with the team's true state appended: every agent's ``full`` observation without
-noise (:meth:`~esp_gym.team.env.TeamCore.true_observations`), what the hook observation of the
+noise (:meth:`~esp_gym.team.core.TeamCore.true_observations`), what the hook observation of the
 hard preset hides (the load) included. Training alone reads the state; acting never does.
 
 :class:`CentralCriticParallelEnv` appends the state to every agent's observation (after a

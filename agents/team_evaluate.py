@@ -28,7 +28,7 @@ class TeamZero:
 def nominal_core(core, **options):
     """The nominal team of ``core``'s size, task, control period, force limit and actuation (with
     ``options``), at its first episode of seed 0: where the baselines are designed."""
-    from esp_gym.team.env import TeamCore
+    from esp_gym.team.core import TeamCore
 
     nominal = TeamCore(core.size, core.task.name, control_period=core.control_period, force_limit=core.force_limit,
                        actuation=core.actuation, **options)
@@ -40,7 +40,7 @@ class DesignedPolicy:
     """A team baseline designed (:meth:`build`) the first time it acts, on the nominal team of the
     env's size, task, control period and actuation; reset at each episode's first step. With
     ``true_state`` it reads the true state whatever the observation
-    (:meth:`~esp_gym.team.env.TeamCore.true_observations` in the ``hook`` mode: no estimator, an
+    (:meth:`~esp_gym.team.core.TeamCore.true_observations` in the ``hook`` mode: no estimator, an
     optimistic reference)."""
 
     true_state = False
@@ -122,7 +122,7 @@ class TeamHoistPolicy(DesignedPolicy):
         from agents.baselines.team_hoist import TeamHoist
         from agents.baselines.team_lqg import TeamLQG
         from agents.baselines.team_lqr import TeamLQR
-        from esp_gym.team.env import TeamCore
+        from esp_gym.team.core import TeamCore
 
         options = dict(observation=core.observation, sensor_noise=core.sensor_noise) if self.base == "lqg" else {}
         nominal = TeamCore(core.size, "transport", control_period=core.control_period, force_limit=core.force_limit,

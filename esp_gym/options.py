@@ -90,7 +90,7 @@ TEAM_LACKS = {
 
 class TeamOptions(CommonOptions):
     """Arguments of ElasticStringTeam-v0 but the team and the task (see
-    :class:`~esp_gym.team.env.TeamCore`); the names of :data:`TEAM_LACKS` are refused with the reason."""
+    :class:`~esp_gym.team.core.TeamCore`); the names of :data:`TEAM_LACKS` are refused with the reason."""
 
     force_limit: Real = Field(0.6, gt=0, le=MAX_FORCE_SHARE, allow_inf_nan=False,
                               description="each pivot's force at action 1, in its hover forces")

@@ -1,4 +1,4 @@
-"""A team's environments (esp_gym/team/env.py, esp_gym/team/parallel.py; docs/team.md): PettingZoo's
+"""A team's environments (esp_gym/team/core.py, esp_gym/team/env.py, esp_gym/team/parallel.py; docs/team.md): PettingZoo's
 API and seed tests, both Gymnasium env checkers, the centralised env equal to the parallel one,
 the observation's fields, the reward's per-agent terms, separation and collision, the errors, and
 the team's LQR baseline."""
@@ -579,3 +579,35 @@ def test_a_central_critic_reads_the_teams_state_and_its_actor_does_not():
     assert act.shape == (3, 6) and value.shape == (3,)
     assert torch.equal(act, act_other) and not torch.allclose(value, value_other)
     assert not torch.allclose(act, act_mine) and not torch.allclose(value, value_mine)
+
+
+#: The sections of the single env's docstring (Gymnasium's) that a team env's must have too.
+DOC_SECTIONS = ("Description", "Action Space", "Observation Space", "Rewards", "Starting State", "Episode End",
+                "Arguments")
+
+
+def docstring_gaps(doc: str) -> list:
+    """What a team env's docstring lacks: a section of :data:`DOC_SECTIONS`, a reward term, an
+    observation field (of any mode, drones, winch) or a way an episode ends, by name."""
+    from esp_gym.errors import termination_reason
+    from esp_gym.kernels.status import ENERGY_BALANCE, TERM_COLLISION, TERM_DRONE_FLIPPED, TERM_OVERSTRETCH, \
+        TERM_WORKSPACE
+    from esp_gym.team.spaces import agent_layout
+
+    fields = {name for mode in ("full", "hook") for name in agent_layout(3, mode, True, True).structure()}
+    ends = [termination_reason(c) for c in (TERM_COLLISION, TERM_DRONE_FLIPPED, TERM_OVERSTRETCH, TERM_WORKSPACE,
+                                            ENERGY_BALANCE)] + ["physics_failure: ..."]
+    missing = [f"## {s}" for s in DOC_SECTIONS if f"## {s}" not in doc]
+    return missing + [name for name in (*REWARD_TERMS, *sorted(fields), *ends) if f"``{name}``" not in doc]
+
+
+def test_the_team_envs_docstrings_have_the_single_envs_sections_and_name_the_contract():
+    from esp_gym.env import ElasticStringPendulumEnv
+    from esp_gym.team.parallel import ElasticStringTeamParallelEnv
+
+    assert all(f"## {s}" in ElasticStringPendulumEnv.__doc__ for s in DOC_SECTIONS)
+    for env in (ElasticStringTeamEnv, ElasticStringTeamParallelEnv):
+        assert docstring_gaps(env.__doc__) == [], env.__name__
+    # negative control: a section and a term taken out are found
+    cut = ElasticStringTeamEnv.__doc__.replace("## Rewards", "").replace("``tilt``", "tilt")
+    assert docstring_gaps(cut) == ["## Rewards", "tilt"]

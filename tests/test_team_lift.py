@@ -1,4 +1,4 @@
-"""A team's lift (esp_gym/team/env.py with winches; docs/team.md, "Tasks"): the environments with
+"""A team's lift (esp_gym/team/core.py with winches; docs/team.md, "Tasks"): the environments with
 a reel action per agent pass PettingZoo's and Gymnasium's checks, the lift's targets and the
 observed lengths are what the docs say, the reel action reels, the hoist baseline lifts the load,
 and what cannot reel is refused."""
@@ -11,7 +11,8 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 from agents.team_evaluate import TeamHoistPolicy, TeamZero, run_team_episodes
 from esp_gym.team import parallel_env
-from esp_gym.team.env import ElasticStringTeamEnv, TeamCore
+from esp_gym.team.core import TeamCore
+from esp_gym.team.env import ElasticStringTeamEnv
 from esp_gym.team.tasks import hanging_rise
 
 

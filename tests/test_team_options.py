@@ -11,7 +11,8 @@ import esp_gym
 from esp_gym.env import ElasticStringPendulumEnv
 from esp_gym.options import MAX_SUBSTEPS
 from esp_gym.team import parallel_env
-from esp_gym.team.env import ElasticStringTeamEnv, TeamCore
+from esp_gym.team.core import TeamCore
+from esp_gym.team.env import ElasticStringTeamEnv
 from esp_gym.team.scene import TEAM_SAFETY
 
 

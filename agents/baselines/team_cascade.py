@@ -27,7 +27,7 @@ from agents.baselines.geometric import InnerLoops, drone_attitude, inner_action
 from agents.baselines.team_lqg import ACTION_SPREAD, NOISE_FLOORS, STATE_FLOOR, measurement_model
 from agents.baselines.team_lqr import (linearize, reduced_from_observation, reduced_layout, reference_feedforward,
                                        relative_to_reference, reward_weights)
-from esp_gym.team.env import TeamCore
+from esp_gym.team.core import TeamCore
 from esp_gym.team.scene import TeamScene
 from esp_gym.team.spaces import TEAM_UNIT_NOISE, agent_layout
 

@@ -19,7 +19,7 @@ from esp_gym.team.spaces import agent_layout
 
 def layout_of(obs: np.ndarray, core):
     """The agents' layout of a centralised observation: the env's, or the ``full`` one of
-    :meth:`~esp_gym.team.env.TeamCore.true_observations` (a baseline reading the true state)."""
+    :meth:`~esp_gym.team.core.TeamCore.true_observations` (a baseline reading the true state)."""
     if np.size(obs) == core.size * core.layout.size:
         return core.layout
     return agent_layout(core.size, "full", core.drones, core.winch)

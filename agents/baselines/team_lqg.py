@@ -17,7 +17,7 @@ import numpy as np
 import scipy.linalg
 
 from agents.baselines.team_lqr import TeamLQR, lift, probe, reduced_layout, reference_feedforward, relative_to_reference
-from esp_gym.team.env import TeamCore
+from esp_gym.team.core import TeamCore
 from esp_gym.team.spaces import TEAM_UNIT_NOISE
 
 #: The process noise's spread of each action [action units] and its floor on every state.

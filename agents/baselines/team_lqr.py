@@ -1,5 +1,5 @@
 """The team's centralised LQR: one gain on the whole team's reduced state, from the linearisation of
-the team environment's own control step (esp_gym/team/env.py) about the hanging formation, as
+the team environment's own control step (esp_gym/team/core.py) about the hanging formation, as
 agents/baselines/lqr.py does for one string.
 
 Reduced state z (:func:`reduced_layout`, spatial frame, relative to the targets): every pivot's
@@ -22,7 +22,7 @@ from scipy.spatial.transform import Rotation
 
 from esp_gym.layouts import Layout
 from esp_gym.tasks import reference_acceleration
-from esp_gym.team.env import TeamCore
+from esp_gym.team.core import TeamCore
 from esp_gym.team.spaces import agent_layout
 
 #: Weight on what the reward does not see (pivot velocities, the load's yaw) [per unit^2].

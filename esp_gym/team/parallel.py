@@ -13,7 +13,7 @@ import numpy as np
 from .. import MAX_EPISODE_STEPS
 from ..control import raw_actions
 from ..extras import require
-from .env import TeamCore
+from .core import TeamCore
 from .spaces import agent_layout
 from .tasks import AGENT_TERMS, REWARD_TERMS
 
@@ -37,20 +37,51 @@ ParallelEnv = require("pettingzoo", "esp_gym.team.parallel_env").ParallelEnv
 
 
 class ElasticStringTeamParallelEnv(ParallelEnv):
-    """K point pivots or K drones carrying one load on tension-only elastic strings. Each agent's
-    action is ``Box(-1, 1, (3,))``, its pivot's force (spatial) on top of its hover force
-    (``force_limit`` of it at 1), or with drones ``Box(-1, 1, (4,))``, its drone's
-    (esp_gym/team/spaces.py ``DroneDrive``); its observation is ``Box(-inf, inf, (n,))`` with
-    n = 27 + 3 (K - 1) (+ 9 with drones), named by :attr:`observation_structure`
-    (``preset="hard"``: the hook observation, 12 + 3 (K - 1) (+ 9)). An episode is truncated
-    after ``max_cycles`` steps (500: 10 s) and terminated for the whole team (collision, an
-    overstretched string, the workspace left, a drone flipped, a failed step:
-    ``infos[agent]["termination"]``, the single env's code, and :attr:`termination_reason`).
-    ``observation_spaces``, ``action_spaces`` and ``state_space`` (:meth:`state`'s) are the
-    spaces by name, as multi-agent libraries read them; :attr:`episode_info` is the core's reset
-    info (the episode's draws and wind). Arguments (``options``: control_period,
-    force_limit, preset, randomize, observation, sensor_noise, action_latency, wind, actuation,
-    winch) as :class:`~esp_gym.team.env.TeamCore`'s, checked alike."""
+    """
+    ## Description
+    The episode of ``ElasticStringTeam-v0`` (esp_gym/team/env.py, whose docstring gives each
+    section in full) with one agent per pivot, ``pivot_0`` ... ``pivot_{K-1}``: K point pivots or
+    K quadrotors carry one rigid load, each on its own extensible, tension-only elastic string.
+
+    ## Action Space
+    Agent k's ``Box(-1, 1, (3,), float32)``: its pivot's force (spatial) on top of its hover
+    force, ``force_limit`` times it at 1; with drones ``Box(-1, 1, (4,))``, its drone's four
+    numbers (esp_gym/team/spaces.py ``DroneDrive``); with ``winch=True`` one more, its string's
+    reel speed. ``action_spaces`` holds them by name.
+
+    ## Observation Space
+    Agent k's ``Box(-inf, inf, (n,), float32)``, named by :attr:`observation_structure`
+    (esp_gym/team/spaces.py ``agent_layout``): ``pivot_position_error``, ``pivot_velocity``,
+    ``drone_attitude_6d`` and ``drone_rates`` (drones), ``hook_tension``, ``string_length``
+    (winch), then ``load_offset``, ``load_position_error``, ``load_velocity``,
+    ``load_attitude_6d``, ``load_rates`` (``full``) or ``load_target_offset`` (``hook``), then
+    ``neighbours``; n = 27 + 3(K - 1) (``full``) or 12 + 3(K - 1) (``hook``, the hard preset's),
+    9 more with drones, 1 more with a winch. ``observation_spaces`` holds them by name;
+    :meth:`state` (``state_space``) is the ``full`` observation of every agent without noise.
+
+    ## Rewards
+    Every agent gets the team's reward, the sum of the terms ``load_position``,
+    ``load_velocity``, ``tilt``, ``spin``, ``pivot_position``, ``control`` and ``separation``
+    (esp_gym/team/tasks.py ``REWARD_TERMS``); ``infos[agent]`` holds its own share of
+    ``pivot_position``, ``control`` and ``separation`` and the team's terms, every key a number,
+    the same keys at reset and at every step (what tensorising clients read).
+
+    ## Starting State
+    As ``ElasticStringTeam-v0``'s: the team hanging at rest, the load knocked into a small
+    motion, the task's targets drawn; :attr:`episode_info` is the reset's info (the targets and
+    the episode's draws).
+
+    ## Episode End
+    Terminated for every agent at once (``infos[agent]["termination"]``, the single
+    environment's code, and :attr:`termination_reason`): ``collision``, ``drone_flipped``,
+    ``string_overstretched``, ``left_workspace``, ``energy_balance`` or ``physics_failure: ...``.
+    Truncated after ``max_cycles`` steps (500: 10 s).
+
+    ## Arguments
+    ``team``, ``task``, ``max_cycles`` (500), ``render_mode`` and the options of
+    :class:`~esp_gym.team.core.TeamCore` (control_period, force_limit, preset, randomize,
+    observation, sensor_noise, action_latency, wind, actuation, winch, safety), checked alike.
+    """
 
     metadata = {"name": "elastic_string_team_v0", "render_modes": ["rgb_array"], "render_fps": 50,
                 "is_parallelizable": True}
@@ -125,7 +156,7 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
         return out
 
     def render(self):
-        """The team's frame (:meth:`~esp_gym.team.env.TeamCore.frame`) with ``render_mode="rgb_array"``, else None."""
+        """The team's frame (:meth:`~esp_gym.team.core.TeamCore.frame`) with ``render_mode="rgb_array"``, else None."""
         return self.core.frame() if self.render_mode == "rgb_array" else None
 
     def state(self) -> np.ndarray:

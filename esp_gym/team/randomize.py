@@ -21,7 +21,7 @@ documented episodes were drawn with). The load's box and attachment points, and 
 inertia, rotors and motors, stay the default team's: the single env's names for them are refused
 with the reason. When the environment is made, the teams at the ranges' corners are built (each a
 valid :class:`~esp_gym.team.scene.TeamScene`), the stiffest sets the most physics steps a control
-step may need and the heaviest what each drone must lift (esp_gym/team/env.py).
+step may need and the heaviest what each drone must lift (esp_gym/team/core.py).
 """
 from __future__ import annotations
 

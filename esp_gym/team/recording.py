@@ -61,7 +61,7 @@ def team_blueprint(core):
 
 
 class TeamRecorder:
-    """The recording of one team (``core``: a :class:`~esp_gym.team.env.TeamCore`) to the ``.rrd``
+    """The recording of one team (``core``: a :class:`~esp_gym.team.core.TeamCore`) to the ``.rrd``
     file ``path`` (Rerun's file sink), whichever face steps it."""
 
     def __init__(self, core, path):

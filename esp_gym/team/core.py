@@ -1,10 +1,10 @@
-"""A team's environments: K point pivots (crane hooks, or drones flown as points) or K drones carry
-one load on elastic tension-only strings (docs/team.md).
+"""A team's episode (docs/team.md): K point pivots (crane hooks, or drones flown as points) or K
+drones carry one load on elastic tension-only strings.
 
 :class:`TeamCore` is the episode: the team's physics (:class:`~esp_gym.team.TeamSimulator`), the
 task's targets, each agent's observation, the team's reward with its per-agent terms, and the
-episode's end. Two faces share it: :class:`ElasticStringTeamEnv`, the centralised Gymnasium env
-``ElasticStringTeam-v0`` (the agents' actions and observations concatenated), and
+episode's end. Two faces share it: :class:`~esp_gym.team.env.ElasticStringTeamEnv`, the centralised
+Gymnasium env ``ElasticStringTeam-v0`` (the agents' actions and observations concatenated), and
 :class:`~esp_gym.team.parallel.ElasticStringTeamParallelEnv`, PettingZoo's ParallelEnv.
 """
 from __future__ import annotations
@@ -14,7 +14,6 @@ from collections import deque
 from collections.abc import Mapping
 from typing import Optional
 
-import gymnasium as gym
 import numpy as np
 
 from .. import TEAM_ENV_ID
@@ -394,44 +393,3 @@ class TeamCore:
         if terminated:
             info["termination_reason"] = termination_reason(code)
         return self.observations(kin), reward, terminated, False, info
-
-
-class ElasticStringTeamEnv(gym.Env):
-    """``ElasticStringTeam-v0``: a team of K point pivots or drones carrying one load, for
-    single-agent learners (docs/team.md). Actions ``Box(-1, 1, (3K,))``: each pivot's force
-    (spatial) on top of its hover force, ``force_limit`` of it at 1; with drones
-    ``Box(-1, 1, (4K,))``, each drone's four numbers (esp_gym/team/spaces.py ``DroneDrive``).
-    Observations ``Box(-inf, inf, (K n,))``: the agents' observations (:func:`agent_layout`) one
-    after the other. The reward is the team's; ``info["agent_<term>"]`` holds each agent's terms.
-    Arguments (``options``: control_period, force_limit, preset, randomize, observation,
-    sensor_noise, action_latency, wind, actuation, winch) as :class:`TeamCore`'s, checked alike."""
-
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
-
-    def __init__(self, team=3, task: str = "transport", render_mode: Optional[str] = None, **options):
-        if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        self.render_mode = render_mode
-        self.core = TeamCore(team, task, **options)
-        self.metadata = {**self.metadata, "render_fps": 1.0 / self.core.control_period}  # a frame per step
-        K, n = self.core.size, self.core.layout.size
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (self.core.action_size * K,), np.float32)
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (K * n,), np.float32)
-        #: name -> slice of the observation: agent k's fields are ``pivot_k/<field>``
-        self.observation_structure = {f"pivot_{k}/{name}": slice(k * n + s.start, k * n + s.stop)
-                                      for k in range(K) for name, s in self.core.layout.structure().items()}
-
-    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None):
-        super().reset(seed=seed)
-        self.core.np_random = self.np_random
-        obs, info = self.core.reset()
-        return obs.ravel(), info
-
-    def step(self, action):
-        a = raw_actions(action, self.action_space.shape)
-        obs, reward, terminated, truncated, info = self.core.step(a.reshape(self.core.size, self.core.action_size))
-        return obs.ravel(), reward, terminated, truncated, info
-
-    def render(self):
-        """The frame of :meth:`TeamCore.frame` with ``render_mode="rgb_array"``, else None."""
-        return self.core.frame() if self.render_mode == "rgb_array" else None
