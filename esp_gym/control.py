@@ -24,14 +24,15 @@ from typing import Optional
 import numba
 import numpy as np
 
-from .kernels.layout import INPUTS, R_TERMINATION, REPORT, LGVIParams
+from .arrays import params_row, repeated, row, stacked
+from .kernels.layout import INPUTS, R_TERMINATION, REPORT
 from .kernels.env_arrays import OBSERVATION, REWARD, REWARD_TERMS, SCHEME_DISTURBED, SENSORS, TARGET, WINCH_OBSERVATION
 from .kernels.disturbance import DISTURBANCE, DISTURBANCE_PARAMS, DRAWS
 from .kernels.string import state_forces
 from .kernels.env_arrays import FEATURES, EnvArrays
 from .kernels.env_step import actions_finite
 from .kernels.drone_env import DRONE_SENSORS
-from .drone import DroneSimulator, drone_view, hover_at_rest, use_drone_scene, use_hook_scene
+from .drone import DroneSimulator, hover_at_rest, use_drone_scene, use_hook_scene
 from .model import Simulator
 from .options import check_count
 from .workers import check_within_cpus
@@ -142,17 +143,15 @@ class ControlStep:
         #: The drone's hook constants (kernels/drone_hook.py) when it is off the centre of mass, else None.
         self._hook = self.sim.hook if setup.drone and setup.scene.pivot.drone.offset_hook else None
         if batch:
-            def stack(t):
-                return type(t)(*(np.zeros(batch + a.shape) for a in t))
-
-            state, work, diag, winch = stack(state), stack(work), stack(diag), stack(winch)
+            state, work, diag, winch = stacked(state, batch), stacked(work, batch), stacked(diag, batch), stacked(
+                winch, batch)
             if setup.drone:  # its constants in every row, as the template's
-                self._drone = type(self._drone)(*(np.repeat(a[None], self.num_envs, axis=0) for a in self._drone))
+                self._drone = repeated(self._drone, self.num_envs)
             if self._hook is not None:
-                self._hook = type(self._hook)(*(np.repeat(a[None], self.num_envs, axis=0) for a in self._hook))
+                self._hook = repeated(self._hook, self.num_envs)
             winch.coef[...] = self.sim.winch.arrays.coef
             # every constant per sub-environment (scalars become (num_envs,) arrays of their type)
-            params = LGVIParams(*(np.repeat(np.asarray(v)[None], self.num_envs, axis=0) for v in params))
+            params = repeated(params, self.num_envs)
             #: The scene of each sub-environment's episode.
             self.scenes = [setup.scene] * self.num_envs
         self._state, self._diag, self._params = state, diag, params
@@ -268,18 +267,18 @@ class ControlStep:
                 self._pack_structs()
             self._substeps[...] = episode.substeps
         else:
-            for stacked, value in zip(self._params, episode.params):
-                stacked[index] = value
+            for field, value in zip(self._params, episode.params):
+                field[index] = value
             if self._drone is not None:
-                use_drone_scene(drone_view(self._drone, index), episode.scene)
+                use_drone_scene(row(self._drone, index), episode.scene)
             if self._hook is not None:
-                use_hook_scene(type(self._hook)(*(a[index] for a in self._hook)), episode.scene)
+                use_hook_scene(row(self._hook, index), episode.scene)
             self.scenes[index] = episode.scene
             self._substeps[index] = episode.substeps
-        row = () if index is None else index
-        self._task_params[row] = episode.task_params
-        self._action_params[row] = episode.action_params
-        self._scene_params[row][:episode.values.size] = episode.values
+        at = () if index is None else index
+        self._task_params[at] = episode.task_params
+        self._action_params[at] = episode.action_params
+        self._scene_params[at][:episode.values.size] = episode.values
 
     def reset(self, state: State, target, index: Optional[int] = None, episode: Optional[Episode] = None) -> int:
         """Put ``state`` (balances restarted) and ``target`` (TARGET [m]) in, zero the action
@@ -292,7 +291,7 @@ class ControlStep:
             self._use_episode(episode, None if index is None else int(index))
         DR = None
         if self._drone is not None:  # before the state: the simulator's balances start with it
-            DR = self._drone if index is None else drone_view(self._drone, int(index))
+            DR = self._drone if index is None else row(self._drone, int(index))
             hover_at_rest(DR, self.sim.scene if index is None else self.scenes[int(index)])
         if self.num_envs is None:
             self.sim.set_state(state, check=False)  # built for this scene, as the batch's rows below
@@ -301,13 +300,13 @@ class ControlStep:
         else:
             i = int(index)
             S, D = self._row(i)
-            P = LGVIParams(*(a[i] if a.ndim > 1 else a[i].item() for a in self._params))
+            P = params_row(self._params, i)
             S.r[...], S.p[...], S.R[...], S.Pi[...] = state.r, state.p, state.R, state.Pi
             for a in (S.rc, S.pc, S.Rc, S.Pic, S.acc, S.accc, S.owed):
                 a[...] = 0.0
             state_forces(S, P)
             self._winch.state[i] = winch_state(self.scenes[i], P.max_len2)
-            E = EnvArrays(*(a[i] for a in self._env_arrays()))
+            E = row(self._env_arrays(), i)
             pending = self._pending[i]
         E.target[...] = target
         E.action[...] = 0.0
@@ -315,8 +314,8 @@ class ControlStep:
         if not self._ready:
             self._was_reset[() if index is None else int(index)] = True
             self._ready = bool(self._was_reset.all())
-        WA = self.sim.winch.arrays if index is None else type(self._winch)(*(a[int(index)] for a in self._winch))
-        HK = self._hook if self._hook is None or index is None else type(self._hook)(*(a[int(index)] for a in self._hook))
+        WA = self.sim.winch.arrays if index is None else row(self._winch, int(index))
+        HK = self._hook if self._hook is None or index is None else row(self._hook, int(index))
         return self.rig.reset_observe(S, P, D, WA, E, DR, HK)
 
     # -- step -------------------------------------------------------------------------------------
@@ -395,4 +394,4 @@ class ControlStep:
 
     def _row(self, i: int):
         """The live StateArrays and DiagWork of sub-environment ``i`` of a batch (views)."""
-        return type(self._state)(*(a[i] for a in self._state)), type(self._diag)(*(a[i] for a in self._diag))
+        return row(self._state, i), row(self._diag, i)

@@ -12,6 +12,7 @@ from collections import namedtuple
 
 import numpy as np
 
+from .arrays import row, stacked_drone_arrays
 from .kernels.drone import DRONE, DRONE_DIAG, DroneArrays, drone_diagnostics
 from .kernels.drone_hook import HookArrays, hook_diagnostics
 from .kernels.drone_loops import drone_advance
@@ -31,7 +32,7 @@ DroneState = namedtuple("DroneState", "R Pi rotor_speeds")
 def drone_arrays(scene: Scene) -> DroneArrays:
     """A :class:`DroneArrays` for ``scene``'s drone (:func:`use_drone_scene`), at rest
     (:func:`hover_at_rest`)."""
-    arrays = drone_view(stacked_drone_arrays(1), 0)
+    arrays = row(stacked_drone_arrays(1), 0)
     use_drone_scene(arrays, scene)
     hover_at_rest(arrays, scene)
     return arrays
@@ -102,24 +103,6 @@ def hover_level(arrays: DroneArrays, drone, weight: float) -> None:
     arrays.speed[...] = hover
     arrays.command[...] = hover
     arrays.thrust_scale[...] = 1.0
-
-
-def stacked_drone_arrays(count: int) -> DroneArrays:
-    """:class:`DroneArrays` of ``count`` drones, zero, every field's first index the drone (a team's:
-    esp_gym/kernels/team_drones.py); ``thrust_scale`` 1."""
-    z = np.zeros
-    return DroneArrays(R=z((count, 3, 3)), Rc=z((count, 3, 3)), Pi=z((count, 3)), Pic=z((count, 3)),
-                       speed=z((count, 4)), command=z((count, 4)), setpoint=z((count, 4)),
-                       thrust_scale=np.ones((count, 4)), consts=z((count, DRONE.size)), inertia=z((count, 3, 3)),
-                       inertia_inv=z((count, 3, 3)), mixer=z((count, 4, 4)), allocation=z((count, 4, 4)),
-                       next_speed=z((count, 4)), wrench=z((count, 2, 4)), scratch=z((count, 4, 3, 3)),
-                       diag=z((count, DRONE_DIAG.size)))
-
-
-def drone_view(arrays: DroneArrays, k: int) -> DroneArrays:
-    """Drone ``k`` of :func:`stacked_drone_arrays` as its own :class:`DroneArrays` of views (the
-    kernels' ``drone_at``)."""
-    return DroneArrays(*(field[k] for field in arrays))
 
 
 class DroneSimulator(Simulator):

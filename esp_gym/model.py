@@ -14,10 +14,11 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .kernels.diagnostics import diagnostics as diagnostics_kernel
+from .arrays import diag_work, state_arrays, work_arrays
 from .kernels.layout import (BALANCE, DIAG, INPUTS, LOOP_REPORT_SIZE, R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS,
-                             STEP_DIAG, DiagWork, Snapshots, LGVIParams, StateArrays, Work)
+                             STEP_DIAG, Snapshots, LGVIParams)
 from .kernels.status import OK
-from .kernels.loops import state_size, winch_advance, winch_advance_implicit
+from .kernels.loops import winch_advance, winch_advance_implicit
 from .kernels.specialise import general_kernels, specialised_kernels
 from .kernels.string import state_forces
 from .errors import SimulationError, failure_advice  # noqa: F401  (re-exported)
@@ -84,17 +85,11 @@ class Simulator:
         self.winch = Winch(scene, self.params.max_len2)
         n = scene.string.elements
         st = initial_state(scene)
-        z = np.zeros
-        self._arrays = StateArrays(
-            r=st.r, p=st.p, R=st.R, Pi=st.Pi, rc=z((n + 1, 3)), pc=z((n + 1, 3)), Rc=z((3, 3)),
-            Pic=z(3), f=z((n + 1, 3)), acc=z(BALANCE.size), accc=z(BALANCE.size), owed=z(n))
+        self._arrays = state_arrays(n, st.r, st.p, st.R, st.Pi)
         self._step = 0
-        self._work = Work(fn=z((n + 1, 3)), X=z((n + 1, 3)), Y=z((n + 1, 3)),
-                          FmI=z((3, 3)), RF=z((3, 3)), Rn=z((3, 3)), jac=z((3, 3)),
-                          backup=z(state_size(self._arrays)), fl=z((n + 1, 3)), fr=z((n + 1, 3)), dy=z((n + 1, 3)),
-                          elim=z((n + 1, 3, 3)), taut=z(n), ext=z((n + 2, 3)), switch=z(n))
-        self._diag = DiagWork(V=z((n + 1, 3)), strain=z(n), omega=z(3), out=z(DIAG.size))
-        self._inputs = z(INPUTS.size)
+        self._work = work_arrays(n)
+        self._diag = diag_work(n)
+        self._inputs = np.zeros(INPUTS.size)
         self._forced = False  #: any input non-zero (an unforced call then zeroes them, once)
         self._coupled = bool(np.any(self.params.rho != 0.0))  # rho_c != 0: rotation coupled
         self._kernel_cache: dict = {}

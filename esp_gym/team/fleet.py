@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from .. import TEAM_ENV_ID
-from ..drone import DroneState, drone_view, stacked_drone_arrays, use_drone
+from ..arrays import row, stacked_drone_arrays
+from ..drone import DroneState, use_drone
 from ..kernels.drone import Q_THRUST_COEFFICIENT
 from ..kernels.team_drones import TeamDrones
 from ..model import ROTATION_TOL
@@ -58,7 +59,7 @@ class Fleet:
         self.arrays = TeamDrones(arrays=stacked_drone_arrays(n), pivot=np.array(self.pivots, dtype=np.int64),
                                  pending=np.zeros((n, 2, 3)))
         for d, pivot in enumerate(self._sections):
-            use_drone(drone_view(self.arrays.arrays, d), pivot.drone, h)
+            use_drone(row(self.arrays.arrays, d), pivot.drone, h)
         self.rates = False
 
     def __len__(self) -> int:

@@ -8,11 +8,12 @@ from dataclasses import dataclass, field
 from typing import Optional
 
 import numpy as np
+
+from ..arrays import team_arrays
 from ..drone import DroneState
 from ..kernels.layout import INPUTS, LOOP_REPORT_SIZE, R_NEWTON_TOTAL, R_STATUS, R_STEPS
 from ..kernels.status import OK
 from ..kernels.team import team_forces
-from ..kernels.team_arrays import TeamArrays
 from ..kernels.team_loops import team_advance, team_drone_advance, team_winch_advance
 from ..kernels.team_winch import team_winch_forces
 from ..model import SimulationError, Simulator
@@ -66,12 +67,8 @@ class TeamSimulator(TeamReadout):
         self._S, self._W, self._P = buffers.state, buffers.work, buffers.params
         self.params, self._strings = build_team(team, self._P)
         rows = int(self.params.start[-1])
-        z = np.zeros
-        K1 = len(team.strings)
-        self._A = TeamArrays(r=z((rows, 3)), p=z((rows, 3)), rc=z((rows, 3)), pc=z((rows, 3)), f=z((rows, 3)),
-                             fn=z((rows, 3)), X=z((rows, 3)), Y=z((rows, 3)), c=z((K1, 3)), dr0=z((K1, 3)),
-                             force=z((K1, 2, 3)), switch=z(rows), owed=z(rows))
-        self._inputs = z(INPUTS.size)
+        self._A = team_arrays(rows, len(team.strings))
+        self._inputs = np.zeros(INPUTS.size)
         self._stats = np.zeros(LOOP_REPORT_SIZE, dtype=np.int64)
         self._step = 0
         #: The team's drones (esp_gym/team/fleet.py), None without drones.

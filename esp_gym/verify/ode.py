@@ -56,8 +56,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..arrays import diag_work, state_arrays
 from ..kernels.diagnostics import diagnostics as diagnostics_kernel
-from ..kernels.layout import BALANCE, DIAG, INPUTS, STEP_DIAG, DiagWork, StateArrays
+from ..kernels.layout import DIAG, INPUTS, STEP_DIAG, DiagWork
 from ..kernels.ode import ODEWork, ode_rhs, ode_rhs_columns, rk4_run
 from ..state import State, build_params, legendre_momenta
 from ..params import Scene
@@ -97,10 +98,7 @@ class ElasticStringODE:
         z = np.zeros
         self.work = ODEWork(r=z((n + 1, 3)), f=z((n + 1, 3)), X=z((n + 1, 3)))
         # the simulator's state and diagnostics arrays, for _diagnose
-        self._diag = (StateArrays(r=z((n + 1, 3)), p=z((n + 1, 3)), R=z((3, 3)), Pi=z(3), rc=z((n + 1, 3)),
-                                  pc=z((n + 1, 3)), Rc=z((3, 3)), Pic=z(3), f=z((n + 1, 3)), acc=z(BALANCE.size),
-                                  accc=z(BALANCE.size), owed=z(n)),
-                      DiagWork(V=z((n + 1, 3)), strain=z(n), omega=z(3), out=z(DIAG.size)))
+        self._diag = (state_arrays(n), diag_work(n))
         self.nfev = 0  #: right-hand side evaluations through :meth:`rhs` / :meth:`rhs_columns`
 
     # -- right-hand side --------------------------------------------------------------------

@@ -1,0 +1,84 @@
+"""The structs the compiled kernels take, made in one place (kernels/layout.py, kernels/drone.py and
+kernels/team_arrays.py name their fields): a string's state, work and diagnostics arrays for N
+elements, drones' arrays, a team's stacked strings, and a batch's arrays: a struct stacked with a
+leading axis (zeros, or a template's values in every row) and one row's views. The constants
+computed from a scene are their owners' (esp_gym/state.py ``build_params``, esp_gym/drone.py,
+esp_gym/winch.py, esp_gym/team/assembly.py), written into these.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .kernels.layout import BALANCE, DIAG, DiagWork, LGVIParams, StateArrays, Work
+from .kernels.drone import DRONE, DRONE_DIAG, DroneArrays
+from .kernels.loops import state_size
+from .kernels.team_arrays import TeamArrays
+
+
+def state_arrays(n: int, r=None, p=None, R=None, Pi=None) -> StateArrays:
+    """The state of a string of ``n`` elements (kernels/layout.py ``StateArrays``): the positions
+    and momenta ``r``, ``p`` (n+1, 3), ``R`` (3, 3) and ``Pi`` (3,) given (taken, not copied) or
+    zeros; their remainders, the forces, the balances and the slack switch's debts zero."""
+    z = np.zeros
+    return StateArrays(r=z((n + 1, 3)) if r is None else r, p=z((n + 1, 3)) if p is None else p,
+                       R=z((3, 3)) if R is None else R, Pi=z(3) if Pi is None else Pi, rc=z((n + 1, 3)),
+                       pc=z((n + 1, 3)), Rc=z((3, 3)), Pic=z(3), f=z((n + 1, 3)), acc=z(BALANCE.size),
+                       accc=z(BALANCE.size), owed=z(n))
+
+
+def work_arrays(n: int) -> Work:
+    """The stepper's scratch for a string of ``n`` elements (kernels/layout.py ``Work``), zeros; its
+    ``backup`` holds a checkpoint of the state (kernels/loops.py ``save_state``)."""
+    z = np.zeros
+    return Work(fn=z((n + 1, 3)), X=z((n + 1, 3)), Y=z((n + 1, 3)), FmI=z((3, 3)), RF=z((3, 3)), Rn=z((3, 3)),
+                jac=z((3, 3)), backup=z(state_size(state_arrays(n))), fl=z((n + 1, 3)), fr=z((n + 1, 3)), dy=z((n + 1, 3)),
+                elim=z((n + 1, 3, 3)), taut=z(n), ext=z((n + 2, 3)), switch=z(n))
+
+
+def diag_work(n: int) -> DiagWork:
+    """The diagnostics' scratch and output for a string of ``n`` elements (kernels/diagnostics.py)."""
+    z = np.zeros
+    return DiagWork(V=z((n + 1, 3)), strain=z(n), omega=z(3), out=z(DIAG.size))
+
+
+def stacked_drone_arrays(count: int) -> DroneArrays:
+    """:class:`~esp_gym.kernels.drone.DroneArrays` of ``count`` drones, zeros but ``thrust_scale`` 1,
+    every field's first index the drone (one drone's: its :func:`row` 0; a team's:
+    kernels/team_drones.py)."""
+    z = np.zeros
+    return DroneArrays(R=z((count, 3, 3)), Rc=z((count, 3, 3)), Pi=z((count, 3)), Pic=z((count, 3)),
+                       speed=z((count, 4)), command=z((count, 4)), setpoint=z((count, 4)),
+                       thrust_scale=np.ones((count, 4)), consts=z((count, DRONE.size)), inertia=z((count, 3, 3)),
+                       inertia_inv=z((count, 3, 3)), mixer=z((count, 4, 4)), allocation=z((count, 4, 4)),
+                       next_speed=z((count, 4)), wrench=z((count, 2, 4)), scratch=z((count, 4, 3, 3)),
+                       diag=z((count, DRONE_DIAG.size)))
+
+
+def team_arrays(rows: int, others: int) -> TeamArrays:
+    """A team's stacked strings 1..K-1 (kernels/team_arrays.py ``TeamArrays``): ``rows`` node rows in
+    all, ``others`` = K - 1 strings; zeros."""
+    z = np.zeros
+    return TeamArrays(r=z((rows, 3)), p=z((rows, 3)), rc=z((rows, 3)), pc=z((rows, 3)), f=z((rows, 3)),
+                      fn=z((rows, 3)), X=z((rows, 3)), Y=z((rows, 3)), c=z((others, 3)), dr0=z((others, 3)),
+                      force=z((others, 2, 3)), switch=z(rows), owed=z(rows))
+
+
+def stacked(struct, batch: tuple):
+    """A struct of the same type whose every field is zeros of shape ``batch`` + the field's."""
+    return type(struct)(*(np.zeros(batch + np.shape(a)) for a in struct))
+
+
+def repeated(struct, count: int):
+    """A struct of the same type whose every field holds ``struct``'s in each of ``count`` rows
+    (a scalar field becomes a (count,) array of its type)."""
+    return type(struct)(*(np.repeat(np.asarray(a)[None], count, axis=0) for a in struct))
+
+
+def row(struct, i: int):
+    """Row ``i`` of a :func:`stacked` or :func:`repeated` struct, its fields views."""
+    return type(struct)(*(a[i] for a in struct))
+
+
+def params_row(params: LGVIParams, i: int) -> LGVIParams:
+    """Row ``i`` of :func:`repeated` stepper constants, their scalars Python scalars again."""
+    return LGVIParams(*(a[i] if a.ndim > 1 else a[i].item() for a in params))
