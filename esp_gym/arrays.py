@@ -1,6 +1,6 @@
 """The structs the compiled kernels take, made in one place (kernels/layout.py, kernels/drone.py and
 kernels/team_arrays.py name their fields): a string's state, work and diagnostics arrays for N
-elements, drones' arrays, a team's stacked strings, and a batch's arrays: a struct stacked with a
+elements, the winch's, drones' arrays, a team's stacked strings, and a batch's arrays: a struct stacked with a
 leading axis (zeros, or a template's values in every row) and one row's views. The constants
 computed from a scene are their owners' (esp_gym/state.py ``build_params``, esp_gym/drone.py,
 esp_gym/winch.py, esp_gym/team/assembly.py), written into these.
@@ -9,10 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .kernels.layout import BALANCE, DIAG, DiagWork, LGVIParams, StateArrays, Work
+from .kernels.layout import BALANCE, DIAG, WINCH, DiagWork, LGVIParams, StateArrays, WinchArrays, Work
 from .kernels.drone import DRONE, DRONE_DIAG, DroneArrays
 from .kernels.loops import state_size
 from .kernels.team_arrays import TeamArrays
+from .kernels.team_winch import TeamWinch
 
 
 def state_arrays(n: int, r=None, p=None, R=None, Pi=None) -> StateArrays:
@@ -39,6 +40,27 @@ def diag_work(n: int) -> DiagWork:
     """The diagnostics' scratch and output for a string of ``n`` elements (kernels/diagnostics.py)."""
     z = np.zeros
     return DiagWork(V=z((n + 1, 3)), strain=z(n), omega=z(3), out=z(DIAG.size))
+
+
+def winch_arrays(state: np.ndarray, coef: np.ndarray) -> WinchArrays:
+    """The winch's arrays (kernels/layout.py ``WinchArrays``) for a string of ``coef.shape[0]``
+    elements: its ``state`` (WINCH, taken, not copied) and convective weights ``coef`` (N, 3)
+    (esp_gym/winch.py ``convective_weights``), the step's factors and scratch zeros."""
+    n, z = coef.shape[0], np.zeros
+    return WinchArrays(state=state, coef=coef, lower=z(n + 1), upper=z(n + 1), inv=z(n + 1), cp=z(n + 1),
+                       w=z(n + 1), jeff=z((3, 3)), pshift=z((n + 1, 3)), dinv=z(n + 1), dcp=z(n + 1), dw=z(n + 1),
+                       djeff=z((3, 3)), backup=z(WINCH.size), diag=z(n + 1), rhs=z((n + 1, 3)))
+
+
+def team_winch_arrays(lead: WinchArrays, state: np.ndarray, coef: np.ndarray) -> TeamWinch:
+    """A team's winches (kernels/team_winch.py ``TeamWinch``): string 0's :func:`winch_arrays`
+    ``lead``, every string's WINCH ``state`` (K, WINCH) and the other strings' stacked convective
+    weights ``coef`` (rows, 3) (taken, not copied); the step's factors and scratch zeros."""
+    z = np.zeros
+    rows, K = coef.shape[0], state.shape[0]
+    return TeamWinch(lead=lead, state=state, coef=coef, lower=z(rows), upper=z(rows), diag=z(rows), inv=z(rows),
+                     cp=z(rows), w=z(rows), fl=z((rows, 3)), fr=z((rows, 3)), mu=z(K - 1), off=z(K - 1),
+                     kappa=z(K - 1), u=z(K - 1), m=z(K - 1), max_len2=z(K - 1), body=z(4), J=z((3, 3)), target=z(K))
 
 
 def stacked_drone_arrays(count: int) -> DroneArrays:

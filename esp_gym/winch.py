@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 
+from .arrays import winch_arrays
 from .kernels.layout import WINCH, WinchArrays
 from .kernels.winch import convective_weights, winch_energy
 from .params import Scene
@@ -49,11 +50,7 @@ class Winch:
         """The compiled step's arrays, made on first use (about 14 floats per node; a simulator
         that never reels does not hold them)."""
         if self._arrays is None:
-            n, z = self.elements, np.zeros
-            self._arrays = WinchArrays(
-                state=self._state, coef=convective_weights(n, self.consistent), lower=z(n + 1), upper=z(n + 1),
-                inv=z(n + 1), cp=z(n + 1), w=z(n + 1), jeff=z((3, 3)), pshift=z((n + 1, 3)), dinv=z(n + 1),
-                dcp=z(n + 1), dw=z(n + 1), djeff=z((3, 3)), backup=z(WINCH.size), diag=z(n + 1), rhs=z((n + 1, 3)))
+            self._arrays = winch_arrays(self._state, convective_weights(self.elements, self.consistent))
         return self._arrays
 
     def use_scene(self, scene: Scene, max_len2: float) -> None:

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels.layout import WINCH, WinchArrays
-from ..kernels.team_winch import TeamWinch
+from ..arrays import team_winch_arrays, winch_arrays
+from ..kernels.layout import WINCH
 from ..kernels.winch import convective_weights
 from ..scene_input import real_number
 from ..stepsize import shortest
@@ -31,23 +31,15 @@ class TeamWinches:
         the team's stacked rows of strings 1..K-1 (TeamParams.start)."""
         self.team = team
         self.scenes = [team.member_scene(k) for k in range(team.size)]
-        K, rows = team.size, int(start[-1])
+        rows = int(start[-1])
         self.state = np.array([winch_state(s, float(g)) for s, g in zip(self.scenes, max_len2)])
         z = np.zeros
         n0 = team.scene.string.elements
-        lead = WinchArrays(
-            state=self.state[0], coef=convective_weights(n0, team.scene.string.mass_model == "consistent"),
-            lower=z(n0 + 1), upper=z(n0 + 1), inv=z(n0 + 1), cp=z(n0 + 1), w=z(n0 + 1), jeff=z((3, 3)),
-            pshift=z((n0 + 1, 3)), dinv=z(n0 + 1), dcp=z(n0 + 1), dw=z(n0 + 1), djeff=z((3, 3)),
-            backup=z(WINCH.size), diag=z(n0 + 1), rhs=z((n0 + 1, 3)))
+        lead = winch_arrays(self.state[0], convective_weights(n0, team.scene.string.mass_model == "consistent"))
         coef = z((rows, 3))
         for j, s in enumerate(team.strings):
             coef[start[j]:start[j + 1] - 1] = convective_weights(s.string.elements, s.string.mass_model == "consistent")
-        K1 = K - 1
-        self.arrays = TeamWinch(
-            lead=lead, state=self.state, coef=coef, lower=z(rows), upper=z(rows), diag=z(rows), inv=z(rows),
-            cp=z(rows), w=z(rows), fl=z((rows, 3)), fr=z((rows, 3)), mu=z(K1), off=z(K1), kappa=z(K1), u=z(K1),
-            m=z(K1), max_len2=z(K1), body=z(4), J=z((3, 3)), target=z(K))
+        self.arrays = team_winch_arrays(lead, self.state, coef)
         self.start = start
         self.scene_lengths = np.array([s.string.length for s in self.scenes])
         self.ranges = np.array([s.winch_range for s in self.scenes])
