@@ -59,7 +59,7 @@ import numpy as np
 from ..arrays import diag_work, state_arrays
 from ..kernels.diagnostics import diagnostics as diagnostics_kernel
 from ..kernels.layout import DIAG, INPUTS, STEP_DIAG, DiagWork
-from ..kernels.ode import ODEWork, ode_rhs, ode_rhs_columns, rk4_run
+from .ode_kernels import ODEWork, ode_rhs, ode_rhs_columns, rk4_run
 from ..state import State, build_params, legendre_momenta
 from ..params import Scene
 
