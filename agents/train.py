@@ -138,35 +138,52 @@ def prepare(s: Settings, given: frozenset = frozenset()) -> Prepared:
     """Check the settings and build the environments and the model; raises SettingsError (one
     line, naming the argument) for anything wrong, having written nothing. ``given``: the
     settings the command line set (those of RUN_SETTINGS conflict with ``--resume``)."""
-    from stable_baselines3 import PPO, SAC
-    from stable_baselines3.common.vec_env import VecFrameStack, VecMonitor, VecNormalize
-
     if s.time_limit is not None and not (math.isfinite(s.time_limit) and s.time_limit > 0):
         raise SettingsError("--time-limit", f"must be a positive number of minutes, got {s.time_limit}")
-    resume = None
-    if s.resume:
-        clash = sorted(given & RUN_SETTINGS)
-        if clash:
-            raise SettingsError(option_name(clash[0]), "not allowed with --resume (a resumed run keeps its own "
-                                                       "settings; --set adds overrides)")
-        try:
-            resume = Resume.read(s.resume)
-        except ValueError as err:
-            raise SettingsError("--resume", str(err)) from None
-        saved = {k: v for k, v in resume.saved.items() if k in RUN_SETTINGS}
-        s = dataclasses.replace(s, **saved, set=list(resume.saved["set"]) + list(s.set))
+    s, resume = _resumed_settings(s, given)
     cfg = run_config(s)
-    if resume:
-        run_dir = resume.run_dir
-        if cfg.total_timesteps <= resume.steps:
-            raise SettingsError("--resume", f"the checkpoint is at step {resume.steps}, the run's total_timesteps is "
-                                            f"{cfg.total_timesteps}: raise it with --set total_timesteps=N")
-        if cfg.normalize and resume.stats is None:
-            raise SettingsError("--resume", f"no normalisation statistics beside {resume.checkpoint} "
-                                            f"(model_vecnormalize_{resume.steps}_steps.npz or .pkl)")
-    else:
-        run_dir = new_run_dir(s.runs, s.run_name, s.algo, s.task, s.seed)
+    run_dir = _run_dir(s, cfg, resume)
+    _check_algorithm_needs(s, cfg)
+    monitor, venv, eval_env = _environments(s, cfg, resume)
+    model = _model(s, cfg, resume, monitor, venv)
+    if cfg.residual and not resume:
+        start_at_base(model)
+    return Prepared(s, cfg, run_dir, resume, monitor, venv, eval_env, model)
 
+
+def _resumed_settings(s: Settings, given: frozenset) -> tuple:
+    """``(settings, Resume or None)``: with ``--resume``, the run's saved settings (``--set`` adding
+    overrides after its own), none of RUN_SETTINGS given again."""
+    if not s.resume:
+        return s, None
+    clash = sorted(given & RUN_SETTINGS)
+    if clash:
+        raise SettingsError(option_name(clash[0]), "not allowed with --resume (a resumed run keeps its own "
+                                                   "settings; --set adds overrides)")
+    try:
+        resume = Resume.read(s.resume)
+    except ValueError as err:
+        raise SettingsError("--resume", str(err)) from None
+    saved = {k: v for k, v in resume.saved.items() if k in RUN_SETTINGS}
+    return dataclasses.replace(s, **saved, set=list(resume.saved["set"]) + list(s.set)), resume
+
+
+def _run_dir(s: Settings, cfg: RunConfig, resume: Optional[Resume]) -> Path:
+    """The run's directory: a resumed run's own (checked: steps left to take, its normalisation
+    statistics there), else a new one's name (nothing made yet)."""
+    if not resume:
+        return new_run_dir(s.runs, s.run_name, s.algo, s.task, s.seed)
+    if cfg.total_timesteps <= resume.steps:
+        raise SettingsError("--resume", f"the checkpoint is at step {resume.steps}, the run's total_timesteps is "
+                                        f"{cfg.total_timesteps}: raise it with --set total_timesteps=N")
+    if cfg.normalize and resume.stats is None:
+        raise SettingsError("--resume", f"no normalisation statistics beside {resume.checkpoint} "
+                                        f"(model_vecnormalize_{resume.steps}_steps.npz or .pkl)")
+    return resume.run_dir
+
+
+def _check_algorithm_needs(s: Settings, cfg: RunConfig) -> None:
+    """The options that need PPO (a state value), and distillation's whole recipe."""
     if cfg.privileged_critic and s.algo != "ppo":
         raise SettingsError("--set", f"privileged_critic needs an actor-critic with a state value (ppo), not {s.algo}")
     if cfg.critic_warmup and s.algo != "ppo":
@@ -177,7 +194,16 @@ def prepare(s: Settings, given: frozenset = frozenset()) -> Prepared:
                                      "algo ppo, residual, normalize, no privileged_critic and frame_stack 1 (got "
                                      f"{s.algo}, residual={cfg.residual}, normalize={bool(cfg.normalize)}, "
                                      f"privileged_critic={cfg.privileged_critic}, frame_stack={cfg.frame_stack})")
-    try:  # a residual the observation cannot feed, a batch past the memory: before anything is written
+
+
+def _environments(s: Settings, cfg: RunConfig, resume: Optional[Resume]) -> tuple:
+    """``(monitor, venv, eval_env)``: the training envs under their monitor, then normalised
+    (a resumed run's statistics, or new ones) and frame-stacked as the run says, and the
+    evaluation envs alike; a residual the observation cannot feed, or a batch past the memory,
+    refused before anything is written."""
+    from stable_baselines3.common.vec_env import VecFrameStack, VecMonitor, VecNormalize
+
+    try:
         monitor = RunMonitor(_make_vec_env(cfg.n_envs, s.task, s.seed, cfg.env_kwargs, cfg.residual,
                                            cfg.privileged_critic, cfg.episode_steps or esp_gym.MAX_EPISODE_STEPS))
         eval_env = VecMonitor(_make_vec_env(min(4, s.eval_episodes), s.task, s.seed + 10_000, cfg.env_kwargs,
@@ -196,29 +222,33 @@ def prepare(s: Settings, given: frozenset = frozenset()) -> Prepared:
         eval_env = VecNormalize(eval_env, training=False, norm_reward=False, clip_obs=venv.clip_obs)
     if cfg.frame_stack > 1:  # stacks the normalised observations (SB3Policy does the same)
         venv, eval_env = VecFrameStack(venv, cfg.frame_stack), VecFrameStack(eval_env, cfg.frame_stack)
+    return monitor, venv, eval_env
+
+
+def _model(s: Settings, cfg: RunConfig, resume: Optional[Resume], monitor, venv):
+    """A resumed run's model from its checkpoint, or a new PPO or SAC on ``venv`` (with the
+    privileged critic, its actor reading the observation part of each stacked frame)."""
+    from stable_baselines3 import PPO, SAC
+
     if resume:
         try:
-            model = load_model(resume.checkpoint, env=venv)
+            return load_model(resume.checkpoint, env=venv)
         except ModelFileError as err:
             raise SettingsError("--resume", str(err)) from None
-    else:
-        cls = {"ppo": PPO, "sac": SAC}[s.algo]
-        policy, algo = cfg.policy, resolve_schedules(cfg.algo)
-        if cfg.privileged_critic:  # the actor reads the observation part of each stacked frame
-            from agents.privileged import AsymmetricPolicy
+    cls = {"ppo": PPO, "sac": SAC}[s.algo]
+    policy, algo = cfg.policy, resolve_schedules(cfg.algo)
+    if cfg.privileged_critic:
+        from agents.privileged import AsymmetricPolicy
 
-            frame = monitor.observation_space.shape[0]
-            policy = AsymmetricPolicy
-            algo["policy_kwargs"] = {**algo.get("policy_kwargs", {}), "frame_size": frame,
-                                     "actor_size": frame - privileged_size_of(monitor)}
-        try:
-            model = cls(policy, venv, seed=s.seed, device="cpu", verbose=0, **algo)
-        except (ValueError, TypeError, KeyError, AssertionError) as err:  # SB3 checks its arguments by assert
-            raise SettingsError("--set", f"{s.algo.upper()} rejects the configuration: "
-                                         f"{one_line(f'{type(err).__name__}: {err}')}") from None
-    if cfg.residual and not resume:
-        start_at_base(model)
-    return Prepared(s, cfg, run_dir, resume, monitor, venv, eval_env, model)
+        frame = monitor.observation_space.shape[0]
+        policy = AsymmetricPolicy
+        algo["policy_kwargs"] = {**algo.get("policy_kwargs", {}), "frame_size": frame,
+                                 "actor_size": frame - privileged_size_of(monitor)}
+    try:
+        return cls(policy, venv, seed=s.seed, device="cpu", verbose=0, **algo)
+    except (ValueError, TypeError, KeyError, AssertionError) as err:  # SB3 checks its arguments by assert
+        raise SettingsError("--set", f"{s.algo.upper()} rejects the configuration: "
+                                     f"{one_line(f'{type(err).__name__}: {err}')}") from None
 
 
 def start_at_base(model) -> None:
@@ -254,40 +284,19 @@ def run(p: Prepared, argv: Optional[list] = None, callbacks: Sequence = ()) -> P
     """Train a prepared run in its directory; returns the directory. status.json says
     ``running``, then ``finished``, ``interrupted`` (Ctrl-C, or the caller stopped it by raising
     SystemExit) or ``failed`` (the error is re-raised either way). ``callbacks``: more SB3 callbacks."""
-    from stable_baselines3.common.callbacks import CallbackList, EvalCallback
     from stable_baselines3.common.logger import CSVOutputFormat, Logger
-    from stable_baselines3.common.vec_env import unwrap_vec_normalize
 
-    s, cfg, run_dir, model = p.settings, p.cfg, p.run_dir, p.model
+    cfg, run_dir, model = p.cfg, p.run_dir, p.model
     run_dir.mkdir(parents=True, exist_ok=bool(p.resume))
     try:
         write_status(run_dir, "running", timesteps=int(model.num_timesteps))
         _record_settings(p, argv)
         if not p.resume:
-            n_ref = s.reference_episodes
-            refs = {"baseline_return": evaluate_policy(None, s.task, n_ref, seed=10_000,
-                                                       env_kwargs=cfg.env_kwargs)["mean_return"],
-                    "zero_return": evaluate_policy(ZeroPolicy(), s.task, n_ref, seed=10_000,
-                                                   env_kwargs=cfg.env_kwargs)["mean_return"]}
-            if cfg.residual:  # what the residual policy starts from
-                refs["residual_base_return"] = evaluate_policy(base_policy(cfg.residual, s.task, cfg.env_kwargs), s.task,
-                                                               n_ref, seed=10_000, env_kwargs=cfg.env_kwargs)["mean_return"]
-            (run_dir / "references.json").write_text(json.dumps(refs))
+            _write_references(p)
         p.monitor.open_log(run_dir / "monitor.csv", p.resume.monitor if p.resume else None)
-        evaluations = EvalCallback(p.eval_env, n_eval_episodes=s.eval_episodes,
-                                   eval_freq=max(1, s.eval_freq // cfg.n_envs), log_path=str(run_dir),
-                                   best_model_save_path=str(run_dir / "best"), deterministic=True, verbose=0)
-        if p.resume and p.resume.evaluations is not None:
-            p.resume.evaluations.continue_in(evaluations, run_dir / "evaluations.npz")
         distilled = distill(p) if cfg.distill_episodes and not p.resume else None
         taken = distilled["distill_wall_s"] if distilled else 0.0
-        limit = TimeLimitCallback(max(60.0 * s.time_limit - taken, 0.0)) if s.time_limit is not None else None
-        callbacks = CallbackList([
-            evaluations,
-            RunCheckpoint(run_dir / "checkpoints", s.checkpoint_freq, p.monitor),
-            TqdmCallback(cfg.total_timesteps, disable=not s.progress),  # counts from the resumed step
-        ] + ([limit] if limit else []) + ([CriticWarmup(cfg.critic_warmup)] if cfg.critic_warmup else [])
-            + list(callbacks))
+        every, limit = _callbacks(p, taken, callbacks)
         first = model.num_timesteps
         # SB3's training statistics (losses, entropy, KL, ...) into the run, one file per segment
         # (a resume does not overwrite the first); by default SB3 makes an empty /tmp/SB3-* per run
@@ -295,28 +304,74 @@ def run(p: Prepared, argv: Optional[list] = None, callbacks: Sequence = ()) -> P
         model.set_logger(Logger(str(run_dir), [CSVOutputFormat(str(run_dir / progress))]))
         remaining = cfg.total_timesteps - first  # a resumed run continues up to the total
         start = time.perf_counter()
-        model.learn(total_timesteps=remaining, callback=callbacks, reset_num_timesteps=not p.resume)
-        wall = time.perf_counter() - start + taken
-        model.save(run_dir / "model.zip")
-        normalizer = unwrap_vec_normalize(p.venv)
-        if normalizer is not None:
-            NormStats.from_vecnormalize(normalizer).save(run_dir / "vecnormalize.npz")
-        summary = {"wall_time_s": wall, "timesteps": int(model.num_timesteps),
-                   "steps_per_s": (model.num_timesteps - first) / (wall - taken) if wall > taken else None}
-        if distilled:
-            summary.update(distilled)
-        if p.resume:
-            summary["resumed_from"] = p.resume.steps
-        if limit:
-            summary["time_limit_min"], summary["stopped_by_time_limit"] = s.time_limit, limit.stopped
-        (run_dir / "training.json").write_text(json.dumps(summary, indent=2))
-        plot_learning_curve(run_dir, f"{esp_gym.ENV_ID} {s.task}: {s.algo.upper()} (seed {s.seed})")
+        model.learn(total_timesteps=remaining, callback=every, reset_num_timesteps=not p.resume)
+        summary = _save_results(p, first, time.perf_counter() - start + taken, taken, distilled, limit)
         write_status(run_dir, "finished", timesteps=int(model.num_timesteps))
     except BaseException as err:  # Ctrl-C too: the directory says why it stopped
         write_stopped(run_dir, err, timesteps=int(model.num_timesteps))
         raise
     print(json.dumps({"run_dir": str(run_dir), **summary}))
     return run_dir
+
+
+def _write_references(p: Prepared) -> None:
+    """references.json: the returns of the baseline, the zero action and (residual) the residual's
+    base, on the reference episodes, that the run's learning curve is drawn against."""
+    s, cfg = p.settings, p.cfg
+    n_ref = s.reference_episodes
+    refs = {"baseline_return": evaluate_policy(None, s.task, n_ref, seed=10_000,
+                                               env_kwargs=cfg.env_kwargs)["mean_return"],
+            "zero_return": evaluate_policy(ZeroPolicy(), s.task, n_ref, seed=10_000,
+                                           env_kwargs=cfg.env_kwargs)["mean_return"]}
+    if cfg.residual:  # what the residual policy starts from
+        refs["residual_base_return"] = evaluate_policy(base_policy(cfg.residual, s.task, cfg.env_kwargs), s.task,
+                                                       n_ref, seed=10_000, env_kwargs=cfg.env_kwargs)["mean_return"]
+    (p.run_dir / "references.json").write_text(json.dumps(refs))
+
+
+def _callbacks(p: Prepared, taken: float, extra: Sequence) -> tuple:
+    """``(the run's SB3 callbacks, its TimeLimitCallback or None)``: the evaluations (a resumed
+    run's continued), the checkpoints, the progress bar, the time limit less the ``taken``
+    seconds [s], the critic's warm-up and the ``extra`` ones."""
+    from stable_baselines3.common.callbacks import CallbackList, EvalCallback
+
+    s, cfg, run_dir = p.settings, p.cfg, p.run_dir
+    evaluations = EvalCallback(p.eval_env, n_eval_episodes=s.eval_episodes,
+                               eval_freq=max(1, s.eval_freq // cfg.n_envs), log_path=str(run_dir),
+                               best_model_save_path=str(run_dir / "best"), deterministic=True, verbose=0)
+    if p.resume and p.resume.evaluations is not None:
+        p.resume.evaluations.continue_in(evaluations, run_dir / "evaluations.npz")
+    limit = TimeLimitCallback(max(60.0 * s.time_limit - taken, 0.0)) if s.time_limit is not None else None
+    every = CallbackList([
+        evaluations,
+        RunCheckpoint(run_dir / "checkpoints", s.checkpoint_freq, p.monitor),
+        TqdmCallback(cfg.total_timesteps, disable=not s.progress),  # counts from the resumed step
+    ] + ([limit] if limit else []) + ([CriticWarmup(cfg.critic_warmup)] if cfg.critic_warmup else []) + list(extra))
+    return every, limit
+
+
+def _save_results(p: Prepared, first: int, wall: float, taken: float, distilled, limit) -> dict:
+    """The model, its normalisation statistics, training.json (returned: the wall time [s], the
+    steps and their rate from step ``first``, distillation's ``taken`` seconds and figures, the
+    resume and the time limit) and the learning curve."""
+    from stable_baselines3.common.vec_env import unwrap_vec_normalize
+
+    s, model, run_dir = p.settings, p.model, p.run_dir
+    model.save(run_dir / "model.zip")
+    normalizer = unwrap_vec_normalize(p.venv)
+    if normalizer is not None:
+        NormStats.from_vecnormalize(normalizer).save(run_dir / "vecnormalize.npz")
+    summary = {"wall_time_s": wall, "timesteps": int(model.num_timesteps),
+               "steps_per_s": (model.num_timesteps - first) / (wall - taken) if wall > taken else None}
+    if distilled:
+        summary.update(distilled)
+    if p.resume:
+        summary["resumed_from"] = p.resume.steps
+    if limit:
+        summary["time_limit_min"], summary["stopped_by_time_limit"] = s.time_limit, limit.stopped
+    (run_dir / "training.json").write_text(json.dumps(summary, indent=2))
+    plot_learning_curve(run_dir, f"{esp_gym.ENV_ID} {s.task}: {s.algo.upper()} (seed {s.seed})")
+    return summary
 
 
 def distill(p: Prepared) -> dict:

@@ -234,8 +234,9 @@ def compare_all(zoo: Zoo, names: list, models: Path, out: Path, episodes: int, s
         return {name: future.result() for name, future in futures.items()}
 
 
-def main(argv=None) -> dict:
-    from agents.compare import HELD_OUT_SEED, markdown
+def zoo_parser() -> ArgumentParser:
+    """The command line of ``python -m agents.zoo``."""
+    from agents.compare import HELD_OUT_SEED
 
     ap = ArgumentParser(prog="python -m agents.zoo", description=__doc__.split("\n\n")[0])
     ap.add_argument("--list", action="store_true", help="print each configuration's agents.train command")
@@ -255,7 +256,12 @@ def main(argv=None) -> dict:
     ap.add_argument("--episodes", type=int, default=100, help="held-out episodes per comparison (default: 100)")
     ap.add_argument("--seed", type=int, default=HELD_OUT_SEED, help=f"first held-out seed (default: {HELD_OUT_SEED})")
     ap.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bars")
-    a = ap.parse_args(argv)
+    return ap
+
+
+def check_zoo_arguments(ap: ArgumentParser, a) -> tuple:
+    """``(zoo, configuration names, models directory)`` of the parsed arguments ``a``, everything a
+    training or a comparison would fail on refused first (one line, exit code 2)."""
     ap.check_minimums(vars(a), episodes=2, seed=0)
     ap.check_file("--zoo", a.zoo)
     if not (a.list or a.train or a.compare):
@@ -285,6 +291,15 @@ def main(argv=None) -> dict:
                 shipped_model(models, name)
             except ModelFileError as err:
                 ap.error(f"argument --models: configuration {name!r}: {err}; train it with --train")
+    return zoo, names, models
+
+
+def main(argv=None) -> dict:
+    from agents.compare import markdown
+
+    ap = zoo_parser()
+    a = ap.parse_args(argv)
+    zoo, names, models = check_zoo_arguments(ap, a)
     out = {}
     if a.list:
         for name in names:

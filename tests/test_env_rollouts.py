@@ -1,5 +1,6 @@
 """The environment's bits: sha256 of the observations, rewards and final state of seeded
-rollouts in each configuration (plain, hard preset, implicit string, winch, both, track, and a
+rollouts in each configuration (plain, hard preset, implicit string, winch, both, track, a drone
+in each rig: at its centre, with the winch, at an offset hook, under the hard preset; and a
 batched hard vector env). A refactor of the compiled step must leave them unchanged; a change of
 the physics or the tasks that moves them says so in its commit and recomputes them here."""
 import hashlib
@@ -19,6 +20,11 @@ ROLLOUT_SHA256 = {
     "winch": "d769738964bd02d636627dc3dbb4a8b1d125487cb51acd5edc31d8c5ac17b4ea",
     "implicit_winch": "ce41b43796f4bca643ef77f593da471fce5b4df91c7ff55033b7fa2860fbf46d",
     "track": "84ee7e866206d03ffaaa55e8194c1303cffd732e29a66b2e90b1ca0ab6fa7a8a",
+    # the drone's, first computed at 429d750, before its rigs shared one loop (kernels/drone_loops.py)
+    "drone": "d172508d61e7808b9439045223ee4d266b6bdd7eecaccc7c52d1673fe69e34d8",
+    "drone_winch": "f2f9ae2bc32704ef3fc45f7079cb4d2e018214ec9646cfff2a5a816f3faa6a41",
+    "drone_hook": "1252f309c7b5221a1e40beeba85b237bf5b7f64fb5543a6e421d43c0dc269873",
+    "drone_hard": "4b650448bb1050375d47ea5061b7048ece6da73f56cc3129cb79e152f20a307c",
 }
 VECTOR_SHA256 = "df5ef1b76b3f23c29de03347dd59fa263f7ea298a785ef2ff8945a79329299d9"
 
@@ -27,7 +33,11 @@ CONFIGURATIONS = {"plain": {}, "hard": {"preset": "hard"},
                   "winch": {"task": "lower", "winch": True},
                   "implicit_winch": {"task": "lower", "winch": True,
                                      "scene_overrides": {"string": {"EA": 2e5}, "solver": {"string": "implicit"}}},
-                  "track": {"task": "track"}}
+                  "track": {"task": "track"},
+                  "drone": {"scene": "quadrotor_load"},
+                  "drone_winch": {"scene": "quadrotor_load", "task": "lower", "winch": True},
+                  "drone_hook": {"scene": "quadrotor_load", "scene_overrides": {"pivot": {"drone": {"rho_q": [0, 0, -0.05]}}}},
+                  "drone_hard": {"scene": "quadrotor_load", "preset": "hard"}}
 
 
 def rollout_digest(env, steps: int, seed: int) -> str:
