@@ -253,7 +253,7 @@ TO_SPLIT = {
     "esp_gym/kernels/disturbance.py:disturb", "esp_gym/kernels/winch_implicit.py:winch_implicit_once",
     "agents/task_figures.py:team_figure", "benchmarks/stability.py:plot",
     "esp_gym/kernels/implicit_newton.py:string_elimination",
-    "esp_gym/viz/recorder.py:__init__", "esp_gym/kernels/drone_hook.py:hook_velocities",
+    "esp_gym/kernels/drone_hook.py:hook_velocities",
     "benchmarks/spatial_convergence.py:main", "esp_gym/viz/recorder.py:_write",
     "benchmarks/work_precision.py:work_precision", "esp_gym/kernels/team_winch.py:team_winch_substep",
 }

@@ -27,6 +27,23 @@ from .entities import (BLACK, BODY, BODY_COM, BODY_SHAPE, BODY_TORQUE, HOOK_TENS
                        default_blueprint, default_strain_scale, rig_eye, scalar_series)
 
 
+def check_options(flush_every, flush_seconds, write_timeout, sample_period, trail_seconds, trail_spacing,
+                  scales: dict, env: bool, action_scale) -> None:
+    """ValueError unless a recording's options make sense: ``flush_every`` >= 1 sample,
+    ``flush_seconds``, ``write_timeout``, ``sample_period`` and ``trail_spacing`` > 0 [s],
+    ``trail_seconds`` >= 0, each of the arrows' ``scales`` (name -> value) >= 0, and an ``env``
+    recording's ``action_scale`` given."""
+    if flush_every < 1 or not flush_seconds > 0 or not write_timeout > 0:
+        raise ValueError("flush_every must be >= 1, flush_seconds and write_timeout > 0")
+    if not (sample_period > 0 and trail_seconds >= 0 and trail_spacing > 0):
+        raise ValueError("sample_period and trail_spacing must be > 0; trail_seconds >= 0")
+    negative = [name for name, value in scales.items() if not value >= 0]
+    if negative:
+        raise ValueError(f"{', '.join(negative)} must be >= 0, got {[scales[name] for name in negative]}")
+    if env and action_scale is None:
+        raise ValueError("env recordings need action_scale = (force_limit [N], torque_limit [N m])")
+
+
 class Recorder:
     """Writes one ``.rrd`` recording of a simulator's samples (see esp_gym/viz/recording.py for
     entities and timelines).
@@ -71,14 +88,9 @@ class Recorder:
                  trail_seconds: float = 1.0, trail_spacing: float = 0.1, flush_every: int = 2000,
                  flush_seconds: float = 5.0, write_timeout: float = 5.0, application_id: str = "esp_gym",
                  recording_id: Optional[str] = None, drone: Optional[tuple] = None):
-        if flush_every < 1 or not flush_seconds > 0 or not write_timeout > 0:
-            raise ValueError("flush_every must be >= 1, flush_seconds and write_timeout > 0")
-        if not (sample_period > 0 and trail_seconds >= 0 and trail_spacing > 0 and force_scale >= 0
-                and wind_scale >= 0 and torque_scale >= 0):
-            raise ValueError("sample_period and trail_spacing must be > 0; trail_seconds, force_scale, wind_scale "
-                             "and torque_scale >= 0")
-        if env and action_scale is None:
-            raise ValueError("env recordings need action_scale = (force_limit [N], torque_limit [N m])")
+        scales = dict(force_scale=force_scale, wind_scale=wind_scale, torque_scale=torque_scale)
+        check_options(flush_every, flush_seconds, write_timeout, sample_period, trail_seconds, trail_spacing, scales,
+                      env, action_scale)
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.scene = scene
