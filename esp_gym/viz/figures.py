@@ -105,6 +105,100 @@ def _series(traj, name: str):
     return traj.t, getattr(traj, name), False
 
 
+def _energy_transfer_panel(a, traj) -> None:
+    """Fig. NS's panel (a): the kinetic energies of the body and of the string, the gravitational and
+    elastic potentials [J]."""
+    t = traj.t
+    for name, (colour, label) in ENERGY_COLOURS.items():
+        a.plot(t, getattr(traj, name), color=colour, lw=1.2, label=label)
+    a.set_ylabel("energy [J]")
+    a.set_title("(a) Energy transfer")
+    lo, hi = a.get_ylim()
+    a.set_ylim(lo, hi + 0.3 * (hi - lo))  # head room for the legend
+    a.legend(loc="upper center", ncols=2, framealpha=0.9)
+
+
+def _energy_panel(b, traj) -> None:
+    """Fig. NS's panel (b): E - E0 [J], every step's when the trajectory has them, with its
+    least-squares drift."""
+    ts, E, every = _series(traj, "energy")
+    E0 = E[0]
+    dE = E - E0
+    slope, icpt = np.polyfit(ts, dE, 1) if len(ts) > 1 else (0.0, 0.0)
+    _band(b, ts, dE, label="E - E0" + (", every step (min..max per bin)" if every else ""))
+    b.plot(ts[[0, -1]], icpt + slope * ts[[0, -1]], color="tab:orange", lw=1.5, ls="--",
+           label=f"least-squares drift {slope:+.2e} J/s")
+    b.axhline(0.0, color="grey", lw=0.6)
+    b.set_ylabel("E - E0 [J]")
+    b.set_title("(b) Total energy")
+    b.ticklabel_format(axis="y", style="sci", scilimits=(-3, 3))
+    b.legend(loc="upper left", framealpha=0.9)
+    _note(b, f"E0 = {E0:.6f} J\nmax |E - E0| = {np.abs(dE).max():.2e} J")
+
+
+def _pi3_panel(c, traj) -> None:
+    """Fig. NS's panel (c): pi3 - pi3(0) [kg m^2/s]."""
+    ts, p3, every = _series(traj, "pi3")
+    _band(c, ts, p3 - p3[0])
+    c.axhline(0.0, color="grey", lw=0.6)
+    c.set_ylabel(r"$\pi_3 - \pi_3(0)$ [kg m$^2$/s]")
+    c.set_title(r"(c) Angular momentum about $e_3$: deviation from the initial value")
+    c.ticklabel_format(axis="y", style="sci", scilimits=(-3, 3))
+    _note(c, rf"$\pi_3(0)$ = {p3[0]:.6f} kg m$^2$/s" + "\n"
+          + rf"max $|\pi_3 - \pi_3(0)|$ = {np.abs(p3 - p3[0]).max():.1e}")
+
+
+def _orthogonality_panel(d, traj) -> None:
+    """Fig. NS's panel (d): ||I - R^T R||_F, log scale (the maximum and median per bin on a long run)."""
+    ts, orth, every = _series(traj, "orthogonality")
+    tb, _, med, hi = binned(ts, orth, bins=500)
+    if len(tb) == len(ts):
+        d.semilogy(ts, np.where(orth > 0, orth, np.nan), color="black", lw=0.8)
+    else:
+        d.semilogy(tb, np.where(hi > 0, hi, np.nan), color="black", lw=0.9, label="maximum per bin")
+        d.semilogy(tb, np.where(med > 0, med, np.nan), color="tab:grey", lw=0.9, label="median per bin")
+        d.legend(loc="lower right", framealpha=0.9)
+    positive = orth[orth > 0]  # exact zeros (e.g. R(0) = I) have no logarithm
+    if positive.size:  # the first steps sit far below round-off; do not let them set the scale
+        typical = np.percentile(med[med > 0] if (med > 0).any() else positive, 5.0)
+        d.set_ylim(10.0 ** (np.floor(np.log10(typical)) - 1), 10.0 ** np.ceil(np.log10(positive.max()) + 0.3))
+    d.set_ylabel(r"$\|I - R^T R\|_F$")
+    d.set_title("(d) Orthogonality error of the rotation matrices")
+    _note(d, f"max = {orth.max():.1e}", loc="upper left")
+    d.grid(True, which="major", alpha=0.3)
+
+
+def _velocities_panel(e, traj) -> None:
+    """Fig. NS's panel (e): the attachment velocity's second component [m/s] and Omega's [rad/s], on
+    two axes."""
+    t = traj.t
+    v2 = e.plot(t, traj.attach_velocity[:, 1], color="tab:blue", lw=1.2,
+                label=r"attachment velocity $v_2$ [m/s] (left)")
+    e.set_ylabel(r"$v_2$ [m/s]", color="tab:blue")
+    e.tick_params(axis="y", colors="tab:blue")
+    e2 = e.twinx()
+    w2 = e2.plot(t, traj.omega[:, 1], color="tab:red", lw=1.2,
+                 label=r"angular velocity $\Omega_2$ [rad/s] (right)")
+    e2.set_ylabel(r"$\Omega_2$ [rad/s]", color="tab:red")
+    e2.tick_params(axis="y", colors="tab:red")
+    e.legend(handles=v2 + w2, loc="lower left", framealpha=0.9)
+    e.set_title("(e) Body velocity / angular velocity, second components")
+    e.set_xlabel("t [s]")
+
+
+def _stretch_panel(f, traj, scene) -> None:
+    """Fig. NS's panel (f): the stretched length [m], with ``scene`` its unstretched length."""
+    t = traj.t
+    f.plot(t, traj.stretched_length, color="black", lw=1.2)
+    if scene is not None:
+        f.axhline(scene.string.length, color="grey", lw=0.8, ls="--",
+                  label=f"unstretched length l = {scene.string.length:g} m")
+        f.legend(loc="best", framealpha=0.9)
+    f.set_ylabel("stretched length [m]")
+    f.set_title("(f) Stretched length of the string")
+    f.set_xlabel("t [s]")
+
+
 def plot_fig_ns(traj, path, scene=None, title: Optional[str] = None) -> Path:
     """Fig. NS of the paper: six panels of diagnostics against time, saved as ``path`` (PNG).
 
@@ -122,76 +216,12 @@ def plot_fig_ns(traj, path, scene=None, title: Optional[str] = None) -> Path:
         fig.set_layout_engine("constrained")
         t = traj.t
         (a, b), (c, d), (e, f) = axes
-
-        for name, (colour, label) in ENERGY_COLOURS.items():
-            a.plot(t, getattr(traj, name), color=colour, lw=1.2, label=label)
-        a.set_ylabel("energy [J]")
-        a.set_title("(a) Energy transfer")
-        lo, hi = a.get_ylim()
-        a.set_ylim(lo, hi + 0.3 * (hi - lo))  # head room for the legend
-        a.legend(loc="upper center", ncols=2, framealpha=0.9)
-
-        ts, E, every = _series(traj, "energy")
-        E0 = E[0]
-        dE = E - E0
-        slope, icpt = np.polyfit(ts, dE, 1) if len(ts) > 1 else (0.0, 0.0)
-        _band(b, ts, dE, label="E - E0" + (", every step (min..max per bin)" if every else ""))
-        b.plot(ts[[0, -1]], icpt + slope * ts[[0, -1]], color="tab:orange", lw=1.5, ls="--",
-               label=f"least-squares drift {slope:+.2e} J/s")
-        b.axhline(0.0, color="grey", lw=0.6)
-        b.set_ylabel("E - E0 [J]")
-        b.set_title("(b) Total energy")
-        b.ticklabel_format(axis="y", style="sci", scilimits=(-3, 3))
-        b.legend(loc="upper left", framealpha=0.9)
-        _note(b, f"E0 = {E0:.6f} J\nmax |E - E0| = {np.abs(dE).max():.2e} J")
-
-        ts, p3, every = _series(traj, "pi3")
-        _band(c, ts, p3 - p3[0])
-        c.axhline(0.0, color="grey", lw=0.6)
-        c.set_ylabel(r"$\pi_3 - \pi_3(0)$ [kg m$^2$/s]")
-        c.set_title(r"(c) Angular momentum about $e_3$: deviation from the initial value")
-        c.ticklabel_format(axis="y", style="sci", scilimits=(-3, 3))
-        _note(c, rf"$\pi_3(0)$ = {p3[0]:.6f} kg m$^2$/s" + "\n"
-              + rf"max $|\pi_3 - \pi_3(0)|$ = {np.abs(p3 - p3[0]).max():.1e}")
-
-        ts, orth, every = _series(traj, "orthogonality")
-        tb, _, med, hi = binned(ts, orth, bins=500)
-        if len(tb) == len(ts):
-            d.semilogy(ts, np.where(orth > 0, orth, np.nan), color="black", lw=0.8)
-        else:
-            d.semilogy(tb, np.where(hi > 0, hi, np.nan), color="black", lw=0.9, label="maximum per bin")
-            d.semilogy(tb, np.where(med > 0, med, np.nan), color="tab:grey", lw=0.9, label="median per bin")
-            d.legend(loc="lower right", framealpha=0.9)
-        positive = orth[orth > 0]  # exact zeros (e.g. R(0) = I) have no logarithm
-        if positive.size:  # the first steps sit far below round-off; do not let them set the scale
-            typical = np.percentile(med[med > 0] if (med > 0).any() else positive, 5.0)
-            d.set_ylim(10.0 ** (np.floor(np.log10(typical)) - 1), 10.0 ** np.ceil(np.log10(positive.max()) + 0.3))
-        d.set_ylabel(r"$\|I - R^T R\|_F$")
-        d.set_title("(d) Orthogonality error of the rotation matrices")
-        _note(d, f"max = {orth.max():.1e}", loc="upper left")
-        d.grid(True, which="major", alpha=0.3)
-
-        v2 = e.plot(t, traj.attach_velocity[:, 1], color="tab:blue", lw=1.2,
-                    label=r"attachment velocity $v_2$ [m/s] (left)")
-        e.set_ylabel(r"$v_2$ [m/s]", color="tab:blue")
-        e.tick_params(axis="y", colors="tab:blue")
-        e2 = e.twinx()
-        w2 = e2.plot(t, traj.omega[:, 1], color="tab:red", lw=1.2,
-                     label=r"angular velocity $\Omega_2$ [rad/s] (right)")
-        e2.set_ylabel(r"$\Omega_2$ [rad/s]", color="tab:red")
-        e2.tick_params(axis="y", colors="tab:red")
-        e.legend(handles=v2 + w2, loc="lower left", framealpha=0.9)
-        e.set_title("(e) Body velocity / angular velocity, second components")
-        e.set_xlabel("t [s]")
-
-        f.plot(t, traj.stretched_length, color="black", lw=1.2)
-        if scene is not None:
-            f.axhline(scene.string.length, color="grey", lw=0.8, ls="--",
-                      label=f"unstretched length l = {scene.string.length:g} m")
-            f.legend(loc="best", framealpha=0.9)
-        f.set_ylabel("stretched length [m]")
-        f.set_title("(f) Stretched length of the string")
-        f.set_xlabel("t [s]")
+        _energy_transfer_panel(a, traj)
+        _energy_panel(b, traj)
+        _pi3_panel(c, traj)
+        _orthogonality_panel(d, traj)
+        _velocities_panel(e, traj)
+        _stretch_panel(f, traj, scene)
 
         for ax in axes.ravel():
             ax.set_xlim(t[0], t[-1])
