@@ -247,9 +247,7 @@ LONG_BY_DESIGN = {
 #: Functions longer than that, to split by stage or role (issue 55, item 6): the set may only shrink
 #: (a listed function that became short fails until it leaves the list).
 TO_SPLIT = {
-    "esp_gym/kernels/implicit_newton.py:implicit_newton",
-    "esp_gym/viz/figures.py:plot_fig_sm",
-    "esp_gym/kernels/implicit_terms.py:body_coupling",
+    "esp_gym/kernels/implicit_newton.py:implicit_newton", "esp_gym/kernels/implicit_terms.py:body_coupling",
     "esp_gym/kernels/disturbance.py:disturb", "esp_gym/kernels/winch_implicit.py:winch_implicit_once",
     "agents/task_figures.py:team_figure", "benchmarks/stability.py:plot",
     "esp_gym/kernels/implicit_newton.py:string_elimination",

@@ -258,6 +258,69 @@ def _snapshot_indices(t: np.ndarray, t0: float, t1: float, count: int) -> np.nda
     return np.unique(idx)
 
 
+def _cylinder_dims(shape) -> dict:
+    """The scene's own cylinder's semi-axes and height for :func:`cylinder_faces`; other shapes
+    are drawn as the paper's cylinder (no dims)."""
+    if getattr(shape, "kind", None) == "elliptic_cylinder":
+        return dict(semi_axes=shape.semi_axes, height=shape.height)
+    if getattr(shape, "kind", None) == "cylinder":
+        return dict(semi_axes=(shape.radius, shape.radius), height=shape.height)
+    return {}
+
+
+def _snapshot_box(nodes, bodies: dict, every, pivot):
+    """``(lo, hi)`` (3,) [m] of the box that holds every snapshot's string and body and the pivot,
+    with room round them and no flat side for a short run."""
+    pts = np.concatenate([nodes[every].reshape(-1, 3), pivot[None]] + [np.concatenate(bodies[k]) for k in every])
+    mid, span = 0.5 * (pts.max(0) + pts.min(0)), pts.max(0) - pts.min(0)
+    span = np.maximum(span, 0.35 * span.max()) + 0.06 * span.max()
+    return mid - 0.5 * span, mid + 0.5 * span
+
+
+def _snapshots(ax, traj, sel, bodies: dict, span, colour) -> None:
+    """One panel's snapshots ``sel`` (indices of ``traj``) on the 3-D axes ``ax``: the attachment's
+    path over the time ``span`` (a mask), each string coloured by ``colour`` (its colormap and
+    norm) and each body darker than the last."""
+    colormap, norm = colour
+    nodes = traj.nodes
+    path_k = nodes[span, -1]
+    ax.plot(path_k[:, 0], path_k[:, 1], path_k[:, 2], color="0.55", lw=0.7)
+    for j, k in enumerate(sel):
+        seg = np.stack([nodes[k, :-1], nodes[k, 1:]], axis=1)
+        lines = Line3DCollection(seg, cmap=colormap, norm=norm, linewidths=2.0)
+        lines.set_array(traj.strain_energy[k])
+        # autolim=False: the box is set by the caller from our own points. matplotlib 3.11 pads
+        # ragged polygon lists (quads + 24-gon caps) with np.empty and autoscales over
+        # the padding, so garbage there could overflow the limits (CI, stop 9).
+        ax.add_collection3d(lines, autolim=False)
+        grey = 0.8 - 0.55 * j / max(1, len(sel) - 1)
+        body = Poly3DCollection(bodies[k], facecolor=(grey, grey, grey), edgecolor=(0.2, 0.2, 0.2),
+                                linewidths=0.2, alpha=0.95)
+        ax.add_collection3d(body, autolim=False)
+
+
+def _snapshot_axes(ax, lo, hi, pivot, labels) -> None:
+    """A snapshot panel's frame: the pivot, the first and last snapshot's times (``labels``: each
+    ``(text, point)``), the box ``lo``..``hi`` with equal scales, y and z inverted, and the view."""
+    for text, c in labels:
+        ax.text(c[0], c[1], c[2] - 0.1 * (hi[2] - lo[2]), text, fontsize=8, ha="center",
+                va="center", color="0.1", zorder=100,  # above the depth-sorted collections
+                bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.75))
+    ax.scatter(*pivot, color="black", marker="s", s=30, depthshade=False)
+    ax.text(*(pivot - [0.0, 0.0, 0.07 * (hi[2] - lo[2])]), "pivot", fontsize=8, ha="center", zorder=100)
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(hi[1], lo[1])  # inverted: see the module docstring
+    ax.set_zlim(hi[2], lo[2])  # inverted: gravity (+e3) points down
+    ax.set_box_aspect(tuple(hi - lo), zoom=1.0)  # equal scale on all three axes
+    ax.view_init(elev=16, azim=-72)
+    ax.set_xlabel("x [m]", labelpad=4)
+    ax.set_ylabel("y [m]", labelpad=4)
+    ax.set_zlabel("z [m] (down)", labelpad=0)
+    ax.tick_params(pad=0)
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+        axis.set_major_locator(MaxNLocator(5, steps=[1, 2, 2.5, 5, 10]))
+
+
 def plot_fig_sm(traj, scene, path, panels: int = 4, snapshots_per_panel: int = 11,
                 cmap: str = "plasma", title: Optional[str] = None) -> Path:
     """Fig. SM of the paper: snapshots of the maneuver in ``panels`` 3-D panels that split the
@@ -271,26 +334,14 @@ def plot_fig_sm(traj, scene, path, panels: int = 4, snapshots_per_panel: int = 1
     """
     t = traj.t
     nodes = traj.nodes
-    R = traj.R
     rho_c = np.asarray(scene.body.rho_c, dtype=float)
     pivot = np.asarray(scene.pivot.position, dtype=float)
     edges = np.linspace(t[0], t[-1], panels + 1)
     chosen = [_snapshot_indices(t, edges[i], edges[i + 1], snapshots_per_panel) for i in range(panels)]
     every = np.unique(np.concatenate(chosen))
-
-    shape = scene.body.shape  # draw the scene's own cylinder; other shapes as the paper's
-    if getattr(shape, "kind", None) == "elliptic_cylinder":
-        dims = dict(semi_axes=shape.semi_axes, height=shape.height)
-    elif getattr(shape, "kind", None) == "cylinder":
-        dims = dict(semi_axes=(shape.radius, shape.radius), height=shape.height)
-    else:
-        dims = {}
-    bodies = {k: cylinder_faces(R[k], nodes[k, -1], rho_c, **dims) for k in every}
-    pts = np.concatenate([nodes[every].reshape(-1, 3), pivot[None]]
-                         + [np.concatenate(bodies[k]) for k in every])
-    mid, span = 0.5 * (pts.max(0) + pts.min(0)), pts.max(0) - pts.min(0)
-    span = np.maximum(span, 0.35 * span.max()) + 0.06 * span.max()  # no flat box for a short run
-    lo, hi = mid - 0.5 * span, mid + 0.5 * span
+    dims = _cylinder_dims(scene.body.shape)
+    bodies = {k: cylinder_faces(traj.R[k], nodes[k, -1], rho_c, **dims) for k in every}
+    lo, hi = _snapshot_box(nodes, bodies, every, pivot)
     smax = float(traj.strain_energy[every].max()) or 1.0
     # square-root scale: most elements carry little strain energy, a few near the body a lot
     norm = mcolors.PowerNorm(gamma=0.5, vmin=0.0, vmax=smax)
@@ -306,39 +357,10 @@ def plot_fig_sm(traj, scene, path, panels: int = 4, snapshots_per_panel: int = 1
             ax = fig.add_subplot(nrows, ncols, i + 1, projection="3d")
             ax.patch.set_visible(False)  # the squares overlap; let no panel hide its neighbour
             sel = chosen[i]
-            span = (t >= edges[i]) & (t <= edges[i + 1])
-            path_k = nodes[span, -1]
-            ax.plot(path_k[:, 0], path_k[:, 1], path_k[:, 2], color="0.55", lw=0.7)
-            for j, k in enumerate(sel):
-                seg = np.stack([nodes[k, :-1], nodes[k, 1:]], axis=1)
-                lines = Line3DCollection(seg, cmap=colormap, norm=norm, linewidths=2.0)
-                lines.set_array(traj.strain_energy[k])
-                # autolim=False: the box is set below from our own points. matplotlib 3.11 pads
-                # ragged polygon lists (quads + 24-gon caps) with np.empty and autoscales over
-                # the padding, so garbage there could overflow the limits (CI, stop 9).
-                ax.add_collection3d(lines, autolim=False)
-                grey = 0.8 - 0.55 * j / max(1, len(sel) - 1)
-                body = Poly3DCollection(bodies[k], facecolor=(grey, grey, grey), edgecolor=(0.2, 0.2, 0.2),
-                                        linewidths=0.2, alpha=0.95)
-                ax.add_collection3d(body, autolim=False)
-            for k in (sel[0], sel[-1]):  # label the first and the last snapshot with its time
-                c = np.asarray(bodies[k][-1]).mean(0)
-                ax.text(c[0], c[1], c[2] - 0.1 * (hi[2] - lo[2]), f"{t[k]:g} s", fontsize=8, ha="center",
-                        va="center", color="0.1", zorder=100,  # above the depth-sorted collections
-                        bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.75))
-            ax.scatter(*pivot, color="black", marker="s", s=30, depthshade=False)
-            ax.text(*(pivot - [0.0, 0.0, 0.07 * (hi[2] - lo[2])]), "pivot", fontsize=8, ha="center", zorder=100)
-            ax.set_xlim(lo[0], hi[0])
-            ax.set_ylim(hi[1], lo[1])  # inverted: see the module docstring
-            ax.set_zlim(hi[2], lo[2])  # inverted: gravity (+e3) points down
-            ax.set_box_aspect(tuple(hi - lo), zoom=1.0)  # equal scale on all three axes
-            ax.view_init(elev=16, azim=-72)
-            ax.set_xlabel("x [m]", labelpad=4)
-            ax.set_ylabel("y [m]", labelpad=4)
-            ax.set_zlabel("z [m] (down)", labelpad=0)
-            ax.tick_params(pad=0)
-            for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
-                axis.set_major_locator(MaxNLocator(5, steps=[1, 2, 2.5, 5, 10]))
+            _snapshots(ax, traj, sel, bodies, (t >= edges[i]) & (t <= edges[i + 1]), (colormap, norm))
+            # the first and the last snapshot labelled with its time
+            _snapshot_axes(ax, lo, hi, pivot, [(f"{t[k]:g} s", np.asarray(bodies[k][-1]).mean(0))
+                                               for k in (sel[0], sel[-1])])
             ax.set_title(f"({chr(ord('a') + i)}) $t \\in [{t[sel[0]]:g}, {t[sel[-1]]:g}]$ s, "
                          f"{len(sel)} snapshots", y=0.88)
         cax = fig.add_axes([0.9, 0.2, 0.018, 0.6])
