@@ -182,28 +182,11 @@ def hard_lift_figure(out: Path, seed: int, steps: int, model: Path) -> dict:
 
 
 @ONE_BLAS_THREAD  # the episode agents.team_evaluate scores, to the bit
-def team_figure(out: Path, size: int, seed: int, steps: int, preset=None, task: str = "transport",
-                actuation=None) -> dict:
-    """``team_{task}.png``: one episode of a team of ``size`` pivots (docs/team.md) under the
-    team's LQR (the lift's under its hoist; with a drone ``actuation``, ``team_drones_{task}.png``
-    under the drones' cascade):
-    the top view of every pivot's and the load's path with their targets (a moving target's path
-    dashed), the load's distance to its target, each string's pull on its pivot, and the smallest
-    distance between two pivots with the separation and collision distances."""
-    from agents.team_evaluate import TeamCascadePolicy, TeamHoistPolicy, TeamLQRPolicy
-    from esp_gym.team.env import ElasticStringTeamEnv
-    from esp_gym.team.tasks import COLLISION, SEPARATION
-    from esp_gym.viz.figures import new_figure, save_figure
-
-    options = {**({"preset": preset} if preset else {}), **({"actuation": actuation} if actuation else {})}
-    env = ElasticStringTeamEnv(size, task=task, **options)
+def _team_episode(env, policy, seed: int, steps: int) -> dict:
+    """One episode of the team env ``env`` under ``policy``, up to ``steps`` steps: every pivot's
+    and the load's positions and the load's target at each step, each string's pull on its pivot
+    and the smallest distance between two pivots after each step, and the return."""
     core = env.core
-    if core.drones:
-        policy, who, what = TeamCascadePolicy(), "drones' cascade", f"drones_{task}"
-    elif core.winch:
-        policy, who, what = TeamHoistPolicy(), "team's hoist", task
-    else:
-        policy, who, what = TeamLQRPolicy(), "team's LQR", task
     obs, _ = env.reset(seed=seed)
     pivots, load, tension, separation, total = [core.pivot_positions()], [core.load_position()], [], [], 0.0
     targets = [core.load_target.copy()]
@@ -217,42 +200,82 @@ def team_figure(out: Path, size: int, seed: int, steps: int, preset=None, task: 
         separation.append(info["min_separation"])
         if terminated:
             break
-    pivots, load, targets = np.array(pivots), np.array(load), np.array(targets)
-    t = core.control_period * np.arange(len(load))
-    fig = new_figure((11, 5))
-    grid = fig.add_gridspec(3, 2, width_ratios=(1, 1.4))
-    top = fig.add_subplot(grid[:, 0])
-    for k in range(size):
+    return dict(pivots=np.array(pivots), load=np.array(load), targets=np.array(targets), tension=np.array(tension),
+                separation=separation, total=total)
+
+
+def _team_top_view(top, core, run: dict) -> None:
+    """The top view: every pivot's and the load's path from its start (dots) to its final target
+    (squares, a cross), a moving target's path dashed."""
+    pivots, load = run["pivots"], run["load"]
+    for k in range(core.size):
         line, = top.plot(*pivots[:, k, :2].T, lw=1.2, label=f"{'drone' if core.drones else 'pivot'}_{k}")
         top.plot(*pivots[0, k, :2], "o", color=line.get_color(), ms=4)
         top.plot(*core.pivot_targets[k, :2], "s", mfc="none", color=line.get_color(), ms=9)
     top.plot(*load[:, :2].T, color=COLOURS["load"], lw=1.6, label="load")
     top.plot(*load[0, :2], "o", color=COLOURS["load"], ms=4)
     if core.task.moving:
-        top.plot(*targets[:, :2].T, color=COLOURS["target"], lw=1, ls="--", label="load target's path")
+        top.plot(*run["targets"][:, :2].T, color=COLOURS["target"], lw=1, ls="--", label="load target's path")
     top.plot(*core.load_target[:2], "x", color=COLOURS["load"], ms=9, label="load target")
     top.set_aspect("equal", adjustable="datalim")
     top.set(xlabel="x [m]", ylabel="y [m]", title="from above (dots: starts, squares: final targets)")
     top.legend(loc="best", fontsize=8)
     top.grid(True, alpha=0.3)
-    distance_ax, tension_ax, separation_ax = (fig.add_subplot(grid[i, 1]) for i in range(3))
-    distance_ax.plot(t, np.linalg.norm(load - targets, axis=1), color=COLOURS["load"])
-    distance_ax.set(ylabel="load to target [m]", title=f"return {total:.1f} over {len(t) - 1} steps")
-    for k, series in enumerate(np.array(tension).T):
+
+
+def _team_series(axes, core, run: dict) -> None:
+    """Against time, on ``axes`` (three): the load's distance to its target, each string's pull on
+    its pivot, and the closest two pivots with the separation and collision distances."""
+    from esp_gym.team.tasks import COLLISION, SEPARATION
+
+    distance_ax, tension_ax, separation_ax = axes
+    load, t = run["load"], core.control_period * np.arange(len(run["load"]))
+    distance_ax.plot(t, np.linalg.norm(load - run["targets"], axis=1), color=COLOURS["load"])
+    distance_ax.set(ylabel="load to target [m]", title=f"return {run['total']:.1f} over {len(t) - 1} steps")
+    for k, series in enumerate(run["tension"].T):
         tension_ax.plot(t[1:], series, lw=1.0, label=f"{'drone' if core.drones else 'pivot'}_{k}")
     tension_ax.set_ylabel("hook tension [N]")
-    tension_ax.legend(loc="best", ncol=size, fontsize=8)
-    separation_ax.plot(t[1:], separation, color="tab:purple")
+    tension_ax.legend(loc="best", ncol=core.size, fontsize=8)
+    separation_ax.plot(t[1:], run["separation"], color="tab:purple")
     separation_ax.axhline(SEPARATION, color="tab:orange", ls="--", lw=1, label="penalised below")
     separation_ax.axhline(COLLISION, color="tab:red", ls=":", lw=1, label="collision")
     separation_ax.set(ylabel="closest pivots [m]", xlabel="time [s]")
     separation_ax.legend(loc="best", fontsize=8)
-    for ax in (distance_ax, tension_ax, separation_ax):
+    for ax in axes:
         ax.grid(True, alpha=0.3)
+
+
+def team_figure(out: Path, size: int, seed: int, steps: int, preset=None, task: str = "transport",
+                actuation=None) -> dict:
+    """``team_{task}.png``: one episode of a team of ``size`` pivots (docs/team.md) under the
+    team's LQR (the lift's under its hoist; with a drone ``actuation``, ``team_drones_{task}.png``
+    under the drones' cascade):
+    the top view of every pivot's and the load's path with their targets (a moving target's path
+    dashed), the load's distance to its target, each string's pull on its pivot, and the smallest
+    distance between two pivots with the separation and collision distances."""
+    from agents.team_evaluate import TeamCascadePolicy, TeamHoistPolicy, TeamLQRPolicy
+    from esp_gym.team.env import ElasticStringTeamEnv
+    from esp_gym.viz.figures import new_figure, save_figure
+
+    options = {**({"preset": preset} if preset else {}), **({"actuation": actuation} if actuation else {})}
+    env = ElasticStringTeamEnv(size, task=task, **options)
+    core = env.core
+    if core.drones:
+        policy, who, what = TeamCascadePolicy(), "drones' cascade", f"drones_{task}"
+    elif core.winch:
+        policy, who, what = TeamHoistPolicy(), "team's hoist", task
+    else:
+        policy, who, what = TeamLQRPolicy(), "team's LQR", task
+    run = _team_episode(env, policy, seed, steps)
+    fig = new_figure((11, 5))
+    grid = fig.add_gridspec(3, 2, width_ratios=(1, 1.4))
+    _team_top_view(fig.add_subplot(grid[:, 0]), core, run)
+    _team_series(tuple(fig.add_subplot(grid[i, 1]) for i in range(3)), core, run)
     kind = f"{size} drones ({actuation})" if core.drones else f"a team of {size}"
     fig.suptitle(f"{kind}, task='{task}'{', ' + preset if preset else ''}, the {who}, seed {seed}")
     fig.tight_layout()
     path = save_figure(fig, out / f"team_{what}.png")
+    total, load, separation = run["total"], run["load"], run["separation"]
     result = {"return": total, "final_distance_m": float(np.linalg.norm(load[-1] - core.load_target)),
               "closest_pivots_m": float(min(separation)), "figure": str(path)}
     print(f"team of {size} {task} return {total:7.1f}  final distance {result['final_distance_m']:.3f} m  "
