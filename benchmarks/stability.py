@@ -368,20 +368,22 @@ def print_tables(cfg, bounds, long, cases, sweep):
                 f"{r['h_over_h_max']:.2f}: {fmt(r['max_abs_energy_error_J'], '.1e')}" for r in rows))
 
 
-def plot(cfg, bounds, long, traces, sweep, cases, path):
-    fig = figure((17, 9))
-    (a, m, b), (c, d, e) = fig.subplots(2, 3)
-    markers = {10.0: "o", 40.0: "s", 160.0: "^"}
+#: The sizes' markers of the stability figure, by EA [N].
+EA_MARKERS = {10.0: "o", 40.0: "s", 160.0: "^"}
+
+
+def bound_panel(a, cfg, bounds) -> None:
+    """The largest stable h measured against the theoretical bound, per N (colour) and EA (marker)."""
     for r in bounds:
         if r["h_stable"] is not None:
-            a.loglog(r["h_max"], r["h_stable"], markers.get(r["EA"], "o"), color=f"C{cfg.elements.index(r['N'])}",
+            a.loglog(r["h_max"], r["h_stable"], EA_MARKERS.get(r["EA"], "o"), color=f"C{cfg.elements.index(r['N'])}",
                      ms=7)
     hm = np.array([r["h_max"] for r in bounds])
     span = np.array([hm.min() / 1.3, hm.max() * 1.3])
     a.loglog(span, span, "k--", lw=1, label="measured = 2/sqrt(12 kappa/m)")
     for i, n in enumerate(cfg.elements):
         a.plot([], [], "o", color=f"C{i}", label=f"N = {n}")
-    for EA, mk in markers.items():
+    for EA, mk in EA_MARKERS.items():
         if EA in cfg.stiffness:
             a.plot([], [], mk, color="grey", label=f"EA = {EA:g} N")
     from matplotlib.ticker import NullFormatter
@@ -394,10 +396,13 @@ def plot(cfg, bounds, long, traces, sweep, cases, path):
     a.grid(True, which="both", alpha=0.3)
     a.legend(fontsize=8)
 
+
+def margin_panel(m, cfg, bounds) -> None:
+    """The long runs' largest relative energy error against h / h_max (elastic law)."""
     for r in bounds:
         fr = [float(k) for k, v in r["margin_rel_energy_error"].items() if v is not None]
         val = [v for v in r["margin_rel_energy_error"].values() if v is not None]
-        m.semilogy(fr, val, markers.get(r["EA"], "o"), ls="-", color=f"C{cfg.elements.index(r['N'])}", ms=5,
+        m.semilogy(fr, val, EA_MARKERS.get(r["EA"], "o"), ls="-", color=f"C{cfg.elements.index(r['N'])}", ms=5,
                    lw=0.8, label=f"N = {r['N']}, EA = {r['EA']:g}")
     m.axhline(cfg.energy_tol, color="grey", ls=":", lw=1)
     m.set_xlabel("h / h_max")
@@ -406,6 +411,9 @@ def plot(cfg, bounds, long, traces, sweep, cases, path):
     m.grid(True, which="both", alpha=0.3)
     m.legend(fontsize=6, ncol=2)
 
+
+def long_run_panel(b, cfg, long) -> None:
+    """The paper example's long run: the energy, pi3 and orthogonality errors per chunk."""
     s = long["series"]
     t = np.array(s["t"])
     b.semilogy(t, s["max_abs_dE"], color="tab:red", lw=1, label="max |E - E0| per chunk [J]")
@@ -416,6 +424,9 @@ def plot(cfg, bounds, long, traces, sweep, cases, path):
     b.grid(True, which="both", alpha=0.3)
     b.legend(fontsize=8)
 
+
+def snaps_panel(c, traces) -> None:
+    """The energy error of slack-to-taut snaps (tension-only string), one trace each."""
     for i, (label, (t, dE)) in enumerate(traces.items()):
         c.semilogy(t[1:], np.maximum(np.abs(dE[1:]), 1e-12), lw=0.7, color=plt_color(i, len(traces)), label=label)
     c.set_xlabel("t [s]")
@@ -423,6 +434,10 @@ def plot(cfg, bounds, long, traces, sweep, cases, path):
     c.set_title("Slack-to-taut snaps (tension-only string): energy error")
     c.grid(True, which="both", alpha=0.3)
     c.legend(fontsize=7, ncol=2)
+
+
+def near_bound_panel(d, sweep) -> None:
+    """The tension-only and the elastic law's energy error against h / h_max near the bound."""
     styles = {("snaps", "slack"): ("tab:red", "-"), ("snaps", "elastic"): ("tab:red", "--"),
               ("drone_load", "slack"): ("tab:blue", "-"), ("drone_load", "elastic"): ("tab:blue", "--")}
     for (case, law), (col, ls) in styles.items():
@@ -436,6 +451,16 @@ def plot(cfg, bounds, long, traces, sweep, cases, path):
     d.set_title("Tension-only vs elastic law near the bound")
     d.grid(True, which="both", alpha=0.3)
     d.legend(fontsize=7)
+
+
+def plot(cfg, bounds, long, traces, sweep, cases, path):
+    fig = figure((17, 9))
+    (a, m, b), (c, d, e) = fig.subplots(2, 3)
+    bound_panel(a, cfg, bounds)
+    margin_panel(m, cfg, bounds)
+    long_run_panel(b, cfg, long)
+    snaps_panel(c, traces)
+    near_bound_panel(d, sweep)
     e.axis("off")
     e.text(0.0, 1.0, cases_text(cases), family="monospace", fontsize=6.5, va="top", transform=e.transAxes)
     fig.savefig(path)
