@@ -96,6 +96,57 @@ def observed_orders(Ns, paths) -> list:
     return [math.log2(d[N] / d[2 * N]) if N in d and 2 * N in d and d[2 * N] > 0 else None for N in Ns]
 
 
+def run_paths(Ns: tuple, ref_N: int, t_final: float, sample: float, h_fraction: float) -> tuple:
+    """``(paths, hs)``: every run's attachment path (by (N, start, mass model)) and its h, the
+    reference's (``ref_N``, consistent mass) and its own time error, a rerun at h/2, under
+    ``(ref_N, start, "time_error")``."""
+    from tqdm import tqdm
+
+    runs = [(N, s, m) for s in STARTS for m in MASS_MODELS for N in Ns + (2 * max(Ns),)]
+    paths, hs = {}, {}
+    with tqdm(total=len(runs) + 2 * len(STARTS), desc="runs", unit="run") as bar:
+        for start in STARTS:
+            paths[(ref_N, start, "consistent")], hs[(ref_N, start)] = attachment_path(
+                ref_N, start, "consistent", t_final, sample, h_fraction)
+            bar.update()
+            # the reference's own time error: the same run at h/2
+            finer, _ = attachment_path(ref_N, start, "consistent", t_final, sample, h_fraction, refine=2)
+            hs[(ref_N, start, "time_error")] = float(np.abs(finer - paths[(ref_N, start, "consistent")]).max())
+            bar.update()
+        for N, start, mass in runs:
+            paths[(N, start, mass)], hs[(N, start, mass)] = attachment_path(N, start, mass, t_final, sample, h_fraction)
+            bar.update()
+    return paths, hs
+
+
+def error_table(paths: dict, Ns: tuple, ref_N: int) -> dict:
+    """Per start and mass model: each N's largest distance from the reference's path [m] and the
+    observed orders."""
+    table = {}
+    for start in STARTS:
+        ref = paths[(ref_N, start, "consistent")]
+        for mass in MASS_MODELS:
+            series = {N: paths[(N, start, mass)] for N in Ns + (2 * max(Ns),)}
+            errors = [float(np.abs(series[N] - ref).max()) for N in Ns]
+            table[f"{start}/{mass}"] = {"N": list(Ns), "error_m": errors, "order": observed_orders(Ns, series)}
+    return table
+
+
+def print_table(table: dict, hs: dict, Ns: tuple, ref_N: int, t_final: float, sample: float) -> None:
+    """The error table with its observed orders, and the reference's time error."""
+    print(f"\nspatial error: max |attachment point - that of N = {ref_N} (consistent)| over [0, {t_final:g}] s "
+          f"every {sample:g} s [m]")
+    print("time error of the reference (rerun at h/2): "
+          + ", ".join(f"{s} {hs[(ref_N, s, 'time_error')]:.1e} m" for s in STARTS))
+    head = f"{'N':>5}" + "".join(f"{key:>22}" for key in table)
+    print(head)
+    for i, N in enumerate(Ns):
+        print(f"{N:>5}" + "".join(f"{row['error_m'][i]:>13.3e}" + (f" ({row['order'][i]:.2f})" if row['order'][i]
+                                                                     is not None else " " * 7) + "  "
+                                   for row in table.values()))
+    print("(in brackets: the observed order log2(d_N / d_2N), d_N = max|x_N - x_2N|)")
+
+
 def main(argv=None) -> int:
     parser = arg_parser(__doc__)
     parser.add_argument("--t-final", type=float, default=1.0, help="simulated time [s] (default: %(default)s)")
@@ -111,44 +162,9 @@ def main(argv=None) -> int:
         parser.error(f"--ref-N must be a multiple of {max(Ns)} above it, got {ref_N}")
     sample = 0.01
     start_time = time.perf_counter()
-    from tqdm import tqdm
-
-    runs = [(N, s, m) for s in STARTS for m in MASS_MODELS for N in Ns + (2 * max(Ns),)]
-    paths, hs = {}, {}
-    with tqdm(total=len(runs) + 2 * len(STARTS), desc="runs", unit="run") as bar:
-        for start in STARTS:
-            paths[(ref_N, start, "consistent")], hs[(ref_N, start)] = attachment_path(
-                ref_N, start, "consistent", t_final, sample, args.h_fraction)
-            bar.update()
-            # the reference's own time error: the same run at h/2
-            finer, _ = attachment_path(ref_N, start, "consistent", t_final, sample, args.h_fraction, refine=2)
-            hs[(ref_N, start, "time_error")] = float(np.abs(finer - paths[(ref_N, start, "consistent")]).max())
-            bar.update()
-        for N, start, mass in runs:
-            paths[(N, start, mass)], hs[(N, start, mass)] = attachment_path(N, start, mass, t_final, sample,
-                                                                            args.h_fraction)
-            bar.update()
-
-    table = {}
-    for start in STARTS:
-        ref = paths[(ref_N, start, "consistent")]
-        for mass in MASS_MODELS:
-            series = {N: paths[(N, start, mass)] for N in Ns + (2 * max(Ns),)}
-            errors = [float(np.abs(series[N] - ref).max()) for N in Ns]
-            table[f"{start}/{mass}"] = {"N": list(Ns), "error_m": errors, "order": observed_orders(Ns, series)}
-
-    print(f"\nspatial error: max |attachment point - that of N = {ref_N} (consistent)| over [0, {t_final:g}] s "
-          f"every {sample:g} s [m]")
-    print("time error of the reference (rerun at h/2): "
-          + ", ".join(f"{s} {hs[(ref_N, s, 'time_error')]:.1e} m" for s in STARTS))
-    head = f"{'N':>5}" + "".join(f"{key:>22}" for key in table)
-    print(head)
-    for i, N in enumerate(Ns):
-        print(f"{N:>5}" + "".join(f"{row['error_m'][i]:>13.3e}" + (f" ({row['order'][i]:.2f})" if row['order'][i]
-                                                                     is not None else " " * 7) + "  "
-                                   for row in table.values()))
-    print("(in brackets: the observed order log2(d_N / d_2N), d_N = max|x_N - x_2N|)")
-
+    paths, hs = run_paths(Ns, ref_N, t_final, sample, args.h_fraction)
+    table = error_table(paths, Ns, ref_N)
+    print_table(table, hs, Ns, ref_N, t_final, sample)
     payload = {
         "settings": {"Ns": list(Ns), "ref_N": ref_N, "t_final": t_final, "sample": sample,
                      "h_fraction": args.h_fraction, "quick": args.quick},
