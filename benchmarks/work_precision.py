@@ -193,13 +193,9 @@ def reference(cfg: Settings, scene, t_eval):
     return ref, info
 
 
-def work_precision(cfg: Settings):
-    import esp_gym
-
-    scene = esp_gym.load_scene(cfg.scene)
-    ns = int(round(cfg.t_final / cfg.sample))
-    t_eval = np.arange(ns + 1) * cfg.sample
-    # compile everything before timing anything
+def compile_all(cfg: Settings, scene, t_eval) -> None:
+    """Every method's kernels compiled (and SciPy's solvers warmed) on short runs, before anything is
+    timed."""
     lgvi_samples(cfg.scene, 20, 2 * cfg.sample, cfg.sample)[0]()
     for name, ks in cfg.composition_k:
         lgvi_samples(cfg.scene, 100, 2 * cfg.sample, cfg.sample, composition=name)[0]()
@@ -209,28 +205,26 @@ def work_precision(cfg: Settings):
     for method in ("RK45", "Radau"):
         ivp_samples(scene, method, 1e-3, t_eval[:3])()
 
-    ref, ref_info = reference(cfg, scene, t_eval)
-    print(f"reference: DOP853 rtol = atol = {cfg.reference_tol:g} ({ref_info['nfev']} evaluations, "
-          f"{ref_info['wall_s']:.2f} s); its distance to DOP853 at 10x the tolerance "
-          f"{ref_info['vs_DOP853_tol_x10_m']:.1e} m, to the LGVI at h = {ref_info['lgvi_h'][1]:.1e} s "
-          f"{ref_info['vs_lgvi_fine_m']:.1e} m, to the Richardson extrapolation of the LGVI at "
-          f"h = {ref_info['lgvi_h'][0]:.1e}, {ref_info['lgvi_h'][1]:.1e} s {ref_info['vs_lgvi_richardson_m']:.1e} m")
 
-    results = {}
+def record_run(cfg: Settings, ref, results: dict, name: str, param: dict, runner) -> dict:
+    """Time ``runner`` (its ``cfg.repeats``' best) and measure its load error against ``ref`` into
+    ``results[name]``; a run past the time limit is abandoned, a failed one says why. Returns its row."""
+    import esp_gym
 
-    def record(name, param, runner):
-        try:
-            (x, work), wall = timed(runner, cfg.repeats)
-            row = {"param": param, "wall_s": wall, "error_m": load_error(x, ref), "work": int(work),
-                   "status": "ok"}
-        except TooSlow:
-            row = {"param": param, "wall_s": None, "error_m": None, "work": None,
-                   "status": f"abandoned after {cfg.time_limit:g} s"}
-        except (esp_gym.SimulationError, FloatingPointError) as err:
-            row = {"param": param, "wall_s": None, "error_m": None, "work": None, "status": f"failed: {err}"}
-        results.setdefault(name, []).append(row)
-        return row
+    try:
+        (x, work), wall = timed(runner, cfg.repeats)
+        row = {"param": param, "wall_s": wall, "error_m": load_error(x, ref), "work": int(work), "status": "ok"}
+    except TooSlow:
+        row = {"param": param, "wall_s": None, "error_m": None, "work": None,
+               "status": f"abandoned after {cfg.time_limit:g} s"}
+    except (esp_gym.SimulationError, FloatingPointError) as err:
+        row = {"param": param, "wall_s": None, "error_m": None, "work": None, "status": f"failed: {err}"}
+    results.setdefault(name, []).append(row)
+    return row
 
+
+def run_lgvi_variants(cfg: Settings, record) -> None:
+    """The LGVI, its compositions and their plain-sum variants at each of their step counts."""
     for k in cfg.lgvi_k:
         runner, h = lgvi_samples(cfg.scene, k, cfg.t_final, cfg.sample)
         record("LGVI (esp_gym)", {"h": h}, runner)
@@ -242,6 +236,11 @@ def work_precision(cfg: Settings):
         for k in ks:
             runner, h = lgvi_samples(cfg.scene, k, cfg.t_final, cfg.sample, composition=name, compensated=False)
             record(LABELS[name] + PLAIN, {"h": h}, runner)
+
+
+def run_general_methods(cfg: Settings, scene, t_eval, record) -> None:
+    """RK4 at fixed steps and SciPy's solvers at each tolerance (an implicit one stops at its first
+    run past the time limit)."""
     for k in cfg.rk4_k:
         runner, h = rk4_samples(scene, k, cfg.t_final, cfg.sample)
         record("RK4 (numba, fixed h)", {"h": h}, runner)
@@ -254,6 +253,29 @@ def work_precision(cfg: Settings):
                          ivp_samples(scene, method, tol, t_eval, deadline_s=cfg.time_limit))
             if row["status"].startswith("abandoned"):
                 break
+
+
+def work_precision(cfg: Settings):
+    """Every method's runs against the reference: ``(results by method, the reference's info)``."""
+    import esp_gym
+
+    scene = esp_gym.load_scene(cfg.scene)
+    ns = int(round(cfg.t_final / cfg.sample))
+    t_eval = np.arange(ns + 1) * cfg.sample
+    compile_all(cfg, scene, t_eval)
+    ref, ref_info = reference(cfg, scene, t_eval)
+    print(f"reference: DOP853 rtol = atol = {cfg.reference_tol:g} ({ref_info['nfev']} evaluations, "
+          f"{ref_info['wall_s']:.2f} s); its distance to DOP853 at 10x the tolerance "
+          f"{ref_info['vs_DOP853_tol_x10_m']:.1e} m, to the LGVI at h = {ref_info['lgvi_h'][1]:.1e} s "
+          f"{ref_info['vs_lgvi_fine_m']:.1e} m, to the Richardson extrapolation of the LGVI at "
+          f"h = {ref_info['lgvi_h'][0]:.1e}, {ref_info['lgvi_h'][1]:.1e} s {ref_info['vs_lgvi_richardson_m']:.1e} m")
+    results = {}
+
+    def record(name, param, runner):
+        return record_run(cfg, ref, results, name, param, runner)
+
+    run_lgvi_variants(cfg, record)
+    run_general_methods(cfg, scene, t_eval, record)
     return results, ref_info
 
 

@@ -250,8 +250,7 @@ TO_SPLIT = {
     "esp_gym/kernels/implicit_newton.py:implicit_newton", "esp_gym/kernels/implicit_terms.py:body_coupling",
     "esp_gym/kernels/disturbance.py:disturb", "esp_gym/kernels/winch_implicit.py:winch_implicit_once",
     "esp_gym/kernels/implicit_newton.py:string_elimination", "esp_gym/kernels/drone_hook.py:hook_velocities",
-    "esp_gym/viz/recorder.py:_write",
-    "benchmarks/work_precision.py:work_precision", "esp_gym/kernels/team_winch.py:team_winch_substep",
+    "esp_gym/viz/recorder.py:_write", "esp_gym/kernels/team_winch.py:team_winch_substep",
 }
 
 
