@@ -11,12 +11,15 @@ prints the table (docs/environment.md, "Rigs").
 from __future__ import annotations
 
 from dataclasses import dataclass
+from importlib import import_module
 
 #: Every struct an entry point may take, in the order they are passed (kernels/layout.py,
 #: kernels/env_arrays.py, kernels/drone.py, kernels/drone_hook.py): the state, the work arrays,
 #: the stepper's constants, the diagnostics' scratch, the winch's arrays, the environment's
 #: arrays, the drone's, the offset hook's.
 STRUCTS = ("state", "work", "params", "diag", "winch", "env", "drone", "hook")
+#: The module that holds each pivot's rigs' entry points, each named after its rig.
+ENTRY_MODULES = {"point": ".kernels.env_step", "drone": ".kernels.drone_env"}
 
 
 @dataclass(frozen=True)
@@ -40,14 +43,11 @@ class Rig:
     @property
     def entries(self):
         """``(step, batch, threaded_batch)`` (kernels/env_step.py's EntryPoints), each compiled
-        when first called."""
-        if self.pivot == "point":
-            from .kernels.env_step import ENTRY_POINTS
-
-            return ENTRY_POINTS[(self.winch, self.string == "implicit")]
-        from .kernels.drone_env import DRONE_ENTRY_POINTS, HOOK_ENTRY_POINTS
-
-        return HOOK_ENTRY_POINTS if self.hook else DRONE_ENTRY_POINTS[self.winch]
+        when first called: the module-level name of :attr:`name` (``-`` read as ``_``) in
+        kernels/env_step.py for a point pivot, kernels/drone_env.py for a drone (imported only
+        when a rig asks: a point pivot's environment loads no drone kernel)."""
+        module = import_module(ENTRY_MODULES[self.pivot], __package__)
+        return getattr(module, self.name.replace("-", "_"))
 
     def reset_observe(self, S, P, D, WA, E, DR, HK) -> int:
         """The observation, reward terms and energy origin of a freshly set state (structs this

@@ -67,3 +67,21 @@ def test_the_docs_quote_the_rig_table():
     text = DOCS.read_text()
     assert table in text
     assert table.replace("drone-explicit-winch", "drone-implicit-winch") not in text  # the check can fail
+
+
+def test_each_rigs_entry_points_are_named_after_it():
+    """A rig's entry points are the module-level name of its name in its pivot's module (grep
+    ``point_implicit_winch``), and every EntryPoints there is a rig's."""
+    import importlib
+
+    from esp_gym.kernels.env_step import EntryPoints
+    from esp_gym.rig import ENTRY_MODULES, Rig
+
+    for pivot, module in ENTRY_MODULES.items():
+        found = {name for name, value in vars(importlib.import_module(module, "esp_gym")).items()
+                 if isinstance(value, EntryPoints)}
+        assert found == {r.name.replace("-", "_") for r in RIGS if r.pivot == pivot}, pivot
+    for rig in RIGS:
+        assert isinstance(rig.entries, EntryPoints) and rig.entries.step is not None
+    with pytest.raises(AttributeError, match="point_explicit_offset_hook"):  # negative control: no such rig
+        Rig("point", "explicit", False, True, ()).entries

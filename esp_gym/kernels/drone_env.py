@@ -280,13 +280,11 @@ def _entries(step, batch, threaded_batch, what):
                                         COLD_DRONE_BATCH_STEP_S))
 
 
-#: The drone environment's ``(step, batch, threaded_batch)`` entry points by ``winched`` (each
-#: compiled when first asked for; kernels/env_step.py's ENTRY_POINTS give the arguments).
-DRONE_ENTRY_POINTS = {
-    False: _entries(drone_step, drone_batch, threaded_drone_batch, "a drone"),
-    True: _entries(drone_winch_env_step, drone_winch_batch, threaded_drone_winch_batch, "a drone and the winch"),
-}
-
-#: The entry points of a drone at an offset hook (no winch), ``(step, batch, threaded_batch)``:
-#: their arguments are the drone's, then the hook's ``k`` (HookArrays).
-HOOK_ENTRY_POINTS = _entries(hook_env_step, hook_batch, threaded_hook_batch, "a drone at an offset hook")
+# The drone's entry points ``(step, batch, threaded_batch)``, each named after its rig
+# (esp_gym/rig.py: a rig's name with "_" for "-") and compiled when first asked for; their
+# arguments are kernels/env_step.py's with the drone's ``q`` after ``e`` (and at an offset hook the
+# hook's ``k`` after it).
+drone_explicit = _entries(drone_step, drone_batch, threaded_drone_batch, "a drone")
+drone_explicit_winch = _entries(drone_winch_env_step, drone_winch_batch, threaded_drone_winch_batch,
+                                "a drone and the winch")
+drone_explicit_offset_hook = _entries(hook_env_step, hook_batch, threaded_hook_batch, "a drone at an offset hook")

@@ -2,7 +2,9 @@
 the balances closed -> the tasks' stages (kernels/task_terms.py: features, observation, reward
 terms, termination) -> the energy watchdog. The single and the batched environments call the
 same :func:`control_step`, so their results agree bit for bit; esp_gym/control.py is their
-Python face, and :data:`ENTRY_POINTS` are the compiled calls it makes.
+Python face, and the point pivot's entry points at the end, one per rig (``point_explicit``,
+``point_implicit``, ``point_explicit_winch``, ``point_implicit_winch``), are the compiled calls it
+makes.
 
 The arrays are named structs (kernels/env_arrays.py's EnvArrays and the physics' in
 kernels/layout.py); every packed vector is laid out by name: the action parameters
@@ -279,7 +281,10 @@ COLD_BATCH_STEP_S = 19
 #: ... and of a vector environment with threads > 1 (its threaded entry: numba's parallel transforms)
 COLD_THREADED_BATCH_STEP_S = 28
 
-#: The entry points ``(step, batch, threaded_batch)`` by (winched, implicit) (see
-#: :func:`_entry_points`); each compiles only for environments that use it.
-ENTRY_POINTS = {(winched, implicit): _entry_points(winched, implicit) for winched in (False, True)
-                for implicit in (False, True)}
+# The point pivot's entry points ``(step, batch, threaded_batch)`` (:func:`_entry_points`), each
+# named after its rig (esp_gym/rig.py: a rig's name with "_" for "-"); each compiles only for the
+# environments that use it.
+point_explicit = _entry_points(winched=False, implicit=False)
+point_implicit = _entry_points(winched=False, implicit=True)
+point_explicit_winch = _entry_points(winched=True, implicit=False)
+point_implicit_winch = _entry_points(winched=True, implicit=True)
