@@ -1,6 +1,6 @@
 """The environment's compiled control step with a drone at the pivot (docs/environment.md, "A drone
 at the pivot"): the raw action -> the actuation's setpoint -> the physics steps of
-kernels/drone.py, the rate controller run before each of them -> the balances closed -> the
+kernels/drone_loops.py, the rate controller run before each of them -> the balances closed -> the
 tasks' stages (kernels/task_terms.py), then the drone's sensors and its flip -> the energy
 watchdog, with the drone's rotation in the energy. The single and the batched environments call
 the same :func:`drone_control_step`, so their results agree bit for bit.

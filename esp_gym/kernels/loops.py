@@ -4,7 +4,7 @@ recovery, at a fixed length (:func:`advance_loop` of ``lgvi_step``) or while the
 (:func:`record_loop`). A step that can fail part-way (composed, or cut back) is undone from a
 checkpoint (:func:`_checkpoint`, :func:`_rewind`): saved every ``CHECKPOINT`` steps with a replay
 at a fixed length, before every step while reeling (see :func:`winch_loop` for why). The drone's
-loop (kernels/drone_env.py ``drone_steps``) and the team's (kernels/team_loops.py ``team_steps``)
+loop (kernels/drone_loops.py ``drone_steps``) and the team's (kernels/team_loops.py ``team_steps``)
 need no recovery: their steps fail without moving the state. Every loop takes the held forces'
 kicks from kernels/disturbance.py (``kick_before``, ``kick_next``, ``kick_after``,
 ``kick_back``). Also the general-path entry points :func:`lgvi_advance`, :func:`lgvi_record`,
