@@ -1,5 +1,5 @@
 """Start-up time: from a fresh Python process to the first step of the simulator, the env and the
-vector env, and the env and the vector env with a drone at the pivot, with an empty numba cache
+vector env, the env and the vector env with a drone at the pivot, and a team of three, with an empty numba cache
 (cold) and then with the cache that run filled (warm).
 
     python -m benchmarks.cold_start [--quick] [--repeats K] [--out DIR]
@@ -45,6 +45,9 @@ CASES = {
                              "env = gym.make_vec('ElasticStringPendulum-v0', num_envs=8, scene='quadrotor_load'); "
                              "env.reset(seed=0)",
                              "env.step(env.action_space.sample())"),
+    "team env (3)": ("import gymnasium as gym, esp_gym",
+                     "env = gym.make('ElasticStringTeam-v0', team=3); env.reset(seed=0)",
+                     "env.step(env.action_space.sample())"),
 }
 
 _CHILD = """import time

@@ -19,6 +19,10 @@ Prints a table and writes ``OUT/env_throughput.json`` and ``OUT/env_throughput.p
   threads (``threads`` = the CPUs), 8 and 64 environments, on an idle machine and beside one busy
   process (a CPU-bound loop at the same priority, as a learner or a second run would be), the runs
   of one repeat interleaved; writes ``OUT/env_throughput_threads.json``;
+* ``--team`` (alone): ``ElasticStringTeam-v0`` with K = 1 (the same string and physics steps as
+  the single env), K = 3 and K = 3 drones (``thrust_rates``) against the single env, single (random
+  actions of TEAM_AMPLITUDE, resets included) and TEAM_BATCH batched (``make_vec``), the runs of
+  one repeat interleaved; the ratios to the single env's; writes ``OUT/env_throughput_team.json``;
 * ``--realism`` (alone): the plain environment against the realism options (``randomize=True``,
   then with the ``hook`` observation and sensor noise too, then randomisation, the hard preset's
   wind and pushes and the ``hook`` observation (the issue's bar), then ``preset="hard"``),
@@ -26,7 +30,8 @@ Prints a table and writes ``OUT/env_throughput.json`` and ``OUT/env_throughput.p
   starting an episode); writes ``OUT/env_throughput_realism.json``.
 
 Each figure is the median of ``--repeats`` timed runs after a warm-up (compilation excluded).
-Usage: ``python -m benchmarks.env_throughput [--quick] [--ea-sweep | --realism | --drone | --threads] [--out DIR]``.
+Usage: ``python -m benchmarks.env_throughput [--quick] [--ea-sweep | --realism | --drone | --team | --threads]
+[--out DIR]``.
 """
 from __future__ import annotations
 
@@ -72,7 +77,7 @@ def single(make, steps, random_actions, repeats, amplitude=1.0):
 def batched(make, num_envs, steps, repeats, sb3, amplitude=1.0):
     venv = make(num_envs)
     venv.reset() if sb3 else venv.reset(seed=0)
-    size = (venv.action_space.shape[-1],)
+    size = getattr(venv, "single_action_space", venv.action_space).shape  # one env's (SB3's action_space)
     acts = np.random.default_rng(0).uniform(-amplitude, amplitude, (num_envs,) + size).astype(np.float32)
     venv.step(acts)
     n = max(20, steps // num_envs)
@@ -92,6 +97,7 @@ def main(argv=None) -> dict:
                     help="only the realism options (randomize, ...) against the plain environment")
     ap.add_argument("--drone", action="store_true",
                     help="only a drone at the pivot against the same rig with a point-mass pivot")
+    ap.add_argument("--team", action="store_true", help="only the team env (K = 1, 3, 3 drones) against the single env")
     ap.add_argument("--threads", action="store_true",
                     help="only the batched env in one thread against numba's threads, idle and beside a busy process")
     args = ap.parse_args(argv)
@@ -103,6 +109,8 @@ def main(argv=None) -> dict:
         return realism(args)
     if args.drone:
         return drone(args)
+    if args.team:
+        return team(args)
     steps = 2_000 if args.quick else 20_000
     repeats = 1 if args.quick else args.repeats
     counts = [1, 4] if args.quick else [1, 2, 4, 8, 16, 32, 64]
@@ -263,6 +271,52 @@ def drone(args) -> dict:
                                               "repeats": repeats, "amplitude": DRONE_AMPLITUDE,
                                               "machine": machine("gymnasium")}, {})
     return {"table": table}
+
+
+#: ``--team``'s environments: (id, options) by name, the single env first (the ratios' base).
+TEAM = {"single env": (esp_gym.ENV_ID, {}), "team K=1": (esp_gym.TEAM_ENV_ID, {"team": 1}),
+        "team K=3": (esp_gym.TEAM_ENV_ID, {"team": 3}),
+        "team K=3 drones": (esp_gym.TEAM_ENV_ID, {"team": 3, "actuation": "thrust_rates"})}
+TEAM_AMPLITUDE = 0.3
+#: ``--team``'s batch (the issue's goal: 64 teams of 3 against 64 single envs).
+TEAM_BATCH = 64
+
+
+def team(args) -> dict:
+    """Steps/s of each of TEAM, single (random actions of TEAM_AMPLITUDE, resets included) and
+    batched (``make_vec``, TEAM_BATCH environments), the runs of one repeat interleaved; the ratios
+    to the single env's. A team's step counts once, whatever its K."""
+    steps = 200 if args.quick else 3_000
+    repeats = 1 if args.quick else args.repeats
+    rates = {(name, kind): [] for name in TEAM for kind in ("single", "batched")}
+    for _ in range(repeats):
+        for name, (env_id, options) in TEAM.items():
+            rates[(name, "single")].append(single(lambda i=env_id, o=options: gym.make(i, **o).unwrapped, steps,
+                                                  True, 1, TEAM_AMPLITUDE))
+            rates[(name, "batched")].append(batched(
+                lambda n, i=env_id, o=options: gym.make_vec(i, num_envs=n, vectorization_mode="vector_entry_point",
+                                                            **o), TEAM_BATCH, 4 * steps, 1, False, TEAM_AMPLITUDE))
+    table = {name: {kind: float(np.median(rates[(name, kind)])) for kind in ("single", "batched")} for name in TEAM}
+    base = table["single env"]
+    for row in table.values():
+        row["single_ratio"] = row["single"] / base["single"]
+        row["batched_ratio"] = row["batched"] / base["batched"]
+    substeps = {name: _substeps(env_id, options) for name, (env_id, options) in TEAM.items()}
+    print(f"random actions in +-{TEAM_AMPLITUDE}, medians of {repeats} interleaved repeats")
+    print(f"{'environment':18s} {'physics steps':>13s}  single [steps/s]  ratio   batched x{TEAM_BATCH} [steps/s]  ratio")
+    for name, row in table.items():
+        print(f"{name:18s} {substeps[name]:13d}  {row['single']:16,.0f}  {row['single_ratio']:5.3f}   "
+              f"{row['batched']:20,.0f}  {row['batched_ratio']:5.3f}")
+    finish(args.out, "env_throughput_team", {"table": table, "substeps": substeps, "steps": steps, "repeats": repeats,
+                                             "amplitude": TEAM_AMPLITUDE, "batch": TEAM_BATCH,
+                                             "machine": machine("gymnasium")}, {})
+    return {"table": table, "substeps": substeps}
+
+
+def _substeps(env_id: str, options: dict) -> int:
+    """Physics steps per control step of ``env_id`` with ``options``."""
+    env = gym.make(env_id, **options).unwrapped
+    return int(env.core.substeps if hasattr(env, "core") else env.setup.substeps)
 
 
 #: The batch sizes of ``--threads``.

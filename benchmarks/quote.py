@@ -768,6 +768,15 @@ def env_throughput_drone(data: dict) -> str:
     return "\n".join(lines)
 
 
+def env_throughput_team(data: dict) -> str:
+    lines = [f"| environment | physics steps per control step | one env [steps/s] | ratio | {data['batch']} batched "
+             "[steps/s] | ratio |", "|---|---|---|---|---|---|"]
+    for name, row in data["table"].items():
+        lines.append(f"| {name} | {data['substeps'][name]} | {steps_per_second(row['single'])} | "
+                     f"{row['single_ratio']:.2f} | {steps_per_second(row['batched'])} | {row['batched_ratio']:.3f} |")
+    return "\n".join(lines)
+
+
 QUOTES = {
     "cold_start.readme": Quote("docs/img/cold_start.json", "python -m benchmarks.cold_start --repeats 1 --out docs/img",
                                cold_start_readme),
@@ -881,6 +890,9 @@ QUOTES = {
     "env_throughput.drone": Quote("docs/img/env_throughput_drone.json",
                                   "python -m benchmarks.env_throughput --drone --repeats 5 --out docs/img",
                                   env_throughput_drone),
+    "env_throughput.team": Quote("docs/img/env_throughput_team.json",
+                                 "python -m benchmarks.env_throughput --team --repeats 3 --out docs/img",
+                                 env_throughput_team),
 }
 
 #: The files whose quotes are kept: the README and every page of the docs.

@@ -1,6 +1,6 @@
 """The structs the compiled kernels take, made in one place (kernels/layout.py, kernels/drone.py and
 kernels/team_arrays.py name their fields): a string's state, work and diagnostics arrays for N
-elements, the winch's, drones' arrays, a team's stacked strings, and a batch's arrays: a struct stacked with a
+elements, the winch's, drones' arrays, a team's stacked strings, read-out and task, and a batch's arrays: a struct stacked with a
 leading axis (zeros, or a template's values in every row) and one row's views. The constants
 computed from a scene are their owners' (esp_gym/state.py ``build_params``, esp_gym/drone.py,
 esp_gym/winch.py, esp_gym/team/assembly.py), written into these.
@@ -13,6 +13,8 @@ from .kernels.layout import BALANCE, DIAG, WINCH, DiagWork, LGVIParams, StateArr
 from .kernels.drone import DRONE, DRONE_DIAG, DroneArrays
 from .kernels.loops import state_size
 from .kernels.team_arrays import TeamArrays
+from .kernels.team_readout import TEAM_READ, TeamReadArrays
+from .kernels.team_task import AGENT_REWARD, OBSERVED, TEAM_REWARD, TEAM_TASK, TeamTaskArrays
 from .kernels.team_winch import TeamWinch
 
 
@@ -83,6 +85,27 @@ def team_arrays(rows: int, others: int) -> TeamArrays:
     return TeamArrays(r=z((rows, 3)), p=z((rows, 3)), rc=z((rows, 3)), pc=z((rows, 3)), f=z((rows, 3)),
                       fn=z((rows, 3)), X=z((rows, 3)), Y=z((rows, 3)), c=z((others, 3)), dr0=z((others, 3)),
                       force=z((others, 2, 3)), switch=z(rows), owed=z(rows))
+
+
+def team_read_arrays(n: int, rows: int, lengths: np.ndarray) -> TeamReadArrays:
+    """A team's read-out (kernels/team_readout.py ``TeamReadArrays``): string 0 of ``n`` elements,
+    the others' ``rows`` stacked rows, each string's unstretched ``lengths`` (K,) [m] (copied); zeros."""
+    z = np.zeros
+    K = len(lengths)
+    return TeamReadArrays(V0=z((n + 1, 3)), Vo=z((rows, 3)), pivot=z((K, 3)), pivot_velocity=z((K, 3)),
+                          tension=z((K, 3)), stretch=z(K), length=np.array(lengths, dtype=float), R=z((3, 3)),
+                          out=z(TEAM_READ.size), strain=z(max(n, rows)))
+
+
+def team_task_arrays(size: int, observation_size: int) -> TeamTaskArrays:
+    """A team task's arrays (kernels/team_task.py ``TeamTaskArrays``) for ``size`` agents each
+    observing ``observation_size`` numbers; zeros (its ``params`` and ``fields`` are its task's:
+    esp_gym/team/tasks.py ``task_arrays``)."""
+    z = np.zeros
+    return TeamTaskArrays(params=z(TEAM_TASK.size), fields=np.full(OBSERVED.size, -1, dtype=np.int64),
+                          load_target=z(3), target_velocity=z(3), pivot_targets=z((size, 3)),
+                          obs=z((size, observation_size)), terms=z(TEAM_REWARD.size), agent=z((size, AGENT_REWARD.size)),
+                          distances=z(size * (size - 1) // 2))
 
 
 def stacked(struct, batch: tuple):

@@ -70,15 +70,14 @@ def check_balance(scene: Scene, residual: float, work: float, step: int, time: f
         f"(docs/physics.md, \"The energy watchdog\"); solver.energy_watchdog: null runs on without it."))
 
 
-def check_team_balance(team, diagnostics, step: int, time: float, lengths) -> None:
-    """:func:`check_balance` of a team (esp_gym/team/simulator.py): its lead scene's f, its scale
-    :func:`team_energy_scale`, its ``diagnostics()``' residual and work, h against the smallest of
-    its strings' stability bounds at their ``lengths`` (K,) [m]."""
+def check_team_balance(team, balance, step: int, time: float, lengths, scale: float) -> None:
+    """:func:`check_balance` of a team (esp_gym/team/simulator.py): its lead scene's f, its energy
+    ``scale`` (:func:`team_energy_scale`), ``balance()``'s ``(residual, work)`` [J], h against the
+    smallest of its strings' stability bounds at their ``lengths`` (K,) [m]."""
     if team.scene.solver.energy_watchdog is None:
         return
-    d = diagnostics()
+    residual, work = balance()
 
     def bound():
         return min(at_length(team.member_scene(k), length).stability_bound for k, length in enumerate(lengths))
-    check_balance(team.scene, d["energy_balance_residual"], d["work"] + d["winch_work"], step, time, bound,
-                  team_energy_scale(team))
+    check_balance(team.scene, residual, work, step, time, bound, scale)

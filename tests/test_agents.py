@@ -157,19 +157,26 @@ def test_the_team_figure_draws_the_evaluated_team_episode(tmp_path):
 
 def test_the_drone_team_figure_draws_the_evaluated_episode_under_the_cascade(tmp_path):
     """``--team K --team-actuation A``: team_drones_transport.png, the episode agents.team_evaluate
-    scores under the drones' cascade (100 steps)."""
+    scores under the drones' cascade (100 steps), BLAS on one thread as agents.team_evaluate runs
+    it (the cascade's Riccati solution moves by ~1e-12 with the BLAS threads)."""
     from agents import task_figures
+    from agents.evaluate import ONE_BLAS_THREAD
     from agents.team_evaluate import TeamCascadePolicy
     from esp_gym.team.env import ElasticStringTeamEnv
 
     result = task_figures.main(["--out", str(tmp_path), "--team", "3", "--team-actuation", "thrust_rates",
                                 "--steps", "100"])
-    env = ElasticStringTeamEnv(3, actuation="thrust_rates")
-    obs, _ = env.reset(seed=3)
-    policy, total = TeamCascadePolicy(), 0.0
-    for _ in range(100):
-        obs, reward, *_ = env.step(policy.act(obs, env.core))
-        total += reward
+
+    @ONE_BLAS_THREAD
+    def episode() -> float:
+        env = ElasticStringTeamEnv(3, actuation="thrust_rates")
+        obs, _ = env.reset(seed=3)
+        policy, total = TeamCascadePolicy(), 0.0
+        for _ in range(100):
+            obs, reward, *_ = env.step(policy.act(obs, env.core))
+            total += reward
+        return total
+    total = episode()
     assert result["return"] == pytest.approx(total, rel=1e-12)
     assert (tmp_path / "team_drones_transport.png").stat().st_size > 10_000
 

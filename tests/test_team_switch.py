@@ -1,18 +1,21 @@
 """The slack switch of a team's strings (esp_gym/kernels/team_switch.py; docs/physics.md, "The slack
 switch of a team's strings"): the settling impulses see every string through the body. One slack
 string settles as the single string bit for bit (fixed length and reeling); the compiled inverse of
-the team's Legendre transform is the diagnostics' (point pivots and reeling); a team whose motion is
+the team's Legendre transform is the diagnostics' (point pivots and reeling), the compiled read-out
+the Python one (point pivots and drones); a team whose motion is
 1-D keeps its modified energy to round-off through thousands of switches; the impulses are internal.
 Each with the plain step (``solver.slack_switch: plain``) as the negative control."""
 import numpy as np
 import pytest
 
 from esp_gym.kernels.layout import WINCH
+from esp_gym.kernels.team_readout import TEAM_READ, team_read
 from esp_gym.kernels.team_switch import node_velocities_entry as velocities
 from esp_gym.kernels.team_winch import flow_free_momenta, velocity_params
 from esp_gym.model import Simulator
 from esp_gym.params import load_scene
 from esp_gym.team import TeamScene, TeamSimulator, TeamString, symmetric_team
+from esp_gym.team.scene import team_scene
 from esp_gym.team.assembly import string_mass
 from esp_gym.team.velocities import team_velocities
 
@@ -75,10 +78,12 @@ def test_the_compiled_inverse_legendre_transform_is_the_diagnostics():
     st.lead.Pi = st.lead.Pi + np.array([0.002, -0.001, 0.003])
     sim.set_state(st)
     sim.step(300, pivot_forces=PUSH)
+    sim.compiled_reads = False  # the diagnostics' own inverse (at rest winches read out compiled)
     S, A, T, P = sim._S, sim._A, sim.params, sim._P
     V0, Vo = np.zeros_like(S.p), np.zeros_like(A.p)
     omega = velocities(S.p, A.p, S.Pi, S.R, P.first, P.off, T, V0, Vo)
     v0, vo, Omega = sim.velocities()
+    assert not sim._compiled_read
     assert np.abs(V0 - v0).max() < 1e-15 and np.abs(Vo - vo).max() < 1e-15
     assert np.abs(np.array(omega) - Omega).max() < 1e-14
     speeds = np.array([0.2, -0.1, 0.3])
@@ -95,6 +100,43 @@ def test_the_compiled_inverse_legendre_transform_is_the_diagnostics():
     TW.state[:, WINCH.scalar("length")] = lengths
     assert np.abs(V0 - v0).max() < 1e-11 and np.abs(Vo - vo).max() < 1e-11
     assert np.abs(np.array(omega) - Omega).max() < 1e-11
+
+
+READ_OUTS = ("pivot", "pivot_velocity", "tension", "stretch", "load", "load_velocity", "Omega")
+ENERGY_TERMS = ("kinetic", "potential_elastic", "potential_gravity", "energy", "pi3", "linear_momentum")
+
+
+@pytest.mark.parametrize("drones", [False, True])
+def test_the_compiled_read_out_is_the_python_one(drones):
+    """kernels/team_readout.py's read-out (one compiled call: the velocities by the step's factors,
+    the energy terms, momenta and pi3, each pivot, its velocity and its string's pull, each string's
+    stretch, the load's centre and its velocity) against esp_gym/team/readout.py's in Python (LAPACK's
+    solves), each to 1e-12 of its scale: the turning team of unequal strings with a fixed pivot, and a
+    team of three drones. Then, reeled, the team reads out in Python (the negative control: the
+    compiled read-out, which assumes the scenes' lengths, is then off by more than 1e-6)."""
+    sim = TeamSimulator(team_scene(3, drones=True)) if drones else unequal_team()
+    st = sim.state
+    st.lead.Pi = st.lead.Pi + np.array([0.002, -0.001, 0.003])
+    sim.set_state(st)
+    sim.step(300, pivot_forces=None if drones else PUSH)
+
+    def read(compiled: bool, reel=None):
+        sim.compiled_reads = compiled
+        observed, energies = sim.observed(), sim.diagnostics()
+        assert sim._compiled_read == (compiled and reel is None)
+        return [observed[k] for k in READ_OUTS] + [energies[k] for k in ENERGY_TERMS]
+
+    for fast, slow in zip(read(True), read(False)):
+        assert np.abs(np.asarray(fast) - slow).max() <= 1e-12 * max(1.0, np.abs(slow).max())
+    if drones:
+        return
+    sim.step(100, pivot_forces=PUSH, reel_speeds=np.array([0.2, -0.1, 0.3]))
+    sim.step(1, pivot_forces=PUSH)  # at rest, at the new lengths
+    python = read(False, "reeled")
+    assert all(np.array_equal(a, b) for a, b in zip(read(True, "reeled"), python))
+    S, A, T, P = sim._S, sim._A, sim.params, sim._P
+    team_read(S, P, T, A, sim._read)  # with the factors of the scenes' lengths
+    assert np.abs(sim._read.out[TEAM_READ["omega"]] - python[READ_OUTS.index("Omega")]).max() > 1e-6
 
 
 def flickering_team(switch: str):

@@ -35,7 +35,7 @@ def measurement_model(core: TeamCore, step: float = 1e-5):
 
     def observe(z):
         lift(observed, z)
-        return observed.observations(observed.kinematics(), noisy=False).astype(np.float64).ravel()
+        return observed.observations(noisy=False).astype(np.float64).ravel()
 
     n = reduced_layout(core.size).size
     y0 = observe(np.zeros(n))

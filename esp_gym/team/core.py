@@ -2,14 +2,14 @@
 drones carry one load on elastic tension-only strings.
 
 :class:`TeamCore` is the episode: the team's physics (:class:`~esp_gym.team.TeamSimulator`), the
-task's targets, each agent's observation, the team's reward with its per-agent terms, and the
-episode's end. Two faces share it: :class:`~esp_gym.team.env.ElasticStringTeamEnv`, the centralised
+task's targets, the wind, the sensor noise and the latency; each agent's observation, the team's
+reward with its per-agent terms and the episode's end are one compiled call on the state's read-out
+(esp_gym/kernels/team_task.py, :meth:`TeamCore.evaluate`). Two faces share it: :class:`~esp_gym.team.env.ElasticStringTeamEnv`, the centralised
 Gymnasium env ``ElasticStringTeam-v0`` (the agents' actions and observations concatenated), and
 :class:`~esp_gym.team.parallel.ElasticStringTeamParallelEnv`, PettingZoo's ParallelEnv.
 """
 from __future__ import annotations
 
-import math
 from collections import deque
 from collections.abc import Mapping
 from typing import Optional
@@ -19,11 +19,10 @@ import numpy as np
 from .. import TEAM_ENV_ID
 from ..control import raw_actions
 from ..errors import SimulationError, termination_reason
-from ..kernels.status import PHYSICS_FAILURES, TERM_COLLISION, TERM_DRONE_FLIPPED, TERM_NONE, TERM_OVERSTRETCH, \
-    TERM_WORKSPACE
+from ..kernels.status import PHYSICS_FAILURES, TERM_NONE
 from ..kernels.env_arrays import TARGET
 from ..kernels.reference import reference_at
-from ..kernels.tolerance import tolerance
+from ..kernels.team_task import team_task
 from ..observe import standard_deviation
 from ..options import check_substeps, team_options
 from ..tasks import track_reference
@@ -34,8 +33,10 @@ from .randomize import TeamRandomizer
 from .scene import TEAM_SAFETY, TeamScene, given_team, team_substeps
 from .simulator import TeamSimulator
 from .spaces import ACTUATIONS, TEAM_UNIT_NOISE, DroneDrive, action_size, agent_layout
-from .tasks import AGENT_TERMS, COLLISION, FLIP_COSINE, REWARD_TERMS, SEPARATION, TEAM_PRESETS, get_team_task, \
-    hanging_rise
+from .tasks import AGENT_TERMS, REWARD_TERMS, TEAM_PRESETS, get_team_task, hanging_rise, task_arrays
+
+#: A point team's drone inputs to the compiled task: none.
+NO_DRONES = (np.zeros((0, 3, 3)), np.zeros((0, 3)))
 
 
 class TeamCore:
@@ -97,6 +98,7 @@ class TeamCore:
         self.safety = TEAM_SAFETY if o.safety is None else float(o.safety)
         self._check_extremes(scene)
         self.layout = agent_layout(self.size, self.observation, self.drones, self.winch)
+        self._tasks = {}  # the compiled task's arrays by observation mode (evaluate)
         self._noise = np.concatenate([np.full(s.stop - s.start, self.sensor_noise * TEAM_UNIT_NOISE[name])
                                       for name, s in self.layout.structure().items()])
         self._use_scene(scene)
@@ -160,25 +162,7 @@ class TeamCore:
 
     def kinematics(self) -> dict:
         """Positions, velocities, tensions (drones: attitudes, rates, thrusts) now (spatial, SI)."""
-        st = self.sim.state
-        T = self.sim.params
-        v_lead, v_other, Omega = self.sim.velocities()
-        R = st.lead.R
-        rho_c = np.asarray(self.scene.scene.body.rho_c, dtype=float)
-        rows = [0] + [int(T.start[j]) for j in range(self.size - 1)]
-        nodes = [st.lead.r] + [st.r[T.start[j]:T.start[j + 1]] for j in range(self.size - 1)]
-        strings = self.sim.winches.strings_at_length()
-        tension = np.zeros((self.size, 3))
-        stretched = np.zeros(self.size)
-        for k, (r, string) in enumerate(zip(nodes, strings)):
-            x = r[1] - r[0]
-            length = np.linalg.norm(x)
-            tension[k] = string.kappa * max(length - string.u, 0.0) * x / length
-            stretched[k] = np.linalg.norm(np.diff(r, axis=0), axis=1).sum() / string.length
-        out = dict(lengths=st.lengths, pivot=np.vstack([st.lead.r[0]] + [st.r[i] for i in rows[1:]]),
-                   pivot_velocity=np.vstack([v_lead[0]] + [v_other[i] for i in rows[1:]]),
-                   load=st.lead.r[-1] + R @ rho_c, load_velocity=v_lead[-1] + R @ np.cross(Omega, rho_c),
-                   R=R, Omega=Omega, tension=tension, stretch=stretched)
+        out = self.sim.observed()
         if self.drones:  # R_q (K, 3, 3), Omega_q (K, 3), the collective thrusts (K,)
             out.update({k: v for k, v in self.sim.fleet.diagnostics().items()
                         if k in ("drone_attitudes", "drone_rates", "drone_thrust")})
@@ -226,9 +210,8 @@ class TeamCore:
         self.load_force = np.zeros(3)
         if self.wind is not None:
             info.update(self._wind.reset(rng))
-        kin = self.kinematics()
         info.update(load_target=self.load_target.copy(), pivot_targets=self.pivot_targets.copy())
-        return self.observations(kin), info
+        return self.observations(), info
 
     def _follow_reference(self, t: float) -> None:
         """Put the targets at the reference's time ``t`` [s] (a moving task)."""
@@ -237,36 +220,38 @@ class TeamCore:
         self.pivot_targets = self.load_target + self._formation
         self.target_velocity = self.reference[TARGET["velocity"]].copy()
 
-    def observations(self, kin: dict, noisy: bool = True) -> np.ndarray:
-        """Every agent's observation (K, n), float32 (:func:`agent_layout`), with the sensor noise
-        drawn from ``np_random`` when ``noisy``."""
-        L = self.layout
-        out = np.zeros((self.size, L.size))
-        R = kin["R"]
-        for k in range(self.size):
-            o = out[k]
-            o[L["pivot_position_error"]] = kin["pivot"][k] - self.pivot_targets[k]
-            o[L["pivot_velocity"]] = kin["pivot_velocity"][k]
-            if self.drones:
-                o[L["drone_attitude_6d"]] = kin["drone_attitudes"][k][:, :2].T.ravel()
-                o[L["drone_rates"]] = kin["drone_rates"][k]
-            o[L["hook_tension"]] = kin["tension"][k]
-            if self.winch:
-                o[L["string_length"]] = kin["lengths"][k]
-            if self.observation == "full":
-                o[L["load_offset"]] = kin["load"] - kin["pivot"][k]
-                o[L["load_position_error"]] = kin["load"] - self.load_target
-                o[L["load_velocity"]] = kin["load_velocity"]
-                o[L["load_attitude_6d"]] = R[:, :2].T.ravel()
-                o[L["load_rates"]] = kin["Omega"]
-            else:
-                o[L["load_target_offset"]] = self.load_target - kin["pivot"][k]
-            if self.size > 1:
-                others = [(k + i) % self.size for i in range(1, self.size)]
-                o[L["neighbours"]] = (kin["pivot"][others] - kin["pivot"][k]).ravel()
+    def observations(self, noisy: bool = True, observation: Optional[str] = None) -> np.ndarray:
+        """Every agent's observation (K, n) of the current state, float32 (:func:`agent_layout`; in
+        the ``observation`` mode, the env's if None), with the sensor noise drawn from
+        ``np_random`` when ``noisy``."""
+        return self._noisy(self.evaluate(self.last_action, observation=observation)[0].obs, noisy)
+
+    def _noisy(self, clean: np.ndarray, noisy: bool = True) -> np.ndarray:
+        """``clean`` observations (K, n) with the sensor noise drawn from ``np_random`` (when
+        ``noisy`` and the env has some), as float32."""
+        out = clean.copy()
         if noisy and self.sensor_noise > 0.0:
             out += self._noise * self.np_random.standard_normal(out.shape)
         return out.astype(np.float32)
+
+    def evaluate(self, action: np.ndarray, code: int = TERM_NONE, observation: Optional[str] = None):
+        """The task on the current state after ``action`` (K, n_a) (kernels/team_task.py, one
+        compiled call on the read-out): returns ``(its arrays, valid until the next call: every
+        agent's observation without noise in the ``observation`` mode (the env's if None), the
+        reward terms, each agent's shares, the pivots' distances; the reward; the smallest distance
+        between two pivots [m]; the physics' ``code``, or where it is TERM_NONE the task's
+        termination)``."""
+        mode = observation or self.observation
+        if mode not in self._tasks:
+            self._tasks[mode] = task_arrays(self.task, agent_layout(self.size, mode, self.drones, self.winch), self.size)
+        TK = self._tasks[mode]
+        TK.load_target[...] = self.load_target
+        TK.target_velocity[...] = self.target_velocity
+        TK.pivot_targets[...] = self.pivot_targets
+        fleet = self.sim.fleet
+        drone_R, rates = (fleet.attitudes(), fleet.body_rates()) if self.drones else NO_DRONES
+        reward, smallest, code = team_task(self.sim.read(), drone_R, rates, np.asarray(action, dtype=float), TK, code)
+        return TK, reward, smallest, code
 
     def frame(self) -> np.ndarray:
         """An ``rgb_array`` frame, uint8 (480, 960, 3) (esp_gym/viz/render.py ``render_team``):
@@ -296,44 +281,7 @@ class TeamCore:
     def true_observations(self) -> np.ndarray:
         """The ``full`` observation of the current state without noise (K, 27 + 3(K-1), + 9 with
         drones): what a centralised controller with the true state reads (agents/baselines)."""
-        mode, layout = self.observation, self.layout
-        self.observation, self.layout = "full", agent_layout(self.size, "full", self.drones, self.winch)
-        try:
-            return self.observations(self.kinematics(), noisy=False)
-        finally:
-            self.observation, self.layout = mode, layout
-
-    def reward_terms(self, kin: dict, action: np.ndarray) -> dict:
-        """The team's reward terms, and each agent's share of the per-agent ones (module
-        docstring; docs/team.md)."""
-        task = self.task
-
-        closeness = tolerance.py_func  # the single env's shaping (its kernel's formula), on arrays here
-        pivot_errors = np.linalg.norm(kin["pivot"] - self.pivot_targets, axis=1)
-        tilt = math.acos(min(1.0, max(-1.0, float(kin["R"][2, 2]))))  # the C library's: NumPy's differs by processor
-        distances, pairs = self.separations(kin["pivot"])
-        crowding = np.maximum(0.0, 1.0 - distances / SEPARATION) ** 2
-        per_agent_crowding = np.zeros(self.size)
-        for (i, j), c in zip(pairs, crowding):
-            per_agent_crowding[i] += 0.5 * c
-            per_agent_crowding[j] += 0.5 * c
-        pivot_terms = task.w_pivot_position * closeness(pivot_errors, task.scale_position) / self.size
-        control_terms = -task.w_control * np.sum(action ** 2, axis=1) / (action.shape[1] * self.size)
-        separation_terms = -task.w_separation * per_agent_crowding
-        return dict(
-            load_position=task.w_load_position * closeness(np.linalg.norm(kin["load"] - self.load_target),
-                                                           task.scale_position),
-            load_velocity=task.w_load_velocity * closeness(np.linalg.norm(kin["load_velocity"] - self.target_velocity),
-                                                           task.scale_velocity),
-            tilt=task.w_tilt * closeness(tilt, task.scale_tilt),
-            spin=task.w_spin * closeness(np.linalg.norm(kin["Omega"]), task.scale_spin),
-            pivot_position=pivot_terms, control=control_terms, separation=separation_terms)
-
-    def separations(self, pivots: np.ndarray):
-        """The distances between every pair of pivots [m] and the pairs (i < j)."""
-        pairs = [(i, j) for i in range(self.size) for j in range(i + 1, self.size)]
-        distances = np.array([np.linalg.norm(pivots[i] - pivots[j]) for i, j in pairs])
-        return distances, pairs
+        return self.observations(noisy=False, observation="full")
 
     def step(self, action):
         """Apply each pivot's force (K, 3), or each drone's action (K, 4), in [-1, 1] (clipped;
@@ -368,28 +316,19 @@ class TeamCore:
         self.last_action = a
         if self.reference is not None:
             self._follow_reference(self.steps * self.control_period)
-        kin = self.kinematics()
-        terms = self.reward_terms(kin, a)
-        reward = float(sum(np.sum(v) for v in terms.values()))
-        distances, _ = self.separations(kin["pivot"])
-        task = self.task
-        if code == TERM_NONE:
-            if distances.size and distances.min() < COLLISION:
-                code = TERM_COLLISION
-            elif self.drones and np.any(kin["drone_attitudes"][:, 2, 2] < FLIP_COSINE):
-                code = TERM_DRONE_FLIPPED
-            elif kin["stretch"].max() > task.max_stretch:
-                code = TERM_OVERSTRETCH
-            elif (np.linalg.norm(kin["load"] - self.load_target) > task.workspace_radius or
-                  np.linalg.norm(kin["pivot"] - self.pivot_targets, axis=1).max() > task.workspace_radius):
-                code = TERM_WORKSPACE
-        terminated = code != TERM_NONE
+        task, reward, smallest, code = self.evaluate(a, code)
         if code in PHYSICS_FAILURES:
             reward = 0.0
-        info = {**{f"reward_{name}": float(np.sum(terms[name])) for name in REWARD_TERMS},
-                **{f"agent_{name}": np.asarray(terms[name], dtype=float).copy() for name in AGENT_TERMS},
-                "min_separation": float(distances.min()) if distances.size else np.inf,
-                "tension": kin["tension"].copy(), "applied_action": a.copy(), "termination": code}
-        if terminated:
+        info = {**self.reward_info(task, smallest), "tension": self.sim.read().tension.copy(),
+                "applied_action": a.copy(), "termination": code}
+        if code != TERM_NONE:
             info["termination_reason"] = termination_reason(code)
-        return self.observations(kin), reward, terminated, False, info
+        return self._noisy(task.obs), reward, code != TERM_NONE, False, info
+
+    @staticmethod
+    def reward_info(task, smallest: float) -> dict:
+        """A step's ``reward_<term>`` (the team's), ``agent_<term>`` (K,) (each agent's share) and
+        ``min_separation`` [m] from :meth:`evaluate`'s arrays ``task`` and smallest distance."""
+        return {**{f"reward_{name}": float(task.terms[i]) for i, name in enumerate(REWARD_TERMS)},
+                **{f"agent_{name}": task.agent[:, i].copy() for i, name in enumerate(AGENT_TERMS)},
+                "min_separation": float(smallest)}

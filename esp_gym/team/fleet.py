@@ -144,15 +144,30 @@ class Fleet:
             D.command[d] = np.sqrt(thrusts / drone.thrust_coefficient)
         self.rates = False
 
+    def body_rates(self) -> np.ndarray:
+        """Each drone's body rates Omega_q = J_q^-1 Pi_q (n, 3) (body frame) [rad/s], summed in one
+        order on every processor (einsum's would follow its SIMD path)."""
+        D = self.arrays.arrays
+        inv, Pi = D.inertia_inv, D.Pi
+        return inv[:, :, 0] * Pi[:, None, 0] + inv[:, :, 1] * Pi[:, None, 1] + inv[:, :, 2] * Pi[:, None, 2]
+
+    def kinetic_energies(self) -> np.ndarray:
+        """Each drone's rotational kinetic energy 1/2 Pi_q . J_q^-1 Pi_q (n,) [J]."""
+        return 0.5 * np.einsum("di,di->d", self.arrays.arrays.Pi, self.body_rates())
+
+    def attitudes(self) -> np.ndarray:
+        """Each drone's attitude R_q (n, 3, 3): the arrays' own (valid until the drones step)."""
+        return self.arrays.arrays.R
+
     def diagnostics(self) -> dict:
         """Per drone (n,): ``kinetic_drones`` 1/2 Pi_q . J_q^-1 Pi_q [J], ``pi3_drones`` e3 . R_q Pi_q
         [kg m^2/s], ``orthogonality_drones`` ||R_q^T R_q - I||, ``drone_thrust`` [N]; and
         ``drone_rates`` (n, 3) (body frame) [rad/s], ``rotor_speeds`` (n, 4) [rad/s],
         ``drone_attitudes`` R_q (n, 3, 3)."""
         D = self.arrays.arrays
-        rates = np.einsum("dij,dj->di", D.inertia_inv, D.Pi)
+        rates = self.body_rates()
         thrust = D.consts[:, Q_THRUST_COEFFICIENT] * np.einsum("di,di->d", D.thrust_scale, D.speed ** 2)
-        return dict(kinetic_drones=0.5 * np.einsum("di,di->d", D.Pi, rates),
+        return dict(kinetic_drones=self.kinetic_energies(),
                     pi3_drones=np.einsum("i,dij,dj->d", np.array([0.0, 0.0, 1.0]), D.R, D.Pi),
                     orthogonality_drones=np.linalg.norm(np.swapaxes(D.R, 1, 2) @ D.R - np.eye(3), axis=(1, 2)),
                     drone_thrust=thrust,

@@ -123,12 +123,8 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
         obs, self.episode_info = core.reset(seed=seed)
         self.agents, self.termination_reason = list(self.possible_agents), ""
         # the step's info of the state it starts from: its terms with no action, nothing ended
-        kin = core.kinematics()
-        terms = core.reward_terms(kin, np.zeros((core.size, core.action_size)))
-        distances, _ = core.separations(kin["pivot"])
-        info = {**{f"reward_{name}": np.sum(terms[name]) for name in REWARD_TERMS},
-                **{f"agent_{name}": terms[name] for name in AGENT_TERMS},
-                "min_separation": distances.min() if distances.size else np.inf, "tension": kin["tension"],
+        task, _, smallest, _ = core.evaluate(np.zeros((core.size, core.action_size)))
+        info = {**core.reward_info(task, smallest), "tension": core.sim.read().tension.copy(),
                 "applied_action": core.last_action, "termination": 0}
         return ({a: obs[k] for k, a in enumerate(self.agents)},
                 {a: agent_info(k, core, info) for k, a in enumerate(self.agents)})

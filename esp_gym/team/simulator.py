@@ -9,7 +9,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..arrays import team_arrays
+from ..arrays import team_arrays, team_read_arrays
 from ..drone import DroneState
 from ..kernels.layout import INPUTS, LOOP_REPORT_SIZE, R_NEWTON_TOTAL, R_STATUS, R_STEPS
 from ..kernels.status import OK
@@ -18,7 +18,7 @@ from ..kernels.team_loops import team_advance, team_drone_advance, team_winch_ad
 from ..kernels.team_winch import team_winch_forces
 from ..model import SimulationError, Simulator
 from ..state import State, cross3, legendre_momenta
-from ..watchdog import WATCH_EVERY, check_team_balance
+from ..watchdog import WATCH_EVERY, check_team_balance, team_energy_scale
 from .assembly import build_team
 from .fleet import Fleet
 from .readout import TeamReadout
@@ -78,7 +78,9 @@ class TeamSimulator(TeamReadout):
         #: Each string's winch (esp_gym/team/winches.py): :meth:`step`'s ``reel_speeds``.
         self.winches = TeamWinches(team, np.concatenate([[self._P.max_len2], self.params.max_len2]),
                                    self.params.start)
+        self._read = team_read_arrays(team.scene.string.elements, rows, self.winches.scene_lengths)
         self._winch_jumps = 0.0  # H's jumps at fixed (q, p) where the reel speeds changed [J]
+        self._energy_scale = team_energy_scale(team)  # the watchdog's [J]
         self._unwatched = 0  # steps since the energy watchdog last looked
         #: The energy watchdog looks at the end of the call in which this many steps have passed
         #: since it last did (esp_gym/watchdog.py; an environment's: 1, every control step).
@@ -185,6 +187,7 @@ class TeamSimulator(TeamReadout):
                 raise ValueError(f"state.{name} has shape {given.shape}, expected {getattr(A, name).shape}")
             if not np.all(np.isfinite(given)):
                 raise ValueError(f"state.{name} is not finite")
+        self._changes += 1
         self.winches.set(state.lengths, state.reel_speeds)
         self._lead.set_state(state.lead)
         A.r[...] = state.r
@@ -292,6 +295,7 @@ class TeamSimulator(TeamReadout):
         else:
             team_drone_advance(self._S, self._W, self._P, self.params, self._A, self.fleet.arrays, self._inputs,
                                n, self._stats, disturbed, self.fleet.rates)
+        self._changes += 1  # the read-outs kept are of the state before
         self._step += int(self._stats[R_STEPS])
         self._unwatched += int(self._stats[R_STEPS])
         if disturbed:  # a held force's work: F . the displacement of its point
@@ -301,7 +305,8 @@ class TeamSimulator(TeamReadout):
             raise SimulationError(status, self._step, self.time, int(self._stats[R_NEWTON_TOTAL]))
         if self._unwatched >= self.watch_every:  # the energy watchdog, as the single simulator's
             self._unwatched = 0
-            check_team_balance(self.team, self.diagnostics, self._step, self.time, self.winches.lengths)
+            check_team_balance(self.team, self.energy_balance, self._step, self.time, self.winches.lengths,
+                               self._energy_scale)
 
     # -- diagnostics ------------------------------------------------------------------------
     def _reel(self, n: int, speeds: np.ndarray, disturbed: bool) -> None:
@@ -330,6 +335,7 @@ class TeamSimulator(TeamReadout):
         """Set the state's reel speeds, adding H's jump at fixed (q, p) to the winch work."""
         if np.array_equal(speeds, self.winches.reel_speeds):
             return
+        self._changes += 1  # a step may have moved the state since the last read-out
         before = self._diagnostics()["energy"]
         self.winches.use_speeds(speeds)
         self._winch_jumps += self._diagnostics()["energy"] - before

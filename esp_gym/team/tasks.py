@@ -8,6 +8,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..arrays import team_task_arrays
+from ..kernels.layout import Layout
+from ..kernels.team_task import AGENT_REWARD, OBSERVED, TEAM_REWARD, TEAM_TASK, TeamTaskArrays
 from ..options import TEAM_LACKS
 from ..setup import DRONE_FLIP_TILT, PRESETS
 
@@ -18,10 +21,10 @@ COLLISION = 0.15
 #: A drone whose body axis b3 tilts past this from the downward vertical has flipped: the episode
 #: ends (the single drone's DRONE_FLIP_TILT).
 FLIP_COSINE = math.cos(math.radians(DRONE_FLIP_TILT))
-#: The team's reward terms, in order (TeamCore.reward_terms: ``info["reward_<term>"]``), and those
-#: each agent has its own share of (``info["agent_<term>"]``, one per agent).
-REWARD_TERMS = ("load_position", "load_velocity", "tilt", "spin", "pivot_position", "control", "separation")
-AGENT_TERMS = ("pivot_position", "control", "separation")
+#: The team's reward terms, in order (``info["reward_<term>"]``), and those each agent has its own
+#: share of (``info["agent_<term>"]``, one per agent): kernels/team_task.py's layouts.
+REWARD_TERMS = TEAM_REWARD.names
+AGENT_TERMS = AGENT_REWARD.names
 #: The options each preset sets (those given to the environment win): the single env's, less what
 #: a team lacks (esp_gym/options.py TEAM_LACKS: the hard preset's thrust noise).
 TEAM_PRESETS = {name: {k: v for k, v in preset.items() if k not in TEAM_LACKS} for name, preset in PRESETS.items()}
@@ -90,6 +93,17 @@ def get_team_task(name: str) -> TeamTask:
     if name not in TEAM_TASKS:
         raise ValueError(f"task must be one of {sorted(TEAM_TASKS)}, got {name!r}")
     return TEAM_TASKS[name]
+
+
+def task_arrays(task: TeamTask, layout: Layout, size: int) -> TeamTaskArrays:
+    """The compiled task's arrays (kernels/team_task.py) of ``task`` for ``size`` agents observing
+    ``layout`` (esp_gym/team/spaces.py ``agent_layout``): its constants and the layout's fields;
+    the targets zero."""
+    constants = {"separation": SEPARATION, "collision": COLLISION, "flip_cosine": FLIP_COSINE}
+    arrays = team_task_arrays(size, layout.size)
+    arrays.params[...] = [constants[name] if name in constants else getattr(task, name) for name in TEAM_TASK.names]
+    arrays.fields[...] = [layout.start(name) if name in layout else -1 for name in OBSERVED.names]
+    return arrays
 
 
 def hanging_rise(kin: dict, attachments: np.ndarray, lengths: np.ndarray) -> float:

@@ -60,7 +60,7 @@ class TeamWinches:
     @property
     def idle(self) -> bool:
         """Every string at its scene's length and at rest: the fixed-length step runs."""
-        return bool(np.all(self.state[:, LENGTH] == self.scene_lengths) and np.all(self.state[:, SPEED] == 0.0))
+        return not ((self.state[:, LENGTH] != self.scene_lengths).any() or self.state[:, SPEED].any())
 
     def use_speeds(self, speeds: np.ndarray) -> None:
         """Set the state's reel speeds (K,) [m/s], unchecked (the simulator's own: :meth:`held`, :meth:`cut_speeds`)."""
