@@ -61,7 +61,20 @@ def _vector_input(name: str, value) -> np.ndarray:
 ROTATION_TOL = 1e-9
 
 
-class Simulator:
+class StepClock:
+    """A simulator's clock: the steps ``_step`` taken since its state was set, of ``h`` [s] each."""
+
+    @property
+    def step_count(self) -> int:
+        return self._step
+
+    @property
+    def time(self) -> float:
+        """Simulated time k*h [s]."""
+        return self._step * self.h
+
+
+class Simulator(StepClock):
     """Steps a :class:`~esp_gym.params.Scene` with the compiled LGVI.
 
     >>> sim = Simulator(load_scene("paper_example"))
@@ -182,15 +195,6 @@ class Simulator:
         self._E0 = float(out[DIAG.scalar("energy")])
         self._pi3_0 = float(out[DIAG.scalar("pi3")])
         self._P0 = out[DIAG["linear_momentum"]].copy()
-
-    @property
-    def step_count(self) -> int:
-        return self._step
-
-    @property
-    def time(self) -> float:
-        """Simulated time k*h [s]."""
-        return self._step * self.h
 
     # -- stepping ---------------------------------------------------------------------------
     def _kernels(self):

@@ -85,16 +85,35 @@ def disturb(r, R, V, om, rho, dp, ds, draw, ext):
     velocities V [m/s], body rate om (Omega, body frame) [rad/s]. ``dp`` the episode's
     DISTURBANCE_PARAMS, ``ds`` the DISTURBANCE state (gust in, everything out), ``draw`` this
     step's DRAWS, ``ext`` (N+2, 3) the held forces out [N]."""
+    wind = gust(dp, ds, draw)
+    n = r.shape[0] - 1
+    line_drag(r, V, wind, dp[DP_LINE_DRAG], ds, ext)
+    f0, f1, f2 = load_drag(R, V[n], om, rho, wind, dp, ds)
+    q0, q1 = push(dp, draw, ds)
+    ext[n + 1, 0] = f0 + q0
+    ext[n + 1, 1] = f1 + q1
+    ext[n + 1, 2] = f2
+
+
+@kernel(inline="always")
+def gust(dp, ds, draw):
+    """The gust's next value (a first-order process driven by ``draw``) and the wind it makes with
+    the mean, into ``ds``; returns the wind (3,) [m/s]."""
     a = dp[DP_GUST_DECAY]
     for i in range(3):
         g = a * ds[DS_GUST + i] + dp[DP_GUST_INNOVATION + i] * draw[DR_GUST + i]
         ds[DS_GUST + i] = g
         ds[DS_WIND + i] = dp[DP_MEAN_WIND + i] + g
-    w0 = ds[DS_WIND]
-    w1 = ds[DS_WIND + 1]
-    w2 = ds[DS_WIND + 2]
+    return ds[DS_WIND], ds[DS_WIND + 1], ds[DS_WIND + 2]
+
+
+@kernel(inline="always")
+def line_drag(r, V, wind, k, ds, ext):
+    """Each element's drag across it, k |x| |v_n| v_n (v_n the wind relative to the element's mean
+    velocity, less its part along x), half to each of its nodes, into ``ext`` rows 0..N; the sum
+    into ``ds`` [N]."""
+    w0, w1, w2 = wind
     n = r.shape[0] - 1
-    k = dp[DP_LINE_DRAG]
     s0 = s1 = s2 = 0.0
     h0 = h1 = h2 = 0.0  # the previous element's half
     for e in range(n):
@@ -129,13 +148,20 @@ def disturb(r, R, V, om, rho, dp, ds, draw, ext):
     ds[DS_LINE_DRAG] = s0
     ds[DS_LINE_DRAG + 1] = s1
     ds[DS_LINE_DRAG + 2] = s2
-    # the load's centre of mass moves at V_N + R (omega x rho_c)
+
+
+@kernel(inline="always")
+def load_drag(R, v_end, om, rho, wind, dp, ds):
+    """The load's drag, its area across the air relative to its centre of mass (moving at the
+    end node's ``v_end`` + R (om x rho)) times that air's speed and velocity, into ``ds``;
+    returns it (3,) [N]."""
+    w0, w1, w2 = wind
     c0 = om[1] * rho[2] - om[2] * rho[1]
     c1 = om[2] * rho[0] - om[0] * rho[2]
     c2 = om[0] * rho[1] - om[1] * rho[0]
-    v0 = w0 - (V[n, 0] + R[0, 0] * c0 + R[0, 1] * c1 + R[0, 2] * c2)
-    v1 = w1 - (V[n, 1] + R[1, 0] * c0 + R[1, 1] * c1 + R[1, 2] * c2)
-    v2 = w2 - (V[n, 2] + R[2, 0] * c0 + R[2, 1] * c1 + R[2, 2] * c2)
+    v0 = w0 - (v_end[0] + R[0, 0] * c0 + R[0, 1] * c1 + R[0, 2] * c2)
+    v1 = w1 - (v_end[1] + R[1, 0] * c0 + R[1, 1] * c1 + R[1, 2] * c2)
+    v2 = w2 - (v_end[2] + R[2, 0] * c0 + R[2, 1] * c1 + R[2, 2] * c2)
     speed = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
     f0 = f1 = f2 = 0.0
     if speed > 0.0:
@@ -149,8 +175,15 @@ def disturb(r, R, V, om, rho, dp, ds, draw, ext):
     ds[DS_LOAD_DRAG] = f0
     ds[DS_LOAD_DRAG + 1] = f1
     ds[DS_LOAD_DRAG + 2] = f2
+    return f0, f1, f2
+
+
+@kernel(inline="always")
+def push(dp, draw, ds):
+    """This step's push, if ``draw`` says one comes: horizontal, 0.5-1.5 x the mean force, at a
+    drawn azimuth, into ``ds``; returns its two horizontal components [N]."""
     q0 = q1 = 0.0
-    if draw[DR_PUSH_CHANCE] < dp[DP_PUSH_CHANCE]:  # a horizontal push of 0.5-1.5 x the mean force
+    if draw[DR_PUSH_CHANCE] < dp[DP_PUSH_CHANCE]:
         size = dp[DP_PUSH_FORCE] * (0.5 + draw[DR_PUSH_SCALE])
         azimuth = 2.0 * math.pi * draw[DR_PUSH_AZIMUTH]
         q0 = size * math.cos(azimuth)
@@ -158,9 +191,7 @@ def disturb(r, R, V, om, rho, dp, ds, draw, ext):
     ds[DS_PUSH] = q0
     ds[DS_PUSH + 1] = q1
     ds[DS_PUSH + 2] = 0.0
-    ext[n + 1, 0] = f0 + q0
-    ext[n + 1, 1] = f1 + q1
-    ext[n + 1, 2] = f2
+    return q0, q1
 
 
 @kernel(inline="always")

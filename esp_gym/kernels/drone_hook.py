@@ -256,29 +256,9 @@ def hook_velocities(S, P, DR, HK, V):
     bq0 = DR.Pi[0] - mq * aq[0]
     bq1 = DR.Pi[1] - mq * aq[1]
     bq2 = DR.Pi[2] - mq * aq[2]
-    A, B, C, _ = DR.scratch  # R^T R_q, then the coupling C and the Schur complement (free between steps)
-    for i in range(3):
-        for j in range(3):
-            A[i, j] = R[0, i] * Rq[0, j] + R[1, i] * Rq[1, j] + R[2, i] * Rq[2, j]
-    for i in range(3):  # B = A rho_q^, column j = A (rho_q x e_j)
-        B[i, 0] = A[i, 1] * rq[2] - A[i, 2] * rq[1]
-        B[i, 1] = A[i, 2] * rq[0] - A[i, 0] * rq[2]
-        B[i, 2] = A[i, 0] * rq[1] - A[i, 1] * rq[0]
-    cross_columns(rc, B, C)
-    k = M * mq * HK.column[n]
-    for i in range(3):
-        for j in range(3):
-            C[i, j] *= k
-    # Z = J_q,eff^-1 C^T column by column, then the Schur complement J_eff - C Z into B
+    _, B, C, _ = DR.scratch
+    hook_coupling(R, Rq, rc, rq, M * mq * HK.column[n], HK.jeff, P.Jeff, DR.scratch)
     Jq = HK.jeff
-    for j in range(3):
-        z0, z1, z2 = solve3(Jq, C[j, 0], C[j, 1], C[j, 2])
-        A[0, j] = z0
-        A[1, j] = z1
-        A[2, j] = z2
-    for i in range(3):
-        for j in range(3):
-            B[i, j] = P.Jeff[i, j] - (C[i, 0] * A[0, j] + C[i, 1] * A[1, j] + C[i, 2] * A[2, j])
     u0, u1, u2 = solve3(Jq, bq0, bq1, bq2)
     o0, o1, o2 = solve3(B, bL0 - (C[0, 0] * u0 + C[0, 1] * u1 + C[0, 2] * u2),
                         bL1 - (C[1, 0] * u0 + C[1, 1] * u1 + C[1, 2] * u2),
@@ -294,6 +274,33 @@ def hook_velocities(S, P, DR, HK, V):
         for i in range(3):
             V[a, i] += M * w[a] * qL[i] + mq * column[a] * qq[i]
     return (o0, o1, o2), qL, (v0, v1, v2), qq
+
+
+@kernel(inline="always")
+def hook_coupling(R, Rq, rc, rq, k, Jq, Jeff, scratch):
+    """The coupling C = k rho_c^ R^T R_q rho_q^ (k = M m_q (M_tot^-1)_{1,N+1}) into ``scratch[2]``
+    and the Schur complement J_eff - C J_q,eff^-1 C^T into ``scratch[1]`` (:func:`hook_velocities`;
+    ``scratch[0]`` holds R^T R_q, then J_q,eff^-1 C^T: the drone's scratch, free between steps)."""
+    A, B, C, _ = scratch
+    for i in range(3):
+        for j in range(3):
+            A[i, j] = R[0, i] * Rq[0, j] + R[1, i] * Rq[1, j] + R[2, i] * Rq[2, j]
+    for i in range(3):  # B = A rho_q^, column j = A (rho_q x e_j)
+        B[i, 0] = A[i, 1] * rq[2] - A[i, 2] * rq[1]
+        B[i, 1] = A[i, 2] * rq[0] - A[i, 0] * rq[2]
+        B[i, 2] = A[i, 0] * rq[1] - A[i, 1] * rq[0]
+    cross_columns(rc, B, C)
+    for i in range(3):
+        for j in range(3):
+            C[i, j] *= k
+    for j in range(3):  # Z = J_q,eff^-1 C^T column by column, then J_eff - C Z into B
+        z0, z1, z2 = solve3(Jq, C[j, 0], C[j, 1], C[j, 2])
+        A[0, j] = z0
+        A[1, j] = z1
+        A[2, j] = z2
+    for i in range(3):
+        for j in range(3):
+            B[i, j] = Jeff[i, j] - (C[i, 0] * A[0, j] + C[i, 1] * A[1, j] + C[i, 2] * A[2, j])
 
 
 @kernel(entry=True)

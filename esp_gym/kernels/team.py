@@ -52,20 +52,24 @@ def end_loads(R, T, A, h, forced):
             c0 = T.off[j] * X[e - 1 - s, 0]
             c1 = T.off[j] * X[e - 1 - s, 1]
             c2 = T.off[j] * X[e - 1 - s, 2]
-        A.c[j, 0] = c0
-        A.c[j, 1] = c1
-        A.c[j, 2] = c2
-        l0 = hh * A.f[e, 0] - c0
-        l1 = hh * A.f[e, 1] - c1
-        l2 = hh * A.f[e, 2] - c2
-        E0 += l0
-        E1 += l1
-        E2 += l2
-        m0, m1, m2 = cross(T.rho[j], unrotated(R, (l0, l1, l2)))  # rho_j x R_k^T l
-        t0 += m0
-        t1 += m1
-        t2 += m2
+        E0, E1, E2, t0, t1, t2 = add_left_load(A, T, R, j, (c0, c1, c2), A.f[e], hh, (E0, E1, E2, t0, t1, t2))
     return E0, E1, E2, t0 / hh, t1 / hh, t2 / hh
+
+
+@kernel(inline="always")
+def add_left_load(A, T, R, j, c, f_end, hh, sums):
+    """String j's coupling momentum ``c`` into ``A.c[j]`` and its left load l = h/2 ``f_end`` - c
+    on the body added to ``sums`` (the loads' sum (3) and their torques' sum rho_j x R^T l (3));
+    returns the six sums (``hh`` = h/2)."""
+    E0, E1, E2, t0, t1, t2 = sums
+    A.c[j, 0] = c[0]
+    A.c[j, 1] = c[1]
+    A.c[j, 2] = c[2]
+    l0 = hh * f_end[0] - c[0]
+    l1 = hh * f_end[1] - c[1]
+    l2 = hh * f_end[2] - c[2]
+    m0, m1, m2 = cross(T.rho[j], unrotated(R, (l0, l1, l2)))  # rho_j x R_k^T l
+    return E0 + l0, E1 + l1, E2 + l2, t0 + m0, t1 + m1, t2 + m2
 
 
 @kernel(forceinline=True)

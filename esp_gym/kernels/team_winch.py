@@ -24,7 +24,7 @@ from .status import OK
 from .string import nodal_forces
 from .step_shared import guarded_forces, held_inputs, left_torque, new_positions, next_attitude
 from .sums import kahan_add
-from .team import commit_team_step, other_forces, other_increments
+from .team import add_left_load, commit_team_step, other_forces, other_increments
 from .team_arrays import TeamParams, add_end_loads, pivot_rows
 from .team_switch import settle_team_switches, team_switch_errors
 from .winch import (add_convective_forces, add_convective_impulse, body_schur, convective_momentum, convective_solve,
@@ -184,19 +184,7 @@ def reeling_end_loads(R, T, A, TW, h, forced):
             c0 += lower * X[n - 1, 0]
             c1 += lower * X[n - 1, 1]
             c2 += lower * X[n - 1, 2]
-        A.c[j, 0] = c0
-        A.c[j, 1] = c1
-        A.c[j, 2] = c2
-        l0 = hh * TW.fl[e - 1, 0] - c0
-        l1 = hh * TW.fl[e - 1, 1] - c1
-        l2 = hh * TW.fl[e - 1, 2] - c2
-        E0 += l0
-        E1 += l1
-        E2 += l2
-        m0, m1, m2 = cross(T.rho[j], unrotated(R, (l0, l1, l2)))  # rho_j x R_k^T l
-        t0 += m0
-        t1 += m1
-        t2 += m2
+        E0, E1, E2, t0, t1, t2 = add_left_load(A, T, R, j, (c0, c1, c2), TW.fl[e - 1], hh, (E0, E1, E2, t0, t1, t2))
     return E0, E1, E2, t0 / hh, t1 / hh, t2 / hh
 
 
@@ -221,6 +209,27 @@ def reeling_right_forces(T, A, TW, h):
 
 
 @kernel(forceinline=True)
+def factor_reeling_step(S, W, P, T, A, TW, h, first):
+    """A reeling team step's matrices: the forces at the state's lengths with the convective ones
+    (:func:`reeling_forces`), each other string reduced to its end (:func:`reduce_others`), the
+    assembled body and string 0's step matrix factored with it (kernels/winch.py
+    ``factor_string``, ``body_schur``) into ``TW``. Returns ``(v, c, m)`` of string 0's reel
+    (:func:`reel_terms`) and the assembled body's M' [kg] and rho' (3,) [m]."""
+    n = S.r.shape[0] - 1
+    WA = TW.lead
+    st = TW.state[0]
+    v, c, m_mean = reel_terms(st, st[WN_LENGTH], TW.target[0], h, n)
+    reeling_forces(S, W, T, A, TW, h, first)
+    reduce_others(T, TW, h, False)
+    mass = assemble_body(P, T, TW)
+    rho_inertial = TW.body[1:]
+    factor_string(m_mean, 0.5 * h * c, st[WN_END_SHARE], st[WN_OFF_SHARE], WA.coef, first, n, P.Mp, mass, WA.lower,
+                  WA.upper, WA.diag, WA.inv, WA.cp, WA.w)
+    body_schur(WA.jeff, TW.J, mass, rho_inertial, WA.inv[n])
+    return v, c, m_mean, mass, rho_inertial
+
+
+@kernel(forceinline=True)
 def team_winch_substep(S, W, P, T, A, TW, inputs, h, free, forced, coupled, compensated):
     """Advance a team by one step of length ``h`` while string k's length goes
     ``TW.state[k, length] -> TW.target[k]``, in place (docs/physics.md, "Winches on a team's
@@ -233,16 +242,8 @@ def team_winch_substep(S, W, P, T, A, TW, inputs, h, free, forced, coupled, comp
     hh = 0.5 * h
     WA = TW.lead
     st = TW.state[0]
-    l0 = st[WN_LENGTH]
     l1 = TW.target[0]
-    v, c, m_mean = reel_terms(st, l0, l1, h, n)
-    reeling_forces(S, W, T, A, TW, h, first)
-    reduce_others(T, TW, h, False)
-    mass = assemble_body(P, T, TW)
-    rho_inertial = TW.body[1:]
-    factor_string(m_mean, 0.5 * h * c, st[WN_END_SHARE], st[WN_OFF_SHARE], WA.coef, first, n, P.Mp, mass, WA.lower,
-                  WA.upper, WA.diag, WA.inv, WA.cp, WA.w)
-    body_schur(WA.jeff, TW.J, mass, rho_inertial, WA.inv[n])
+    v, c, m_mean, mass, rho_inertial = factor_reeling_step(S, W, P, T, A, TW, h, first)
     held = held_inputs(inputs, forced)
     up0, up1, up2, _, _, _, tb0, tb1, tb2, ts0, ts1, ts2 = held
     l_0, l_1, l_2, t0, t1, t2 = left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)

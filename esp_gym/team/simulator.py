@@ -16,7 +16,7 @@ from ..kernels.status import OK
 from ..kernels.team import team_forces
 from ..kernels.team_loops import team_advance, team_drone_advance, team_winch_advance
 from ..kernels.team_winch import team_winch_forces
-from ..model import SimulationError, Simulator
+from ..model import SimulationError, Simulator, StepClock
 from ..state import State, cross3, legendre_momenta
 from ..watchdog import WATCH_EVERY, check_team_balance, team_energy_scale
 from .assembly import build_team
@@ -50,7 +50,7 @@ class TeamState:
                          None if self.reel_speeds is None else self.reel_speeds.copy())
 
 
-class TeamSimulator(TeamReadout):
+class TeamSimulator(TeamReadout, StepClock):
     """Steps a :class:`TeamScene` with the compiled team step.
 
     >>> sim = TeamSimulator(team)
@@ -219,15 +219,6 @@ class TeamSimulator(TeamReadout):
         self._S.accc[...] = 0.0
         d = self._diagnostics()
         self._E0, self._pi3_0, self._P0 = d["energy"], d["pi3"], d["linear_momentum"].copy()
-
-    @property
-    def step_count(self) -> int:
-        return self._step
-
-    @property
-    def time(self) -> float:
-        """Simulated time k*h [s]."""
-        return self._step * self.h
 
     # -- stepping ---------------------------------------------------------------------------
     def _set_forces(self, pivot_forces) -> None:
