@@ -303,7 +303,8 @@ def team(args) -> dict:
         row["batched_ratio"] = row["batched"] / base["batched"]
     substeps = {name: _substeps(env_id, options) for name, (env_id, options) in TEAM.items()}
     print(f"random actions in +-{TEAM_AMPLITUDE}, medians of {repeats} interleaved repeats")
-    print(f"{'environment':18s} {'physics steps':>13s}  single [steps/s]  ratio   batched x{TEAM_BATCH} [steps/s]  ratio")
+    print(f"{'environment':18s} {'physics steps':>13s}  single [steps/s]  ratio   "
+          f"batched x{TEAM_BATCH} [steps/s]  ratio")
     for name, row in table.items():
         print(f"{name:18s} {substeps[name]:13d}  {row['single']:16,.0f}  {row['single_ratio']:5.3f}   "
               f"{row['batched']:20,.0f}  {row['batched_ratio']:5.3f}")

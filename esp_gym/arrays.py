@@ -1,7 +1,8 @@
 """The structs the compiled kernels take, made in one place (kernels/layout.py, kernels/drone.py and
 kernels/team_arrays.py name their fields): a string's state, work and diagnostics arrays for N
-elements, the winch's, drones' arrays, a team's stacked strings, read-out and task, and a batch's arrays: a struct stacked with a
-leading axis (zeros, or a template's values in every row) and one row's views. The constants
+elements, the winch's, drones' arrays, a team's stacked strings, read-out and task, and a batch's
+arrays: a struct stacked with a leading axis (zeros, or a template's values in every row) and one
+row's views. The constants
 computed from a scene are their owners' (esp_gym/state.py ``build_params``, esp_gym/drone.py,
 esp_gym/winch.py, esp_gym/team/assembly.py), written into these.
 """
@@ -104,8 +105,8 @@ def team_task_arrays(size: int, observation_size: int) -> TeamTaskArrays:
     z = np.zeros
     return TeamTaskArrays(params=z(TEAM_TASK.size), fields=np.full(OBSERVED.size, -1, dtype=np.int64),
                           load_target=z(3), target_velocity=z(3), pivot_targets=z((size, 3)),
-                          obs=z((size, observation_size)), terms=z(TEAM_REWARD.size), agent=z((size, AGENT_REWARD.size)),
-                          distances=z(size * (size - 1) // 2))
+                          obs=z((size, observation_size)), terms=z(TEAM_REWARD.size),
+                          agent=z((size, AGENT_REWARD.size)), distances=z(size * (size - 1) // 2))
 
 
 def stacked(struct, batch: tuple):

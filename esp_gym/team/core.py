@@ -4,8 +4,8 @@ drones carry one load on elastic tension-only strings.
 :class:`TeamCore` is the episode: the team's physics (:class:`~esp_gym.team.TeamSimulator`), the
 task's targets, the wind, the sensor noise and the latency; each agent's observation, the team's
 reward with its per-agent terms and the episode's end are one compiled call on the state's read-out
-(esp_gym/kernels/team_task.py, :meth:`TeamCore.evaluate`). Two faces share it: :class:`~esp_gym.team.env.ElasticStringTeamEnv`, the centralised
-Gymnasium env ``ElasticStringTeam-v0`` (the agents' actions and observations concatenated), and
+(esp_gym/kernels/team_task.py, :meth:`TeamCore.evaluate`). Two faces share it:
+:class:`~esp_gym.team.env.ElasticStringTeamEnv`, the centralised Gymnasium env ``ElasticStringTeam-v0`` (the agents' actions and observations concatenated), and
 :class:`~esp_gym.team.parallel.ElasticStringTeamParallelEnv`, PettingZoo's ParallelEnv.
 """
 from __future__ import annotations
@@ -243,7 +243,8 @@ class TeamCore:
         termination)``."""
         mode = observation or self.observation
         if mode not in self._tasks:
-            self._tasks[mode] = task_arrays(self.task, agent_layout(self.size, mode, self.drones, self.winch), self.size)
+            layout = agent_layout(self.size, mode, self.drones, self.winch)
+            self._tasks[mode] = task_arrays(self.task, layout, self.size)
         TK = self._tasks[mode]
         TK.load_target[...] = self.load_target
         TK.target_velocity[...] = self.target_velocity
@@ -319,16 +320,15 @@ class TeamCore:
         task, reward, smallest, code = self.evaluate(a, code)
         if code in PHYSICS_FAILURES:
             reward = 0.0
-        info = {**self.reward_info(task, smallest), "tension": self.sim.read().tension.copy(),
-                "applied_action": a.copy(), "termination": code}
+        info = {**self.task_info(task, smallest), "applied_action": a.copy(), "termination": code}
         if code != TERM_NONE:
             info["termination_reason"] = termination_reason(code)
         return self._noisy(task.obs), reward, code != TERM_NONE, False, info
 
-    @staticmethod
-    def reward_info(task, smallest: float) -> dict:
-        """A step's ``reward_<term>`` (the team's), ``agent_<term>`` (K,) (each agent's share) and
-        ``min_separation`` [m] from :meth:`evaluate`'s arrays ``task`` and smallest distance."""
+    def task_info(self, task, smallest: float) -> dict:
+        """A step's ``reward_<term>`` (the team's), ``agent_<term>`` (K,) (each agent's share),
+        ``min_separation`` [m] and each hook's ``tension`` (K, 3) [N] from :meth:`evaluate`'s arrays
+        ``task`` and smallest distance, and the read-out they were taken from."""
         return {**{f"reward_{name}": float(task.terms[i]) for i, name in enumerate(REWARD_TERMS)},
                 **{f"agent_{name}": task.agent[:, i].copy() for i, name in enumerate(AGENT_TERMS)},
-                "min_separation": float(smallest)}
+                "min_separation": float(smallest), "tension": self.sim.read().tension.copy()}

@@ -124,8 +124,7 @@ class ElasticStringTeamParallelEnv(ParallelEnv):
         self.agents, self.termination_reason = list(self.possible_agents), ""
         # the step's info of the state it starts from: its terms with no action, nothing ended
         task, _, smallest, _ = core.evaluate(np.zeros((core.size, core.action_size)))
-        info = {**core.reward_info(task, smallest), "tension": core.sim.read().tension.copy(),
-                "applied_action": core.last_action, "termination": 0}
+        info = {**core.task_info(task, smallest), "applied_action": core.last_action, "termination": 0}
         return ({a: obs[k] for k, a in enumerate(self.agents)},
                 {a: agent_info(k, core, info) for k, a in enumerate(self.agents)})
 

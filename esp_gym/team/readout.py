@@ -18,10 +18,11 @@ class TeamReadout:
     """The read-outs of a :class:`~esp_gym.team.simulator.TeamSimulator`'s state. The inverse
     Legendre transform is kept for the state it was taken at (the state changes only by the
     simulator's ``step`` and ``set_state``, which count ``_changes``, and the reel speeds): the
-    watchdog's diagnostics and an environment's observation of one state invert it once. With the winches at rest at the scenes' lengths, one compiled call
-    (kernels/team_readout.py ``team_read``, into ``_read``) takes the velocities with the step's
-    own factors, the energy terms and what :meth:`observed` gives; a reeled team's are taken here,
-    the flow's momenta removed, by LAPACK's tridiagonal solver (esp_gym/team/velocities.py)."""
+    watchdog's diagnostics and an environment's observation of one state invert it once. With the
+    winches at rest at the scenes' lengths, one compiled call (kernels/team_readout.py
+    ``team_read``, into ``_read``) takes the velocities with the step's own factors, the energy
+    terms and what :meth:`observed` gives; a reeled team's are taken here, the flow's momenta
+    removed, by LAPACK's tridiagonal solver (esp_gym/team/velocities.py)."""
 
     _kinematics_key = None
     _changes = 0  # the simulator's changes of state (its step and set_state)
@@ -155,10 +156,8 @@ class TeamReadout:
         speeds = self.winches.reel_speeds if reel_speeds is None else reel_speeds
         v0, vo, Omega, p0, po, Pi = self._kinematics(speeds)
         if self._compiled_read:
-            read = self._read.out
-            kinetic, elastic, gravity, pi3 = (float(read[TEAM_READ.scalar(name)]) for name in (
-                "kinetic", "potential_elastic", "potential_gravity", "pi3"))
-            momentum = read[TEAM_READ["linear_momentum"]].copy()
+            kinetic, elastic, gravity, pi3 = self._read_energies()
+            momentum = self._read.out[TEAM_READ["linear_momentum"]].copy()
         else:
             kinetic = 0.5 * (np.sum(p0 * v0) + np.sum(po * vo) + float(Pi @ Omega))
             g = P.g
@@ -192,14 +191,19 @@ class TeamReadout:
         if not self._compiled_read:
             d = self.diagnostics()
             return d["energy_balance_residual"], d["work"] + d["winch_work"]
-        read = self._read.out
-        kinetic = float(read[TEAM_READ.scalar("kinetic")])
+        kinetic, elastic, gravity, _ = self._read_energies()
         if self.fleet:
             kinetic += float(self.fleet.kinetic_energies().sum())
-        energy = (kinetic + float(read[TEAM_READ.scalar("potential_elastic")])
-                  + float(read[TEAM_READ.scalar("potential_gravity")]))
+        energy = kinetic + elastic + gravity
         work, winch_work = self._work()
         return energy - self._E0 - work - winch_work, work + winch_work
+
+    def _read_energies(self) -> tuple:
+        """The compiled read-out's ``(kinetic (not the drones' rotations), elastic, gravity [J], pi3
+        [kg m^2/s])``."""
+        read = self._read.out
+        return tuple(float(read[TEAM_READ.scalar(name)]) for name in ("kinetic", "potential_elastic",
+                                                                      "potential_gravity", "pi3"))
 
     def _work(self) -> tuple:
         """The inputs' and the wind's work and the winches' since the last reset [J]."""
