@@ -10,10 +10,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from .kernels.env_arrays import TARGET
 from .kernels.layout import BALANCE, DIAG, WINCH, DiagWork, LGVIParams, StateArrays, WinchArrays, Work
 from .kernels.drone import DRONE, DRONE_DIAG, DroneArrays
 from .kernels.loops import state_size
 from .kernels.team_arrays import TeamArrays
+from .kernels.team_env import TEAM_DRIVE, TEAM_ENV, TEAM_STEP, TeamEnvArrays
 from .kernels.team_readout import TEAM_READ, TeamReadArrays
 from .kernels.team_task import AGENT_REWARD, OBSERVED, TEAM_REWARD, TEAM_TASK, TeamTaskArrays
 from .kernels.team_winch import TeamWinch
@@ -107,6 +109,16 @@ def team_task_arrays(size: int, observation_size: int) -> TeamTaskArrays:
                           load_target=z(3), target_velocity=z(3), pivot_targets=z((size, 3)),
                           obs=z((size, observation_size)), terms=z(TEAM_REWARD.size),
                           agent=z((size, AGENT_REWARD.size)), distances=z(size * (size - 1) // 2))
+
+
+def team_env_arrays(size: int, drones: int, action_size: int) -> TeamEnvArrays:
+    """A team environment's arrays (kernels/team_env.py ``TeamEnvArrays``) for ``size`` agents, of
+    which ``drones`` fly drones, each acting with ``action_size`` numbers; zeros (``drone_R`` the
+    fleet's own array for drones: its owner puts it in)."""
+    z = np.zeros
+    return TeamEnvArrays(params=z(TEAM_ENV.size), drive=z((drones, TEAM_DRIVE.size)), action=z((size, action_size)),
+                         formation=z((size, 3)), reference=z(TARGET.size), load_force=z(3),
+                         drone_R=z((drones, 3, 3)), drone_rates=z((drones, 3)), report=z(TEAM_STEP.size))
 
 
 def stacked(struct, batch: tuple):

@@ -250,23 +250,40 @@ def test_the_stiff_implicit_string_under_exploration_noise_keeps_its_energy(task
     assert worst < 0.01, worst
 
 
-def broken_team_episode(monkeypatch, watchdog, broken: bool, steps: int = 60):
+def broken_team_episode(monkeypatch, watchdog, broken: bool, steps: int = 60, compiled: bool = True):
     """A team's ``stabilize`` episode (three point pivots, hovering) under zero actions, its
-    watchdog ``solver.energy_watchdog`` = ``watchdog``; ``broken``: every compiled run of steps
-    ends by scaling every momentum by 1.02 (a step that pumps energy in, 4 % of the kinetic
-    energy per control step). Returns (termination reason, control steps, the balance over the
-    bound at each step, the env)."""
+    watchdog ``solver.energy_watchdog`` = ``watchdog``, stepped by the compiled control step or
+    (``compiled`` False) in Python; ``broken``: every control step's physics starts by scaling every
+    momentum by 1.02 (a step that pumps energy in, 4 % of the kinetic energy per control step: in
+    Python, at the end of each compiled run of steps). Returns (termination reason, control
+    steps, the balance over the bound at each step, the env)."""
+    from esp_gym.kernels.layout import StateArrays
+    from esp_gym.kernels.team_arrays import TeamArrays
     from esp_gym.kernels.team_loops import team_advance as real
     from esp_gym.team import simulator
+    from esp_gym.team.control import TeamControl
+    from esp_gym.team.core import TeamCore
     from esp_gym.team.env import ElasticStringTeamEnv
     from esp_gym.team.scene import team_scene
 
-    if broken:
+    monkeypatch.undo()  # a previous episode's patches
+    monkeypatch.setattr(TeamCore, "compiled_steps", compiled)
+    if broken and not compiled:
         def pumping(S, W, P, T, A, inputs, n, stats, disturbed):
             real(S, W, P, T, A, inputs, n, stats, disturbed)
             for momenta in (S.p, S.Pi, A.p):
                 momenta *= 1.02
         monkeypatch.setattr(simulator, "team_advance", pumping)
+    if broken and compiled:
+        real_step = TeamControl.step
+
+        def pumped(control, raw, load_force, time):
+            structs = control.sim.compiled()
+            S, A = StateArrays(*structs.state), TeamArrays(*structs.arrays)
+            for momenta in (S.p, S.Pi, A.p):
+                momenta *= 1.02
+            return real_step(control, raw, load_force, time)
+        monkeypatch.setattr(TeamControl, "step", pumped)
     team = team_scene(3)
     team = team.model_copy(update={"scene": team.scene.model_copy(update={"solver": team.scene.solver.model_copy(
         update={"energy_watchdog": watchdog})})})
@@ -283,20 +300,21 @@ def broken_team_episode(monkeypatch, watchdog, broken: bool, steps: int = 60):
     return "", steps, np.array(ratio), env
 
 
-def test_the_team_environment_ends_a_broken_steps_energy_gain(monkeypatch):
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled step", "python step"])
+def test_the_team_environment_ends_a_broken_steps_energy_gain(monkeypatch, compiled):
     """The team env's watchdog is the single env's (esp_gym/watchdog.py, through the team's
     simulator): a broken step ends the episode with ``energy_balance`` at the control step where
     |E - E0 - W| first passes 0.01 (the team's scale 40.7 J + |W|), and the simulator then says
     so with the team's scale; the same broken episode without the watchdog runs on (negative
-    control), and so does the unbroken one with it (its balance 1e-4 of the bound)."""
-    reason, ended, _, env = broken_team_episode(monkeypatch, 0.01, True)
+    control), and so does the unbroken one with it (its balance 1e-4 of the bound); in the compiled
+    control step (esp_gym/kernels/team_env.py) and in Python (a team with winches steps there)."""
+    reason, ended, _, env = broken_team_episode(monkeypatch, 0.01, True, compiled=compiled)
     assert reason == "energy_balance" and ended < 60, (reason, ended)
     with pytest.raises(esp_gym.SimulationError, match=r"energy scale 40\.7 J") as error:
         env.core.sim.step(env.core.substeps)
     assert error.value.status == ENERGY_BALANCE
-    reason_off, ran, ratio, _ = broken_team_episode(monkeypatch, None, True, ended + 5)
+    reason_off, ran, ratio, _ = broken_team_episode(monkeypatch, None, True, ended + 5, compiled)
     assert reason_off == "" and ran == ended + 5
     assert np.argmax(ratio > 1.0) + 1 == ended and ratio[:ended - 1].max() <= 1.0
-    monkeypatch.undo()
-    reason_good, ran, ratio, _ = broken_team_episode(monkeypatch, 0.01, False, ended + 5)
+    reason_good, ran, ratio, _ = broken_team_episode(monkeypatch, 0.01, False, ended + 5, compiled)
     assert reason_good == "" and ran == ended + 5 and ratio.max() < 1e-2, ratio.max()

@@ -32,6 +32,14 @@ TR_OMEGA = TEAM_READ.start("omega")
 TR_LOAD = TEAM_READ.start("load")
 TR_LOAD_VELOCITY = TEAM_READ.start("load_velocity")
 
+#: The balance terms a team's simulator keeps beside its state's (esp_gym/team/simulator.py): the
+#: energy at the last reset ``energy_origin``, the load force's work ``load_work`` and the jumps of
+#: H at fixed (q, p) where the reel speeds changed ``winch_jumps`` since then [J].
+TEAM_BALANCE = Layout(("energy_origin", 1), ("load_work", 1), ("winch_jumps", 1))
+TB_ENERGY_ORIGIN = TEAM_BALANCE.scalar("energy_origin")
+TB_LOAD_WORK = TEAM_BALANCE.scalar("load_work")
+TB_WINCH_JUMPS = TEAM_BALANCE.scalar("winch_jumps")
+
 #: A team's read-out (string 0 first in every per-string field): the node velocities ``V0``
 #: (N+1, 3) of string 0 and ``Vo`` (rows, 3) of the others, stacked as
 #: :data:`~.team_arrays.TeamArrays`' rows [m/s]; per string its pivot's position ``pivot`` (K, 3)

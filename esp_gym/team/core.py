@@ -19,7 +19,8 @@ import numpy as np
 from .. import TEAM_ENV_ID
 from ..control import raw_actions
 from ..errors import SimulationError, termination_reason
-from ..kernels.status import PHYSICS_FAILURES, TERM_NONE
+from ..kernels.status import ENERGY_BALANCE, PHYSICS_FAILURES, TERM_NONE
+from ..kernels.team_env import TS_CODE, TS_RESIDUAL, TS_REWARD, TS_SMALLEST, TS_WORK
 from ..kernels.env_arrays import TARGET
 from ..kernels.reference import reference_at
 from ..kernels.team_task import team_task
@@ -31,9 +32,14 @@ from .fleet import check_lift
 from .gusts import TeamWind
 from .randomize import TeamRandomizer
 from .scene import TEAM_SAFETY, TeamScene, given_team, team_substeps
+from .control import TeamControl
 from .simulator import TeamSimulator
 from .spaces import ACTUATIONS, TEAM_UNIT_NOISE, DroneDrive, action_size, agent_layout
 from .tasks import AGENT_TERMS, REWARD_TERMS, TEAM_PRESETS, get_team_task, hanging_rise, task_arrays
+
+#: The info keys of the team's reward terms and of each agent's shares, in the kernel's order.
+REWARD_KEYS = tuple(f"reward_{name}" for name in REWARD_TERMS)
+AGENT_KEYS = tuple(f"agent_{name}" for name in AGENT_TERMS)
 
 #: A point team's drone inputs to the compiled task: none.
 NO_DRONES = (np.zeros((0, 3, 3)), np.zeros((0, 3)))
@@ -57,6 +63,10 @@ class TeamCore:
     its observation (None: as the task needs, True for ``lift``). Checked as the single env's options are
     (esp_gym/options.py ``TeamOptions``; ``others``: its options a team lacks, refused with why)."""
 
+    #: False: every control step in Python (TeamSimulator.step, then the compiled task), the
+    #: compiled step's reference (tests/test_team_control.py)
+    compiled_steps = True
+
     def __init__(self, team=3, task: str = "transport", control_period: float = 0.02, force_limit: float = 0.6,
                  preset: Optional[str] = None, randomize=None, observation: Optional[str] = None,
                  sensor_noise: Optional[float] = None, action_latency: Optional[int] = None, wind=None,
@@ -77,11 +87,7 @@ class TeamCore:
                              f"{'drones' if self.drones else 'point pivots'} (point pivots take 'force', drones "
                              f"one of {ACTUATIONS[1:]})")
         self.task = get_team_task(task)
-        self.winch = self.task.needs_winch if o.winch is None else o.winch
-        if self.task.needs_winch and not self.winch:
-            raise ValueError(f"winch: task {task!r} reels the strings and needs winch=True")
-        if self.winch and self.drones:
-            raise ValueError("winch: a team's drones do not reel yet (docs/physics.md, \"What a team does not do yet\")")
+        self.winch = self._check_winch(o.winch)
         self.action_size = action_size(self.actuation, self.winch)
         if isinstance(o.sensor_noise, Mapping):
             raise ValueError(f"sensor_noise: a team takes one level (times each field's TEAM_UNIT_NOISE) for now, "
@@ -98,7 +104,11 @@ class TeamCore:
         self.safety = TEAM_SAFETY if o.safety is None else float(o.safety)
         self._check_extremes(scene)
         self.layout = agent_layout(self.size, self.observation, self.drones, self.winch)
-        self._tasks = {}  # the compiled task's arrays by observation mode (evaluate)
+        #: the targets, one set of arrays shared by the compiled task's arrays of every observation
+        #: mode (``_tasks``, made by :meth:`evaluate`) and moved in place
+        self._targets = dict(load_target=np.zeros(3), target_velocity=np.zeros(3),
+                             pivot_targets=np.zeros((self.size, 3)))
+        self._tasks = {}
         self._noise = np.concatenate([np.full(s.stop - s.start, self.sensor_noise * TEAM_UNIT_NOISE[name])
                                       for name, s in self.layout.structure().items()])
         self._use_scene(scene)
@@ -108,14 +118,23 @@ class TeamCore:
         self.last_action = np.zeros((self.size, self.action_size))
         self.load_target = self.load_position()
         self.pivot_targets = self.pivot_positions()
-        #: the load target's velocity [m/s] and, for a moving task, its reference (a TARGET
-        #: vector of esp_gym/kernels/env_arrays.py; None for a fixed target)
-        self.target_velocity = np.zeros(3)
+        #: for a moving task, the target's reference (a TARGET vector of
+        #: esp_gym/kernels/env_arrays.py; None for a fixed target)
         self.reference = None
         self.reel_targets = None  #: a lift's target lengths (K,) [m], None for the other tasks
         self.load_force = np.zeros(3)
         #: the FrameRenderer of :meth:`frame` (made by its first call)
         self.renderer = None
+
+    def _check_winch(self, winch: Optional[bool]) -> bool:
+        """Whether the strings reel (the ``winch`` option; None: as the task needs), checked
+        against the task and the pivots."""
+        reels = self.task.needs_winch if winch is None else winch
+        if self.task.needs_winch and not reels:
+            raise ValueError(f"winch: task {self.task.name!r} reels the strings and needs winch=True")
+        if reels and self.drones:
+            raise ValueError("winch: a team's drones do not reel yet (docs/physics.md, \"What a team does not do yet\")")
+        return reels
 
     def _check_extremes(self, scene: TeamScene) -> None:
         """The episodes' stiffest and heaviest teams (``scene``, or the randomize ranges' corners),
@@ -147,8 +166,45 @@ class TeamCore:
         self.hover = weight / self.size
         self.force_scale = self.force_limit * self.hover
         self.drive = DroneDrive(self.sim.fleet, self.actuation) if self.drones else None
+        #: whether the drones' actions become motor commands in Python (thrust_torque, motors)
+        self.drive_held = self.drones and self.actuation != "thrust_rates"
         self._start = self.sim.state
         self._formation = self.pivot_positions() - self.load_position()
+        #: the compiled control step (esp_gym/team/control.py); None where the team steps in Python
+        #: (winches, or :attr:`compiled_steps` off)
+        self.control = None
+        if self.compiled_steps and not self.winch:
+            self.control = TeamControl(self.sim, self._task_arrays(self.observation), self.action_size, substeps,
+                                       self.force_scale, self.hover, self._formation, self.drive,
+                                       self.wind is not None)
+
+    # -- the targets (spatial), written in place: the compiled task reads them ------------------
+    @property
+    def load_target(self) -> np.ndarray:
+        """The load's target (3,) [m]."""
+        return self._targets["load_target"]
+
+    @load_target.setter
+    def load_target(self, value) -> None:
+        self._targets["load_target"][...] = value
+
+    @property
+    def pivot_targets(self) -> np.ndarray:
+        """Each pivot's target (K, 3) [m]."""
+        return self._targets["pivot_targets"]
+
+    @pivot_targets.setter
+    def pivot_targets(self, value) -> None:
+        self._targets["pivot_targets"][...] = value
+
+    @property
+    def target_velocity(self) -> np.ndarray:
+        """The load target's velocity (3,) [m/s]."""
+        return self._targets["target_velocity"]
+
+    @target_velocity.setter
+    def target_velocity(self, value) -> None:
+        self._targets["target_velocity"][...] = value
 
     # -- the state, as the observation reads it -------------------------------------------------
     def pivot_positions(self) -> np.ndarray:
@@ -191,17 +247,18 @@ class TeamCore:
         rho_c = np.asarray(self.scene.scene.body.rho_c, dtype=float)
         self.sim.set_state(self.sim.initial_state(velocity=velocity - R @ np.cross(rates, rho_c), rates=rates))
         if task.moving:
-            self.reference = track_reference(rng, 0.0)
-            self.reference[TARGET["centre"]] += load - self.reference[TARGET["load"]]
+            reference = track_reference(rng, 0.0)
+            reference[TARGET["centre"]] += load - reference[TARGET["load"]]
+            self.reference = self._use_reference(reference)
             self._follow_reference(0.0)
         elif task.needs_winch:  # every string to the same share of its length; the pivots stay
-            self.reference = None
+            self.reference = self._use_reference(None)
             self.reel_targets = self.sim.winches.lengths * (1.0 + rng.uniform(*task.reel_range))
             rise = hanging_rise(self.kinematics(), self.scene.attachments(), self.reel_targets)
             self.load_target = load + np.array([0.0, 0.0, rise])
             self.pivot_targets = self.pivot_positions()
         else:
-            self.reference = None
+            self.reference = self._use_reference(None)
             self.load_target = load + rng.uniform(-1.0, 1.0, 3) * np.asarray(task.target_box)
             self.pivot_targets = self.load_target + self._formation
         self.steps = 0
@@ -212,6 +269,11 @@ class TeamCore:
             info.update(self._wind.reset(rng))
         info.update(load_target=self.load_target.copy(), pivot_targets=self.pivot_targets.copy())
         return self.observations(), info
+
+    def _use_reference(self, reference):
+        """The episode's ``reference`` (a TARGET vector; None: a fixed target) as the compiled
+        control step follows it: its own copy, which the step moves."""
+        return reference if self.control is None else self.control.use_reference(reference)
 
     def _follow_reference(self, t: float) -> None:
         """Put the targets at the reference's time ``t`` [s] (a moving task)."""
@@ -242,17 +304,18 @@ class TeamCore:
         between two pivots [m]; the physics' ``code``, or where it is TERM_NONE the task's
         termination)``."""
         mode = observation or self.observation
-        if mode not in self._tasks:
-            layout = agent_layout(self.size, mode, self.drones, self.winch)
-            self._tasks[mode] = task_arrays(self.task, layout, self.size)
-        TK = self._tasks[mode]
-        TK.load_target[...] = self.load_target
-        TK.target_velocity[...] = self.target_velocity
-        TK.pivot_targets[...] = self.pivot_targets
+        TK = self._task_arrays(mode)
         fleet = self.sim.fleet
         drone_R, rates = (fleet.attitudes(), fleet.body_rates()) if self.drones else NO_DRONES
         reward, smallest, code = team_task(self.sim.read(), drone_R, rates, np.asarray(action, dtype=float), TK, code)
         return TK, reward, smallest, code
+
+    def _task_arrays(self, mode: str):
+        """The compiled task's arrays for the observation ``mode``, made at its first use."""
+        if mode not in self._tasks:
+            layout = agent_layout(self.size, mode, self.drones, self.winch)
+            self._tasks[mode] = task_arrays(self.task, layout, self.size)._replace(**self._targets)
+        return self._tasks[mode]
 
     def frame(self) -> np.ndarray:
         """An ``rgb_array`` frame, uint8 (480, 960, 3) (esp_gym/viz/render.py ``render_team``):
@@ -288,15 +351,46 @@ class TeamCore:
         """Apply each pivot's force (K, 3), or each drone's action (K, 4), in [-1, 1] (clipped;
         after ``action_latency`` steps) over one control period; returns ``(observations, reward,
         terminated, truncated, info)``: the team's reward terms ``info["reward_<term>"]``, each
-        agent's own shares ``info["agent_<term>"]`` (K,), as the single env names them."""
-        a = raw_actions(action, (self.size, self.action_size),
-                        f"action (one {'drone action' if self.drones else 'pivot force'} per agent)")
-        if not np.all(np.isfinite(a)):
+        agent's own shares ``info["agent_<term>"]`` (K,), as the single env names them. One compiled
+        call (:attr:`control`) where the team has no winch."""
+        return self.step_raw(raw_actions(action, (self.size, self.action_size),
+                                         f"action (one {'drone action' if self.drones else 'pivot force'} per agent)"))
+
+    def step_raw(self, a: np.ndarray):
+        """:meth:`step` of actions ``a`` already made raw (esp_gym/control.py ``raw_actions``: float64,
+        C-contiguous, writeable, (K, n_a))."""
+        control = self.control
+        if control is None or self.action_latency or self.wind is not None or self.drive_held:
+            # checked first: a bad action leaves the queue and the generator alone
+            if not np.all(np.isfinite(a)):
+                raise ValueError(f"action must be finite, got {a.tolist()}")
+            a = np.clip(a, -1.0, 1.0)
+            if self.action_latency:
+                self._queue.append(a)
+                a = self._queue.popleft()
+        if control is None:
+            return self._step_in_python(a)
+        if self.drive_held:  # thrust_torque, motors: the motor commands, held over the step
+            self.sim.fleet.command(**self.drive(a))
+        if self.wind is not None:
+            self.load_force = self._wind.force(self.np_random, self.kinematics(), self.scene.scene,
+                                               self.control_period)
+        if not control.step(a, self.load_force, (self.steps + 1) * self.control_period):
             raise ValueError(f"action must be finite, got {a.tolist()}")
-        a = np.clip(a, -1.0, 1.0)
-        if self.action_latency:
-            self._queue.append(a)
-            a = self._queue.popleft()
+        self.steps += 1
+        E = control.arrays
+        self.last_action = E.action.copy()
+        report = E.report.tolist()
+        code = int(report[TS_CODE])
+        reward = report[TS_REWARD]
+        if code in PHYSICS_FAILURES or code == ENERGY_BALANCE:
+            self.failure = self.sim.failure(code, report[TS_RESIDUAL], report[TS_WORK])
+            reward = 0.0 if code in PHYSICS_FAILURES else reward
+        return self._outcome(self._tasks[self.observation], reward, report[TS_SMALLEST], code)
+
+    def _step_in_python(self, a: np.ndarray):
+        """:meth:`step` of the clipped, applied action ``a`` through TeamSimulator.step (a team
+        with winches, or :attr:`compiled_steps` off), then the compiled task."""
         if self.drones:
             drive = self.drive(a)
         else:
@@ -320,7 +414,13 @@ class TeamCore:
         task, reward, smallest, code = self.evaluate(a, code)
         if code in PHYSICS_FAILURES:
             reward = 0.0
-        info = {**self.task_info(task, smallest), "applied_action": a.copy(), "termination": code}
+        return self._outcome(task, reward, smallest, code)
+
+    def _outcome(self, task, reward: float, smallest: float, code: int):
+        """A step's ``(observations, reward, terminated, truncated, info)`` from the task's arrays."""
+        info = self.task_info(task, smallest)
+        info["applied_action"] = self.last_action.copy()
+        info["termination"] = code
         if code != TERM_NONE:
             info["termination_reason"] = termination_reason(code)
         return self._noisy(task.obs), reward, code != TERM_NONE, False, info
@@ -329,6 +429,8 @@ class TeamCore:
         """A step's ``reward_<term>`` (the team's), ``agent_<term>`` (K,) (each agent's share),
         ``min_separation`` [m] and each hook's ``tension`` (K, 3) [N] from :meth:`evaluate`'s arrays
         ``task`` and smallest distance, and the read-out they were taken from."""
-        return {**{f"reward_{name}": float(task.terms[i]) for i, name in enumerate(REWARD_TERMS)},
-                **{f"agent_{name}": task.agent[:, i].copy() for i, name in enumerate(AGENT_TERMS)},
-                "min_separation": float(smallest), "tension": self.sim.read().tension.copy()}
+        info = dict(zip(REWARD_KEYS, task.terms.tolist()))
+        info.update(zip(AGENT_KEYS, task.agent.T.copy()))  # each term's row of one copy
+        info["min_separation"] = float(smallest)
+        info["tension"] = self.sim.read().tension.copy()
+        return info

@@ -112,7 +112,7 @@ class ElasticStringTeamEnv(gym.Env):
 
     def step(self, action):
         a = raw_actions(action, self.action_space.shape)
-        obs, reward, terminated, truncated, info = self.core.step(a.reshape(self.core.size, self.core.action_size))
+        obs, reward, terminated, truncated, info = self.core.step_raw(a.reshape(self.core.size, self.core.action_size))
         return obs.ravel(), reward, terminated, truncated, info
 
     def render(self):

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels.layout import BALANCE
-from ..kernels.team_readout import TEAM_READ, team_read
+from ..kernels.team_readout import TB_ENERGY_ORIGIN, TB_LOAD_WORK, TB_WINCH_JUMPS, TEAM_READ, team_read
 from ..state import cross3
 from .assembly import string_mass
 from .velocities import team_velocities
@@ -27,6 +27,7 @@ class TeamReadout:
     _kinematics_key = None
     _changes = 0  # the simulator's changes of state (its step and set_state)
     _compiled_read = False  # the kept kinematics came with a compiled read-out (``_read`` holds it)
+    _read_changes = -1  # the count of changes at which the compiled read-out ``_read`` was taken
     #: False: every read-out in Python, the compiled one's reference (tests/test_team_switch.py).
     compiled_reads = True
 
@@ -59,8 +60,10 @@ class TeamReadout:
         self._compiled_read = self.compiled_reads and self.winches.idle and not np.any(speeds)
         D = self._read
         if self._compiled_read:
-            D.length[...] = self.winches.scene_lengths
-            team_read(S, self._P, T, A, D)
+            if self._read_changes != self._changes:  # else the control step's read is of this state
+                D.length[...] = self.winches.scene_lengths
+                team_read(S, self._P, T, A, D)
+                self._read_changes = self._changes
             return D.V0.copy(), D.Vo.copy(), D.out[TEAM_READ["omega"]].copy(), S.p.copy(), A.p.copy(), S.Pi.copy()
         R = S.R
         p0, po, Pi = S.p.copy(), A.p.copy(), S.Pi.copy()
@@ -91,6 +94,7 @@ class TeamReadout:
         velocity, its string's pull and stretch, its length, R, the load's centre, its velocity and
         Omega) of the state whose velocities are ``v0``, ``vo`` and ``Omega``, taken in Python."""
         S, T, D = self._S, self.params, self._read
+        self._read_changes = -1  # ``_read`` no longer holds a compiled read-out
         members = self._members()
         for k, (r, string, _) in enumerate(members):
             x = r[1] - r[0]
@@ -132,7 +136,8 @@ class TeamReadout:
         """The read-out of the current state (kernels/team_readout.py ``TeamReadArrays``; its energy
         terms only where it was compiled, :meth:`diagnostics` has them always): the arrays
         themselves, valid until the state changes."""
-        self._taken()
+        if not (self.compiled_reads and self._read_changes == self._changes):
+            self._taken()
         return self._read
 
     def observed(self) -> dict:
@@ -196,7 +201,7 @@ class TeamReadout:
             kinetic += float(self.fleet.kinetic_energies().sum())
         energy = kinetic + elastic + gravity
         work, winch_work = self._work()
-        return energy - self._E0 - work - winch_work, work + winch_work
+        return energy - float(self._balance[TB_ENERGY_ORIGIN]) - work - winch_work, work + winch_work
 
     def _read_energies(self) -> tuple:
         """The compiled read-out's ``(kinetic (not the drones' rotations), elastic, gravity [J], pi3
@@ -208,8 +213,8 @@ class TeamReadout:
     def _work(self) -> tuple:
         """The inputs' and the wind's work and the winches' since the last reset [J]."""
         acc = self._S.acc  # (the load force's work is summed here, per call of step)
-        return (float(acc[BALANCE["work"]][0]) + self._load_work,
-                float(acc[BALANCE["winch_work"]][0]) + self._winch_jumps)
+        return (float(acc[BALANCE["work"]][0]) + float(self._balance[TB_LOAD_WORK]),
+                float(acc[BALANCE["winch_work"]][0]) + float(self._balance[TB_WINCH_JUMPS]))
 
     def diagnostics(self) -> dict:
         """Energy (kinetic, elastic, gravity) [J], linear momentum [kg m/s], pi3 (about the e3
@@ -226,9 +231,10 @@ class TeamReadout:
         acc = self._S.acc
         work, winch_work = self._work()
         impulse = acc[BALANCE["gravity_impulse"]] + acc[BALANCE["pivot_impulse"]] + acc[BALANCE["external_impulse"]]
+        origin = float(self._balance[TB_ENERGY_ORIGIN])
         d.update(work=work, angular_impulse_z=float(acc[BALANCE["angular_impulse_z"]][0]),
                  unstretched_lengths=self.winches.lengths, reel_speeds=self.winches.reel_speeds,
-                 winch_work=winch_work, energy_balance_residual=d["energy"] - self._E0 - work - winch_work,
+                 winch_work=winch_work, energy_balance_residual=d["energy"] - origin - work - winch_work,
                  pi3_balance_residual=d["pi3"] - self._pi3_0 - float(acc[BALANCE["angular_impulse_z"]][0]),
                  momentum_balance_residual=d["linear_momentum"] - self._P0 - impulse)
         return d

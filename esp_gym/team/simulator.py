@@ -12,8 +12,10 @@ import numpy as np
 from ..arrays import team_arrays, team_read_arrays
 from ..drone import DroneState
 from ..kernels.layout import INPUTS, LOOP_REPORT_SIZE, R_NEWTON_TOTAL, R_STATUS, R_STEPS
-from ..kernels.status import OK
+from ..kernels.status import ENERGY_BALANCE, OK
+from ..kernels.team_env import TeamStructs
 from ..kernels.team import team_forces
+from ..kernels.team_readout import TB_ENERGY_ORIGIN, TB_LOAD_WORK, TB_WINCH_JUMPS, TEAM_BALANCE
 from ..kernels.team_loops import team_advance, team_drone_advance, team_winch_advance
 from ..kernels.team_winch import team_winch_forces
 from ..model import SimulationError, Simulator, StepClock
@@ -79,7 +81,8 @@ class TeamSimulator(TeamReadout, StepClock):
         self.winches = TeamWinches(team, np.concatenate([[self._P.max_len2], self.params.max_len2]),
                                    self.params.start)
         self._read = team_read_arrays(team.scene.string.elements, rows, self.winches.scene_lengths)
-        self._winch_jumps = 0.0  # H's jumps at fixed (q, p) where the reel speeds changed [J]
+        #: E0, the load force's work and the winches' jumps of H (kernels/team_readout.py TEAM_BALANCE)
+        self._balance = np.zeros(TEAM_BALANCE.size)
         self._energy_scale = team_energy_scale(team)  # the watchdog's [J]
         self._unwatched = 0  # steps since the energy watchdog last looked
         #: The energy watchdog looks at the end of the call in which this many steps have passed
@@ -213,12 +216,12 @@ class TeamSimulator(TeamReadout, StepClock):
 
     def reset_balances(self) -> None:
         """Start the input balances (work, impulses) afresh from the current state."""
-        self._load_work = 0.0
-        self._winch_jumps = 0.0
+        self._balance[...] = 0.0
         self._S.acc[...] = 0.0
         self._S.accc[...] = 0.0
         d = self._diagnostics()
-        self._E0, self._pi3_0, self._P0 = d["energy"], d["pi3"], d["linear_momentum"].copy()
+        self._balance[TB_ENERGY_ORIGIN] = d["energy"]
+        self._pi3_0, self._P0 = d["pi3"], d["linear_momentum"].copy()
 
     # -- stepping ---------------------------------------------------------------------------
     def _set_forces(self, pivot_forces) -> None:
@@ -290,7 +293,7 @@ class TeamSimulator(TeamReadout, StepClock):
         self._step += int(self._stats[R_STEPS])
         self._unwatched += int(self._stats[R_STEPS])
         if disturbed:  # a held force's work: F . the displacement of its point
-            self._load_work += float(F @ (self.load_position() - before))
+            self._balance[TB_LOAD_WORK] += float(F @ (self.load_position() - before))
         status = int(self._stats[R_STATUS])
         if status != OK:
             raise SimulationError(status, self._step, self.time, int(self._stats[R_NEWTON_TOTAL]))
@@ -298,6 +301,49 @@ class TeamSimulator(TeamReadout, StepClock):
             self._unwatched = 0
             check_team_balance(self.team, self.energy_balance, self._step, self.time, self.winches.lengths,
                                self._energy_scale)
+
+    # -- the environment's compiled control step --------------------------------------------
+    def compiled(self) -> TeamStructs:
+        """The structs a compiled control step (kernels/team_env.py) advances and reads, each a
+        plain tuple (kernels/team_env.py ``TeamStructs``; the drones None without drones). Only a
+        team whose strings keep their scenes' lengths steps there (ValueError for one with winches
+        that have reeled, or with :attr:`compiled_reads` off); after each call,
+        :meth:`count_control_step`."""
+        if not (self.winches.idle and self.compiled_reads):
+            raise ValueError("a compiled control step needs the winches at rest at the scenes' lengths and "
+                             "compiled_reads on")
+        self._read.length[...] = self.winches.scene_lengths
+        drones = None if self.fleet is None else (tuple(self.fleet.arrays.arrays),) + tuple(self.fleet.arrays)[1:]
+        return TeamStructs(tuple(self._S), tuple(self._W), tuple(self._P), tuple(self.params), tuple(self._A), drones,
+                           tuple(self._read), self._inputs, self._stats, self._balance)
+
+    def count_control_step(self) -> None:
+        """Count a compiled control step's physics steps (its ``stats``) and keep its read-out as
+        the new state's (the watchdog looked at it)."""
+        steps = int(self._stats[R_STEPS])
+        self._step += steps
+        self._changes += 1
+        self._read_changes = self._changes
+        self._unwatched = 0
+
+    def failure(self, code: int, residual: float, work: float) -> SimulationError:
+        """The :class:`~esp_gym.errors.SimulationError` :meth:`step` would have raised for a
+        compiled control step's termination ``code`` (a physics failure, or ENERGY_BALANCE with its
+        balance's ``residual`` and ``work`` [J])."""
+        if code != ENERGY_BALANCE:
+            return SimulationError(code, self._step, self.time, int(self._stats[R_NEWTON_TOTAL]))
+        try:
+            check_team_balance(self.team, lambda: (residual, work), self._step, self.time, self.winches.lengths,
+                               self._energy_scale)
+        except SimulationError as error:
+            return error
+        raise AssertionError(f"the compiled watchdog broke a balance ({residual!r} J, work {work!r} J) that "
+                             "check_team_balance accepts")
+
+    def watchdog_constants(self) -> tuple:
+        """The energy watchdog's ``(fraction f, or -1 without it; energy scale [J])``."""
+        fraction = self.team.scene.solver.energy_watchdog
+        return (-1.0 if fraction is None else float(fraction)), self._energy_scale
 
     # -- diagnostics ------------------------------------------------------------------------
     def _reel(self, n: int, speeds: np.ndarray, disturbed: bool) -> None:
@@ -329,4 +375,4 @@ class TeamSimulator(TeamReadout, StepClock):
         self._changes += 1  # a step may have moved the state since the last read-out
         before = self._diagnostics()["energy"]
         self.winches.use_speeds(speeds)
-        self._winch_jumps += self._diagnostics()["energy"] - before
+        self._balance[TB_WINCH_JUMPS] += self._diagnostics()["energy"] - before

@@ -66,7 +66,7 @@ class DroneDrive:
         self.hover = fleet.shares()
         self.rate_limit = np.asarray(DRONE_RATE_LIMIT, dtype=float)
         drones = fleet.drone_params
-        self._max_thrust = np.array([d.max_thrust for d in drones])
+        self.max_thrust = np.array([d.max_thrust for d in drones])  #: each drone's [N]
         self.torque_limit = np.array([(0.25 * w * d.arm_length, 0.25 * w * d.arm_length,
                                         0.25 * w * d.torque_coefficient / d.thrust_coefficient)
                                        for w, d in zip(self.hover, drones)])
@@ -78,7 +78,7 @@ class DroneDrive:
         if self.actuation == "motors":
             thrusts = np.clip(0.25 * self.hover[:, None] * (1.0 + action), 0.0, self._rotor_max[:, None])
             return {"rotor_commands": np.sqrt(thrusts / self._kf[:, None])}
-        thrust = np.clip(self.hover * (1.0 + action[:, 0]), 0.0, self._max_thrust)
+        thrust = np.clip(self.hover * (1.0 + action[:, 0]), 0.0, self.max_thrust)
         if self.actuation == "thrust_rates":
             return {"thrust": thrust, "rates": self.rate_limit * action[:, 1:]}
         return {"thrust": thrust, "torque": self.torque_limit * action[:, 1:]}

@@ -1,0 +1,82 @@
+"""A team environment's control step in one compiled call (esp_gym/kernels/team_env.py): the
+Python face that builds its arrays for a :class:`~esp_gym.team.core.TeamCore`'s simulator and
+task, and makes the call (docs/team.md, "Speed")."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..arrays import team_env_arrays
+from ..kernels.jit import bound_entry
+from ..kernels.team_env import (TD_HOVER_THRUST, TD_MAX_THRUST, TE_ENERGY_SCALE, TE_FORCE_SCALE, TE_HOVER_FORCE,
+                                TE_MOVING, TE_RATE_LIMIT, TE_WATCHDOG, team_drones_step, team_points_step)
+
+
+class TeamControl:
+    """One team's compiled control step: ``sim`` a :class:`~esp_gym.team.simulator.TeamSimulator`
+    whose strings keep their scenes' lengths, ``task`` its task's arrays (kernels/team_task.py
+    ``TeamTaskArrays``, the env's observation), ``substeps`` physics steps per control step,
+    ``action_size`` each agent's action's, ``force_scale`` and ``hover`` each point pivot's force at action 1 and its hover force [N],
+    ``formation`` (K, 3) each pivot's target from the load's [m], ``drive`` a drone team's
+    :class:`~esp_gym.team.spaces.DroneDrive` (None for point pivots), ``disturbed`` whether a
+    force on the load is held over each step (the wind)."""
+
+    def __init__(self, sim, task, action_size: int, substeps: int, force_scale: float, hover: float,
+                 formation: np.ndarray, drive, disturbed: bool):
+        self.sim = sim
+        fleet = sim.fleet
+        K = task.obs.shape[0]
+        #: whether the drones' actions set the rate controller's setpoints (``thrust_rates``)
+        self.rates = drive is not None and drive.actuation == "thrust_rates"
+        #: the env's arrays (kernels/team_env.py ``TeamEnvArrays``)
+        self.arrays = E = team_env_arrays(K, 0 if fleet is None else len(fleet), action_size)
+        E.params[TE_FORCE_SCALE] = force_scale
+        E.params[TE_HOVER_FORCE] = hover
+        E.params[TE_WATCHDOG], E.params[TE_ENERGY_SCALE] = sim.watchdog_constants()
+        E.formation[...] = formation
+        if drive is not None:
+            E.params[TE_RATE_LIMIT:TE_RATE_LIMIT + 3] = drive.rate_limit
+            E.drive[:, TD_HOVER_THRUST] = drive.hover
+            E.drive[:, TD_MAX_THRUST] = drive.max_thrust
+            E = self.arrays = E._replace(drone_R=fleet.attitudes())
+        self.substeps, self.disturbed = int(substeps), bool(disturbed)
+        self._structs = (sim.compiled(), (tuple(task), tuple(E)))
+        self._entry = None  # the step's machine code, bound at the first step (kernels/jit.py bound_entry)
+
+    def use_reference(self, reference) -> np.ndarray:
+        """Follow ``reference`` (a TARGET vector, kernels/env_arrays.py; copied), or a fixed target
+        (None); returns the array the step moves (the episode's reference), or None."""
+        E = self.arrays
+        E.params[TE_MOVING] = 0.0 if reference is None else 1.0
+        if reference is None:
+            return None
+        E.reference[...] = reference
+        return E.reference
+
+    def step(self, raw: np.ndarray, load_force, time: float) -> bool:
+        """One control step from the raw actions (K, n_a) (clipped in the call), ``load_force`` (3,)
+        (spatial) [N] held when disturbed, ``time`` the step's end [s] (a moving target's). False,
+        with nothing changed, if an action is not finite. The report is in ``arrays.report``, the
+        applied action in ``arrays.action``; the simulator has counted the steps."""
+        if self.disturbed:
+            self.arrays.load_force[...] = load_force
+        sim = self.sim
+        if self._entry is None:
+            self._entry = self._bind(raw)
+        if sim.fleet is None:
+            done = self._entry(*self._structs, raw, self.substeps, self.disturbed, float(time))
+        else:
+            done = self._entry(*self._structs, raw, self.substeps, self.disturbed, self.rates, float(time))
+            if done and self.rates:
+                sim.fleet.rates = True  # as Fleet.command with rates leaves it
+        if done:
+            sim.count_control_step()
+        return done
+
+    def _bind(self, raw: np.ndarray):
+        """The entry point's machine code for these structs and ``raw``'s type (float64, C-contiguous,
+        writeable: esp_gym/control.py ``raw_actions`` makes every action so)."""
+        if not (raw.dtype == np.float64 and raw.flags.c_contiguous and raw.flags.writeable and raw.ndim == 2):
+            raise TypeError("the raw actions must be a writeable, C-contiguous float64 array (K, n_a)")
+        if self.sim.fleet is None:
+            return bound_entry(team_points_step, *self._structs, raw, self.substeps, self.disturbed, 0.0)
+        return bound_entry(team_drones_step, *self._structs, raw, self.substeps, self.disturbed, self.rates, 0.0)
