@@ -15,7 +15,7 @@ from .kernels.layout import BALANCE, DIAG, WINCH, DiagWork, LGVIParams, StateArr
 from .kernels.drone import DRONE, DRONE_DIAG, DroneArrays
 from .kernels.loops import state_size
 from .kernels.team_arrays import TeamArrays
-from .kernels.team_env import TEAM_DRIVE, TEAM_ENV, TEAM_STEP, TeamEnvArrays
+from .kernels.team_env import TEAM_DRIVE, TEAM_ENV, TEAM_STEP, TeamEnvArrays, TeamStructs
 from .kernels.team_readout import TEAM_READ, TeamReadArrays
 from .kernels.team_task import AGENT_REWARD, OBSERVED, TEAM_REWARD, TEAM_TASK, TeamTaskArrays
 from .kernels.team_winch import TeamWinch
@@ -113,12 +113,20 @@ def team_task_arrays(size: int, observation_size: int) -> TeamTaskArrays:
 
 def team_env_arrays(size: int, drones: int, action_size: int) -> TeamEnvArrays:
     """A team environment's arrays (kernels/team_env.py ``TeamEnvArrays``) for ``size`` agents, of
-    which ``drones`` fly drones, each acting with ``action_size`` numbers; zeros (``drone_R`` the
-    fleet's own array for drones: its owner puts it in)."""
+    which ``drones`` fly drones, each acting with ``action_size`` numbers; zeros."""
     z = np.zeros
     return TeamEnvArrays(params=z(TEAM_ENV.size), drive=z((drones, TEAM_DRIVE.size)), action=z((size, action_size)),
                          formation=z((size, 3)), reference=z(TARGET.size), load_force=z(3),
-                         drone_R=z((drones, 3, 3)), drone_rates=z((drones, 3)), report=z(TEAM_STEP.size))
+                         drone_rates=z((drones, 3)), report=z(TEAM_STEP.size))
+
+
+def plain_structs(structs: TeamStructs) -> TeamStructs:
+    """A team's ``structs`` (kernels/team_env.py ``TeamStructs``) as its entry points take them:
+    each struct a plain tuple (numba's dispatcher types those about twice as fast)."""
+    drones = structs.drones
+    drones = None if drones is None else (tuple(drones.arrays), drones.pivot, drones.pending)
+    return structs._replace(**{name: tuple(getattr(structs, name)) for name in ("state", "work", "params", "team",
+                                                                                 "arrays", "read")}, drones=drones)
 
 
 def stacked(struct, batch: tuple):
@@ -130,6 +138,21 @@ def repeated(struct, count: int):
     """A struct of the same type whose every field holds ``struct``'s in each of ``count`` rows
     (a scalar field becomes a (count,) array of its type)."""
     return type(struct)(*(np.repeat(np.asarray(a)[None], count, axis=0) for a in struct))
+
+
+def copy_into(source, target) -> None:
+    """Every field of the struct ``source`` copied into ``target``'s (views of another struct of
+    its type, such as a batch's :func:`row`)."""
+    for a, b in zip(source, target):
+        if np.shape(a) != np.shape(b):  # numpy would broadcast a smaller one silently
+            raise ValueError(f"cannot copy a field of shape {np.shape(a)} into one of {np.shape(b)}")
+        b[...] = a
+
+
+def put_row(stacked_struct, i: int, struct) -> None:
+    """Row ``i`` of a :func:`repeated` struct set to ``struct``'s values (its scalars too)."""
+    for a, b in zip(stacked_struct, struct):
+        a[i] = b
 
 
 def row(struct, i: int):

@@ -14,9 +14,9 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .kernels.diagnostics import diagnostics as diagnostics_kernel
-from .arrays import diag_work, state_arrays, work_arrays
+from .arrays import copy_into, diag_work, state_arrays, work_arrays
 from .kernels.layout import (BALANCE, DIAG, INPUTS, LOOP_REPORT_SIZE, R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS,
-                             STEP_DIAG, Snapshots, LGVIParams)
+                             STEP_DIAG, LGVIParams, Snapshots, StateArrays, Work)
 from .kernels.status import OK
 from .kernels.loops import winch_advance, winch_advance_implicit
 from .kernels.specialise import general_kernels, specialised_kernels
@@ -28,7 +28,7 @@ from .kernels.winch import winch_forces
 from .stepsize import at_length
 from .watchdog import WATCH_EVERY, check_balance
 from .winch import Winch
-from .state import State, build_params, check_memory, initial_state, legendre_momenta  # noqa: F401  (re-exported)
+from .state import State, StepClock, build_params, check_memory, initial_state, legendre_momenta  # noqa: F401  (re-exported)
 
 #: The live arrays of a simulator that the compiled kernels advance: ``state``
 #: (:class:`~esp_gym.kernels.layout.StateArrays`), ``work`` (Work), ``params`` (LGVIParams),
@@ -59,19 +59,6 @@ def _vector_input(name: str, value) -> np.ndarray:
 #: How far from orthogonal a state's attitude may be (``||R^T R - I||``, Frobenius). The integrator keeps
 #: it near round-off (docs/physics.md, "Round-off"), so this admits any state it produced.
 ROTATION_TOL = 1e-9
-
-
-class StepClock:
-    """A simulator's clock: the steps ``_step`` taken since its state was set, of ``h`` [s] each."""
-
-    @property
-    def step_count(self) -> int:
-        return self._step
-
-    @property
-    def time(self) -> float:
-        """Simulated time k*h [s]."""
-        return self._step * self.h
 
 
 class Simulator(StepClock):
@@ -134,6 +121,13 @@ class Simulator(StepClock):
         (esp_gym/control.py, the recorder); mutate them only through kernels and report the
         steps taken with :meth:`count_steps`."""
         return Buffers(self._arrays, self._work, self.params, self._diag)
+
+    def use_buffers(self, state: StateArrays, work: Work) -> None:
+        """Step in ``state`` and ``work`` (views of a batch's rows: esp_gym/team/batch.py) from now
+        on, the current ones copied into them."""
+        copy_into(self._arrays, state)
+        copy_into(self._work, work)
+        self._arrays, self._work = state, work
 
     def count_steps(self, report: np.ndarray) -> None:
         """Count the steps and Newton iterations of a :data:`~esp_gym.kernels.layout.REPORT`

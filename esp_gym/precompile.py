@@ -1,8 +1,8 @@
 """Compiling the environment's configurations ahead of use (``esp-gym compile``).
 
 Each configuration of the environment's compiled step (each rig of esp_gym/rig.py, single or
-batched; a team's, of point pivots, of drones or on winches: ``team_advance``,
-``team_drone_advance`` and ``team_winch_advance`` in esp_gym/kernels/team_loops.py) compiles on its
+batched; a team's, of point pivots or of drones, single and batched (esp_gym/kernels/team_env.py), or on
+winches (``team_winch_advance`` in esp_gym/kernels/team_loops.py)) compiles on its
 first step and is cached on disk (docs/performance.md, "Start-up"). This takes them all in worker
 processes, so that a machine (a container image, a CI run, a cluster's nodes)
 pays the compile once, in parallel, instead of at the first step of each. A vector env's threaded
@@ -36,17 +36,18 @@ class Configuration:
         kind = ("drone-winch" if self.winch else "drone-hook" if self.hook else "drone") if self.drone \
             else "winch" if self.winch else "fixed"
         if self.team:
-            return f"team-{kind}"
+            return f"team-{kind}" + ("-batched" if self.batched else "")
         return "-".join((kind, "implicit" if self.implicit else "explicit", "batched" if self.batched else "single"))
 
 
 #: Every configuration: each rig of the table (esp_gym/rig.py RIGS, the first environment's
-#: first), single and batched, then a team's (point pivots, drones, winches: a team's step is one
-#: compiled loop whether one or many teams run) last.
+#: first), single and batched, then a team's last (point pivots and drones, single and batched;
+#: winches, whose teams step one by one).
 CONFIGURATIONS = (tuple(Configuration(rig.winch, rig.string == "implicit", batched, rig.pivot == "drone", rig.hook)
                         for rig in RIGS for batched in (False, True))
-                  + (Configuration(False, False, False, team=True), Configuration(False, False, False, True, team=True),
-                     Configuration(True, False, False, team=True)))
+                  + tuple(Configuration(False, False, batched, drone, team=True) for drone in (False, True)
+                          for batched in (False, True))
+                  + (Configuration(True, False, False, team=True),))
 #: The strings of the team the team configurations compile with (any size: the same kernels).
 TEAM_SIZE = 3
 #: Worker processes by default; fewer on a machine with fewer CPUs (:func:`default_jobs`).
@@ -65,6 +66,9 @@ def make_env(config: Configuration):
         options = {"task": "lift", "winch": True} if config.winch else {"task": "transport"}
         if config.drone:
             options["actuation"] = "thrust_rates"
+        if config.batched:
+            return gym.make_vec(esp_gym.TEAM_ENV_ID, num_envs=2, vectorization_mode="vector_entry_point",
+                                team=TEAM_SIZE, **options)
         return gym.make(esp_gym.TEAM_ENV_ID, team=TEAM_SIZE, disable_env_checker=True, **options)
     options = {"task": "lift" if config.winch else "stabilize"}
     if config.drone:

@@ -177,3 +177,16 @@ def initial_state(scene: Scene) -> State:
     Omega = np.array(scene.initial.Omega0, dtype=float)
     p, Pi = legendre_momenta(scene, r, v, R, Omega)
     return State(np.ascontiguousarray(r), np.ascontiguousarray(p), np.ascontiguousarray(R), Pi, 0)
+
+
+class StepClock:
+    """A simulator's clock: the steps ``_step`` taken since its state was set, of ``h`` [s] each."""
+
+    @property
+    def step_count(self) -> int:
+        return self._step
+
+    @property
+    def time(self) -> float:
+        """Simulated time k*h [s]."""
+        return self._step * self.h

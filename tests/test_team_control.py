@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from esp_gym.kernels.status import ENERGY_BALANCE
-from esp_gym.kernels.team_env import TE_FORCE_SCALE
+from esp_gym.kernels.team_env import TD_HOVER_THRUST, TE_FORCE_SCALE
 from esp_gym.team.core import TeamCore
 from esp_gym.team.scene import team_scene
 
@@ -116,3 +116,44 @@ def test_a_force_scale_moved_by_one_part_in_1e12_is_seen():
     _, reference, _ = episode(CONFIGS["points"], False, steps=30)
     with pytest.raises(AssertionError):
         assert_same_states(moved, reference)
+
+
+@pytest.mark.parametrize("name", ["points, hard", "drones, thrust_rates, hook"])
+def test_a_team_in_a_batch_is_the_team_alone(name):
+    """Three teams stepped in one compiled call (esp_gym/team/batch.py) against three stepped alone,
+    through resets that build new teams (the hard preset's), bit for bit; a force scale moved by one
+    part in 1e12 in one team's row is seen in that team only (the negative control)."""
+    from esp_gym.team.batch import TeamBatch
+
+    options, B = CONFIGS[name], 3
+    cores, alone = ([TeamCore(**options) for _ in range(B)] for _ in range(2))
+    for b in range(B):
+        cores[b].reset(seed=b)
+        alone[b].reset(seed=b)
+    batch = TeamBatch(cores)
+    rng = np.random.default_rng(0)
+    ends = 0
+    for _ in range(120):
+        actions = rng.uniform(-0.5, 0.5, (B, cores[0].size, cores[0].action_size))
+        outcomes = batch.step(actions.copy(), np.ones(B, dtype=bool))
+        for b in range(B):
+            obs, reward, terminated, _, _ = alone[b].step(actions[b])
+            assert np.array_equal(outcomes[b][0], obs) and outcomes[b][1] == reward
+            assert_same_states(cores[b].sim.state, alone[b].sim.state)
+            if terminated:
+                ends += 1
+                for core in (cores[b], alone[b]):
+                    core.reset()
+                batch.reset(b)
+    assert ends >= 2
+    if cores[0].drones:  # team 1's hover thrust, else its force scale
+        batch.env.drive[1, :, TD_HOVER_THRUST] *= 1.0 + 1e-12
+    else:
+        batch.env.params[1, TE_FORCE_SCALE] *= 1.0 + 1e-12
+    for _ in range(3):
+        batch.step(np.full((B, cores[0].size, cores[0].action_size), 0.1), np.ones(B, dtype=bool))
+        for b in range(B):
+            alone[b].step(np.full((cores[0].size, cores[0].action_size), 0.1))
+    assert_same_states(cores[0].sim.state, alone[0].sim.state)
+    with pytest.raises(AssertionError):
+        assert_same_states(cores[1].sim.state, alone[1].sim.state)

@@ -267,19 +267,29 @@ def test_the_teams_lqr_takes_the_latency_into_account():
     assert min(r.ret for r in rows) > 400.0  # designed without the delay it leaves the workspace (1.4, 1.3)
 
 
-def test_the_vector_env_is_the_single_env_bit_for_bit():
-    n = 3
-    venv = gym.make_vec("ElasticStringTeam-v0", num_envs=n, vectorization_mode="vector_entry_point", team=2,
-                        task="stabilize", max_episode_steps=30)
-    singles = [gym.make("ElasticStringTeam-v0", team=2, task="stabilize", max_episode_steps=30) for _ in range(n)]
+VECTOR_CASES = {"points": dict(team=2, task="stabilize"),
+                "points, hard (new teams each episode, wind, noise, latency)": dict(team=3, preset="hard"),
+                "drones, track, noise": dict(team=3, actuation="thrust_rates", task="track", sensor_noise=1.0),
+                "winches (one by one)": dict(team=2, task="lift")}
+
+
+@pytest.mark.parametrize("case", list(VECTOR_CASES))
+def test_the_vector_env_is_the_single_env_bit_for_bit(case):
+    """Teams without winches step as one compiled batch (esp_gym/team/batch.py), teams with winches
+    one by one: either way each sub-env is its single env, seeded seed + i, through two autoresets."""
+    n, options = 3, VECTOR_CASES[case]
+    venv = gym.make_vec("ElasticStringTeam-v0", num_envs=n, vectorization_mode="vector_entry_point",
+                        max_episode_steps=30, **options)
+    singles = [gym.make("ElasticStringTeam-v0", max_episode_steps=30, **options) for _ in range(n)]
     obs, _ = venv.reset(seed=7)
     for i, env in enumerate(singles):
         o, _ = env.reset(seed=7 + i)
         assert np.array_equal(obs[i], o)
     rng = np.random.default_rng(0)
     restart, ends = [False] * n, 0
+    assert (venv.unwrapped.batch is None) == ("winches" in case)
     for _ in range(70):  # past two truncations: the next-step autoreset
-        actions = rng.uniform(-0.2, 0.2, (n, 6)).astype(np.float32)
+        actions = rng.uniform(-0.2, 0.2, venv.action_space.shape).astype(np.float32)
         obs, rewards, terminated, truncated, _ = venv.step(actions)
         for i, env in enumerate(singles):
             if restart[i]:

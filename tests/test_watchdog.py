@@ -277,12 +277,12 @@ def broken_team_episode(monkeypatch, watchdog, broken: bool, steps: int = 60, co
     if broken and compiled:
         real_step = TeamControl.step
 
-        def pumped(control, raw, load_force, time):
+        def pumped(control, raw, time):
             structs = control.sim.compiled()
             S, A = StateArrays(*structs.state), TeamArrays(*structs.arrays)
             for momenta in (S.p, S.Pi, A.p):
                 momenta *= 1.02
-            return real_step(control, raw, load_force, time)
+            return real_step(control, raw, time)
         monkeypatch.setattr(TeamControl, "step", pumped)
     team = team_scene(3)
     team = team.model_copy(update={"scene": team.scene.model_copy(update={"solver": team.scene.solver.model_copy(

@@ -18,11 +18,13 @@ from collections import namedtuple
 import numpy as np
 
 from .drone import DroneArrays
+from .env_step import params_row, state_row, work_row
 from .env_arrays import T_LOAD, T_VELOCITY
 from .jit import announce_compile, kernel
 from .layout import (B_WINCH_WORK, B_WORK, IN_PIVOT_FORCE, IN_PIVOT_FORCE_END, R_STATUS, Layout, LGVIParams,
                      StateArrays, Work)
 from .reference import reference_at
+from .rows import row_function
 from .so3 import rotated
 from .status import ENERGY_BALANCE, OK, TERM_NONE
 from .team_arrays import TeamArrays, TeamParams
@@ -64,11 +66,9 @@ TS_WORK = TEAM_STEP.scalar("work")
 #: ``drive`` (n, :data:`TEAM_DRIVE`), the clipped ``action`` (K, n_a) applied, the formation
 #: ``formation`` (K, 3) (each pivot's target from the load's) [m], the ``reference`` (TARGET,
 #: kernels/env_arrays.py; read when moving), the force on the load ``load_force`` (3,) (spatial)
-#: [N], each drone's attitude ``drone_R`` (n, 3, 3) (the fleet's own array; (0, 3, 3) for point
-#: pivots) and body rates ``drone_rates`` (n, 3) [rad/s], and the step's ``report``
+#: [N], each drone's body rates ``drone_rates`` (n, 3) [rad/s] and the step's ``report``
 #: (:data:`TEAM_STEP`).
-TeamEnvArrays = namedtuple("TeamEnvArrays", "params drive action formation reference load_force drone_R drone_rates "
-                                            "report")
+TeamEnvArrays = namedtuple("TeamEnvArrays", "params drive action formation reference load_force drone_rates report")
 
 #: A team simulator's structs, in the entry points' order (esp_gym/team/simulator.py
 #: ``TeamSimulator.compiled``): string 0 and the body (StateArrays, Work, LGVIParams), the team's
@@ -228,7 +228,11 @@ def team_control(S, W, P, T, A, TD, RD, TK, E, B, inputs, stats, nsteps, disturb
         code = team_watchdog(S, RD, E, B, kinetic)
     if E.params[TE_MOVING] != 0.0:
         follow_reference(E, TK, time)
-    reward, smallest, code = team_task(RD, E.drone_R, E.drone_rates, E.action, TK, code)
+    if TD is not None:
+        drone_R = TD.arrays.R
+    else:  # no drones: (0, 3, 3)
+        drone_R = E.drone_rates.reshape((0, 3, 3))
+    reward, smallest, code = team_task(RD, drone_R, E.drone_rates, E.action, TK, code)
     E.report[TS_REWARD] = reward
     E.report[TS_SMALLEST] = smallest
     E.report[TS_CODE] = code
@@ -264,8 +268,65 @@ def team_drones_step(sim, env, raw, nsteps, disturbed, rates, time):
     return True
 
 
+#: Team b's row of each stacked struct (kernels/rows.py; the lead string's from kernels/env_step.py).
+team_params_row = row_function(TeamParams)
+team_arrays_row = row_function(TeamArrays)
+team_read_row = row_function(TeamReadArrays)
+team_task_row = row_function(TeamTaskArrays)
+team_env_row = row_function(TeamEnvArrays)
+drone_arrays_row = row_function(DroneArrays)
+
+
+@kernel(inline="always")
+def team_drones_row(TD, b):
+    """Team b's drones of a stacked :data:`~.team_drones.TeamDrones` (its ``arrays`` stacked too)."""
+    return TeamDrones(drone_arrays_row(TD.arrays, b), TD.pivot[b], TD.pending[b])
+
+
+@kernel(forceinline=True)
+def team_batch_loop(S, W, P, T, A, TD, RD, TK, E, B, inputs, stats, raw, active, nsteps, disturbed, rates, times):
+    """:func:`team_control` of every team b with ``active[b]`` in turn, each struct's row b
+    (``TD`` None: point pivots; the raw actions (B, K, n_a) finite), team b's ``nsteps[b]`` physics
+    steps ending at ``times[b]`` [s]. Compiled once per signature, as :func:`team_control`."""
+    for b in range(raw.shape[0]):
+        if active[b]:
+            Eb = team_env_row(E, b)
+            clip_actions(raw[b], Eb.action)
+            Sb, Wb, Pb, Tb, Ab = state_row(S, b), work_row(W, b), params_row(P, b), team_params_row(T, b), \
+                team_arrays_row(A, b)
+            RDb, TKb = team_read_row(RD, b), team_task_row(TK, b)
+            if TD is None:  # pruned at compile time: one of the two calls is compiled
+                team_control(Sb, Wb, Pb, Tb, Ab, None, RDb, TKb, Eb, B[b], inputs[b], stats[b], nsteps[b], disturbed,
+                             rates, times[b])
+            else:
+                team_control(Sb, Wb, Pb, Tb, Ab, team_drones_row(TD, b), RDb, TKb, Eb, B[b], inputs[b], stats[b],
+                             nsteps[b], disturbed, rates, times[b])
+
+
+@kernel(entry=True)
+def team_points_batch(sim, env, raw, active, nsteps, disturbed, times):
+    """:func:`team_points_step` of a batch: every struct stacked along a leading (B,) axis (the
+    constants too), the raw actions (B, K, n_a) finite, ``active`` (B,) bool the teams to step,
+    ``nsteps`` (B,) int64 and ``times`` (B,) each team's physics steps and the step's end [s]."""
+    team_batch_loop(StateArrays(*sim[0]), Work(*sim[1]), LGVIParams(*sim[2]), TeamParams(*sim[3]),
+                    TeamArrays(*sim[4]), None, TeamReadArrays(*sim[6]), TeamTaskArrays(*env[0]),
+                    TeamEnvArrays(*env[1]), sim[9], sim[7], sim[8], raw, active, nsteps, disturbed, False, times)
+
+
+@kernel(entry=True)
+def team_drones_batch(sim, env, raw, active, nsteps, disturbed, rates, times):
+    """:func:`team_drones_step` of a batch (:func:`team_points_batch`)."""
+    td = sim[5]
+    TD = TeamDrones(DroneArrays(*td[0]), td[1], td[2])
+    team_batch_loop(StateArrays(*sim[0]), Work(*sim[1]), LGVIParams(*sim[2]), TeamParams(*sim[3]),
+                    TeamArrays(*sim[4]), TD, TeamReadArrays(*sim[6]), TeamTaskArrays(*env[0]),
+                    TeamEnvArrays(*env[1]), sim[9], sim[7], sim[8], raw, active, nsteps, disturbed, rates, times)
+
+
 #: The seconds to the first step of a team environment on an empty cache (2 cores;
 #: benchmarks.cold_start's "team env (3)"), said when its entry point first compiles.
 COLD_TEAM_STEP_S = 30
 announce_compile(team_points_step, "the team environment's step", COLD_TEAM_STEP_S)
 announce_compile(team_drones_step, "the drone team environment's step", COLD_TEAM_STEP_S)
+announce_compile(team_points_batch, "the batched team environment's step", COLD_TEAM_STEP_S)
+announce_compile(team_drones_batch, "the batched drone team environment's step", COLD_TEAM_STEP_S)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..arrays import team_env_arrays
+from ..arrays import copy_into, team_env_arrays
 from ..kernels.jit import bound_entry
 from ..kernels.team_env import (TD_HOVER_THRUST, TD_MAX_THRUST, TE_ENERGY_SCALE, TE_FORCE_SCALE, TE_HOVER_FORCE,
                                 TE_MOVING, TE_RATE_LIMIT, TE_WATCHDOG, team_drones_step, team_points_step)
@@ -37,7 +37,6 @@ class TeamControl:
             E.params[TE_RATE_LIMIT:TE_RATE_LIMIT + 3] = drive.rate_limit
             E.drive[:, TD_HOVER_THRUST] = drive.hover
             E.drive[:, TD_MAX_THRUST] = drive.max_thrust
-            E = self.arrays = E._replace(drone_R=fleet.attitudes())
         self.substeps, self.disturbed = int(substeps), bool(disturbed)
         self._structs = (sim.compiled(), (tuple(task), tuple(E)))
         self._entry = None  # the step's machine code, bound at the first step (kernels/jit.py bound_entry)
@@ -52,25 +51,38 @@ class TeamControl:
         E.reference[...] = reference
         return E.reference
 
-    def step(self, raw: np.ndarray, load_force, time: float) -> bool:
-        """One control step from the raw actions (K, n_a) (clipped in the call), ``load_force`` (3,)
-        (spatial) [N] held when disturbed, ``time`` the step's end [s] (a moving target's). False,
-        with nothing changed, if an action is not finite. The report is in ``arrays.report``, the
-        applied action in ``arrays.action``; the simulator has counted the steps."""
-        if self.disturbed:
-            self.arrays.load_force[...] = load_force
-        sim = self.sim
+    def hold_load_force(self, load_force) -> None:
+        """The force on the load (3,) (spatial) [N] held over the next step (when disturbed)."""
+        self.arrays.load_force[...] = load_force
+
+    def step(self, raw: np.ndarray, time: float) -> bool:
+        """One control step from the raw actions (K, n_a) (clipped in the call), ``time`` the step's
+        end [s] (a moving target's), the load force held (:meth:`hold_load_force`) when disturbed.
+        False, with nothing changed, if an action is not finite. The report is in ``arrays.report``,
+        the applied action in ``arrays.action``; the simulator has counted the steps."""
         if self._entry is None:
             self._entry = self._bind(raw)
-        if sim.fleet is None:
+        if self.sim.fleet is None:
             done = self._entry(*self._structs, raw, self.substeps, self.disturbed, float(time))
         else:
             done = self._entry(*self._structs, raw, self.substeps, self.disturbed, self.rates, float(time))
-            if done and self.rates:
-                sim.fleet.rates = True  # as Fleet.command with rates leaves it
         if done:
-            sim.count_control_step()
+            self.finish()
         return done
+
+    def finish(self) -> None:
+        """After a compiled control step (this one's, or a batch's): the simulator counts its steps."""
+        self.sim.count_control_step()
+        if self.rates:
+            self.sim.fleet.rates = True  # as Fleet.command with rates leaves it
+
+    def use_rows(self, task, env) -> None:
+        """Step with the task's arrays ``task`` and the env's ``env`` (a batch's row views,
+        esp_gym/team/batch.py; the env's current arrays copied into ``env``) and the simulator's
+        structs as they now are."""
+        copy_into(self.arrays, env)
+        self.arrays = env
+        self._structs = (self.sim.compiled(), (tuple(task), tuple(env)))
 
     def _bind(self, raw: np.ndarray):
         """The entry point's machine code for these structs and ``raw``'s type (float64, C-contiguous,

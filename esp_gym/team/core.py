@@ -17,10 +17,8 @@ from typing import Optional
 import numpy as np
 
 from .. import TEAM_ENV_ID
-from ..control import raw_actions
-from ..errors import SimulationError, termination_reason
-from ..kernels.status import ENERGY_BALANCE, PHYSICS_FAILURES, TERM_NONE
-from ..kernels.team_env import TS_CODE, TS_RESIDUAL, TS_REWARD, TS_SMALLEST, TS_WORK
+from ..arrays import copy_into
+from ..kernels.status import TERM_NONE
 from ..kernels.env_arrays import TARGET
 from ..kernels.reference import reference_at
 from ..kernels.team_task import team_task
@@ -35,17 +33,14 @@ from .scene import TEAM_SAFETY, TeamScene, given_team, team_substeps
 from .control import TeamControl
 from .simulator import TeamSimulator
 from .spaces import ACTUATIONS, TEAM_UNIT_NOISE, DroneDrive, action_size, agent_layout
-from .tasks import AGENT_TERMS, REWARD_TERMS, TEAM_PRESETS, get_team_task, hanging_rise, task_arrays
-
-#: The info keys of the team's reward terms and of each agent's shares, in the kernel's order.
-REWARD_KEYS = tuple(f"reward_{name}" for name in REWARD_TERMS)
-AGENT_KEYS = tuple(f"agent_{name}" for name in AGENT_TERMS)
+from .stepping import TeamStepping
+from .tasks import TEAM_PRESETS, get_team_task, hanging_rise, task_arrays
 
 #: A point team's drone inputs to the compiled task: none.
 NO_DRONES = (np.zeros((0, 3, 3)), np.zeros((0, 3)))
 
 
-class TeamCore:
+class TeamCore(TeamStepping):
     """A team's episode (module docstring). ``team``: K or a :class:`TeamScene` whose pivots are
     all free points or all drones; ``task``: a name of :data:`~esp_gym.team.tasks.TEAM_TASKS`;
     ``actuation``: ``force`` (point pivots, the default) or a drone's (esp_gym/team/spaces.py
@@ -169,6 +164,7 @@ class TeamCore:
         #: whether the drones' actions become motor commands in Python (thrust_torque, motors)
         self.drive_held = self.drones and self.actuation != "thrust_rates"
         self._start = self.sim.state
+        self._start_load = self.load_position()  # the load's centre of mass at the start [m]
         self._formation = self.pivot_positions() - self.load_position()
         #: the compiled control step (esp_gym/team/control.py); None where the team steps in Python
         #: (winches, or :attr:`compiled_steps` off)
@@ -239,8 +235,7 @@ class TeamCore:
             scene, info["team_draws"] = self.randomizer.draw(rng)
             self._use_scene(scene)
             self.renderer = None  # the team changes with the episode
-        self.sim.set_state(self._start.copy())
-        load = self.load_position()
+        load = self._start_load.copy()
         velocity = rng.uniform(-task.max_speed, task.max_speed, 3)
         rates = rng.uniform(-task.max_spin, task.max_spin, 3)
         R = self._start.lead.R
@@ -286,9 +281,9 @@ class TeamCore:
         """Every agent's observation (K, n) of the current state, float32 (:func:`agent_layout`; in
         the ``observation`` mode, the env's if None), with the sensor noise drawn from
         ``np_random`` when ``noisy``."""
-        return self._noisy(self.evaluate(self.last_action, observation=observation)[0].obs, noisy)
+        return self.noisy(self.evaluate(self.last_action, observation=observation)[0].obs, noisy)
 
-    def _noisy(self, clean: np.ndarray, noisy: bool = True) -> np.ndarray:
+    def noisy(self, clean: np.ndarray, noisy: bool = True) -> np.ndarray:
         """``clean`` observations (K, n) with the sensor noise drawn from ``np_random`` (when
         ``noisy`` and the env has some), as float32."""
         out = clean.copy()
@@ -309,6 +304,25 @@ class TeamCore:
         drone_R, rates = (fleet.attitudes(), fleet.body_rates()) if self.drones else NO_DRONES
         reward, smallest, code = team_task(self.sim.read(), drone_R, rates, np.asarray(action, dtype=float), TK, code)
         return TK, reward, smallest, code
+
+    def use_rows(self, sim, task, env) -> None:
+        """Step in a batch's rows from now on (esp_gym/team/batch.py): ``sim`` the simulator's live
+        structs (:meth:`TeamSimulator.use_structs <esp_gym.team.simulator.TeamSimulator.use_structs>`),
+        ``task`` the task's arrays of the env's observation and ``env`` the control step's, the
+        current values copied into them; the targets move with the task's."""
+        self.sim.use_structs(sim)
+        copy_into(self._tasks[self.observation], task)
+        self._targets = dict(load_target=task.load_target, target_velocity=task.target_velocity,
+                             pivot_targets=task.pivot_targets)
+        self._tasks = {mode: task if mode == self.observation else arrays._replace(**self._targets)
+                       for mode, arrays in self._tasks.items()}
+        self.control.use_rows(task, env)
+        if self.reference is not None:
+            self.reference = env.reference
+
+    def compiled_task(self):
+        """The compiled task's arrays of the env's observation (kernels/team_task.py ``TeamTaskArrays``)."""
+        return self._task_arrays(self.observation)
 
     def _task_arrays(self, mode: str):
         """The compiled task's arrays for the observation ``mode``, made at its first use."""
@@ -346,91 +360,3 @@ class TeamCore:
         """The ``full`` observation of the current state without noise (K, 27 + 3(K-1), + 9 with
         drones): what a centralised controller with the true state reads (agents/baselines)."""
         return self.observations(noisy=False, observation="full")
-
-    def step(self, action):
-        """Apply each pivot's force (K, 3), or each drone's action (K, 4), in [-1, 1] (clipped;
-        after ``action_latency`` steps) over one control period; returns ``(observations, reward,
-        terminated, truncated, info)``: the team's reward terms ``info["reward_<term>"]``, each
-        agent's own shares ``info["agent_<term>"]`` (K,), as the single env names them. One compiled
-        call (:attr:`control`) where the team has no winch."""
-        return self.step_raw(raw_actions(action, (self.size, self.action_size),
-                                         f"action (one {'drone action' if self.drones else 'pivot force'} per agent)"))
-
-    def step_raw(self, a: np.ndarray):
-        """:meth:`step` of actions ``a`` already made raw (esp_gym/control.py ``raw_actions``: float64,
-        C-contiguous, writeable, (K, n_a))."""
-        control = self.control
-        if control is None or self.action_latency or self.wind is not None or self.drive_held:
-            # checked first: a bad action leaves the queue and the generator alone
-            if not np.all(np.isfinite(a)):
-                raise ValueError(f"action must be finite, got {a.tolist()}")
-            a = np.clip(a, -1.0, 1.0)
-            if self.action_latency:
-                self._queue.append(a)
-                a = self._queue.popleft()
-        if control is None:
-            return self._step_in_python(a)
-        if self.drive_held:  # thrust_torque, motors: the motor commands, held over the step
-            self.sim.fleet.command(**self.drive(a))
-        if self.wind is not None:
-            self.load_force = self._wind.force(self.np_random, self.kinematics(), self.scene.scene,
-                                               self.control_period)
-        if not control.step(a, self.load_force, (self.steps + 1) * self.control_period):
-            raise ValueError(f"action must be finite, got {a.tolist()}")
-        self.steps += 1
-        E = control.arrays
-        self.last_action = E.action.copy()
-        report = E.report.tolist()
-        code = int(report[TS_CODE])
-        reward = report[TS_REWARD]
-        if code in PHYSICS_FAILURES or code == ENERGY_BALANCE:
-            self.failure = self.sim.failure(code, report[TS_RESIDUAL], report[TS_WORK])
-            reward = 0.0 if code in PHYSICS_FAILURES else reward
-        return self._outcome(self._tasks[self.observation], reward, report[TS_SMALLEST], code)
-
-    def _step_in_python(self, a: np.ndarray):
-        """:meth:`step` of the clipped, applied action ``a`` through TeamSimulator.step (a team
-        with winches, or :attr:`compiled_steps` off), then the compiled task."""
-        if self.drones:
-            drive = self.drive(a)
-        else:
-            forces = self.force_scale * a[:, :3]
-            forces[:, 2] -= self.hover  # e3 points down: the hover force is -e3
-            drive = {"pivot_forces": forces}
-        if self.winch:
-            drive["reel_speeds"] = self.sim.winches.max_speeds * a[:, -1]
-        code = TERM_NONE
-        if self.wind is not None:
-            self.load_force = self._wind.force(self.np_random, self.kinematics(), self.scene.scene,
-                                               self.control_period)
-        try:
-            self.sim.step(self.substeps, load_force=self.load_force if self.wind is not None else None, **drive)
-        except SimulationError as error:  # a failed step, or the energy watchdog's energy_balance
-            code, self.failure = error.status, error
-        self.steps += 1
-        self.last_action = a
-        if self.reference is not None:
-            self._follow_reference(self.steps * self.control_period)
-        task, reward, smallest, code = self.evaluate(a, code)
-        if code in PHYSICS_FAILURES:
-            reward = 0.0
-        return self._outcome(task, reward, smallest, code)
-
-    def _outcome(self, task, reward: float, smallest: float, code: int):
-        """A step's ``(observations, reward, terminated, truncated, info)`` from the task's arrays."""
-        info = self.task_info(task, smallest)
-        info["applied_action"] = self.last_action.copy()
-        info["termination"] = code
-        if code != TERM_NONE:
-            info["termination_reason"] = termination_reason(code)
-        return self._noisy(task.obs), reward, code != TERM_NONE, False, info
-
-    def task_info(self, task, smallest: float) -> dict:
-        """A step's ``reward_<term>`` (the team's), ``agent_<term>`` (K,) (each agent's share),
-        ``min_separation`` [m] and each hook's ``tension`` (K, 3) [N] from :meth:`evaluate`'s arrays
-        ``task`` and smallest distance, and the read-out they were taken from."""
-        info = dict(zip(REWARD_KEYS, task.terms.tolist()))
-        info.update(zip(AGENT_KEYS, task.agent.T.copy()))  # each term's row of one copy
-        info["min_separation"] = float(smallest)
-        info["tension"] = self.sim.read().tension.copy()
-        return info

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import TEAM_ENV_ID
-from ..arrays import row, stacked_drone_arrays
+from ..arrays import copy_into, row, stacked_drone_arrays
 from ..drone import DroneState, use_drone
 from ..kernels.drone import Q_THRUST_COEFFICIENT
 from ..kernels.team_drones import TeamDrones
@@ -61,6 +61,14 @@ class Fleet:
         for d, pivot in enumerate(self._sections):
             use_drone(row(self.arrays.arrays, d), pivot.drone, h)
         self.rates = False
+
+    def use_arrays(self, drones: TeamDrones) -> None:
+        """Keep the drones in ``drones`` (a batch's row views: esp_gym/team/batch.py) from now on,
+        the current arrays copied into them."""
+        copy_into(self.arrays.arrays, drones.arrays)
+        drones.pivot[...] = self.arrays.pivot
+        drones.pending[...] = self.arrays.pending
+        self.arrays = drones
 
     def __len__(self) -> int:
         return len(self.pivots)

@@ -9,7 +9,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..arrays import team_arrays, team_read_arrays
+from ..arrays import copy_into, plain_structs, team_arrays, team_read_arrays
 from ..drone import DroneState
 from ..kernels.layout import INPUTS, LOOP_REPORT_SIZE, R_NEWTON_TOTAL, R_STATUS, R_STEPS
 from ..kernels.status import ENERGY_BALANCE, OK
@@ -18,8 +18,8 @@ from ..kernels.team import team_forces
 from ..kernels.team_readout import TB_ENERGY_ORIGIN, TB_LOAD_WORK, TB_WINCH_JUMPS, TEAM_BALANCE
 from ..kernels.team_loops import team_advance, team_drone_advance, team_winch_advance
 from ..kernels.team_winch import team_winch_forces
-from ..model import SimulationError, Simulator, StepClock
-from ..state import State, cross3, legendre_momenta
+from ..model import SimulationError, Simulator
+from ..state import State, StepClock, cross3, legendre_momenta
 from ..watchdog import WATCH_EVERY, check_team_balance, team_energy_scale
 from .assembly import build_team
 from .fleet import Fleet
@@ -303,19 +303,37 @@ class TeamSimulator(TeamReadout, StepClock):
                                self._energy_scale)
 
     # -- the environment's compiled control step --------------------------------------------
-    def compiled(self) -> TeamStructs:
-        """The structs a compiled control step (kernels/team_env.py) advances and reads, each a
-        plain tuple (kernels/team_env.py ``TeamStructs``; the drones None without drones). Only a
-        team whose strings keep their scenes' lengths steps there (ValueError for one with winches
-        that have reeled, or with :attr:`compiled_reads` off); after each call,
-        :meth:`count_control_step`."""
+    def structs(self) -> TeamStructs:
+        """The structs a compiled control step (kernels/team_env.py) advances and reads
+        (kernels/team_env.py ``TeamStructs``; the drones None without drones). Only a team whose
+        strings keep their scenes' lengths steps there (ValueError for one with winches that have
+        reeled, or with :attr:`compiled_reads` off); after each call, :meth:`count_control_step`."""
         if not (self.winches.idle and self.compiled_reads):
             raise ValueError("a compiled control step needs the winches at rest at the scenes' lengths and "
                              "compiled_reads on")
         self._read.length[...] = self.winches.scene_lengths
-        drones = None if self.fleet is None else (tuple(self.fleet.arrays.arrays),) + tuple(self.fleet.arrays)[1:]
-        return TeamStructs(tuple(self._S), tuple(self._W), tuple(self._P), tuple(self.params), tuple(self._A), drones,
-                           tuple(self._read), self._inputs, self._stats, self._balance)
+        return TeamStructs(self._S, self._W, self._P, self.params, self._A, None if self.fleet is None else self.fleet.arrays,
+                           self._read, self._inputs, self._stats, self._balance)
+
+    def compiled(self) -> TeamStructs:
+        """:meth:`structs` as the entry points take them: each struct a plain tuple."""
+        return plain_structs(self.structs())
+
+    def use_structs(self, rows: TeamStructs) -> None:
+        """Keep the live arrays in ``rows`` (a batch's row views, esp_gym/team/batch.py: the state,
+        work, the other strings', the drones', the read-out, the inputs, the loop's report and the
+        balance) from now on, the current values copied into them. The constants (``rows.params``,
+        ``rows.team``) stay the simulator's: the batch copies them."""
+        self._lead.use_buffers(rows.state, rows.work)
+        self._S, self._W = rows.state, rows.work
+        copy_into(self._A, rows.arrays)
+        copy_into(self._read, rows.read)
+        self._A, self._read = rows.arrays, rows.read
+        if self.fleet is not None:
+            self.fleet.use_arrays(rows.drones)
+        for name in ("inputs", "stats", "balance"):
+            getattr(rows, name)[...] = getattr(self, "_" + name)
+        self._inputs, self._stats, self._balance = rows.inputs, rows.stats, rows.balance
 
     def count_control_step(self) -> None:
         """Count a compiled control step's physics steps (its ``stats``) and keep its read-out as

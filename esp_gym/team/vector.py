@@ -1,9 +1,10 @@
-"""``gym.make_vec("ElasticStringTeam-v0", num_envs=n)``: n teams stepped in turn in one process, with
-Gymnasium's next-step autoreset, each from its own seed (``seed + i``), so that every sub-env
-repeats the single env's episodes bit for bit, and their infos in Gymnasium's vector convention
-(each key an array over the sub-envs with its ``_key`` mask, as ``ElasticStringPendulum-v0``'s
-vector env gives them; docs/team.md). The teams' steps are not yet one compiled call for the
-batch, as ``ElasticStringPendulum-v0``'s are."""
+"""``gym.make_vec("ElasticStringTeam-v0", num_envs=n)``: n teams in one process, with Gymnasium's
+next-step autoreset, each from its own seed (``seed + i``), so that every sub-env repeats the single
+env's episodes bit for bit, and their infos in Gymnasium's vector convention (each key an array over
+the sub-envs with its ``_key`` mask, as ``ElasticStringPendulum-v0``'s vector env gives them;
+docs/team.md). Teams without winches step in one compiled call for the batch
+(esp_gym/team/batch.py); teams with winches one by one.
+"""
 from __future__ import annotations
 
 from typing import Optional
@@ -13,9 +14,13 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ..control import raw_actions
+from ..errors import termination_reason
+from ..kernels.status import TERM_NONE
 from ..vector import sub_env_seeds
 from .. import MAX_EPISODE_STEPS
+from .batch import TeamBatch
 from .env import ElasticStringTeamEnv
+from .stepping import AGENT_KEYS, REWARD_KEYS
 
 
 class ElasticStringTeamVectorEnv(VectorEnv):
@@ -41,6 +46,10 @@ class ElasticStringTeamVectorEnv(VectorEnv):
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._elapsed = np.zeros(self.num_envs, dtype=np.int64)
         self._was_reset = False  # stepping teams that were never reset is an error
+        #: the teams' compiled batch (esp_gym/team/batch.py), made at the first reset; None where
+        #: the teams step one by one (winches)
+        self.batch = None
+        self._batched = self.envs[0].core.control is not None
 
     def reset(self, *, seed=None, options: Optional[dict] = None):
         seeds = sub_env_seeds(seed, self.num_envs)
@@ -52,12 +61,49 @@ class ElasticStringTeamVectorEnv(VectorEnv):
         self._autoreset[:] = False
         self._elapsed[:] = 0
         self._was_reset = True
+        if self._batched:
+            if self.batch is None:
+                self.batch = TeamBatch([env.core for env in self.envs])
+            for i in range(self.num_envs):
+                self.batch.reset(i)
         return np.stack(obs), infos
 
     def step(self, actions):
         if not self._was_reset:
             raise RuntimeError("call reset() before step()")
         actions = raw_actions(actions, self.action_space.shape, "actions")
+        if self.batch is None:
+            return self._step_one_by_one(actions)
+        stepping = ~self._autoreset
+        if not np.all(np.isfinite(actions[stepping])):  # before any team steps or resets
+            raise ValueError("actions must be finite")
+        core = self.envs[0].core
+        raw = actions.reshape(self.num_envs, core.size, core.action_size).copy()
+        outcomes = self.batch.step(raw, stepping)
+        obs = np.empty(self.observation_space.shape, dtype=np.float32)
+        rewards = np.zeros(self.num_envs)
+        terminated = np.zeros(self.num_envs, dtype=bool)
+        truncated = np.zeros(self.num_envs, dtype=bool)
+        codes = np.zeros(self.num_envs, dtype=np.int64)
+        separations = np.zeros(self.num_envs)
+        for i in np.flatnonzero(stepping):
+            o, rewards[i], separations[i], codes[i] = outcomes[i]
+            obs[i] = o.ravel()
+        terminated[stepping] = codes[stepping] != TERM_NONE
+        self._elapsed[stepping] += 1
+        truncated[stepping] = self._elapsed[stepping] >= self.max_episode_steps
+        infos = step_infos(self.batch, stepping, codes, separations) if stepping.any() else {}
+        for i in np.flatnonzero(~stepping):  # the reset's info, as Gymnasium's own vector envs give it
+            o, info = self.envs[i].reset()
+            self.batch.reset(i)
+            obs[i] = o
+            self._elapsed[i] = 0
+            infos = self._add_info(infos, info, i)
+        self._autoreset = terminated | truncated
+        return obs, rewards, terminated, truncated, infos
+
+    def _step_one_by_one(self, actions):
+        """:meth:`step` of teams with winches, each team's step in turn."""
         obs = np.empty(self.observation_space.shape, dtype=np.float32)
         rewards = np.zeros(self.num_envs)
         terminated = np.zeros(self.num_envs, dtype=bool)
@@ -74,3 +120,32 @@ class ElasticStringTeamVectorEnv(VectorEnv):
             infos = self._add_info(infos, info, i)
         self._autoreset = terminated | truncated
         return obs, rewards, terminated, truncated, infos
+
+
+def step_infos(batch: TeamBatch, stepping: np.ndarray, codes: np.ndarray, separations: np.ndarray) -> dict:
+    """The infos of the teams ``stepping`` (B,) bool in Gymnasium's vector convention, each key an
+    array over the sub-envs (zeros where a team did not step, None in an object array) with its
+    ``_key`` mask: as Gymnasium's ``_add_info`` gathers the single env's (TeamStepping.task_info)."""
+    task, B = batch.task, stepping.shape[0]
+    infos = {}
+
+    def put(key, values, mask=stepping):
+        array = np.zeros_like(values)
+        array[mask] = values[mask]
+        infos[key], infos["_" + key] = array, mask.copy()
+
+    for j, key in enumerate(REWARD_KEYS):
+        put(key, task.terms[:, j])
+    for j, key in enumerate(AGENT_KEYS):
+        put(key, task.agent[:, :, j])
+    put("min_separation", separations)
+    put("tension", batch.structs.read.tension)
+    put("applied_action", batch.env.action)
+    put("termination", codes)
+    ended = stepping & (codes != TERM_NONE)
+    if ended.any():
+        reasons = np.full(B, None, dtype=object)
+        for i in np.flatnonzero(ended):
+            reasons[i] = termination_reason(int(codes[i]))
+        infos["termination_reason"], infos["_termination_reason"] = reasons, ended
+    return infos
