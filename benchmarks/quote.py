@@ -891,7 +891,7 @@ QUOTES = {
                                   "python -m benchmarks.env_throughput --drone --repeats 5 --out docs/img",
                                   env_throughput_drone),
     "env_throughput.team": Quote("docs/img/env_throughput_team.json",
-                                 "python -m benchmarks.env_throughput --team --repeats 3 --out docs/img",
+                                 "python -m benchmarks.env_throughput --team --repeats 5 --out docs/img",
                                  env_throughput_team),
 }
 

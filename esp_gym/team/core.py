@@ -240,7 +240,8 @@ class TeamCore(TeamStepping):
         rates = rng.uniform(-task.max_spin, task.max_spin, 3)
         R = self._start.lead.R
         rho_c = np.asarray(self.scene.scene.body.rho_c, dtype=float)
-        self.sim.set_state(self.sim.initial_state(velocity=velocity - R @ np.cross(rates, rho_c), rates=rates))
+        self.sim.set_state(self.sim.initial_state(velocity=velocity - R @ np.cross(rates, rho_c), rates=rates),
+                           check=False)
         if task.moving:
             reference = track_reference(rng, 0.0)
             reference[TARGET["centre"]] += load - reference[TARGET["load"]]

@@ -174,17 +174,19 @@ class TeamSimulator(TeamReadout, StepClock):
                          self._A.p.copy(), self.fleet.states() if self.fleet else (), self.winches.lengths,
                          self.winches.reel_speeds)
 
-    def set_state(self, state: TeamState) -> None:
+    def set_state(self, state: TeamState, check: bool = True) -> None:
         """Replace the state (copied; remainders and balances restart at 0). The other strings'
         ends are placed on the body. Without ``state.drones`` the drones keep theirs; with them,
         each R_q a rotation to ROTATION_TOL, Pi_q (3,) [kg m^2/s] and its rotor speeds (4,) in
-        [0, max_rotor_speed] [rad/s], its motor commands then those speeds."""
+        [0, max_rotor_speed] [rad/s], its motor commands then those speeds. ``check`` False: a
+        state its caller built for this team (:meth:`initial_state`: an environment's reset), its
+        strings' shapes, finiteness and rotation taken as given."""
         if state.drones:
             if not self.fleet:
                 raise ValueError(f"state.drones has {len(state.drones)} drones, the team none")
             self.fleet.set_states(state.drones)
         A = self._A
-        for name in ("r", "p"):
+        for name in ("r", "p") if check else ():
             given = np.asarray(getattr(state, name), dtype=float)
             if given.shape != getattr(A, name).shape:
                 raise ValueError(f"state.{name} has shape {given.shape}, expected {getattr(A, name).shape}")
@@ -192,7 +194,7 @@ class TeamSimulator(TeamReadout, StepClock):
                 raise ValueError(f"state.{name} is not finite")
         self._changes += 1
         self.winches.set(state.lengths, state.reel_speeds)
-        self._lead.set_state(state.lead)
+        self._lead.set_state(state.lead, check=check)
         A.r[...] = state.r
         A.p[...] = state.p
         x, R = self._S.r[-1], self._S.R
