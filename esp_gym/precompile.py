@@ -36,7 +36,7 @@ class Configuration:
         kind = ("drone-winch" if self.winch else "drone-hook" if self.hook else "drone") if self.drone \
             else "winch" if self.winch else "fixed"
         if self.team:
-            return f"team-{kind}" + ("-batched" if self.batched else "")
+            return f"team-{kind}-" + ("batched" if self.batched else "single")
         return "-".join((kind, "implicit" if self.implicit else "explicit", "batched" if self.batched else "single"))
 
 

@@ -304,7 +304,8 @@ def test_compile_takes_every_configuration_of_the_environment(tmp_path):
     assert proc.returncode == 0, proc.stderr[-2000:]
     seconds = json.loads(proc.stdout)["seconds"]
     assert sorted(seconds) == sorted(c.name for c in CONFIGURATIONS) and len(seconds) == 19
-    assert {"team-fixed", "team-fixed-batched", "team-drone", "team-drone-batched", "team-winch"} <= set(seconds)
+    assert {"team-fixed-single", "team-fixed-batched", "team-drone-single", "team-drone-batched",
+            "team-winch-single"} <= set(seconds)
     assert all(t >= 0 for t in seconds.values())
     bad = subprocess.run([sys.executable, "-m", "esp_gym.cli", "compile", "--jobs", "0"], capture_output=True,
                          text=True, timeout=600, cwd=tmp_path)
@@ -345,7 +346,8 @@ def test_compile_takes_a_rigs_single_step_then_its_batch_in_one_worker():
 
     groups = rig_groups(CONFIGURATIONS)
     assert sorted(c.name for g in groups for c in g) == sorted(c.name for c in CONFIGURATIONS)
-    assert [[c.batched for c in g] for g in groups] == [[False]] * 3 + [[False, True]] * 7
+    # the team on winches (one by one), the drone team's and the point team's, then the seven rigs
+    assert [[c.batched for c in g] for g in groups] == [[False]] + [[False, True]] * 9
     assert groups[0][0].team and groups[-1][0].name == "fixed-explicit-single"  # the longest first
     assert all(len({c.name.rsplit("-", 1)[0] for c in g}) == 1 for g in groups)
 
