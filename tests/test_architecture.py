@@ -250,7 +250,6 @@ TO_SPLIT = {
     "esp_gym/kernels/implicit_newton.py:implicit_newton", "esp_gym/kernels/implicit_terms.py:body_coupling",
     "esp_gym/kernels/winch_implicit.py:winch_implicit_once",
     "esp_gym/kernels/implicit_newton.py:string_elimination",
-    "esp_gym/viz/recorder.py:_write",
 }
 
 

@@ -11,20 +11,19 @@ from pathlib import Path
 from typing import Optional
 
 import numpy as np
-import pyarrow as pa
 import rerun as rr
 
 from ..kernels.layout import INPUTS, REPORT, R_NEWTON_TOTAL, R_STEPS, WINCH
 from ..kernels.env_arrays import ACTION, REWARD_TERMS, SENSORS, TARGET
 from ..kernels.disturbance import DISTURBANCE
 from ..control import read_only
-from ..kernels.recording import (GeometryColumns, GeometryStyle, capture_sample, sample_geometry, sample_layout,
-                                 trail_points)
-from . import arrow, lifecycle, palette
+from ..kernels.recording import capture_sample, sample_layout
+from . import lifecycle, palette
 from .drone_track import DroneTrack
-from .entities import (BLACK, BODY, BODY_COM, BODY_SHAPE, BODY_TORQUE, HOOK_TENSION, LOAD_TRAIL, PIVOT,
-                       PIVOT_FORCE, PUSH, RETURN, STRING, TARGET_LOAD, TARGET_PIVOT, WIND, WORLD, body_shape,
-                       default_blueprint, default_strain_scale, rig_eye, scalar_series)
+from .encoder import SampleEncoder
+from .entities import (BLACK, BODY_COM, BODY_SHAPE, BODY_TORQUE, HOOK_TENSION, LOAD_TRAIL, PIVOT, PIVOT_FORCE,
+                       PUSH, RETURN, STRING, TARGET_LOAD, TARGET_PIVOT, WIND, WORLD, body_shape, default_blueprint,
+                       default_strain_scale, rig_eye, scalar_series)
 
 
 def check_options(flush_every, flush_seconds, write_timeout, sample_period, trail_seconds, trail_spacing,
@@ -104,8 +103,6 @@ class Recorder:
         self.action_scale = action_scale
         #: the scene's rho_c (body frame [m]): the samples' default (read-only, see ``_zeros``)
         self.rho = read_only(np.array(scene.body.rho_c, dtype=float))
-        self.trail_len = max(1, int(round(trail_seconds / sample_period)) + 1)  # samples spanned
-        self.trail_stride = max(1, int(round(trail_spacing / sample_period)))
         self.flush_every, self.flush_seconds = int(flush_every), float(flush_seconds)
         self.write_timeout = float(write_timeout)
         self.samples = 0  #: samples written or buffered so far
@@ -117,7 +114,6 @@ class Recorder:
         self.layout = sample_layout(n)  #: the layout of a buffered sample row
         #: the scalar series (a drone's action named for its actuation)
         self.scalars = scalar_series("force" if drone is None else drone[0])
-        self._columns = {path: [self.layout.start(f) + k for f, k in s.sources] for path, s in self.scalars.items()}
         self._buf = np.zeros((self.flush_every, self.layout.size))
         #: the drone's samples (esp_gym/viz/drone_track.py), or None without a drone
         self.drone = None if drone is None else DroneTrack(drone[1], self.flush_every)
@@ -127,9 +123,12 @@ class Recorder:
                                              DISTURBANCE.size)))
         self._no_target = read_only(np.full(TARGET.size, math.nan))
         self._no_winch = read_only(np.zeros(WINCH.size))
-        self._trail_hist = np.empty((0, 3))  # the current episode's last load positions
-        self._trail_episode = None
-        self._return = (None, 0.0)  # (episode, return) at the last sample written
+        #: the buffered rows' encoding into record batches (esp_gym/viz/encoder.py)
+        self._encoder = SampleEncoder(self.layout, n, env=self.env, winch=self.winch, drone=self.drone,
+                                      scalars=self.scalars, strain_scale=self.strain_scale,
+                                      force_offset=self.force_offset, action_scale=action_scale,
+                                      trail=(max(1, int(round(trail_seconds / sample_period)) + 1),
+                                             max(1, int(round(trail_spacing / sample_period)))), **scales)
         self._last_flush = _time.monotonic()
         self.E0 = self.pi3_0 = 0.0  #: balance origins of the current episode
         self.max_abs_residuals = np.zeros(2)  #: largest |E - E0 - W|, |pi3 - pi3_0 - impulse| in sample()
@@ -340,106 +339,11 @@ class Recorder:
         self.close()
 
     def _write(self, n: int) -> None:
-        """Send the first ``n`` buffered samples: one record batch with every entity that has
-        a value at every sample, and one with the targets of the episodes reset among them."""
-        b = self._buf[:n]
-        N, col = self.n_elements, self.layout.start
-        step, time, episode = b[:, col("step")], b[:, col("time")], b[:, col("episode")]
-        stepped = b[:, col("stepped")] > 0
-        each = np.arange(n + 1, dtype=np.int32)
-        per_sample = np.arange(0, n * N + 1, N, dtype=np.int32)
-        f32 = lambda *shape: np.empty(shape, dtype=np.float32)  # noqa: E731
-        pts, colors, translation, mat = f32(n, N, 2, 3), np.empty(n * N, np.uint32), f32(n, 3), f32(n, 9)
-        pivot, force_vec, torque_vec, load = f32(n, 3), f32(n, 3), f32(n, 3), np.empty((n, 3))
-        force_limit, torque_limit = self.action_scale if self.env else (0.0, 0.0)
-        style = GeometryStyle(inv_strain_scale=1.0 / self.strain_scale, lut=palette.STRAIN_RGBA,
-                              inputs_from_action=self.env and self.drone is None, force_offset=self.force_offset,
-                              force_limit=float(force_limit), torque_limit=float(torque_limit),
-                              force_scale=self.force_scale, torque_scale=self.torque_scale)
-        columns = GeometryColumns(pts=pts, colors=colors, translation=translation, mat=mat, pivot=pivot,
-                                  force_vec=force_vec, torque_vec=torque_vec, load=load)
-        sample_geometry(self._buf, n, tuple(style), tuple(columns))
-        rows, vec3 = arrow.rows, arrow.vec3
-        cols = [
-            (STRING, rr.LineStrips3D.descriptor_strips(),
-             rows(arrow.strips(pts.reshape(-1, 3), np.arange(0, 2 * n * N + 1, 2, dtype=np.int32)), per_sample)),
-            (STRING, rr.LineStrips3D.descriptor_colors(),
-             rows(pa.array(colors, type=arrow.arrow_type("color")), per_sample)),
-            (BODY, rr.Transform3D.descriptor_translation(), rows(vec3(translation, "translation"), each)),
-            (BODY, rr.Transform3D.descriptor_mat3x3(), rows(arrow.mat3x3(mat), each)),
-            (PIVOT, rr.Points3D.descriptor_positions(), rows(vec3(pivot, "position"), each)),
-            (PIVOT_FORCE, rr.Arrows3D.descriptor_origins(), rows(vec3(pivot, "position"), each)),
-            (PIVOT_FORCE, rr.Arrows3D.descriptor_vectors(), rows(vec3(force_vec, "vector"), each)),
-            (BODY_TORQUE, rr.Arrows3D.descriptor_vectors(), rows(vec3(torque_vec, "vector"), each)),
-            (LOAD_TRAIL, rr.LineStrips3D.descriptor_strips(), rows(self._trail(load, episode), each)),
-        ]
-        if self.env:
-            cols += self._disturbance_arrows(b, pivot, load, each)
-        scalar = rr.Scalars.descriptor_scalars()
-        missing = ~stepped  # reset samples have no step: no Newton count, reward or action
-        if self.drone is not None:
-            cols += self.drone.columns(n, pivot, each)
-        for path, series in self.scalars.items():
-            if (series.env_only and not self.env) or (series.winch_only and not self.winch):
-                continue
-            columns = self._columns[path]
-            mask = missing if series.stepped_only else None
-            k = len(columns)
-            if k == 1:
-                values = pa.array(b[:, columns[0]], mask=mask)
-            else:
-                values = rows(pa.array(b[:, columns].reshape(-1)), np.arange(0, n * k + 1, k, dtype=np.int32), mask)
-            cols.append((path, scalar, values))
-        if self.env:
-            returns, self._return = arrow.episode_returns(b[:, col("reward")], episode, stepped, self._return)
-            cols.append((RETURN, scalar, pa.array(returns, mask=missing)))
-        self.rec.send_record_batch(arrow.record_batch(step, time, cols))
-        target = col("target")
-        reset = ~np.isnan(b[:, target])  # the targets of the episodes reset here
-        if reset.any():
-            one = np.arange(reset.sum() + 1, dtype=np.int32)
-            targets = [(path, rr.Points3D.descriptor_positions(), rows(vec3(b[reset, k:k + 3], "position"), one))
-                       for path, k in ((TARGET_PIVOT, target + TARGET.start("pivot")),
-                                       (TARGET_LOAD, target + TARGET.start("load")))]
-            self.rec.send_record_batch(arrow.record_batch(step[reset], time[reset], targets))
-
-    def _disturbance_arrows(self, b: np.ndarray, pivot: np.ndarray, load: np.ndarray, each: np.ndarray) -> list:
-        """The columns of the env's arrows for the rows ``b``: ``wind_scale`` x wind and
-        ``force_scale`` x push from the load's centre of mass, ``force_scale`` x hook tension
-        from the pivot (spatial frame; float32 of the float64 products)."""
-        def part(field, layout, name):  # the rows' entries ``name`` of ``layout``, held in ``field``
-            base, entries = self.layout.start(field), layout[name]
-            return b[:, base + entries.start:base + entries.stop]
-
-        rows, vec3, at = arrow.rows, arrow.vec3, rr.Arrows3D.descriptor_origins()
-        load_at = rows(vec3(load, "position"), each)
-        vec = rr.Arrows3D.descriptor_vectors()
-        return [
-            (WIND, at, load_at),
-            (WIND, vec, rows(vec3(part("disturbance", DISTURBANCE, "wind") * self.wind_scale, "vector"), each)),
-            (PUSH, at, load_at),
-            (PUSH, vec, rows(vec3(part("disturbance", DISTURBANCE, "push") * self.force_scale, "vector"), each)),
-            (HOOK_TENSION, at, rows(vec3(pivot, "position"), each)),
-            (HOOK_TENSION, vec,
-             rows(vec3(part("sensors", SENSORS, "hook_tension") * self.force_scale, "vector"), each)),
-        ]
-
-    def _trail(self, load: np.ndarray, episode: np.ndarray) -> pa.Array:
-        """Per sample, one strip through the load's positions over the last ``trail_seconds``
-        of the same episode, every ``trail_stride`` samples back from the current one (the
-        tail of the previous flush is kept)."""
-        L = self.trail_len
-        hist = self._trail_hist if self._trail_episode == episode[0] else np.empty((0, 3))
-        points = np.vstack([hist, load])
-        ep = np.concatenate([np.full(len(hist), episode[0]), episode])
-        offsets = np.empty(len(load) + 1, dtype=np.int32)
-        m_max = (L - 1) // self.trail_stride + 1
-        out = np.empty((len(load) * m_max, 3), dtype=np.float32)
-        total = trail_points(points, ep, len(hist), L, self.trail_stride, offsets, out)
-        keep = np.arange(max(0, len(points) - (L - 1)), len(points)) if L > 1 else np.arange(0)
-        keep = keep[ep[keep] == episode[-1]]
-        self._trail_hist, self._trail_episode = points[keep], episode[-1]
-        return arrow.strips(out[:total], offsets)
+        """Send the first ``n`` buffered samples (esp_gym/viz/encoder.py: one record batch with every
+        entity that has a value at every sample, and one with the targets of the episodes reset
+        among them)."""
+        for batch in self._encoder.batches(self._buf, n):
+            self.rec.send_record_batch(batch)
 
 
 def _com(rho: np.ndarray):
