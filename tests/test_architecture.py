@@ -244,13 +244,9 @@ LONG_BY_DESIGN = {
     "esp_gym/verify/ode_kernels.py:ode_rhs": "the verification's right-hand side: the continuous equations of "
                                       "docs/physics.md in one place, read against them line by line",
 }
-#: Functions longer than that, to split by stage or role (issue 55, item 6): the set may only shrink
-#: (a listed function that became short fails until it leaves the list).
-TO_SPLIT = {
-    "esp_gym/kernels/implicit_newton.py:implicit_newton", "esp_gym/kernels/implicit_terms.py:body_coupling",
-    "esp_gym/kernels/winch_implicit.py:winch_implicit_once",
-    "esp_gym/kernels/implicit_newton.py:string_elimination",
-}
+#: Functions longer than that, to split by stage or role: none left (issue 55, item 6). The set may
+#: only shrink (a listed function that became short fails until it leaves the list).
+TO_SPLIT = set()
 
 
 def long_functions(source: str, limit: int = MAX_FUNCTION_LINES) -> dict:

@@ -119,6 +119,30 @@ def element_row(r, Y, a, kappa, lengths, slack, gradient):
 
 
 @kernel(inline="always")
+def node_residual(p, Y, rhs, a, n, h, diag_a, band, t_below, t_above, gravity, M, up, q, flags):
+    """Node a's row of the residual -G (:func:`residual_row`, its weight the end nodes' or the
+    middle's of ``gravity`` (3,) [N]) with the pivot force ``up`` on a free, forced pivot's node 0
+    and the body's pull M ``q`` on the attachment node: ``(r0, r1, r2)`` [kg m]."""
+    free, forced, reeling = flags
+    grav = gravity[1]
+    if a == 0:
+        grav = gravity[0]
+    elif a == n:
+        grav = gravity[2]
+    r0, r1, r2 = residual_row(p, Y, rhs, a, n, h, diag_a, band, t_below, t_above, grav, reeling)
+    if free and forced and a == 0:
+        h2 = 0.5 * h * h
+        r0 += h2 * up[0]
+        r1 += h2 * up[1]
+        r2 += h2 * up[2]
+    if a == n:
+        r0 -= M * q[0]
+        r1 -= M * q[1]
+        r2 -= M * q[2]
+    return r0, r1, r2
+
+
+@kernel(inline="always")
 def string_elimination(S, W, P, h, mass, lengths, up, q, flags):
     """The string's residual -G at the iterate ``W.Y`` and the forward elimination of its
     Jacobian, pivot -> attachment node: E_a (``W.elim``) and z_a (``W.dy``) for a < N. Returns
@@ -131,21 +155,18 @@ def string_elimination(S, W, P, h, mass, lengths, up, q, flags):
     (otherwise the diagonal only, off-diagonals P.off, the constant part h p_k + h^2/2 f_g);
     ``lengths`` = (u0, u1) the rest lengths at the two ends; ``up`` the pivot force [N];
     ``q`` = R_k (F - I) rho_c at this iterate (the body's pull on the attachment row) [m];
-    ``flags`` = (free, forced, reeling). Per node: :func:`residual_row`, :func:`diagonal_block`,
+    ``flags`` = (free, forced, reeling). Per node: :func:`node_residual`, :func:`diagonal_block`,
     :func:`eliminate_previous`, :func:`forward_row`."""
     r = S.r
     Y = W.Y
     taut = W.taut
     diag, lower, upper, rhs = mass
-    free, forced, reeling = flags
+    free, _, reeling = flags
     n = r.shape[0] - 1
     first = 0 if free else 1
     q4 = 0.25 * h * h
-    h2 = 0.5 * h * h
     # gravity forces of the nodes (along +e3): (m/2 + Mp) g, m g, ..., (m/2 + M) g
-    g_end0 = (0.5 * P.m + P.Mp) * P.g
-    g_mid = P.m * P.g
-    g_endn = (0.5 * P.m + P.M) * P.g
+    gravity = ((0.5 * P.m + P.Mp) * P.g, P.m * P.g, (0.5 * P.m + P.M) * P.g)
     merit = 0.0
     t_above = (0.0, 0.0, 0.0)  # the element above node a: its force on node a - 1, and its k
     k = ZERO_BLOCK
@@ -160,21 +181,9 @@ def string_elimination(S, W, P, h, mass, lengths, up, q, flags):
         l = ZERO_BLOCK
         if a < n:
             t_below, l = element_row(r, Y, a, P.kappa, lengths, P.slack and taut[a] == 0.0, P.gradient)
-        grav = g_mid
-        if a == 0:
-            grav = g_end0
-        elif a == n:
-            grav = g_endn
         band = (lower[a], upper[a]) if reeling else (P.off, P.off)  # the mass matrix's row a
-        r0, r1, r2 = residual_row(S.p, Y, rhs, a, n, h, diag[a], band, t_below, t_above, grav, reeling)
-        if free and forced and a == 0:
-            r0 += h2 * up[0]
-            r1 += h2 * up[1]
-            r2 += h2 * up[2]
-        if a == n:
-            r0 -= P.M * q[0]
-            r1 -= P.M * q[1]
-            r2 -= P.M * q[2]
+        r0, r1, r2 = node_residual(S.p, Y, rhs, a, n, h, diag[a], band, t_below, t_above, gravity, P.M, up, q,
+                                   flags)
         inv_m = 1.0 / diag[a]
         merit += (r0 * r0 + r1 * r1 + r2 * r2) * inv_m * inv_m
         s = diagonal_block(diag[a], q4, k, l)
@@ -284,6 +293,93 @@ def take_correction(W, first, fraction):
     return yy
 
 
+@kernel(inline="always")
+def newton_scales(r, J, u, M):
+    """:func:`implicit_newton`'s scales: ``(the body residual's weight [m / (kg m^2)], the
+    increment below which |y| counts as 0 [m^2], the positions' rounding [m^2], (2 x the body's
+    radius of gyration)^2 [m^2])``, from the nodes ``r``, the body's J and mass M, the rest length u."""
+    body_weight = u / (J[0, 0] + J[1, 1] + J[2, 2])  # body residual [kg m^2] -> [m]
+    floor2 = (1e-3 * u) ** 2
+    reach = u
+    for a in range(r.shape[0]):
+        reach = max(reach, abs(r[a, 0]), abs(r[a, 1]), abs(r[a, 2]))
+    rounding2 = (ROUNDOFF_ULPS * 2.220446049250313e-16 * reach) ** 2
+    body_length2 = 4.0 * (J[0, 0] + J[1, 1] + J[2, 2]) / M
+    return body_weight, floor2, rounding2, body_length2
+
+
+@kernel(forceinline=True)
+def newton_start(S, W, P, h, t, first, lengths):
+    """Before :func:`implicit_newton`'s iterations: the rows before the first unknown of ``W.Y``
+    zeroed, the elements taut at r_k held to the taut branch (the elastic law) until Newton has
+    converged (docs/physics.md, "The taut-branch start"). Returns ``(h Pi_k + h^2/2 tau_k (3)
+    [kg m^2], then :func:`newton_scales`)``."""
+    Y = W.Y
+    gk = (h * (S.Pi[0] + 0.5 * h * t[0]), h * (S.Pi[1] + 0.5 * h * t[1]), h * (S.Pi[2] + 0.5 * h * t[2]))
+    for a in range(first):
+        Y[a, 0] = 0.0
+        Y[a, 1] = 0.0
+        Y[a, 2] = 0.0
+    hold_taut(S.r, W.taut, lengths[0], P.slack)
+    return (gk,) + newton_scales(S.r, P.J, P.u, P.M)
+
+
+@kernel(forceinline=True)
+def newton_residual(S, W, P, h, mass, lengths, up, c, gk, flags, body_weight):
+    """The residual at the iterate (``W.Y``, ``c``): the body's equation and its coupling to the
+    attachment node (:func:`~.implicit_terms.body_coupling`), the string's rows eliminated
+    (:func:`string_elimination`) and the Cayley residual phi. Returns ``(the merit [m^2], S_N, r_N,
+    the coupling (g, q, B, C: 24), phi (3), g . c)``."""
+    free, forced, coupled, reeling = flags
+    Y = W.Y
+    n = S.r.shape[0] - 1
+    coupling = body_coupling(S.R, P, Y[n, 0], Y[n, 1], Y[n, 2], c[0], c[1], c[2], gk[0], gk[1], gk[2], coupled)
+    merit, s, rn = string_elimination(S, W, P, h, mass, lengths, up, coupling[3:6], (free, forced, reeling))
+    ph0, ph1, ph2, gc = cayley_residual(coupling[0], coupling[1], coupling[2], c[0], c[1], c[2], P.J)
+    merit += (ph0 * ph0 + ph1 * ph1 + ph2 * ph2) * body_weight * body_weight
+    return merit, s, rn, coupling, (ph0, ph1, ph2), gc
+
+
+@kernel(inline="always")
+def take_back(W, first, alpha, c, dc):
+    """Half of the last correction taken back (the line search's halving to ``alpha``): y -= alpha
+    dy in ``W``, c -= alpha dc; returns c."""
+    take_correction(W, first, -alpha)
+    return c[0] - alpha * dc[0], c[1] - alpha * dc[1], c[2] - alpha * dc[2]
+
+
+@kernel(forceinline=True)
+def newton_correction(W, J, first, s, rn, coupling, c, ph, gc, coupled, body_length2, floor2):
+    """One Newton correction taken whole: the attachment node's 6x6 system (:func:`attachment_solve`;
+    ``coupling`` = (B, C, g) of :func:`~.implicit_terms.body_coupling`), the back substitution,
+    y += dy in ``W`` and c += dc. Returns ``(c (3), dc (3), the correction's squared size, the
+    iterate's)`` [m^2], one norm for both unknowns: a rotation by 2 |c| moves the body's points by
+    about body_length 2 |c|."""
+    b, cy, g = coupling
+    dc, xn = attachment_solve(W, J, s, rn, b, cy, g, c, ph, gc, coupled)
+    dc0, dc1, dc2 = dc
+    dd = back_substitution(W, first, xn)
+    yy = take_correction(W, first, 1.0)
+    c0 = c[0] + dc0
+    c1 = c[1] + dc1
+    c2 = c[2] + dc2
+    dd += body_length2 * (dc0 * dc0 + dc1 * dc1 + dc2 * dc2)
+    scale = yy + body_length2 * (c0 * c0 + c1 * c1 + c2 * c2) + floor2
+    return c0, c1, c2, dc0, dc1, dc2, dd, scale
+
+
+@kernel(inline="always")
+def newton_converged(it, dd, dd_prev, scale, tol2, rounding2, backtracked):
+    """Whether Newton's iteration ``it`` converged, its squared correction ``dd`` [m^2] (the last's
+    ``dd_prev``) against the tolerance ``tol2`` x ``scale``: the correction is below the tolerance,
+    or will be by quadratic convergence (the next correction is about |d|^2 / |d_prev|), or is
+    round-off: it stopped shrinking at the level the residual's rounding allows (about 10-100 eps
+    relative to the increments, or the positions' own rounding ``rounding2``)."""
+    return (dd <= tol2 * scale
+            or (it > 1 and not backtracked and dd * dd <= tol2 * scale * dd_prev)
+            or (it > 1 and dd >= 0.25 * dd_prev and dd <= ROUNDOFF_TOL * ROUNDOFF_TOL * scale + rounding2))
+
+
 @kernel(forceinline=True)
 def implicit_newton(S, W, P, h, t, up, c, mass, lengths, flags):
     """Solve the implicit string's equations (kernels/implicit.py) for the increments y (into
@@ -297,33 +393,9 @@ def implicit_newton(S, W, P, h, t, up, c, mass, lengths, flags):
     reeling). Returns ``(c0, c1, c2, iterations, status)``: status 0, or NEWTON_FAILED /
     NON_FINITE."""
     free, forced, coupled, reeling = flags
-    r = S.r
-    R = S.R
-    J = P.J
-    Y = W.Y
-    n = r.shape[0] - 1
     first = 0 if free else 1
-    u = P.u
-    M = P.M
     c0, c1, c2 = c
-    gk0 = h * (S.Pi[0] + 0.5 * h * t[0])  # h Pi_k + h^2/2 tau_k [kg m^2]
-    gk1 = h * (S.Pi[1] + 0.5 * h * t[1])
-    gk2 = h * (S.Pi[2] + 0.5 * h * t[2])
-    body_weight = u / (J[0, 0] + J[1, 1] + J[2, 2])  # body residual [kg m^2] -> [m]
-    floor2 = (1e-3 * u) ** 2  # |y| below this counts as 0 in the tolerances [m^2]
-    reach = u
-    for a in range(n + 1):
-        reach = max(reach, abs(r[a, 0]), abs(r[a, 1]), abs(r[a, 2]))
-    rounding2 = (ROUNDOFF_ULPS * 2.220446049250313e-16 * reach) ** 2  # the positions' rounding [m^2]
-    body_length2 = 4.0 * (J[0, 0] + J[1, 1] + J[2, 2]) / M  # (2 x the body's radius of gyration)^2 [m^2]
-    for a in range(first):
-        Y[a, 0] = 0.0
-        Y[a, 1] = 0.0
-        Y[a, 2] = 0.0
-    # the elements taut at r_k keep the taut branch (the elastic law) until Newton has converged
-    # (docs/physics.md, "The taut-branch start")
-    taut = W.taut
-    hold_taut(r, taut, lengths[0], P.slack)
+    gk, body_weight, floor2, rounding2, body_length2 = newton_start(S, W, P, h, t, first, lengths)
     dc0 = dc1 = dc2 = 0.0
     alpha = 1.0
     merit_prev = np.inf
@@ -331,54 +403,29 @@ def implicit_newton(S, W, P, h, t, up, c, mass, lengths, flags):
     large_step = True
     halvings = 0
     for it in range(1, P.max_iter + 1):
-        # -- the body's equation and its coupling to the attachment node (at this iterate) --
-        (g0, g1, g2, q0, q1, q2, b00, b01, b02, b10, b11, b12, b20, b21, b22,
-         cy00, cy01, cy02, cy10, cy11, cy12, cy20, cy21, cy22) = body_coupling(
-            R, P, Y[n, 0], Y[n, 1], Y[n, 2], c0, c1, c2, gk0, gk1, gk2, coupled)
-        merit, s, rn = string_elimination(S, W, P, h, mass, lengths, up, (q0, q1, q2), (free, forced, reeling))
-        ph0, ph1, ph2, gc = cayley_residual(g0, g1, g2, c0, c1, c2, J)
-        merit += (ph0 * ph0 + ph1 * ph1 + ph2 * ph2) * body_weight * body_weight
+        merit, s, rn, coupling, ph, gc = newton_residual(S, W, P, h, mass, lengths, up, (c0, c1, c2), gk, flags,
+                                                         body_weight)
         if not np.isfinite(merit):
             return c0, c1, c2, it, NON_FINITE
         # -- line search: a step that did not reduce the residual is halved -----------------
         if merit > merit_prev and large_step and halvings < MAX_HALVINGS:
             halvings += 1
             alpha *= 0.5
-            take_correction(W, first, -alpha)
-            c0 -= alpha * dc0
-            c1 -= alpha * dc1
-            c2 -= alpha * dc2
+            c0, c1, c2 = take_back(W, first, alpha, (c0, c1, c2), (dc0, dc1, dc2))
             continue
         merit_prev = merit
         backtracked = halvings > 0
         halvings = 0
-        dc, xn = attachment_solve(W, J, s, rn, (b00, b01, b02, b10, b11, b12, b20, b21, b22),
-                                  (cy00, cy01, cy02, cy10, cy11, cy12, cy20, cy21, cy22), (g0, g1, g2),
-                                  (c0, c1, c2), (ph0, ph1, ph2), gc, coupled)
-        dc0, dc1, dc2 = dc
-        dd = back_substitution(W, first, xn)
+        c0, c1, c2, dc0, dc1, dc2, dd, scale = newton_correction(
+            W, P.J, first, s, rn, (coupling[6:15], coupling[15:24], coupling[0:3]), (c0, c1, c2), ph, gc, coupled,
+            body_length2, floor2)
         alpha = 1.0
-        yy = take_correction(W, first, 1.0)
-        c0 += dc0
-        c1 += dc1
-        c2 += dc2
-        # one norm for both unknowns [m]: a rotation by 2 |c| moves the body's points by about
-        # body_length 2 |c|
         tol2 = P.tol * P.tol
-        dd += body_length2 * (dc0 * dc0 + dc1 * dc1 + dc2 * dc2)
-        scale = yy + body_length2 * (c0 * c0 + c1 * c1 + c2 * c2) + floor2
         large_step = dd > LINE_SEARCH_FLOOR * LINE_SEARCH_FLOOR * scale
-        # converged: the correction is below the tolerance, or will be by quadratic convergence
-        # (the next correction is about |d|^2 / |d_prev|), or is round-off: it stopped shrinking
-        # at the level the residual's rounding allows (about 10-100 eps relative to the
-        # increments, or the positions' own rounding)
-        converged = (dd <= tol2 * scale
-                     or (it > 1 and not backtracked and dd * dd <= tol2 * scale * dd_prev)
-                     or (it > 1 and dd >= 0.25 * dd_prev and dd <= ROUNDOFF_TOL * ROUNDOFF_TOL * scale + rounding2))
-        if converged:
+        if newton_converged(it, dd, dd_prev, scale, tol2, rounding2, backtracked):
             # an element held to the taut branch that ended slack takes the slack law's
             # branch from here on: a new equation, so the merit and the rates restart
-            if release_slack(r, Y, taut, lengths[1]) == 0:
+            if release_slack(S.r, W.Y, W.taut, lengths[1]) == 0:
                 return c0, c1, c2, it, 0
             merit_prev = np.inf
             large_step = True

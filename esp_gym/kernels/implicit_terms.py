@@ -189,7 +189,6 @@ def body_coupling(R, P, yn0, yn1, yn2, c0, c1, c2, gk0, gk1, gk2, coupled):
     rho0 = P.rho[0]
     rho1 = P.rho[1]
     rho2 = P.rho[2]
-    cc = c0 * c0 + c1 * c1 + c2 * c2
     g0 = gk0
     g1 = gk1
     g2 = gk2
@@ -203,65 +202,81 @@ def body_coupling(R, P, yn0, yn1, yn2, c0, c1, c2, gk0, gk1, gk2, coupled):
         g0 = gk0 - M * (rho1 * w2 - rho2 * w1)
         g1 = gk1 - M * (rho2 * w0 - rho0 * w2)
         g2 = gk2 - M * (rho0 * w1 - rho1 * w0)
-        # (F - I) rho = s v, v = c x rho + c x (c x rho), s = 2/(1 + |c|^2)
-        sc = 2.0 / (1.0 + cc)
-        cr0 = c1 * rho2 - c2 * rho1
-        cr1 = c2 * rho0 - c0 * rho2
-        cr2 = c0 * rho1 - c1 * rho0
-        v0 = cr0 + (c1 * cr2 - c2 * cr1)
-        v1 = cr1 + (c2 * cr0 - c0 * cr2)
-        v2 = cr2 + (c0 * cr1 - c1 * cr0)
-        q0 = sc * (R[0, 0] * v0 + R[0, 1] * v1 + R[0, 2] * v2)  # q = R (F - I) rho
-        q1 = sc * (R[1, 0] * v0 + R[1, 1] * v1 + R[1, 2] * v2)
-        q2 = sc * (R[2, 0] * v0 + R[2, 1] * v1 + R[2, 2] * v2)
-        # d((F - I) rho)/dc = -s^2 v c^T + s (-rho^ + (c . rho) I + c rho^T - 2 rho c^T)
-        s2 = sc * sc
-        crho = c0 * rho0 + c1 * rho1 + c2 * rho2
-        d00 = -s2 * v0 * c0 + sc * (crho + c0 * rho0 - 2.0 * rho0 * c0)
-        d01 = -s2 * v0 * c1 + sc * (rho2 + c0 * rho1 - 2.0 * rho0 * c1)
-        d02 = -s2 * v0 * c2 + sc * (-rho1 + c0 * rho2 - 2.0 * rho0 * c2)
-        d10 = -s2 * v1 * c0 + sc * (-rho2 + c1 * rho0 - 2.0 * rho1 * c0)
-        d11 = -s2 * v1 * c1 + sc * (crho + c1 * rho1 - 2.0 * rho1 * c1)
-        d12 = -s2 * v1 * c2 + sc * (rho0 + c1 * rho2 - 2.0 * rho1 * c2)
-        d20 = -s2 * v2 * c0 + sc * (rho1 + c2 * rho0 - 2.0 * rho2 * c0)
-        d21 = -s2 * v2 * c1 + sc * (-rho0 + c2 * rho1 - 2.0 * rho2 * c1)
-        d22 = -s2 * v2 * c2 + sc * (crho + c2 * rho2 - 2.0 * rho2 * c2)
-        b00 = M * (R[0, 0] * d00 + R[0, 1] * d10 + R[0, 2] * d20)
-        b01 = M * (R[0, 0] * d01 + R[0, 1] * d11 + R[0, 2] * d21)
-        b02 = M * (R[0, 0] * d02 + R[0, 1] * d12 + R[0, 2] * d22)
-        b10 = M * (R[1, 0] * d00 + R[1, 1] * d10 + R[1, 2] * d20)
-        b11 = M * (R[1, 0] * d01 + R[1, 1] * d11 + R[1, 2] * d21)
-        b12 = M * (R[1, 0] * d02 + R[1, 1] * d12 + R[1, 2] * d22)
-        b20 = M * (R[2, 0] * d00 + R[2, 1] * d10 + R[2, 2] * d20)
-        b21 = M * (R[2, 0] * d01 + R[2, 1] * d11 + R[2, 2] * d21)
-        b22 = M * (R[2, 0] * d02 + R[2, 1] * d12 + R[2, 2] * d22)
-        # C = (I - c^ + c c^T)(-M rho^ R^T): first P = -M rho^ R^T
-        p00 = -M * (rho1 * R[0, 2] - rho2 * R[0, 1])
-        p01 = -M * (rho1 * R[1, 2] - rho2 * R[1, 1])
-        p02 = -M * (rho1 * R[2, 2] - rho2 * R[2, 1])
-        p10 = -M * (rho2 * R[0, 0] - rho0 * R[0, 2])
-        p11 = -M * (rho2 * R[1, 0] - rho0 * R[1, 2])
-        p12 = -M * (rho2 * R[2, 0] - rho0 * R[2, 2])
-        p20 = -M * (rho0 * R[0, 1] - rho1 * R[0, 0])
-        p21 = -M * (rho0 * R[1, 1] - rho1 * R[1, 0])
-        p22 = -M * (rho0 * R[2, 1] - rho1 * R[2, 0])
-        m00 = 1.0 + c0 * c0
-        m01 = c2 + c0 * c1
-        m02 = -c1 + c0 * c2
-        m10 = -c2 + c1 * c0
-        m11 = 1.0 + c1 * c1
-        m12 = c0 + c1 * c2
-        m20 = c1 + c2 * c0
-        m21 = -c0 + c2 * c1
-        m22 = 1.0 + c2 * c2
-        cy00 = m00 * p00 + m01 * p10 + m02 * p20
-        cy01 = m00 * p01 + m01 * p11 + m02 * p21
-        cy02 = m00 * p02 + m01 * p12 + m02 * p22
-        cy10 = m10 * p00 + m11 * p10 + m12 * p20
-        cy11 = m10 * p01 + m11 * p11 + m12 * p21
-        cy12 = m10 * p02 + m11 * p12 + m12 * p22
-        cy20 = m20 * p00 + m21 * p10 + m22 * p20
-        cy21 = m20 * p01 + m21 * p11 + m22 * p21
-        cy22 = m20 * p02 + m21 * p12 + m22 * p22
+        q0, q1, q2, b00, b01, b02, b10, b11, b12, b20, b21, b22 = offset_terms(R, M, rho0, rho1, rho2, c0, c1, c2)
+        cy00, cy01, cy02, cy10, cy11, cy12, cy20, cy21, cy22 = attitude_row_terms(R, M, rho0, rho1, rho2, c0, c1, c2)
     return (g0, g1, g2, q0, q1, q2, b00, b01, b02, b10, b11, b12, b20, b21, b22,
             cy00, cy01, cy02, cy10, cy11, cy12, cy20, cy21, cy22)
+
+
+@kernel(inline="always")
+def offset_terms(R, M, rho0, rho1, rho2, c0, c1, c2):
+    """:func:`body_coupling`'s q = R_k (F(c) - I) rho_c and B = M R_k d(F rho_c)/dc (row-major):
+    ``(q0, q1, q2, b00, ..., b22)``."""
+    cc = c0 * c0 + c1 * c1 + c2 * c2
+    # (F - I) rho = s v, v = c x rho + c x (c x rho), s = 2/(1 + |c|^2)
+    sc = 2.0 / (1.0 + cc)
+    cr0 = c1 * rho2 - c2 * rho1
+    cr1 = c2 * rho0 - c0 * rho2
+    cr2 = c0 * rho1 - c1 * rho0
+    v0 = cr0 + (c1 * cr2 - c2 * cr1)
+    v1 = cr1 + (c2 * cr0 - c0 * cr2)
+    v2 = cr2 + (c0 * cr1 - c1 * cr0)
+    q0 = sc * (R[0, 0] * v0 + R[0, 1] * v1 + R[0, 2] * v2)  # q = R (F - I) rho
+    q1 = sc * (R[1, 0] * v0 + R[1, 1] * v1 + R[1, 2] * v2)
+    q2 = sc * (R[2, 0] * v0 + R[2, 1] * v1 + R[2, 2] * v2)
+    # d((F - I) rho)/dc = -s^2 v c^T + s (-rho^ + (c . rho) I + c rho^T - 2 rho c^T)
+    s2 = sc * sc
+    crho = c0 * rho0 + c1 * rho1 + c2 * rho2
+    d00 = -s2 * v0 * c0 + sc * (crho + c0 * rho0 - 2.0 * rho0 * c0)
+    d01 = -s2 * v0 * c1 + sc * (rho2 + c0 * rho1 - 2.0 * rho0 * c1)
+    d02 = -s2 * v0 * c2 + sc * (-rho1 + c0 * rho2 - 2.0 * rho0 * c2)
+    d10 = -s2 * v1 * c0 + sc * (-rho2 + c1 * rho0 - 2.0 * rho1 * c0)
+    d11 = -s2 * v1 * c1 + sc * (crho + c1 * rho1 - 2.0 * rho1 * c1)
+    d12 = -s2 * v1 * c2 + sc * (rho0 + c1 * rho2 - 2.0 * rho1 * c2)
+    d20 = -s2 * v2 * c0 + sc * (rho1 + c2 * rho0 - 2.0 * rho2 * c0)
+    d21 = -s2 * v2 * c1 + sc * (-rho0 + c2 * rho1 - 2.0 * rho2 * c1)
+    d22 = -s2 * v2 * c2 + sc * (crho + c2 * rho2 - 2.0 * rho2 * c2)
+    b00 = M * (R[0, 0] * d00 + R[0, 1] * d10 + R[0, 2] * d20)
+    b01 = M * (R[0, 0] * d01 + R[0, 1] * d11 + R[0, 2] * d21)
+    b02 = M * (R[0, 0] * d02 + R[0, 1] * d12 + R[0, 2] * d22)
+    b10 = M * (R[1, 0] * d00 + R[1, 1] * d10 + R[1, 2] * d20)
+    b11 = M * (R[1, 0] * d01 + R[1, 1] * d11 + R[1, 2] * d21)
+    b12 = M * (R[1, 0] * d02 + R[1, 1] * d12 + R[1, 2] * d22)
+    b20 = M * (R[2, 0] * d00 + R[2, 1] * d10 + R[2, 2] * d20)
+    b21 = M * (R[2, 0] * d01 + R[2, 1] * d11 + R[2, 2] * d21)
+    b22 = M * (R[2, 0] * d02 + R[2, 1] * d12 + R[2, 2] * d22)
+    return q0, q1, q2, b00, b01, b02, b10, b11, b12, b20, b21, b22
+
+
+@kernel(inline="always")
+def attitude_row_terms(R, M, rho0, rho1, rho2, c0, c1, c2):
+    """:func:`body_coupling`'s C = (I - c^ + c c^T)(-M rho^ R_k^T) (row-major): ``(c00, ..., c22)``."""
+    # C = (I - c^ + c c^T)(-M rho^ R^T): first P = -M rho^ R^T
+    p00 = -M * (rho1 * R[0, 2] - rho2 * R[0, 1])
+    p01 = -M * (rho1 * R[1, 2] - rho2 * R[1, 1])
+    p02 = -M * (rho1 * R[2, 2] - rho2 * R[2, 1])
+    p10 = -M * (rho2 * R[0, 0] - rho0 * R[0, 2])
+    p11 = -M * (rho2 * R[1, 0] - rho0 * R[1, 2])
+    p12 = -M * (rho2 * R[2, 0] - rho0 * R[2, 2])
+    p20 = -M * (rho0 * R[0, 1] - rho1 * R[0, 0])
+    p21 = -M * (rho0 * R[1, 1] - rho1 * R[1, 0])
+    p22 = -M * (rho0 * R[2, 1] - rho1 * R[2, 0])
+    m00 = 1.0 + c0 * c0
+    m01 = c2 + c0 * c1
+    m02 = -c1 + c0 * c2
+    m10 = -c2 + c1 * c0
+    m11 = 1.0 + c1 * c1
+    m12 = c0 + c1 * c2
+    m20 = c1 + c2 * c0
+    m21 = -c0 + c2 * c1
+    m22 = 1.0 + c2 * c2
+    cy00 = m00 * p00 + m01 * p10 + m02 * p20
+    cy01 = m00 * p01 + m01 * p11 + m02 * p21
+    cy02 = m00 * p02 + m01 * p12 + m02 * p22
+    cy10 = m10 * p00 + m11 * p10 + m12 * p20
+    cy11 = m10 * p01 + m11 * p11 + m12 * p21
+    cy12 = m10 * p02 + m11 * p12 + m12 * p22
+    cy20 = m20 * p00 + m21 * p10 + m22 * p20
+    cy21 = m20 * p01 + m21 * p11 + m22 * p21
+    cy22 = m20 * p02 + m21 * p12 + m22 * p22
+    return cy00, cy01, cy02, cy10, cy11, cy12, cy20, cy21, cy22

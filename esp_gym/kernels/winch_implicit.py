@@ -55,7 +55,6 @@ def winch_implicit_once(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, c
     v = (l1 - l0) / h
     c = mu * v / n
     hh = 0.5 * h
-    h2 = 0.5 * h * h
     m0 = mu * l0 / n
     m1 = mu * l1 / n
     m_mean = 0.5 * (m0 + m1)
@@ -66,30 +65,10 @@ def winch_implicit_once(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, c
     held = held_inputs(inputs, forced)
     up0, up1, up2, _, _, _, tb0, tb1, tb2, ts0, ts1, ts2 = held
     l_0, l_1, l_2, t0, t1, t2 = left_torque(R, P, tb0, tb1, tb2, ts0, ts1, ts2, forced, coupled)
-    # the first guess: the explicit winch step (1w) with the last step's right forces
     theta0 = mu * v * v / (n * l0)
-    for a in range(n + 1):
-        for i in range(3):
-            fl[a, i] = S.f[a, i]
-    if v != 0.0:
-        add_convective_forces(r, coef, theta0, fl, first)
-    step_solve(S, W, WA, c, hh, up0, up1, up2, free and forced, first, n)
-    c0, c1, c2, _, _, _, _, _, _, _, status = rigid_increments(S, W, Pm, h, Pm.M, Pm.rho, WA.jeff, WA.w, t0, t1,
-                                                               t2, free, forced, coupled)
-    if status != OK:  # the string solve alone
-        c0 = c1 = c2 = 0.0
-        for a in range(first, n + 1):
-            for i in range(3):
-                Y[a, i] = h * X[a, i]
-    # the residual's constant part: h p_k + h^2/2 (f_g + grad T0)(r_k, l0) - h c C^T r_k
-    for a in range(n + 1):
-        for i in range(3):
-            rhs[a, i] = h * (S.p[a, i] - c * convective_momentum(r, coef, a, i)) if a >= first else 0.0
-        rhs[a, 2] += h2 * m0 * P.g
-    rhs[0, 2] += h2 * (P.Mp - 0.5 * m0) * P.g
-    rhs[n, 2] += h2 * (P.M - 0.5 * m0) * P.g
-    if v != 0.0:
-        add_convective_forces(r, coef, h2 * theta0, rhs, first)
+    c0, c1, c2 = winch_first_guess(S, W, WA, Pm, h, c, v != 0.0, theta0, (up0, up1, up2), (t0, t1, t2),
+                                   (free, forced, coupled))
+    winch_constant_part(S, P, WA, h, c, m0, v != 0.0, theta0, first)
     c0, c1, c2, iters, status = implicit_newton(S, W, Pm, h, (t0, t1, t2), (up0, up1, up2), (c0, c1, c2),
                                                 (WA.diag, WA.lower, WA.upper, rhs), (u0, u1),
                                                 (free, forced, coupled, True))
@@ -114,6 +93,50 @@ def winch_implicit_once(S, W, P, WA, inputs, h, l0, l1, free, forced, coupled, c
     if status == OK:  # the commit counted the weight at l1; the step's is at the mean length
         kahan_add(S.acc, S.accc, B_GRAVITY_IMPULSE + 2, h * P.g * n * (m_mean - P1.m))
     return status, iters, elastic
+
+
+@kernel(forceinline=True)
+def winch_first_guess(S, W, WA, Pm, h, c, moving, theta0, up, t, flags):
+    """:func:`winch_implicit_once`'s first guess: the explicit winch step (1w) with the last step's
+    right forces (``S.f``; plus the convective forces of theta0 while the winch is ``moving``) into
+    ``W.Y``, its body's Cayley vector returned (0, and the string's solve alone, if the rigid solve
+    failed). ``c`` the flow's mass rate per node [kg/s], ``up`` the pivot force, ``t`` the left
+    torque, ``flags`` = (free, forced, coupled)."""
+    free, forced, coupled = flags
+    r, X, Y, fl = S.r, W.X, W.Y, W.fl
+    n = r.shape[0] - 1
+    first = 0 if free else 1
+    for a in range(n + 1):
+        for i in range(3):
+            fl[a, i] = S.f[a, i]
+    if moving:
+        add_convective_forces(r, WA.coef, theta0, fl, first)
+    step_solve(S, W, WA, c, 0.5 * h, up[0], up[1], up[2], free and forced, first, n)
+    c0, c1, c2, _, _, _, _, _, _, _, status = rigid_increments(S, W, Pm, h, Pm.M, Pm.rho, WA.jeff, WA.w, t[0], t[1],
+                                                               t[2], free, forced, coupled)
+    if status != OK:  # the string solve alone
+        c0 = c1 = c2 = 0.0
+        for a in range(first, n + 1):
+            for i in range(3):
+                Y[a, i] = h * X[a, i]
+    return c0, c1, c2
+
+
+@kernel(forceinline=True)
+def winch_constant_part(S, P, WA, h, c, m0, moving, theta0, first):
+    """The implicit residual's constant part into ``WA.rhs``: h p_k + h^2/2 (f_g + grad T0)(r_k, l0)
+    - h c C^T r_k (node mass ``m0`` at the step's start; grad T0 of theta0 while ``moving``)."""
+    r, coef, rhs = S.r, WA.coef, WA.rhs
+    n = r.shape[0] - 1
+    h2 = 0.5 * h * h
+    for a in range(n + 1):
+        for i in range(3):
+            rhs[a, i] = h * (S.p[a, i] - c * convective_momentum(r, coef, a, i)) if a >= first else 0.0
+        rhs[a, 2] += h2 * m0 * P.g
+    rhs[0, 2] += h2 * (P.Mp - 0.5 * m0) * P.g
+    rhs[n, 2] += h2 * (P.M - 0.5 * m0) * P.g
+    if moving:
+        add_convective_forces(r, coef, h2 * theta0, rhs, first)
 
 
 @kernel(inline="always")
