@@ -28,7 +28,8 @@ from .kernels.winch import winch_forces
 from .stepsize import at_length
 from .watchdog import WATCH_EVERY, check_balance
 from .winch import Winch
-from .state import State, StepClock, build_params, check_memory, initial_state, legendre_momenta  # noqa: F401  (re-exported)
+from .state import (State, StepClock, build_params, check_memory, initial_state,  # noqa: F401  (re-exported)
+                    legendre_momenta)
 
 #: The live arrays of a simulator that the compiled kernels advance: ``state``
 #: (:class:`~esp_gym.kernels.layout.StateArrays`), ``work`` (Work), ``params`` (LGVIParams),

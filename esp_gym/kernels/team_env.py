@@ -12,7 +12,6 @@ over the step; ``thrust_rates`` sets the rate controller's setpoints here.
 The entry points take their structs as plain tuples (numba's dispatcher types a plain tuple about
 twice as fast as a namedtuple, kernels/env_step.py) and rebuild the namedtuples inside, for free.
 """
-import math
 from collections import namedtuple
 
 import numpy as np
@@ -238,18 +237,32 @@ def team_control(S, W, P, T, A, TD, RD, TK, E, B, inputs, stats, nsteps, disturb
     E.report[TS_CODE] = code
 
 
+@kernel(inline="always")
+def team_structs(sim, env):
+    """The namedtuples of an entry point's plain tuples ``sim`` (:data:`TeamStructs`, its drones
+    apart) and ``env`` ((TeamTaskArrays, TeamEnvArrays)): ``(S, W, P, T, A, RD, TK, E, balance,
+    inputs, stats)``, the order :func:`team_control` takes them in (its drones after ``A``)."""
+    return (StateArrays(*sim[0]), Work(*sim[1]), LGVIParams(*sim[2]), TeamParams(*sim[3]), TeamArrays(*sim[4]),
+            TeamReadArrays(*sim[6]), TeamTaskArrays(*env[0]), TeamEnvArrays(*env[1]), sim[9], sim[7], sim[8])
+
+
+@kernel(inline="always")
+def team_drones(sim):
+    """The drones (:data:`~.team_drones.TeamDrones`) of an entry point's plain tuples ``sim``."""
+    td = sim[5]
+    return TeamDrones(DroneArrays(*td[0]), td[1], td[2])
+
+
 @kernel(entry=True)
 def team_points_step(sim, env, raw, nsteps, disturbed, time):
     """A point team's control step (:func:`team_control`) from the raw actions (K, n_a): ``sim``
     the simulator's :data:`TeamStructs` (its drones None), ``env`` the task's and the env's arrays
     ``(TeamTaskArrays, TeamEnvArrays)``, as plain tuples. Returns False, changing nothing, if an
     action is not finite."""
-    E = TeamEnvArrays(*env[1])
+    S, W, P, T, A, RD, TK, E, B, inputs, stats = team_structs(sim, env)
     if not clip_actions(raw, E.action):
         return False
-    team_control(StateArrays(*sim[0]), Work(*sim[1]), LGVIParams(*sim[2]), TeamParams(*sim[3]), TeamArrays(*sim[4]),
-                 None, TeamReadArrays(*sim[6]), TeamTaskArrays(*env[0]), E, sim[9], sim[7], sim[8], nsteps, disturbed,
-                 False, time)
+    team_control(S, W, P, T, A, None, RD, TK, E, B, inputs, stats, nsteps, disturbed, False, time)
     return True
 
 
@@ -257,14 +270,10 @@ def team_points_step(sim, env, raw, nsteps, disturbed, time):
 def team_drones_step(sim, env, raw, nsteps, disturbed, rates, time):
     """:func:`team_points_step` of a drone team: ``rates`` True sets the rate controller's
     setpoints from the actions (``thrust_rates``), False flies the motor commands held."""
-    E = TeamEnvArrays(*env[1])
+    S, W, P, T, A, RD, TK, E, B, inputs, stats = team_structs(sim, env)
     if not clip_actions(raw, E.action):
         return False
-    td = sim[5]
-    TD = TeamDrones(DroneArrays(*td[0]), td[1], td[2])
-    team_control(StateArrays(*sim[0]), Work(*sim[1]), LGVIParams(*sim[2]), TeamParams(*sim[3]), TeamArrays(*sim[4]),
-                 TD, TeamReadArrays(*sim[6]), TeamTaskArrays(*env[0]), E, sim[9], sim[7], sim[8], nsteps, disturbed,
-                 rates, time)
+    team_control(S, W, P, T, A, team_drones(sim), RD, TK, E, B, inputs, stats, nsteps, disturbed, rates, time)
     return True
 
 
@@ -308,19 +317,16 @@ def team_points_batch(sim, env, raw, active, nsteps, disturbed, times):
     """:func:`team_points_step` of a batch: every struct stacked along a leading (B,) axis (the
     constants too), the raw actions (B, K, n_a) finite, ``active`` (B,) bool the teams to step,
     ``nsteps`` (B,) int64 and ``times`` (B,) each team's physics steps and the step's end [s]."""
-    team_batch_loop(StateArrays(*sim[0]), Work(*sim[1]), LGVIParams(*sim[2]), TeamParams(*sim[3]),
-                    TeamArrays(*sim[4]), None, TeamReadArrays(*sim[6]), TeamTaskArrays(*env[0]),
-                    TeamEnvArrays(*env[1]), sim[9], sim[7], sim[8], raw, active, nsteps, disturbed, False, times)
+    S, W, P, T, A, RD, TK, E, B, inputs, stats = team_structs(sim, env)
+    team_batch_loop(S, W, P, T, A, None, RD, TK, E, B, inputs, stats, raw, active, nsteps, disturbed, False, times)
 
 
 @kernel(entry=True)
 def team_drones_batch(sim, env, raw, active, nsteps, disturbed, rates, times):
     """:func:`team_drones_step` of a batch (:func:`team_points_batch`)."""
-    td = sim[5]
-    TD = TeamDrones(DroneArrays(*td[0]), td[1], td[2])
-    team_batch_loop(StateArrays(*sim[0]), Work(*sim[1]), LGVIParams(*sim[2]), TeamParams(*sim[3]),
-                    TeamArrays(*sim[4]), TD, TeamReadArrays(*sim[6]), TeamTaskArrays(*env[0]),
-                    TeamEnvArrays(*env[1]), sim[9], sim[7], sim[8], raw, active, nsteps, disturbed, rates, times)
+    S, W, P, T, A, RD, TK, E, B, inputs, stats = team_structs(sim, env)
+    team_batch_loop(S, W, P, T, A, team_drones(sim), RD, TK, E, B, inputs, stats, raw, active, nsteps, disturbed,
+                    rates, times)
 
 
 #: The seconds to the first step of a team environment on an empty cache (2 cores;

@@ -98,7 +98,6 @@ class TeamBatch:
         obs = self.task.obs
         for b in teams:
             core = self.cores[b]
-            core.control.finish()
             out[b] = (core.noisy(obs[b]),) + core.counted()
         return out
 

@@ -14,11 +14,11 @@ from ..kernels.team_env import (TD_HOVER_THRUST, TD_MAX_THRUST, TE_ENERGY_SCALE,
 class TeamControl:
     """One team's compiled control step: ``sim`` a :class:`~esp_gym.team.simulator.TeamSimulator`
     whose strings keep their scenes' lengths, ``task`` its task's arrays (kernels/team_task.py
-    ``TeamTaskArrays``, the env's observation), ``substeps`` physics steps per control step,
-    ``action_size`` each agent's action's, ``force_scale`` and ``hover`` each point pivot's force at action 1 and its hover force [N],
-    ``formation`` (K, 3) each pivot's target from the load's [m], ``drive`` a drone team's
-    :class:`~esp_gym.team.spaces.DroneDrive` (None for point pivots), ``disturbed`` whether a
-    force on the load is held over each step (the wind)."""
+    ``TeamTaskArrays``, the env's observation), ``action_size`` the size of each agent's action,
+    ``substeps`` physics steps per control step, ``force_scale`` and ``hover`` each point pivot's
+    force at action 1 and its hover force [N], ``formation`` (K, 3) each pivot's target from the
+    load's [m], ``drive`` a drone team's :class:`~esp_gym.team.spaces.DroneDrive` (None for point
+    pivots), ``disturbed`` whether a force on the load is held over each step (the wind)."""
 
     def __init__(self, sim, task, action_size: int, substeps: int, force_scale: float, hover: float,
                  formation: np.ndarray, drive, disturbed: bool):
@@ -59,16 +59,12 @@ class TeamControl:
         """One control step from the raw actions (K, n_a) (clipped in the call), ``time`` the step's
         end [s] (a moving target's), the load force held (:meth:`hold_load_force`) when disturbed.
         False, with nothing changed, if an action is not finite. The report is in ``arrays.report``,
-        the applied action in ``arrays.action``; the simulator has counted the steps."""
+        the applied action in ``arrays.action``; :meth:`finish` next."""
         if self._entry is None:
             self._entry = self._bind(raw)
         if self.sim.fleet is None:
-            done = self._entry(*self._structs, raw, self.substeps, self.disturbed, float(time))
-        else:
-            done = self._entry(*self._structs, raw, self.substeps, self.disturbed, self.rates, float(time))
-        if done:
-            self.finish()
-        return done
+            return self._entry(*self._structs, raw, self.substeps, self.disturbed, float(time))
+        return self._entry(*self._structs, raw, self.substeps, self.disturbed, self.rates, float(time))
 
     def finish(self) -> None:
         """After a compiled control step (this one's, or a batch's): the simulator counts its steps."""

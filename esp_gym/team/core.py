@@ -40,6 +40,20 @@ from .tasks import TEAM_PRESETS, get_team_task, hanging_rise, task_arrays
 NO_DRONES = (np.zeros((0, 3, 3)), np.zeros((0, 3)))
 
 
+class TargetArray:
+    """A :class:`TeamCore` target: one of its ``_targets`` arrays, which an assignment writes in
+    place (the compiled task's arrays of every observation mode share them)."""
+
+    def __set_name__(self, owner, name):
+        self.name = name
+
+    def __get__(self, core, owner=None):
+        return self if core is None else core._targets[self.name]
+
+    def __set__(self, core, value):
+        core._targets[self.name][...] = value
+
+
 class TeamCore(TeamStepping):
     """A team's episode (module docstring). ``team``: K or a :class:`TeamScene` whose pivots are
     all free points or all drones; ``task``: a name of :data:`~esp_gym.team.tasks.TEAM_TASKS`;
@@ -128,7 +142,8 @@ class TeamCore(TeamStepping):
         if self.task.needs_winch and not reels:
             raise ValueError(f"winch: task {self.task.name!r} reels the strings and needs winch=True")
         if reels and self.drones:
-            raise ValueError("winch: a team's drones do not reel yet (docs/physics.md, \"What a team does not do yet\")")
+            raise ValueError("winch: a team's drones do not reel yet (docs/physics.md, \"What a team does not do "
+                             "yet\")")
         return reels
 
     def _check_extremes(self, scene: TeamScene) -> None:
@@ -174,33 +189,11 @@ class TeamCore(TeamStepping):
                                        self.force_scale, self.hover, self._formation, self.drive,
                                        self.wind is not None)
 
-    # -- the targets (spatial), written in place: the compiled task reads them ------------------
-    @property
-    def load_target(self) -> np.ndarray:
-        """The load's target (3,) [m]."""
-        return self._targets["load_target"]
-
-    @load_target.setter
-    def load_target(self, value) -> None:
-        self._targets["load_target"][...] = value
-
-    @property
-    def pivot_targets(self) -> np.ndarray:
-        """Each pivot's target (K, 3) [m]."""
-        return self._targets["pivot_targets"]
-
-    @pivot_targets.setter
-    def pivot_targets(self, value) -> None:
-        self._targets["pivot_targets"][...] = value
-
-    @property
-    def target_velocity(self) -> np.ndarray:
-        """The load target's velocity (3,) [m/s]."""
-        return self._targets["target_velocity"]
-
-    @target_velocity.setter
-    def target_velocity(self, value) -> None:
-        self._targets["target_velocity"][...] = value
+    #: The targets (spatial), arrays written in place (the compiled task reads them): the load's
+    #: (3,) [m], each pivot's (K, 3) [m] and the load target's velocity (3,) [m/s].
+    load_target = TargetArray()
+    pivot_targets = TargetArray()
+    target_velocity = TargetArray()
 
     # -- the state, as the observation reads it -------------------------------------------------
     def pivot_positions(self) -> np.ndarray:

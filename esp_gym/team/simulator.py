@@ -314,8 +314,9 @@ class TeamSimulator(TeamReadout, StepClock):
             raise ValueError("a compiled control step needs the winches at rest at the scenes' lengths and "
                              "compiled_reads on")
         self._read.length[...] = self.winches.scene_lengths
-        return TeamStructs(self._S, self._W, self._P, self.params, self._A, None if self.fleet is None else self.fleet.arrays,
-                           self._read, self._inputs, self._stats, self._balance)
+        drones = None if self.fleet is None else self.fleet.arrays
+        return TeamStructs(self._S, self._W, self._P, self.params, self._A, drones, self._read, self._inputs,
+                           self._stats, self._balance)
 
     def compiled(self) -> TeamStructs:
         """:meth:`structs` as the entry points take them: each struct a plain tuple."""

@@ -67,9 +67,11 @@ class TeamStepping:
             self.control.hold_load_force(self.load_force)
 
     def counted(self) -> tuple:
-        """After a compiled control step: the step counted, the action applied kept, a failure's
-        error kept; returns ``(reward (0 after a physics failure), the smallest distance between two
+        """After a compiled control step (alone or in a batch): the simulator's steps counted
+        (TeamControl.finish) and the control step's, the action applied kept, a failure's error
+        kept; returns ``(reward (0 after a physics failure), the smallest distance between two
         pivots [m], the termination code)``."""
+        self.control.finish()
         self.steps += 1
         E = self.control.arrays
         self.last_action = E.action.copy()

@@ -46,10 +46,9 @@ class ElasticStringTeamVectorEnv(VectorEnv):
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._elapsed = np.zeros(self.num_envs, dtype=np.int64)
         self._was_reset = False  # stepping teams that were never reset is an error
-        #: the teams' compiled batch (esp_gym/team/batch.py), made at the first reset; None where
-        #: the teams step one by one (winches)
-        self.batch = None
-        self._batched = self.envs[0].core.control is not None
+        #: the teams' compiled batch (esp_gym/team/batch.py); None where the teams step one by one
+        #: (winches)
+        self.batch = TeamBatch([env.core for env in self.envs]) if self.envs[0].core.control is not None else None
 
     def reset(self, *, seed=None, options: Optional[dict] = None):
         seeds = sub_env_seeds(seed, self.num_envs)
@@ -61,9 +60,7 @@ class ElasticStringTeamVectorEnv(VectorEnv):
         self._autoreset[:] = False
         self._elapsed[:] = 0
         self._was_reset = True
-        if self._batched:
-            if self.batch is None:
-                self.batch = TeamBatch([env.core for env in self.envs])
+        if self.batch is not None:
             for i in range(self.num_envs):
                 self.batch.reset(i)
         return np.stack(obs), infos

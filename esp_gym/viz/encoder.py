@@ -24,7 +24,8 @@ class SampleEncoder:
     winch's series; ``drone``: the drone's samples (esp_gym/viz/drone_track.py) or None;
     ``scalars``: the scalar series (entities.py ``scalar_series``); the scales and offsets as
     :class:`~esp_gym.viz.recorder.Recorder`'s; ``trail``: (samples a load trail spans, samples
-    between its points: its ``trail_seconds`` and ``trail_spacing`` over its sample period). It keeps the load trail's tail and the episode's return between calls."""
+    between its points: its ``trail_seconds`` and ``trail_spacing`` over its sample period). It
+    keeps the load trail's tail and the episode's return between calls."""
 
     def __init__(self, layout, n_elements: int, *, env: bool, winch: bool, drone, scalars: dict,
                  strain_scale: float, force_scale: float, torque_scale: float, wind_scale: float,
