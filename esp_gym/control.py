@@ -24,7 +24,7 @@ from typing import Optional
 import numba
 import numpy as np
 
-from .arrays import params_row, repeated, row, stacked
+from .arrays import params_row, row
 from .kernels.layout import INPUTS, R_TERMINATION, REPORT
 from .kernels.env_arrays import OBSERVATION, REWARD, REWARD_TERMS, SCHEME_DISTURBED, SENSORS, TARGET, WINCH_OBSERVATION
 from .kernels.disturbance import DISTURBANCE, DISTURBANCE_PARAMS, DRAWS
@@ -32,9 +32,9 @@ from .kernels.string import state_forces
 from .kernels.env_arrays import FEATURES, EnvArrays
 from .kernels.env_step import actions_finite
 from .kernels.drone_env import DRONE_SENSORS
-from .drone import DroneSimulator, hover_at_rest, use_drone_scene, use_hook_scene
-from .model import Simulator
+from .drone import hover_at_rest, use_drone_scene, use_hook_scene
 from .options import check_count
+from .rig_arrays import make_arrays
 from .workers import check_within_cpus
 from .setup import Episode, EnvSetup
 from .state import State, check_memory
@@ -129,34 +129,22 @@ class ControlStep:
         self._make_views()
 
     def _physics_structs(self, batch: tuple) -> None:
-        """The simulator and the physics' structs: its state, work, constants and diagnostics, the
-        winch's, the drone's and its hook's; for a batch, each stacked (``batch`` its leading axis),
-        the constants repeated per sub-environment."""
-        setup = self.setup
+        """The simulator and the physics' structs (esp_gym/rig_arrays.py :func:`make_arrays`): its
+        state, work, constants and diagnostics, the winch's, the drone's and its hook's; for a
+        batch, each stacked (``batch`` its leading axis), the constants per sub-environment."""
+        arrays = make_arrays(self.setup.scene, self.num_envs)
         #: The simulator stepped in place (one environment), or the template of the batch's arrays;
         #: a :class:`~esp_gym.drone.DroneSimulator` with a drone at the pivot.
-        self.sim = DroneSimulator(setup.scene) if setup.drone else Simulator(setup.scene)
-        state, work, params, diag = self.sim.buffers
-        winch = self.sim.winch.arrays  # the winch's (read only with winch=True)
-        #: The drone's arrays (kernels/drone.py; a batch's stacked), or None without a drone.
-        self._drone = self.sim.drone if setup.drone else None
-        #: The drone's hook constants (kernels/drone_hook.py) when it is off the centre of mass, else None.
-        self._hook = self.sim.hook if setup.drone and setup.scene.pivot.drone.offset_hook else None
+        self.sim = arrays.sim
+        self._arrays = arrays
+        self._state, self._work, self._params, self._diag = arrays.state, arrays.work, arrays.params, arrays.diag
+        #: the winch's arrays (read only with winch=True); the drone's (kernels/drone.py) or None
+        #: without a drone; the drone's hook constants (kernels/drone_hook.py) when it is off the
+        #: centre of mass, else None
+        self._winch, self._drone, self._hook = arrays.winch, arrays.drone, arrays.hook
         if batch:
-            state, work, diag, winch = stacked(state, batch), stacked(work, batch), stacked(diag, batch), stacked(
-                winch, batch)
-            if setup.drone:  # its constants in every row, as the template's
-                self._drone = repeated(self._drone, self.num_envs)
-            if self._hook is not None:
-                self._hook = repeated(self._hook, self.num_envs)
-            winch.coef[...] = self.sim.winch.arrays.coef
-            # every constant per sub-environment (scalars become (num_envs,) arrays of their type)
-            params = repeated(params, self.num_envs)
             #: The scene of each sub-environment's episode.
-            self.scenes = [setup.scene] * self.num_envs
-        self._state, self._diag, self._params = state, diag, params
-        self._work = work
-        self._winch = winch
+            self.scenes = [self.setup.scene] * self.num_envs
 
     def _env_buffers(self, batch: tuple) -> None:
         """The environment's arrays (kernels/env_arrays.py EnvArrays: inputs, target, action,
@@ -216,9 +204,8 @@ class ControlStep:
         """The structs the rig's entry points take, in its order (esp_gym/rig.py STRUCTS), each
         as a plain tuple: numba's dispatcher types them ~2x faster than namedtuples
         (kernels/env_step.py)."""
-        arrays = {"state": self._state, "work": self._work, "params": self._params, "diag": self._diag,
-                  "winch": self._winch, "env": self._env_arrays(), "drone": self._drone, "hook": self._hook}
-        self._structs = tuple(tuple(arrays[name]) for name in self.rig.structs)
+        arrays = self._arrays._replace(params=self._params)  # a single env's episode may bring new constants
+        self._structs = arrays.structs(self.rig.structs, env=self._env_arrays())
 
     # a pickled view would come back as a copy: pickle the arrays, rebuild the views
     _VIEWS = ("_structs", "observation", "reward_terms", "action", "inputs",

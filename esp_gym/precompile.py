@@ -41,13 +41,10 @@ class Configuration:
 
 
 #: Every configuration: each rig of the table (esp_gym/rig.py RIGS, the first environment's
-#: first), single and batched, then a team's last (point pivots and drones, single and batched;
-#: winches, whose teams step one by one).
-CONFIGURATIONS = (tuple(Configuration(rig.winch, rig.string == "implicit", batched, rig.pivot == "drone", rig.hook)
-                        for rig in RIGS for batched in (False, True))
-                  + tuple(Configuration(False, False, batched, drone, team=True) for drone in (False, True)
-                          for batched in (False, True))
-                  + (Configuration(True, False, False, team=True),))
+#: first, a team's last), single and batched (a team whose strings reel steps one by one, in Python).
+CONFIGURATIONS = tuple(Configuration(rig.winch, rig.string == "implicit", batched, rig.pivot == "drone", rig.hook,
+                                     rig.team)
+                       for rig in RIGS for batched in ((False, True) if rig.compiled else (False,)))
 #: The strings of the team the team configurations compile with (any size: the same kernels).
 TEAM_SIZE = 3
 #: Worker processes by default; fewer on a machine with fewer CPUs (:func:`default_jobs`).

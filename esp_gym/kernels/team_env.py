@@ -17,7 +17,7 @@ from collections import namedtuple
 import numpy as np
 
 from .drone import DroneArrays
-from .env_step import params_row, state_row, work_row
+from .env_step import EntryPoints, params_row, state_row, work_row
 from .env_arrays import T_LOAD, T_VELOCITY
 from .jit import announce_compile, kernel
 from .layout import (B_WINCH_WORK, B_WORK, IN_PIVOT_FORCE, IN_PIVOT_FORCE_END, R_STATUS, Layout, LGVIParams,
@@ -254,11 +254,12 @@ def team_drones(sim):
 
 
 @kernel(entry=True)
-def team_points_step(sim, env, raw, nsteps, disturbed, time):
+def team_points_step(sim, env, raw, nsteps, disturbed, rates, time):
     """A point team's control step (:func:`team_control`) from the raw actions (K, n_a): ``sim``
     the simulator's :data:`TeamStructs` (its drones None), ``env`` the task's and the env's arrays
     ``(TeamTaskArrays, TeamEnvArrays)``, as plain tuples. Returns False, changing nothing, if an
-    action is not finite."""
+    action is not finite. ``rates`` is unread (a drone team's: one signature for every team rig,
+    esp_gym/rig.py)."""
     S, W, P, T, A, RD, TK, E, B, inputs, stats = team_structs(sim, env)
     if not clip_actions(raw, E.action):
         return False
@@ -313,7 +314,7 @@ def team_batch_loop(S, W, P, T, A, TD, RD, TK, E, B, inputs, stats, raw, active,
 
 
 @kernel(entry=True)
-def team_points_batch(sim, env, raw, active, nsteps, disturbed, times):
+def team_points_batch(sim, env, raw, active, nsteps, disturbed, rates, times):
     """:func:`team_points_step` of a batch: every struct stacked along a leading (B,) axis (the
     constants too), the raw actions (B, K, n_a) finite, ``active`` (B,) bool the teams to step,
     ``nsteps`` (B,) int64 and ``times`` (B,) each team's physics steps and the step's end [s]."""
@@ -332,7 +333,11 @@ def team_drones_batch(sim, env, raw, active, nsteps, disturbed, rates, times):
 #: The seconds to the first step of a team environment on an empty cache (2 cores;
 #: benchmarks.cold_start's "team env (3)"), said when its entry point first compiles.
 COLD_TEAM_STEP_S = 30
-announce_compile(team_points_step, "the team environment's step", COLD_TEAM_STEP_S)
-announce_compile(team_drones_step, "the drone team environment's step", COLD_TEAM_STEP_S)
-announce_compile(team_points_batch, "the batched team environment's step", COLD_TEAM_STEP_S)
-announce_compile(team_drones_batch, "the batched drone team environment's step", COLD_TEAM_STEP_S)
+#: The team rigs' entry points (esp_gym/rig.py), each the module-level name of its rig's name.
+team_point_explicit = EntryPoints(announce_compile(team_points_step, "the team environment's step", COLD_TEAM_STEP_S),
+                                  announce_compile(team_points_batch, "the batched team environment's step",
+                                                   COLD_TEAM_STEP_S), None)
+team_drone_explicit = EntryPoints(announce_compile(team_drones_step, "the drone team environment's step",
+                                                   COLD_TEAM_STEP_S),
+                                  announce_compile(team_drones_batch, "the batched drone team environment's step",
+                                                   COLD_TEAM_STEP_S), None)

@@ -1,5 +1,5 @@
-"""Many teams' control steps in one compiled call (esp_gym/kernels/team_env.py ``team_points_batch``,
-``team_drones_batch``; docs/team.md, "Speed"): :class:`TeamBatch` stacks the live arrays of B
+"""Many teams' control steps in one compiled call (their rig's batch entry point, esp_gym/rig.py:
+kernels/team_env.py ``team_points_batch`` or ``team_drones_batch``; docs/team.md, "Speed"): :class:`TeamBatch` stacks the live arrays of B
 teams' episodes (:class:`~esp_gym.team.core.TeamCore`, without winches, all alike) along a leading
 axis and lets each team step in its rows, so that a team stepped in the batch is the team stepped
 alone, bit for bit, and its Python face (its state, diagnostics, resets) reads the same arrays.
@@ -11,7 +11,6 @@ import numpy as np
 from ..arrays import plain_structs, put_row, repeated, row
 from ..kernels.jit import bound_entry
 from ..kernels.team_drones import TeamDrones
-from ..kernels.team_env import team_drones_batch, team_points_batch
 
 
 class TeamBatch:
@@ -25,8 +24,11 @@ class TeamBatch:
         first = self.cores[0]
         for k, core in enumerate(self.cores):
             if core.control is None:
-                raise ValueError(f"team {k} steps in Python (its strings reel on winches): a batch of teams steps "
-                                 "teams without winches")
+                raise ValueError(f"team {k} steps in Python (its rig {core.rig.name} has no compiled entry points, "
+                                 "esp_gym.rigs()): a batch of teams steps compiled teams")
+            if core.rig is not first.rig:
+                raise ValueError(f"team {k}'s rig is {core.rig.name}, team 0's {first.rig.name}: a batch's teams "
+                                 "share one rig")
         B = len(self.cores)
         S = first.sim.structs()
         drones = None if S.drones is None else TeamDrones(repeated(S.drones.arrays, B), *(
@@ -89,10 +91,7 @@ class TeamBatch:
         times = (self.steps + 1) * self.period
         if self._entry is None:
             self._entry = self._bind(raw, active, times)
-        if self.structs.drones is None:
-            self._entry(*self._args, raw, active, self.nsteps, self.disturbed, times)
-        else:
-            self._entry(*self._args, raw, active, self.nsteps, self.disturbed, self.rates, times)
+        self._entry(*self._args, raw, active, self.nsteps, self.disturbed, self.rates, times)
         self.steps[teams] += 1
         out = [None] * len(self.cores)
         obs = self.task.obs
@@ -105,7 +104,5 @@ class TeamBatch:
         """The batch entry point's machine code for these arrays (kernels/jit.py ``bound_entry``)."""
         if not (raw.dtype == np.float64 and raw.flags.c_contiguous and raw.flags.writeable and raw.ndim == 3):
             raise TypeError("the raw actions must be a writeable, C-contiguous float64 array (B, K, n_a)")
-        if self.structs.drones is None:
-            return bound_entry(team_points_batch, *self._args, raw, active, self.nsteps, self.disturbed, times)
-        return bound_entry(team_drones_batch, *self._args, raw, active, self.nsteps, self.disturbed, self.rates,
-                           times)
+        return bound_entry(self.cores[0].rig.entries.batch, *self._args, raw, active, self.nsteps, self.disturbed,
+                           self.rates, times)

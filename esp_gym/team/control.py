@@ -8,11 +8,12 @@ import numpy as np
 from ..arrays import copy_into, team_env_arrays
 from ..kernels.jit import bound_entry
 from ..kernels.team_env import (TD_HOVER_THRUST, TD_MAX_THRUST, TE_ENERGY_SCALE, TE_FORCE_SCALE, TE_HOVER_FORCE,
-                                TE_MOVING, TE_RATE_LIMIT, TE_WATCHDOG, team_drones_step, team_points_step)
+                                TE_MOVING, TE_RATE_LIMIT, TE_WATCHDOG)
 
 
 class TeamControl:
-    """One team's compiled control step: ``sim`` a :class:`~esp_gym.team.simulator.TeamSimulator`
+    """One team's compiled control step: ``rig`` the team's (esp_gym/rig.py; its entry point
+    ``step``), ``sim`` a :class:`~esp_gym.team.simulator.TeamSimulator`
     whose strings keep their scenes' lengths, ``task`` its task's arrays (kernels/team_task.py
     ``TeamTaskArrays``, the env's observation), ``action_size`` the size of each agent's action,
     ``substeps`` physics steps per control step, ``force_scale`` and ``hover`` each point pivot's
@@ -20,9 +21,9 @@ class TeamControl:
     load's [m], ``drive`` a drone team's :class:`~esp_gym.team.spaces.DroneDrive` (None for point
     pivots), ``disturbed`` whether a force on the load is held over each step (the wind)."""
 
-    def __init__(self, sim, task, action_size: int, substeps: int, force_scale: float, hover: float,
+    def __init__(self, rig, sim, task, action_size: int, substeps: int, force_scale: float, hover: float,
                  formation: np.ndarray, drive, disturbed: bool):
-        self.sim = sim
+        self.rig, self.sim = rig, sim
         fleet = sim.fleet
         K = task.obs.shape[0]
         #: whether the drones' actions set the rate controller's setpoints (``thrust_rates``)
@@ -62,8 +63,6 @@ class TeamControl:
         the applied action in ``arrays.action``; :meth:`finish` next."""
         if self._entry is None:
             self._entry = self._bind(raw)
-        if self.sim.fleet is None:
-            return self._entry(*self._structs, raw, self.substeps, self.disturbed, float(time))
         return self._entry(*self._structs, raw, self.substeps, self.disturbed, self.rates, float(time))
 
     def finish(self) -> None:
@@ -85,6 +84,4 @@ class TeamControl:
         writeable: esp_gym/control.py ``raw_actions`` makes every action so)."""
         if not (raw.dtype == np.float64 and raw.flags.c_contiguous and raw.flags.writeable and raw.ndim == 2):
             raise TypeError("the raw actions must be a writeable, C-contiguous float64 array (K, n_a)")
-        if self.sim.fleet is None:
-            return bound_entry(team_points_step, *self._structs, raw, self.substeps, self.disturbed, 0.0)
-        return bound_entry(team_drones_step, *self._structs, raw, self.substeps, self.disturbed, self.rates, 0.0)
+        return bound_entry(self.rig.entries.step, *self._structs, raw, self.substeps, self.disturbed, self.rates, 0.0)

@@ -24,6 +24,7 @@ from ..kernels.reference import reference_at
 from ..kernels.team_task import team_task
 from ..observe import standard_deviation
 from ..options import check_substeps, team_options
+from ..rig import find_rig
 from ..tasks import track_reference
 from ..wind import wind_options
 from .fleet import check_lift
@@ -141,9 +142,10 @@ class TeamCore(TeamStepping):
         reels = self.task.needs_winch if winch is None else winch
         if self.task.needs_winch and not reels:
             raise ValueError(f"winch: task {self.task.name!r} reels the strings and needs winch=True")
-        if reels and self.drones:
-            raise ValueError("winch: a team's drones do not reel yet (docs/physics.md, \"What a team does not do "
-                             "yet\")")
+        #: the team's rig (esp_gym/rig.py): its compiled entry points, or none (stepped in Python)
+        self.rig = find_rig("drone" if self.drones else "point", "explicit", reels, False, team=True,
+                            settings="winch: a team's drones do not reel yet (docs/physics.md, \"What a team does "
+                                     "not do yet\")" if self.drones and reels else "")
         return reels
 
     def _check_extremes(self, scene: TeamScene) -> None:
@@ -182,11 +184,11 @@ class TeamCore(TeamStepping):
         self._start_load = self.load_position()  # the load's centre of mass at the start [m]
         self._formation = self.pivot_positions() - self.load_position()
         #: the compiled control step (esp_gym/team/control.py); None where the team steps in Python
-        #: (winches, or :attr:`compiled_steps` off)
+        #: (a rig without entry points: winches; or :attr:`compiled_steps` off)
         self.control = None
-        if self.compiled_steps and not self.winch:
-            self.control = TeamControl(self.sim, self._task_arrays(self.observation), self.action_size, substeps,
-                                       self.force_scale, self.hover, self._formation, self.drive,
+        if self.compiled_steps and self.rig.compiled:
+            self.control = TeamControl(self.rig, self.sim, self._task_arrays(self.observation), self.action_size,
+                                       substeps, self.force_scale, self.hover, self._formation, self.drive,
                                        self.wind is not None)
 
     #: The targets (spatial), arrays written in place (the compiled task reads them): the load's

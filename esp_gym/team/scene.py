@@ -15,6 +15,7 @@ import numpy as np
 from pydantic import Field, ValidationError, model_validator
 
 from ..params import PivotParams, Scene, StringParams, WinchParams
+from ..rig import find_rig
 from ..scene_input import Frozen, vector
 from ..stepsize import explicit_substeps, shortest
 
@@ -79,16 +80,15 @@ class TeamScene(Frozen):
         lead = self.scene
         if len(self.strings) + 1 > MAX_STRINGS:
             raise ValueError(f"strings: a team has at most {MAX_STRINGS} strings, got {len(self.strings) + 1}")
-        if lead.solver.string != "explicit":
-            raise ValueError("scene.solver.string: a team steps the explicit string only (docs/physics.md, "
-                             "\"What a team does not do yet\")")
         if lead.solver.scheme.stages != 1:
             raise ValueError(f"scene.solver.order: a team steps at order 2 only, got order {lead.solver.order}")
         pivots = [("scene.pivot", lead.pivot)] + [(f"strings[{i}].pivot", s.pivot) for i, s in enumerate(self.strings)]
-        for name, pivot in pivots:
-            if pivot.is_drone and pivot.drone.offset_hook:
-                raise ValueError(f"{name}.drone.rho_q: a team's drone carries its string at its centre of mass "
-                                 "(docs/physics.md, \"What a team does not do yet\")")
+        for name, pivot in pivots:  # the string scheme and each pivot a team rig's (esp_gym/rig.py)
+            hooked = pivot.is_drone and pivot.drone.offset_hook
+            find_rig("drone" if pivot.is_drone else "point", lead.solver.string, False, hooked, team=True,
+                     settings=f"scene.solver.string {lead.solver.string!r}" + (
+                         f", {name}.drone.rho_q = {list(pivot.drone.rho_q)}" if hooked else "")
+                     + "; docs/physics.md, \"What a team does not do yet\"")
         for i, s in enumerate(self.strings):
             try:
                 self.member_scene(i + 1)  # the string's own stability bound and ranges at this h
