@@ -1,10 +1,12 @@
-"""Agents for ElasticStringPendulum-v0: SB3 training and evaluation, classical baselines, and
-training on a Ray cluster (the subpackage agents.distributed, the ``ray`` extra).
+"""Agents for ElasticStringPendulum-v0 and the team environments: SB3 training and evaluation,
+classical baselines (the subpackage agents.baselines, a team's in agents.baselines.team), training
+on a Ray cluster (agents.distributed, the ``ray`` extra) and the teams' agents (agents.team).
 
 Installed with the ``agents`` extra (``pip install 'esp_gym[agents]'``) or run from a checkout, as
 modules: ``python -m agents.train``, ``python -m agents.evaluate``, ``python -m agents.compare``,
 ``python -m agents.zoo``, ``python -m agents.baselines.gain_search``, ``python -m agents.distributed.train``,
-``python -m agents.distributed.sweep`` (``--help`` for the options of each).
+``python -m agents.distributed.sweep``, ``python -m agents.team.train``, ``python -m agents.team.sweep``
+(``--help`` for the options of each).
 
 The shipped data, the agents' configs and the trained models, is read from the names below and
 nowhere else: in a wheel they are package data beside this file (``agents/configs``,

@@ -118,14 +118,14 @@ def compare(task: str, preset: Optional[str] = None, episodes: int = 100, seed: 
 def compare_team(team: int, task: str, preset: Optional[str] = None, episodes: int = 100, seed: int = HELD_OUT_SEED,
                  progress: bool = True, model: Optional[str] = None, actuation: Optional[str] = None) -> dict:
     """:func:`compare` for a team of ``team`` strings (esp_gym/team/env.py): zero, the team's
-    baselines (agents/team_evaluate.py), ``preset`` the team's (esp_gym/team/tasks.py TEAM_PRESETS),
-    ``actuation`` a drone team's (None: point pivots), and ``model``, an agents.team_train
+    baselines (agents/team/evaluate.py), ``preset`` the team's (esp_gym/team/tasks.py TEAM_PRESETS),
+    ``actuation`` a drone team's (None: point pivots), and ``model``, an agents.team.train
     checkpoint directory (default :func:`shipped_team_model`; left out when there is none),
     checked against the configuration before any episode (ConfigurationError where its sizes do
     not fit, a warning where only the configuration differs); the same keys, with ``team``."""
     from tqdm import tqdm
 
-    from agents.team_evaluate import TeamZero, run_team_episodes, team_baselines
+    from agents.team.evaluate import TeamZero, run_team_episodes, team_baselines
 
     env_kwargs = {"preset": preset} if preset else {}
     if actuation:
@@ -139,7 +139,7 @@ def compare_team(team: int, task: str, preset: Optional[str] = None, episodes: i
     if model is None and shipped_team_model(team, task, preset, actuation).is_dir():
         model = str(shipped_team_model(team, task, preset, actuation))
     if model is not None:
-        from agents.team_train import TeamRLlibPolicy, check_team_checkpoint
+        from agents.team.train import TeamRLlibPolicy, check_team_checkpoint
 
         check_team_checkpoint(model, team, task, env_kwargs)  # before any episode
         policies["policy"] = TeamRLlibPolicy(model)
@@ -196,7 +196,7 @@ def main(argv=None) -> dict:
     ap = ArgumentParser(prog="python -m agents.compare", description=__doc__.split("\n\n")[0])
     ap.add_episode_options(TASKS, episodes=100, preset=True, default_seed=HELD_OUT_SEED)
     ap.minimums["episodes"] = 2  # a paired bootstrap interval needs two differences
-    ap.add_argument("--model", default=None, help="model .zip, with --team an agents.team_train checkpoint directory "
+    ap.add_argument("--model", default=None, help="model .zip, with --team an agents.team.train checkpoint directory "
                                                   "(default: the one shipped for the configuration, if any)")
     ap.add_argument("--json", action="store_true", help="print one JSON object instead of the Markdown table")
     ap.add_argument("--out", default=None, metavar="DIR", help="also write compare_TASK[_PRESET].md and .json here")
@@ -225,8 +225,8 @@ def main(argv=None) -> dict:
             ap.error(f"argument --actuation: with --team, a drone's ({', '.join(DRONE_ACTUATIONS)}), or none for point "
                      f"pivots; got {a.actuation!r}")
         if a.model is not None and not (Path(a.model) / "learner_group").is_dir():
-            ap.error(f"argument --model: with --team, an agents.team_train checkpoint directory, got {a.model}")
-        from agents.team_train import check_team_env
+            ap.error(f"argument --model: with --team, an agents.team.train checkpoint directory, got {a.model}")
+        from agents.team.train import check_team_env
 
         options = {name: value for name, value in (("preset", a.preset), ("actuation", a.actuation)) if value}
         try:  # the environment built once, before any episode

@@ -172,7 +172,7 @@ def actor_of_sb3(model) -> MLPActor:
 def actor_of_rllib(module, action_size: int) -> MLPActor:
     """The deterministic actor of an RLlib PPO ``module`` whose first ``action_size`` outputs are
     the mean: RLlib's default module (``encoder.actor_encoder`` then the ``pi`` head) or
-    :class:`agents.team_critic_module.CentralCriticModule` (``pi`` on the first ``actor_inputs``
+    :class:`agents.team.critic_module.CentralCriticModule` (``pi`` on the first ``actor_inputs``
     entries of the observation: the actor's input size is that)."""
     kind = type(module).__name__
     if hasattr(module, "actor_inputs"):  # the centralised critic's module: pi is the whole actor

@@ -181,7 +181,7 @@ def hard_lift_figure(out: Path, seed: int, steps: int, model: Path) -> dict:
     return results
 
 
-@ONE_BLAS_THREAD  # the episode agents.team_evaluate scores, to the bit
+@ONE_BLAS_THREAD  # the episode agents.team.evaluate scores, to the bit
 def _team_episode(env, policy, seed: int, steps: int) -> dict:
     """One episode of the team env ``env`` under ``policy``, up to ``steps`` steps: every pivot's
     and the load's positions and the load's target at each step, each string's pull on its pivot
@@ -253,7 +253,7 @@ def team_figure(out: Path, size: int, seed: int, steps: int, preset=None, task: 
     the top view of every pivot's and the load's path with their targets (a moving target's path
     dashed), the load's distance to its target, each string's pull on its pivot, and the smallest
     distance between two pivots with the separation and collision distances."""
-    from agents.team_evaluate import TeamCascadePolicy, TeamHoistPolicy, TeamLQRPolicy
+    from agents.team.evaluate import TeamCascadePolicy, TeamHoistPolicy, TeamLQRPolicy
     from esp_gym.team.env import ElasticStringTeamEnv
     from esp_gym.viz.figures import new_figure, save_figure
 

@@ -21,7 +21,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from agents.evaluate import ONE_BLAS_THREAD
-from agents.team_evaluate import team_baselines
+from agents.team.evaluate import team_baselines
 from benchmarks.common import arg_parser, figure, finish, machine
 from esp_gym.team.env import ElasticStringTeamEnv
 from esp_gym.team.scene import TEAM_SAFETY, team_scene

@@ -59,7 +59,7 @@ def configuration(name: str) -> dict:
     """``{"env_id", "task", "env_kwargs"}`` of the environment ``name`` was trained for (and, for a
     team, ``"team"``)."""
     path = _path(name)
-    if _is_team(path):  # agents.team_train's arguments
+    if _is_team(path):  # agents.team.train's arguments
         run = json.loads((path / "args.json").read_text())
         return {"env_id": TEAM_ENV_ID, "team": run["team"], "task": run["task"],
                 "env_kwargs": {k: run[k] for k in ("preset", "actuation") if run.get(k) is not None}}
@@ -124,7 +124,7 @@ def load(name: str, env=None) -> ZooPolicy:
     """The shipped policy ``name`` (one of :func:`names`), acting in ``env`` if given."""
     path = _path(name)
     if _is_team(path):
-        from agents.team_train import TeamRLlibPolicy
+        from agents.team.train import TeamRLlibPolicy
 
         return ZooPolicy(name, TeamRLlibPolicy(path / "checkpoint"), env)
     from agents.evaluate import SB3Policy

@@ -138,11 +138,11 @@ def test_the_hard_lift_figure_draws_the_evaluated_episodes_of_the_hoist_and_the_
 
 
 def test_the_team_figure_draws_the_evaluated_team_episode(tmp_path):
-    """``--team K --team-task T``: team_T.png, the episode agents.team_evaluate scores under the
+    """``--team K --team-task T``: team_T.png, the episode agents.team.evaluate scores under the
     team's LQR (the lift's under its hoist); a task a team does not have is one line naming the
     argument."""
     from agents import task_figures
-    from agents.team_evaluate import TeamHoistPolicy, TeamLQRPolicy, run_team_episodes
+    from agents.team.evaluate import TeamHoistPolicy, TeamLQRPolicy, run_team_episodes
 
     result = task_figures.main(["--out", str(tmp_path), "--team", "3", "--team-task", "track", "--seed", "4"])
     assert result["return"] == pytest.approx(run_team_episodes(TeamLQRPolicy(), 3, "track", 1, seed=4)[0].ret,
@@ -156,12 +156,12 @@ def test_the_team_figure_draws_the_evaluated_team_episode(tmp_path):
 
 
 def test_the_drone_team_figure_draws_the_evaluated_episode_under_the_cascade(tmp_path):
-    """``--team K --team-actuation A``: team_drones_transport.png, the episode agents.team_evaluate
-    scores under the drones' cascade (100 steps), BLAS on one thread as agents.team_evaluate runs
+    """``--team K --team-actuation A``: team_drones_transport.png, the episode agents.team.evaluate
+    scores under the drones' cascade (100 steps), BLAS on one thread as agents.team.evaluate runs
     it (the cascade's Riccati solution moves by ~1e-12 with the BLAS threads)."""
     from agents import task_figures
     from agents.evaluate import ONE_BLAS_THREAD
-    from agents.team_evaluate import TeamCascadePolicy
+    from agents.team.evaluate import TeamCascadePolicy
     from esp_gym.team.env import ElasticStringTeamEnv
 
     result = task_figures.main(["--out", str(tmp_path), "--team", "3", "--team-actuation", "thrust_rates",

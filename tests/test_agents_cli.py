@@ -443,7 +443,7 @@ def test_bad_paths_and_settings_are_refused_before_any_work(tmp_path, capfd, no_
 
 
 def test_team_evaluate_says_it_is_a_library_not_a_command(capfd):
-    """python -m agents.team_evaluate printed nothing and exited 0, as though it had run."""
-    from agents import team_evaluate
+    """python -m agents.team.evaluate printed nothing and exited 0, as though it had run."""
+    from agents.team import evaluate as team_evaluate
 
     assert_usage_error(call_main(team_evaluate.main, ["--help"], capfd), "library", "agents.compare --team")

@@ -173,12 +173,12 @@ def test_a_failing_baseline_is_not_blamed_on_the_model(monkeypatch, capfd):
 @pytest.fixture
 def no_team_episode(monkeypatch):
     """The team's episodes fail the test: what is refused is refused before any of them."""
-    import agents.team_evaluate
+    import agents.team.evaluate
 
     def ran(*args, **kwargs):
         raise AssertionError("an episode ran before the arguments were checked")
 
-    monkeypatch.setattr(agents.team_evaluate, "run_team_episodes", ran)
+    monkeypatch.setattr(agents.team.evaluate, "run_team_episodes", ran)
 
 
 TEAM_POINTS, TEAM_DRONES = "models/team3_transport_hard_rllib/checkpoint", "models/team3_drones_transport_hard_rllib/checkpoint"
@@ -205,7 +205,7 @@ def test_a_team_checkpoint_of_the_same_sizes_on_another_task_is_a_warning():
     the task (it used to run silently); on its own configuration nothing is said (the negative control)."""
     import warnings
 
-    from agents.team_train import check_team_checkpoint
+    from agents.team.train import check_team_checkpoint
 
     with pytest.warns(UserWarning, match="task 'track' \\(trained with 'transport'\\)"):
         check_team_checkpoint(TEAM_POINTS, 3, "track", {"preset": "hard"})
@@ -218,8 +218,8 @@ def test_a_team_checkpoint_of_the_same_sizes_on_another_task_is_a_warning():
 def test_the_team_compare_finds_the_shipped_checkpoint(monkeypatch, capfd):
     """Without --model the team compare runs the shipped checkpoint of its configuration, as the
     single compare runs the zoo's model; a configuration with none ships runs the baselines alone."""
-    import agents.team_evaluate
-    import agents.team_train
+    import agents.team.evaluate
+    import agents.team.train
 
     seen = {}
 
@@ -233,8 +233,8 @@ def test_the_team_compare_finds_the_shipped_checkpoint(monkeypatch, capfd):
     def first(policy, *args, **kwargs):
         raise Stop
 
-    monkeypatch.setattr(agents.team_train, "TeamRLlibPolicy", Loaded)
-    monkeypatch.setattr(agents.team_evaluate, "run_team_episodes", first)
+    monkeypatch.setattr(agents.team.train, "TeamRLlibPolicy", Loaded)
+    monkeypatch.setattr(agents.team.evaluate, "run_team_episodes", first)
     for actuation, model in (([], TEAM_POINTS), (["--actuation", "thrust_rates"], TEAM_DRONES)):
         seen.clear()
         with pytest.raises(Stop):

@@ -121,7 +121,7 @@ def test_the_float64_actor_of_a_shipped_team_is_its_modules_mean(model):
     from ray.rllib.core.columns import Columns
     from ray.rllib.core.rl_module.rl_module import RLModule
 
-    from agents.team_train import MODULE_PATH
+    from agents.team.train import MODULE_PATH
 
     module = RLModule.from_checkpoint((ROOT / "models" / model / "checkpoint" / MODULE_PATH).resolve())
     size = module.action_space.shape[0]

@@ -131,13 +131,13 @@ TEAM_VARIANTS = {"central-critic": (False, True), "residual": (True, False)}
 
 
 def test_a_team_trains_with_one_shared_policy_and_checkpoints(cluster, tmp_path):
-    """agents.team_train: RLlib PPO on the PettingZoo team, one module for every agent (with
+    """agents.team.train: RLlib PPO on the PettingZoo team, one module for every agent (with
     --residual, on the team's LQR: the checkpoint says so and the compare adds the LQR; with
     --central-critic, the critic reads the team's state: the checkpoint says so and the compare
     acts without it). The two variants' runs sample in their own processes (no env runners), so
     they run at the same time, one per CPU."""
     trainings = finished({
-        name: start("agents.team_train", "--team", "2", "--task", "transport", "--iterations", "2", "--address",
+        name: start("agents.team.train", "--team", "2", "--task", "transport", "--iterations", "2", "--address",
                     cluster.address, "--runs", tmp_path / name, "--run-name", "t", "--eval-episodes", "1",
                     "--reference-episodes", "1", "--no-progress", *(["--residual"] if residual else []),
                     *(["--central-critic"] if critic else []), "--set",
@@ -168,7 +168,7 @@ def test_a_team_trains_with_one_shared_policy_and_checkpoints(cluster, tmp_path)
         # baseline; its first episode is the run's own evaluation's (seed 10000)
         checkpoint = run_dir / "checkpoint"
         if residual or critic:
-            from agents.team_train import ship
+            from agents.team.train import ship
 
             checkpoint = ship(run_dir, tmp_path / name / "model") / "checkpoint"
             assert (checkpoint / "central_critic.json").is_file() == critic
@@ -247,7 +247,7 @@ def _progress_rows(run_dir: Path) -> int:
 
 
 def test_a_team_sweep_runs_its_trials_on_both_nodes_and_restarts_them_after_interruption(cluster, tmp_path):
-    """agents.team_sweep: each trial an agents.team_train run directory (sampling in the trial's
+    """agents.team.sweep: each trial an agents.team.train run directory (sampling in the trial's
     own process), one per node at once; interrupted (Ctrl-C) while both train, then resumed, the
     unfinished trials start again from scratch and finish, and the results are gathered into
     results.{csv,md,png}."""
@@ -257,13 +257,13 @@ def test_a_team_sweep_runs_its_trials_on_both_nodes_and_restarts_them_after_inte
             "--out", out, "--address", cluster.address, "--eval-episodes", "1", "--reference-episodes", "1", "--set",
             "train_batch_size_per_learner=100", "minibatch_size=50", "num_epochs=1"]
     # interrupted once both trials have trained an iteration (measured: 2 and 3 done then, of 25 asked)
-    runs = interrupt_sweep("agents.team_sweep", args, cluster,
+    runs = interrupt_sweep("agents.team.sweep", args, cluster,
                            lambda: sum(_progress_rows(r) >= 1 for r in (out / "runs").glob("*")) >= 2,
                            "both trials to train")
     stopped = [r for r in runs if json.loads((r / "status.json").read_text())["status"] != "finished"]
     assert stopped, "the sweep finished before the interruption: nothing to restart"
 
-    resumed = run("agents.team_sweep", "--resume", out, "--address", cluster.address, env=cluster.env)
+    resumed = run("agents.team.sweep", "--resume", out, "--address", cluster.address, env=cluster.env)
     assert resumed.returncode == 0, resumed.stderr[-4000:]
     with open(out / "results.csv") as fh:
         rows = list(csv.DictReader(fh))
@@ -277,7 +277,7 @@ def test_a_team_sweep_runs_its_trials_on_both_nodes_and_restarts_them_after_inte
         evaluation = json.loads((run_dir / "evaluation.json").read_text())
         assert evaluation["episodes"] == 1 and float(row["mean_return"]) == evaluation["mean_return"]
         command = (run_dir / "command.txt").read_text()
-        assert "agents.team_train" in command and "num_env_runners=0" in command and "lr=0.0003" in command
+        assert "agents.team.train" in command and "num_env_runners=0" in command and "lr=0.0003" in command
         assert len(command.splitlines()) == 1
     assert len({r["node_id"] for r in rows}) == 2  # the two one-CPU trials ran at once, one on each node
     for name in ("results.md", "results.png", "sweep.json"):

@@ -1,5 +1,5 @@
-"""The Ray scripts' arguments (agents.distributed.train and .sweep, agents.team_train and
-agents.team_sweep): bad input is one line naming the argument, with exit status 2, before anything
+"""The Ray scripts' arguments (agents.distributed.train and .sweep, agents.team.train and
+agents.team.sweep): bad input is one line naming the argument, with exit status 2, before anything
 is written or a cluster is joined; and the sweeps' spaces. No cluster: these run with the others
 (tests/test_ray.py starts one). Each script's main runs here (tests/script_main.py), but for one
 case per script that runs ``python -m`` in a subprocess."""
@@ -26,8 +26,8 @@ def run(module, *args, timeout=120) -> subprocess.CompletedProcess:
 #: The case of each script run by ``python -m`` in a subprocess: one that reaches its settings' checks.
 END_TO_END = {("agents.distributed.train", "--set", "env_kwargs.wnd=3"),
               ("agents.distributed.sweep", "--set", "residual=lqg"),
-              ("agents.team_train", "--task", "lower"),
-              ("agents.team_sweep", "--space", '{"minibatch_size": [1000, 100000]}')}
+              ("agents.team.train", "--task", "lower"),
+              ("agents.team.sweep", "--space", '{"minibatch_size": [1000, 100000]}')}
 
 
 CASES = [
@@ -46,17 +46,17 @@ CASES = [
     ("agents.distributed.sweep", ["--set", "residual=lqg", "--space", '{"seed": [0, 1]}'], ["--set", "'lqg'", "hook"]),
     ("agents.distributed.sweep", ["--space", '{"residual": ["lqg"]}'], ["--space", "'residual' = 'lqg'", "hook"]),
     ("agents.distributed.sweep", ["--space", '{"n_envs": [100000000]}'], ["--space", "num_envs = 100000000", "GiB"]),
-    ("agents.team_train", ["--team", "7"], ["--team", "1 to 6"]),
-    ("agents.team_train", ["--set", "lr_rate=3"], ["--set", "'lr_rate'"]),
-    ("agents.team_train", ["--time-limit", "0"], ["--time-limit"]),
-    ("agents.team_train", ["--residual", "--residual-scale", "-1"], ["--residual-scale"]),
-    ("agents.team_train", ["--task", "lower"], ["--task", "lower"]),
-    ("agents.team_sweep", ["--space", '{"lr": ["fast"]}'], ["--space", "lr"]),
-    ("agents.team_sweep", ["--space", '{"lr_rate": [0.1]}'], ["--space", "'lr_rate'"]),
-    ("agents.team_sweep", ["--space", '{"seed": [0]}', "--set", "minibatch_size=100000"], ["--set", "minibatch_size"]),
-    ("agents.team_sweep", ["--space", '{"minibatch_size": [1000, 100000]}'], ["--space", "'minibatch_size' = 100000"]),
-    ("agents.team_sweep", ["--team", "7", "--space", '{"seed": [0]}'], ["--team", "1 to 6"]),
-    ("agents.team_sweep", ["--space", '{"seed": [0]}', "--address", "127.0.0.1:{port}"], ["--address"]),
+    ("agents.team.train", ["--team", "7"], ["--team", "1 to 6"]),
+    ("agents.team.train", ["--set", "lr_rate=3"], ["--set", "'lr_rate'"]),
+    ("agents.team.train", ["--time-limit", "0"], ["--time-limit"]),
+    ("agents.team.train", ["--residual", "--residual-scale", "-1"], ["--residual-scale"]),
+    ("agents.team.train", ["--task", "lower"], ["--task", "lower"]),
+    ("agents.team.sweep", ["--space", '{"lr": ["fast"]}'], ["--space", "lr"]),
+    ("agents.team.sweep", ["--space", '{"lr_rate": [0.1]}'], ["--space", "'lr_rate'"]),
+    ("agents.team.sweep", ["--space", '{"seed": [0]}', "--set", "minibatch_size=100000"], ["--set", "minibatch_size"]),
+    ("agents.team.sweep", ["--space", '{"minibatch_size": [1000, 100000]}'], ["--space", "'minibatch_size' = 100000"]),
+    ("agents.team.sweep", ["--team", "7", "--space", '{"seed": [0]}'], ["--team", "1 to 6"]),
+    ("agents.team.sweep", ["--space", '{"seed": [0]}', "--address", "127.0.0.1:{port}"], ["--address"]),
 ]
 
 
@@ -64,7 +64,7 @@ CASES = [
 def test_bad_input_is_one_line_naming_the_argument_and_writes_nothing(tmp_path, capfd, module, args, names):
     port = str(free_port())  # nothing listens there
     fill = [a.replace("{port}", port) for a in args]
-    out = ["--runs", tmp_path / "runs"] if module in ("agents.distributed.train", "agents.team_train") else ["--out", tmp_path / "sweep"]
+    out = ["--runs", tmp_path / "runs"] if module in ("agents.distributed.train", "agents.team.train") else ["--out", tmp_path / "sweep"]
     if (module, *args[:2]) in END_TO_END:
         proc = run(module, *fill, *out, timeout=120)
     else:
@@ -105,14 +105,14 @@ def test_a_sweep_space_is_a_mapping_of_lists():
 #: after Ray had started (a run directory the process cannot create, runners the machine cannot host).
 #: No process creates files in /proc, root's included (file modes do not stop root).
 BEFORE_RAY = [
-    ("agents.team_train", ["--residual-scale", "0.5"], ["--residual-scale", "--residual"]),
-    ("agents.team_train", ["--residual", "--residual-scale", "1e300"], ["--residual-scale", "1e+300"]),
-    ("agents.team_train", ["--set", "lr=-1"], ["--set", "lr", "-1"]),
-    ("agents.team_train", ["--set", "gamma=1.5"], ["--set", "gamma", "1.5"]),
-    ("agents.team_train", ["--set", "num_env_runners=100000"], ["--set", "num_env_runners", "100000", "CPUs"]),
-    ("agents.team_train", ["--runs", "/proc/runs"], ["--runs", "/proc"]),
+    ("agents.team.train", ["--residual-scale", "0.5"], ["--residual-scale", "--residual"]),
+    ("agents.team.train", ["--residual", "--residual-scale", "1e300"], ["--residual-scale", "1e+300"]),
+    ("agents.team.train", ["--set", "lr=-1"], ["--set", "lr", "-1"]),
+    ("agents.team.train", ["--set", "gamma=1.5"], ["--set", "gamma", "1.5"]),
+    ("agents.team.train", ["--set", "num_env_runners=100000"], ["--set", "num_env_runners", "100000", "CPUs"]),
+    ("agents.team.train", ["--runs", "/proc/runs"], ["--runs", "/proc"]),
     # an option combination the team env refuses: it used to build PPO for 30 s, then fail in RLlib
-    ("agents.team_train", ["--actuation", "thrust_rates", "--task", "lift"],
+    ("agents.team.train", ["--actuation", "thrust_rates", "--task", "lift"],
      ["--task lift", "--actuation thrust_rates", "do not reel"]),
     ("agents.distributed.train", ["--set", "num_env_runners=100000"], ["--set", "num_env_runners", "CPUs"]),
     ("agents.distributed.train", ["--runs", "/proc/runs"], ["--runs", "/proc"]),
@@ -142,7 +142,7 @@ def test_a_residual_scale_within_the_box_is_accepted(tmp_path):
     residual can take any command to either end) with the config file's runners and rates and a
     writable --runs passes every check; a scale above 2 is refused."""
     from agents.cli import SettingsError
-    from agents.team_train import Settings, check_settings
+    from agents.team.train import Settings, check_settings
 
     check_settings(Settings(residual=True, residual_scale=2.0, runs=str(tmp_path)))
     with pytest.raises(SettingsError, match="--residual-scale"):
@@ -151,12 +151,12 @@ def test_a_residual_scale_within_the_box_is_accepted(tmp_path):
 
 @pytest.mark.parametrize("actuation", [None, "thrust_rates", "motors"])
 def test_team_sweep_passes_the_actuation_to_each_trial(actuation):
-    """agents.team_sweep --actuation reaches each trial's agents.team_train settings, its saved
-    command line and the environment its config builds, with agents.team_train's choices (it had
+    """agents.team.sweep --actuation reaches each trial's agents.team.train settings, its saved
+    command line and the environment its config builds, with agents.team.train's choices (it had
     no --actuation). None, point pivots, is the negative control: no --actuation anywhere."""
     import dataclasses
 
-    from agents import team_sweep, team_train
+    from agents.team import sweep as team_sweep, train as team_train
 
     choices = {f.name: f.metadata.get("choices") for f in dataclasses.fields(team_train.Settings)}["actuation"]
     assert sorted(team_sweep.DRONE_ACTUATIONS) == sorted(choices)

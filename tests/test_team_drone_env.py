@@ -1,7 +1,7 @@
 """A drone team's environments (esp_gym/team/env.py with ``actuation``, esp_gym/team/spaces.py;
 docs/team.md): PettingZoo's API and seed tests, both Gymnasium env checkers, the centralised env
 equal to the parallel one, the drones' observation fields and action paths, the flip, the errors,
-and the cascade baseline (agents/baselines/team_cascade.py) with its negative control."""
+and the cascade baseline (agents/baselines/team/cascade.py) with its negative control."""
 import json
 
 import gymnasium as gym
@@ -12,9 +12,9 @@ from pettingzoo.test import parallel_api_test, parallel_seed_test
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import esp_gym  # noqa: F401 (registers ElasticStringTeam-v0)
-from agents.baselines.team_cascade import TeamCascade, point_twin
-from agents.baselines.team_lqr import TeamLQR
-from agents.team_evaluate import TeamZero, run_team_episodes
+from agents.baselines.team.cascade import TeamCascade, point_twin
+from agents.baselines.team.lqr import TeamLQR
+from agents.team.evaluate import TeamZero, run_team_episodes
 from esp_gym.setup import DRONE_RATE_LIMIT
 from esp_gym.team import parallel_env
 from esp_gym.team.env import ElasticStringTeamEnv
@@ -161,8 +161,8 @@ def test_compare_takes_a_drone_team(capsys):
 def test_the_cascades_filter_estimates_the_load_the_drones_do_not_see():
     """The hook observation, sensor noise and a latency of one step: the cascade on its filter's
     estimate carries the load, and the estimate of the load's place comes within a few cm."""
-    from agents.baselines.team_lqr import reduced_layout
-    from agents.team_evaluate import TeamCascadeLQGPolicy
+    from agents.baselines.team.lqr import reduced_layout
+    from agents.team.evaluate import TeamCascadeLQGPolicy
 
     env = ElasticStringTeamEnv(3, observation="hook", sensor_noise=1.0, action_latency=1, **DRONES)
     policy = TeamCascadeLQGPolicy()
@@ -179,11 +179,11 @@ def test_the_cascades_filter_estimates_the_load_the_drones_do_not_see():
 
 
 def test_a_residual_drone_team_adds_its_actions_to_the_cascades():
-    """agents/team_residual.py on drones (the hard preset): PettingZoo's API test passes, each agent
+    """agents/team/residual.py on drones (the hard preset): PettingZoo's API test passes, each agent
     sees its observation, its cascade command (4) and the filter's estimate, and a zero residual
     flies the cascade's episode, bit for bit."""
-    from agents.team_evaluate import TeamCascadeLQGPolicy
-    from agents.team_residual import TeamResidualParallelEnv, feature_size
+    from agents.team.evaluate import TeamCascadeLQGPolicy
+    from agents.team.residual import TeamResidualParallelEnv, feature_size
 
     def residual_env():
         return TeamResidualParallelEnv(parallel_env(team=3, preset="hard", **DRONES))

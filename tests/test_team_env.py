@@ -12,8 +12,8 @@ from pettingzoo.test import parallel_api_test, parallel_seed_test
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import esp_gym
-from agents.baselines.team_lqr import TeamLQR
-from agents.team_evaluate import TeamZero, run_team_episodes
+from agents.baselines.team.lqr import TeamLQR
+from agents.team.evaluate import TeamZero, run_team_episodes
 from esp_gym.team import parallel_env, symmetric_team
 from esp_gym.team.env import ElasticStringTeamEnv
 from esp_gym.team.tasks import AGENT_TERMS, COLLISION, REWARD_TERMS, SEPARATION
@@ -143,7 +143,7 @@ def test_compare_takes_a_team(capsys):
         main(["--team", "7", "--task", "transport", "--episodes", "2"])
     with pytest.raises(SystemExit):
         main(["--team", "3", "--task", "lower", "--episodes", "2"])
-    with pytest.raises(SystemExit):  # not an agents.team_train checkpoint
+    with pytest.raises(SystemExit):  # not an agents.team.train checkpoint
         main(["--team", "2", "--task", "transport", "--episodes", "2", "--model", "models"])
 
 
@@ -249,8 +249,8 @@ def test_the_references_acceleration_is_the_derivative_of_its_velocity():
 
 
 def test_the_teams_lqr_tracks_relative_to_the_moving_reference(monkeypatch):
-    from agents.team_evaluate import TeamLQRPolicy
-    import agents.baselines.team_lqr as team_lqr
+    from agents.team.evaluate import TeamLQRPolicy
+    import agents.baselines.team.lqr as team_lqr
 
     rows = run_team_episodes(TeamLQRPolicy(), 3, "track", 2, seed=100)
     assert min(r.ret for r in rows) > 440.0  # measured: 476, 478 (at most 500)
@@ -261,7 +261,7 @@ def test_the_teams_lqr_tracks_relative_to_the_moving_reference(monkeypatch):
 
 
 def test_the_teams_lqr_takes_the_latency_into_account():
-    from agents.team_evaluate import TeamLQRPolicy
+    from agents.team.evaluate import TeamLQRPolicy
 
     rows = run_team_episodes(TeamLQRPolicy(), 3, "transport", 2, seed=100, env_kwargs={"action_latency": 1})
     assert min(r.ret for r in rows) > 400.0  # designed without the delay it leaves the workspace (1.4, 1.3)
@@ -306,8 +306,8 @@ def test_the_vector_env_is_the_single_env_bit_for_bit(case):
 
 
 def test_the_teams_lqg_estimates_the_load_it_does_not_see():
-    from agents.baselines.team_lqr import reduced_layout
-    from agents.team_evaluate import TeamLQGPolicy
+    from agents.baselines.team.lqr import reduced_layout
+    from agents.team.evaluate import TeamLQGPolicy
 
     env = ElasticStringTeamEnv(3, observation="hook", sensor_noise=1.0, action_latency=1)
     policy = TeamLQGPolicy()
@@ -443,12 +443,12 @@ def test_a_team_frame_draws_every_string_and_pivot_where_they_are():
 
 
 def test_a_residual_team_starts_as_its_baseline_and_tells_it_what_was_applied():
-    """agents/team_residual.py: with zero residual the team is the LQG bit for bit (hook
+    """agents/team/residual.py: with zero residual the team is the LQG bit for bit (hook
     observation, noise and latency); each agent sees its command and the filter's estimate with its
     own pivot first; a residual moves the command by its scale, clipped, and the filter is told."""
-    from agents.baselines.team_lqr import reduced_layout
-    from agents.team_evaluate import TeamLQGPolicy
-    from agents.team_residual import TeamResidualParallelEnv, combine
+    from agents.baselines.team.lqr import reduced_layout
+    from agents.team.evaluate import TeamLQGPolicy
+    from agents.team.residual import TeamResidualParallelEnv, combine
 
     options = dict(observation="hook", sensor_noise=1.0, action_latency=1)
     residual = TeamResidualParallelEnv(parallel_env(team=3, **options), scale=0.3)
@@ -508,8 +508,8 @@ def test_the_documented_team_comparison_is_todays_model_and_baselines(team):
 def _rerun_the_documented_team_comparison(model: str, name: str, options: dict, baseline: str):
     from agents import ROOT
     from agents.compare import HELD_OUT_SEED
-    from agents.team_evaluate import team_baselines
-    from agents.team_train import TeamRLlibPolicy
+    from agents.team.evaluate import team_baselines
+    from agents.team.train import TeamRLlibPolicy
 
     doc = json.loads((ROOT / "docs" / "compare" / name).read_text())
     assert (doc["team"], doc["task"], doc["preset"], doc["episodes"], doc["seed"], doc["actuation"]) == (
@@ -542,7 +542,7 @@ def test_the_documented_team_baselines_are_todays(task, preset, actuation):
     from threadpoolctl import threadpool_limits
 
     from agents import ROOT
-    from agents.team_evaluate import team_baselines
+    from agents.team.evaluate import team_baselines
 
     name = f"compare_team3_{task}{'_' + actuation if actuation else ''}{'_hard' if preset else ''}.json"
     doc = json.loads((ROOT / "docs" / "compare" / name).read_text())
@@ -560,15 +560,15 @@ def test_the_documented_team_baselines_are_todays(task, preset, actuation):
 
 
 def test_a_central_critic_reads_the_teams_state_and_its_actor_does_not():
-    """agents/team_critic.py: every agent's observation carries the team's true state after its
+    """agents/team/critic.py: every agent's observation carries the team's true state after its
     own (the hook observation hides the load; the state holds it); the module's actor output does
     not move with the state, its value does (the negative control: its own part moves both)."""
     import torch
     from ray.rllib.core.columns import Columns
     from ray.rllib.core.rl_module.rl_module import RLModuleSpec
 
-    from agents.team_critic_module import CentralCriticModule
-    from agents.team_train import team_parallel_env
+    from agents.team.critic_module import CentralCriticModule
+    from agents.team.train import team_parallel_env
 
     env = team_parallel_env({"team": 3, "task": "transport", "preset": "hard", "central_critic": True})
     parallel_api_test(env, num_cycles=20)

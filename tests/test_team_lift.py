@@ -9,7 +9,7 @@ from gymnasium.utils.env_checker import check_env
 from pettingzoo.test import parallel_api_test, parallel_seed_test
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
-from agents.team_evaluate import TeamHoistPolicy, TeamZero, run_team_episodes
+from agents.team.evaluate import TeamHoistPolicy, TeamZero, run_team_episodes
 from esp_gym.team import parallel_env
 from esp_gym.team.core import TeamCore
 from esp_gym.team.env import ElasticStringTeamEnv
@@ -73,11 +73,11 @@ def test_what_cannot_lift_says_why():
 
 
 def test_a_residual_lift_team_starts_as_the_hoist_and_tells_its_filter_the_forces():
-    """agents/team_residual.py on the hard lift: with zero residual the team flies the hoist on the
+    """agents/team/residual.py on the hard lift: with zero residual the team flies the hoist on the
     LQG bit for bit (rewards equal over 40 steps); each agent's command is its force and reel
     speed; a residual's forces reach the filter (its predicted input), a residual on the reel
     alone does not (negative control)."""
-    from agents.team_residual import TeamResidualParallelEnv
+    from agents.team.residual import TeamResidualParallelEnv
 
     residual = TeamResidualParallelEnv(parallel_env(team=3, task="lift", preset="hard"), scale=0.3)
     central, hoist = ElasticStringTeamEnv(3, task="lift", preset="hard"), TeamHoistPolicy("lqg")

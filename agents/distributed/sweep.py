@@ -294,7 +294,7 @@ def sweep(spec: Spec, resuming: bool, address: Optional[str], trial=run_trial):
 
 
 def sweep_main(ap, settings_class, argv, check, trial):
-    """A sweep command's life (this module's and agents.team_sweep's): the settings from ``ap``,
+    """A sweep command's life (this module's and agents.team.sweep's): the settings from ``ap``,
     Ray's token, ``check(s, given) -> (spec, resuming)`` (a SettingsError is one line naming the
     argument), :func:`sweep` with ``trial``, and Ray left whatever happens."""
     s, given = parse_settings(ap, settings_class, argv)

@@ -1,4 +1,4 @@
-"""A sweep's results in one table and one plot (agents/distributed/sweep.py, agents/team_sweep.py):
+"""A sweep's results in one table and one plot (agents/distributed/sweep.py, agents/team/sweep.py):
 ``results.csv`` (one row per trial: its grid point, agents/evaluate.py's metrics of its final
 model, steps, wall time, node, run directory), ``results.md`` (the configurations, seeds pooled:
 mean ± standard deviation over seeds of each trial's mean return, best first; then every trial)
@@ -64,7 +64,7 @@ def markdown(rows: list, space: dict) -> str:
 def run_curve(run_dir: Path):
     """``(steps, returns, label)`` of a trial's run directory: agents.train's evaluations during
     training (evaluations.npz), or an RLlib run's training episodes per iteration (progress.csv,
-    agents.team_train); None if it has neither."""
+    agents.team.train); None if it has neither."""
     ev, progress = run_dir / "evaluations.npz", run_dir / "progress.csv"
     if ev.is_file():
         with np.load(ev) as d:

@@ -225,7 +225,7 @@ def run(s: Settings, cfg: RLlibRunConfig, run_dir: Path, algo, argv: Optional[li
 
 
 def rllib_main(ap, settings_class, argv, check, build_algo, train) -> Path:
-    """An RLlib training command's life (this module's and agents.team_train's): the settings from
+    """An RLlib training command's life (this module's and agents.team.train's): the settings from
     ``ap``, Ray's token and the learner's threads; ``check(s) -> (config, run_dir)`` and
     ``build_algo(s, config)``, whose SettingsError is one line naming the argument;
     ``train(s, config, run_dir, algo, argv)``; the algorithm and Ray stopped whatever happens."""

@@ -118,7 +118,7 @@ class TeamSimulator(TeamReadout, StepClock):
         its nodes evenly spaced and their velocities interpolated between the pivot's (K, 3) and
         the end's, the load's centre of mass at ``load`` moving at ``load_velocity`` (spatial)
         [m, m/s], turned by ``R`` at ``Omega`` (body frame) [rad/s]; momenta by the continuous
-        Legendre transform (a reduced state lifted to a full one: agents/baselines/team_lqr.py)."""
+        Legendre transform (a reduced state lifted to a full one: agents/baselines/team/lqr.py)."""
         pivots = np.asarray(pivots, dtype=float)
         pivot_velocities = np.asarray(pivot_velocities, dtype=float)
         R = np.asarray(R, dtype=float)

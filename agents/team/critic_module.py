@@ -1,4 +1,4 @@
-"""The RLlib module of a team with a centralised critic (agents/team_critic.py): one shared
+"""The RLlib module of a team with a centralised critic (agents/team/critic.py): one shared
 network per agent whose actor reads the agent's own observation and whose critic reads it with the
 team's true state appended. Its own module, as it imports torch and RLlib."""
 from __future__ import annotations

@@ -1,17 +1,17 @@
 """Train a team with RLlib (new API stack): PPO on the PettingZoo env (esp_gym.team.parallel_env),
 every agent acting with one shared policy (parameter sharing), on this machine or a Ray cluster.
 
-    python -m agents.team_train --team 3 --task transport --preset hard --iterations 100
-    python -m agents.team_train --team 3 --iterations 20 --set lr=1e-4 num_env_runners=2
-    python -m agents.team_train --team 3 --task transport --preset hard --residual --time-limit 60
-    python -m agents.team_train --team 3 --actuation thrust_rates --preset hard --residual --time-limit 60
+    python -m agents.team.train --team 3 --task transport --preset hard --iterations 100
+    python -m agents.team.train --team 3 --iterations 20 --set lr=1e-4 num_env_runners=2
+    python -m agents.team.train --team 3 --task transport --preset hard --residual --time-limit 60
+    python -m agents.team.train --team 3 --actuation thrust_rates --preset hard --residual --time-limit 60
 
-``--residual`` trains a residual on the team's baseline (agents/team_residual.py: the agents' actions
+``--residual`` trains a residual on the team's baseline (agents/team/residual.py: the agents' actions
 added, scaled by ``--residual-scale``, to the LQR's, or with the hook observation the LQG's; a
 drone team's (``--actuation``) to the drones' cascade's);
 the checkpoint then carries residual.json and every evaluation adds the same baseline.
 ``--central-critic`` gives the network a critic that also reads the team's true state
-(agents/team_critic.py); the checkpoint then carries central_critic.json.
+(agents/team/critic.py); the checkpoint then carries central_critic.json.
 
 Hyper-parameters come from configs/agents/rllib_team_ppo.yaml keyed by ``ElasticStringTeam-v0``
 and the task; ``--set KEY=VALUE`` overrides them as in agents.distributed.train. A run directory
@@ -19,7 +19,7 @@ and the task; ``--set KEY=VALUE`` overrides them as in agents.distributed.train.
 agents.train names runs) receives config.yaml, args.json, command.txt, status.json, progress.csv
 (one row per iteration), references.json (the zero action's and the team's baseline's returns: the
 LQR, or with the hook observation the LQG),
-checkpoint/ (the last), training.json, evaluation.json (agents/team_evaluate.py's metrics of the
+checkpoint/ (the last), training.json, evaluation.json (agents/team/evaluate.py's metrics of the
 final deterministic policy) and learning_curve.png. ``--time-limit`` stops after that many
 minutes and saves. progress.csv's ``episode_return_mean`` is the team's return (RLlib's sum over
 the agents, each given the team's reward, divided by K).
@@ -49,9 +49,9 @@ from agents.distributed.train import PROGRESS_FIELDS, build, check_local_runners
 from agents.evaluate import summarize
 from agents.mlp import actor_of_rllib
 from agents.runs import new_run_dir, write_status, write_stopped
-from agents.team_critic import CRITIC_FILE, write_critic
-from agents.team_evaluate import TeamZero, run_team_episodes, team_baselines
-from agents.team_residual import (MAX_RESIDUAL_SCALE, RESIDUAL_FILE, RESIDUAL_SCALE, TeamBase, read_residual,
+from agents.team.critic import CRITIC_FILE, write_critic
+from agents.team.evaluate import TeamZero, run_team_episodes, team_baselines
+from agents.team.residual import (MAX_RESIDUAL_SCALE, RESIDUAL_FILE, RESIDUAL_SCALE, TeamBase, read_residual,
                                   write_residual)
 from esp_gym.team.tasks import TEAM_TASKS
 
@@ -96,16 +96,16 @@ class Settings:
         "help": f"the residual's share of the action box, at most {MAX_RESIDUAL_SCALE:g} (with --residual)",
         "type": float})
     central_critic: bool = field(default=False, metadata={
-        "help": "a centralised critic: the value function also reads the team's true state (agents/team_critic.py)"})
+        "help": "a centralised critic: the value function also reads the team's true state (agents/team/critic.py)"})
     progress: bool = field(default=True, metadata={"help": "show a progress bar"})
     threads: int = field(default=1, metadata={"help": "torch threads of the learner", "type": int, "min": 1})
 
 
 def team_parallel_env(env_config: dict):
     """The PettingZoo env of ``env_config``: with ``residual_scale`` the residual team of
-    agents/team_residual.py, with ``central_critic`` the team's true state appended to every
-    agent's observation (agents/team_critic.py)."""
-    from agents.team_residual import TeamResidualParallelEnv
+    agents/team/residual.py, with ``central_critic`` the team's true state appended to every
+    agent's observation (agents/team/critic.py)."""
+    from agents.team.residual import TeamResidualParallelEnv
     from esp_gym.team import parallel_env
 
     options = dict(env_config)
@@ -114,7 +114,7 @@ def team_parallel_env(env_config: dict):
     env = parallel_env(**options)
     env = env if scale is None else TeamResidualParallelEnv(env, scale)
     if critic:
-        from agents.team_critic import CentralCriticParallelEnv
+        from agents.team.critic import CentralCriticParallelEnv
 
         env = CentralCriticParallelEnv(env)
     return env
@@ -128,7 +128,7 @@ def make_team_env(env_config: dict):
 
 
 def env_options(s: Settings) -> dict:
-    """The team env's options of the run (its preset and actuation), as agents/team_evaluate.py takes them."""
+    """The team env's options of the run (its preset and actuation), as agents/team/evaluate.py takes them."""
     return {**({"preset": s.preset} if s.preset else {}), **({"actuation": s.actuation} if s.actuation else {})}
 
 
@@ -140,12 +140,12 @@ def env_config(s: Settings) -> dict:
 
 def module_spec(cfg: RLlibRunConfig, s: Settings):
     """The shared module's RLModuleSpec: RLlib's default PPO module, or with ``--central-critic``
-    agents/team_critic.py's (its actor's input length from the env)."""
+    agents/team/critic.py's (its actor's input length from the env)."""
     from ray.rllib.core.rl_module.rl_module import RLModuleSpec
 
     if not s.central_critic:
         return RLModuleSpec()
-    from agents.team_critic_module import CentralCriticModule
+    from agents.team.critic_module import CentralCriticModule
 
     env = team_parallel_env(env_config(s))
     return RLModuleSpec(module_class=CentralCriticModule,
@@ -183,7 +183,7 @@ def check_team_env(team: int, task: str, env_kwargs: dict) -> None:
         raise ValueError(f"the team's environment refuses {given}: {err}") from None
 
 
-#: What a team checkpoint's configuration is compared by: its args.json's (agents.team_train's
+#: What a team checkpoint's configuration is compared by: its args.json's (agents.team.train's
 #: arguments) that choose the environment.
 TEAM_CONFIGURATION_FIELDS = ("team", "task", "preset", "actuation")
 
@@ -221,7 +221,7 @@ def check_team_checkpoint(checkpoint, team: int, task: str, env_kwargs: dict) ->
 
 
 class TeamRLlibPolicy:
-    """The shared module of a checkpoint as a centralised policy of agents/team_evaluate.py: each
+    """The shared module of a checkpoint as a centralised policy of agents/team/evaluate.py: each
     agent's observation through the module's actor, the action distribution's mean
     (deterministic), clipped to [-1, 1], evaluated in float64 by agents/mlp.py. A checkpoint with
     residual.json (``--residual``) adds that share of it to the team's baseline, whose features it
@@ -245,7 +245,7 @@ class TeamRLlibPolicy:
             if self.base is None:
                 self.base = TeamBase(core.observation, core.drones, core.winch)
             command, agents = self.base.observe(agents, core)
-        # a centralised critic's actor reads the agent's observation only (agents/team_critic.py)
+        # a centralised critic's actor reads the agent's observation only (agents/team/critic.py)
         mean = self.actor(agents.astype(np.float32))
         if self.scale is None:
             return np.clip(mean, -1.0, 1.0).ravel()
@@ -263,7 +263,7 @@ def ship(run_dir, target) -> Path:
     :class:`TeamRLlibPolicy` reads: the module and residual.json) and its record into ``target``,
     which is replaced; returns ``target``.
 
-        python -c "from agents.team_train import ship; ship('runs/RUN', 'models/team3_transport_hard_rllib')"
+        python -c "from agents.team.train import ship; ship('runs/RUN', 'models/team3_transport_hard_rllib')"
     """
     import shutil
 
@@ -317,7 +317,7 @@ def _record(s: Settings, cfg: RLlibRunConfig, run_dir: Path, argv: Optional[list
     args = sys.argv[1:] if argv is None else list(argv)
     (run_dir / "config.yaml").write_text(yaml.safe_dump(cfg.model_dump(), sort_keys=False))
     (run_dir / "args.json").write_text(json.dumps(dataclasses.asdict(s), indent=2, default=json_default))
-    (run_dir / "command.txt").write_text(shlex.join([sys.executable, "-m", "agents.team_train", *args]) + "\n")
+    (run_dir / "command.txt").write_text(shlex.join([sys.executable, "-m", "agents.team.train", *args]) + "\n")
     from esp_gym.team.tasks import TEAM_PRESETS
 
     kwargs = env_options(s)
@@ -336,7 +336,7 @@ def _record(s: Settings, cfg: RLlibRunConfig, run_dir: Path, argv: Optional[list
 def run(s: Settings, cfg: RLlibRunConfig, run_dir: Path, algo, argv: Optional[list] = None, report=None) -> Path:
     """Train a built algorithm in ``run_dir`` for ``s.iterations`` (or ``s.time_limit``);
     status.json says ``running``, then ``finished``, ``interrupted`` or ``failed``. ``report``, if
-    given, is called with each iteration's progress.csv row (agents.team_sweep: Tune's report)."""
+    given, is called with each iteration's progress.csv row (agents.team.sweep: Tune's report)."""
     from tqdm.auto import tqdm
 
     run_dir.mkdir(parents=True)
@@ -390,7 +390,7 @@ def run(s: Settings, cfg: RLlibRunConfig, run_dir: Path, algo, argv: Optional[li
 
 
 def main(argv=None) -> Path:
-    ap = settings_parser(Settings, prog="python -m agents.team_train", description=__doc__.split("\n\n")[0])
+    ap = settings_parser(Settings, prog="python -m agents.team.train", description=__doc__.split("\n\n")[0])
     return rllib_main(ap, Settings, argv, check_settings, lambda s, cfg: build(s, cfg, team_ppo_config), run)
 
 

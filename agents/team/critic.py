@@ -5,11 +5,11 @@ noise (:meth:`~esp_gym.team.core.TeamCore.true_observations`), what the hook obs
 hard preset hides (the load) included. Training alone reads the state; acting never does.
 
 :class:`CentralCriticParallelEnv` appends the state to every agent's observation (after a
-residual team's features, agents/team_residual.py), agents/team_critic_module.py's
+residual team's features, agents/team/residual.py), agents/team/critic_module.py's
 ``CentralCriticModule`` is the RLlib module that splits it: an MLP actor on the first
 ``actor_inputs`` numbers, an MLP critic on all (there, as it imports torch and RLlib).
 A checkpoint trained so carries ``central_critic.json`` (the actor's and the state's lengths), and
-:class:`~agents.team_train.TeamRLlibPolicy` feeds its actor zeros where the state was.
+:class:`~agents.team.train.TeamRLlibPolicy` feeds its actor zeros where the state was.
 """
 from __future__ import annotations
 

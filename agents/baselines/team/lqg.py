@@ -1,5 +1,5 @@
 """The team's LQG for the hook observation (the hard preset): the team's LQR
-(agents/baselines/team_lqr.py) acting on a steady-state Kalman filter's estimate of its reduced
+(agents/baselines/team/lqr.py) acting on a steady-state Kalman filter's estimate of its reduced
 state from every agent's hook observation, as agents/baselines/lqg.py does for one string.
 
 The measurement model is the observation of the lifted state, differentiated by central
@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from agents.baselines.team_lqr import TeamLQR, lift, probe, reduced_layout, reference_feedforward, relative_to_reference
+from agents.baselines.team.lqr import TeamLQR, lift, probe, reduced_layout, reference_feedforward, relative_to_reference
 from esp_gym.team.core import TeamCore
 from esp_gym.team.spaces import TEAM_UNIT_NOISE
 

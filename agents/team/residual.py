@@ -1,13 +1,13 @@
 """A residual team: every agent's action is the team's baseline's command for its pivot plus
 ``scale`` times the network's, the sum clipped to the box (residual policy learning, as
 agents/residual.py does for one string). The baseline is the centralised one of the observation
-mode (agents/team_evaluate.py :func:`~agents.team_evaluate.team_baselines`: the LQR, or with the
+mode (agents/team/evaluate.py :func:`~agents.team.evaluate.team_baselines`: the LQR, or with the
 hook observation the LQG); it is told the action actually applied, so the LQG's filter predicts
 with it.
 
-A drone team's baseline is the drones' cascade (agents/baselines/team_cascade.py), its command
+A drone team's baseline is the drones' cascade (agents/baselines/team/cascade.py), its command
 each drone's four numbers. Each agent sees its own observation, then its baseline command (3, or
-4 for a drone) and, from a stateful baseline (the LQG, the cascade's filter), the filter's estimate of the team's reduced state (agents/baselines/team_lqr.py
+4 for a drone) and, from a stateful baseline (the LQG, the cascade's filter), the filter's estimate of the team's reduced state (agents/baselines/team/lqr.py
 ``reduced_layout``) with the pivots' blocks rolled so that its own pivot comes first: one shared
 network reads every agent's the same way.
 """
@@ -21,8 +21,8 @@ import gymnasium as gym
 import numpy as np
 from pettingzoo import ParallelEnv
 
-from agents.baselines.team_lqr import reduced_layout
-from agents.team_evaluate import team_baselines
+from agents.baselines.team.lqr import reduced_layout
+from agents.team.evaluate import team_baselines
 
 #: The network's share of the action box by default: its unit action moves a pivot's command by this much.
 RESIDUAL_SCALE = 0.3

@@ -1,17 +1,17 @@
-"""Sweep agents.team_train runs with Ray Tune: hyper-parameters x seeds for a team, on this machine
+"""Sweep agents.team.train runs with Ray Tune: hyper-parameters x seeds for a team, on this machine
 or a Ray cluster, gathered into one table and plot (as agents/distributed/sweep.py does for
 agents.train).
 
-    python -m agents.team_sweep --team 3 --task transport --preset hard --residual --iterations 200 \\
+    python -m agents.team.sweep --team 3 --task transport --preset hard --residual --iterations 200 \\
         --space '{"lr": [1e-4, 3e-4], "seed": [0, 1]}'
-    python -m agents.team_sweep --team 3 --actuation thrust_rates --task track --space '{"seed": [0, 1]}'
-    python -m agents.team_sweep --resume sweeps/team
+    python -m agents.team.sweep --team 3 --actuation thrust_rates --task track --space '{"seed": [0, 1]}'
+    python -m agents.team.sweep --resume sweeps/team
 
 ``--space`` maps keys to lists of values (JSON or YAML): every combination is a trial. A key is a
-``--set`` key of agents.team_train (configs/agents/rllib_team_ppo.yaml: ``lr``, ``minibatch_size``,
+``--set`` key of agents.team.train (configs/agents/rllib_team_ppo.yaml: ``lr``, ``minibatch_size``,
 ``model.fcnet_hiddens``, ...) or ``seed``; every key and value is checked, with ``--set``'s base
 overrides, before anything starts. Each trial takes one CPU and samples in its own process (RLlib's
-local env runner: ``num_env_runners=0``, whatever ``--set`` says), and is a normal agents.team_train
+local env runner: ``num_env_runners=0``, whatever ``--set`` says), and is a normal agents.team.train
 run directory ``OUT/runs/TRIAL`` (config.yaml, progress.csv, checkpoint/, evaluation.json on
 ``--eval-episodes`` episodes of seeds 10000+, learning_curve.png). It reports every iteration's
 training return to Tune. ``OUT/results.{csv,md,png}`` gather the trials
@@ -54,7 +54,7 @@ class Settings:
     preset: Optional[str] = field(default=None, metadata={"help": "the team's preset", "choices": ["hard"],
                                                           "run": True})
     actuation: Optional[str] = field(default=None, metadata={
-        "help": "the pivots are drones flown so, as agents.team_train's (default: point pivots pushed by forces)",
+        "help": "the pivots are drones flown so, as agents.team.train's (default: point pivots pushed by forces)",
         "choices": DRONE_ACTUATIONS, "run": True})
     residual: bool = field(default=False, metadata={"help": "train residuals on the team's baseline", "run": True})
     central_critic: bool = field(default=False, metadata={"help": "trials with a centralised critic", "run": True})
@@ -63,7 +63,7 @@ class Settings:
     time_limit: Optional[float] = field(default=None, metadata={
         "help": "minutes of training after which a trial stops and saves", "type": float, "run": True})
     set: list = field(default_factory=list, metadata={
-        "help": "overrides every trial shares, as agents.team_train's --set (repeatable)", "nargs": "+",
+        "help": "overrides every trial shares, as agents.team.train's --set (repeatable)", "nargs": "+",
         "action": "extend", "run": True})
     out: Optional[str] = field(default=None, metadata={
         "help": "the sweep's directory (default: sweeps/team{K}__{task}__{time}); on a cluster of several machines, "
@@ -82,8 +82,8 @@ SWEEP_SETTINGS = frozenset(f.name for f in dataclasses.fields(Settings) if f.met
 
 
 def trial_settings(s: Settings, config: dict, runs: Path, name: str):
-    """agents.team_train's Settings of the trial ``config`` (a grid point) of the sweep ``s``."""
-    from agents import team_train
+    """agents.team.train's Settings of the trial ``config`` (a grid point) of the sweep ``s``."""
+    from agents.team import train as team_train
 
     overrides = list(s.set) + [override(k, v) for k, v in config.items() if k != "seed"] + list(TRIAL_OVERRIDES)
     return team_train.Settings(team=s.team, task=s.task, preset=s.preset, actuation=s.actuation,
@@ -95,7 +95,7 @@ def trial_settings(s: Settings, config: dict, runs: Path, name: str):
 
 
 def trial_argv(ts) -> list:
-    """The agents.team_train command line of a trial's settings ``ts``, saved with its run."""
+    """The agents.team.train command line of a trial's settings ``ts``, saved with its run."""
     return ["--team", str(ts.team), "--task", ts.task, *(["--preset", ts.preset] if ts.preset else []),
             *(["--actuation", ts.actuation] if ts.actuation else []),
             *(["--residual"] if ts.residual else []), *(["--central-critic"] if ts.central_critic else []),
@@ -106,7 +106,7 @@ def trial_argv(ts) -> list:
 def check_trial(s: Settings, point: dict) -> None:
     """What the trial of grid point ``point`` would build, before a cluster starts: its config and
     RLlib's validation of it (ConfigError or ValueError, as the trial would raise them)."""
-    from agents import team_train
+    from agents.team import train as team_train
 
     ts = trial_settings(s, point, Path("."), "check")
     cfg = load_rllib_config(ts.task, ts.set, team_train.CONFIG_FILE, team_train.TEAM_ENV_ID)
@@ -141,12 +141,12 @@ def check_space(space: dict, s: Settings) -> None:
 
 
 def run_trial(config: dict, spec: Spec) -> dict:
-    """One Tune trial (in a Ray worker, Ray already joined): agents.team_train's run in
+    """One Tune trial (in a Ray worker, Ray already joined): agents.team.train's run in
     ``OUT/runs/TRIAL``, reporting each iteration; then its evaluation's metrics."""
     import ray
     from ray import tune
 
-    from agents import team_train
+    from agents.team import train as team_train
 
     s = Settings(**spec.settings)
     runs = Path(spec.out) / "runs"
@@ -188,7 +188,7 @@ def prepare(s: Settings, given: frozenset) -> tuple:
 
 
 def main(argv=None):
-    ap = settings_parser(Settings, prog="python -m agents.team_sweep", description=__doc__.split("\n\n")[0])
+    ap = settings_parser(Settings, prog="python -m agents.team.sweep", description=__doc__.split("\n\n")[0])
     return sweep_main(ap, Settings, argv, prepare, run_trial)
 
 

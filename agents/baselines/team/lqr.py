@@ -37,7 +37,7 @@ def reduced_layout(size: int) -> Layout:
 def full_layout(obs: np.ndarray, core: TeamCore) -> Layout:
     """The agents' ``full`` layout of a centralised observation of ``core``'s team: its own (with its
     drones' fields and its strings' lengths), or its point twin's (the drones' cascade,
-    agents/baselines/team_cascade.py, hands the LQR a point pivots' observation)."""
+    agents/baselines/team/cascade.py, hands the LQR a point pivots' observation)."""
     for drones in (core.drones, False):
         layout = agent_layout(core.size, "full", drones, core.winch)
         if layout.size * core.size == np.size(obs):

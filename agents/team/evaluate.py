@@ -3,9 +3,9 @@ measured as agents/evaluate.py measures one string's: return, success, the load'
 tilt (its ``swing``), settling time and the peak of the strings' pull on their pivots.
 
 Policies act on the centralised observation: ``zero`` (hover), ``lqr`` (the team's LQR,
-agents/baselines/team_lqr.py) and with the hook observation ``lqg`` (agents/baselines/team_lqg.py)
+agents/baselines/team/lqr.py) and with the hook observation ``lqg`` (agents/baselines/team/lqg.py)
 are the baselines of point pivots, ``cascade`` and with the hook observation ``cascade_lqg``
-(agents/baselines/team_cascade.py) the drones' (:func:`team_baselines`).
+(agents/baselines/team/cascade.py) the drones' (:func:`team_baselines`).
 """
 from __future__ import annotations
 
@@ -62,53 +62,53 @@ class DesignedPolicy:
 
 
 class TeamLQRPolicy(DesignedPolicy):
-    """The team's LQR (agents/baselines/team_lqr.py) with the env's action latency, reading the
+    """The team's LQR (agents/baselines/team/lqr.py) with the env's action latency, reading the
     true state."""
 
     true_state = True
 
     def build(self, core):
-        from agents.baselines.team_lqr import TeamLQR
+        from agents.baselines.team.lqr import TeamLQR
 
         return TeamLQR.design(nominal_core(core), latency=core.action_latency)
 
 
 class TeamLQGPolicy(DesignedPolicy):
-    """The team's LQG (agents/baselines/team_lqg.py) for the env's observation mode, sensor noise
+    """The team's LQG (agents/baselines/team/lqg.py) for the env's observation mode, sensor noise
     and latency."""
 
     def build(self, core):
-        from agents.baselines.team_lqg import TeamLQG
+        from agents.baselines.team.lqg import TeamLQG
 
         nominal = nominal_core(core, observation=core.observation, sensor_noise=core.sensor_noise)
         return TeamLQG.design(nominal, latency=core.action_latency)
 
 
 class TeamCascadePolicy(DesignedPolicy):
-    """A drone team's cascade (agents/baselines/team_cascade.py) with the env's action latency,
+    """A drone team's cascade (agents/baselines/team/cascade.py) with the env's action latency,
     reading the true state."""
 
     true_state = True
 
     def build(self, core):
-        from agents.baselines.team_cascade import TeamCascade
+        from agents.baselines.team.cascade import TeamCascade
 
         return TeamCascade.design(nominal_core(core, action_latency=core.action_latency))
 
 
 class TeamCascadeLQGPolicy(DesignedPolicy):
-    """A drone team's cascade on a Kalman filter's estimate (agents/baselines/team_cascade.py
+    """A drone team's cascade on a Kalman filter's estimate (agents/baselines/team/cascade.py
     ``TeamCascadeLQG``) for the env's observation mode, sensor noise and latency."""
 
     def build(self, core):
-        from agents.baselines.team_cascade import TeamCascadeLQG
+        from agents.baselines.team.cascade import TeamCascadeLQG
 
         return TeamCascadeLQG.design(nominal_core(core, observation=core.observation, sensor_noise=core.sensor_noise,
                                                   action_latency=core.action_latency))
 
 
 class TeamHoistPolicy(DesignedPolicy):
-    """A lift's baseline (agents/baselines/team_hoist.py): the team's LQR on the pivots (``lqg``:
+    """A lift's baseline (agents/baselines/team/hoist.py): the team's LQR on the pivots (``lqg``:
     its LQG for the env's observation, noise and latency) and a reel law on each winch. The base
     is designed about the load hanging in formation (on the nominal ``transport`` team with
     winches, whose targets hang): the lift's target is above it, where the strings' scene lengths
@@ -119,9 +119,9 @@ class TeamHoistPolicy(DesignedPolicy):
         self.base, self.true_state = base, true_state
 
     def build(self, core):
-        from agents.baselines.team_hoist import TeamHoist
-        from agents.baselines.team_lqg import TeamLQG
-        from agents.baselines.team_lqr import TeamLQR
+        from agents.baselines.team.hoist import TeamHoist
+        from agents.baselines.team.lqg import TeamLQG
+        from agents.baselines.team.lqr import TeamLQR
         from esp_gym.team.core import TeamCore
 
         options = dict(observation=core.observation, sensor_noise=core.sensor_noise) if self.base == "lqg" else {}
@@ -194,12 +194,12 @@ def run_team_episodes(policy, team: int = 3, task: str = "transport", episodes: 
 
 
 def main(argv=None):
-    """``python -m agents.team_evaluate``: a library, not a command. One line names the command
+    """``python -m agents.team.evaluate``: a library, not a command. One line names the command
     that evaluates a team (agents.compare --team runs these episodes for the baselines and a
     checkpoint), with exit code 2, a usage error (it printed nothing and exited 0)."""
     import sys
 
-    print("python -m agents.team_evaluate: error: a library module, not a command: evaluate a team with "
+    print("python -m agents.team.evaluate: error: a library module, not a command: evaluate a team with "
           "python -m agents.compare --team K [--model CHECKPOINT]", file=sys.stderr)
     raise SystemExit(2)
 

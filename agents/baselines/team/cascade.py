@@ -6,7 +6,7 @@ The load-level law is designed on the drone team's *point twin*: the same string
 masses with every drone a free point pushed by a force (:func:`point_twin`). A drone hooked at its
 centre of mass translates exactly as that point under its thrust -f R_q e3. But its thrust
 follows the force asked for only as fast as the inner loops turn it: the twin's own LQR
-(agents/baselines/team_lqr.py), which assumes the force at once, is unstable behind a lag of
+(agents/baselines/team/lqr.py), which assumes the force at once, is unstable behind a lag of
 30 ms already (closed-loop spectral radius 1.28 at 30 ms, 1.21 at 100 ms, for three drones on
 ``stabilize``). So the outer loop is an LQR on the twin's linearisation with each force reaching
 its pivot through a first-order lag (time constants :data:`LAG`: the tilt's for the horizontal
@@ -24,8 +24,8 @@ import numpy as np
 import scipy.linalg
 
 from agents.baselines.geometric import InnerLoops, drone_attitude, inner_action
-from agents.baselines.team_lqg import ACTION_SPREAD, NOISE_FLOORS, STATE_FLOOR, measurement_model
-from agents.baselines.team_lqr import (linearize, reduced_from_observation, reduced_layout, reference_feedforward,
+from agents.baselines.team.lqg import ACTION_SPREAD, NOISE_FLOORS, STATE_FLOOR, measurement_model
+from agents.baselines.team.lqr import (linearize, reduced_from_observation, reduced_layout, reference_feedforward,
                                        relative_to_reference, reward_weights)
 from esp_gym.team.core import TeamCore
 from esp_gym.team.scene import TeamScene
@@ -181,7 +181,7 @@ class TeamCascade:
 class TeamCascadeLQG:
     """The cascade on what the drones measure (the hook observation): the load-level law of
     :class:`TeamCascade` on a steady-state Kalman filter's estimate of the reduced state, as
-    agents/baselines/team_lqg.py's for point pivots (its measurement model of the point twin's
+    agents/baselines/team/lqg.py's for point pivots (its measurement model of the point twin's
     hook observation, its noises), predicting with the drones' thrust vectors; those are the
     observed attitudes (noisy) times the collective thrust of the action that acts now (the
     controller's own, ``latency`` steps old), and the inner loops read the observed attitudes and
