@@ -120,7 +120,7 @@ def model_configuration(model: str | Path) -> Optional[dict]:
 def describe_configuration(task: str, env_kwargs: Optional[dict]) -> dict:
     """The resolved :data:`CONFIGURATION_FIELDS` of a task and its environment options, with the
     observation and action sizes (``layout``)."""
-    from esp_gym.setup import make_setup
+    from esp_gym.pendulum.env_setup import make_setup
 
     setup = make_setup(task=task, **(env_kwargs or {}))
     return {"task": setup.task.name, "preset": (env_kwargs or {}).get("preset"), "observation": setup.observer.mode,

@@ -23,7 +23,7 @@ class ArgumentParser(argparse.ArgumentParser):
                             default_seed: int = 0) -> None:
         """``--task`` (one of ``tasks``), ``--episodes`` (>= 1, default ``episodes``) and, with
         ``seed``, ``--seed`` (>= 0; episode i uses seed + i), with ``preset`` ``--preset`` (an
-        environment preset, esp_gym/setup.py PRESETS): the options every script that runs
+        environment preset, esp_gym/pendulum/env_setup.py PRESETS): the options every script that runs
         episodes shares. Their minimums are checked by :meth:`parse_args`."""
         self.add_argument("--task", default="stabilize", choices=sorted(tasks))
         self.add_argument("--episodes", type=int, default=episodes)
@@ -32,7 +32,7 @@ class ArgumentParser(argparse.ArgumentParser):
             self.add_argument("--seed", type=int, default=default_seed, help="episode i uses seed + i (>= 0)")
             self.minimums["seed"] = 0
         if preset:
-            from esp_gym.setup import PRESETS
+            from esp_gym.pendulum.env_setup import PRESETS
 
             self.add_argument("--preset", default=None, choices=sorted(PRESETS),
                               help="environment preset (default: the nominal task)")
@@ -40,7 +40,7 @@ class ArgumentParser(argparse.ArgumentParser):
     def add_scene_options(self) -> None:
         """``--scene`` and ``--actuation``: the environment the episodes run in (read back, checked,
         by :meth:`environment_options`)."""
-        from esp_gym.options import ACTUATION_CHOICES
+        from esp_gym.pendulum.options import ACTUATION_CHOICES
 
         self.add_argument("--scene", default=None, help="the environment's scene (default: drone_load)")
         self.add_argument("--actuation", default=None, choices=ACTUATION_CHOICES,
@@ -52,7 +52,7 @@ class ArgumentParser(argparse.ArgumentParser):
         options = {name: getattr(args, name, None) for name in ("preset", "scene", "actuation")}
         options = {name: value for name, value in options.items() if value is not None}
         if "scene" in options or "actuation" in options:
-            from esp_gym.setup import make_setup
+            from esp_gym.pendulum.env_setup import make_setup
 
             try:
                 make_setup(task=args.task, **options)

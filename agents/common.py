@@ -100,7 +100,7 @@ def valid_keys(algo_name: str, path: tuple, tree: dict) -> Optional[set]:
     if path == ("policy_kwargs", "net_arch"):
         return NET_ARCH_KEYS[algo_name]
     if path == ("env_kwargs",):
-        from esp_gym.setup import make_setup
+        from esp_gym.pendulum.env_setup import make_setup
 
         return _parameters(make_setup, {"task"})  # the task is --task
     return None

@@ -29,8 +29,8 @@ from agents.artifacts import ConfigurationError
 from agents.baselines.pd import ZeroPolicy
 from agents.baselines.registry import baselines
 from agents.evaluate import MODEL_ERRORS, SB3Policy, run_episodes, summarize
-from esp_gym.options import EnvOptions
-from esp_gym.tasks import TASKS
+from esp_gym.pendulum.options import EnvOptions
+from esp_gym.pendulum.tasks import TASKS
 
 HELD_OUT_SEED = 100_000
 DEFAULT_SCENE = EnvOptions.model_fields["scene"].default
@@ -45,7 +45,7 @@ def configuration_name(task: str, preset: Optional[str] = None, scene: Optional[
     if scene is not None and scene != DEFAULT_SCENE:
         parts.append(scene)
     if actuation is not None:
-        from esp_gym.setup import make_setup
+        from esp_gym.pendulum.env_setup import make_setup
 
         if actuation != make_setup(task=task, scene=scene or DEFAULT_SCENE).actuation:
             parts.append(actuation)

@@ -39,8 +39,8 @@ from agents.baselines.registry import baseline
 from agents.normalization import NormalizationFileError, NormStats
 from agents.residual import base_features, residual_for
 from esp_gym.layouts import SENSORS
-from esp_gym.setup import make_setup
-from esp_gym.tasks import TASKS
+from esp_gym.pendulum.env_setup import make_setup
+from esp_gym.pendulum.tasks import TASKS
 
 SUCCESS_DISTANCE = 0.1  #: [m]
 SUCCESS_SWING_DEG = 5.0

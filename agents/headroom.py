@@ -24,7 +24,7 @@ import numpy as np
 import esp_gym
 from agents.cli import ArgumentParser
 from esp_gym.layouts import ACTION_SIZE
-from esp_gym.tasks import TASKS
+from esp_gym.pendulum.tasks import TASKS
 
 
 def feedforward_axes(action_size: int, drone: bool = False) -> list:

@@ -88,7 +88,7 @@ class ReferenceContext:
     def act(self, obs, setup) -> np.ndarray:
         from agents.baselines.lqr import PREVIEW_TIMES, REDUCED, reference_basis, reference_map
         from esp_gym.layouts import TARGET
-        from esp_gym.tasks import reference_acceleration
+        from esp_gym.pendulum.tasks import reference_acceleration
 
         target = self._target
         if target is not None and target[TARGET.scalar("rate")] != 0.0:
@@ -108,7 +108,7 @@ def nominal_lqr(task: str, env_kwargs: Optional[dict] = None):
     the reference's context."""
     from agents.baselines.lqr import LQR, LQRTracker
     from agents.baselines.registry import LQR_WEIGHT
-    from esp_gym.setup import make_setup
+    from esp_gym.pendulum.env_setup import make_setup
 
     setup = make_setup(task=task, **(env_kwargs or {}))
     if task not in LQR_WEIGHT:

@@ -21,8 +21,8 @@ from agents.cli import ArgumentParser
 from agents.compare import HELD_OUT_SEED, shipped_model
 from agents.baselines.registry import baselines
 from agents.evaluate import SB3Policy, run_episodes
-from esp_gym.setup import PRESETS, make_setup
-from esp_gym.tasks import TASKS
+from esp_gym.pendulum.env_setup import PRESETS, make_setup
+from esp_gym.pendulum.tasks import TASKS
 
 #: The swept quantity -> (values, training range, axis label); EA and load mass as factors.
 SWEEPS = {

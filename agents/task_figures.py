@@ -30,7 +30,7 @@ from agents.cli import ArgumentParser
 from agents.evaluate import ONE_BLAS_THREAD
 from agents.baselines.pd import ZeroPolicy
 from agents.baselines.registry import baseline, baselines
-from esp_gym.tasks import TASKS
+from esp_gym.pendulum.tasks import TASKS
 from esp_gym.team.tasks import TEAM_TASKS
 
 #: What the top view's markers and lines stand for, and their colours.

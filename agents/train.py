@@ -43,7 +43,7 @@ from agents.evaluate import evaluate_policy
 from agents.normalization import NormStats
 from agents.residual import base_policy, write_residual
 from agents.runs import Resume, RunCheckpoint, RunMonitor, new_run_dir, write_status, write_stopped
-from esp_gym.tasks import TASKS
+from esp_gym.pendulum.tasks import TASKS
 
 
 @dataclass
@@ -84,7 +84,7 @@ def _make_vec_env(n_envs: int, task: str, seed: int, env_kwargs: dict, residual:
                   privileged: bool = False, max_episode_steps: int = esp_gym.MAX_EPISODE_STEPS):
     from agents.privileged import PrivilegedVecEnv
     from agents.residual import ResidualVecEnv, base_policy
-    from esp_gym.sb3_vector import ElasticStringPendulumSB3VecEnv
+    from esp_gym.pendulum.sb3_vector import ElasticStringPendulumSB3VecEnv
 
     env = ElasticStringPendulumSB3VecEnv(num_envs=n_envs, task=task, max_episode_steps=max_episode_steps, **env_kwargs)
     env.seed(seed)
@@ -122,7 +122,7 @@ def run_config(s: Settings) -> RunConfig:
         cfg = load_run_config(s.algo, esp_gym.ENV_ID, s.task, s.set)
     except ConfigError as err:
         raise SettingsError("--set" if err.override else None, str(err)) from None
-    from esp_gym.setup import make_setup
+    from esp_gym.pendulum.env_setup import make_setup
 
     try:  # env_kwargs' values, checked here rather than by the first environment
         make_setup(task=s.task, **cfg.env_kwargs)

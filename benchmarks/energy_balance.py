@@ -17,7 +17,7 @@ import numpy as np
 from tqdm import tqdm
 
 import esp_gym
-from esp_gym.watchdog import energy_scale
+from esp_gym.physics.watchdog import energy_scale
 from agents.baselines.pd import AntiSwayPD, Hoist
 from benchmarks.common import arg_parser, figure, finish, machine
 

@@ -46,8 +46,8 @@ import numpy as np
 
 import esp_gym
 from benchmarks.common import arg_parser, figure, finish, machine, wall_times
-from esp_gym.sb3_vector import ElasticStringPendulumSB3VecEnv
-from esp_gym.setup import PRESETS
+from esp_gym.pendulum.sb3_vector import ElasticStringPendulumSB3VecEnv
+from esp_gym.pendulum.env_setup import PRESETS
 from esp_gym.workers import available_cpus
 
 

@@ -77,7 +77,7 @@ def sb3_sampling(steps: int, repeats: int) -> float:
     import torch
     from stable_baselines3 import PPO
 
-    from esp_gym.sb3_vector import ElasticStringPendulumSB3VecEnv
+    from esp_gym.pendulum.sb3_vector import ElasticStringPendulumSB3VecEnv
 
     torch.set_num_threads(1)
     venv = ElasticStringPendulumSB3VecEnv(num_envs=N_ENVS, task="stabilize")

@@ -22,7 +22,7 @@ from tqdm.auto import tqdm
 import esp_gym
 from agents.baselines.pd import AntiSwayPD, Hoist
 from benchmarks.common import arg_parser, figure, finish, machine
-from esp_gym.watchdog import energy_scale
+from esp_gym.physics.watchdog import energy_scale
 
 #: The environment's winch step for drone_load (choose_h(reeling=True): 71 steps per 20 ms).
 WINCH_H = 0.02 / 71
@@ -88,7 +88,7 @@ def stiff_winch(switch: str, EA: float, seed: int, steps: int, string: str = "ex
             "substeps": int(u.setup.substeps)}
 
 
-#: The resolution rule's EAs and step margins (esp_gym.stepsize.SLACK_SAFETY is 0.35).
+#: The resolution rule's EAs and step margins (esp_gym.scene.stepsize.SLACK_SAFETY is 0.35).
 MARGIN_EA = (2e5, 2e6, 1e7)
 MARGINS = (0.35, 0.5, 0.8)
 

@@ -25,7 +25,7 @@ from agents.team.evaluate import team_baselines
 from benchmarks.common import arg_parser, figure, finish, machine
 from esp_gym.team.env import ElasticStringTeamEnv
 from esp_gym.team.scene import TEAM_SAFETY, team_scene
-from esp_gym.watchdog import team_energy_scale
+from esp_gym.physics.watchdog import team_energy_scale
 
 SWITCHES = ("settled", "plain")
 #: The settled runs' smaller safeties by default (each halves h, and doubles the physics steps).

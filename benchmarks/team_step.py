@@ -25,7 +25,7 @@ def costs(elements, sizes, steps: int, repeats: int) -> list:
     the bound K x that + the body's share ``body_us`` (``bound_ratio``, <= 1 within it);
     ``elements`` a count or ``"auto"`` (each string's N by the resolution rule, ``N`` the one
     chosen)."""
-    from esp_gym.model import Simulator
+    from esp_gym.physics.simulator import Simulator
     from esp_gym.team import TeamSimulator, symmetric_team
 
     rows = []

@@ -76,7 +76,7 @@ class Settings:
                             ("wide5", (9, 10, 11, 12, 14, 16, 20, 25, 32, 50)),
                             ("kahan_li9", (12, 13, 14, 16, 18, 20, 25, 32, 40, 50, 64, 100)),
                             ("kahan_li17", (7, 8, 9, 10, 11, 12, 14, 16, 20, 25, 32, 50)))
-    """steps per sample of each composition of the LGVI (esp_gym/compositions.py)"""
+    """steps per sample of each composition of the LGVI (esp_gym/scene/compositions.py)"""
     plain_k: tuple = (("lgvi", (14, 16, 20, 25, 32, 40, 50, 64, 100, 160, 250)),
                       ("suzuki5", (11, 12, 14, 16, 20, 25, 32, 50, 80)),
                       ("wide5", (9, 10, 11, 12, 14, 16, 20)),
@@ -112,7 +112,7 @@ def lgvi_samples(scene_name: str, k: int, t_final: float, sample: float, composi
     """LGVI (or one of its compositions) with h = sample/k: returns a function giving
     (load positions (K+1, 3), steps)."""
     import esp_gym
-    from esp_gym.compositions import COMPOSITIONS
+    from esp_gym.scene.compositions import COMPOSITIONS
 
     h = sample / k
     solver = {"order": COMPOSITIONS[composition].order, "composition": composition,

@@ -6,7 +6,7 @@ on first use.
 """
 from gymnasium.envs.registration import register, registry
 
-from .params import Scene, SceneError, available_scenes, load_scene
+from .scene.params import Scene, SceneError, available_scenes, load_scene
 
 __all__ = ["Scene", "SceneError", "Simulator", "SimulationError", "StepChoice", "Trajectory", "available_scenes", "choose_h",
            "choose_resolution", "ResolutionChoice", "load_scene", "rigs"]
@@ -19,8 +19,8 @@ MAX_EPISODE_STEPS = 500
 if ENV_ID not in registry:
     register(
         id=ENV_ID,
-        entry_point="esp_gym.env:ElasticStringPendulumEnv",
-        vector_entry_point="esp_gym.vector:ElasticStringPendulumVectorEnv",
+        entry_point="esp_gym.pendulum.env:ElasticStringPendulumEnv",
+        vector_entry_point="esp_gym.pendulum.vector:ElasticStringPendulumVectorEnv",
         max_episode_steps=MAX_EPISODE_STEPS,
     )
 
@@ -32,19 +32,19 @@ if TEAM_ENV_ID not in registry:
 
 def __getattr__(name):
     if name in ("Simulator", "SimulationError", "Trajectory", "State"):
-        from . import model
+        from .physics import simulator
 
-        return getattr(model, name)
+        return getattr(simulator, name)
     if name in ("choose_h", "StepChoice"):
-        from . import pilot
+        from .physics import pilot
 
         return getattr(pilot, name)
     if name in ("choose_resolution", "ResolutionChoice"):
-        from . import stepsize
+        from .scene import stepsize
 
         return getattr(stepsize, name)
     if name == "rigs":
-        from .rig import rigs
+        from .physics.rig import rigs
 
         return rigs
     raise AttributeError(f"module 'esp_gym' has no attribute {name!r}")

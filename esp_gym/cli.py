@@ -120,7 +120,7 @@ def summarize(traj, scene) -> dict:
 def _time_plain_steps(scene, steps: int, repeats: int = 3):
     """Median wall time [s] of ``steps`` steps in one compiled call (no recording), from the
     initial state each time, and the final node positions of the last repeat."""
-    from .model import Simulator
+    from .physics.simulator import Simulator
 
     times = []
     for _ in range(repeats):
@@ -187,8 +187,8 @@ def check_output(out: str, directory: bool) -> Path:
 def run_paper(out: Path, t_final: float = PAPER["t_final"], record_every: int = 100,
               progress: bool = True, argv: Optional[Sequence[str]] = None) -> dict:
     """Run the paper's example, write the outputs into ``out`` and return the summary."""
-    from .model import Simulator
-    from .params import load_scene
+    from .physics.simulator import Simulator
+    from .scene.params import load_scene
     from .viz.figures import plot_fig_ns, plot_fig_sm
 
     scene = load_scene(PAPER["scene"], N=PAPER["N"], h=PAPER["h"])
@@ -269,8 +269,8 @@ def _fail(command: str, message, status: int) -> int:
 
 
 def _cmd_paper(args, argv) -> int:
-    from .model import SimulationError
-    from .params import SceneError
+    from .physics.simulator import SimulationError
+    from .scene.params import SceneError
 
     try:
         check_paper_args(args.t_final, args.record_every)
@@ -327,8 +327,8 @@ def _cmd_compile(args, argv) -> int:
 
 
 def _cmd_record(args, argv) -> int:
-    from .model import SimulationError, Simulator
-    from .params import SceneError, load_scene
+    from .physics.simulator import SimulationError, Simulator
+    from .scene.params import SceneError, load_scene
     from .viz import recording
 
     try:

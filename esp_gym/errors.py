@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from .kernels.status import BLOW_UP, ENERGY_BALANCE, NEWTON_FAILED, NON_FINITE, PHYSICS_FAILURES, STATUS
-from .params import Scene
+from .scene.params import Scene
 
 
 class SimulationError(RuntimeError):

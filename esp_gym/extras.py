@@ -23,7 +23,7 @@ EXTRAS = {
 
 
 def require(module: str, feature: str) -> ModuleType:
-    """``import module`` for ``feature`` (as the message names it, e.g. ``"esp_gym.sb3_vector"``).
+    """``import module`` for ``feature`` (as the message names it, e.g. ``"esp_gym.pendulum.sb3_vector"``).
 
     A module of an extra that is not installed, ``module`` itself or one it imports (SB3 without
     torch), raises ``ImportError("FEATURE needs NAME: pip install 'esp_gym[EXTRA]'")`` for that

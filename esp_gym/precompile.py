@@ -1,6 +1,6 @@
 """Compiling the environment's configurations ahead of use (``esp-gym compile``).
 
-Each configuration of the environment's compiled step (each rig of esp_gym/rig.py, single or
+Each configuration of the environment's compiled step (each rig of esp_gym/physics/rig.py, single or
 batched; a team's, of point pivots or of drones, single and batched (esp_gym/kernels/team_env.py), or on
 winches (``team_winch_advance`` in esp_gym/kernels/team_loops.py)) compiles on its
 first step and is cached on disk (docs/performance.md, "Start-up"). This takes them all in worker
@@ -16,7 +16,7 @@ import time
 from dataclasses import dataclass
 from typing import Optional
 
-from .rig import RIGS
+from .physics.rig import RIGS
 from .workers import available_cpus, worker_count
 
 
@@ -40,7 +40,7 @@ class Configuration:
         return "-".join((kind, "implicit" if self.implicit else "explicit", "batched" if self.batched else "single"))
 
 
-#: Every configuration: each rig of the table (esp_gym/rig.py RIGS, the first environment's
+#: Every configuration: each rig of the table (esp_gym/physics/rig.py RIGS, the first environment's
 #: first, a team's last), single and batched (a team whose strings reel steps one by one, in Python).
 CONFIGURATIONS = tuple(Configuration(rig.winch, rig.string == "implicit", batched, rig.pivot == "drone", rig.hook,
                                      rig.team)

@@ -35,7 +35,7 @@ def check_within_cpus(name: str, count: int) -> int:
 def worker_count(name: str, jobs: Any, tasks: int) -> int:
     """The worker processes for ``tasks`` pieces of work run ``jobs`` at a time: min(jobs, tasks),
     at least 1. ValueError naming ``name`` unless ``jobs`` is a whole number from 1 to the CPUs."""
-    from .options import check_count
+    from .pendulum.options import check_count
 
     return max(1, min(check_within_cpus(name, check_count(name, jobs)), tasks))
 

@@ -286,7 +286,7 @@ def random_state(scene, rng, speed=0.5, spin=2.0):
     (the pivot's too when it is free), a random attitude, Omega uniform in +-spin [rad/s];
     momenta by the continuous Legendre transform of the finite-element Lagrangian (any momenta
     would do for these tests)."""
-    from esp_gym.model import State, legendre_momenta
+    from esp_gym.physics.simulator import State, legendre_momenta
 
     r = random_nodes(scene, rng)
     v = rng.uniform(-speed, speed, size=r.shape)

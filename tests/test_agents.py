@@ -12,7 +12,7 @@ import pytest
 from agents.common import load_run_config
 from agents.baselines.pd import ZeroPolicy
 from agents.evaluate import SB3Policy, evaluate_policy
-from esp_gym.tasks import TASKS
+from esp_gym.pendulum.tasks import TASKS
 from script_main import call_main
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -166,8 +166,9 @@ def test_no_module_imports_a_private_name():
     bad = [b for _, m, pkg, tree in _parsed() for b in private_imports(m, pkg, tree)]
     assert bad == []
     # negative control
-    tree = ast.parse("from .model import _hidden\n")
-    assert private_imports("esp_gym.env", False, tree) == ["esp_gym.env: from esp_gym.model import _hidden"]
+    tree = ast.parse("from ..physics.simulator import _hidden\n")
+    assert private_imports("esp_gym.pendulum.env", False, tree) == [
+        "esp_gym.pendulum.env: from esp_gym.physics.simulator import _hidden"]
 
 
 def test_nobody_edits_sys_path():
@@ -219,6 +220,32 @@ def test_no_deferred_import_hides_a_cycle():
                        "def f():\n    from a import x\n")
     assert any_imports("b", False, source, {"a.x", "a.y"}) == {"a.x"}
     assert module_imports("b", False, source, {"a.x", "a.y"}) == set()
+
+
+#: What each lower package may not import (deferred imports too): a scene is validated without the
+#: physics, and the physics runs without an environment (docs/architecture.md, "The layers").
+BELOW = {"esp_gym.scene": ("esp_gym.physics", "esp_gym.pendulum", "esp_gym.team", "esp_gym.viz", "esp_gym.verify",
+                           "esp_gym.errors", "esp_gym.zoo", "esp_gym.cli", "esp_gym.precompile"),
+         "esp_gym.physics": ("esp_gym.pendulum", "esp_gym.team", "esp_gym.viz", "esp_gym.verify", "esp_gym.zoo",
+                             "esp_gym.cli", "esp_gym.precompile")}
+
+
+def layer_violations(graph: dict) -> list:
+    """``module -> imported`` pairs of ``graph`` where a package of :data:`BELOW` imports what lies above it."""
+    return sorted(f"{m} -> {i}" for m, imports in graph.items() for below, above in BELOW.items()
+                  if m == below or m.startswith(below + ".")
+                  for i in imports if any(i == a or i.startswith(a + ".") for a in above))
+
+
+def test_the_scene_and_the_physics_import_nothing_above_them():
+    parsed = list(_parsed())
+    known = {m for _, m, _, _ in parsed}
+    graph = {m: any_imports(m, pkg, tree, known) for _, m, pkg, tree in parsed}
+    assert layer_violations(graph) == []
+    # negative controls: the drone's face reading the env's setup, a scene asking the simulator
+    assert layer_violations({"esp_gym.physics.drone": {"esp_gym.pendulum.env_setup", "esp_gym.physics.state"},
+                             "esp_gym.scene.stepsize": {"esp_gym.physics.simulator"}}) == [
+        "esp_gym.physics.drone -> esp_gym.pendulum.env_setup", "esp_gym.scene.stepsize -> esp_gym.physics.simulator"]
 
 
 def test_packed_layouts_are_read_by_name_outside_their_module():
@@ -273,12 +300,12 @@ def test_functions_are_short_or_listed_with_a_reason():
 def test_the_environments_do_not_import_torch():
     """The env and the Gymnasium vector env (what ``gym.make``/``gym.make_vec`` import) load
     without Stable-Baselines3 and torch: importing them cost 1.4 s of a 2.3 s warm start."""
-    code = ("import sys, esp_gym, esp_gym.env, esp_gym.vector; "
+    code = ("import sys, esp_gym, esp_gym.pendulum.env, esp_gym.pendulum.vector; "
             "print(sorted(m for m in ('torch', 'stable_baselines3') if m in sys.modules))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True)
     assert done.stdout.strip() == "[]"
     # negative control: the SB3 vector env does bring them in
-    code = code.replace("esp_gym.vector;", "esp_gym.sb3_vector;")
+    code = code.replace("esp_gym.pendulum.vector;", "esp_gym.pendulum.sb3_vector;")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True)
     assert done.stdout.strip() == "['stable_baselines3', 'torch']"
 

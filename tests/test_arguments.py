@@ -12,13 +12,13 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 import esp_gym
-from esp_gym import pilot
-from esp_gym.env import ElasticStringPendulumEnv
+from esp_gym.physics import pilot
+from esp_gym.pendulum.env import ElasticStringPendulumEnv
 from esp_gym.kernels.string import tridiag_factor
-from esp_gym.options import MAX_SUBSTEPS
-from esp_gym.sb3_vector import ElasticStringPendulumSB3VecEnv
-from esp_gym.state import BYTES_PER_NODE, attachment_column, check_memory, mass_matrix
-from esp_gym.vector import ElasticStringPendulumVectorEnv
+from esp_gym.pendulum.options import MAX_SUBSTEPS
+from esp_gym.pendulum.sb3_vector import ElasticStringPendulumSB3VecEnv
+from esp_gym.physics.state import BYTES_PER_NODE, attachment_column, check_memory, mass_matrix
+from esp_gym.pendulum.vector import ElasticStringPendulumVectorEnv
 
 
 def _scene(name: str, elements: int):

@@ -68,8 +68,8 @@ def test_snapshot_figure_does_not_autoscale_over_uninitialised_memory(tmp_path, 
     """CI stop 9: matplotlib pads the ragged body polygons (quads and 24-gon caps) with
     np.empty and, with autolim, scaled the axes over the padding; whatever the memory held
     could overflow the limits. Poisoning np.empty makes that failure certain."""
-    from esp_gym.model import Simulator
-    from esp_gym.params import load_scene
+    from esp_gym.physics.simulator import Simulator
+    from esp_gym.scene.params import load_scene
     from esp_gym.viz.figures import plot_fig_sm
 
     scene = load_scene("paper_example", N=5, h=1e-3)
@@ -242,7 +242,7 @@ def test_a_failed_simulation_exits_1_apart_from_argument_errors(tmp_path, capsys
     import yaml
 
     from esp_gym.cli import EXIT_SIMULATION_FAILED, main
-    from esp_gym.params import load_scene
+    from esp_gym.scene.params import load_scene
 
     data = load_scene("paper_example", N=5).model_dump(mode="json")
     data.update(h=0.01, allow_unstable_h=True)

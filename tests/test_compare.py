@@ -77,7 +77,7 @@ def test_frame_stacked_policy_sees_what_training_showed(tmp_path):
 
     from agents.evaluate import SB3Policy
     from agents.train import Settings, train
-    from esp_gym.sb3_vector import ElasticStringPendulumSB3VecEnv
+    from esp_gym.pendulum.sb3_vector import ElasticStringPendulumSB3VecEnv
 
     run = train(Settings(task="stabilize", runs=str(tmp_path), run_name="stack", progress=False, eval_freq=10_000,
                          reference_episodes=1, set=["total_timesteps=256", "n_envs=2", "n_steps=128",
@@ -126,7 +126,7 @@ def test_robustness_sweeps_write_the_plot(tmp_path, monkeypatch):
 
 def test_sweep_options_change_one_thing():
     from agents.robustness import sweep_options
-    from esp_gym.setup import PRESETS
+    from esp_gym.pendulum.env_setup import PRESETS
 
     assert sweep_options("wind_speed", 9.0)["wind"]["speed"] == 9.0
     assert PRESETS["hard"]["wind"]["speed"] == 6.0  # the preset itself is untouched

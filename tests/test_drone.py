@@ -1,4 +1,4 @@
-"""A drone at the pivot (esp_gym/drone.py, esp_gym/kernels/drone.py; docs/physics.md, "A drone at the
+"""A drone at the pivot (esp_gym/physics/drone.py, esp_gym/kernels/drone.py; docs/physics.md, "A drone at the
 pivot"): the rig's balances with the thrust's and the rotors' torque's work and impulses, the
 thrust along the body axis at both ends of every step (independent of the kernel's own
 balances, with off-axis thrusts as negative controls), free fall without inputs, order 2,
@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 import esp_gym
-from esp_gym.drone import DroneSimulator
-from esp_gym.setup import total_weight
-from esp_gym.params import SceneError
+from esp_gym.physics.drone import DroneSimulator
+from esp_gym.physics.state import total_weight
+from esp_gym.scene.params import SceneError
 
 SCENE = "quadrotor_load"
 E3 = np.array([0.0, 0.0, 1.0])

@@ -10,7 +10,7 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import esp_gym  # noqa: F401  (registers the environment)
-from esp_gym.drone import DroneSimulator
+from esp_gym.physics.drone import DroneSimulator
 from esp_gym.kernels.drone import ACTUATIONS, DRONE
 from esp_gym.viz.render import FrameRenderer
 

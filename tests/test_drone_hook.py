@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import esp_gym
-from esp_gym.drone import DroneSimulator, pivot_column
-from esp_gym.state import mass_matrix
+from esp_gym.physics.drone import DroneSimulator, pivot_column
+from esp_gym.physics.state import mass_matrix
 
 from discrete_lagrangian import (E3, expm, left_perturbed, random_rotation, random_state, right_perturbed,
                                  rigid_body_lagrangian, string_lagrangian)

@@ -9,9 +9,9 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import esp_gym
-from esp_gym.env import ElasticStringPendulumEnv
+from esp_gym.pendulum.env import ElasticStringPendulumEnv
 from esp_gym.kernels.env_arrays import REWARD_TERMS
-from esp_gym.sb3_vector import ElasticStringPendulumSB3VecEnv
+from esp_gym.pendulum.sb3_vector import ElasticStringPendulumSB3VecEnv
 
 ENV_ID = "ElasticStringPendulum-v0"
 

@@ -235,7 +235,7 @@ def pushed_pivot_state(scene, rng, speed):
     """A free pivot moving at ``speed`` [m/s] into its taut string: elements stretched 0-0.4%,
     other node speeds up to 0.2 m/s, random attitude and spin; momenta by the continuous Legendre
     transform. The first elements go slack within a few steps."""
-    from esp_gym.model import State, legendre_momenta
+    from esp_gym.physics.simulator import State, legendre_momenta
 
     r = random_nodes(scene, rng, stretch=(1.0, 1.004))
     v = rng.uniform(-0.2, 0.2, size=r.shape)

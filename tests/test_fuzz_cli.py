@@ -10,8 +10,9 @@ import math
 import pytest
 from hypothesis import HealthCheck, event, given, settings, strategies as st
 
-from esp_gym import cli, model
-from esp_gym.params import SCENES_DIR
+from esp_gym import cli
+from esp_gym.physics import simulator as model
+from esp_gym.scene.params import SCENES_DIR
 from esp_gym.viz import recording
 
 FUZZ = settings(deadline=None, max_examples=400,

@@ -10,7 +10,7 @@ import numpy as np
 import yaml
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from esp_gym.params import ALIASES, SCENES_DIR, Scene, SceneError, load_scene, override_scene, scene_from_dict
+from esp_gym.scene.params import ALIASES, SCENES_DIR, Scene, SceneError, load_scene, override_scene, scene_from_dict
 
 FUZZ = settings(deadline=None, max_examples=300,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])

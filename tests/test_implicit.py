@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import esp_gym
-from esp_gym.params import SceneError
+from esp_gym.scene.params import SceneError
 from discrete_lagrangian import GEOMETRIC_OVERRIDES, discrete_gradient_forces, discrete_lagrangian, random_state
 from test_discrete_lagrangian import RTOL, fd_legendre_momenta, kernel_step, legendre_errors, max_relative_error
 
@@ -230,7 +230,7 @@ def test_a_step_whose_newton_fails_is_cut_back_not_lost():
     # before the cut-backs the run failed at t = 1.66 s (Newton cycling where elements switch
     # between slack and taut); now such a step is taken in halves, and the failed attempts show
     # as a step with more iterations than one Newton solve may take
-    from esp_gym.model import Simulator
+    from esp_gym.physics.simulator import Simulator
     sc = esp_gym.load_scene("drone_load", EA=2e5, h=0.0025, solver={"string": "implicit"})
     sim = Simulator(sc)
     _random_pivot_run(sim, 3.0)
@@ -242,7 +242,7 @@ def test_a_step_whose_newton_fails_is_cut_back_not_lost():
 
 def test_the_environment_runs_the_implicit_string_where_asked_and_keeps_the_explicit_default():
     import gymnasium as gym
-    from esp_gym.stepsize import choose_scheme
+    from esp_gym.scene.stepsize import choose_scheme
     # an EA override alone needs no h: the scene's own h is replaced by the environment's
     env = gym.make(esp_gym.ENV_ID, scene_overrides={"string": {"EA": 2e4}})
     assert env.unwrapped.scene.solver.string == "explicit"

@@ -1,4 +1,4 @@
-"""Long simulator calls can be interrupted (esp_gym/model.py, ``Simulator.call_seconds``): a long
+"""Long simulator calls can be interrupted (esp_gym/physics/simulator.py, ``Simulator.call_seconds``): a long
 ``step`` or ``run`` is a Python loop over compiled calls of ~50 ms, so Ctrl-C stops it, and
 the simulator keeps the state and step count of the calls it made. The cut changes no bit.
 """
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import esp_gym
-from esp_gym.model import SimulationError
+from esp_gym.physics.simulator import SimulationError
 
 FREE = {"pivot": {"kind": "free", "mass": 0.3}}
 #: scene overrides and inputs: the plain LGVI unforced, and a composed (order 6, checkpointed)

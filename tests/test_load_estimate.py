@@ -61,7 +61,7 @@ def test_the_hook_estimate_follows_a_reeled_load_with_the_reels_length(seed):
     depth over it, as HookGeometricController gives it) the estimate stays within 2 cm RMS
     (measured 0.6 and 1.1 cm on seeds 0-1); held at the first observation's (the negative
     control) it is more than 4 times farther off (6.7 and 10.2 cm)."""
-    from esp_gym.tasks import hanging_depth
+    from esp_gym.pendulum.tasks import hanging_depth
 
     env = gym.make(esp_gym.ENV_ID, scene="quadrotor_load", observation="hook", task="lower", winch=True).unwrapped
     reeled, fixed = (LoadEstimator(env.setup.control_period, env.scene.gravity, nominal_load_mass(env.scene),

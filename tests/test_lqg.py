@@ -12,7 +12,7 @@ from agents.evaluate import evaluate_policy
 from agents.baselines.lqg import HookLQG, delayed_system, measurement_model
 from agents.baselines.lqr import REDUCED
 from esp_gym.kernels.env_arrays import HOOK_OBSERVATION
-from esp_gym.setup import make_setup
+from esp_gym.pendulum.env_setup import make_setup
 
 
 def test_delayed_system_applies_each_action_latency_steps_late():

@@ -8,9 +8,9 @@ import esp_gym
 from agents.baselines.pd import ZeroPolicy
 from agents.evaluate import evaluate_policy
 from agents.baselines.lqr import LQR, REDUCED, LQRTracker, lift, linearize, reduced_state
-from esp_gym.control import ControlStep
+from esp_gym.pendulum.control import ControlStep
 from esp_gym.kernels.env_arrays import TARGET
-from esp_gym.tasks import hanging_axis, hanging_depth
+from esp_gym.pendulum.tasks import hanging_axis, hanging_depth
 
 
 def _setup(task="stabilize", **kw):
@@ -73,8 +73,8 @@ def test_the_reference_preview_is_the_150_step_sum_as_a_map_of_the_phase():
     reference drawn for another episode (the negative control) does not."""
     from agents.baselines.lqr import (REFERENCE_CONTEXT, ReferencePreview, preview_feedforward, reference_basis,
                                       reference_context, reference_drift)
-    from esp_gym.setup import make_setup
-    from esp_gym.tasks import track_reference
+    from esp_gym.pendulum.env_setup import make_setup
+    from esp_gym.pendulum.tasks import track_reference
 
     setup = make_setup(task="track")
     law = LQRTracker.design(setup, None, 300.0)

@@ -1,5 +1,5 @@
 """Observation modes (``observation="hook"``), sensor noise and action latency
-(esp_gym/observe.py, esp_gym/control.py). The batched envs with all of it on: tests/test_env.py."""
+(esp_gym/pendulum/observe.py, esp_gym/pendulum/control.py). The batched envs with all of it on: tests/test_env.py."""
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -7,9 +7,9 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import esp_gym  # noqa: F401  (registers the env)
-from esp_gym.env import ElasticStringPendulumEnv
+from esp_gym.pendulum.env import ElasticStringPendulumEnv
 from esp_gym.kernels.env_arrays import HOOK_OBSERVATION, OBSERVATION, TARGET
-from esp_gym.observe import UNIT_NOISE
+from esp_gym.pendulum.observe import UNIT_NOISE
 
 ENV_ID = "ElasticStringPendulum-v0"
 ACTIONS = np.random.default_rng(4).uniform(-1, 1, (60, 6))

@@ -57,7 +57,7 @@ def test_require_names_the_extra_of_a_missing_dependency_and_passes_other_failur
 
 
 @pytest.mark.parametrize("feature, missing, extra", [
-    ("esp_gym.sb3_vector", "stable_baselines3", "agents"),
+    ("esp_gym.pendulum.sb3_vector", "stable_baselines3", "agents"),
     ("esp_gym.viz.recording", "rerun", "record"),
     ("esp_gym.team.recording", "rerun", "record"),
     ("esp_gym.viz.figures", "matplotlib", "plot"),

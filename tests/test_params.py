@@ -4,8 +4,8 @@ import pytest
 from hypothesis import assume, given, settings, strategies as st
 
 import esp_gym
-from esp_gym.params import BOUNDS, SCENES_DIR, SceneError, load_scene, override_scene, scene_from_dict
-from esp_gym.pivot_params import DRONE_REACH, MAX_RATE_GAIN
+from esp_gym.scene.params import BOUNDS, SCENES_DIR, SceneError, load_scene, override_scene, scene_from_dict
+from esp_gym.scene.pivot_params import DRONE_REACH, MAX_RATE_GAIN
 
 
 @pytest.mark.parametrize("overrides, needle", [
@@ -197,7 +197,7 @@ def test_initial_nodes_beyond_the_blow_up_guard_are_refused():
 
 
 def _corner(rng, hi):
-    """A scene with each kind of number at one end of its bounds (see esp_gym/scene_input.py)."""
+    """A scene with each kind of number at one end of its bounds (see esp_gym/scene/scene_input.py)."""
     end = {k: BOUNDS[k][1] if hi[k] else BOUNDS[k][0] for k in hi}
     size = end["length"]
     rho = [rng.uniform(-1, 1) * size for _ in range(3)]
@@ -269,7 +269,7 @@ def test_malformed_files_raise_scene_error_naming_the_file(tmp_path, content, ne
 
 
 def test_unreadable_files_raise_scene_error_naming_the_file(tmp_path, monkeypatch):
-    from esp_gym import scene_input
+    from esp_gym.scene import scene_input
 
     (tmp_path / "dir.yaml").mkdir()
     with pytest.raises(SceneError, match="dir.yaml'?: a directory"):
@@ -312,7 +312,7 @@ def test_overrides_of_a_scene_object_merge_like_load_scene():
 
 def _drone_limits(scene_name):
     """(the largest principal moment [kg m^2], the largest |rho_q| [m]) of a shipped drone scene:
-    its mass within DRONE_REACH arm lengths of its centre (esp_gym/pivot_params.py)."""
+    its mass within DRONE_REACH arm lengths of its centre (esp_gym/scene/pivot_params.py)."""
     scene = load_scene(scene_name)
     reach = DRONE_REACH * scene.pivot.drone.arm_length
     return scene.pivot.mass * reach ** 2, reach

@@ -15,7 +15,7 @@ from scipy.integrate import solve_ivp
 
 import esp_gym
 from esp_gym.kernels.status import ENERGY_BALANCE, STATUS
-from esp_gym.params import SceneError, scene_from_dict
+from esp_gym.scene.params import SceneError, scene_from_dict
 from esp_gym.verify.ode import ElasticStringODE
 
 # -- strategies ----------------------------------------------------------------------------------

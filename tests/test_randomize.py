@@ -1,4 +1,4 @@
-"""Per-episode randomisation (``randomize=``, esp_gym/randomize.py): seeded draws, the drawn
+"""Per-episode randomisation (``randomize=``, esp_gym/pendulum/randomize.py): seeded draws, the drawn
 physics is what the compiled step runs, validation, and the cost of a reset.
 (The batched environments against single ones with randomisation: tests/test_env.py.)"""
 import math
@@ -12,14 +12,14 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import esp_gym  # noqa: F401  (registers the env)
 from esp_gym import load_scene
-from esp_gym.setup import total_weight
-from esp_gym.env import ElasticStringPendulumEnv
+from esp_gym.physics.state import total_weight
+from esp_gym.pendulum.env import ElasticStringPendulumEnv
 from esp_gym.kernels.layout import INPUTS
 from esp_gym.kernels.env_arrays import SCENE_PARAMS
-from esp_gym.model import Simulator
-from esp_gym.params import scene_from_dict
-from esp_gym.randomize import LOG_UNIFORM, default_ranges, nominal_values
-from esp_gym.stepsize import scheme_substeps
+from esp_gym.physics.simulator import Simulator
+from esp_gym.scene.params import scene_from_dict
+from esp_gym.pendulum.randomize import LOG_UNIFORM, default_ranges, nominal_values
+from esp_gym.scene.stepsize import scheme_substeps
 
 ENV_ID = "ElasticStringPendulum-v0"
 

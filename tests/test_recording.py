@@ -446,7 +446,7 @@ def test_the_default_view_frames_the_whole_rig(scene):
     """The recording's 3-D eye (entities.rig_eye) sees the pivot, a drone's rotors on it and the
     load at rest within 20 degrees of its view direction (a viewer's field of view is wider).
     Negative control: an eye 0.5 m from the load, looking at it, has the pivot out of that cone."""
-    from esp_gym.tasks import hanging_depth
+    from esp_gym.pendulum.tasks import hanging_depth
     from esp_gym.viz.entities import rig_eye
 
     s = esp_gym.load_scene(scene)

@@ -4,7 +4,7 @@ import time
 import numpy as np
 import pytest
 
-from esp_gym.params import Box, Cylinder, EllipticCylinder, Sphere
+from esp_gym.scene.params import Box, Cylinder, EllipticCylinder, Sphere
 from esp_gym.viz.render import (BODY, FORCE, OUTLINE_SHADE, FrameRenderer, clip_segments, draw_discs,
                                 draw_lines, fill_convex_polygons)
 

@@ -4,7 +4,7 @@ import numpy as np
 
 from agents.baselines.registry import baseline
 from agents.residual import ResidualVecEnv, residual_for
-from esp_gym.sb3_vector import ElasticStringPendulumSB3VecEnv
+from esp_gym.pendulum.sb3_vector import ElasticStringPendulumSB3VecEnv
 
 
 def vec_env():

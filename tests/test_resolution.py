@@ -9,7 +9,7 @@ import pytest
 
 import esp_gym
 from esp_gym import choose_resolution, load_scene
-from esp_gym.stepsize import MAX_HORIZON, MIN_SAFETY, SLACK_SAFETY, spatial_error, step_error
+from esp_gym.scene.stepsize import MAX_HORIZON, MIN_SAFETY, SLACK_SAFETY, spatial_error, step_error
 
 ENV_ID = "ElasticStringPendulum-v0"
 

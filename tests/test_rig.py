@@ -1,4 +1,4 @@
-"""The rig table (esp_gym/rig.py): every combination of pivot, string scheme, winch and hook, for
+"""The rig table (esp_gym/physics/rig.py): every combination of pivot, string scheme, winch and hook, for
 one string and for a team, is either a rig, run by that rig's entry points with its structs in the
 one order, or refused with one message that names it and lists the environment's rigs; the docs
 quote the table as it is."""
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import esp_gym
-from esp_gym.rig import RIGS, STRUCTS, find_rig
+from esp_gym.physics.rig import RIGS, STRUCTS, find_rig
 from esp_gym.team.scene import TeamScene, team_scene
 
 DOCS = Path(__file__).resolve().parent.parent / "docs" / "environment.md"
@@ -77,7 +77,7 @@ def test_each_rigs_entry_points_are_named_after_it():
     import importlib
 
     from esp_gym.kernels.env_step import EntryPoints
-    from esp_gym.rig import ENTRY_MODULES, Rig
+    from esp_gym.physics.rig import ENTRY_MODULES, Rig
 
     for kind, module in ENTRY_MODULES.items():
         found = {name for name, value in vars(importlib.import_module(module, "esp_gym")).items()
@@ -144,8 +144,8 @@ def test_make_arrays_builds_a_rigs_structs_for_one_env_and_for_a_batch():
     """make_arrays: one environment's structs are its simulator's live arrays; a batch's are the
     same structs stacked, the constants the scene's in every row, the state zeros (set at reset);
     the names are the rig table's."""
-    from esp_gym.params import load_scene
-    from esp_gym.rig_arrays import RigArrays, make_arrays
+    from esp_gym.scene.params import load_scene
+    from esp_gym.physics.rig_arrays import RigArrays, make_arrays
 
     assert set(RigArrays._fields) - {"sim"} <= set(STRUCTS)
     scene = load_scene("quadrotor_load")

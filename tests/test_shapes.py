@@ -4,7 +4,7 @@ import pytest
 from numpy.polynomial.legendre import leggauss
 
 import esp_gym
-from esp_gym.params import BodyParams, scene_from_dict
+from esp_gym.scene.params import BodyParams, scene_from_dict
 
 RHO = (0.03, -0.01, 0.05)
 

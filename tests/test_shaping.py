@@ -10,8 +10,8 @@ from scipy.integrate import solve_ivp
 
 from agents.baselines.lqr import linearize
 from agents.baselines.shaping import Shaper, pendulum_mode
-from esp_gym.setup import make_setup
-from esp_gym.tasks import hanging_depth
+from esp_gym.pendulum.env_setup import make_setup
+from esp_gym.pendulum.tasks import hanging_depth
 
 OMEGA, MOVE = 3.0, 0.4  # [rad/s], ramp [s]
 

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 import esp_gym
-from esp_gym.model import SimulationError
+from esp_gym.physics.simulator import SimulationError
 
 
 def _same(a, b):

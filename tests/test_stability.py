@@ -1,4 +1,4 @@
-"""The assembled string's stability bound (esp_gym/stability.py, docs/physics.md "The stability
+"""The assembled string's stability bound (esp_gym/scene/stability.py, docs/physics.md "The stability
 bound"): exact where it can be checked by hand, a bound for every orientation, and sharp: a run
 just under it keeps its energy, a run just over it blows up."""
 import math
@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 import esp_gym
-from esp_gym.model import SimulationError
-from esp_gym.stability import MAX_SOLVED_ELEMENTS, attachment_mass, explicit_bound, transverse_bound
-from esp_gym.stability import hat
+from esp_gym.physics.simulator import SimulationError
+from esp_gym.scene.stability import MAX_SOLVED_ELEMENTS, attachment_mass, explicit_bound, transverse_bound
+from esp_gym.scene.stability import hat
 
 
 def softest_direction(body) -> np.ndarray:
@@ -28,7 +28,7 @@ def test_one_element_on_a_fixed_pivot_is_a_mass_on_a_spring():
 
 
 def full_chain_omega2(scene) -> float:
-    """omega_max^2 of the whole linearised system, built independently of esp_gym.stability: the
+    """omega_max^2 of the whole linearised system, built independently of esp_gym.scene.stability: the
     3(N+1) node coordinates and the body's 3 rotation coordinates, the consistent (or lumped)
     string mass in each direction, the body's mass matrix [[M I, -M hat(rho)], [M hat(rho), J]]
     at the attachment node, the axial stiffness kappa in every direction (its upper bound), and

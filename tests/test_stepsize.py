@@ -1,4 +1,4 @@
-"""Automatic time step (esp_gym.pilot.choose_h): stability-limited where the target is loose,
+"""Automatic time step (esp_gym.physics.pilot.choose_h): stability-limited where the target is loose,
 accuracy-limited where it is tight, and then the error it promises is the error obtained,
 measured against an independent reference (DOP853 on the same model written as an ODE)."""
 import math

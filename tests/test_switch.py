@@ -12,7 +12,7 @@ import esp_gym
 from benchmarks.slack_switch import WINCH_H, order, reeled_and_held, stiff_winch
 from esp_gym.kernels.diagnostics import diagnostics
 from esp_gym.kernels.layout import DIAG, DiagWork
-from esp_gym.stability import explicit_bound
+from esp_gym.scene.stability import explicit_bound
 
 SWITCHES = ("settled", "plain")
 

@@ -15,7 +15,7 @@ import esp_gym  # noqa: F401 (registers ElasticStringTeam-v0)
 from agents.baselines.team.cascade import TeamCascade, point_twin
 from agents.baselines.team.lqr import TeamLQR
 from agents.team.evaluate import TeamZero, run_team_episodes
-from esp_gym.setup import DRONE_RATE_LIMIT
+from esp_gym.pendulum.env_setup import DRONE_RATE_LIMIT
 from esp_gym.team import parallel_env
 from esp_gym.team.env import ElasticStringTeamEnv
 from esp_gym.team.scene import team_scene

@@ -5,9 +5,9 @@ what the team refuses."""
 import numpy as np
 import pytest
 
-from esp_gym.drone import DroneSimulator
-from esp_gym.model import SimulationError
-from esp_gym.params import load_scene
+from esp_gym.physics.drone import DroneSimulator
+from esp_gym.physics.simulator import SimulationError
+from esp_gym.scene.params import load_scene
 from esp_gym.team import TeamScene, TeamSimulator, TeamString
 from esp_gym.team.scene import team_scene
 

@@ -200,7 +200,7 @@ def test_the_wind_pushes_the_load_and_its_noise_is_the_documented_one():
 
 def test_the_track_targets_follow_the_reference_in_formation():
     from esp_gym.kernels.env_arrays import TARGET
-    from esp_gym.kernels.reference import reference_at
+    from esp_gym.kernels.track_curve import reference_at
 
     env = ElasticStringTeamEnv(3, task="track")
     core = env.core
@@ -227,8 +227,8 @@ def test_the_track_targets_follow_the_reference_in_formation():
 
 def test_the_references_acceleration_is_the_derivative_of_its_velocity():
     from esp_gym.kernels.env_arrays import TARGET
-    from esp_gym.kernels.reference import reference_at
-    from esp_gym.tasks import reference_acceleration, track_reference
+    from esp_gym.kernels.track_curve import reference_at
+    from esp_gym.pendulum.tasks import reference_acceleration, track_reference
 
     shapes, dt = set(), 1e-4
     for seed in range(8):
@@ -615,7 +615,7 @@ def docstring_gaps(doc: str) -> list:
 
 
 def test_the_team_envs_docstrings_have_the_single_envs_sections_and_name_the_contract():
-    from esp_gym.env import ElasticStringPendulumEnv
+    from esp_gym.pendulum.env import ElasticStringPendulumEnv
     from esp_gym.team.parallel import ElasticStringTeamParallelEnv
 
     assert all(f"## {s}" in ElasticStringPendulumEnv.__doc__ for s in DOC_SECTIONS)

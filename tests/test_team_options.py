@@ -1,15 +1,15 @@
 """A team's arguments, actions and vector env are checked as the single env's are, by the same code
-(issue 54, items 3, 7 and 8; docs/team.md, "Arguments"): ``randomize`` through esp_gym/randomize.py,
-the options through esp_gym/options.py, the actions through esp_gym/control.py's ``raw_actions``,
-the drones' lift through esp_gym/setup.py; the vector env's infos in Gymnasium's convention and its
+(issue 54, items 3, 7 and 8; docs/team.md, "Arguments"): ``randomize`` through esp_gym/pendulum/randomize.py,
+the options through esp_gym/pendulum/options.py, the actions through esp_gym/pendulum/control.py's ``raw_actions``,
+the drones' lift through esp_gym/pendulum/env_setup.py; the vector env's infos in Gymnasium's convention and its
 refusal of a step before ``reset``. Each refusal has a negative control: the good value runs."""
 import gymnasium as gym
 import numpy as np
 import pytest
 
 import esp_gym
-from esp_gym.env import ElasticStringPendulumEnv
-from esp_gym.options import MAX_SUBSTEPS
+from esp_gym.pendulum.env import ElasticStringPendulumEnv
+from esp_gym.pendulum.options import MAX_SUBSTEPS
 from esp_gym.team import parallel_env
 from esp_gym.team.core import TeamCore
 from esp_gym.team.env import ElasticStringTeamEnv

@@ -5,9 +5,9 @@ energy, momentum, pi3, orthogonality, order, reversibility and symmetry."""
 import numpy as np
 import pytest
 
-from esp_gym.model import SimulationError, Simulator
-from esp_gym.params import load_scene
-from esp_gym.stability import hat
+from esp_gym.physics.simulator import SimulationError, Simulator
+from esp_gym.scene.params import load_scene
+from esp_gym.scene.stability import hat
 from esp_gym.team import TeamScene, TeamSimulator, TeamString, symmetric_team
 
 FREE = {"kind": "free", "mass": 0.5}
@@ -346,7 +346,7 @@ def test_a_failing_step_leaves_the_team_where_it_was():
 
 
 def test_elements_auto_chooses_each_strings_resolution_and_the_smallest_step():
-    from esp_gym.params import Scene
+    from esp_gym.scene.params import Scene
 
     base = asymmetric_team()
     soft = dict(base.strings[0].string.model_dump(), elements="auto")

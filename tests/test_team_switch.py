@@ -12,8 +12,8 @@ from esp_gym.kernels.layout import WINCH
 from esp_gym.kernels.team_readout import TEAM_READ, team_read
 from esp_gym.kernels.team_switch import node_velocities_entry as velocities
 from esp_gym.kernels.team_winch import flow_free_momenta, velocity_params
-from esp_gym.model import Simulator
-from esp_gym.params import load_scene
+from esp_gym.physics.simulator import Simulator
+from esp_gym.scene.params import load_scene
 from esp_gym.team import TeamScene, TeamSimulator, TeamString, symmetric_team
 from esp_gym.team.scene import team_scene
 from esp_gym.team.assembly import string_mass

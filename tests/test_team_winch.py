@@ -6,7 +6,7 @@ the steps; each winch stops on the ends of its range; bad commands change nothin
 import numpy as np
 import pytest
 
-from esp_gym.model import Simulator
+from esp_gym.physics.simulator import Simulator
 from esp_gym.team import TeamSimulator, symmetric_team
 from esp_gym.team.scene import team_scene
 from esp_gym.team.simulator import TeamState

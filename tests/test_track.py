@@ -1,4 +1,4 @@
-"""The ``track`` task (esp_gym/tasks.py, kernels/reference.py): the reference is the documented
+"""The ``track`` task (esp_gym/pendulum/tasks.py, kernels/track_curve.py): the reference is the documented
 circle or figure-eight, the environment's targets follow it in time, the observed velocities are
 relative to it, and following it pays. (Batched against single envs: tests/test_env.py.)"""
 import math
@@ -11,8 +11,8 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import esp_gym  # noqa: F401  (registers the env)
 from esp_gym.kernels.env_arrays import OBSERVATION, TARGET
-from esp_gym.kernels.reference import reference_at
-from esp_gym.tasks import TRACK_PERIOD, TRACK_SIZE, track_reference
+from esp_gym.kernels.track_curve import reference_at
+from esp_gym.pendulum.tasks import TRACK_PERIOD, TRACK_SIZE, track_reference
 
 ENV_ID = "ElasticStringPendulum-v0"
 

@@ -1,13 +1,13 @@
 """Integrator variants chosen by the scene: symmetric compositions of the LGVI (order 4 and 6)
 and the lumped-mass string. Each keeps the geometric invariants; each composition's order is
-measured against the order it declares (esp_gym/compositions.py)."""
+measured against the order it declares (esp_gym/scene/compositions.py)."""
 import numpy as np
 import pytest
 
 import esp_gym
 from conftest import drift_ratio, state_distance
-from esp_gym.compositions import COMPOSITIONS
-from esp_gym.model import SimulationError
+from esp_gym.scene.compositions import COMPOSITIONS
+from esp_gym.physics.simulator import SimulationError
 
 ORDER4 = {"solver": {"order": 4}}
 ORDER6 = {"solver": {"order": 6}}
@@ -59,7 +59,7 @@ def test_compositions_are_palindromic_and_consistent():
 def test_wide5_trades_error_constant_for_stability():
     """wide5's interval is 22 % wider than Suzuki's per stage, its phase error on the linear
     oscillator (theta/x - 1 = C x^4) 6x larger: the trade it is there for."""
-    from esp_gym.compositions import _trace
+    from esp_gym.scene.compositions import _trace
 
     def phase_constant(c, x=0.05):
         theta = np.arccos(_trace(c.gammas, np.array([x]))[0] / 2)

@@ -1,4 +1,4 @@
-"""The energy watchdog (esp_gym/watchdog.py; docs/physics.md, "The energy watchdog"): a run whose
+"""The energy watchdog (esp_gym/physics/watchdog.py; docs/physics.md, "The energy watchdog"): a run whose
 balance |E - E0 - W| passes f (scale + |W|) raises (the simulator) or ends its episode (the
 environment, in its compiled step, batched as single), it fires on the steps known to gain
 energy, with negative controls that run on without it, and it stays quiet in the shipped
@@ -12,10 +12,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import esp_gym
-import esp_gym.stepsize
+import esp_gym.scene.stepsize
 from agents.baselines.pd import AntiSwayPD, Hoist
 from esp_gym.kernels.status import BLOW_UP, ENERGY_BALANCE
-from esp_gym.watchdog import STANDARD_GRAVITY, WATCH_EVERY, energy_scale, task_constants, team_energy_scale
+from esp_gym.physics.watchdog import STANDARD_GRAVITY, WATCH_EVERY, energy_scale, task_constants, team_energy_scale
 
 ENV_ID = esp_gym.ENV_ID
 
@@ -61,7 +61,7 @@ def test_the_simulator_raises_on_the_reeled_and_held_strings_energy_gain():
     message = str(error)
     assert "solver.energy_watchdog 1 x (the energy scale 15.2 J" in message and "holds the state" in message
     # h against the bound at the string's current length (0.5 m), not at the scene's 1 m
-    h_ratio = sim.scene.h / esp_gym.stepsize.at_length(sim.scene, 0.5).stability_bound
+    h_ratio = sim.scene.h / esp_gym.scene.stepsize.at_length(sim.scene, 0.5).stability_bound
     assert f"is {h_ratio:.2g} x the stability bound" in message
     d = sim.diagnostics()  # every step was taken, the state is finite, and the balance is broken
     work = d["work"] + d["winch_work"]
@@ -302,7 +302,7 @@ def broken_team_episode(monkeypatch, watchdog, broken: bool, steps: int = 60, co
 
 @pytest.mark.parametrize("compiled", [True, False], ids=["compiled step", "python step"])
 def test_the_team_environment_ends_a_broken_steps_energy_gain(monkeypatch, compiled):
-    """The team env's watchdog is the single env's (esp_gym/watchdog.py, through the team's
+    """The team env's watchdog is the single env's (esp_gym/physics/watchdog.py, through the team's
     simulator): a broken step ends the episode with ``energy_balance`` at the control step where
     |E - E0 - W| first passes 0.01 (the team's scale 40.7 J + |W|), and the simulator then says
     so with the team's scale; the same broken episode without the watchdog runs on (negative

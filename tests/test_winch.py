@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 import esp_gym
-from esp_gym.stepsize import shortest
+from esp_gym.scene.stepsize import shortest
 from esp_gym.errors import SimulationError
-from esp_gym.model import Simulator, State
+from esp_gym.physics.simulator import Simulator, State
 from discrete_lagrangian import GEOMETRIC_OVERRIDES, random_state, winch_lagrangian
 from test_discrete_lagrangian import legendre_errors
 from test_inputs import CORE_PATH_HASHES

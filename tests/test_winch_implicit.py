@@ -9,7 +9,7 @@ import pytest
 import esp_gym
 from esp_gym.kernels.layout import DIAG
 from esp_gym.kernels.winch import convective_weights, winch_energy
-from esp_gym.model import Simulator, State
+from esp_gym.physics.simulator import Simulator, State
 from discrete_lagrangian import GEOMETRIC_OVERRIDES, random_state, winch_lagrangian
 from test_discrete_lagrangian import legendre_errors
 from test_implicit import lagrange_dalembert_errors

@@ -1,4 +1,4 @@
-"""Wind and pushes (``wind=``, esp_gym/wind.py, kernels/disturbance.py): the balances close with
+"""Wind and pushes (``wind=``, esp_gym/pendulum/wind.py, kernels/disturbance.py): the balances close with
 the drag and push forces in them (energy at O(h^2), momentum and pi3 to round-off), the drag is
 the documented law, seeded episodes repeat bit for bit past a block of draws, and bad options
 are errors naming them. (Batched against single envs with wind: tests/test_env.py.)"""
@@ -15,11 +15,11 @@ from benchmarks.wind_balance import WIND, balances
 from esp_gym.kernels.disturbance import load_area
 from esp_gym.kernels.env_arrays import OBSERVATION, TARGET
 from esp_gym.kernels.disturbance import DISTURBANCE, DISTURBANCE_PARAMS
-from esp_gym.params import scene_from_dict
-from esp_gym.setup import PRESETS
-from esp_gym.state import State
-from esp_gym.vector import ElasticStringPendulumVectorEnv
-from esp_gym.wind import BLOCK, LINE_DENSITY, Wind, WindOptions, drag_areas
+from esp_gym.scene.params import scene_from_dict
+from esp_gym.pendulum.env_setup import PRESETS
+from esp_gym.physics.state import State
+from esp_gym.pendulum.vector import ElasticStringPendulumVectorEnv
+from esp_gym.pendulum.wind import BLOCK, LINE_DENSITY, Wind, WindOptions, drag_areas
 
 ENV_ID = "ElasticStringPendulum-v0"
 GUSTY = WIND  # 6 m/s, 1.5 m/s gusts, five pushes a second
@@ -75,7 +75,7 @@ def test_drag_of_a_still_system_in_steady_wind_is_the_documented_law():
 
 def _projected_area(shape, n, samples=400):
     """Half the surface integral of |n . dA| (a convex body's projected area), by quadrature."""
-    from esp_gym.params import Box
+    from esp_gym.scene.params import Box
     if isinstance(shape, Box):
         size = np.asarray(shape.size)
         return sum(size[(i + 1) % 3] * size[(i + 2) % 3] * abs(n[i]) for i in range(3))

@@ -24,7 +24,7 @@ from agents.baselines.geometric import HookGeometricController
 from agents.baselines.pd import Hoist
 from agents.baselines.registry import baseline
 from agents.evaluate import evaluate_policy
-from esp_gym.tasks import TASKS
+from esp_gym.pendulum.tasks import TASKS
 
 #: The coarse grid of the first search (the default ``--grid``).
 COARSE_GRID = dict(kp=[1, 2, 4, 8], kd=[1, 2, 4, 8], k_sway=[0, 1, 2, 4, 8], k_spin=[0, 0.01, 0.02, 0.05])
@@ -44,7 +44,7 @@ def gain_names(law) -> list:
 def controller(name: str, task: str, env_kwargs: dict):
     """The task's controller to tune: ``pd`` (the PD law, flying the drone with a drone's scene) or
     ``geometric`` (the drone's load-led cascade)."""
-    from esp_gym.setup import make_setup
+    from esp_gym.pendulum.env_setup import make_setup
 
     setup = make_setup(task=task, **env_kwargs)
     if name == "geometric":

@@ -33,8 +33,8 @@ import numpy as np
 
 from agents.baselines.load_estimate import LoadEstimator, nominal_load_mass
 from esp_gym.layouts import DRONE_ACTION_PARAMS
-from esp_gym.setup import total_weight
-from esp_gym.tasks import hanging_depth
+from esp_gym.physics.state import total_weight
+from esp_gym.pendulum.tasks import hanging_depth
 
 E1 = np.array([1.0, 0.0, 0.0])
 E3 = np.array([0.0, 0.0, 1.0])
@@ -74,7 +74,7 @@ def drone_action(u_d: np.ndarray, obs: np.ndarray, setup, inner: InnerLoops = In
                  hover: Optional[float] = None) -> np.ndarray:
     """The action in [-1, 1]^4 of ``setup.actuation`` that pushes the drone with the thrust vector
     ``u_d`` [N] (spatial; module docstring). The action's thrust is relative to the episode's hover
-    thrust (the rig's weight: esp_gym/setup.py drone_action_params), ``hover`` [N] the
+    thrust (the rig's weight: esp_gym/pendulum/env_setup.py drone_action_params), ``hover`` [N] the
     controller's value of it (default: the nominal scene's)."""
     layout = setup.observer.layout
     qa = setup.action_params

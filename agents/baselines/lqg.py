@@ -32,11 +32,11 @@ import scipy.linalg
 
 from agents.baselines.lqr import (LQR, REDUCED, REFERENCE_CONTEXT, ReferencePreview, equilibrium_target, lift, lqr_solution,
                                   plain_setup, preview_terms, reward_weights)
-from esp_gym.control import ControlStep
+from esp_gym.pendulum.control import ControlStep
 from esp_gym.layouts import ACTION
-from esp_gym.observe import UNIT_NOISE
-from esp_gym.params import override_scene
-from esp_gym.tasks import hanging_depth
+from esp_gym.pendulum.observe import UNIT_NOISE
+from esp_gym.scene.params import override_scene
+from esp_gym.pendulum.tasks import hanging_depth
 
 #: Entries of z that the process noise drives (velocities: forces act on them).
 DRIVEN = ("pivot_velocity", "load_velocity", "rate_h")

@@ -1,6 +1,6 @@
 """LQR on the linearisation of the environment's own control step about the hanging equilibrium.
 
-The model is the compiled control step itself (esp_gym/control.py: one action held over the
+The model is the compiled control step itself (esp_gym/pendulum/control.py: one action held over the
 episode's physics steps), differentiated by central finite differences, so it is exact to
 O(delta^2) for any scene, randomised or not, and includes the string's stretch, the body's
 rocking about its attachment point and the discrete-time zero-order hold.
@@ -32,11 +32,11 @@ import numpy as np
 import scipy.linalg
 
 from agents.baselines import libm
-from esp_gym.control import ControlStep
+from esp_gym.pendulum.control import ControlStep
 from esp_gym.layouts import ACTION, OBSERVATION, TARGET, Layout
-from esp_gym.observe import Observer
-from esp_gym.state import State, cross3, legendre_momenta
-from esp_gym.tasks import hanging_axis, hanging_depth, rotation_between, static_node_depths
+from esp_gym.pendulum.observe import Observer
+from esp_gym.physics.state import State, cross3, legendre_momenta
+from esp_gym.pendulum.tasks import hanging_axis, hanging_depth, rotation_between, static_node_depths
 
 #: The reduced state of the LQR (module docstring): 16 entries.
 REDUCED = Layout(("pivot_error", 3), ("pivot_velocity", 3), ("load_error", 3), ("load_velocity", 3),
@@ -108,7 +108,7 @@ def equilibrium_target(scene) -> np.ndarray:
 
 def linearize(setup, episode=None, z_step: float = 1e-5, a_step: float = 1e-4):
     """``(A (16, 16), B (16, 3))``: central differences of one control step of ``setup`` (an
-    :class:`~esp_gym.setup.EnvSetup`; ``episode``: its physics, default the nominal one) in z
+    :class:`~esp_gym.pendulum.env_setup.EnvSetup`; ``episode``: its physics, default the nominal one) in z
     and in the pivot-force part of the action, about the hanging equilibrium and action 0."""
     episode = setup.nominal_episode if episode is None else episode
     control = ControlStep(plain_setup(setup))
@@ -211,7 +211,7 @@ def reference_states(target: np.ndarray, times: np.ndarray) -> np.ndarray:
     """z of the moving reference (``track``; TARGET ``target``) at ``times`` [s], (T, 16): the
     pivot and the load on the curve (the load's rest offset below it is the equilibrium's, so 0
     here), both at the curve's velocity, the body hanging straight."""
-    from esp_gym.tasks import track_path
+    from esp_gym.pendulum.tasks import track_path
 
     times = np.asarray(times, dtype=np.float64)
     offset, velocity = track_path(target, times)
@@ -293,7 +293,7 @@ def reference_map(target: np.ndarray, times: np.ndarray) -> np.ndarray:
 
 def reference_basis(target: np.ndarray) -> np.ndarray:
     """b(t) = [sin u, cos u, sin v, cos v] of the reference in TARGET at its clock, u = theta + psi_x,
-    v = m theta + psi_y, theta = theta_0 + omega t (esp_gym/kernels/reference.py)."""
+    v = m theta + psi_y, theta = theta_0 + omega t (esp_gym/kernels/track_curve.py)."""
     theta = target[TARGET.scalar("start")] + target[TARGET.scalar("rate")] * target[TARGET.scalar("clock")]
     phase = target[TARGET["phase"]]
     u, v = theta + phase[0], target[TARGET.scalar("harmonic")] * theta + phase[1]

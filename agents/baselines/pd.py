@@ -101,7 +101,7 @@ class Hoist:
 
     def act(self, obs: np.ndarray, setup) -> np.ndarray:
         """Action in [-1, 1]^7 (WINCH_ACTION; a drone's 5) for one observation or a batch."""
-        from esp_gym.tasks import hanging_depth
+        from esp_gym.pendulum.tasks import hanging_depth
 
         obs = np.asarray(obs, dtype=np.float64)
         layout = setup.observer.layout

@@ -51,7 +51,7 @@ def baseline_factories(task: str, env_kwargs: Optional[dict] = None) -> dict:
     from agents.baselines.lqg import ScheduledLQG
     from agents.baselines.lqr import EpisodeLQR, LQR, LQRTracker
     from agents.baselines.shaping import ShapedLQR
-    from esp_gym.setup import make_setup
+    from esp_gym.pendulum.env_setup import make_setup
 
     setup = make_setup(task=task, **(env_kwargs or {}))
     out = {"pd": lambda: baseline(task, setup.winch, setup.drone)}

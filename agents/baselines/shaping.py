@@ -165,7 +165,7 @@ def main(argv=None) -> dict:
 
     from agents.cli import ArgumentParser
     from agents.baselines.lqr import linearize
-    from esp_gym.setup import make_setup
+    from esp_gym.pendulum.env_setup import make_setup
     from esp_gym.viz.figures import new_figure, save_figure
 
     ap = ArgumentParser(prog="python -m agents.baselines.shaping", description=main.__doc__.split(";")[0])

@@ -5,7 +5,7 @@ runners call, and a trained checkpoint as a policy for agents/evaluate.py.
 The environment on an env runner: with ``batched: true`` (the default) RLlib builds each runner's
 ``num_envs_per_env_runner`` sub-environments through the registration's vector entry point
 (``gym_env_vectorize_mode="vector_entry_point"``), which is esp_gym's batched
-:class:`~esp_gym.vector.ElasticStringPendulumVectorEnv`: all sub-environments of a runner step in
+:class:`~esp_gym.pendulum.vector.ElasticStringPendulumVectorEnv`: all sub-environments of a runner step in
 one compiled call. ``batched: false`` gives Gymnasium's SyncVectorEnv of single environments
 (one compiled call each), the setting RLlib uses for any environment.
 """
@@ -24,7 +24,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 import esp_gym
 from agents.common import CONFIG_DIR, ConfigError, ValueLoader, apply_override, first_unknown_key, valid_keys
-from esp_gym.scene_input import Count, Real
+from esp_gym.scene.scene_input import Count, Real
 
 CONFIG_FILE = CONFIG_DIR / "rllib_ppo.yaml"
 #: The name the environment creator is registered under with Ray Tune's registry.
@@ -186,7 +186,7 @@ class _Counted(gym.Wrapper):
 def make_env(env_config: dict):
     """RLlib's environment creator: ``env_config`` holds the environment's arguments (``task``
     and the options); with ``num_envs`` (RLlib's vector entry point) the batched vector env."""
-    from esp_gym.vector import ElasticStringPendulumVectorEnv
+    from esp_gym.pendulum.vector import ElasticStringPendulumVectorEnv
 
     kwargs = dict(env_config)
     num_envs = kwargs.pop("num_envs", None)

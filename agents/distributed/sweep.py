@@ -43,7 +43,7 @@ from agents import ROOT
 from agents.common import ConfigError, load_run_config
 from agents.distributed.sweep_results import gather
 from agents.distributed.cluster import AddressError, check_address, connect, shutdown, token_auth
-from esp_gym.tasks import TASKS
+from esp_gym.pendulum.tasks import TASKS
 
 #: Seeds of each trial's final evaluation (episode i: seed + i), as agents.train's references.
 EVAL_SEED = 10_000
@@ -131,8 +131,8 @@ def check_trial(s: Settings, extra: list) -> None:
     its environment's options, the residual's baseline and the batch's memory (ConfigError,
     ValueError, TypeError or MemoryError, as the trial would raise them)."""
     from agents.residual import base_policy
-    from esp_gym.setup import make_setup
-    from esp_gym.state import check_memory
+    from esp_gym.pendulum.env_setup import make_setup
+    from esp_gym.physics.state import check_memory
 
     cfg = load_run_config(s.algo, esp_gym.ENV_ID, s.task, list(s.set) + list(extra))
     setup = make_setup(task=s.task, **cfg.env_kwargs)

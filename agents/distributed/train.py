@@ -41,7 +41,7 @@ from agents.evaluate import evaluate_policy
 from agents.distributed.cluster import AddressError, check_address, cluster_nodes, connect, shutdown, token_auth
 from agents.distributed.rllib import CONFIG_FILE, RLlibPolicy, RLlibRunConfig, load_rllib_config, ppo_config, runner_steps
 from agents.runs import new_run_dir, write_status, write_stopped
-from esp_gym.tasks import TASKS
+from esp_gym.pendulum.tasks import TASKS
 from esp_gym.workers import check_within_cpus
 
 ALGO = "rllib_ppo"
@@ -84,7 +84,7 @@ def check_settings(s: Settings) -> tuple:
         cfg = load_rllib_config(s.task, s.set)
     except ConfigError as err:
         raise SettingsError("--set" if err.override else None, str(err)) from None
-    from esp_gym.setup import make_setup
+    from esp_gym.pendulum.env_setup import make_setup
 
     try:
         make_setup(task=s.task, **cfg.env_kwargs)

@@ -36,7 +36,7 @@ from agents.common import ConfigError
 from agents.distributed.rllib import load_rllib_config
 from agents.distributed.sweep import (METRICS, Spec, checked_space, new_out, override, start_or_resume,
                                       sweep_main)
-from esp_gym.options import ACTUATION_CHOICES
+from esp_gym.pendulum.options import ACTUATION_CHOICES
 from esp_gym.team.tasks import TEAM_TASKS
 
 #: What every trial sets over ``--set`` and the space: sampling in the trial's own process (one CPU).

@@ -27,7 +27,7 @@ from .layout import B_ANGULAR_IMPULSE_Z, B_EXTERNAL_IMPULSE, Layout
 from .status import OK
 from .sums import kahan_add
 
-#: An episode's wind and pushes (esp_gym/wind.py; kernels/disturbance.py): the mean wind [m/s]
+#: An episode's wind and pushes (esp_gym/pendulum/wind.py; kernels/disturbance.py): the mean wind [m/s]
 #: (spatial), the gusts' decay a = exp(-T/tau) per control step T and innovation sigma sqrt(1 -
 #: a^2) [m/s] per axis; the line's drag per length and speed^2, rho_air C_d d / 2 [kg/m^2];
 #: the load's drag area law c(n) = faces . |n| + side sqrt(a^2 n_y^2 + b^2 n_x^2) + round

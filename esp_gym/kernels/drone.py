@@ -18,11 +18,11 @@ import math
 
 from .jit import kernel
 from .layout import B_ANGULAR_IMPULSE_Z, B_WORK, D_ENERGY, D_PI3, D_POTENTIAL_GRAVITY, IN_PIVOT_FORCE, IN_PIVOT_FORCE_END, Layout
-from .step import winch_step
 from .lgvi import lgvi_substep
 from .rotors import motor_lag, rate_command, rotor_wrench, wrench_command
 from .so3 import cayley_minus_identity, cayley_newton
 from .status import NEWTON_FAILED, OK
+from .step import winch_step
 from .step_shared import commit_rotation, free_body_increment, next_attitude, torque_work
 from .sums import kahan_add
 
@@ -56,7 +56,7 @@ QD_TORQUE = DRONE_DIAG.start("torque")
 #: the body rates [rad/s] (:func:`actuate`); each rotor's thrust scale ``thrust_scale`` (4,) (1:
 #: nominal; the environment's thrust noise, held over a control step); the constants ``consts``
 #: (:data:`DRONE`), ``inertia`` J_q about the centre of mass and its inverse ``inertia_inv`` (3, 3)
-#: [kg m^2], the mixer ``mixer`` A and ``allocation`` A^-1 (4, 4) (esp_gym/rotors.py); scratch: ``next_speed`` (4,), ``wrench`` (2, 4), the wrench (f, tau) at the step's start and
+#: [kg m^2], the mixer ``mixer`` A and ``allocation`` A^-1 (4, 4) (esp_gym/scene/rotors.py); scratch: ``next_speed`` (4,), ``wrench`` (2, 4), the wrench (f, tau) at the step's start and
 #: end, ``scratch`` (4, 3, 3), Newton's Jacobian, F - I, R_k (F - I) and R_{k+1}; and ``diag``
 #: (:data:`DRONE_DIAG`).
 DroneArrays = namedtuple("DroneArrays", "R Rc Pi Pic speed command setpoint thrust_scale consts inertia inertia_inv "

@@ -281,7 +281,7 @@ def _entries(step, batch, threaded_batch, what):
 
 
 # The drone's entry points ``(step, batch, threaded_batch)``, each named after its rig
-# (esp_gym/rig.py: a rig's name with "_" for "-") and compiled when first asked for; their
+# (esp_gym/physics/rig.py: a rig's name with "_" for "-") and compiled when first asked for; their
 # arguments are kernels/env_step.py's with the drone's ``q`` after ``e`` (and at an offset hook the
 # hook's ``k`` after it).
 drone_explicit = _entries(drone_step, drone_batch, threaded_drone_batch, "a drone")

@@ -34,15 +34,15 @@ from .so3 import cayley_minus_identity, cayley_newton, cross, rotated, solve3, u
 from .status import NEWTON_FAILED, NON_FINITE, OK
 from .step_shared import (body_momentum_increment, commit_rotation, commit_step, held_inputs, left_torque,
                           new_positions, next_attitude, weight_torque)
-from .string import string_solve, tridiag_solve
-from .switch import settle_switches, switch_errors
 from .diagnostics import state_diagnostics
 from .drone import drone_balances, drone_share, rotor_ends
+from .string import string_solve, tridiag_solve
+from .switch import settle_switches, switch_errors
 
 #: The hook's constants: ``rho`` rho_q (3,), hook -> centre of mass (body frame) [m]; ``inertia``
 #: J_q^h about the hook and ``jeff`` J_q^h + m_q^2 (M_tot^-1)_{11} rho_q^ rho_q^ (3, 3) [kg m^2], the
 #: drone's reduced inertia in its Cayley equation; ``column`` M_tot^-1 e_1 (N+1,) [1/kg], the
-#: inverse mass matrix's pivot column (esp_gym/drone.py ``hook_arrays``).
+#: inverse mass matrix's pivot column (esp_gym/physics/drone.py ``hook_arrays``).
 HookArrays = namedtuple("HookArrays", "rho inertia jeff column")
 
 

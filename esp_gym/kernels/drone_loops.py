@@ -2,7 +2,7 @@
 one loop, :func:`drone_steps`, for every drone rig, its optional structs pruned where they are
 None (the winch ``WA``, the offset hook ``HK``: compiled once per rig, as
 kernels/team_loops.py's loop is), served to the environment's control step
-(kernels/drone_env.py) and to the drone's simulator (:func:`drone_advance`, esp_gym/drone.py).
+(kernels/drone_env.py) and to the drone's simulator (:func:`drone_advance`, esp_gym/physics/drone.py).
 A drone step fails without moving the state, so the loop needs no checkpoint (kernels/loops.py
 has the loops that do).
 """
@@ -53,7 +53,7 @@ def drone_steps(S, W, P, WA, D, DR, HK, inputs, nsteps, stats, reel, coupled, di
 
 @kernel(entry=True)
 def drone_advance(S, W, P, D, DR, HK, inputs, nsteps, stats, coupled):
-    """The drone simulator's steps (esp_gym/drone.py): up to ``nsteps`` :func:`drone_steps` of
+    """The drone simulator's steps (esp_gym/physics/drone.py): up to ``nsteps`` :func:`drone_steps` of
     length ``P.h`` with the motor commands held (``HK``: the offset hook, or None), ``S.f`` first
     the forces at the state."""
     nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)

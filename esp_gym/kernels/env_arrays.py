@@ -2,7 +2,7 @@
 beside the physics' (:class:`~.layout.StateArrays`, :class:`~.layout.Work`,
 :class:`~.layout.LGVIParams`, :class:`~.layout.DiagWork`, :class:`~.layout.WinchArrays`).
 
-Python builds it once per environment (esp_gym/control.py) and hands its fields to the entry
+Python builds it once per environment (esp_gym/pendulum/control.py) and hands its fields to the entry
 points (kernels/env_step.py) as a plain tuple, which the kernels rebuild by name; a batch of
 environments holds the same fields with a leading batch axis, and :func:`~.rows.row_function`
 takes sub-environment b's row of it from the fields. The environment's packed vectors are laid
@@ -67,7 +67,7 @@ AP_TORQUE_LIMIT = ACTION_PARAMS.scalar("torque_limit")
 AP_MAX_REEL_SPEED = ACTION_PARAMS.scalar("max_reel_speed")
 
 #: The episode's targets, spatial frame: the pivot's and the load's [m], their velocity [m/s]
-#: (0 but in ``track``), and the moving reference that ``track`` follows (kernels/reference.py):
+#: (0 but in ``track``), and the moving reference that ``track`` follows (kernels/track_curve.py):
 #: its clock [s], the curve's centre [m], the load's depth below the pivot target [m], the
 #: curve's amplitudes [m], harmonic, phases [rad], start angle [rad], rate omega [rad/s] (0: a
 #: fixed target) and orientation about e3 [rad].
@@ -113,7 +113,7 @@ SN_HOOK_TENSION = SENSORS.start("hook_tension")
 SN_LOAD_TARGET_OFFSET = SENSORS.start("load_target_offset")
 
 #: The ``hook`` observation: what a drone or a crane hook measures, no load state. Its fields
-#: are taken from OBSERVATION and SENSORS by name (esp_gym/observe.py).
+#: are taken from OBSERVATION and SENSORS by name (esp_gym/pendulum/observe.py).
 HOOK_OBSERVATION = Layout(("pivot_position_error", 3), ("pivot_velocity", 3), ("hook_tension", 3),
                           ("load_target_offset", 3))
 
@@ -127,10 +127,10 @@ RW_SWING = REWARD.scalar("swing")
 RW_SPIN = REWARD.scalar("spin")
 RW_CONTROL = REWARD.scalar("control")
 
-#: The task's constants (esp_gym/tasks.py): reward weights, shaping scales [m, m/s, rad,
+#: The task's constants (esp_gym/pendulum/tasks.py): reward weights, shaping scales [m, m/s, rad,
 #: rad/s], termination limits [m] (the ground plane's depth z [m], e3 down; inf without one), the
 #: string's rest length [m], and the energy watchdog's fraction, bound [J] and the episode's E0 [J]
-#: (esp_gym/watchdog.py; the reset writes E0).
+#: (esp_gym/physics/watchdog.py; the reset writes E0).
 TASK_PARAMS = Layout(*((name, 1) for name in (
     "w_load_position", "w_load_velocity", "w_pivot_position", "w_swing", "w_spin", "w_control",
     "scale_position", "scale_velocity", "scale_swing", "scale_spin",
@@ -155,14 +155,14 @@ TP_ENERGY_WATCHDOG = TASK_PARAMS.scalar("energy_watchdog")
 TP_ENERGY_BOUND = TASK_PARAMS.scalar("energy_bound")
 TP_ENERGY_ORIGIN = TASK_PARAMS.scalar("energy_origin")
 
-#: An episode's physical parameters (esp_gym/randomize.py; the env's ``reset`` info
+#: An episode's physical parameters (esp_gym/pendulum/randomize.py; the env's ``reset`` info
 #: ``"scene_params"``): string rest length [m], axial stiffness [N], mass per length [kg/m], load
 #: mass [kg], load box edges [m], attachment offsets (rho_c x, y, body frame) [m], pivot mass [kg].
 SCENE_PARAMS = Layout(*((name, 1) for name in (
     "string_length", "EA", "mass_per_length", "load_mass", "load_size_x", "load_size_y", "load_size_z",
     "attachment_offset_x", "attachment_offset_y", "pivot_mass")))
 
-#: A drone's episode parameters, after SCENE_PARAMS with a drone at the pivot (esp_gym/randomize.py):
+#: A drone's episode parameters, after SCENE_PARAMS with a drone at the pivot (esp_gym/pendulum/randomize.py):
 #: scales of its inertia, of its rotors' thrust and drag coefficients (together: the mixer's
 #: ratio stays), and of its motors' time constants (1: the scene's).
 DRONE_SCENE_PARAMS = Layout(("drone_inertia_scale", 1), ("rotor_coefficient_scale", 1), ("motor_lag_scale", 1))

@@ -1,14 +1,14 @@
 """The environment's compiled control step: the raw action -> the inputs -> the physics' loop ->
 the balances closed -> the tasks' stages (kernels/task_terms.py: features, observation, reward
 terms, termination) -> the energy watchdog. The single and the batched environments call the
-same :func:`control_step`, so their results agree bit for bit; esp_gym/control.py is their
+same :func:`control_step`, so their results agree bit for bit; esp_gym/pendulum/control.py is their
 Python face, and the point pivot's entry points at the end, one per rig (``point_explicit``,
 ``point_implicit``, ``point_explicit_winch``, ``point_implicit_winch``), are the compiled calls it
 makes.
 
 The arrays are named structs (kernels/env_arrays.py's EnvArrays and the physics' in
 kernels/layout.py); every packed vector is laid out by name: the action parameters
-(ACTION_PARAMS) and the task parameters (TASK_PARAMS, from esp_gym/tasks.py) in
+(ACTION_PARAMS) and the task parameters (TASK_PARAMS, from esp_gym/pendulum/tasks.py) in
 kernels/env_arrays.py, the inputs (INPUTS) and the step report (REPORT) in kernels/layout.py.
 """
 from typing import Any, NamedTuple
@@ -16,9 +16,9 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import prange
 
-from .jit import announce_compile, kernel
 from .diagnostics import diagnostics
 from .disturbance import disturb, external_potential
+from .jit import announce_compile, kernel
 from .sums import kahan_add
 from .layout import (B_WINCH_WORK, B_WORK, D_ENERGY, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_PIVOT_FORCE_END,
                      IN_SPATIAL_TORQUE, R_STATUS,
@@ -27,12 +27,12 @@ from .layout import (B_WINCH_WORK, B_WORK, D_ENERGY, IN_BODY_TORQUE, IN_PIVOT_FO
 from .env_arrays import (A_BODY_TORQUE, A_PIVOT_FORCE, A_REEL_SPEED, ACTION_SIZE, AP_FORCE_LIMIT, AP_HIGH,
                          AP_HOVER_FORCE, AP_LOW, AP_MAX_REEL_SPEED, AP_TORQUE_LIMIT, O_UNSTRETCHED_LENGTH,
                          SCHEME_DISTURBED, TP_ENERGY_BOUND, TP_ENERGY_ORIGIN, TP_ENERGY_WATCHDOG, TP_STRING_LENGTH)
-from .status import ENERGY_BALANCE, OK
 from .env_arrays import EnvArrays
 from .loops import advance_loop_explicit, advance_loop_implicit, winch_loop_explicit, winch_loop_implicit
-from .reference import advance_reference
 from .rows import row_function
+from .status import ENERGY_BALANCE, OK
 from .task_terms import observe_and_score
+from .track_curve import advance_reference
 from .winch import length_params, winch_energy
 
 
@@ -282,7 +282,7 @@ COLD_BATCH_STEP_S = 19
 COLD_THREADED_BATCH_STEP_S = 28
 
 # The point pivot's entry points ``(step, batch, threaded_batch)`` (:func:`_entry_points`), each
-# named after its rig (esp_gym/rig.py: a rig's name with "_" for "-"); each compiles only for the
+# named after its rig (esp_gym/physics/rig.py: a rig's name with "_" for "-"); each compiles only for the
 # environments that use it.
 point_explicit = _entry_points(winched=False, implicit=False)
 point_implicit = _entry_points(winched=False, implicit=True)

@@ -23,9 +23,9 @@ step that fails back.
 """
 import math
 
-from .jit import kernel
 from .implicit_newton import implicit_newton
 from .implicit_terms import split_forces
+from .jit import kernel
 from .lgvi import explicit_increments
 from .so3 import cayley_minus_identity
 from .step_shared import commit_step, held_inputs, left_torque, new_positions

@@ -14,8 +14,8 @@ import numpy as np
 
 from .implicit_terms import body_coupling, coupling_block, element_block, hold_taut, inverse3, release_slack
 from .jit import kernel
-from .status import NEWTON_FAILED, NON_FINITE
 from .so3 import cayley_jacobian, cayley_residual, solve3
+from .status import NEWTON_FAILED, NON_FINITE
 
 #: Corrections that stop shrinking below this (relative to the increments) are round-off: the
 #: iteration has converged as far as float64 allows.

@@ -38,8 +38,8 @@ paper's, bit for bit.
 import numpy as np
 
 from .jit import kernel
-from .status import NEWTON_FAILED, NON_FINITE, OK
 from .so3 import cayley_minus_identity, cayley_newton
+from .status import NEWTON_FAILED, NON_FINITE, OK
 from .step_shared import commit_step, held_inputs, left_torque, new_positions
 from .string import string_solve
 from .switch import settle_switches, switch_errors

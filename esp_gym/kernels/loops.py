@@ -13,12 +13,12 @@ loops, one per configuration (:func:`shared_advance_loop`, :func:`shared_winch_l
 
 ``stats`` is the first ``LOOP_REPORT_SIZE`` entries of a :data:`~.layout.REPORT` (int64).
 """
-from .jit import kernel
 from .diagnostics import diagnostics
+from .jit import kernel
 from .layout import (D_ENERGY, D_ORTHOGONALITY, D_PI3, R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS, SD_ENERGY,
                      SD_ORTHOGONALITY, SD_PI3)
-from .status import OK
 from .disturbance import kick_after, kick_back, kick_before, kick_next
+from .status import OK
 from .step import lgvi_step, winch_step
 from .string import nodal_forces
 

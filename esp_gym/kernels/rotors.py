@@ -5,7 +5,7 @@ into motor commands.
 
 Rotor i turns at omega_i [rad/s] and pushes with T_i = k_f omega_i^2 [N] along the body's -b3;
 the mixer A (4, 4) maps the thrusts to the wrench (f [N], tau [N m], body frame), and its
-inverse back (esp_gym/rotors.py builds both from the rotor layout). Small inlined kernels on flat
+inverse back (esp_gym/scene/rotors.py builds both from the rotor layout). Small inlined kernels on flat
 arrays: the environment's step calls them once per physics step.
 """
 import math

@@ -1,5 +1,5 @@
 """The largest eigenvalue of the string's linearised chain, K x = lambda M x, by Sturm bisection
-(esp_gym/stability.py is the Python face; docs/physics.md, "The stability bound").
+(esp_gym/scene/stability.py is the Python face; docs/physics.md, "The stability bound").
 
 Both matrices are symmetric tridiagonal on the moving nodes: K is the path Laplacian (one unit
 stiffness per element), M the string's consistent (m/6 [[2, 1], [1, 2]] per element) or lumped

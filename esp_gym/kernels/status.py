@@ -31,7 +31,7 @@ TERM_WORKSPACE = 4
 #: An element grew past solver.max_stretch times its rest length: an unstable step blowing up
 #: (typically h above the stability bound) caught while the state is still finite.
 BLOW_UP = 5
-#: The energy watchdog (esp_gym/watchdog.py) ended a finite state that gains energy.
+#: The energy watchdog (esp_gym/physics/watchdog.py) ended a finite state that gains energy.
 ENERGY_BALANCE = 6
 #: A drone's body axis b3 tilted from the vertical past the environment's limit
 #: (kernels/drone_env.py).

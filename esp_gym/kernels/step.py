@@ -88,7 +88,7 @@ def winch_implicit_substep(S, W, P, WA, D, inputs, h, l0, l1, free, forced, coup
 @kernel(inline="always")
 def lgvi_step(S, W, P, inputs, free, forced, coupled, compensated, implicit=False):
     """One step of length ``P.h``: the LGVI itself (one weight ``P.gammas == [1]``) or the
-    symmetric composition of LGVI substeps of lengths ``gamma_i h`` (esp_gym/compositions.py);
+    symmetric composition of LGVI substeps of lengths ``gamma_i h`` (esp_gym/scene/compositions.py);
     with ``implicit`` (a compile-time constant) the implicit string's step
     (kernels/implicit.py; order 2 only). Flags as in :func:`lgvi_substep`. A failing LGVI step
     leaves the state untouched; a composed step that fails in a later substep leaves it after

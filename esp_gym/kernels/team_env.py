@@ -17,18 +17,18 @@ from collections import namedtuple
 import numpy as np
 
 from .drone import DroneArrays
-from .env_step import EntryPoints, params_row, state_row, work_row
 from .env_arrays import T_LOAD, T_VELOCITY
+from .env_step import EntryPoints, params_row, state_row, work_row
 from .jit import announce_compile, kernel
 from .layout import (B_WINCH_WORK, B_WORK, IN_PIVOT_FORCE, IN_PIVOT_FORCE_END, R_STATUS, Layout, LGVIParams,
                      StateArrays, Work)
-from .reference import reference_at
 from .rows import row_function
 from .so3 import rotated
 from .status import ENERGY_BALANCE, OK, TERM_NONE
 from .team_arrays import TeamArrays, TeamParams
 from .team_drones import TeamDrones
 from .team_loops import team_steps
+from .track_curve import reference_at
 from .team_readout import (TB_ENERGY_ORIGIN, TB_LOAD_WORK, TB_WINCH_JUMPS, TR_ELASTIC, TR_GRAVITY, TR_KINETIC,
                            TeamReadArrays, team_read)
 from .team_task import TeamTaskArrays, team_task
@@ -162,7 +162,7 @@ def drone_rates(TD, out):
 @kernel(inline="always")
 def balance_broken(residual, work, fraction, scale):
     """Whether an energy balance's ``residual`` breaks the watchdog's bound f (scale + |work|) [J]
-    (esp_gym/watchdog.py ``check_balance``; a NaN residual breaks it)."""
+    (esp_gym/physics/watchdog.py ``check_balance``; a NaN residual breaks it)."""
     return not (abs(residual) <= fraction * (scale + abs(work)))
 
 
@@ -187,7 +187,7 @@ def team_watchdog(S, RD, E, B, drones_kinetic):
 
 @kernel(inline="always")
 def follow_reference(E, TK, time):
-    """A moving target at ``time`` [s]: the reference (kernels/reference.py) into the load's target
+    """A moving target at ``time`` [s]: the reference (kernels/track_curve.py) into the load's target
     and its velocity, each pivot's target the load's plus its place in the formation."""
     reference_at(E.reference, time)
     for i in range(3):
@@ -259,7 +259,7 @@ def team_points_step(sim, env, raw, nsteps, disturbed, rates, time):
     the simulator's :data:`TeamStructs` (its drones None), ``env`` the task's and the env's arrays
     ``(TeamTaskArrays, TeamEnvArrays)``, as plain tuples. Returns False, changing nothing, if an
     action is not finite. ``rates`` is unread (a drone team's: one signature for every team rig,
-    esp_gym/rig.py)."""
+    esp_gym/physics/rig.py)."""
     S, W, P, T, A, RD, TK, E, B, inputs, stats = team_structs(sim, env)
     if not clip_actions(raw, E.action):
         return False
@@ -333,7 +333,7 @@ def team_drones_batch(sim, env, raw, active, nsteps, disturbed, rates, times):
 #: The seconds to the first step of a team environment on an empty cache (2 cores;
 #: benchmarks.cold_start's "team env (3)"), said when its entry point first compiles.
 COLD_TEAM_STEP_S = 30
-#: The team rigs' entry points (esp_gym/rig.py), each the module-level name of its rig's name.
+#: The team rigs' entry points (esp_gym/physics/rig.py), each the module-level name of its rig's name.
 team_point_explicit = EntryPoints(announce_compile(team_points_step, "the team environment's step", COLD_TEAM_STEP_S),
                                   announce_compile(team_points_batch, "the batched team environment's step",
                                                    COLD_TEAM_STEP_S), None)

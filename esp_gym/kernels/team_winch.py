@@ -21,8 +21,8 @@ from .layout import (B_GRAVITY_IMPULSE, B_WINCH_WORK, WN_EA, WN_END_SHARE, WN_LE
 from .lgvi import rigid_increments
 from .so3 import cross, unrotated
 from .status import OK
-from .string import nodal_forces
 from .step_shared import guarded_forces, held_inputs, left_torque, new_positions, next_attitude
+from .string import nodal_forces
 from .sums import kahan_add
 from .team import add_left_load, commit_team_step, other_forces, other_increments
 from .team_arrays import TeamParams, add_end_loads, pivot_rows

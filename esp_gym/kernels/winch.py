@@ -32,11 +32,11 @@ from .diagnostics import diagnostics, kinetic_energies, node_velocities
 from .jit import kernel
 from .layout import (B_GRAVITY_IMPULSE, D_ENERGY, D_KINETIC_STRING, D_LINEAR_MOMENTUM, D_PI3, WN_EA, WN_END_SHARE,
                      WN_LENGTH, WN_MASS_PER_LENGTH, WN_MAX_STRETCH, WN_OFF_SHARE, LGVIParams, StateArrays)
-from .status import OK
 from .lgvi import rigid_increments
+from .status import OK
 from .step_shared import commit_step, held_inputs, left_torque, new_positions
-from .sums import kahan_add
 from .string import nodal_forces
+from .sums import kahan_add
 from .switch import settle_switches, switch_errors
 
 

@@ -25,8 +25,8 @@ from .implicit_newton import implicit_newton
 from .implicit_terms import element_vectors, secant_terms, split_forces
 from .jit import kernel
 from .layout import B_GRAVITY_IMPULSE, WN_EA, WN_MASS_PER_LENGTH
-from .status import OK
 from .lgvi import rigid_increments
+from .status import OK
 from .step_shared import commit_step, held_inputs, left_torque
 from .sums import kahan_add
 from .winch import (add_convective_forces, add_convective_impulse, convective_momentum, factor_tridiagonal,

@@ -5,8 +5,8 @@ import numpy as np
 
 from ..kernels.string import tridiag_factor
 from ..kernels.team_arrays import TeamParams
-from ..stability import hat
-from ..state import attachment_column, mass_matrix
+from ..physics.state import attachment_column, mass_matrix
+from ..scene.stability import hat
 
 
 def string_mass(string, pivot):

@@ -1,4 +1,4 @@
-"""Many teams' control steps in one compiled call (their rig's batch entry point, esp_gym/rig.py:
+"""Many teams' control steps in one compiled call (their rig's batch entry point, esp_gym/physics/rig.py:
 kernels/team_env.py ``team_points_batch`` or ``team_drones_batch``; docs/team.md, "Speed"): :class:`TeamBatch` stacks the live arrays of B
 teams' episodes (:class:`~esp_gym.team.core.TeamCore`, without winches, all alike) along a leading
 axis and lets each team step in its rows, so that a team stepped in the batch is the team stepped
@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..arrays import plain_structs, put_row, repeated, row
 from ..kernels.jit import bound_entry
 from ..kernels.team_drones import TeamDrones
+from ..physics.arrays import plain_structs, put_row, repeated, row
 
 
 class TeamBatch:

@@ -5,14 +5,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..arrays import copy_into, team_env_arrays
 from ..kernels.jit import bound_entry
+from ..physics.arrays import copy_into, team_env_arrays
 from ..kernels.team_env import (TD_HOVER_THRUST, TD_MAX_THRUST, TE_ENERGY_SCALE, TE_FORCE_SCALE, TE_HOVER_FORCE,
                                 TE_MOVING, TE_RATE_LIMIT, TE_WATCHDOG)
 
 
 class TeamControl:
-    """One team's compiled control step: ``rig`` the team's (esp_gym/rig.py; its entry point
+    """One team's compiled control step: ``rig`` the team's (esp_gym/physics/rig.py; its entry point
     ``step``), ``sim`` a :class:`~esp_gym.team.simulator.TeamSimulator`
     whose strings keep their scenes' lengths, ``task`` its task's arrays (kernels/team_task.py
     ``TeamTaskArrays``, the env's observation), ``action_size`` the size of each agent's action,
@@ -81,7 +81,7 @@ class TeamControl:
 
     def _bind(self, raw: np.ndarray):
         """The entry point's machine code for these structs and ``raw``'s type (float64, C-contiguous,
-        writeable: esp_gym/control.py ``raw_actions`` makes every action so)."""
+        writeable: esp_gym/pendulum/control.py ``raw_actions`` makes every action so)."""
         if not (raw.dtype == np.float64 and raw.flags.c_contiguous and raw.flags.writeable and raw.ndim == 2):
             raise TypeError("the raw actions must be a writeable, C-contiguous float64 array (K, n_a)")
         return bound_entry(self.rig.entries.step, *self._structs, raw, self.substeps, self.disturbed, self.rates, 0.0)

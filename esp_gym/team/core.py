@@ -17,21 +17,21 @@ from typing import Optional
 import numpy as np
 
 from .. import TEAM_ENV_ID
-from ..arrays import copy_into
-from ..kernels.status import TERM_NONE
 from ..kernels.env_arrays import TARGET
-from ..kernels.reference import reference_at
+from ..kernels.status import TERM_NONE
 from ..kernels.team_task import team_task
-from ..observe import standard_deviation
-from ..options import check_substeps, team_options
-from ..rig import find_rig
-from ..tasks import track_reference
-from ..wind import wind_options
+from ..kernels.track_curve import reference_at
+from ..pendulum.observe import standard_deviation
+from ..pendulum.options import check_substeps, team_options
+from ..pendulum.tasks import track_reference
+from ..pendulum.wind import wind_options
+from ..physics.arrays import copy_into
+from ..physics.rig import find_rig
+from .control import TeamControl
 from .fleet import check_lift
 from .gusts import TeamWind
 from .randomize import TeamRandomizer
 from .scene import TEAM_SAFETY, TeamScene, given_team, team_substeps
-from .control import TeamControl
 from .simulator import TeamSimulator
 from .spaces import ACTUATIONS, TEAM_UNIT_NOISE, DroneDrive, action_size, agent_layout
 from .stepping import TeamStepping
@@ -66,12 +66,12 @@ class TeamCore(TeamStepping):
     (low, high), as the single env's: each episode draws its team, esp_gym/team/randomize.py;
     ``team`` a number then), ``observation`` (``"full"`` or ``"hook"``), ``sensor_noise`` (a
     level, times :data:`TEAM_UNIT_NOISE`), ``action_latency`` (control
-    steps, 0-50) and ``wind`` (esp_gym/wind.py's options: the mean wind, gusts and pushes, on the
+    steps, 0-50) and ``wind`` (esp_gym/pendulum/wind.py's options: the mean wind, gusts and pushes, on the
     load), ``safety`` (h's margin under every string's stability bound, default
     :data:`~.scene.TEAM_SAFETY`). ``winch``: each point pivot's string reels on its winch, its
     reel speed (x its ``winch.max_speed``) each agent's last action and its unstretched length in
     its observation (None: as the task needs, True for ``lift``). Checked as the single env's options are
-    (esp_gym/options.py ``TeamOptions``; ``others``: its options a team lacks, refused with why)."""
+    (esp_gym/pendulum/options.py ``TeamOptions``; ``others``: its options a team lacks, refused with why)."""
 
     #: False: every control step in Python (TeamSimulator.step, then the compiled task), the
     #: compiled step's reference (tests/test_team_control.py)
@@ -142,7 +142,7 @@ class TeamCore(TeamStepping):
         reels = self.task.needs_winch if winch is None else winch
         if self.task.needs_winch and not reels:
             raise ValueError(f"winch: task {self.task.name!r} reels the strings and needs winch=True")
-        #: the team's rig (esp_gym/rig.py): its compiled entry points, or none (stepped in Python)
+        #: the team's rig (esp_gym/physics/rig.py): its compiled entry points, or none (stepped in Python)
         self.rig = find_rig("drone" if self.drones else "point", "explicit", reels, False, team=True,
                             settings="winch: a team's drones do not reel yet (docs/physics.md, \"What a team does "
                                      "not do yet\")" if self.drones and reels else "")

@@ -9,7 +9,7 @@ from typing import Optional
 import gymnasium as gym
 import numpy as np
 
-from ..control import raw_actions
+from ..pendulum.control import raw_actions
 from .core import TeamCore
 
 

@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 
 from .. import TEAM_ENV_ID
-from ..arrays import copy_into, row, stacked_drone_arrays
-from ..drone import DroneState, use_drone
 from ..kernels.drone import Q_THRUST_COEFFICIENT
 from ..kernels.team_drones import TeamDrones
-from ..model import ROTATION_TOL
-from ..params import check_rotation
-from ..setup import check_thrust
+from ..pendulum.env_setup import check_thrust
+from ..physics.arrays import copy_into, row, stacked_drone_arrays
+from ..physics.drone import DroneState, use_drone
+from ..physics.simulator import ROTATION_TOL
+from ..scene.params import check_rotation
 
 
 def finite(name: str, value, shape: tuple) -> np.ndarray:
@@ -35,7 +35,7 @@ def hover_shares(team) -> np.ndarray:
 
 def check_lift(team, where: str = "") -> None:
     """ValueError unless every drone of ``team`` lifts its :func:`hover_shares` with the single
-    drone's margin (esp_gym/setup.py ``check_thrust``); ``where``: which team, for the message."""
+    drone's margin (esp_gym/pendulum/env_setup.py ``check_thrust``); ``where``: which team, for the message."""
     shares = hover_shares(team)
     for k, pivot in enumerate(team.pivots()):
         if pivot.is_drone:
@@ -52,7 +52,7 @@ class Fleet:
         sections = team.pivots()
         self.pivots = [k for k, pivot in enumerate(sections) if pivot.is_drone]
         self._sections = [sections[k] for k in self.pivots]
-        #: each drone's parameters (esp_gym/pivot_params.py ``DroneParams``)
+        #: each drone's parameters (esp_gym/scene/pivot_params.py ``DroneParams``)
         self.drone_params = [pivot.drone for pivot in self._sections]
         self._shares = hover_shares(team)[self.pivots]
         n = len(self.pivots)
@@ -84,7 +84,7 @@ class Fleet:
                      for pivot, w in zip(self._sections, self._shares))
 
     def states(self) -> tuple:
-        """A copy of every drone's :data:`~esp_gym.drone.DroneState`."""
+        """A copy of every drone's :data:`~esp_gym.physics.drone.DroneState`."""
         D = self.arrays.arrays
         return tuple(DroneState(D.R[d].copy(), D.Pi[d].copy(), D.speed[d].copy()) for d in range(len(self)))
 

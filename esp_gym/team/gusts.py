@@ -1,5 +1,5 @@
 """The wind on a team's load over an episode (docs/team.md, "Tasks"; the single string's law,
-esp_gym/wind.py): a mean wind of a drawn azimuth, gusts of an Ornstein-Uhlenbeck process and
+esp_gym/pendulum/wind.py): a mean wind of a drawn azimuth, gusts of an Ornstein-Uhlenbeck process and
 pushes."""
 from __future__ import annotations
 
@@ -7,11 +7,11 @@ import math
 
 import numpy as np
 
-from ..wind import drag_areas
+from ..pendulum.wind import drag_areas
 
 
 class TeamWind:
-    """The wind of one episode (``options``: esp_gym/wind.py's ``wind_options``)."""
+    """The wind of one episode (``options``: esp_gym/pendulum/wind.py's ``wind_options``)."""
 
     def __init__(self, options):
         self.options = options
@@ -30,7 +30,7 @@ class TeamWind:
     def force(self, rng: np.random.Generator, kin: dict, scene, period: float) -> np.ndarray:
         """The force on the load over the next control step of ``period`` [s] [N], and the gusts
         and pushes drawn for it from ``rng``: drag 1/2 rho C_d A(n) |v| v of the air's velocity v
-        relative to the load (A the load's projected area across n = v/|v|, esp_gym/wind.py's
+        relative to the load (A the load's projected area across n = v/|v|, esp_gym/pendulum/wind.py's
         law), plus a push (Poisson, a horizontal force changing the load's velocity by 0.5-1.5 x
         push_speed over the step, in a random azimuth). ``scene``: the team's lead scene."""
         o = self.options

@@ -11,8 +11,8 @@ import gymnasium as gym
 import numpy as np
 
 from .. import MAX_EPISODE_STEPS
-from ..control import raw_actions
 from ..extras import require
+from ..pendulum.control import raw_actions
 from .core import TeamCore
 from .spaces import agent_layout
 from .tasks import AGENT_TERMS, REWARD_TERMS

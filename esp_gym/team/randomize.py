@@ -1,5 +1,5 @@
 """A team's per-episode draws (``randomize=`` of ElasticStringTeam-v0; docs/team.md, "The hard
-preset"), read and drawn by the single env's code (esp_gym/randomize.py: the same names, the same
+preset"), read and drawn by the single env's code (esp_gym/pendulum/randomize.py: the same names, the same
 reading of ``randomize`` and of each range, the same draw):
 
 ===================  =====  ===========  ==================================================
@@ -30,8 +30,8 @@ from typing import Any
 import numpy as np
 from pydantic import ValidationError
 
-from ..randomize import BOX_ONLY, DRONE_RANGES, draw_in_ranges, user_ranges
-from ..scene_input import validation_message
+from ..pendulum.randomize import BOX_ONLY, DRONE_RANGES, draw_in_ranges, user_ranges
+from ..scene.scene_input import validation_message
 from .scene import NOMINAL, TeamScene, quadrotor, team_scene
 
 #: name -> (low, high, law) of the default draws, as factors of the default team's values.
@@ -49,7 +49,7 @@ NOT_DRAWN = {**{name: "is not drawn for a team: its load keeps the default team'
 class TeamRandomizer:
     """The ranges of a team's episodes (``size`` strings; ``drones``: its pivots are quadrotors)
     and the draw of each episode's team. ``spec``: True (the defaults) or a mapping name ->
-    (low, high) overriding them; ValueError naming the bad entry (esp_gym/randomize.py
+    (low, high) overriding them; ValueError naming the bad entry (esp_gym/pendulum/randomize.py
     ``user_ranges``), or the corner of the ranges that is not a valid team."""
 
     def __init__(self, size: int, drones: bool, spec: Any):
@@ -74,7 +74,7 @@ class TeamRandomizer:
         #: the team of the ranges' heaviest pivots, strings and load (each drone's heaviest share)
         self.heaviest = self._corner(high, "highs")
         #: the team whose strings need the smallest step: the shortest, lightest and stiffest, with the
-        #: lightest ends (esp_gym/randomize.py, ``Randomizer.stiffest``)
+        #: lightest ends (esp_gym/pendulum/randomize.py, ``Randomizer.stiffest``)
         self.stiffest = self._corner({**low, "EA": high["EA"]}, "stiffest corner")
 
     def _corner(self, values: dict, what: str) -> TeamScene:

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..kernels.layout import BALANCE
 from ..kernels.team_readout import TB_ENERGY_ORIGIN, TB_LOAD_WORK, TB_WINCH_JUMPS, TEAM_READ, team_read
-from ..state import cross3
+from ..physics.state import cross3
 from .assembly import string_mass
 from .velocities import team_velocities
 

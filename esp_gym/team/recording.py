@@ -24,7 +24,7 @@ from ..extras import require
 
 rr = require("rerun", "esp_gym.team.recording")  # first: the viz modules below import rerun too
 
-from ..params import Box  # noqa: E402
+from ..scene.params import Box  # noqa: E402
 from ..viz.entities import EYE_DIRECTION, EYE_DISTANCE, drone_frame  # noqa: E402
 try:  # the PettingZoo env's face (without PettingZoo there is no such env to record)
     from pettingzoo.utils.wrappers import BaseParallelWrapper

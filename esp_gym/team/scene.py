@@ -1,7 +1,7 @@
 """A team's scene: one body held by K = 1..6 strings, each from its own pivot to its own
 attachment point (docs/physics.md, "A team: several strings on one body").
 
-A :class:`TeamScene` is a single-string :class:`~esp_gym.params.Scene` (string 0, the body, its
+A :class:`TeamScene` is a single-string :class:`~esp_gym.scene.params.Scene` (string 0, the body, its
 pivot, gravity, the step, the solver and the initial state) plus the other strings
 (:class:`TeamString`). With no other strings it is that scene, and steps as it does, bit for bit.
 """
@@ -14,10 +14,10 @@ from typing import Any, Optional
 import numpy as np
 from pydantic import Field, ValidationError, model_validator
 
-from ..params import PivotParams, Scene, StringParams, WinchParams
-from ..rig import find_rig
-from ..scene_input import Frozen, vector
-from ..stepsize import explicit_substeps, shortest
+from ..physics.rig import find_rig
+from ..scene.params import PivotParams, Scene, StringParams, WinchParams
+from ..scene.scene_input import Frozen, vector
+from ..scene.stepsize import explicit_substeps, shortest
 
 Point3 = vector("coordinate")
 
@@ -83,7 +83,7 @@ class TeamScene(Frozen):
         if lead.solver.scheme.stages != 1:
             raise ValueError(f"scene.solver.order: a team steps at order 2 only, got order {lead.solver.order}")
         pivots = [("scene.pivot", lead.pivot)] + [(f"strings[{i}].pivot", s.pivot) for i, s in enumerate(self.strings)]
-        for name, pivot in pivots:  # the string scheme and each pivot a team rig's (esp_gym/rig.py)
+        for name, pivot in pivots:  # the string scheme and each pivot a team rig's (esp_gym/physics/rig.py)
             hooked = pivot.is_drone and pivot.drone.offset_hook
             find_rig("drone" if pivot.is_drone else "point", lead.solver.string, False, hooked, team=True,
                      settings=f"scene.solver.string {lead.solver.string!r}" + (
@@ -106,7 +106,7 @@ class TeamScene(Frozen):
         return self.scene.h
 
     def pivots(self) -> list:
-        """Every string's pivot section (esp_gym/pivot_params.py ``PivotParams``), string 0's first."""
+        """Every string's pivot section (esp_gym/scene/pivot_params.py ``PivotParams``), string 0's first."""
         return [self.scene.pivot] + [s.pivot for s in self.strings]
 
     def attachments(self) -> np.ndarray:
@@ -200,7 +200,7 @@ NOMINAL = dict(length=1.0, mass_per_length=0.05, EA=200.0, pivot_mass=1.0, body_
 def quadrotor() -> tuple:
     """``(mass [kg], DroneParams)`` of the quadrotor of ``quadrotor_load`` (esp_gym/scenes: PX4's
     1.5 kg x500), a team's drone by default."""
-    from ..params import load_scene
+    from ..scene.params import load_scene
 
     pivot = load_scene("quadrotor_load").pivot
     return float(pivot.mass), pivot.drone

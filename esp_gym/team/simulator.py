@@ -9,18 +9,18 @@ from typing import Optional
 
 import numpy as np
 
-from ..arrays import copy_into, plain_structs, team_arrays, team_read_arrays
-from ..drone import DroneState
 from ..kernels.layout import INPUTS, LOOP_REPORT_SIZE, R_NEWTON_TOTAL, R_STATUS, R_STEPS
 from ..kernels.status import ENERGY_BALANCE, OK
-from ..kernels.team_env import TeamStructs
 from ..kernels.team import team_forces
-from ..kernels.team_readout import TB_ENERGY_ORIGIN, TB_LOAD_WORK, TB_WINCH_JUMPS, TEAM_BALANCE
+from ..kernels.team_env import TeamStructs
 from ..kernels.team_loops import team_advance, team_drone_advance, team_winch_advance
+from ..kernels.team_readout import TB_ENERGY_ORIGIN, TB_LOAD_WORK, TB_WINCH_JUMPS, TEAM_BALANCE
 from ..kernels.team_winch import team_winch_forces
-from ..model import SimulationError, Simulator
-from ..state import State, StepClock, cross3, legendre_momenta
-from ..watchdog import WATCH_EVERY, check_team_balance, team_energy_scale
+from ..physics.arrays import copy_into, plain_structs, team_arrays, team_read_arrays
+from ..physics.drone import DroneState
+from ..physics.simulator import SimulationError, Simulator
+from ..physics.state import State, StepClock, cross3, legendre_momenta
+from ..physics.watchdog import WATCH_EVERY, check_team_balance, team_energy_scale
 from .assembly import build_team
 from .fleet import Fleet
 from .readout import TeamReadout
@@ -31,10 +31,10 @@ from .winches import TeamWinches
 @dataclass
 class TeamState:
     """A team's discrete state: ``lead`` string 0 and the body (a single string's
-    :class:`~esp_gym.state.State`, whose last row of p and whose Pi hold the body's momenta with
+    :class:`~esp_gym.physics.state.State`, whose last row of p and whose Pi hold the body's momenta with
     every string end's share), and the other strings' positions ``r`` and momenta ``p``, stacked by
     rows (each string's end last, its momentum row 0); ``drones``: each drone's
-    :data:`~esp_gym.drone.DroneState` in the order of :attr:`TeamSimulator.drone_pivots` (empty
+    :data:`~esp_gym.physics.drone.DroneState` in the order of :attr:`TeamSimulator.drone_pivots` (empty
     without drones); ``lengths`` (K,) each string's unstretched length [m] and ``reel_speeds`` (K,)
     the reel speeds its momenta were made with [m/s] (None: the scenes' lengths, at rest)."""
 
@@ -86,7 +86,7 @@ class TeamSimulator(TeamReadout, StepClock):
         self._energy_scale = team_energy_scale(team)  # the watchdog's [J]
         self._unwatched = 0  # steps since the energy watchdog last looked
         #: The energy watchdog looks at the end of the call in which this many steps have passed
-        #: since it last did (esp_gym/watchdog.py; an environment's: 1, every control step).
+        #: since it last did (esp_gym/physics/watchdog.py; an environment's: 1, every control step).
         self.watch_every = WATCH_EVERY
         self.set_state(self.initial_state())
 

@@ -7,12 +7,12 @@ import numpy as np
 
 from ..kernels.drone import ACTUATIONS as DRONE_ACTUATIONS
 from ..kernels.layout import Layout
-from ..setup import DRONE_RATE_LIMIT
+from ..pendulum.env_setup import DRONE_RATE_LIMIT
 
 #: A team's actuations: ``force`` pushes point pivots; the others fly drones.
 ACTUATIONS = ("force",) + DRONE_ACTUATIONS
 
-#: Sensor noise per field at ``sensor_noise=1`` (as esp_gym/observe.py's UNIT_NOISE) [SI].
+#: Sensor noise per field at ``sensor_noise=1`` (as esp_gym/pendulum/observe.py's UNIT_NOISE) [SI].
 TEAM_UNIT_NOISE = {"pivot_position_error": 0.01, "pivot_velocity": 0.05, "hook_tension": 0.1, "load_offset": 0.01,
                    "load_position_error": 0.01, "load_velocity": 0.05, "load_attitude_6d": 0.01, "load_rates": 0.05,
                    "load_target_offset": 0.01, "neighbours": 0.01, "drone_attitude_6d": 0.01, "drone_rates": 0.05,

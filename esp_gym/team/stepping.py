@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..control import raw_actions
 from ..errors import SimulationError, termination_reason
 from ..kernels.status import ENERGY_BALANCE, PHYSICS_FAILURES, TERM_NONE
 from ..kernels.team_env import TS_CODE, TS_RESIDUAL, TS_REWARD, TS_SMALLEST, TS_WORK
+from ..pendulum.control import raw_actions
 from .tasks import AGENT_TERMS, REWARD_TERMS
 
 #: The info keys of the team's reward terms and of each agent's shares, in the kernel's order.
@@ -32,7 +32,7 @@ class TeamStepping:
                                          f"action (one {'drone action' if self.drones else 'pivot force'} per agent)"))
 
     def step_raw(self, a: np.ndarray):
-        """:meth:`step` of actions ``a`` already made raw (esp_gym/control.py ``raw_actions``: float64,
+        """:meth:`step` of actions ``a`` already made raw (esp_gym/pendulum/control.py ``raw_actions``: float64,
         C-contiguous, writeable, (K, n_a))."""
         a = self.applied_action(a)
         if self.control is None:

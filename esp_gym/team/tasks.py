@@ -8,11 +8,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..arrays import team_task_arrays
 from ..kernels.layout import Layout
 from ..kernels.team_task import AGENT_REWARD, OBSERVED, TEAM_REWARD, TEAM_TASK, TeamTaskArrays
-from ..options import TEAM_LACKS
-from ..setup import DRONE_FLIP_TILT, PRESETS
+from ..pendulum.env_setup import DRONE_FLIP_TILT, PRESETS
+from ..pendulum.options import TEAM_LACKS
+from ..physics.arrays import team_task_arrays
 
 #: Pivots closer than this are penalised (the reward's separation term) [m].
 SEPARATION = 0.4
@@ -26,7 +26,7 @@ FLIP_COSINE = math.cos(math.radians(DRONE_FLIP_TILT))
 REWARD_TERMS = TEAM_REWARD.names
 AGENT_TERMS = AGENT_REWARD.names
 #: The options each preset sets (those given to the environment win): the single env's, less what
-#: a team lacks (esp_gym/options.py TEAM_LACKS: the hard preset's thrust noise).
+#: a team lacks (esp_gym/pendulum/options.py TEAM_LACKS: the hard preset's thrust noise).
 TEAM_PRESETS = {name: {k: v for k, v in preset.items() if k not in TEAM_LACKS} for name, preset in PRESETS.items()}
 
 
@@ -57,7 +57,7 @@ class TeamTask:
     max_stretch: float = 1.5  #: the episode ends when a string is longer than this times its l
     workspace_radius: float = 4.0  #: the episode ends when the load or a pivot is this far from its target [m]
     #: the load's target moves along a reference of the single string's track family
-    #: (esp_gym/tasks.py ``track_reference``), starting where the load starts; the velocity term is
+    #: (esp_gym/pendulum/tasks.py ``track_reference``), starting where the load starts; the velocity term is
     #: then relative to the reference's velocity
     moving: bool = False
     #: lift: each string's winch must reel it to this many times its length, uniform in the range

@@ -13,11 +13,11 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ..control import raw_actions
+from .. import MAX_EPISODE_STEPS
 from ..errors import termination_reason
 from ..kernels.status import TERM_NONE
-from ..vector import sub_env_seeds
-from .. import MAX_EPISODE_STEPS
+from ..pendulum.control import raw_actions
+from ..pendulum.vector import sub_env_seeds
 from .batch import TeamBatch
 from .env import ElasticStringTeamEnv
 from .stepping import AGENT_KEYS, REWARD_KEYS

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import LinAlgError, lapack
 
-from ..stability import hat
-from ..state import cross3
+from ..physics.state import cross3
+from ..scene.stability import hat
 from .assembly import banded
 
 

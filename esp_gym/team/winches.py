@@ -11,12 +11,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..arrays import team_winch_arrays, winch_arrays
 from ..kernels.layout import WINCH
 from ..kernels.winch import convective_weights
-from ..scene_input import real_number
-from ..stepsize import shortest
-from ..winch import winch_state
+from ..physics.arrays import team_winch_arrays, winch_arrays
+from ..physics.winch import winch_state
+from ..scene.scene_input import real_number
+from ..scene.stepsize import shortest
 from .scene import TeamScene
 
 LENGTH, SPEED = WINCH.scalar("length"), WINCH.scalar("reel_speed")
@@ -129,7 +129,7 @@ class TeamWinches:
 
     # -- the diagnostics' share -----------------------------------------------------------------
     def strings_at_length(self) -> list:
-        """Each string's section (esp_gym/params.py StringParams) at its current length."""
+        """Each string's section (esp_gym/scene/params.py StringParams) at its current length."""
         return [s.string.model_copy(update={"length": float(l)}) for s, l in zip(self.scenes, self.state[:, LENGTH])]
 
     def flow_momenta(self, lead_r, others_r, speeds) -> tuple:

@@ -42,7 +42,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..extras import require
-from ..params import Scene
+from ..scene.params import Scene
 
 #: MuJoCo's names of its integrators (``<option integrator=...>``); all but RK4 are first order.
 #: With no damping, implicit and implicitfast still differ from Euler (semi-implicit) once the

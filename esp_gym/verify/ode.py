@@ -26,7 +26,7 @@ potential of ``nodal_forces``: elastic energy and the gravity of the string's el
 of the body mass at node N and of a free pivot's M_p (its force is ``f = -dV/dr``); the
 last term is the rest of the body's gravity potential. With p = dL/dv and
 Pi = dL/dOmega = J Omega + M rho_c x (R^T v_N) (the Legendre transform of
-``esp_gym.model.legendre_momenta``), the Euler-Lagrange equations in r and the Euler-Poincare
+``esp_gym.physics.simulator.legendre_momenta``), the Euler-Lagrange equations in r and the Euler-Poincare
 equation on SO(3) (variations delta R = R eta^) are::
 
     M_tot a - M e_N R (rho_c x Omega')  = f(r) - M e_N R (Omega x (Omega x rho_c)) + e_0 u_p  (T)
@@ -56,15 +56,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..arrays import diag_work, state_arrays
 from ..kernels.diagnostics import diagnostics as diagnostics_kernel
 from ..kernels.layout import DIAG, INPUTS, STEP_DIAG, DiagWork
+from ..physics.arrays import diag_work, state_arrays
+from ..physics.state import State, build_params, legendre_momenta
+from ..scene.params import Scene
 from .ode_kernels import ODEWork, ode_rhs, ode_rhs_columns, rk4_run
-from ..state import State, build_params, legendre_momenta
-from ..params import Scene
 
 class ElasticStringODE:
-    """The finite-element model of a :class:`~esp_gym.params.Scene` as ``y' = f(t, y)``.
+    """The finite-element model of a :class:`~esp_gym.scene.params.Scene` as ``y' = f(t, y)``.
 
     >>> ode = ElasticStringODE(load_scene("paper_example"))
     >>> sol = scipy.integrate.solve_ivp(ode.rhs, (0, 1), ode.y0(), method="DOP853",
@@ -178,7 +178,7 @@ class ElasticStringODE:
         return self.pack(state.r, D.V, state.R, D.omega)
 
     def to_state(self, y: np.ndarray, step: int = 0) -> State:
-        """y -> a :class:`~esp_gym.model.State` with momenta from ``legendre_momenta``."""
+        """y -> a :class:`~esp_gym.physics.simulator.State` with momenta from ``legendre_momenta``."""
         u = self.unpack(y)
         p, Pi = legendre_momenta(self.scene, u["r"], u["v"], u["R"], u["Omega"])
         return State(np.ascontiguousarray(u["r"]), np.ascontiguousarray(p), np.ascontiguousarray(u["R"]),

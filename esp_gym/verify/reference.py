@@ -43,10 +43,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..params import Scene
+from ..scene.params import Scene
 
-if TYPE_CHECKING:  # esp_gym.model imports the kernels; only its State type is needed here
-    from ..state import State
+if TYPE_CHECKING:  # esp_gym.physics.simulator imports the kernels; only its State type is needed here
+    from ..physics.state import State
 
 E3 = np.array([0.0, 0.0, 1.0])
 
@@ -239,7 +239,7 @@ def solve_left_legendre(c: Constants, r, R, p, Pi, rtol: float = 1e-15, max_iter
 
 def reference_step(scene: Scene, state: "State", rtol: float = 1e-15, max_iter: int = 30) -> "State":
     """One LGVI step ``(q_k, p_k) -> (q_{k+1}, p_{k+1})`` in plain NumPy; returns a new state of
-    the same type as ``state`` (:class:`esp_gym.model.State`). Raises RuntimeError if Newton fails.
+    the same type as ``state`` (:class:`esp_gym.physics.simulator.State`). Raises RuntimeError if Newton fails.
 
     Solves ``p_k = -D_1 L_d`` densely for (dr, F), then ``r_{k+1} = r_k + dr``,
     ``R_{k+1} = R_k F``, ``p_{k+1} = D_dr L_d``, ``Pi_{k+1} = (DFLd)``. The pivot row is copied.

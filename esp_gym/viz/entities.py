@@ -11,9 +11,9 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from ..kernels.layout import DIAG
-from ..kernels.env_arrays import ACTION, REWARD_TERMS, SENSORS
 from ..kernels.disturbance import DISTURBANCE
+from ..kernels.env_arrays import ACTION, REWARD_TERMS, SENSORS
+from ..kernels.layout import DIAG
 from ..kernels.recording import (SB_ENERGY_RESIDUAL, SB_PI3_RESIDUAL, SB_WORK, SW_REEL_SPEED, SW_UNSTRETCHED_LENGTH,
                                 SW_WINCH_WORK)
 from . import palette
@@ -158,7 +158,7 @@ def rig_eye(scene):
     """``(position, look_target)`` [m] of the 3-D view's eye for ``scene``: it looks at the middle
     of the hanging rig, from the pivot down to the load's centre of mass at rest, from
     :data:`EYE_DISTANCE` times the rig's length (at least 1 m) along :data:`EYE_DIRECTION`."""
-    from ..tasks import hanging_depth
+    from ..pendulum.tasks import hanging_depth
 
     depth = hanging_depth(scene)
     target = np.asarray(scene.pivot.position, dtype=float) + np.array([0.0, 0.0, 0.5 * depth])

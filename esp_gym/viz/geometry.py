@@ -48,7 +48,7 @@ def prism_mesh(section: np.ndarray, height: float, center, smooth_sides: bool) -
 
 
 def body_mesh(shape, rho_c, facets: int = 28) -> Optional[Mesh]:
-    """The drawn mesh of a :mod:`esp_gym.params` shape centred on ``rho_c`` (body frame, from
+    """The drawn mesh of a :mod:`esp_gym.scene.params` shape centred on ``rho_c`` (body frame, from
     the attachment point); a circular or elliptic section gets ``facets`` sides. None for a
     sphere or no shape."""
     kind = getattr(shape, "kind", None)

@@ -10,9 +10,9 @@ from typing import Optional
 import gymnasium as gym
 import numpy as np
 
-from ..control import ControlStep, read_only
 from ..kernels.drone import DRONE_DIAG
 from ..kernels.env_arrays import ACTION, TARGET
+from ..pendulum.control import ControlStep, read_only
 from .recorder import Recorder
 
 
@@ -37,7 +37,7 @@ class RecordRerun(gym.Wrapper):
     recording them would mean re-stepping the physics outside the environment's own kernel.
 
     The sample is copied by one compiled call (:meth:`Recorder.add_sample`) from the env's
-    live arrays, read through its :class:`~esp_gym.control.ControlStep` (``env.unwrapped.control``):
+    live arrays, read through its :class:`~esp_gym.pendulum.control.ControlStep` (``env.unwrapped.control``):
     the simulator's state and diagnostics (which the step leaves current), the clipped action,
     the reward terms, the inputs, the sensors, the disturbance and the step report (the same
     numbers as the clipped action, ``info["reward_*"]`` and the control step's sensors and
@@ -130,7 +130,7 @@ def record_simulation(sim, path, t_final: float, record_every: Optional[int] = N
     record it to ``path``: the current state, then every ``record_every`` physics steps
     (default: ~50 samples per simulated second) and at the end. Returns a summary (samples,
     steps, wall time, largest |E - E0 - W| and |pi3 - pi3_0 - impulse| at the samples). A
-    :class:`~esp_gym.model.SimulationError` propagates after the recording of the steps before
+    :class:`~esp_gym.physics.simulator.SimulationError` propagates after the recording of the steps before
     it is closed."""
     from tqdm.auto import tqdm
 

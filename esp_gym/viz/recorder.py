@@ -13,11 +13,11 @@ from typing import Optional
 import numpy as np
 import rerun as rr
 
-from ..kernels.layout import INPUTS, REPORT, R_NEWTON_TOTAL, R_STEPS, WINCH
-from ..kernels.env_arrays import ACTION, REWARD_TERMS, SENSORS, TARGET
 from ..kernels.disturbance import DISTURBANCE
-from ..control import read_only
+from ..kernels.env_arrays import ACTION, REWARD_TERMS, SENSORS, TARGET
+from ..kernels.layout import INPUTS, REPORT, R_NEWTON_TOTAL, R_STEPS, WINCH
 from ..kernels.recording import capture_sample, sample_layout
+from ..pendulum.control import read_only
 from . import lifecycle, palette
 from .drone_track import DroneTrack
 from .encoder import SampleEncoder
@@ -52,7 +52,7 @@ class Recorder:
     | argument | default | meaning |
     |---|---|---|
     | `path` | | output ``.rrd`` (parent directories are created) |
-    | `scene` | | the :class:`~esp_gym.params.Scene` (body shape, string, gravity) |
+    | `scene` | | the :class:`~esp_gym.scene.params.Scene` (body shape, string, gravity) |
     | `env` | False | also the reward, action and return series (env rollouts) |
     | `winch` | False | also the winch's length, reel speed and work series |
     | `sample_period` | 0.02 | time between samples: ``time = step * sample_period`` for env rollouts; sets the trail length |
@@ -71,7 +71,7 @@ class Recorder:
     | `application_id` | "esp_gym" | Rerun application id |
     | `recording_id` | None | Rerun recording id (None: a random one) |
 
-    Samples: :meth:`sample` (a free simulation's :class:`~esp_gym.model.Simulator`) or
+    Samples: :meth:`sample` (a free simulation's :class:`~esp_gym.physics.simulator.Simulator`) or
     :meth:`add_sample` (live kernel arrays, e.g. an environment's); :meth:`start_episode` takes
     the balance origins; env recordings draw each episode's body with :meth:`log_body` (free
     simulations: the scene's, static). Use as a context manager or call :meth:`close`; open
@@ -218,7 +218,7 @@ class Recorder:
         (ACTION) and reward ``terms`` (REWARD) with the ``reward``, the ``inputs`` (INPUTS), the
         episode's ``target`` (TARGET; at the episode's reset, and while it moves), the
         ``sensors`` (SENSORS), the ``disturbance`` (DISTURBANCE), the episode's ``rho``
-        (rho_c, body frame [m]) and the ``winch`` (WINCH, :attr:`~esp_gym.winch.Winch.vector`).
+        (rho_c, body frame [m]) and the ``winch`` (WINCH, :attr:`~esp_gym.physics.winch.Winch.vector`).
         Arrays not given are zeros (the target: none; rho: the scene's);
         pass read-only float64 arrays (one compiled signature). Raises RecordingError after a
         failed write."""

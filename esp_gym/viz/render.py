@@ -25,8 +25,8 @@ from typing import NamedTuple
 import numpy as np
 
 from .geometry import Mesh, body_mesh, prism_mesh  # noqa: F401  (Mesh, prism_mesh: still importable here)
-from .raster import clip_segments, draw_discs, draw_lines, draw_text, fill_convex_polygons  # noqa: F401
 from .palette import BACKGROUND, BODY, FORCE, GRID_AXIS, GRID_MAJOR, GRID_MINOR, INK, PIVOT, STRAIN_LUT, TARGET
+from .raster import clip_segments, draw_discs, draw_lines, draw_text, fill_convex_polygons  # noqa: F401
 
 # -- shading -------------------------------------------------------------------------------------
 
@@ -54,7 +54,7 @@ class FrameRenderer:
 
     | argument | default | meaning |
     |---|---|---|
-    | `shape` | - | a :mod:`esp_gym.params` shape (Box, Cylinder, EllipticCylinder, Sphere) centred on the centre of mass, or None (a disc of radius 0.04 `string_length`) |
+    | `shape` | - | a :mod:`esp_gym.scene.params` shape (Box, Cylinder, EllipticCylinder, Sphere) centred on the centre of mass, or None (a disc of radius 0.04 `string_length`) |
     | `rho_c` | - | attachment point -> centre of mass, body frame [m] |
     | `string_length` | - | unstretched string length [m] (sizes the body of a None shape) |
     | `width`, `height` | 480, 480 | frame size [px]; each panel is `width // 2` wide |

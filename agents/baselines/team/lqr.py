@@ -21,7 +21,7 @@ import scipy.linalg
 from scipy.spatial.transform import Rotation
 
 from esp_gym.layouts import Layout
-from esp_gym.tasks import reference_acceleration
+from esp_gym.pendulum.tasks import reference_acceleration
 from esp_gym.team.core import TeamCore
 from esp_gym.team.spaces import agent_layout
 

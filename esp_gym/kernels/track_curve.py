@@ -1,5 +1,5 @@
-"""The moving reference of the ``track`` task (esp_gym/tasks.py): a closed curve in a horizontal
-plane, its parameters and its clock held in the episode's TARGET vector.
+"""The moving reference of the ``track`` task (esp_gym/pendulum/tasks.py): a closed curve in a
+horizontal plane, its parameters and its clock held in the episode's TARGET vector.
 
 With theta = theta_0 + omega t, the curve in its own frame is
 

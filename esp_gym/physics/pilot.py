@@ -4,7 +4,7 @@ Two limits decide h:
 
 * stability: the string update is explicit, so h omega_max must stay inside the scheme's
   stability interval (2 for the LGVI; ``Scene.stability_bound`` already scales by a
-  composition's interval, esp_gym/compositions.py). Long runs need a margin: ``safety`` (default 0.7; benchmarks/stability.py measured
+  composition's interval, esp_gym/scene/compositions.py). Long runs need a margin: ``safety`` (default 0.7; benchmarks/stability.py measured
   one blow-up in twelve 100-s runs at 0.8 of the bound and none at 0.7);
 * accuracy: the global error of an order-p scheme behaves like ``C h^p`` while h is in the
   asymptotic range. A pilot pair of runs at ``h1`` and ``h1/2`` over ``horizon`` seconds from
@@ -26,9 +26,9 @@ from typing import Optional
 
 import numpy as np
 
-from .model import Simulator
-from .params import Scene, scene_from_dict
-from .stepsize import checked_targets, divided, shortest
+from ..scene.params import Scene, scene_from_dict
+from ..scene.stepsize import checked_targets, divided, shortest
+from .simulator import Simulator
 
 
 @dataclass(frozen=True)

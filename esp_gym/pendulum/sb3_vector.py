@@ -1,8 +1,8 @@
 """The batched ElasticStringPendulum-v0 as a Stable-Baselines3 ``VecEnv`` (SB3 cannot use
 Gymnasium vector envs): the sub-environments step in one compiled call, on ``threads`` numba
-threads (default 1: docs/performance.md, "Threads"; :class:`~esp_gym.control.ControlStep`), done ones reset at once and their final observation goes
+threads (default 1: docs/performance.md, "Threads"; :class:`~esp_gym.pendulum.control.ControlStep`), done ones reset at once and their final observation goes
 to ``info["terminal_observation"]``. Seeds and results are those of
-:class:`esp_gym.vector.ElasticStringPendulumVectorEnv` and of the single environment, bit for bit.
+:class:`esp_gym.pendulum.vector.ElasticStringPendulumVectorEnv` and of the single environment, bit for bit.
 """
 from __future__ import annotations
 
@@ -11,19 +11,19 @@ from typing import Any, Optional, Sequence
 import gymnasium as gym
 import numpy as np
 
-from . import MAX_EPISODE_STEPS
+from .. import MAX_EPISODE_STEPS
+from ..errors import termination_reason
+from ..extras import require
 from .control import INFO_REWARD_KEYS, ControlStep
-from .setup import make_setup
-from .errors import termination_reason
-from .extras import require
+from .env_setup import make_setup
 from .options import check_count
 from .vector import reset_sub_env
 
-VecEnv = require("stable_baselines3.common.vec_env.base_vec_env", "esp_gym.sb3_vector").VecEnv
+VecEnv = require("stable_baselines3.common.vec_env.base_vec_env", "esp_gym.pendulum.sb3_vector").VecEnv
 
 
 class ElasticStringPendulumSB3VecEnv(VecEnv):
-    """Stable-Baselines3 ``VecEnv`` over a batched :class:`~esp_gym.control.ControlStep` (same
+    """Stable-Baselines3 ``VecEnv`` over a batched :class:`~esp_gym.pendulum.control.ControlStep` (same
     physics, same seeds).
 
     Done sub-environments reset at once: the returned observation is the new episode's first,

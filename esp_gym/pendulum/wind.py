@@ -22,10 +22,10 @@ from typing import Any, Mapping, NamedTuple, Optional, Union
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from .kernels.disturbance import DISTURBANCE, DISTURBANCE_PARAMS, DRAWS
+from ..kernels.disturbance import DISTURBANCE, DISTURBANCE_PARAMS, DRAWS
+from ..scene.params import Box, Cylinder, EllipticCylinder, Scene, Sphere
+from ..scene.scene_input import Real
 from .options import validation_message
-from .params import Box, Cylinder, EllipticCylinder, Scene, Sphere
-from .scene_input import Real
 
 # the fields a reset writes, resolved once (a reset is on the hot path of short episodes)
 _DP_MEAN_WIND, _DP_LINE_DRAG, _DP_LOAD_FACES, _DP_LOAD_SIDE, _DP_LOAD_SEMI_AXES, _DP_LOAD_ROUND, _DP_PUSH_FORCE = (

@@ -1,7 +1,7 @@
 """The pivot's scene section (``pivot``): a fixed point, a free point mass, or a drone, whose own
 parameters are ``pivot.drone`` (docs/physics.md, "The pivot" and "A drone at the pivot";
 docs/scenes.md). A drone's mass is ``pivot.mass``; its hook is its centre of mass or a point
-``rho_q`` away from it; its rotors are an X layout (esp_gym/rotors.py).
+``rho_q`` away from it; its rotors are an X layout (esp_gym/scene/rotors.py).
 """
 from __future__ import annotations
 
@@ -94,11 +94,11 @@ class DroneParams(Frozen):
 
     def rotor_positions(self) -> np.ndarray:
         """The rotors' positions (4, 3) [m] in the body frame, about the centre of mass: the X
-        layout's (esp_gym/rotors.py), in the rotors' plane b3 = 0."""
+        layout's (esp_gym/scene/rotors.py), in the rotors' plane b3 = 0."""
         return np.column_stack([x_layout(self.arm_length), np.zeros(4)])
 
     def mixer(self) -> np.ndarray:
-        """A (4, 4): (f [N], tau [N m]) = A (T_1..T_4) for the X layout (esp_gym/rotors.py)."""
+        """A (4, 4): (f [N], tau [N m]) = A (T_1..T_4) for the X layout (esp_gym/scene/rotors.py)."""
         return mixer(x_layout(self.arm_length), X_SPINS, self.torque_coefficient / self.thrust_coefficient)
 
     def allocation(self) -> np.ndarray:

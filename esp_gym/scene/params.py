@@ -5,7 +5,7 @@ quantity is SI: lengths [m], masses [kg], EA [N], inertia about the attachment p
 frame [kg m^2], time [s]. Gravity acts along +e3 (the paper's convention).
 
 Numbers are strict (a bool or a string is not a number) and bounded, so that the energy at
-t = 0 and every constant the stepper derives are finite: esp_gym/scene_input.py, docs/scenes.md.
+t = 0 and every constant the stepper derives are finite: esp_gym/scene/scene_input.py, docs/scenes.md.
 """
 from __future__ import annotations
 
@@ -41,7 +41,7 @@ KINDS = ("body.shape",)
 
 #: The shipped scenes, package data of esp_gym (esp_gym/scenes/NAME.yaml): a Traversable, read
 #: through importlib.resources.
-SCENES_DIR = resources.files(__package__) / "scenes"
+SCENES_DIR = resources.files("esp_gym") / "scenes"
 
 
 class StringParams(_Frozen):
@@ -81,7 +81,7 @@ class StringParams(_Frozen):
     def element_bound(self) -> float:
         """One free element's bound [s]: 2/omega_e with omega_e = sqrt(12 kappa/m) (consistent mass)
         or sqrt(4 kappa/m) (lumped). A lower bound of the assembled string's
-        (:attr:`Scene.stability_bound`, esp_gym/stability.py), which it approaches as N grows."""
+        (:attr:`Scene.stability_bound`, esp_gym/scene/stability.py), which it approaches as N grows."""
         # within the bounds of docs/scenes.md no factor here is 0 or overflows
         return 2.0 / math.sqrt((12.0 if self.mass_model == "consistent" else 4.0) * self.kappa / self.m)
 
@@ -152,7 +152,7 @@ class WinchParams(_Frozen):
 class SolverParams(_Frozen):
     """Newton on the Cayley vector (relative stopping tolerance, iteration cap) and the time
     stepper: ``order`` 2 is the paper's LGVI; 4, 6 and 8 compose LGVI substeps symmetrically
-    (esp_gym/compositions.py), by default Suzuki's 5-stage (order 4) and Kahan-Li's 9- and
+    (esp_gym/scene/compositions.py), by default Suzuki's 5-stage (order 4) and Kahan-Li's 9- and
     17-stage (orders 6, 8) schemes; ``composition`` names another scheme of that order (``triple_jump``)."""
 
     newton_tol: Real = Field(1e-14, gt=0, le=1e-10)
@@ -163,7 +163,7 @@ class SolverParams(_Frozen):
         description="blow-up guard: a step that stretches an element beyond this many rest lengths stops with "
                     "an error (an unstable step grows geometrically; this catches it while the state is finite)")
     composition: Optional[Literal[tuple(COMPOSITIONS)]] = Field(
-        None, description="composition scheme (default: the order's, see esp_gym/compositions.py)")
+        None, description="composition scheme (default: the order's, see esp_gym/scene/compositions.py)")
     compensated: Flag = Field(
         True, description="add the state increments with Kahan's compensation (energy and pi3 round-off bounded "
                           "over 1e7+ steps); false is ~13 % faster, as good over short runs (docs/performance.md)")
@@ -180,7 +180,7 @@ class SolverParams(_Frozen):
         "explicit transverse bound: docs/physics.md)"))
     energy_watchdog: Optional[Real] = Field(1.0, gt=0, le=1e6, description=(
         "f: a run whose |E - E0 - W| passes f (energy scale + |W|) raises SimulationError, an episode ends "
-        "(esp_gym/watchdog.py, docs/physics.md); null: no watchdog"))
+        "(esp_gym/physics/watchdog.py, docs/physics.md); null: no watchdog"))
 
     @model_validator(mode="after")
     def _composition_has_the_order(self) -> "SolverParams":
@@ -200,7 +200,7 @@ class SolverParams(_Frozen):
     @property
     def bound_factor(self) -> float:
         """The scheme's stable h relative to one LGVI step's (1 for the LGVI; from the
-        composition's exact stability interval otherwise, see esp_gym/compositions.py)."""
+        composition's exact stability interval otherwise, see esp_gym/scene/compositions.py)."""
         return self.scheme.bound_factor
 
 
@@ -305,7 +305,7 @@ class Scene(_Frozen):
     @property
     def stability_bound(self) -> float:
         """Largest stable h [s]: 2/omega_max of the assembled chain (the string's elements, the
-        pivot's and the load's masses: :func:`esp_gym.stability.explicit_bound`), times the
+        pivot's and the load's masses: :func:`esp_gym.scene.stability.explicit_bound`), times the
         composition's bound factor when one is used; ``inf`` for the implicit string
         (docs/physics.md, "The stability bound")."""
         if self.solver.string == "implicit":
@@ -390,7 +390,7 @@ def available_scenes() -> list[str]:
 def override_scene(scene: Scene, overrides: Optional[Mapping[str, Any]] = None) -> Scene:
     """A new scene: ``scene`` with ``overrides`` applied and validated as :func:`load_scene`
     applies them to a file (the same merge, aliases and dotted paths:
-    :func:`~esp_gym.scene_input.merge_overrides`)."""
+    :func:`~esp_gym.scene.scene_input.merge_overrides`)."""
     if not overrides:
         return scene
     data = merge_overrides(scene.model_dump(), overrides, Scene.model_fields, KINDS)

@@ -19,9 +19,9 @@ from typing import Any, Mapping, Union
 
 import numpy as np
 
-from .kernels.layout import Layout
-from .kernels.drone_env import DRONE_SENSORS
-from .kernels.env_arrays import HOOK_OBSERVATION, OBSERVATION, SENSORS, WINCH_OBSERVATION
+from ..kernels.drone_env import DRONE_SENSORS
+from ..kernels.env_arrays import HOOK_OBSERVATION, OBSERVATION, SENSORS, WINCH_OBSERVATION
+from ..kernels.layout import Layout
 
 #: The observation layout of each mode.
 MODES = {"full": OBSERVATION, "hook": HOOK_OBSERVATION}
@@ -43,7 +43,7 @@ MAX_NOISE = 1e6
 MEASURED = {(winch, drone): Layout(*(WINCH_OBSERVATION if winch else OBSERVATION).fields,
                                    *(DRONE_SENSORS if drone else SENSORS).fields)
             for winch in (False, True) for drone in (False, True)}
-#: The winch's field of an observation (esp_gym/winch.py).
+#: The winch's field of an observation (esp_gym/physics/winch.py).
 WINCH_FIELD = ("unstretched_length", 1)
 #: A drone's fields, at the end of either mode's observation (kernels/drone_env.py).
 DRONE_FIELDS = DRONE_SENSORS.fields[len(SENSORS.fields):]

@@ -43,7 +43,7 @@ def attachment_mass(body) -> float:
     (attachment velocity, Omega) with Omega eliminated (J about the attachment point). It equals M
     for rho_c = 0 and falls towards 0 as the body's inertia about its centre of mass does
     (closed form, compiled: esp_gym/kernels/stability.py)."""
-    from .kernels.stability import least_effective_mass  # compiled on first use
+    from ..kernels.stability import least_effective_mass  # compiled on first use
     return float(least_effective_mass(float(body.mass), np.asarray(body.rho_c, dtype=np.float64),
                                       np.ascontiguousarray(body.J, dtype=np.float64)))
 
@@ -62,7 +62,7 @@ def chain_omega2(elements: int, element_mass: float, stiffness: float, consisten
     O(N) (esp_gym/kernels/stability.py), exact to a few ulp, up to MAX_SOLVED_ELEMENTS elements."""
     if elements > MAX_SOLVED_ELEMENTS:
         return (12.0 if consistent else 4.0) * float(stiffness) / float(element_mass)
-    from .kernels.stability import largest_eigenvalue  # compiled on first use
+    from ..kernels.stability import largest_eigenvalue  # compiled on first use
     fixed = pivot_mass is None
     return float(stiffness) * largest_eigenvalue(int(elements), float(element_mass), bool(consistent),
                                                  0.0 if fixed else float(pivot_mass), fixed, float(end_mass))
@@ -79,7 +79,7 @@ def chain_bound(scene, stiffness: float) -> float:
 
 def explicit_bound(scene) -> float:
     """The explicit string's largest stable h [s]: 2/omega_max of the assembled chain at the axial
-    stiffness EA/u, times the scene's composition factor (esp_gym/compositions.py)."""
+    stiffness EA/u, times the scene's composition factor (esp_gym/scene/compositions.py)."""
     return chain_bound(scene, scene.string.kappa) * scene.solver.bound_factor
 
 

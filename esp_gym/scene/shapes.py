@@ -1,6 +1,6 @@
 """The load's shapes, centred on its centre of mass (body frame), and their inertia: a scene's
-``body.shape`` (esp_gym/params.py), which also draws the body and sets its drag area
-(esp_gym/wind.py). Sizes [m], masses [kg], inertia [kg m^2]."""
+``body.shape`` (esp_gym/scene/params.py), which also draws the body and sets its drag area
+(esp_gym/pendulum/wind.py). Sizes [m], masses [kg], inertia [kg m^2]."""
 from __future__ import annotations
 
 from functools import lru_cache

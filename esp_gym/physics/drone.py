@@ -1,5 +1,5 @@
 """A drone at the pivot, the Python face: :class:`DroneSimulator` steps a scene whose ``pivot.kind``
-is ``drone`` (esp_gym/pivot_params.py) with the compiled step of esp_gym/kernels/drone.py, the
+is ``drone`` (esp_gym/scene/pivot_params.py) with the compiled step of esp_gym/kernels/drone.py, the
 rotors driven by motor commands or a wrench (docs/physics.md, "A drone at the pivot").
 
 The drone's hook is its centre of mass (the step of esp_gym/kernels/drone.py) or a point of its body
@@ -12,17 +12,16 @@ from collections import namedtuple
 
 import numpy as np
 
+from ..kernels.drone import DRONE, DRONE_DIAG, DroneArrays, drone_diagnostics
+from ..kernels.drone_hook import HookArrays, hook_diagnostics
+from ..kernels.drone_loops import drone_advance
+from ..kernels.layout import DIAG
+from ..kernels.string import tridiag_factor
+from ..scene.params import Scene, check_rotation
+from ..scene.stability import hat
 from .arrays import row, stacked_drone_arrays
-from .kernels.drone import DRONE, DRONE_DIAG, DroneArrays, drone_diagnostics
-from .kernels.drone_hook import HookArrays, hook_diagnostics
-from .kernels.drone_loops import drone_advance
-from .kernels.string import tridiag_factor
-from .kernels.layout import DIAG
-from .model import ROTATION_TOL, Simulator
-from .params import Scene, check_rotation
-from .setup import total_weight
-from .stability import hat
-from .state import attachment_column, mass_matrix
+from .simulator import ROTATION_TOL, Simulator
+from .state import attachment_column, mass_matrix, total_weight
 
 #: The drone's state: attitude R_q (3, 3) (body to spatial), body angular momentum Pi_q (3,)
 #: [kg m^2/s] about the hook, and the rotor speeds (4,) [rad/s].
@@ -40,7 +39,7 @@ def drone_arrays(scene: Scene) -> DroneArrays:
 
 def pivot_column(scene: Scene) -> np.ndarray:
     """M_tot^-1 e_1 (N+1,) [1/kg], the pivot's column of the inverse mass matrix of a free pivot's
-    ``scene``: the attachment's column (esp_gym/state.py) of the string read from its other end."""
+    ``scene``: the attachment's column (esp_gym/physics/state.py) of the string read from its other end."""
     diag, off, _ = mass_matrix(scene)
     reversed_diag = diag[::-1].copy()
     _, cp = tridiag_factor(reversed_diag, off)
@@ -72,7 +71,7 @@ def use_drone_scene(arrays: DroneArrays, scene: Scene) -> None:
 
 
 def use_drone(arrays: DroneArrays, drone, h: float) -> None:
-    """Write ``drone`` (esp_gym/pivot_params.py ``DroneParams``) into the constants of ``arrays``
+    """Write ``drone`` (esp_gym/scene/pivot_params.py ``DroneParams``) into the constants of ``arrays``
     (:data:`DRONE` with the motor lag's decays over the step ``h`` [s], J_q and its inverse, the
     mixer and its inverse)."""
     J = drone.inertia_matrix()
@@ -106,7 +105,7 @@ def hover_level(arrays: DroneArrays, drone, weight: float) -> None:
 
 
 class DroneSimulator(Simulator):
-    """A :class:`~esp_gym.model.Simulator` whose pivot is a drone (``pivot.kind: drone``).
+    """A :class:`~esp_gym.physics.simulator.Simulator` whose pivot is a drone (``pivot.kind: drone``).
 
     >>> sim = DroneSimulator(load_scene("quadrotor_load"))
     >>> sim.step(100)                             # hover: the rotors at the rig's hover speed

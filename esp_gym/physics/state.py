@@ -12,10 +12,10 @@ from typing import Optional
 
 import numpy as np
 
-from .kernels.layout import LGVIParams
-from .kernels.string import tridiag_factor
-from .params import Scene
-from .stability import hat
+from ..kernels.layout import LGVIParams
+from ..kernels.string import tridiag_factor
+from ..scene.params import Scene
+from ..scene.stability import hat
 
 
 @dataclass
@@ -27,7 +27,7 @@ class State:
     restoring them makes save/restore bit-exact; ``None`` (e.g. after editing the momenta)
     restarts them at 0.
     ``winch``: the unstretched length [m] and the reel speed the momenta were made with [m/s]
-    (esp_gym/winch.py); ``None`` is the scene's length at rest (a winch that never moved: such a
+    (esp_gym/physics/winch.py); ``None`` is the scene's length at rest (a winch that never moved: such a
     state fits any scene, as before there were winches).
     """
 
@@ -87,7 +87,7 @@ def attachment_column(diag, off: float, cp, first: int) -> np.ndarray:
     return w
 
 
-#: Bytes a :class:`~esp_gym.model.Simulator` holds per string node, an upper bound (state, remainders,
+#: Bytes a :class:`~esp_gym.physics.simulator.Simulator` holds per string node, an upper bound (state, remainders,
 #: forces, scratch, checkpoint, diagnostics, constants: about 66 floats, and 14 more once the winch
 #: has reeled; tests/test_arguments.py measures it).
 BYTES_PER_NODE = 8 * 86
@@ -190,3 +190,9 @@ class StepClock:
     def time(self) -> float:
         """Simulated time k*h [s]."""
         return self._step * self.h
+
+
+def total_weight(scene: Scene) -> float:
+    """The weight of pivot, string and load [N]: the hover force's size."""
+    return scene.gravity * (scene.body.mass + (scene.pivot.mass or 0.0)
+                            + scene.string.length * scene.string.mass_per_length)

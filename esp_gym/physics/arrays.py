@@ -3,22 +3,22 @@ kernels/team_arrays.py name their fields): a string's state, work and diagnostic
 elements, the winch's, drones' arrays, a team's stacked strings, read-out and task, and a batch's
 arrays: a struct stacked with a leading axis (zeros, or a template's values in every row) and one
 row's views. The constants
-computed from a scene are their owners' (esp_gym/state.py ``build_params``, esp_gym/drone.py,
-esp_gym/winch.py, esp_gym/team/assembly.py), written into these.
+computed from a scene are their owners' (esp_gym/physics/state.py ``build_params``, esp_gym/physics/drone.py,
+esp_gym/physics/winch.py, esp_gym/team/assembly.py), written into these.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .kernels.env_arrays import TARGET
-from .kernels.layout import BALANCE, DIAG, WINCH, DiagWork, LGVIParams, StateArrays, WinchArrays, Work
-from .kernels.drone import DRONE, DRONE_DIAG, DroneArrays
-from .kernels.loops import state_size
-from .kernels.team_arrays import TeamArrays
-from .kernels.team_env import TEAM_DRIVE, TEAM_ENV, TEAM_STEP, TeamEnvArrays, TeamStructs
-from .kernels.team_readout import TEAM_READ, TeamReadArrays
-from .kernels.team_task import AGENT_REWARD, OBSERVED, TEAM_REWARD, TEAM_TASK, TeamTaskArrays
-from .kernels.team_winch import TeamWinch
+from ..kernels.drone import DRONE, DRONE_DIAG, DroneArrays
+from ..kernels.env_arrays import TARGET
+from ..kernels.layout import BALANCE, DIAG, WINCH, DiagWork, LGVIParams, StateArrays, WinchArrays, Work
+from ..kernels.loops import state_size
+from ..kernels.team_arrays import TeamArrays
+from ..kernels.team_env import TEAM_DRIVE, TEAM_ENV, TEAM_STEP, TeamEnvArrays, TeamStructs
+from ..kernels.team_readout import TEAM_READ, TeamReadArrays
+from ..kernels.team_task import AGENT_REWARD, OBSERVED, TEAM_REWARD, TEAM_TASK, TeamTaskArrays
+from ..kernels.team_winch import TeamWinch
 
 
 def state_arrays(n: int, r=None, p=None, R=None, Pi=None) -> StateArrays:
@@ -50,7 +50,7 @@ def diag_work(n: int) -> DiagWork:
 def winch_arrays(state: np.ndarray, coef: np.ndarray) -> WinchArrays:
     """The winch's arrays (kernels/layout.py ``WinchArrays``) for a string of ``coef.shape[0]``
     elements: its ``state`` (WINCH, taken, not copied) and convective weights ``coef`` (N, 3)
-    (esp_gym/winch.py ``convective_weights``), the step's factors and scratch zeros."""
+    (esp_gym/physics/winch.py ``convective_weights``), the step's factors and scratch zeros."""
     n, z = coef.shape[0], np.zeros
     return WinchArrays(state=state, coef=coef, lower=z(n + 1), upper=z(n + 1), inv=z(n + 1), cp=z(n + 1),
                        w=z(n + 1), jeff=z((3, 3)), pshift=z((n + 1, 3)), dinv=z(n + 1), dcp=z(n + 1), dw=z(n + 1),

@@ -15,7 +15,7 @@ Everything is readable through named, read-only views (``observation``, ``sensor
 ``reward_terms``, ``action``, ``inputs``, ``target``, ``report``, ``scene_params``,
 ``disturbance``) laid out in kernels/env_arrays.py (INPUTS and REPORT in kernels/layout.py,
 DISTURBANCE in kernels/disturbance.py); the observation a mode returns is
-esp_gym/observe.py's; the environments' shared, resolved arguments are esp_gym/setup.py's.
+esp_gym/pendulum/observe.py's; the environments' shared, resolved arguments are esp_gym/pendulum/env_setup.py's.
 """
 from __future__ import annotations
 
@@ -24,24 +24,24 @@ from typing import Optional
 import numba
 import numpy as np
 
-from .arrays import params_row, row
-from .kernels.layout import INPUTS, R_TERMINATION, REPORT
-from .kernels.env_arrays import OBSERVATION, REWARD, REWARD_TERMS, SCHEME_DISTURBED, SENSORS, TARGET, WINCH_OBSERVATION
-from .kernels.disturbance import DISTURBANCE, DISTURBANCE_PARAMS, DRAWS
-from .kernels.string import state_forces
-from .kernels.env_arrays import FEATURES, EnvArrays
-from .kernels.env_step import actions_finite
-from .kernels.drone_env import DRONE_SENSORS
-from .drone import hover_at_rest, use_drone_scene, use_hook_scene
+from ..kernels.disturbance import DISTURBANCE, DISTURBANCE_PARAMS, DRAWS
+from ..kernels.drone_env import DRONE_SENSORS
+from ..kernels.env_arrays import OBSERVATION, REWARD, REWARD_TERMS, SCHEME_DISTURBED, SENSORS, TARGET, WINCH_OBSERVATION
+from ..kernels.env_arrays import FEATURES, EnvArrays
+from ..kernels.env_step import actions_finite
+from ..kernels.layout import INPUTS, R_TERMINATION, REPORT
+from ..kernels.string import state_forces
+from ..physics.arrays import params_row, row
+from ..physics.drone import hover_at_rest, use_drone_scene, use_hook_scene
+from ..physics.rig_arrays import make_arrays
+from ..physics.state import State, check_memory
+from ..physics.winch import winch_state
+from ..scene.params import Scene
+from ..workers import check_within_cpus
+from .env_setup import Episode, EnvSetup
 from .options import check_count
-from .rig_arrays import make_arrays
-from .workers import check_within_cpus
-from .setup import Episode, EnvSetup
-from .state import State, check_memory
-from .params import Scene
 from .tasks import sample_episode
 from .wind import BLOCK, Wind
-from .winch import winch_state
 
 #: info keys of the reward terms, in REWARD_TERMS order
 INFO_REWARD_KEYS = tuple("reward_" + name for name in REWARD_TERMS)
@@ -91,7 +91,7 @@ def check_threads(threads, num_envs: Optional[int]) -> int:
 class ControlStep:
     """The compiled control step of one environment, or of ``num_envs`` stacked ones.
 
-    One environment (``num_envs=None``) steps the :class:`~esp_gym.model.Simulator`
+    One environment (``num_envs=None``) steps the :class:`~esp_gym.physics.simulator.Simulator`
     :attr:`sim` in place (its step counter and Newton totals follow). A batch keeps stacked
     copies of a simulator's arrays and steps every active sub-environment in one compiled call, in
     one thread or on ``threads`` of numba's (docs/performance.md, "Threads"); both run the same
@@ -118,7 +118,7 @@ class ControlStep:
         check_memory(setup.scene.string.elements, self.num_envs)
         self._physics_structs(batch)
         self._env_buffers(batch)
-        #: the rig (esp_gym/rig.py): its compiled step and batched step, the structs they take
+        #: the rig (esp_gym/physics/rig.py): its compiled step and batched step, the structs they take
         self.rig = setup.rig
         entries = self.rig.entries
         self._step_kernel = entries.step
@@ -129,12 +129,12 @@ class ControlStep:
         self._make_views()
 
     def _physics_structs(self, batch: tuple) -> None:
-        """The simulator and the physics' structs (esp_gym/rig_arrays.py :func:`make_arrays`): its
+        """The simulator and the physics' structs (esp_gym/physics/rig_arrays.py :func:`make_arrays`): its
         state, work, constants and diagnostics, the winch's, the drone's and its hook's; for a
         batch, each stacked (``batch`` its leading axis), the constants per sub-environment."""
         arrays = make_arrays(self.setup.scene, self.num_envs)
         #: The simulator stepped in place (one environment), or the template of the batch's arrays;
-        #: a :class:`~esp_gym.drone.DroneSimulator` with a drone at the pivot.
+        #: a :class:`~esp_gym.physics.drone.DroneSimulator` with a drone at the pivot.
         self.sim = arrays.sim
         self._arrays = arrays
         self._state, self._work, self._params, self._diag = arrays.state, arrays.work, arrays.params, arrays.diag
@@ -201,7 +201,7 @@ class ControlStep:
         self.disturbance = read_only(self._disturbance)
 
     def _pack_structs(self) -> None:
-        """The structs the rig's entry points take, in its order (esp_gym/rig.py STRUCTS), each
+        """The structs the rig's entry points take, in its order (esp_gym/physics/rig.py STRUCTS), each
         as a plain tuple: numba's dispatcher types them ~2x faster than namedtuples
         (kernels/env_step.py)."""
         arrays = self._arrays._replace(params=self._params)  # a single env's episode may bring new constants
@@ -228,7 +228,7 @@ class ControlStep:
     # -- reset ------------------------------------------------------------------------------------
     def start_episode(self, rng: np.random.Generator, index: Optional[int] = None) -> np.ndarray:
         """Draw the next episode from ``rng`` (its physics when randomised, then its state and
-        targets: esp_gym/tasks.py) and :meth:`reset` to it. Returns its SCENE_PARAMS values."""
+        targets: esp_gym/pendulum/tasks.py) and :meth:`reset` to it. Returns its SCENE_PARAMS values."""
         episode = self.setup.draw_episode(rng)
         state, target = sample_episode(self.setup.task, episode.scene, rng)
         wind = self.setup.wind

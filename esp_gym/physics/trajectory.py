@@ -1,4 +1,4 @@
-"""The snapshots of a simulator's run (:meth:`esp_gym.model.Simulator.run`)."""
+"""The snapshots of a simulator's run (:meth:`esp_gym.physics.simulator.Simulator.run`)."""
 from __future__ import annotations
 
 import dataclasses
@@ -8,7 +8,7 @@ from typing import Optional
 
 import numpy as np
 
-from .kernels.layout import BALANCE, DIAG, STEP_DIAG, Snapshots
+from ..kernels.layout import BALANCE, DIAG, STEP_DIAG, Snapshots
 
 
 @dataclass

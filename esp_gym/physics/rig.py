@@ -3,7 +3,7 @@ scheme, winch and hook exist, and for each the compiled entry points, the reset 
 structs they take.
 
 A rig is chosen once, from the environment's resolved setup (:func:`find_rig`), and then called
-at one site for one environment and one for a batch (esp_gym/control.py; a team's in
+at one site for one environment and one for a batch (esp_gym/pendulum/control.py; a team's in
 esp_gym/team/control.py and esp_gym/team/batch.py): every entry point takes the structs its rig
 names, in the one order of :data:`STRUCTS`, then the raw action(s) (and a batch's ``active``
 mask) and the step's run-time switches. A team whose strings reel steps in Python (its rig has no
@@ -23,7 +23,8 @@ from importlib import import_module
 #: ``TeamStructs``) and its task's and environment's arrays (``TeamTaskArrays``, ``TeamEnvArrays``).
 STRUCTS = ("state", "work", "params", "diag", "winch", "env", "drone", "hook", "team", "team_env")
 #: The module that holds the entry points of each pivot's rigs (and of a team's), each named after its rig.
-ENTRY_MODULES = {"point": ".kernels.env_step", "drone": ".kernels.drone_env", "team": ".kernels.team_env"}
+ENTRY_MODULES = {"point": "esp_gym.kernels.env_step", "drone": "esp_gym.kernels.drone_env",
+                 "team": "esp_gym.kernels.team_env"}
 #: The environment each kind of rig belongs to.
 ENVIRONMENTS = {False: "ElasticStringPendulum-v0", True: "ElasticStringTeam-v0"}
 
@@ -69,17 +70,17 @@ class Rig:
         environment loads no drone kernel). None for a rig that steps in Python."""
         if not self.compiled:
             return None
-        module = import_module(ENTRY_MODULES["team" if self.team else self.pivot], __package__)
+        module = import_module(ENTRY_MODULES["team" if self.team else self.pivot])
         return getattr(module, self.name.replace("-", "_"))
 
     def reset_observe(self, S, P, D, WA, E, DR, HK) -> int:
         """The observation, reward terms and energy origin of a freshly set state (structs this
         rig does not take are ignored); returns its termination code. (A team resets in Python.)"""
         if self.pivot == "point":
-            from .kernels.env_step import env_reset_observe
+            from ..kernels.env_step import env_reset_observe
 
             return int(env_reset_observe(S, P, D, WA, E, self.winch))
-        from .kernels.drone_env import drone_reset_observe
+        from ..kernels.drone_env import drone_reset_observe
 
         return int(drone_reset_observe(S, P, D, WA if self.winch else None, DR, HK if self.hook else None, E))
 

@@ -16,17 +16,17 @@ import math
 import numpy as np
 from gymnasium import spaces
 
-from .kernels.layout import LGVIParams
-from .kernels.drone import ACTUATIONS
-from .kernels.drone_env import DRONE_ACTION_PARAMS, DRONE_ACTION_SIZE, DRONE_WINCH_ACTION_SIZE
-from .kernels.env_arrays import ACTION_PARAMS, ACTION_SIZE, WINCH_ACTION
+from ..kernels.drone import ACTUATIONS
+from ..kernels.drone_env import DRONE_ACTION_PARAMS, DRONE_ACTION_SIZE, DRONE_WINCH_ACTION_SIZE
+from ..kernels.env_arrays import ACTION_PARAMS, ACTION_SIZE, WINCH_ACTION
+from ..kernels.layout import LGVIParams
+from ..physics.rig import Rig, scene_rig
+from ..physics.state import build_params, total_weight
+from ..scene.params import Scene, load_scene, override_scene, scene_from_dict
+from ..scene.stepsize import auto_elements, resolution_safety, scheme_substeps, shortest
 from .observe import Observer
 from .options import MAX_FORCE_SHARE, check_substeps, env_options
-from .params import Scene, load_scene, override_scene, scene_from_dict
 from .randomize import Randomizer, episode_param_names, nominal_values
-from .rig import Rig, scene_rig
-from .state import build_params
-from .stepsize import auto_elements, resolution_safety, scheme_substeps, shortest
 from .tasks import Task, get_task, hanging_depth
 from .wind import WIND_INFO, Wind, drag_areas, wind_options
 
@@ -38,12 +38,6 @@ PRESETS = {"hard": {"randomize": True, "observation": "hook", "sensor_noise": 1.
 #: The arguments a preset sets for one task only (after :data:`PRESETS`' own): the hard preset's
 #: lift follows a moving target, since hoisting to a fixed one is solved by the hoist baseline.
 PRESET_TASK_OPTIONS = {"hard": {"lift": {"moving_target": True}}}
-
-
-def total_weight(scene: Scene) -> float:
-    """The weight of pivot, string and load [N]: the hover force's size."""
-    return scene.gravity * (scene.body.mass + (scene.pivot.mass or 0.0)
-                            + scene.string.length * scene.string.mass_per_length)
 
 
 def check_hanging(scene: Scene, task: Task, randomizer: Optional[Randomizer]) -> None:
@@ -173,7 +167,7 @@ class EnvSetup:
     randomizer: Optional[Randomizer] = None  #: the per-episode ranges, or None: the nominal scene
     observer: Observer = Observer()  #: the observation mode and its sensor noise
     action_latency: int = 0  #: control steps between an action and its application
-    wind: Optional[Wind] = None  #: the wind and pushes (esp_gym/wind.py), or None: still air
+    wind: Optional[Wind] = None  #: the wind and pushes (esp_gym/pendulum/wind.py), or None: still air
     winch: bool = False  #: the winch's reel speed is the 7th action (kernels/winch.py)
     #: how the action moves the pivot: "force" (a point mass), or a drone's (kernels/drone.py ACTUATIONS)
     actuation: str = "force"
@@ -187,13 +181,13 @@ class EnvSetup:
 
     @property
     def rig(self) -> Rig:
-        """The rig this setup runs (esp_gym/rig.py): its pivot, string scheme, winch and hook."""
+        """The rig this setup runs (esp_gym/physics/rig.py): its pivot, string scheme, winch and hook."""
         return scene_rig(self.scene, self.winch)
 
     @property
     def param_names(self) -> tuple:
         """The names of the reset info's ``"scene_params"``: SCENE_PARAMS (DRONE_SCENE_PARAMS after
-        them with a drone: esp_gym/randomize.py), then WIND_INFO with wind."""
+        them with a drone: esp_gym/pendulum/randomize.py), then WIND_INFO with wind."""
         return episode_param_names(self.scene) + (WIND_INFO if self.wind is not None else ())
 
     @property
@@ -266,8 +260,8 @@ def make_setup(scene: Union[str, Path, Scene] = "drone_load", *, task: str = "st
                preset: Optional[str] = None, winch: Optional[bool] = None,
                actuation: Optional[str] = None, thrust_noise: Optional[float] = None,
                moving_target: Optional[bool] = None) -> EnvSetup:
-    """Resolve the environment's arguments (see :class:`~esp_gym.env.ElasticStringPendulumEnv`),
-    validated by :class:`~esp_gym.options.EnvOptions` (ValueError naming each bad one), in stages:
+    """Resolve the environment's arguments (see :class:`~esp_gym.pendulum.env.ElasticStringPendulumEnv`),
+    validated by :class:`~esp_gym.pendulum.options.EnvOptions` (ValueError naming each bad one), in stages:
     the options with the preset's (:func:`preset_options`), the scene with its overrides
     (:func:`resolve_scene`), the rig's checks (:func:`check_rig`), the physics steps
     (:func:`physics_steps`), then the action's scale."""
@@ -334,7 +328,7 @@ def resolve_scene(o) -> tuple:
 
 def check_rig(resolved: Scene, o, t: Task, winch: bool, actuation: str, given: dict) -> None:
     """ValueError, naming what asked for it, unless the scene's pivot moves, the actuation flies
-    it, the rig exists (esp_gym/rig.py) and the task gets the winch it needs."""
+    it, the rig exists (esp_gym/physics/rig.py) and the task gets the winch it needs."""
     if not resolved.pivot.is_free:
         raise ValueError(f"ElasticStringPendulum-v0 moves the pivot: scene {resolved.name!r} needs pivot.kind: free "
                          "or drone")

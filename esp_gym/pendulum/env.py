@@ -7,13 +7,13 @@ from typing import Optional, Union
 import gymnasium as gym
 import numpy as np
 
+from ..errors import termination_reason
+from ..kernels.env_arrays import FEATURES
+from ..kernels.env_arrays import TARGET
+from ..kernels.layout import INPUTS
+from ..scene.params import Scene
 from .control import INFO_REWARD_KEYS, ControlStep
-from .setup import make_setup
-from .errors import termination_reason
-from .kernels.env_arrays import FEATURES
-from .kernels.layout import INPUTS
-from .kernels.env_arrays import TARGET
-from .params import Scene
+from .env_setup import make_setup
 
 
 class ElasticStringPendulumEnv(gym.Env):
@@ -62,7 +62,7 @@ class ElasticStringPendulumEnv(gym.Env):
     state: `pivot_position_error` (0-2) [m], `pivot_velocity` (3-5) [m/s], `hook_tension`
     (6-8): the string's pull on the pivot, the first element's force [N], `load_target_offset`
     (9-11): load target - pivot position [m]. `sensor_noise` adds Gaussian noise from
-    `np_random` to either mode (esp_gym/observe.py `UNIT_NOISE`, docs/environment.md). With
+    `np_random` to either mode (esp_gym/pendulum/observe.py `UNIT_NOISE`, docs/environment.md). With
     `winch=True` either mode ends with `unstretched_length`, the string's current length [m]
     (`string_stretch` is then relative to it); with a drone, with `drone_attitude_6d` (R_q's
     first two columns) and `drone_rates` [rad/s].
@@ -124,11 +124,11 @@ class ElasticStringPendulumEnv(gym.Env):
     | `force_limit` | 0.6 W | [N] per axis at action 1, at most 1000 W (options.py `MAX_FORCE_SHARE`) |
     | `torque_limit` | 0.02 | [N m] per axis at action 1 |
     | `scene_overrides` | None | dict of scene overrides, validated as in `esp_gym.load_scene` |
-    | `randomize` | None | None: the preset's, else False. True: each episode draws the string's length, EA, mass per length, the load's mass, box and attachment offset, and the pivot mass from default ranges around the scene's values; a dict name -> (low, high) sets ranges (esp_gym/randomize.py, docs/environment.md) |
+    | `randomize` | None | None: the preset's, else False. True: each episode draws the string's length, EA, mass per length, the load's mass, box and attachment offset, and the pivot mass from default ranges around the scene's values; a dict name -> (low, high) sets ranges (esp_gym/pendulum/randomize.py, docs/environment.md) |
     | `observation` | None | `"full"` or `"hook"` (Observation Space); None: the preset's, else `"full"` |
     | `sensor_noise` | None | None: the preset's, else 0. s: Gaussian noise of s x UNIT_NOISE per field; or a dict field -> standard deviation |
     | `action_latency` | None | control steps (0-50) between an action and its application (hover before the first); None: the preset's, else 0 |
-    | `wind` | None | None: the preset's, else 0. The mean wind speed [m/s] (gusts of 0.2 x it, direction drawn per episode), or a dict of esp_gym/wind.py `WindOptions` (speed, direction, gust_std, gust_time, drag coefficients, line_diameter, push_rate, push_speed): drag on the line and the load, pushes on the load |
+    | `wind` | None | None: the preset's, else 0. The mean wind speed [m/s] (gusts of 0.2 x it, direction drawn per episode), or a dict of esp_gym/pendulum/wind.py `WindOptions` (speed, direction, gust_std, gust_time, drag coefficients, line_diameter, push_rate, push_speed): drag on the line and the load, pushes on the load |
     | `preset` | None | `"hard"`: randomize, wind 6 m/s with 1.5 m/s gusts and a push every 5 s on average, the hook observation with sensor noise 1 and a latency of 1 step, and for `lift` a moving target (docs/environment.md). An option given explicitly (even at its usual default) replaces the preset's: `preset="hard", observation="full"` is the hard preset with the full observation |
     | `winch` | None | True: a winch at the pivot, its reel speed the 7th action, the length the last observation; h is chosen for the shortest string it reaches (`scene.winch`). None: as the task needs (True for `lift` and `lower`) |
     | `actuation` | None | how the action moves the pivot: `"force"` (a free point mass: its only one), or for a drone `"thrust_rates"` (None's choice), `"thrust_torque"`, `"motors"` |
@@ -162,7 +162,7 @@ class ElasticStringPendulumEnv(gym.Env):
         self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.setup.control_period))}
         self.observation_space = self.setup.observation_space
         self.action_space = self.setup.action_space
-        #: The compiled control step (esp_gym/control.py); it steps :attr:`sim` in place.
+        #: The compiled control step (esp_gym/pendulum/control.py); it steps :attr:`sim` in place.
         self.control = ControlStep(self.setup)
         #: The simulator of this environment (its state and diagnostics).
         self.sim = self.control.sim
@@ -221,7 +221,7 @@ class ElasticStringPendulumEnv(gym.Env):
     def render(self):
         if self.render_mode != "rgb_array":
             return None
-        from .viz.render import FrameRenderer
+        from ..viz.render import FrameRenderer
 
         if self._renderer is None:
             self._renderer = FrameRenderer(self.scene.body.shape, self.scene.body.rho_c, self.scene.string.length)

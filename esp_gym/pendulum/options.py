@@ -14,9 +14,9 @@ from typing import Annotated, Any, Literal, Optional, Union
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, ValidationInfo, field_validator
 
-from . import ENV_ID, TEAM_ENV_ID
-from .params import Scene
-from .scene_input import Flag, Real, plain_number
+from .. import ENV_ID, TEAM_ENV_ID
+from ..scene.params import Scene
+from ..scene.scene_input import Flag, Real, plain_number
 
 #: Physics steps per control step above which the environment refuses to start: past this a
 #: single ``step`` costs tens of milliseconds or more (0.33 us per physics step at N = 20).
@@ -44,13 +44,13 @@ class CommonOptions(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, arbitrary_types_allowed=True)
 
     control_period: Real = Field(0.02, gt=0, allow_inf_nan=False, description="seconds per step")
-    #: False, True or name -> (low, high): checked by esp_gym/randomize.py (no coercion here)
+    #: False, True or name -> (low, high): checked by esp_gym/pendulum/randomize.py (no coercion here)
     randomize: Any = False
     observation: Literal["full", "hook"] = "full"
-    #: a level or field -> standard deviation: checked by esp_gym/observe.py
+    #: a level or field -> standard deviation: checked by esp_gym/pendulum/observe.py
     sensor_noise: Any = 0.0
     action_latency: Count = Field(0, ge=0, le=MAX_LATENCY, description="control steps")
-    #: a speed or a mapping: checked by esp_gym/wind.py
+    #: a speed or a mapping: checked by esp_gym/pendulum/wind.py
     wind: Any = 0.0
     preset: Optional[Literal["hard"]] = None
     #: None: as the task needs (lift, lower)
@@ -62,7 +62,7 @@ class CommonOptions(BaseModel):
 
 
 class EnvOptions(CommonOptions):
-    """Arguments of ElasticStringPendulum-v0 (see :class:`~esp_gym.env.ElasticStringPendulumEnv`)."""
+    """Arguments of ElasticStringPendulum-v0 (see :class:`~esp_gym.pendulum.env.ElasticStringPendulumEnv`)."""
 
     scene: Union[Scene, Path, str] = "drone_load"
     task: str = "stabilize"

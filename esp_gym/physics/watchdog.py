@@ -9,10 +9,10 @@ from __future__ import annotations
 import math
 from typing import Optional
 
-from .errors import SimulationError
-from .kernels.status import ENERGY_BALANCE
-from .params import Scene
-from .stepsize import at_length
+from ..errors import SimulationError
+from ..kernels.status import ENERGY_BALANCE
+from ..scene.params import Scene
+from ..scene.stepsize import at_length
 
 #: g0 [m/s^2]: the energy scale's gravity (standard, so that a scene without gravity has one).
 STANDARD_GRAVITY = 9.80665

@@ -3,7 +3,7 @@
 control step (:func:`choose_scheme`, docs/physics.md, "The environment's choice"), and the
 resolution rule, the elements and the step for an accuracy (:func:`choose_resolution`,
 ``elements: auto``). None of them runs the integrator, so the scene's validation can use them;
-:func:`~esp_gym.pilot.choose_h`, which runs a pilot pair, is esp_gym/pilot.py.
+:func:`~esp_gym.physics.pilot.choose_h`, which runs a pilot pair, is esp_gym/physics/pilot.py.
 """
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Optional
 
-from .kernels.implicit import TRANSVERSE_LIMIT
+from ..kernels.implicit import TRANSVERSE_LIMIT
 from .scene_input import real_number, validated
 from .stability import explicit_bound, transverse_bound
 
@@ -109,7 +109,7 @@ class SchemeChoice:
 
 def explicit_substeps(scene: Scene, control_period: float, safety: float) -> int:
     """Steps of the explicit string per control period: ``ceil(period / (safety x its bound))``,
-    the assembled string's bound (esp_gym/stability.py) with the scene's composition, whatever
+    the assembled string's bound (esp_gym/scene/stability.py) with the scene's composition, whatever
     its ``solver.string``."""
     return math.ceil(control_period / (safety * explicit_bound(scene)) - 1e-9)
 
@@ -161,7 +161,7 @@ def choose_scheme(scene: Scene, control_period: float, safety: float) -> SchemeC
 SPATIAL_ERROR = 0.032
 #: The protocol's horizon the errors were measured over [s].
 PROTOCOL_HORIZON = 4.0
-#: Margin under the assembled string's bound (esp_gym/stability.py) where the tension-only law keeps
+#: Margin under the assembled string's bound (esp_gym/scene/stability.py) where the tension-only law keeps
 #: its energy (each slack-to-taut crossing at h omega near 1 pumps energy into the element): over
 #: 100 s of the PD law with action noise and of random actions at N = 1, EA = 2e5 to 1e7 N, 0.35 kept
 #: the residual at 0.01-0.07 J, 0.5 let it grow to 0.1-0.5 J (benchmarks/resolution.py).
@@ -205,7 +205,7 @@ def spatial_error(scene: Scene, elements: int, horizon: float) -> float:
 def step_error(scene: Scene, h: float, horizon: float) -> float:
     """The predicted load-path error [m] of the step h over ``horizon`` [s]: the phase error of the
     load bouncing on the string, (W/m) h^2/8 per the protocol's horizon, W the weight below the pivot
-    and m the load's least effective mass (esp_gym/stability.py): the bounce's amplitude W l/EA times
+    and m the load's least effective mass (esp_gym/scene/stability.py): the bounce's amplitude W l/EA times
     (h omega_b)^2/8, omega_b^2 = EA/(l m)."""
     from .stability import attachment_mass
     weight = scene.gravity * (scene.body.mass + scene.string.length * scene.string.mass_per_length)

@@ -3,10 +3,10 @@
 :class:`ElasticStringPendulumVectorEnv` is a Gymnasium ``VectorEnv`` (the registration's
 ``vector_entry_point``, so ``gymnasium.make_vec("ElasticStringPendulum-v0", num_envs=8)`` uses
 it), with Gymnasium's default next-step autoreset. The Stable-Baselines3 ``VecEnv`` over the same
-batch is :class:`esp_gym.sb3_vector.ElasticStringPendulumSB3VecEnv`, in its own module so that
+batch is :class:`esp_gym.pendulum.sb3_vector.ElasticStringPendulumSB3VecEnv`, in its own module so that
 ``make_vec`` does not import SB3 and torch (1.4 s of a 2.3 s warm start).
 
-Each sub-environment runs the same compiled step as :class:`~esp_gym.env.ElasticStringPendulumEnv`
+Each sub-environment runs the same compiled step as :class:`~esp_gym.pendulum.env.ElasticStringPendulumEnv`
 from its own ``np_random`` (seeded ``seed + i``), so results equal the single env's bit for bit.
 """
 from __future__ import annotations
@@ -18,10 +18,10 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from . import MAX_EPISODE_STEPS
+from .. import MAX_EPISODE_STEPS
+from ..errors import termination_reason
 from .control import INFO_REWARD_KEYS, ControlStep
-from .setup import make_setup
-from .errors import termination_reason
+from .env_setup import make_setup
 from .options import check_count
 
 

@@ -30,7 +30,7 @@ name                          draw         default range
 
 A drone's ``pivot_mass`` ranges over x [0.8, 1.25] by default (a payload or a battery's
 difference, not another drone), and the environment refuses ranges whose heaviest rig the
-weakest rotors cannot lift with a margin (esp_gym/setup.py, ``check_lift``).
+weakest rotors cannot lift with a margin (esp_gym/pendulum/env_setup.py, ``check_lift``).
 
 The attachment offsets are rho_c's x and y (attachment point -> centre of mass, body frame);
 rho_c's z scales with the box's height, so the attachment stays on the same face. A load given
@@ -42,7 +42,7 @@ User ranges (``randomize={"EA": (1e3, 1e6), ...}``) are absolute, in the units a
 replace the defaults of the names given; a pair (v, v) fixes a value. The extreme scenes of the
 ranges are validated like any scene when the environment is made, with the attachment on the
 box's face at the smallest box (the environment also checks that the load can hang:
-esp_gym/setup.py, ``check_hanging``). A range is a tuple, list or array (a set has no order).
+esp_gym/pendulum/env_setup.py, ``check_hanging``). A range is a tuple, list or array (a set has no order).
 """
 from __future__ import annotations
 
@@ -51,8 +51,8 @@ from typing import Any, Mapping, Optional, Union
 
 import numpy as np
 
-from .kernels.env_arrays import DRONE_SCENE_PARAMS, SCENE_PARAMS
-from .params import Box, Scene, scene_from_dict
+from ..kernels.env_arrays import DRONE_SCENE_PARAMS, SCENE_PARAMS
+from ..scene.params import Box, Scene, scene_from_dict
 
 #: The names drawn on a log scale (scale parameters); the others are uniform.
 LOG_UNIFORM = frozenset({"EA", "mass_per_length", "load_mass", "pivot_mass", "drone_inertia_scale",
@@ -191,7 +191,7 @@ class Randomizer:
         """The values (:attr:`names` order) of the episodes that need the smallest step, the others
         nominal: the shortest, lightest, stiffest string with the lightest pivot and load, the
         smallest box and the largest offsets (the explicit string's bound: least mass at the
-        chain's ends, esp_gym/stability.py), and the same string under the heaviest load (the
+        chain's ends, esp_gym/scene/stability.py), and the same string under the heaviest load (the
         implicit string's transverse bound grows with the tension)."""
         names = self.names
         light = np.array([nominal_values(self.nominal)[k] for k in names])

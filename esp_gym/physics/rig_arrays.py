@@ -2,19 +2,19 @@
 (:func:`make_arrays`): the string's state, work arrays, stepper constants and diagnostics, the
 winch's arrays, and a drone's and its offset hook's, for one environment or stacked for a batch.
 The environment's own arrays (kernels/env_arrays.py ``EnvArrays``) depend on its task and
-options, not only on the scene, and are its (esp_gym/control.py)."""
+options, not only on the scene, and are its (esp_gym/pendulum/control.py)."""
 from __future__ import annotations
 
 from typing import NamedTuple, Optional
 
+from ..scene.params import Scene
 from .arrays import repeated, stacked
 from .drone import DroneSimulator
-from .model import Simulator
-from .params import Scene
+from .simulator import Simulator
 
 
 class RigArrays(NamedTuple):
-    """A rig's physics structs, named as esp_gym/rig.py ``STRUCTS`` names them (``drone`` and
+    """A rig's physics structs, named as esp_gym/physics/rig.py ``STRUCTS`` names them (``drone`` and
     ``hook`` None where the rig has none), and the simulator they came from."""
 
     state: object
@@ -27,7 +27,7 @@ class RigArrays(NamedTuple):
     sim: Simulator
 
     def structs(self, names, **others) -> tuple:
-        """The structs ``names`` (a rig's, in esp_gym/rig.py STRUCTS' order), ``others`` (the
+        """The structs ``names`` (a rig's, in esp_gym/physics/rig.py STRUCTS' order), ``others`` (the
         environment's ``env``) among them, each as the plain tuple an entry point takes."""
         arrays = {**self._asdict(), **others}
         return tuple(tuple(arrays[name]) for name in names)
@@ -35,7 +35,7 @@ class RigArrays(NamedTuple):
 
 def make_arrays(scene: Scene, batch: Optional[int] = None) -> RigArrays:
     """The physics structs of ``scene``'s rig: for one environment (``batch`` None) the live
-    arrays of a :class:`~esp_gym.model.Simulator` (a :class:`~esp_gym.drone.DroneSimulator` with a
+    arrays of a :class:`~esp_gym.physics.simulator.Simulator` (a :class:`~esp_gym.physics.drone.DroneSimulator` with a
     drone at the pivot) made at the scene's initial state, which then steps in them; for a batch
     of ``batch`` sub-environments each struct stacked along a leading axis, zeros where a state
     is set at reset and the constants (the stepper's, the winch's weights, the drone's and the

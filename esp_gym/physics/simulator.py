@@ -1,7 +1,7 @@
 """The Python face of the physics: the Simulator (step/run) and its diagnostics.
 
-The state, its layout and the scene's constants are in esp_gym/state.py; a run's snapshots in
-esp_gym/trajectory.py.
+The state, its layout and the scene's constants are in esp_gym/physics/state.py; a run's snapshots in
+esp_gym/physics/trajectory.py.
 """
 from __future__ import annotations
 
@@ -13,19 +13,19 @@ from typing import Optional
 import numpy as np
 from tqdm.auto import tqdm
 
-from .kernels.diagnostics import diagnostics as diagnostics_kernel
+from ..kernels.diagnostics import diagnostics as diagnostics_kernel
 from .arrays import copy_into, diag_work, state_arrays, work_arrays
-from .kernels.layout import (BALANCE, DIAG, INPUTS, LOOP_REPORT_SIZE, R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS,
+from ..kernels.layout import (BALANCE, DIAG, INPUTS, LOOP_REPORT_SIZE, R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS,
                              STEP_DIAG, LGVIParams, Snapshots, StateArrays, Work)
-from .kernels.status import OK
-from .kernels.loops import winch_advance, winch_advance_implicit
-from .kernels.specialise import general_kernels, specialised_kernels
-from .kernels.string import state_forces
-from .errors import SimulationError, failure_advice  # noqa: F401  (re-exported)
-from .params import Scene, check_rotation
+from ..kernels.loops import winch_advance, winch_advance_implicit
+from ..kernels.specialise import general_kernels, specialised_kernels
+from ..kernels.status import OK
+from ..kernels.string import state_forces
+from ..errors import SimulationError, failure_advice  # noqa: F401  (re-exported)
+from ..scene.params import Scene, check_rotation
 from .trajectory import Trajectory  # noqa: F401  (re-exported)
-from .kernels.winch import winch_forces
-from .stepsize import at_length
+from ..kernels.winch import winch_forces
+from ..scene.stepsize import at_length
 from .watchdog import WATCH_EVERY, check_balance
 from .winch import Winch
 from .state import (State, StepClock, build_params, check_memory, initial_state,  # noqa: F401  (re-exported)
@@ -33,7 +33,7 @@ from .state import (State, StepClock, build_params, check_memory, initial_state,
 
 #: The live arrays of a simulator that the compiled kernels advance: ``state``
 #: (:class:`~esp_gym.kernels.layout.StateArrays`), ``work`` (Work), ``params`` (LGVIParams),
-#: ``diag`` (DiagWork). For kernel-level collaborators (esp_gym/control.py, the recorder);
+#: ``diag`` (DiagWork). For kernel-level collaborators (esp_gym/pendulum/control.py, the recorder);
 #: mutate them only through kernels.
 Buffers = namedtuple("Buffers", "state work params diag")
 
@@ -63,7 +63,7 @@ ROTATION_TOL = 1e-9
 
 
 class Simulator(StepClock):
-    """Steps a :class:`~esp_gym.params.Scene` with the compiled LGVI.
+    """Steps a :class:`~esp_gym.scene.params.Scene` with the compiled LGVI.
 
     >>> sim = Simulator(load_scene("paper_example"))
     >>> sim.step(100)                 # 100 steps in one compiled call
@@ -82,7 +82,7 @@ class Simulator(StepClock):
         #: The string's elastic force is implicit (``scene.solver.string``, kernels/implicit.py).
         self.implicit = scene.solver.string == "implicit"
         self.h = scene.h
-        #: The winch at the pivot (esp_gym/winch.py): :meth:`step`'s ``reel_speed``.
+        #: The winch at the pivot (esp_gym/physics/winch.py): :meth:`step`'s ``reel_speed``.
         self.winch = Winch(scene, self.params.max_len2)
         n = scene.string.elements
         st = initial_state(scene)
@@ -103,7 +103,7 @@ class Simulator(StepClock):
 
     def use_scene(self, scene: Scene, params: Optional[LGVIParams] = None) -> None:
         """Run ``scene``, of the same elements, pivot kind and scheme, from here on (a randomised
-        episode's: esp_gym/randomize.py): run-time constants change, no compiled kernel.
+        episode's: esp_gym/pendulum/randomize.py): run-time constants change, no compiled kernel.
         ``params``: its constants if built. Set a state next (:meth:`set_state`)."""
         for what in ("string.elements", "pivot.kind", "solver.string"):
             section, field = what.split(".")
@@ -119,7 +119,7 @@ class Simulator(StepClock):
     @property
     def buffers(self) -> Buffers:
         """The live arrays the kernels advance (:data:`Buffers`), for kernel-level collaborators
-        (esp_gym/control.py, the recorder); mutate them only through kernels and report the
+        (esp_gym/pendulum/control.py, the recorder); mutate them only through kernels and report the
         steps taken with :meth:`count_steps`."""
         return Buffers(self._arrays, self._work, self.params, self._diag)
 
@@ -245,7 +245,7 @@ class Simulator(StepClock):
             self._watch()
 
     def _watch(self) -> None:
-        """The energy watchdog (esp_gym/watchdog.py): SimulationError once the balance breaks."""
+        """The energy watchdog (esp_gym/physics/watchdog.py): SimulationError once the balance breaks."""
         if self.scene.solver.energy_watchdog is not None:
             acc = self._arrays.acc
             work = acc[BALANCE.scalar("work")] + acc[BALANCE.scalar("winch_work")]

@@ -1,7 +1,7 @@
 """The winch's Python face: its arrays, its checks and its share of a Simulator's diagnostics
 (the step is kernels/winch.py; the model docs/physics.md, "The winch").
 
-A :class:`~esp_gym.model.Simulator` holds one :class:`Winch`. While the length is the scene's and
+A :class:`~esp_gym.physics.simulator.Simulator` holds one :class:`Winch`. While the length is the scene's and
 the reel speed is 0 the winch is idle and the simulator runs the fixed-length kernels, bit for bit
 as without a winch; once it has moved, every step is the winch's (with v = 0 it is the
 fixed-length step at the new length).
@@ -12,12 +12,12 @@ import math
 
 import numpy as np
 
+from ..kernels.layout import WINCH, WinchArrays
+from ..kernels.winch import convective_weights, winch_energy
+from ..scene.params import Scene
+from ..scene.scene_input import real_number
+from ..scene.stepsize import shortest
 from .arrays import winch_arrays
-from .kernels.layout import WINCH, WinchArrays
-from .kernels.winch import convective_weights, winch_energy
-from .params import Scene
-from .scene_input import real_number
-from .stepsize import shortest
 
 
 def winch_state(scene: Scene, max_len2: float) -> np.ndarray:

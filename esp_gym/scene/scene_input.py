@@ -1,4 +1,4 @@
-"""What a scene is read from, checked before it becomes a :class:`~esp_gym.params.Scene`: YAML
+"""What a scene is read from, checked before it becomes a :class:`~esp_gym.scene.params.Scene`: YAML
 files, overrides, and the rules for a single number. Every failure is a :class:`SceneError`
 naming the file, the override or the field, never a parser's traceback.
 
