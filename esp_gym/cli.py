@@ -294,7 +294,7 @@ def check_record_args(scene, t_final: float, record_every: Optional[int]) -> tup
     """``(steps, record_every)`` of a recording of ``scene`` for ``t_final`` [s], or ValueError
     naming the argument: a whole number of steps, at most :data:`MAX_STEPS`, and the samples'
     buffer and file within :data:`MAX_BYTES`."""
-    from .kernels.recording import sample_layout
+    from .kernels.env.recording import sample_layout
     from .viz.recording import default_record_every
 
     h, n = scene.h, scene.string.elements

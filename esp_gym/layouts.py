@@ -7,9 +7,9 @@ from the kernels.
 ``WINCH_ACTION``, ``OBSERVATION``, ``TARGET`` and ``SENSORS``; the drone's ``ACTUATIONS``,
 ``DRONE_ACTION_PARAMS`` (its action path's constants) and ``DRONE_WINCH_ACTION``.
 """
-from .kernels.drone import ACTUATIONS
-from .kernels.drone_env import DRONE_ACTION_PARAMS, DRONE_WINCH_ACTION
-from .kernels.env_arrays import ACTION, ACTION_SIZE, OBSERVATION, SENSORS, TARGET, WINCH_ACTION
+from .kernels.drone.env import DRONE_ACTION_PARAMS, DRONE_WINCH_ACTION
+from .kernels.drone.quadrotor import ACTUATIONS
+from .kernels.env.arrays import ACTION, ACTION_SIZE, OBSERVATION, SENSORS, TARGET, WINCH_ACTION
 from .kernels.layout import Layout
 
 __all__ = ["ACTION", "ACTION_SIZE", "ACTUATIONS", "DRONE_ACTION_PARAMS", "DRONE_WINCH_ACTION", "Layout", "OBSERVATION",

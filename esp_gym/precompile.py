@@ -1,8 +1,8 @@
 """Compiling the environment's configurations ahead of use (``esp-gym compile``).
 
 Each configuration of the environment's compiled step (each rig of esp_gym/physics/rig.py, single or
-batched; a team's, of point pivots or of drones, single and batched (esp_gym/kernels/team_env.py), or on
-winches (``team_winch_advance`` in esp_gym/kernels/team_loops.py)) compiles on its
+batched; a team's, of point pivots or of drones, single and batched (esp_gym/kernels/team/env.py), or on
+winches (``team_winch_advance`` in esp_gym/kernels/team/loops.py)) compiles on its
 first step and is cached on disk (docs/performance.md, "Start-up"). This takes them all in worker
 processes, so that a machine (a container image, a CI run, a cluster's nodes)
 pays the compile once, in parallel, instead of at the first step of each. A vector env's threaded

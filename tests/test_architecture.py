@@ -156,10 +156,10 @@ def test_the_agents_read_the_layouts_from_their_public_face_not_from_the_kernels
            for line in kernel_imports(module, is_package, tree)]
     assert not bad, bad
     # negative controls: both forms of the import are found, the public face is not
-    tree = ast.parse("import esp_gym.kernels.layout\nfrom esp_gym.kernels.env_arrays import ACTION\n"
+    tree = ast.parse("import esp_gym.kernels.layout\nfrom esp_gym.kernels.env.arrays import ACTION\n"
                      "def f():\n    from esp_gym.kernels import jit\nfrom esp_gym.layouts import TARGET\n")
     assert kernel_imports("agents.x", False, tree) == [
-        "agents.x: esp_gym.kernels.layout", "agents.x: esp_gym.kernels.env_arrays", "agents.x: esp_gym.kernels"]
+        "agents.x: esp_gym.kernels.layout", "agents.x: esp_gym.kernels.env.arrays", "agents.x: esp_gym.kernels"]
 
 
 def test_no_module_imports_a_private_name():
@@ -342,7 +342,7 @@ def test_the_architecture_doc_names_every_module_and_only_modules_that_exist():
     assert sorted(path for path in named_paths(doc) if repository_file(path) is None) == []
     # negative controls: a doc without a module's path, or naming a module that does not exist
     assert modules_not_named(doc.replace("`agents/baselines/gain_search.py`", "tune")) == ["agents/baselines/gain_search.py"]
-    assert modules_not_named(doc.replace("kernels/switch.py", "switch.py")) == ["esp_gym/kernels/switch.py"]
+    assert modules_not_named(doc.replace("kernels/step/switch.py", "switch.py")) == ["esp_gym/kernels/step/switch.py"]
     assert [path for path in named_paths(doc + " `esp_gym/kernels/gone.py`") if repository_file(path) is None] == [
         "esp_gym/kernels/gone.py"]
 
@@ -352,13 +352,13 @@ def test_the_architecture_doc_names_every_module_and_only_modules_that_exist():
 OFFSET_PREFIXES = {
     "esp_gym.kernels.layout": {"D_": ("DIAG",), "B_": ("BALANCE",), "WN_": ("WINCH",), "SD_": ("STEP_DIAG",),
                                "IN_": ("INPUTS",), "R_": ("REPORT",)},
-    "esp_gym.kernels.env_arrays": {"A_": ("ACTION", "WINCH_ACTION"), "AP_": ("ACTION_PARAMS",), "T_": ("TARGET",),
+    "esp_gym.kernels.env.arrays": {"A_": ("ACTION", "WINCH_ACTION"), "AP_": ("ACTION_PARAMS",), "T_": ("TARGET",),
                                    "O_": ("OBSERVATION", "WINCH_OBSERVATION"), "SN_": ("SENSORS",),
                                    "RW_": ("REWARD",), "TP_": ("TASK_PARAMS",), "F_": ("FEATURES",)},
-    "esp_gym.kernels.disturbance": {"DP_": ("DISTURBANCE_PARAMS",), "DS_": ("DISTURBANCE",), "DR_": ("DRAWS",)},
-    "esp_gym.kernels.drone": {"Q_": ("DRONE",), "QD_": ("DRONE_DIAG",)},
-    "esp_gym.kernels.drone_env": {"QA_": ("DRONE_ACTION_PARAMS",), "QS_": ("DRONE_SENSORS",)},
-    "esp_gym.kernels.recording": {"S_": ("SAMPLE_HEAD",), "SW_": ("SAMPLE_WINCH",), "SI_": ("SAMPLE_INPUTS",),
+    "esp_gym.kernels.step.disturbance": {"DP_": ("DISTURBANCE_PARAMS",), "DS_": ("DISTURBANCE",), "DR_": ("DRAWS",)},
+    "esp_gym.kernels.drone.quadrotor": {"Q_": ("DRONE",), "QD_": ("DRONE_DIAG",)},
+    "esp_gym.kernels.drone.env": {"QA_": ("DRONE_ACTION_PARAMS",), "QS_": ("DRONE_SENSORS",)},
+    "esp_gym.kernels.env.recording": {"S_": ("SAMPLE_HEAD",), "SW_": ("SAMPLE_WINCH",), "SI_": ("SAMPLE_INPUTS",),
                                   "SB_": ("SAMPLE_BALANCES",)},
 }
 
@@ -392,7 +392,7 @@ def test_offset_names_follow_from_the_fields(module):
 def test_a_misnamed_offset_is_found():
     """Negative control: an alias named after something else, and one holding another field's
     offset, are both found; a right one is not."""
-    from esp_gym.kernels.env_arrays import OBSERVATION
+    from esp_gym.kernels.env.arrays import OBSERVATION
 
     namespace = {"OBSERVATION": OBSERVATION, "O_LOAD_POSITION_ERROR": OBSERVATION.start("load_position_error"),
                  "O_PIVOT_ERROR": OBSERVATION.start("pivot_position_error"),

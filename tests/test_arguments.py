@@ -14,7 +14,7 @@ from hypothesis import given, settings, strategies as st
 import esp_gym
 from esp_gym.physics import pilot
 from esp_gym.pendulum.env import ElasticStringPendulumEnv
-from esp_gym.kernels.string import tridiag_factor
+from esp_gym.kernels.step.string import tridiag_factor
 from esp_gym.pendulum.options import MAX_SUBSTEPS
 from esp_gym.pendulum.sb3_vector import ElasticStringPendulumSB3VecEnv
 from esp_gym.physics.state import BYTES_PER_NODE, attachment_column, check_memory, mass_matrix

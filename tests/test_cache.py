@@ -45,7 +45,7 @@ def test_a_writable_package_directory_needs_no_warning(tmp_path):
 def test_a_kernel_runs_when_numba_cache_dir_is_unwritable():
     """End to end: before the fallback this raised numba's "cannot cache function ... no locator
     available" at the first compiled call."""
-    code = ("import numpy as np; from esp_gym.kernels.env_step import actions_finite; "
+    code = ("import numpy as np; from esp_gym.kernels.env.step import actions_finite; "
             "print(actions_finite(np.array([[0.5, -1.0]])))")
     env = {**os.environ, "NUMBA_CACHE_DIR": UNWRITABLE}
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, env=env,
@@ -74,7 +74,7 @@ def test_a_read_only_package_without_a_home_still_runs(tmp_path):
     if not _mount_read_only(source, mounted):
         pytest.skip("cannot make a read-only bind mount here (needs root)")
     try:
-        code = ("import numpy as np; from esp_gym.kernels.env_step import actions_finite; "
+        code = ("import numpy as np; from esp_gym.kernels.env.step import actions_finite; "
                 "print(actions_finite(np.array([[0.5, -1.0]])))")
         env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "XDG_CACHE_HOME")}
         env.update(HOME=UNWRITABLE, PYTHONPATH=str(mounted), TMPDIR=str(tmp_path))
@@ -138,7 +138,7 @@ def test_an_internal_kernel_refuses_python_and_its_callable_copy_runs():
     """A kernel compiled without numba's Python wrapper (esp_gym/kernels/jit.py) would crash the
     interpreter if Python called it: it raises a TypeError naming itself instead, and
     python_callable gives a copy that runs. Negative control: an entry point is its own callable."""
-    from esp_gym.kernels.env_step import actions_finite
+    from esp_gym.kernels.env.step import actions_finite
     from esp_gym.kernels.jit import InternalKernel, python_callable
     from esp_gym.kernels.sums import kahan_add
 

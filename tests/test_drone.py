@@ -1,4 +1,4 @@
-"""A drone at the pivot (esp_gym/physics/drone.py, esp_gym/kernels/drone.py; docs/physics.md, "A drone at the
+"""A drone at the pivot (esp_gym/physics/drone.py, esp_gym/kernels/drone/quadrotor.py; docs/physics.md, "A drone at the
 pivot"): the rig's balances with the thrust's and the rotors' torque's work and impulses, the
 thrust along the body axis at both ends of every step (independent of the kernel's own
 balances, with off-axis thrusts as negative controls), free fall without inputs, order 2,

@@ -1,4 +1,4 @@
-"""A drone's rotation at the default hook (esp_gym/kernels/drone.py; docs/physics.md, "A drone at
+"""A drone's rotation at the default hook (esp_gym/kernels/drone/quadrotor.py; docs/physics.md, "A drone at
 the pivot"): the free rigid body's LGVI under the rotors' torque. Torque-free it keeps the
 spatial angular momentum and R_q's orthogonality at round-off and its energy without drift; under
 torques the spatial angular momentum changes by exactly the step's impulse
@@ -8,7 +8,7 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
-from esp_gym.kernels.drone import attitude_step
+from esp_gym.kernels.drone.quadrotor import attitude_step
 from esp_gym.kernels.jit import python_callable
 
 #: A Crazyflie-class drone's inertia about its centre of mass [kg m^2], with unequal moments so

@@ -10,7 +10,7 @@ import pytest
 import esp_gym
 from agents.baselines.geometric import attitude_error, desired_attitude, drone_action, geometric_controller
 from agents.baselines.pd import ZeroPolicy
-from esp_gym.kernels.drone import ACTUATIONS
+from esp_gym.kernels.drone.quadrotor import ACTUATIONS
 
 #: The documented hover bound: the load within this of its target over the last 5 s of 10 [m]
 #: (measured over seeds 0-9 in each actuation: at most 4.8 mm), and at the end (1.5 mm).

@@ -1,4 +1,4 @@
-"""ElasticStringPendulum-v0 with a drone at the pivot (kernels/drone_env.py; docs/environment.md,
+"""ElasticStringPendulum-v0 with a drone at the pivot (kernels/drone/env.py; docs/environment.md,
 "A drone at the pivot"): the spaces and checkers in every actuation, a zero action that hovers,
 the flip's termination, the energy balance with the drone's rotation, the drone's observation
 fields against its state, and clear errors. The batched environments' equality with the single
@@ -11,7 +11,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import esp_gym  # noqa: F401  (registers the environment)
 from esp_gym.physics.drone import DroneSimulator
-from esp_gym.kernels.drone import ACTUATIONS, DRONE
+from esp_gym.kernels.drone.quadrotor import ACTUATIONS, DRONE
 from esp_gym.viz.render import FrameRenderer
 
 ENV_ID = "ElasticStringPendulum-v0"

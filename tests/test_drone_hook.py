@@ -1,4 +1,4 @@
-"""A drone whose hook is off its centre of mass (esp_gym/kernels/drone_hook.py; docs/physics.md, "A
+"""A drone whose hook is off its centre of mass (esp_gym/kernels/drone/hook.py; docs/physics.md, "A
 drone at the pivot", "The offset hook"): the compiled step against finite differences of the rig's
 discrete Lagrangian with the drone's (Ldkrb)-copy (a Lagrangian without the hook's cross term as
 the negative control), the inverse Legendre transform of the diagnostics against the forward one,
@@ -196,7 +196,7 @@ def test_pi3_moves_by_the_thrusts_moment_about_the_hook(with_moment, agrees):
 
 
 def test_the_hooked_step_at_a_vanishing_offset_is_the_default_step():
-    """rho_q = 0 runs the default hook's step (kernels/drone.py); the hooked step at rho_q = 1e-300
+    """rho_q = 0 runs the default hook's step (kernels/drone/quadrotor.py); the hooked step at rho_q = 1e-300
     gives the same rollout to round-off (1e-12): the two paths are one model."""
     runs = []
     for rho in ([0.0, 0.0, 0.0], [0.0, 0.0, 1e-300]):

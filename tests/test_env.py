@@ -10,7 +10,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import esp_gym
 from esp_gym.pendulum.env import ElasticStringPendulumEnv
-from esp_gym.kernels.env_arrays import REWARD_TERMS
+from esp_gym.kernels.env.arrays import REWARD_TERMS
 from esp_gym.pendulum.sb3_vector import ElasticStringPendulumSB3VecEnv
 
 ENV_ID = "ElasticStringPendulum-v0"
@@ -104,7 +104,7 @@ def test_reward_terms_sum_exactly_and_are_bounded(task):
 
 def test_the_features_the_reward_reads_are_the_states():
     """``load_position()`` and ``swing_angle()`` read the features the compiled step computed for
-    the reward (kernels/task_terms.py): the load's centre r_N + R rho_c and the angle of
+    the reward (kernels/env/task_terms.py): the load's centre r_N + R rho_c and the angle of
     (load - pivot) from +e3 agree with the state to 1e-12 after reset and every step, and the
     swing term is its weight times the tolerance 1/(1 + (swing/scale)^2) to round-off.
     Negative control: after the state is moved behind the environment's back, the features

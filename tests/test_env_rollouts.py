@@ -20,7 +20,7 @@ ROLLOUT_SHA256 = {
     "winch": "d769738964bd02d636627dc3dbb4a8b1d125487cb51acd5edc31d8c5ac17b4ea",
     "implicit_winch": "ce41b43796f4bca643ef77f593da471fce5b4df91c7ff55033b7fa2860fbf46d",
     "track": "84ee7e866206d03ffaaa55e8194c1303cffd732e29a66b2e90b1ca0ab6fa7a8a",
-    # the drone's, first computed at 429d750, before its rigs shared one loop (kernels/drone_loops.py)
+    # the drone's, first computed at 429d750, before its rigs shared one loop (kernels/drone/loops.py)
     "drone": "d172508d61e7808b9439045223ee4d266b6bdd7eecaccc7c52d1673fe69e34d8",
     "drone_winch": "f2f9ae2bc32704ef3fc45f7079cb4d2e018214ec9646cfff2a5a816f3faa6a41",
     "drone_hook": "1252f309c7b5221a1e40beeba85b237bf5b7f64fb5543a6e421d43c0dc269873",

@@ -1,4 +1,4 @@
-"""The implicit string (``solver.string: implicit``, kernels/implicit.py, docs/physics.md "The
+"""The implicit string (``solver.string: implicit``, kernels/step/implicit.py, docs/physics.md "The
 implicit string"). Its energy-momentum form (the default) is the discrete Lagrange-d'Alembert
 flow of the discrete Lagrangian without elastic energy, forced by the elastic discrete gradient,
 both written from their definitions in tests/discrete_lagrangian.py, and conserves the string's
@@ -166,7 +166,7 @@ def test_implicit_string_takes_order_two_only():
 
 def _element_tension(s0, s1, kappa=3.0, u=0.5, slack=True):
     """The kernel's tension and 2 dT/ds1 of one element stretched from s0 to s1 (along e3)."""
-    from esp_gym.kernels.implicit_terms import element_vectors, secant_terms
+    from esp_gym.kernels.step.implicit_terms import element_vectors, secant_terms
     r = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, u + s0]])
     Y = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, s1 - s0]])
     T, _, _, _, _, _, _, stiffness, _, _ = secant_terms(*element_vectors(r, Y, 0), kappa, u, u, slack)

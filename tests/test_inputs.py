@@ -7,7 +7,7 @@ import pytest
 
 import esp_gym
 from esp_gym.kernels.jit import python_callable
-from esp_gym.kernels.string import nodal_forces
+from esp_gym.kernels.step.string import nodal_forces
 from conftest import drift_ratio
 
 

@@ -10,7 +10,7 @@ import esp_gym
 from agents.baselines.geometric import HOOK_ESTIMATOR, HookGeometricController, hook_geometric_controller
 from agents.baselines.load_estimate import ESTIMATE, LoadEstimator, nominal_load_mass, steady_gain
 from agents.baselines.registry import baseline, baselines
-from esp_gym.kernels.env_arrays import OBSERVATION
+from esp_gym.kernels.env.arrays import OBSERVATION
 
 
 def estimate_errors(seed: int, sensor_noise: float) -> dict:

@@ -11,7 +11,7 @@ from agents.baselines.registry import LQG_TUNING
 from agents.evaluate import evaluate_policy
 from agents.baselines.lqg import HookLQG, delayed_system, measurement_model
 from agents.baselines.lqr import REDUCED
-from esp_gym.kernels.env_arrays import HOOK_OBSERVATION
+from esp_gym.kernels.env.arrays import HOOK_OBSERVATION
 from esp_gym.pendulum.env_setup import make_setup
 
 

@@ -9,7 +9,7 @@ from agents.baselines.pd import ZeroPolicy
 from agents.evaluate import evaluate_policy
 from agents.baselines.lqr import LQR, REDUCED, LQRTracker, lift, linearize, reduced_state
 from esp_gym.pendulum.control import ControlStep
-from esp_gym.kernels.env_arrays import TARGET
+from esp_gym.kernels.env.arrays import TARGET
 from esp_gym.pendulum.tasks import hanging_axis, hanging_depth
 
 

@@ -8,7 +8,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import esp_gym  # noqa: F401  (registers the env)
 from esp_gym.pendulum.env import ElasticStringPendulumEnv
-from esp_gym.kernels.env_arrays import HOOK_OBSERVATION, OBSERVATION, TARGET
+from esp_gym.kernels.env.arrays import HOOK_OBSERVATION, OBSERVATION, TARGET
 from esp_gym.pendulum.observe import UNIT_NOISE
 
 ENV_ID = "ElasticStringPendulum-v0"

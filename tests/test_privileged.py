@@ -6,7 +6,7 @@ import torch
 
 from agents.privileged import PrivilegedVecEnv, privileged_size
 from agents.train import Settings, prepare, train
-from esp_gym.kernels.env_arrays import HOOK_OBSERVATION
+from esp_gym.kernels.env.arrays import HOOK_OBSERVATION
 from esp_gym.pendulum.sb3_vector import ElasticStringPendulumSB3VecEnv
 
 HARD_HOOK = ["env_kwargs={observation: hook, sensor_noise: 1.0, wind: {speed: 4.0}}"]

@@ -15,7 +15,7 @@ from esp_gym import load_scene
 from esp_gym.physics.state import total_weight
 from esp_gym.pendulum.env import ElasticStringPendulumEnv
 from esp_gym.kernels.layout import INPUTS
-from esp_gym.kernels.env_arrays import SCENE_PARAMS
+from esp_gym.kernels.env.arrays import SCENE_PARAMS
 from esp_gym.physics.simulator import Simulator
 from esp_gym.scene.params import scene_from_dict
 from esp_gym.pendulum.randomize import LOG_UNIFORM, default_ranges, nominal_values

@@ -19,8 +19,8 @@ import pytest
 from rerun.chunk import RrdReader
 
 import esp_gym
-from esp_gym.kernels.env_arrays import SENSORS
-from esp_gym.kernels.disturbance import DISTURBANCE
+from esp_gym.kernels.env.arrays import SENSORS
+from esp_gym.kernels.step.disturbance import DISTURBANCE
 from esp_gym.viz import recording as R
 from esp_gym.viz.recording import RecordRerun
 

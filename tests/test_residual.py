@@ -97,7 +97,7 @@ def test_lqg_residual_env_with_a_zero_network_is_the_lqg():
     from agents.evaluate import run_episodes
     from agents.baselines.lqr import REFERENCE_CONTEXT
     from agents.residual import base_policy
-    from esp_gym.kernels.env_arrays import TARGET
+    from esp_gym.kernels.env.arrays import TARGET
 
     kwargs = {"preset": "hard"}
     venv = ElasticStringPendulumSB3VecEnv(num_envs=2, task="track", max_episode_steps=60, **kwargs)
@@ -153,7 +153,7 @@ def test_the_track_lqr_base_follows_each_episodes_reference_as_the_registrys_lqr
     from agents.baselines.registry import baselines
     from agents.evaluate import run_episodes
     from agents.residual import base_policy
-    from esp_gym.kernels.env_arrays import TARGET
+    from esp_gym.kernels.env.arrays import TARGET
 
     venv = ElasticStringPendulumSB3VecEnv(num_envs=2, task="track", max_episode_steps=60)
     venv.seed(700)
@@ -177,7 +177,7 @@ def test_a_drone_cascade_on_track_tells_its_network_the_reference():
     from agents.baselines.registry import baselines
     from agents.evaluate import run_episodes
     from agents.residual import TRACK_CONTEXT, base_policy
-    from esp_gym.kernels.env_arrays import TARGET
+    from esp_gym.kernels.env.arrays import TARGET
 
     kwargs = {"scene": "quadrotor_load", "actuation": "thrust_rates"}
     venv = ElasticStringPendulumSB3VecEnv(num_envs=2, task="track", max_episode_steps=60, **kwargs)

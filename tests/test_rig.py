@@ -76,7 +76,7 @@ def test_each_rigs_entry_points_are_named_after_it():
     ``point_implicit_winch``), and every EntryPoints there is a rig's."""
     import importlib
 
-    from esp_gym.kernels.env_step import EntryPoints
+    from esp_gym.kernels.env.step import EntryPoints
     from esp_gym.physics.rig import ENTRY_MODULES, Rig
 
     for kind, module in ENTRY_MODULES.items():

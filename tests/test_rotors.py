@@ -1,4 +1,4 @@
-"""The drone's rotors (esp_gym/scene/rotors.py, esp_gym/kernels/rotors.py; docs/physics.md, "Rotors"):
+"""The drone's rotors (esp_gym/scene/rotors.py, esp_gym/kernels/drone/rotors.py; docs/physics.md, "Rotors"):
 the motor lag is the ODE's exact solution, a lag of zero is the command, the mixer maps thrusts
 to the documented wrench and refuses a layout it cannot invert, and the rate controller makes
 Euler's equation the first-order tracking law it is documented to be."""
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from esp_gym.kernels.rotors import motor_lag, rate_command, rotor_wrench, wrench_command
+from esp_gym.kernels.drone.rotors import motor_lag, rate_command, rotor_wrench, wrench_command
 from esp_gym.scene.rotors import X_SPINS, allocation, mixer, x_layout
 
 #: A Crazyflie-class rotor: k_f [N s^2/rad^2] (3.16e-10 N/rpm^2), k_m/k_f [m], arm [m].

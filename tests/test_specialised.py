@@ -1,12 +1,12 @@
-"""Specialised kernels (esp_gym.kernels.specialise.specialised_kernels): each drops what its scene does
+"""Specialised kernels (esp_gym.kernels.step.specialise.specialised_kernels): each drops what its scene does
 not need and must give the general kernel's numbers bit for bit; the decoupled (rho_c = 0)
 path must show the physics of a decoupled body."""
 import numpy as np
 import pytest
 
 import esp_gym
-from esp_gym.kernels.loops import lgvi_advance
-from esp_gym.kernels.specialise import specialised_kernels
+from esp_gym.kernels.step.loops import lgvi_advance
+from esp_gym.kernels.step.specialise import specialised_kernels
 
 FREE = {"pivot": {"kind": "free", "mass": 0.3}}
 DECOUPLED = {"rho_c": [0.0, 0.0, 0.0], "initial": {"Omega0": [0.3, -2.0, 5.0]}}

@@ -1,4 +1,4 @@
-"""The explicit string's slack switch (kernels/switch.py; docs/physics.md, "The slack switch of the
+"""The explicit string's slack switch (kernels/step/switch.py; docs/physics.md, "The slack switch of the
 explicit string"): where an element of the tension-only law turns slack or taut within a step,
 the step settles the energy its trapezoid rule misses there. The modified energy of a flickering
 string is kept to round-off, the reeled-and-held string's balance stays bounded and is second
@@ -10,7 +10,7 @@ import pytest
 
 import esp_gym
 from benchmarks.slack_switch import WINCH_H, order, reeled_and_held, stiff_winch
-from esp_gym.kernels.diagnostics import diagnostics
+from esp_gym.kernels.step.diagnostics import diagnostics
 from esp_gym.kernels.layout import DIAG, DiagWork
 from esp_gym.scene.stability import explicit_bound
 
@@ -33,7 +33,7 @@ def flickering_string(switch: str):
 
 def modified_energy(sim) -> float:
     """H~ = E - h^2/8 f . M^-1 f less what the switches still owe [J]: the kick-drift-kick step
-    keeps it exactly where the potential is quadratic along each step (kernels/switch.py). f . M^-1 f
+    keeps it exactly where the potential is quadratic along each step (kernels/step/switch.py). f . M^-1 f
     is twice the kinetic energy of 'momenta' f (the diagnostics' own inverse of the mass matrix)."""
     S, _, P, _ = sim.buffers
     n = S.r.shape[0] - 1

@@ -1,4 +1,4 @@
-"""A team environment's compiled control step (esp_gym/kernels/team_env.py, esp_gym/team/control.py)
+"""A team environment's compiled control step (esp_gym/kernels/team/env.py, esp_gym/team/control.py)
 against the same episode stepped in Python (``TeamCore.compiled_steps = False``: TeamSimulator.step,
 then the compiled task): the states bit for bit, the observations, rewards, infos and terminations
 equal, the energy balance to 1e-12 of its scale (the load force's work is summed in another order),
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from esp_gym.kernels.status import ENERGY_BALANCE
-from esp_gym.kernels.team_env import TD_HOVER_THRUST, TE_FORCE_SCALE
+from esp_gym.kernels.team.env import TD_HOVER_THRUST, TE_FORCE_SCALE
 from esp_gym.team.core import TeamCore
 from esp_gym.team.scene import team_scene
 

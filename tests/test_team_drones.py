@@ -1,4 +1,4 @@
-"""Drones at a team's pivots (esp_gym/kernels/team_drones.py; docs/physics.md, "Drones at a team's
+"""Drones at a team's pivots (esp_gym/kernels/team/drones.py; docs/physics.md, "Drones at a team's
 pivots"): one drone's team is the single drone's rig bit for bit; the balances close with the
 rotors' work and impulses; symmetry, reversibility, orthogonality; a failing step moves nothing;
 what the team refuses."""

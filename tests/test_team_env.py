@@ -199,8 +199,8 @@ def test_the_wind_pushes_the_load_and_its_noise_is_the_documented_one():
 
 
 def test_the_track_targets_follow_the_reference_in_formation():
-    from esp_gym.kernels.env_arrays import TARGET
-    from esp_gym.kernels.track_curve import reference_at
+    from esp_gym.kernels.env.arrays import TARGET
+    from esp_gym.kernels.env.track_curve import reference_at
 
     env = ElasticStringTeamEnv(3, task="track")
     core = env.core
@@ -226,8 +226,8 @@ def test_the_track_targets_follow_the_reference_in_formation():
 
 
 def test_the_references_acceleration_is_the_derivative_of_its_velocity():
-    from esp_gym.kernels.env_arrays import TARGET
-    from esp_gym.kernels.track_curve import reference_at
+    from esp_gym.kernels.env.arrays import TARGET
+    from esp_gym.kernels.env.track_curve import reference_at
     from esp_gym.pendulum.tasks import reference_acceleration, track_reference
 
     shapes, dt = set(), 1e-4

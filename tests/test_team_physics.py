@@ -1,4 +1,4 @@
-"""A team's step (esp_gym/kernels/team.py; docs/physics.md, "A team: several strings on one body"):
+"""A team's step (esp_gym/kernels/team/step.py; docs/physics.md, "A team: several strings on one body"):
 one string reproduces the single string's step bit for bit; the step satisfies the discrete
 Legendre transforms of the team's discrete Lagrangian, written here from the docs' formulas;
 energy, momentum, pi3, orthogonality, order, reversibility and symmetry."""

@@ -1,4 +1,4 @@
-"""The slack switch of a team's strings (esp_gym/kernels/team_switch.py; docs/physics.md, "The slack
+"""The slack switch of a team's strings (esp_gym/kernels/team/switch.py; docs/physics.md, "The slack
 switch of a team's strings"): the settling impulses see every string through the body. One slack
 string settles as the single string bit for bit (fixed length and reeling); the compiled inverse of
 the team's Legendre transform is the diagnostics' (point pivots and reeling), the compiled read-out
@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from esp_gym.kernels.layout import WINCH
-from esp_gym.kernels.team_readout import TEAM_READ, team_read
-from esp_gym.kernels.team_switch import node_velocities_entry as velocities
-from esp_gym.kernels.team_winch import flow_free_momenta, velocity_params
+from esp_gym.kernels.team.readout import TEAM_READ, team_read
+from esp_gym.kernels.team.switch import node_velocities_entry as velocities
+from esp_gym.kernels.team.winch import flow_free_momenta, velocity_params
 from esp_gym.physics.simulator import Simulator
 from esp_gym.scene.params import load_scene
 from esp_gym.team import TeamScene, TeamSimulator, TeamString, symmetric_team
@@ -30,8 +30,8 @@ def with_switch(scene, switch: str):
 
 def test_one_slack_string_settles_as_the_single_string_bit_for_bit():
     """K = 1: ``drone_load`` (slack, free pivot) pushed by random forces, and a slack string reeling
-    out, holding and reeling in: the team's settled step is the single string's (kernels/switch.py,
-    kernels/winch.py) to the bit. Negative control: the plain team's state differs (the switches
+    out, holding and reeling in: the team's settled step is the single string's (kernels/step/switch.py,
+    kernels/step/winch.py) to the bit. Negative control: the plain team's state differs (the switches
     did act)."""
     rng = np.random.default_rng(1)
     scene = load_scene("drone_load", **{"initial.direction": [0.3, 0.0, 1.0]})
@@ -68,10 +68,10 @@ PUSH = np.array([[0.3, -0.2, -4.0], [0.1, 0.2, -4.5], [0.0, 0.0, 0.0]])  # the f
 
 
 def test_the_compiled_inverse_legendre_transform_is_the_diagnostics():
-    """kernels/team_switch.py's node velocities and Omega against esp_gym/team/velocities.py's
+    """kernels/team/switch.py's node velocities and Omega against esp_gym/team/velocities.py's
     (banded solves and the 6x6 body system): a turning team at its fixed lengths, to 1e-15 m/s;
     reeling at 0.2, -0.1, 0.3 m/s, its momenta less the flow's and its masses at the new lengths
-    (kernels/team_winch.py ``velocity_params``), to 1e-11 m/s (the flow's momenta summed in
+    (kernels/team/winch.py ``velocity_params``), to 1e-11 m/s (the flow's momenta summed in
     another order)."""
     sim = unequal_team()
     st = sim.state
@@ -108,7 +108,7 @@ ENERGY_TERMS = ("kinetic", "potential_elastic", "potential_gravity", "energy", "
 
 @pytest.mark.parametrize("drones", [False, True])
 def test_the_compiled_read_out_is_the_python_one(drones):
-    """kernels/team_readout.py's read-out (one compiled call: the velocities by the step's factors,
+    """kernels/team/readout.py's read-out (one compiled call: the velocities by the step's factors,
     the energy terms, momenta and pi3, each pivot, its velocity and its string's pull, each string's
     stretch, the load's centre and its velocity) against esp_gym/team/readout.py's in Python (LAPACK's
     solves), each to 1e-12 of its scale: the turning team of unequal strings with a fixed pivot, and a

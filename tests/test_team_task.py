@@ -1,4 +1,4 @@
-"""A team's compiled task (esp_gym/kernels/team_task.py) against the task stated in NumPy here, from
+"""A team's compiled task (esp_gym/kernels/team/task.py) against the task stated in NumPy here, from
 the read-out's kinematics (``TeamCore.kinematics``): every agent's observation bit for bit (copies
 and differences of the same numbers), the reward terms and each agent's shares to 1e-12, the
 termination's code equal, over episodes of strong random actions that end (point pivots in both

@@ -1,5 +1,5 @@
 """Winches on a team's strings (docs/physics.md, "Winches on a team's strings";
-esp_gym/kernels/team_winch.py): one string reels as the single winch, bit for bit; the energy
+esp_gym/kernels/team/winch.py): one string reels as the single winch, bit for bit; the energy
 balance with the winches' work closes at order 2; momentum and pi3 balance to round-off; a
 symmetric team reeling together stays symmetric; reversing the momenta and the reels retraces
 the steps; each winch stops on the ends of its range; bad commands change nothing."""
@@ -16,7 +16,7 @@ FORCES = np.array([[0.3, -0.2, -4.0], [0.1, 0.2, -4.5], [-0.2, 0.0, -5.0]])
 
 
 def test_one_string_reels_as_the_single_winch_bit_for_bit():
-    """K = 1: the team's reeling step is the single string's (kernels/winch.py), states equal to
+    """K = 1: the team's reeling step is the single string's (kernels/step/winch.py), states equal to
     the bit through a reel out, a stop and a reel in with a pushed free pivot; the energy too,
     and the winch work to the rounding of H's jumps (Python's sum against the kernel's). A reel
     speed 1e-9 m/s off moves the state (negative control)."""

@@ -26,7 +26,7 @@ def _rollout(threads: int, options: dict, steps: int = 120) -> list:
 @needs_two_cpus
 def test_threads_give_the_batchs_numbers_bit_for_bit():
     """The threaded entry runs the same control step per sub-environment as the one-thread entry
-    (kernels/env_step.py's batch_loop), through resets, wind and pushes (the hard preset)."""
+    (kernels/env/step.py's batch_loop), through resets, wind and pushes (the hard preset)."""
     options = {"preset": "hard", "task": "transport"}
     one, two = _rollout(1, options), _rollout(2, options)
     assert all(np.array_equal(a, b) for a, b in zip(one, two))

@@ -1,4 +1,4 @@
-"""The ``track`` task (esp_gym/pendulum/tasks.py, kernels/track_curve.py): the reference is the documented
+"""The ``track`` task (esp_gym/pendulum/tasks.py, kernels/env/track_curve.py): the reference is the documented
 circle or figure-eight, the environment's targets follow it in time, the observed velocities are
 relative to it, and following it pays. (Batched against single envs: tests/test_env.py.)"""
 import math
@@ -10,8 +10,8 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import esp_gym  # noqa: F401  (registers the env)
-from esp_gym.kernels.env_arrays import OBSERVATION, TARGET
-from esp_gym.kernels.track_curve import reference_at
+from esp_gym.kernels.env.arrays import OBSERVATION, TARGET
+from esp_gym.kernels.env.track_curve import reference_at
 from esp_gym.pendulum.tasks import TRACK_PERIOD, TRACK_SIZE, track_reference
 
 ENV_ID = "ElasticStringPendulum-v0"

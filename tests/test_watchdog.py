@@ -258,8 +258,8 @@ def broken_team_episode(monkeypatch, watchdog, broken: bool, steps: int = 60, co
     Python, at the end of each compiled run of steps). Returns (termination reason, control
     steps, the balance over the bound at each step, the env)."""
     from esp_gym.kernels.layout import StateArrays
-    from esp_gym.kernels.team_arrays import TeamArrays
-    from esp_gym.kernels.team_loops import team_advance as real
+    from esp_gym.kernels.team.arrays import TeamArrays
+    from esp_gym.kernels.team.loops import team_advance as real
     from esp_gym.team import simulator
     from esp_gym.team.control import TeamControl
     from esp_gym.team.core import TeamCore
@@ -307,7 +307,7 @@ def test_the_team_environment_ends_a_broken_steps_energy_gain(monkeypatch, compi
     |E - E0 - W| first passes 0.01 (the team's scale 40.7 J + |W|), and the simulator then says
     so with the team's scale; the same broken episode without the watchdog runs on (negative
     control), and so does the unbroken one with it (its balance 1e-4 of the bound); in the compiled
-    control step (esp_gym/kernels/team_env.py) and in Python (a team with winches steps there)."""
+    control step (esp_gym/kernels/team/env.py) and in Python (a team with winches steps there)."""
     reason, ended, _, env = broken_team_episode(monkeypatch, 0.01, True, compiled=compiled)
     assert reason == "energy_balance" and ended < 60, (reason, ended)
     with pytest.raises(esp_gym.SimulationError, match=r"energy scale 40\.7 J") as error:

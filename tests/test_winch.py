@@ -1,4 +1,4 @@
-"""The winch (docs/physics.md, "The winch"; kernels/winch.py): the step is the discrete
+"""The winch (docs/physics.md, "The winch"; kernels/step/winch.py): the step is the discrete
 Euler-Lagrange equations of the reeling string's L_d; the energy balance with the winch's work
 closes at order 2; momentum and pi3 balances close to round-off; reeling out and back in with
 the momenta reversed returns the state; the range is kept; bad commands change nothing; with
@@ -244,7 +244,7 @@ def test_a_state_with_a_bad_winch_is_refused_whole():
 
 def test_a_composed_reeling_step_that_fails_holds_the_last_good_step():
     """A composed (order-4) step that fails part-way while the winch reels in is undone from
-    its checkpoint, the winch's length and reel with it (kernels/loops.py): the simulator holds
+    its checkpoint, the winch's length and reel with it (kernels/step/loops.py): the simulator holds
     exactly (bit for bit) the state and length a fresh run of the completed steps reaches.
     Negative control: one step fewer is another state."""
     solver = {"solver": {"order": 4, "energy_watchdog": None}}

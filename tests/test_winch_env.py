@@ -6,8 +6,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import esp_gym  # noqa: F401  (registers the environment)
-from esp_gym.kernels.env_arrays import TARGET, WINCH_OBSERVATION
-from esp_gym.kernels.track_curve import reference_at
+from esp_gym.kernels.env.arrays import TARGET, WINCH_OBSERVATION
+from esp_gym.kernels.env.track_curve import reference_at
 from esp_gym.pendulum.tasks import hanging_depth
 
 ENV_ID = "ElasticStringPendulum-v0"

@@ -1,4 +1,4 @@
-"""The implicit string with a winch (kernels/winch_implicit.py; docs/physics.md, "The winch"):
+"""The implicit string with a winch (kernels/step/winch_implicit.py; docs/physics.md, "The winch"):
 its step against finite differences of its discrete Lagrangian (the variational form) or of the
 winch's Lagrangian without elastic energy forced by the elastic discrete gradient (the
 energy-momentum form), the energy balance's order, the momentum balances, reversibility, and a
@@ -8,7 +8,7 @@ import pytest
 
 import esp_gym
 from esp_gym.kernels.layout import DIAG
-from esp_gym.kernels.winch import convective_weights, winch_energy
+from esp_gym.kernels.step.winch import convective_weights, winch_energy
 from esp_gym.physics.simulator import Simulator, State
 from discrete_lagrangian import GEOMETRIC_OVERRIDES, random_state, winch_lagrangian
 from test_discrete_lagrangian import legendre_errors
@@ -121,7 +121,7 @@ def test_a_stiff_string_reels_far_past_the_explicit_bound():
     to 0.6 m at 0.5 m/s with the implicit string at h = 2.5 ms, more than 30x the explicit bound
     at 0.6 m: the length ends on the command and the balance is within 0.5 % of the winch's work
     (measured 0.11 %: 2.5 mJ of 2.2 J; the elastic share of the work is counted per step,
-    kernels/winch_implicit.py, as a quadrature of dV/dl would alias the unresolved axial modes)."""
+    kernels/step/winch_implicit.py, as a quadrature of dV/dl would alias the unresolved axial modes)."""
     scene = esp_gym.load_scene("drone_load", h=2.5e-3, string={"EA": 2e5}, solver={"string": "implicit"},
                                winch={"min_length": 0.5})
     explicit_bound = esp_gym.load_scene("drone_load", h=1e-5, string={"EA": 2e5}).stability_bound
@@ -136,7 +136,7 @@ def test_a_stiff_string_reels_far_past_the_explicit_bound():
 def midpoint_shift(scene, r0, r1, l0, l1, v, h):
     """The midpoint rule's count of the kinetic, T0 and weight share of the winch's work over a step
     r0 -> r1, l0 -> l1 at reel speed v [J] (positions at the middle, velocities (r1 - r0) / h, the
-    length at the middle: the rule kernels/winch.py's midpoint_dH_dl applies to the explicit string)."""
+    length at the middle: the rule kernels/step/winch.py's midpoint_dH_dl applies to the explicit string)."""
     s, n = scene.string, scene.string.elements
     length = 0.5 * (l0 + l1)
     m = s.mass_per_length * length / n
@@ -163,7 +163,7 @@ def test_a_reel_that_keeps_reversing_keeps_the_implicit_strings_balance():
     swung by the pivot force while the reel reverses (+-0.5 m/s) every 0.5 s, 4 s: the balance
     stays within 1e-4 J (measured 4.0e-5 J against 2.4 J of winch work). The winch's work per
     step is the elastic share exactly plus the mean of H's change with the length alone at the
-    step's two states (kernels/winch_implicit.py). Negative control: the same steps counted by
+    step's two states (kernels/step/winch_implicit.py). Negative control: the same steps counted by
     the midpoint rule of dH/dl, which errs by O(h^3) per step with the reel's sign, drift
     upward past 2e-3 J (measured 4.1e-3 J)."""
     scene = esp_gym.load_scene("drone_load", h=0.02 / 31, string={"EA": 2e3}, solver={"string": "implicit"},

@@ -1,4 +1,4 @@
-"""Wind and pushes (``wind=``, esp_gym/pendulum/wind.py, kernels/disturbance.py): the balances close with
+"""Wind and pushes (``wind=``, esp_gym/pendulum/wind.py, kernels/step/disturbance.py): the balances close with
 the drag and push forces in them (energy at O(h^2), momentum and pi3 to round-off), the drag is
 the documented law, seeded episodes repeat bit for bit past a block of draws, and bad options
 are errors naming them. (Batched against single envs with wind: tests/test_env.py.)"""
@@ -12,9 +12,9 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import esp_gym  # noqa: F401  (registers the env)
 from benchmarks.wind_balance import WIND, balances
-from esp_gym.kernels.disturbance import load_area
-from esp_gym.kernels.env_arrays import OBSERVATION, TARGET
-from esp_gym.kernels.disturbance import DISTURBANCE, DISTURBANCE_PARAMS
+from esp_gym.kernels.step.disturbance import load_area
+from esp_gym.kernels.env.arrays import OBSERVATION, TARGET
+from esp_gym.kernels.step.disturbance import DISTURBANCE, DISTURBANCE_PARAMS
 from esp_gym.scene.params import scene_from_dict
 from esp_gym.pendulum.env_setup import PRESETS
 from esp_gym.physics.state import State

@@ -54,7 +54,7 @@ def reduced_state(obs: np.ndarray, axis: np.ndarray) -> np.ndarray:
     axis (:func:`hanging_axis`)."""
     obs = np.asarray(obs, dtype=np.float64)
     att = obs[..., OBSERVATION["attitude_6d"]]
-    columns = att.reshape(att.shape[:-1] + (2, 3))  # R's first two columns (kernels/task_terms.py observe)
+    columns = att.reshape(att.shape[:-1] + (2, 3))  # R's first two columns (kernels/env/task_terms.py observe)
     first, second = columns[..., 0, :], columns[..., 1, :]
     R = np.stack((first, second, np.cross(first, second)), axis=-1)
     z = np.empty(obs.shape[:-1] + (REDUCED.size,))
@@ -293,7 +293,7 @@ def reference_map(target: np.ndarray, times: np.ndarray) -> np.ndarray:
 
 def reference_basis(target: np.ndarray) -> np.ndarray:
     """b(t) = [sin u, cos u, sin v, cos v] of the reference in TARGET at its clock, u = theta + psi_x,
-    v = m theta + psi_y, theta = theta_0 + omega t (esp_gym/kernels/track_curve.py)."""
+    v = m theta + psi_y, theta = theta_0 + omega t (esp_gym/kernels/env/track_curve.py)."""
     theta = target[TARGET.scalar("start")] + target[TARGET.scalar("rate")] * target[TARGET.scalar("clock")]
     phase = target[TARGET["phase"]]
     u, v = theta + phase[0], target[TARGET.scalar("harmonic")] * theta + phase[1]

@@ -45,7 +45,10 @@ except ImportError:  # not POSIX: saves are not serialised, the key check below 
     fcntl = None
 
 _HERE = Path(__file__).resolve().parent
-_DIGEST = hashlib.sha256(b"".join(p.read_bytes() for p in sorted(_HERE.glob("*.py")))).hexdigest()[:16]
+#: Every kernel source, in the subpackages too, by its place in the package and its bytes.
+_SOURCES = sorted(p for p in _HERE.rglob("*.py") if "__pycache__" not in p.parts)
+_DIGEST = hashlib.sha256(b"".join(p.relative_to(_HERE).as_posix().encode() + b"\0" + p.read_bytes()
+                                  for p in _SOURCES)).hexdigest()[:16]
 
 
 def writable_dir(path: str) -> bool:

@@ -1,8 +1,8 @@
 """The :class:`Layout` of a packed vector, and the physics' arrays by name: the stepper's
 structs and packed vectors. Every other owner keeps its own next to its code: the environment's
-(the action, targets, observation, reward terms, task parameters: kernels/env_arrays.py), the
-wind's (kernels/disturbance.py), a recording sample's (kernels/recording.py), a drone's
-(DroneArrays, its constants and diagnostics: kernels/drone.py); the status and termination codes
+(the action, targets, observation, reward terms, task parameters: kernels/env/arrays.py), the
+wind's (kernels/step/disturbance.py), a recording sample's (kernels/env/recording.py), a drone's
+(DroneArrays, its constants and diagnostics: kernels/drone/quadrotor.py); the status and termination codes
 are kernels/status.py's.
 
 Two kinds of structure cross the boundary between the compiled kernels and Python:
@@ -79,7 +79,7 @@ class Layout:
         return f"Layout({', '.join(f'{n}[{s}]' for n, s in self.fields)})"
 
 
-# -- arrays of the stepper (kernels/lgvi.py, kernels/loops.py) ------------------------------------
+# -- arrays of the stepper (kernels/step/lgvi.py, kernels/step/loops.py) ------------------------------------
 
 #: Scene constants of the stepper, all SI. ``w`` and the Thomas factors are indexed by node;
 #: ``first`` is the first unknown node (1: fixed pivot, 0: free pivot of mass ``Mp``);
@@ -87,38 +87,38 @@ class Layout:
 #: ``slack``: tension-only string law; ``compensated``: Kahan-compensated state updates (the
 #: general path reads it at run time, the specialised kernels compile it in).
 #: ``mdiag``: the mass matrix's diagonal on the unknown nodes (0 on a fixed pivot), for the
-#: implicit string's residual (kernels/implicit.py). ``settle``: the explicit string settles its
-#: slack switches (kernels/switch.py); ``gradient``: the implicit string's energy-momentum form.
+#: implicit string's residual (kernels/step/implicit.py). ``settle``: the explicit string settles its
+#: slack switches (kernels/step/switch.py); ``gradient``: the implicit string's energy-momentum form.
 LGVIParams = namedtuple("LGVIParams", "h m kappa u g M Mp rho J Jd Jeff inv cp off w first slack tol max_iter gammas "
                                       "max_len2 compensated mdiag settle gradient")
 
 #: The state the kernels advance: positions r and momenta p (N+1, 3), R (3, 3), Pi (3,), the
 #: compensated-summation remainders rc, pc, Rc, Pic of each, the forces f at r (N+1, 3), the
 #: input balances acc (:data:`BALANCE`) with their remainders accc, and per element the energy
-#: the explicit string's slack switch still owes, ``owed`` (N,) [J] (kernels/switch.py).
+#: the explicit string's slack switch still owes, ``owed`` (N,) [J] (kernels/step/switch.py).
 StateArrays = namedtuple("StateArrays", "r p R Pi rc pc Rc Pic f acc accc owed")
 
 #: Scratch arrays of one simulator; ``backup`` holds a checkpoint of the state during composed
-#: steps (kernels/loops.py), so a failure can go back to it. The implicit string's Newton
-#: (kernels/implicit.py) uses ``fl``, ``fr`` (N+1, 3), the string's forces of the step along
+#: steps (kernels/step/loops.py), so a failure can go back to it. The implicit string's Newton
+#: (kernels/step/implicit.py) uses ``fl``, ``fr`` (N+1, 3), the string's forces of the step along
 #: the elements at its start and at its end [N], ``dy``
 #: (N+1, 3), its right-hand sides and corrections [m], ``elim`` (N+1, 3, 3), the factors of
 #: its block elimination, and ``taut`` (N,), 1 for the elements it holds to the taut branch of
 #: the slack law until it has converged (docs/physics.md, "The taut-branch start").
-#: ``ext`` (N+2, 3): the external forces held over a control step (kernels/disturbance.py), on
+#: ``ext`` (N+2, 3): the external forces held over a control step (kernels/step/disturbance.py), on
 #: the nodes (rows 0..N) and on the load's centre of mass (row N+1) [N], spatial frame.
 #: ``switch`` (N,): the explicit string's energy errors of a step's slack switches [J]
-#: (kernels/switch.py), which also uses ``dy`` and ``fr`` as scratch (the explicit string's
+#: (kernels/step/switch.py), which also uses ``dy`` and ``fr`` as scratch (the explicit string's
 #: step does not: the winch's loop reads ``Y``, the step's increments, after it).
 Work = namedtuple("Work", "fn X Y FmI RF Rn jac backup fl fr dy elim taut ext switch")
 
-#: The winch's arrays (kernels/winch.py): ``state`` (:data:`WINCH`), per element the weights
+#: The winch's arrays (kernels/step/winch.py): ``state`` (:data:`WINCH`), per element the weights
 #: ``coef`` (N, 3) of its convective kinetic energy (alpha, beta, gamma: docs/physics.md, "The
 #: winch"), the Thomas factors of the step's matrix (``lower``, ``upper``, ``inv``, ``cp``, and
 #: its attachment column ``w``, (N+1,)) with ``jeff`` (3, 3), the shifted momenta ``pshift``
 #: (N+1, 3) and the mass matrix at the current length for the diagnostics (``dinv``, ``dcp``,
 #: ``dw``, ``djeff``), a checkpoint of ``state`` (``backup``), and for the implicit string
-#: (kernels/winch_implicit.py) the step matrix's diagonal ``diag`` (N+1,) and the constant part
+#: (kernels/step/winch_implicit.py) the step matrix's diagonal ``diag`` (N+1,) and the constant part
 #: ``rhs`` (N+1, 3) of its residual.
 WinchArrays = namedtuple("WinchArrays", "state coef lower upper inv cp w jeff pshift dinv dcp dw djeff backup diag rhs")
 
@@ -134,7 +134,7 @@ Snapshots = namedtuple("Snapshots", "r R omega v diag strain acc step_diag")
 
 # -- packed vectors -------------------------------------------------------------------------------
 
-#: Diagnostics of a state (kernels/diagnostics.py) [J, kg m^2/s, -, m, kg m/s].
+#: Diagnostics of a state (kernels/step/diagnostics.py) [J, kg m^2/s, -, m, kg m/s].
 DIAG = Layout(("kinetic_string", 1), ("kinetic_body", 1), ("potential_gravity", 1), ("potential_elastic", 1),
               ("energy", 1), ("pi3", 1), ("orthogonality", 1), ("stretched_length", 1), ("kinetic_pivot", 1),
               ("linear_momentum", 3))
@@ -153,8 +153,8 @@ DIAG_NAMES = DIAG.scalar_names()
 
 #: Input balances accumulated by the step since the last reset: input work [J], angular
 #: impulse about e3 [kg m^2/s], gravity impulse, pivot-force impulse and the impulse of the
-#: external forces (wind and pushes, kernels/disturbance.py) (3 each) [kg m/s], and the
-#: winch's work [J] (kernels/winch.py).
+#: external forces (wind and pushes, kernels/step/disturbance.py) (3 each) [kg m/s], and the
+#: winch's work [J] (kernels/step/winch.py).
 BALANCE = Layout(("work", 1), ("angular_impulse_z", 1), ("gravity_impulse", 3), ("pivot_impulse", 3),
                  ("external_impulse", 3), ("winch_work", 1))
 B_WORK = BALANCE.scalar("work")
@@ -164,7 +164,7 @@ B_PIVOT_IMPULSE = BALANCE.start("pivot_impulse")
 B_EXTERNAL_IMPULSE = BALANCE.start("external_impulse")
 B_WINCH_WORK = BALANCE.scalar("winch_work")
 
-#: The winch (kernels/winch.py): the unstretched length l [m] and the reel speed dl/dt [m/s]
+#: The winch (kernels/step/winch.py): the unstretched length l [m] and the reel speed dl/dt [m/s]
 #: of the state (the speed its momenta were made with), the string's constants mass per length
 #: [kg/m], EA [N], solver.max_stretch, the
 #: consistent or lumped mass model's shares of an element's mass on its end nodes' diagonal
@@ -188,7 +188,7 @@ SD_PI3 = STEP_DIAG.scalar("pi3")
 SD_ORTHOGONALITY = STEP_DIAG.scalar("orthogonality")
 
 #: Inputs of a step: the pivot force at the step's start and at its end (spatial) [N] (equal
-#: for a force held over the step; a drone's thrust turns with it: kernels/drone.py), body
+#: for a force held over the step; a drone's thrust turns with it: kernels/drone/quadrotor.py), body
 #: torque (body frame) [N m], spatial torque [N m], held over the step.
 INPUTS = Layout(("pivot_force", 3), ("pivot_force_end", 3), ("body_torque", 3), ("spatial_torque", 3))
 IN_PIVOT_FORCE = INPUTS.start("pivot_force")

@@ -34,10 +34,10 @@ BLOW_UP = 5
 #: The energy watchdog (esp_gym/physics/watchdog.py) ended a finite state that gains energy.
 ENERGY_BALANCE = 6
 #: A drone's body axis b3 tilted from the vertical past the environment's limit
-#: (kernels/drone_env.py).
+#: (kernels/drone/env.py).
 TERM_DRONE_FLIPPED = 7
 #: The pivot (the drone's centre) or the load's centre of mass reached the scene's ``ground`` plane
-#: (kernels/task_terms.py).
+#: (kernels/env/task_terms.py).
 TERM_GROUND = 8
 #: Two pivots of a team came closer than its collision distance (esp_gym/team/tasks.py COLLISION).
 TERM_COLLISION = 9

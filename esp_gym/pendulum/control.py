@@ -2,7 +2,7 @@
 single environment, the batched environments and the recording wrapper share.
 
 A :class:`ControlStep` owns the arrays of one environment (or, with ``num_envs``, of a batch:
-every array gains a leading axis) and the compiled calls on them (kernels/env_step.py):
+every array gains a leading axis) and the compiled calls on them (kernels/env/step.py):
 
 * :meth:`ControlStep.start_episode` draws an episode (its physics when randomised, its state
   and targets) and :meth:`ControlStep.reset` puts it in and computes the observation;
@@ -13,8 +13,8 @@ every array gains a leading axis) and the compiled calls on them (kernels/env_st
 
 Everything is readable through named, read-only views (``observation``, ``sensors``,
 ``reward_terms``, ``action``, ``inputs``, ``target``, ``report``, ``scene_params``,
-``disturbance``) laid out in kernels/env_arrays.py (INPUTS and REPORT in kernels/layout.py,
-DISTURBANCE in kernels/disturbance.py); the observation a mode returns is
+``disturbance``) laid out in kernels/env/arrays.py (INPUTS and REPORT in kernels/layout.py,
+DISTURBANCE in kernels/step/disturbance.py); the observation a mode returns is
 esp_gym/pendulum/observe.py's; the environments' shared, resolved arguments are esp_gym/pendulum/env_setup.py's.
 """
 from __future__ import annotations
@@ -24,13 +24,13 @@ from typing import Optional
 import numba
 import numpy as np
 
-from ..kernels.disturbance import DISTURBANCE, DISTURBANCE_PARAMS, DRAWS
-from ..kernels.drone_env import DRONE_SENSORS
-from ..kernels.env_arrays import OBSERVATION, REWARD, REWARD_TERMS, SCHEME_DISTURBED, SENSORS, TARGET, WINCH_OBSERVATION
-from ..kernels.env_arrays import FEATURES, EnvArrays
-from ..kernels.env_step import actions_finite
+from ..kernels.drone.env import DRONE_SENSORS
+from ..kernels.env.arrays import OBSERVATION, REWARD, REWARD_TERMS, SCHEME_DISTURBED, SENSORS, TARGET, WINCH_OBSERVATION
+from ..kernels.env.arrays import FEATURES, EnvArrays
+from ..kernels.env.step import actions_finite
 from ..kernels.layout import INPUTS, R_TERMINATION, REPORT
-from ..kernels.string import state_forces
+from ..kernels.step.disturbance import DISTURBANCE, DISTURBANCE_PARAMS, DRAWS
+from ..kernels.step.string import state_forces
 from ..physics.arrays import params_row, row
 from ..physics.drone import hover_at_rest, use_drone_scene, use_hook_scene
 from ..physics.rig_arrays import make_arrays
@@ -52,7 +52,7 @@ def raw_actions(actions, shape: tuple, name: str = "action") -> np.ndarray:
     only if needed, so one compiled signature serves every caller), of ``shape`` (ValueError
     otherwise) and real (TypeError for complex, bool, object and masked arrays, whose imaginary
     part or mask would otherwise be dropped). Finiteness and clipping are the kernel's
-    (kernels/env_step.py ``take_action``)."""
+    (kernels/env/step.py ``take_action``)."""
     if isinstance(actions, np.ma.MaskedArray):
         raise TypeError(f"{name} must be a plain array, not a masked array (its mask would be dropped)")
     given = np.asarray(actions)
@@ -95,13 +95,13 @@ class ControlStep:
     :attr:`sim` in place (its step counter and Newton totals follow). A batch keeps stacked
     copies of a simulator's arrays and steps every active sub-environment in one compiled call, in
     one thread or on ``threads`` of numba's (docs/performance.md, "Threads"); both run the same
-    compiled control step (esp_gym/kernels/env_step.py), so their numbers agree bit for bit.
+    compiled control step (esp_gym/kernels/env/step.py), so their numbers agree bit for bit.
 
     Each (sub-)environment carries its episode's run-time physics (:class:`Episode`: the
     stepper's constants, its number of physics steps, the task's and the action path's
     constants), set by :meth:`reset` with an ``episode`` or drawn by :meth:`start_episode`.
 
-    Views (read-only; leading batch axis for a batch; layouts in kernels/env_arrays.py):
+    Views (read-only; leading batch axis for a batch; layouts in kernels/env/arrays.py):
     ``observation`` (OBSERVATION), ``reward_terms`` (REWARD), ``action`` (the clipped
     action, ACTION), ``inputs`` (INPUTS: pivot force [N], body torque [N m], spatial torque),
     ``target`` (TARGET [m]), ``report`` (REPORT, int64), ``scene_params`` (SCENE_PARAMS of the
@@ -138,8 +138,8 @@ class ControlStep:
         self.sim = arrays.sim
         self._arrays = arrays
         self._state, self._work, self._params, self._diag = arrays.state, arrays.work, arrays.params, arrays.diag
-        #: the winch's arrays (read only with winch=True); the drone's (kernels/drone.py) or None
-        #: without a drone; the drone's hook constants (kernels/drone_hook.py) when it is off the
+        #: the winch's arrays (read only with winch=True); the drone's (kernels/drone/quadrotor.py) or None
+        #: without a drone; the drone's hook constants (kernels/drone/hook.py) when it is off the
         #: centre of mass, else None
         self._winch, self._drone, self._hook = arrays.winch, arrays.drone, arrays.hook
         if batch:
@@ -147,7 +147,7 @@ class ControlStep:
             self.scenes = [self.setup.scene] * self.num_envs
 
     def _env_buffers(self, batch: tuple) -> None:
-        """The environment's arrays (kernels/env_arrays.py EnvArrays: inputs, target, action,
+        """The environment's arrays (kernels/env/arrays.py EnvArrays: inputs, target, action,
         observation, reward terms, report, sensors, features, the episode's run-time physics and
         the wind's), the actions in flight and the generators, with the leading axis ``batch``."""
         setup = self.setup
@@ -170,7 +170,7 @@ class ControlStep:
         self._scene_params = np.zeros(batch + (len(setup.param_names),))
         self._scene_params[..., :nominal.values.size] = nominal.values
         # the wind's episode constants, its state, the random draws ahead and the next one's row
-        # (kernels/disturbance.py); stand-ins of the same types in still air
+        # (kernels/step/disturbance.py); stand-ins of the same types in still air
         self._wind_params = z(batch + (DISTURBANCE_PARAMS.size,))
         self._disturbance = z(batch + (DISTURBANCE.size,))
         self._draws = z(batch + (BLOCK if setup.wind is not None else 1, DRAWS.size))
@@ -181,7 +181,7 @@ class ControlStep:
         self._noisy_thrust = setup.drone and setup.thrust_noise > 0.0
 
     def _env_arrays(self) -> EnvArrays:
-        """The environment's arrays as the compiled step takes them (kernels/env_arrays.py)."""
+        """The environment's arrays as the compiled step takes them (kernels/env/arrays.py)."""
         return EnvArrays(ap=self._action_params, inputs=self._inputs, nsub=self._substeps, target=self._target,
                          tp=self._task_params, action=self._action, obs=self._obs, terms=self._terms,
                          sensors=self._sensors, features=self._features, result=self._report, dp=self._wind_params,
@@ -203,7 +203,7 @@ class ControlStep:
     def _pack_structs(self) -> None:
         """The structs the rig's entry points take, in its order (esp_gym/physics/rig.py STRUCTS), each
         as a plain tuple: numba's dispatcher types them ~2x faster than namedtuples
-        (kernels/env_step.py)."""
+        (kernels/env/step.py)."""
         arrays = self._arrays._replace(params=self._params)  # a single env's episode may bring new constants
         self._structs = arrays.structs(self.rig.structs, env=self._env_arrays())
 

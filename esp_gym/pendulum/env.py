@@ -8,8 +8,8 @@ import gymnasium as gym
 import numpy as np
 
 from ..errors import termination_reason
-from ..kernels.env_arrays import FEATURES
-from ..kernels.env_arrays import TARGET
+from ..kernels.env.arrays import FEATURES
+from ..kernels.env.arrays import TARGET
 from ..kernels.layout import INPUTS
 from ..scene.params import Scene
 from .control import INFO_REWARD_KEYS, ControlStep
@@ -46,7 +46,7 @@ class ElasticStringPendulumEnv(gym.Env):
 
     ## Observation Space
     `Box(-inf, inf, (22,), float32)`, spatial frame unless stated; `env.observation_structure`
-    maps each name below to its slice (esp_gym/kernels/env_arrays.py OBSERVATION):
+    maps each name below to its slice (esp_gym/kernels/env/arrays.py OBSERVATION):
 
     | index | observation | unit |
     |---|---|---|
@@ -101,7 +101,7 @@ class ElasticStringPendulumEnv(gym.Env):
     the nominal ones without `randomize`).
     With `wind`, the episode's mean wind azimuth (unless given) and first gust are drawn next,
     and `"scene_params"` also holds `wind_speed` [m/s] and `wind_direction` [rad]; the wind of
-    the current step is `env.unwrapped.control.disturbance` (kernels/disturbance.py DISTURBANCE).
+    the current step is `env.unwrapped.control.disturbance` (kernels/step/disturbance.py DISTURBANCE).
     All randomness comes from `np_random` (seed it through `reset(seed=...)`).
 
     ## Episode End
@@ -166,7 +166,7 @@ class ElasticStringPendulumEnv(gym.Env):
         self.control = ControlStep(self.setup)
         #: The simulator of this environment (its state and diagnostics).
         self.sim = self.control.sim
-        #: Name -> slice of the observation vector of this mode (kernels/env_arrays.py OBSERVATION,
+        #: Name -> slice of the observation vector of this mode (kernels/env/arrays.py OBSERVATION,
         #: HOOK_OBSERVATION).
         self.observation_structure = self.setup.observation_structure
         self._renderer = None
@@ -188,12 +188,12 @@ class ElasticStringPendulumEnv(gym.Env):
 
     def load_position(self) -> np.ndarray:
         """Load centre of mass [m] (spatial frame), as the last reset or step computed it
-        (kernels/task_terms.py ``task_features``)."""
+        (kernels/env/task_terms.py ``task_features``)."""
         return self.control.features[FEATURES["load_position"]].copy()
 
     def swing_angle(self) -> float:
         """Angle of pivot -> load centre of mass from the downward vertical [rad], as the last
-        reset or step computed it for the reward (kernels/task_terms.py ``task_features``)."""
+        reset or step computed it for the reward (kernels/env/task_terms.py ``task_features``)."""
         return float(self.control.features[FEATURES.scalar("swing")])
 
     # -- gymnasium API ------------------------------------------------------------------------

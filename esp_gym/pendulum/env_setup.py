@@ -16,9 +16,9 @@ import math
 import numpy as np
 from gymnasium import spaces
 
-from ..kernels.drone import ACTUATIONS
-from ..kernels.drone_env import DRONE_ACTION_PARAMS, DRONE_ACTION_SIZE, DRONE_WINCH_ACTION_SIZE
-from ..kernels.env_arrays import ACTION_PARAMS, ACTION_SIZE, WINCH_ACTION
+from ..kernels.drone.env import DRONE_ACTION_PARAMS, DRONE_ACTION_SIZE, DRONE_WINCH_ACTION_SIZE
+from ..kernels.drone.quadrotor import ACTUATIONS
+from ..kernels.env.arrays import ACTION_PARAMS, ACTION_SIZE, WINCH_ACTION
 from ..kernels.layout import LGVIParams
 from ..physics.rig import Rig, scene_rig
 from ..physics.state import build_params, total_weight
@@ -95,7 +95,7 @@ def check_thrust(drone: str, thrust: float, weight: float, where: str = "") -> N
 
 
 def action_params(hover: np.ndarray, force_limit: float, torque_limit: float, max_reel_speed: float) -> np.ndarray:
-    """The compiled action path's constants (:data:`~esp_gym.kernels.env_arrays.ACTION_PARAMS`):
+    """The compiled action path's constants (:data:`~esp_gym.kernels.env.arrays.ACTION_PARAMS`):
     box bounds [-1, 1], hover force, force and torque limits, the winch's largest reel speed."""
     ap = np.zeros(ACTION_PARAMS.size)
     ap[ACTION_PARAMS["low"]] = -1.0
@@ -116,7 +116,7 @@ DRONE_FLIP_TILT = 90.0
 
 
 def drone_action_params(scene: Scene, actuation: str) -> np.ndarray:
-    """The drone's action path (:data:`~esp_gym.kernels.drone_env.DRONE_ACTION_PARAMS`) for
+    """The drone's action path (:data:`~esp_gym.kernels.drone.env.DRONE_ACTION_PARAMS`) for
     ``scene``: the actuation's code, the hover thrust (the rig's weight, :func:`total_weight`) and
     the rotors' largest [N], the torque limit per axis [N m] (a quarter of the hover thrust across
     the arm for roll and pitch, times k_m/k_f for yaw), :data:`DRONE_RATE_LIMIT`, the flip's
@@ -168,8 +168,8 @@ class EnvSetup:
     observer: Observer = Observer()  #: the observation mode and its sensor noise
     action_latency: int = 0  #: control steps between an action and its application
     wind: Optional[Wind] = None  #: the wind and pushes (esp_gym/pendulum/wind.py), or None: still air
-    winch: bool = False  #: the winch's reel speed is the 7th action (kernels/winch.py)
-    #: how the action moves the pivot: "force" (a point mass), or a drone's (kernels/drone.py ACTUATIONS)
+    winch: bool = False  #: the winch's reel speed is the 7th action (kernels/step/winch.py)
+    #: how the action moves the pivot: "force" (a point mass), or a drone's (kernels/drone/quadrotor.py ACTUATIONS)
     actuation: str = "force"
     #: a drone's thrust noise: each rotor's thrust times 1 + this x N(0, 1), drawn per control step
     thrust_noise: float = 0.0

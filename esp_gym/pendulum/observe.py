@@ -1,13 +1,13 @@
 """Observation modes of ElasticStringPendulum-v0 (``observation=``) and their sensor noise.
 
-* ``full``: the compiled step's OBSERVATION (kernels/env_arrays.py), the load's state included;
+* ``full``: the compiled step's OBSERVATION (kernels/env/arrays.py), the load's state included;
 * ``hook``: HOOK_OBSERVATION, what a drone or a crane hook measures: its own position error and
   velocity, the string's pull on it (a load cell; SENSORS ``hook_tension``) and the load target
   relative to it, no load state.
 
 Both are gathered by name from the step's OBSERVATION and SENSORS vectors; with a winch
 (``winch=True``) each ends with the unstretched length (WINCH_OBSERVATION), and with a drone at the
-pivot with the drone's attitude and body rates (DRONE_SENSORS: kernels/drone_env.py). ``sensor_noise`` adds
+pivot with the drone's attitude and body rates (DRONE_SENSORS: kernels/drone/env.py). ``sensor_noise`` adds
 Gaussian noise drawn from the environment's ``np_random`` after every reset and step: a float s
 gives each field s times its :data:`UNIT_NOISE` standard deviation, a mapping field -> standard
 deviation (in the field's unit) sets fields of its own (the others noiseless).
@@ -19,8 +19,8 @@ from typing import Any, Mapping, Union
 
 import numpy as np
 
-from ..kernels.drone_env import DRONE_SENSORS
-from ..kernels.env_arrays import HOOK_OBSERVATION, OBSERVATION, SENSORS, WINCH_OBSERVATION
+from ..kernels.drone.env import DRONE_SENSORS
+from ..kernels.env.arrays import HOOK_OBSERVATION, OBSERVATION, SENSORS, WINCH_OBSERVATION
 from ..kernels.layout import Layout
 
 #: The observation layout of each mode.
@@ -45,7 +45,7 @@ MEASURED = {(winch, drone): Layout(*(WINCH_OBSERVATION if winch else OBSERVATION
             for winch in (False, True) for drone in (False, True)}
 #: The winch's field of an observation (esp_gym/physics/winch.py).
 WINCH_FIELD = ("unstretched_length", 1)
-#: A drone's fields, at the end of either mode's observation (kernels/drone_env.py).
+#: A drone's fields, at the end of either mode's observation (kernels/drone/env.py).
 DRONE_FIELDS = DRONE_SENSORS.fields[len(SENSORS.fields):]
 
 

@@ -1,6 +1,6 @@
 """Per-episode randomisation of the tether and the load (``randomize=`` of ElasticStringPendulum-v0).
 
-Each episode draws the physical parameters of :data:`~esp_gym.kernels.env_arrays.SCENE_PARAMS` from
+Each episode draws the physical parameters of :data:`~esp_gym.kernels.env.arrays.SCENE_PARAMS` from
 the environment's ``np_random``, in that order, one uniform draw each (so a range that is a
 single value leaves the stream of the others unchanged):
 
@@ -16,7 +16,7 @@ name                        unit   draw         default range (of the nominal sc
 ``pivot_mass``              kg     log-uniform  x [0.5, 2]
 =========================  =====  ===========  ==========================================
 
-With a drone at the pivot, :data:`~esp_gym.kernels.env_arrays.DRONE_SCENE_PARAMS` follow, drawn
+With a drone at the pivot, :data:`~esp_gym.kernels.env.arrays.DRONE_SCENE_PARAMS` follow, drawn
 after the others (so the draws above are the same with and without a drone), each a scale of
 the scene's value (1):
 
@@ -51,7 +51,7 @@ from typing import Any, Mapping, Optional, Union
 
 import numpy as np
 
-from ..kernels.env_arrays import DRONE_SCENE_PARAMS, SCENE_PARAMS
+from ..kernels.env.arrays import DRONE_SCENE_PARAMS, SCENE_PARAMS
 from ..scene.params import Box, Scene, scene_from_dict
 
 #: The names drawn on a log scale (scale parameters); the others are uniform.

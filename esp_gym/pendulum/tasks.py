@@ -1,6 +1,6 @@
 """Tasks of ElasticStringPendulum-v0: targets, initial-state distributions and reward weights.
 
-The reward itself is compiled (esp_gym/kernels/task_terms.py) so the single and the batched
+The reward itself is compiled (esp_gym/kernels/env/task_terms.py) so the single and the batched
 environments share it; this module holds what varies per task, as small pure functions.
 Every distance is in metres, spatial frame, gravity along +e3 (so "below" is +z).
 """
@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kernels.env_arrays import TARGET, TASK_PARAM_NAMES
-from ..kernels.track_curve import reference_at, reference_path
+from ..kernels.env.arrays import TARGET, TASK_PARAM_NAMES
+from ..kernels.env.track_curve import reference_at, reference_path
 from ..physics.state import State, cross3, legendre_momenta
 from ..physics.watchdog import task_constants
 from ..scene.params import Scene
@@ -94,7 +94,7 @@ TASKS = {
                   w_load_position=0.45, w_load_velocity=0.1, w_swing=0.2, w_spin=0.05, reel_range=(0.25, 0.6)),
 }
 
-#: The ``track`` task's reference family (kernels/track_curve.py): each episode draws a circle or a
+#: The ``track`` task's reference family (kernels/env/track_curve.py): each episode draws a circle or a
 #: figure-eight (equally likely) of size ``a`` [m] and period [s] uniform in these ranges, either
 #: sense, a uniform start angle and a uniform orientation about e3, centred on the origin.
 TRACK_SIZE = (0.3, 1.0)
@@ -128,7 +128,7 @@ def track_path(target: np.ndarray, times) -> tuple:
 
 def reference_acceleration(target: np.ndarray, t: float) -> np.ndarray:
     """The acceleration [m/s^2] (spatial frame) of the reference TARGET ``target`` at time ``t``
-    [s]: the second derivative of kernels/track_curve.py's curve, zero for a fixed target."""
+    [s]: the second derivative of kernels/env/track_curve.py's curve, zero for a fixed target."""
     w, m = target[TARGET["rate"]][0], target[TARGET["harmonic"]][0]
     theta = target[TARGET["start"]][0] + w * t
     (ax, ay), (px, py) = target[TARGET["amplitude"]], target[TARGET["phase"]]

@@ -1,5 +1,5 @@
 """Wind and pushes of ElasticStringPendulum-v0 (``wind=``): the options, each episode's
-DISTURBANCE_PARAMS, and the random numbers the compiled step reads (kernels/disturbance.py;
+DISTURBANCE_PARAMS, and the random numbers the compiled step reads (kernels/step/disturbance.py;
 docs/environment.md, "Wind and pushes"; docs/physics.md for how the forces enter).
 
 ``wind`` is 0.0 (still air, no pushes: the plain kernels), a mean wind speed [m/s] (gusts of
@@ -22,7 +22,7 @@ from typing import Any, Mapping, NamedTuple, Optional, Union
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from ..kernels.disturbance import DISTURBANCE, DISTURBANCE_PARAMS, DRAWS
+from ..kernels.step.disturbance import DISTURBANCE, DISTURBANCE_PARAMS, DRAWS
 from ..scene.params import Box, Cylinder, EllipticCylinder, Scene, Sphere
 from ..scene.scene_input import Real
 from .options import validation_message

@@ -1,5 +1,5 @@
-"""The structs the compiled kernels take, made in one place (kernels/layout.py, kernels/drone.py and
-kernels/team_arrays.py name their fields): a string's state, work and diagnostics arrays for N
+"""The structs the compiled kernels take, made in one place (kernels/layout.py, kernels/drone/quadrotor.py and
+kernels/team/arrays.py name their fields): a string's state, work and diagnostics arrays for N
 elements, the winch's, drones' arrays, a team's stacked strings, read-out and task, and a batch's
 arrays: a struct stacked with a leading axis (zeros, or a template's values in every row) and one
 row's views. The constants
@@ -10,15 +10,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels.drone import DRONE, DRONE_DIAG, DroneArrays
-from ..kernels.env_arrays import TARGET
+from ..kernels.drone.quadrotor import DRONE, DRONE_DIAG, DroneArrays
+from ..kernels.env.arrays import TARGET
 from ..kernels.layout import BALANCE, DIAG, WINCH, DiagWork, LGVIParams, StateArrays, WinchArrays, Work
-from ..kernels.loops import state_size
-from ..kernels.team_arrays import TeamArrays
-from ..kernels.team_env import TEAM_DRIVE, TEAM_ENV, TEAM_STEP, TeamEnvArrays, TeamStructs
-from ..kernels.team_readout import TEAM_READ, TeamReadArrays
-from ..kernels.team_task import AGENT_REWARD, OBSERVED, TEAM_REWARD, TEAM_TASK, TeamTaskArrays
-from ..kernels.team_winch import TeamWinch
+from ..kernels.step.loops import state_size
+from ..kernels.team.arrays import TeamArrays
+from ..kernels.team.env import TEAM_DRIVE, TEAM_ENV, TEAM_STEP, TeamEnvArrays, TeamStructs
+from ..kernels.team.readout import TEAM_READ, TeamReadArrays
+from ..kernels.team.task import AGENT_REWARD, OBSERVED, TEAM_REWARD, TEAM_TASK, TeamTaskArrays
+from ..kernels.team.winch import TeamWinch
 
 
 def state_arrays(n: int, r=None, p=None, R=None, Pi=None) -> StateArrays:
@@ -34,7 +34,7 @@ def state_arrays(n: int, r=None, p=None, R=None, Pi=None) -> StateArrays:
 
 def work_arrays(n: int) -> Work:
     """The stepper's scratch for a string of ``n`` elements (kernels/layout.py ``Work``), zeros; its
-    ``backup`` holds a checkpoint of the state (kernels/loops.py ``save_state``)."""
+    ``backup`` holds a checkpoint of the state (kernels/step/loops.py ``save_state``)."""
     z = np.zeros
     return Work(fn=z((n + 1, 3)), X=z((n + 1, 3)), Y=z((n + 1, 3)), FmI=z((3, 3)), RF=z((3, 3)), Rn=z((3, 3)),
                 jac=z((3, 3)), backup=z(state_size(state_arrays(n))), fl=z((n + 1, 3)), fr=z((n + 1, 3)), dy=z((n + 1, 3)),
@@ -42,7 +42,7 @@ def work_arrays(n: int) -> Work:
 
 
 def diag_work(n: int) -> DiagWork:
-    """The diagnostics' scratch and output for a string of ``n`` elements (kernels/diagnostics.py)."""
+    """The diagnostics' scratch and output for a string of ``n`` elements (kernels/step/diagnostics.py)."""
     z = np.zeros
     return DiagWork(V=z((n + 1, 3)), strain=z(n), omega=z(3), out=z(DIAG.size))
 
@@ -58,7 +58,7 @@ def winch_arrays(state: np.ndarray, coef: np.ndarray) -> WinchArrays:
 
 
 def team_winch_arrays(lead: WinchArrays, state: np.ndarray, coef: np.ndarray) -> TeamWinch:
-    """A team's winches (kernels/team_winch.py ``TeamWinch``): string 0's :func:`winch_arrays`
+    """A team's winches (kernels/team/winch.py ``TeamWinch``): string 0's :func:`winch_arrays`
     ``lead``, every string's WINCH ``state`` (K, WINCH) and the other strings' stacked convective
     weights ``coef`` (rows, 3) (taken, not copied); the step's factors and scratch zeros."""
     z = np.zeros
@@ -69,9 +69,9 @@ def team_winch_arrays(lead: WinchArrays, state: np.ndarray, coef: np.ndarray) ->
 
 
 def stacked_drone_arrays(count: int) -> DroneArrays:
-    """:class:`~esp_gym.kernels.drone.DroneArrays` of ``count`` drones, zeros but ``thrust_scale`` 1,
+    """:class:`~esp_gym.kernels.drone.quadrotor.DroneArrays` of ``count`` drones, zeros but ``thrust_scale`` 1,
     every field's first index the drone (one drone's: its :func:`row` 0; a team's:
-    kernels/team_drones.py)."""
+    kernels/team/drones.py)."""
     z = np.zeros
     return DroneArrays(R=z((count, 3, 3)), Rc=z((count, 3, 3)), Pi=z((count, 3)), Pic=z((count, 3)),
                        speed=z((count, 4)), command=z((count, 4)), setpoint=z((count, 4)),
@@ -82,7 +82,7 @@ def stacked_drone_arrays(count: int) -> DroneArrays:
 
 
 def team_arrays(rows: int, others: int) -> TeamArrays:
-    """A team's stacked strings 1..K-1 (kernels/team_arrays.py ``TeamArrays``): ``rows`` node rows in
+    """A team's stacked strings 1..K-1 (kernels/team/arrays.py ``TeamArrays``): ``rows`` node rows in
     all, ``others`` = K - 1 strings; zeros."""
     z = np.zeros
     return TeamArrays(r=z((rows, 3)), p=z((rows, 3)), rc=z((rows, 3)), pc=z((rows, 3)), f=z((rows, 3)),
@@ -91,7 +91,7 @@ def team_arrays(rows: int, others: int) -> TeamArrays:
 
 
 def team_read_arrays(n: int, rows: int, lengths: np.ndarray) -> TeamReadArrays:
-    """A team's read-out (kernels/team_readout.py ``TeamReadArrays``): string 0 of ``n`` elements,
+    """A team's read-out (kernels/team/readout.py ``TeamReadArrays``): string 0 of ``n`` elements,
     the others' ``rows`` stacked rows, each string's unstretched ``lengths`` (K,) [m] (copied); zeros."""
     z = np.zeros
     K = len(lengths)
@@ -101,7 +101,7 @@ def team_read_arrays(n: int, rows: int, lengths: np.ndarray) -> TeamReadArrays:
 
 
 def team_task_arrays(size: int, observation_size: int) -> TeamTaskArrays:
-    """A team task's arrays (kernels/team_task.py ``TeamTaskArrays``) for ``size`` agents each
+    """A team task's arrays (kernels/team/task.py ``TeamTaskArrays``) for ``size`` agents each
     observing ``observation_size`` numbers; zeros (its ``params`` and ``fields`` are its task's:
     esp_gym/team/tasks.py ``task_arrays``)."""
     z = np.zeros
@@ -112,7 +112,7 @@ def team_task_arrays(size: int, observation_size: int) -> TeamTaskArrays:
 
 
 def team_env_arrays(size: int, drones: int, action_size: int) -> TeamEnvArrays:
-    """A team environment's arrays (kernels/team_env.py ``TeamEnvArrays``) for ``size`` agents, of
+    """A team environment's arrays (kernels/team/env.py ``TeamEnvArrays``) for ``size`` agents, of
     which ``drones`` fly drones, each acting with ``action_size`` numbers; zeros."""
     z = np.zeros
     return TeamEnvArrays(params=z(TEAM_ENV.size), drive=z((drones, TEAM_DRIVE.size)), action=z((size, action_size)),
@@ -121,7 +121,7 @@ def team_env_arrays(size: int, drones: int, action_size: int) -> TeamEnvArrays:
 
 
 def plain_structs(structs: TeamStructs) -> TeamStructs:
-    """A team's ``structs`` (kernels/team_env.py ``TeamStructs``) as its entry points take them:
+    """A team's ``structs`` (kernels/team/env.py ``TeamStructs``) as its entry points take them:
     each struct a plain tuple (numba's dispatcher types those about twice as fast)."""
     drones = structs.drones
     drones = None if drones is None else (tuple(drones.arrays), drones.pivot, drones.pending)

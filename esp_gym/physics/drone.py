@@ -1,9 +1,9 @@
 """A drone at the pivot, the Python face: :class:`DroneSimulator` steps a scene whose ``pivot.kind``
-is ``drone`` (esp_gym/scene/pivot_params.py) with the compiled step of esp_gym/kernels/drone.py, the
+is ``drone`` (esp_gym/scene/pivot_params.py) with the compiled step of esp_gym/kernels/drone/quadrotor.py, the
 rotors driven by motor commands or a wrench (docs/physics.md, "A drone at the pivot").
 
-The drone's hook is its centre of mass (the step of esp_gym/kernels/drone.py) or a point of its body
-away from it (``pivot.drone.rho_q``: esp_gym/kernels/drone_hook.py, the rotation coupled to the
+The drone's hook is its centre of mass (the step of esp_gym/kernels/drone/quadrotor.py) or a point of its body
+away from it (``pivot.drone.rho_q``: esp_gym/kernels/drone/hook.py, the rotation coupled to the
 string); the string is explicit, of order 2, at a fixed length.
 """
 from __future__ import annotations
@@ -12,11 +12,11 @@ from collections import namedtuple
 
 import numpy as np
 
-from ..kernels.drone import DRONE, DRONE_DIAG, DroneArrays, drone_diagnostics
-from ..kernels.drone_hook import HookArrays, hook_diagnostics
-from ..kernels.drone_loops import drone_advance
+from ..kernels.drone.hook import HookArrays, hook_diagnostics
+from ..kernels.drone.loops import drone_advance
+from ..kernels.drone.quadrotor import DRONE, DRONE_DIAG, DroneArrays, drone_diagnostics
 from ..kernels.layout import DIAG
-from ..kernels.string import tridiag_factor
+from ..kernels.step.string import tridiag_factor
 from ..scene.params import Scene, check_rotation
 from ..scene.stability import hat
 from .arrays import row, stacked_drone_arrays
@@ -47,7 +47,7 @@ def pivot_column(scene: Scene) -> np.ndarray:
 
 
 def hook_arrays(scene: Scene) -> HookArrays:
-    """The :class:`~esp_gym.kernels.drone_hook.HookArrays` of ``scene``'s drone (:func:`use_hook_scene`)."""
+    """The :class:`~esp_gym.kernels.drone.hook.HookArrays` of ``scene``'s drone (:func:`use_hook_scene`)."""
     n = scene.string.elements
     arrays = HookArrays(rho=np.zeros(3), inertia=np.zeros((3, 3)), jeff=np.zeros((3, 3)), column=np.zeros(n + 1))
     use_hook_scene(arrays, scene)
@@ -121,9 +121,9 @@ class DroneSimulator(Simulator):
         if scene.solver.string != "explicit" or scene.solver.scheme.order != 2:
             raise ValueError(f"a drone's scene takes the explicit string of order 2 for now; scene {scene.name!r} "
                              f"has solver.string {scene.solver.string!r} of order {scene.solver.scheme.order}")
-        #: The drone's arrays (esp_gym/kernels/drone.py), advanced by the compiled step.
+        #: The drone's arrays (esp_gym/kernels/drone/quadrotor.py), advanced by the compiled step.
         self.drone = drone_arrays(scene)
-        #: The hook's constants (esp_gym/kernels/drone_hook.py), read when it is off the centre of mass.
+        #: The hook's constants (esp_gym/kernels/drone/hook.py), read when it is off the centre of mass.
         self.hook = hook_arrays(scene)
         self._hooked = scene.pivot.drone.offset_hook
         super().__init__(scene, specialise)

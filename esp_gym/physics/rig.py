@@ -17,14 +17,14 @@ from dataclasses import dataclass
 from importlib import import_module
 
 #: Every struct an entry point may take, in the order they are passed (kernels/layout.py,
-#: kernels/env_arrays.py, kernels/drone.py, kernels/drone_hook.py): the state, the work arrays,
+#: kernels/env/arrays.py, kernels/drone/quadrotor.py, kernels/drone/hook.py): the state, the work arrays,
 #: the stepper's constants, the diagnostics' scratch, the winch's arrays, the environment's
-#: arrays, the drone's, the offset hook's; a team's simulator's structs (kernels/team_env.py
+#: arrays, the drone's, the offset hook's; a team's simulator's structs (kernels/team/env.py
 #: ``TeamStructs``) and its task's and environment's arrays (``TeamTaskArrays``, ``TeamEnvArrays``).
 STRUCTS = ("state", "work", "params", "diag", "winch", "env", "drone", "hook", "team", "team_env")
 #: The module that holds the entry points of each pivot's rigs (and of a team's), each named after its rig.
-ENTRY_MODULES = {"point": "esp_gym.kernels.env_step", "drone": "esp_gym.kernels.drone_env",
-                 "team": "esp_gym.kernels.team_env"}
+ENTRY_MODULES = {"point": "esp_gym.kernels.env.step", "drone": "esp_gym.kernels.drone.env",
+                 "team": "esp_gym.kernels.team.env"}
 #: The environment each kind of rig belongs to.
 ENVIRONMENTS = {False: "ElasticStringPendulum-v0", True: "ElasticStringTeam-v0"}
 
@@ -63,10 +63,10 @@ class Rig:
 
     @property
     def entries(self):
-        """``(step, batch, threaded_batch)`` (kernels/env_step.py's EntryPoints; a team has no
+        """``(step, batch, threaded_batch)`` (kernels/env/step.py's EntryPoints; a team has no
         threaded batch), each compiled when first called: the module-level name of :attr:`name`
-        (``-`` read as ``_``) in kernels/env_step.py for a point pivot, kernels/drone_env.py for a
-        drone, kernels/team_env.py for a team (imported only when a rig asks: a point pivot's
+        (``-`` read as ``_``) in kernels/env/step.py for a point pivot, kernels/drone/env.py for a
+        drone, kernels/team/env.py for a team (imported only when a rig asks: a point pivot's
         environment loads no drone kernel). None for a rig that steps in Python."""
         if not self.compiled:
             return None
@@ -77,10 +77,10 @@ class Rig:
         """The observation, reward terms and energy origin of a freshly set state (structs this
         rig does not take are ignored); returns its termination code. (A team resets in Python.)"""
         if self.pivot == "point":
-            from ..kernels.env_step import env_reset_observe
+            from ..kernels.env.step import env_reset_observe
 
             return int(env_reset_observe(S, P, D, WA, E, self.winch))
-        from ..kernels.drone_env import drone_reset_observe
+        from ..kernels.drone.env import drone_reset_observe
 
         return int(drone_reset_observe(S, P, D, WA if self.winch else None, DR, HK if self.hook else None, E))
 

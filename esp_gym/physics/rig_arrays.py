@@ -1,7 +1,7 @@
 """Every physics struct a rig's compiled entry points take, made from a scene in one place
 (:func:`make_arrays`): the string's state, work arrays, stepper constants and diagnostics, the
 winch's arrays, and a drone's and its offset hook's, for one environment or stacked for a batch.
-The environment's own arrays (kernels/env_arrays.py ``EnvArrays``) depend on its task and
+The environment's own arrays (kernels/env/arrays.py ``EnvArrays``) depend on its task and
 options, not only on the scene, and are its (esp_gym/pendulum/control.py)."""
 from __future__ import annotations
 

@@ -13,18 +13,18 @@ from typing import Optional
 import numpy as np
 from tqdm.auto import tqdm
 
-from ..kernels.diagnostics import diagnostics as diagnostics_kernel
+from ..kernels.step.diagnostics import diagnostics as diagnostics_kernel
 from .arrays import copy_into, diag_work, state_arrays, work_arrays
 from ..kernels.layout import (BALANCE, DIAG, INPUTS, LOOP_REPORT_SIZE, R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS,
                              STEP_DIAG, LGVIParams, Snapshots, StateArrays, Work)
-from ..kernels.loops import winch_advance, winch_advance_implicit
-from ..kernels.specialise import general_kernels, specialised_kernels
 from ..kernels.status import OK
-from ..kernels.string import state_forces
+from ..kernels.step.loops import winch_advance, winch_advance_implicit
+from ..kernels.step.specialise import general_kernels, specialised_kernels
+from ..kernels.step.string import state_forces
 from ..errors import SimulationError, failure_advice  # noqa: F401  (re-exported)
 from ..scene.params import Scene, check_rotation
 from .trajectory import Trajectory  # noqa: F401  (re-exported)
-from ..kernels.winch import winch_forces
+from ..kernels.step.winch import winch_forces
 from ..scene.stepsize import at_length
 from .watchdog import WATCH_EVERY, check_balance
 from .winch import Winch
@@ -79,7 +79,7 @@ class Simulator(StepClock):
         #: call, for whether any input is non-zero; ``False`` runs the general kernel (same
         #: results, every term computed: for tests and benchmarks).
         self.specialise = bool(specialise)
-        #: The string's elastic force is implicit (``scene.solver.string``, kernels/implicit.py).
+        #: The string's elastic force is implicit (``scene.solver.string``, kernels/step/implicit.py).
         self.implicit = scene.solver.string == "implicit"
         self.h = scene.h
         #: The winch at the pivot (esp_gym/physics/winch.py): :meth:`step`'s ``reel_speed``.
@@ -299,7 +299,7 @@ class Simulator(StepClock):
             self._account()
 
     def _reel(self, n: int, speed: float) -> None:
-        """:meth:`step` with the winch (kernels/winch.py), in calls of about :attr:`call_seconds`."""
+        """:meth:`step` with the winch (kernels/step/winch.py), in calls of about :attr:`call_seconds`."""
         a, w = self._arrays, self.winch.arrays
         advance = winch_advance_implicit if self.implicit else winch_advance
         while n > 0:

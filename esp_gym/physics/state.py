@@ -13,7 +13,7 @@ from typing import Optional
 import numpy as np
 
 from ..kernels.layout import LGVIParams
-from ..kernels.string import tridiag_factor
+from ..kernels.step.string import tridiag_factor
 from ..scene.params import Scene
 from ..scene.stability import hat
 
@@ -23,7 +23,7 @@ class State:
     """A discrete state ``(q_k, p_k)`` at step ``step``; arrays are copies owned by the caller.
 
     ``remainders`` holds the compensated-summation remainders of (r, p, R, Pi) and the energy the
-    explicit string's slack switches still owe per element (``owed``, kernels/switch.py):
+    explicit string's slack switches still owe per element (``owed``, kernels/step/switch.py):
     restoring them makes save/restore bit-exact; ``None`` (e.g. after editing the momenta)
     restarts them at 0.
     ``winch``: the unstretched length [m] and the reel speed the momenta were made with [m/s]
@@ -68,8 +68,8 @@ def mass_matrix(scene: Scene):
 
 def attachment_column(diag, off: float, cp, first: int) -> np.ndarray:
     """``w = M_tot^-1 e_{N+1}``, the attachment node's column of the inverse mass matrix (the
-    Schur complement of kernels/lgvi.py), in O(N) from the Thomas factors ``cp`` of
-    :func:`~esp_gym.kernels.string.tridiag_factor`. Rows before ``first`` (a fixed pivot) are 0.
+    Schur complement of kernels/step/lgvi.py), in O(N) from the Thomas factors ``cp`` of
+    :func:`~esp_gym.kernels.step.string.tridiag_factor`. Rows before ``first`` (a fixed pivot) are 0.
 
     The forward sweep of e_{N+1} leaves it unchanged until the last row, so only the back
     substitution remains: ``w_N = 1/u_N``, ``w_a = -(off w_{a+1}) / u_a``, with the elimination
@@ -119,7 +119,7 @@ def available_memory():
 
 
 def build_params(scene: Scene) -> LGVIParams:
-    """Scene -> the flat constants of the compiled stepper (see kernels/lgvi.py)."""
+    """Scene -> the flat constants of the compiled stepper (see kernels/step/lgvi.py)."""
     n, m = scene.string.elements, scene.string.m
     M = scene.body.mass
     rho = np.array(scene.body.rho_c, dtype=float)

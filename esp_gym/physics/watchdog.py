@@ -1,7 +1,7 @@
 """The energy watchdog (docs/physics.md, "The energy watchdog"): the balance |E - E0 - W| of a
 run (W the inputs', the wind's and the winch's work) against f (scale + |W|), f the scene's
 ``solver.energy_watchdog`` and the scale :func:`energy_scale`. The environment checks it in its
-compiled step (kernels/env_step.py, ``energy_watchdog``, from the constants :func:`task_constants`
+compiled step (kernels/env/step.py, ``energy_watchdog``, from the constants :func:`task_constants`
 gives); the simulator, and a team's (esp_gym/team/simulator.py), after its compiled calls
 (:func:`check_balance`)."""
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """The winch's Python face: its arrays, its checks and its share of a Simulator's diagnostics
-(the step is kernels/winch.py; the model docs/physics.md, "The winch").
+(the step is kernels/step/winch.py; the model docs/physics.md, "The winch").
 
 A :class:`~esp_gym.physics.simulator.Simulator` holds one :class:`Winch`. While the length is the scene's and
 the reel speed is 0 the winch is idle and the simulator runs the fixed-length kernels, bit for bit
@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from ..kernels.layout import WINCH, WinchArrays
-from ..kernels.winch import convective_weights, winch_energy
+from ..kernels.step.winch import convective_weights, winch_energy
 from ..scene.params import Scene
 from ..scene.scene_input import real_number
 from ..scene.stepsize import shortest

@@ -1,6 +1,6 @@
 """A drone's rotor layout: the mixer that maps the four rotor thrusts to the collective thrust and
 the body torque, and its inverse (docs/physics.md, "Rotors"). The compiled pieces that use them
-are in esp_gym/kernels/rotors.py.
+are in esp_gym/kernels/drone/rotors.py.
 """
 from __future__ import annotations
 

@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Optional
 
-from ..kernels.implicit import TRANSVERSE_LIMIT
+from ..kernels.step.implicit import TRANSVERSE_LIMIT
 from .scene_input import real_number, validated
 from .stability import explicit_bound, transverse_bound
 
@@ -90,7 +90,7 @@ IMPLICIT_COST = 34.0
 #: variational form.
 DESIGN_TENSION = 4.0
 #: The implicit step stays this far under the transverse bound 2/omega_t at that tension: the
-#: transverse limit h omega_t <= TRANSVERSE_LIMIT (kernels/implicit.py), which the variational
+#: transverse limit h omega_t <= TRANSVERSE_LIMIT (kernels/step/implicit.py), which the variational
 #: form needs under its parametric resonances, and which resolves the transverse waves for the
 #: energy-momentum form (docs/physics.md, "The environment's choice").
 TRANSVERSE_SAFETY = TRANSVERSE_LIMIT / 2.0

@@ -3,8 +3,8 @@ the strings' end masses (docs/physics.md, "One string reduced to its end", "The 
 body"), for :class:`~esp_gym.team.simulator.TeamSimulator`."""
 import numpy as np
 
-from ..kernels.string import tridiag_factor
-from ..kernels.team_arrays import TeamParams
+from ..kernels.step.string import tridiag_factor
+from ..kernels.team.arrays import TeamParams
 from ..physics.state import attachment_column, mass_matrix
 from ..scene.stability import hat
 
@@ -34,7 +34,7 @@ def end_reduction(diag, off, first):
 
 
 def build_team(team, lead_params):
-    """The team's constants (:data:`~esp_gym.kernels.team.TeamParams`) of ``team`` (a
+    """The team's constants (:data:`~esp_gym.kernels.team.step.TeamParams`) of ``team`` (a
     :class:`~esp_gym.team.scene.TeamScene`) from the lead scene's
     ``lead_params``, and the other strings' per-string data for the diagnostics."""
     rho = team.offsets()[1:]

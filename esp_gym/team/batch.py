@@ -1,5 +1,5 @@
 """Many teams' control steps in one compiled call (their rig's batch entry point, esp_gym/physics/rig.py:
-kernels/team_env.py ``team_points_batch`` or ``team_drones_batch``; docs/team.md, "Speed"): :class:`TeamBatch` stacks the live arrays of B
+kernels/team/env.py ``team_points_batch`` or ``team_drones_batch``; docs/team.md, "Speed"): :class:`TeamBatch` stacks the live arrays of B
 teams' episodes (:class:`~esp_gym.team.core.TeamCore`, without winches, all alike) along a leading
 axis and lets each team step in its rows, so that a team stepped in the batch is the team stepped
 alone, bit for bit, and its Python face (its state, diagnostics, resets) reads the same arrays.
@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels.jit import bound_entry
-from ..kernels.team_drones import TeamDrones
+from ..kernels.team.drones import TeamDrones
 from ..physics.arrays import plain_structs, put_row, repeated, row
 
 
@@ -33,7 +33,7 @@ class TeamBatch:
         S = first.sim.structs()
         drones = None if S.drones is None else TeamDrones(repeated(S.drones.arrays, B), *(
             np.repeat(a[None], B, axis=0) for a in (S.drones.pivot, S.drones.pending)))
-        #: the stacked structs (kernels/team_env.py TeamStructs), the task's and the env's arrays
+        #: the stacked structs (kernels/team/env.py TeamStructs), the task's and the env's arrays
         self.structs = S._replace(**{name: repeated(getattr(S, name), B) for name in ("state", "work", "params",
                                                                                        "team", "arrays", "read")},
                                   drones=drones, **{name: np.repeat(getattr(S, name)[None], B, axis=0)

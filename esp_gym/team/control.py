@@ -1,4 +1,4 @@
-"""A team environment's control step in one compiled call (esp_gym/kernels/team_env.py): the
+"""A team environment's control step in one compiled call (esp_gym/kernels/team/env.py): the
 Python face that builds its arrays for a :class:`~esp_gym.team.core.TeamCore`'s simulator and
 task, and makes the call (docs/team.md, "Speed")."""
 from __future__ import annotations
@@ -7,14 +7,14 @@ import numpy as np
 
 from ..kernels.jit import bound_entry
 from ..physics.arrays import copy_into, team_env_arrays
-from ..kernels.team_env import (TD_HOVER_THRUST, TD_MAX_THRUST, TE_ENERGY_SCALE, TE_FORCE_SCALE, TE_HOVER_FORCE,
+from ..kernels.team.env import (TD_HOVER_THRUST, TD_MAX_THRUST, TE_ENERGY_SCALE, TE_FORCE_SCALE, TE_HOVER_FORCE,
                                 TE_MOVING, TE_RATE_LIMIT, TE_WATCHDOG)
 
 
 class TeamControl:
     """One team's compiled control step: ``rig`` the team's (esp_gym/physics/rig.py; its entry point
     ``step``), ``sim`` a :class:`~esp_gym.team.simulator.TeamSimulator`
-    whose strings keep their scenes' lengths, ``task`` its task's arrays (kernels/team_task.py
+    whose strings keep their scenes' lengths, ``task`` its task's arrays (kernels/team/task.py
     ``TeamTaskArrays``, the env's observation), ``action_size`` the size of each agent's action,
     ``substeps`` physics steps per control step, ``force_scale`` and ``hover`` each point pivot's
     force at action 1 and its hover force [N], ``formation`` (K, 3) each pivot's target from the
@@ -28,7 +28,7 @@ class TeamControl:
         K = task.obs.shape[0]
         #: whether the drones' actions set the rate controller's setpoints (``thrust_rates``)
         self.rates = drive is not None and drive.actuation == "thrust_rates"
-        #: the env's arrays (kernels/team_env.py ``TeamEnvArrays``)
+        #: the env's arrays (kernels/team/env.py ``TeamEnvArrays``)
         self.arrays = E = team_env_arrays(K, 0 if fleet is None else len(fleet), action_size)
         E.params[TE_FORCE_SCALE] = force_scale
         E.params[TE_HOVER_FORCE] = hover
@@ -43,7 +43,7 @@ class TeamControl:
         self._entry = None  # the step's machine code, bound at the first step (kernels/jit.py bound_entry)
 
     def use_reference(self, reference) -> np.ndarray:
-        """Follow ``reference`` (a TARGET vector, kernels/env_arrays.py; copied), or a fixed target
+        """Follow ``reference`` (a TARGET vector, kernels/env/arrays.py; copied), or a fixed target
         (None); returns the array the step moves (the episode's reference), or None."""
         E = self.arrays
         E.params[TE_MOVING] = 0.0 if reference is None else 1.0

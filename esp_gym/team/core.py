@@ -4,7 +4,7 @@ drones carry one load on elastic tension-only strings.
 :class:`TeamCore` is the episode: the team's physics (:class:`~esp_gym.team.TeamSimulator`), the
 task's targets, the wind, the sensor noise and the latency; each agent's observation, the team's
 reward with its per-agent terms and the episode's end are one compiled call on the state's read-out
-(esp_gym/kernels/team_task.py, :meth:`TeamCore.evaluate`). Two faces share it:
+(esp_gym/kernels/team/task.py, :meth:`TeamCore.evaluate`). Two faces share it:
 :class:`~esp_gym.team.env.ElasticStringTeamEnv`, the centralised Gymnasium env ``ElasticStringTeam-v0`` (the agents' actions and observations concatenated), and
 :class:`~esp_gym.team.parallel.ElasticStringTeamParallelEnv`, PettingZoo's ParallelEnv.
 """
@@ -17,10 +17,10 @@ from typing import Optional
 import numpy as np
 
 from .. import TEAM_ENV_ID
-from ..kernels.env_arrays import TARGET
+from ..kernels.env.arrays import TARGET
+from ..kernels.env.track_curve import reference_at
 from ..kernels.status import TERM_NONE
-from ..kernels.team_task import team_task
-from ..kernels.track_curve import reference_at
+from ..kernels.team.task import team_task
 from ..pendulum.observe import standard_deviation
 from ..pendulum.options import check_substeps, team_options
 from ..pendulum.tasks import track_reference
@@ -129,7 +129,7 @@ class TeamCore(TeamStepping):
         self.load_target = self.load_position()
         self.pivot_targets = self.pivot_positions()
         #: for a moving task, the target's reference (a TARGET vector of
-        #: esp_gym/kernels/env_arrays.py; None for a fixed target)
+        #: esp_gym/kernels/env/arrays.py; None for a fixed target)
         self.reference = None
         self.reel_targets = None  #: a lift's target lengths (K,) [m], None for the other tasks
         self.load_force = np.zeros(3)
@@ -288,7 +288,7 @@ class TeamCore(TeamStepping):
         return out.astype(np.float32)
 
     def evaluate(self, action: np.ndarray, code: int = TERM_NONE, observation: Optional[str] = None):
-        """The task on the current state after ``action`` (K, n_a) (kernels/team_task.py, one
+        """The task on the current state after ``action`` (K, n_a) (kernels/team/task.py, one
         compiled call on the read-out): returns ``(its arrays, valid until the next call: every
         agent's observation without noise in the ``observation`` mode (the env's if None), the
         reward terms, each agent's shares, the pivots' distances; the reward; the smallest distance
@@ -317,7 +317,7 @@ class TeamCore(TeamStepping):
             self.reference = env.reference
 
     def compiled_task(self):
-        """The compiled task's arrays of the env's observation (kernels/team_task.py ``TeamTaskArrays``)."""
+        """The compiled task's arrays of the env's observation (kernels/team/task.py ``TeamTaskArrays``)."""
         return self._task_arrays(self.observation)
 
     def _task_arrays(self, mode: str):

@@ -1,4 +1,4 @@
-"""A team's drones, the Python face of esp_gym/kernels/team_drones.py (docs/physics.md, "Drones at a
+"""A team's drones, the Python face of esp_gym/kernels/team/drones.py (docs/physics.md, "Drones at a
 team's pivots"): their arrays, states, motor commands and diagnostics, for
 :class:`~esp_gym.team.simulator.TeamSimulator`."""
 from __future__ import annotations
@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from .. import TEAM_ENV_ID
-from ..kernels.drone import Q_THRUST_COEFFICIENT
-from ..kernels.team_drones import TeamDrones
+from ..kernels.drone.quadrotor import Q_THRUST_COEFFICIENT
+from ..kernels.team.drones import TeamDrones
 from ..pendulum.env_setup import check_thrust
 from ..physics.arrays import copy_into, row, stacked_drone_arrays
 from ..physics.drone import DroneState, use_drone
@@ -45,7 +45,7 @@ def check_lift(team, where: str = "") -> None:
 class Fleet:
     """The drones of a :class:`~esp_gym.team.scene.TeamScene` stepped at ``h`` [s]: ``pivots`` the
     pivots that are drones (0: string 0's), in the order of every per-drone array here;
-    ``arrays`` the kernel's :data:`~esp_gym.kernels.team_drones.TeamDrones`; ``rates`` whether
+    ``arrays`` the kernel's :data:`~esp_gym.kernels.team.drones.TeamDrones`; ``rates`` whether
     the rate controller sets the motor commands before every step."""
 
     def __init__(self, team, h: float):

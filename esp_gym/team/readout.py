@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels.layout import BALANCE
-from ..kernels.team_readout import TB_ENERGY_ORIGIN, TB_LOAD_WORK, TB_WINCH_JUMPS, TEAM_READ, team_read
+from ..kernels.team.readout import TB_ENERGY_ORIGIN, TB_LOAD_WORK, TB_WINCH_JUMPS, TEAM_READ, team_read
 from ..physics.state import cross3
 from .assembly import string_mass
 from .velocities import team_velocities
@@ -19,7 +19,7 @@ class TeamReadout:
     Legendre transform is kept for the state it was taken at (the state changes only by the
     simulator's ``step`` and ``set_state``, which count ``_changes``, and the reel speeds): the
     watchdog's diagnostics and an environment's observation of one state invert it once. With the
-    winches at rest at the scenes' lengths, one compiled call (kernels/team_readout.py
+    winches at rest at the scenes' lengths, one compiled call (kernels/team/readout.py
     ``team_read``, into ``_read``) takes the velocities with the step's own factors, the energy
     terms and what :meth:`observed` gives; a reeled team's are taken here, the flow's momenta
     removed, by LAPACK's tridiagonal solver (esp_gym/team/velocities.py)."""
@@ -90,7 +90,7 @@ class TeamReadout:
         return v0, vo, Omega, p0, po, Pi
 
     def _fill_read(self, v0, vo, Omega) -> None:
-        """The read-out's observed part (kernels/team_readout.py ``TeamReadArrays``: each pivot, its
+        """The read-out's observed part (kernels/team/readout.py ``TeamReadArrays``: each pivot, its
         velocity, its string's pull and stretch, its length, R, the load's centre, its velocity and
         Omega) of the state whose velocities are ``v0``, ``vo`` and ``Omega``, taken in Python."""
         S, T, D = self._S, self.params, self._read
@@ -133,7 +133,7 @@ class TeamReadout:
         return [(r.copy(), 0.5 * string.kappa * self._stretch(r, string) ** 2) for r, string, _ in self._members()]
 
     def read(self):
-        """The read-out of the current state (kernels/team_readout.py ``TeamReadArrays``; its energy
+        """The read-out of the current state (kernels/team/readout.py ``TeamReadArrays``; its energy
         terms only where it was compiled, :meth:`diagnostics` has them always): the arrays
         themselves, valid until the state changes."""
         if not (self.compiled_reads and self._read_changes == self._changes):

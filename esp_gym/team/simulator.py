@@ -1,5 +1,5 @@
 """The Python face of a team's physics: :class:`TeamSimulator` steps a :class:`TeamScene` with the
-compiled team step (esp_gym/kernels/team.py) and reports its diagnostics and balances
+compiled team step (esp_gym/kernels/team/step.py) and reports its diagnostics and balances
 (docs/physics.md, "A team: several strings on one body").
 """
 from __future__ import annotations
@@ -11,11 +11,11 @@ import numpy as np
 
 from ..kernels.layout import INPUTS, LOOP_REPORT_SIZE, R_NEWTON_TOTAL, R_STATUS, R_STEPS
 from ..kernels.status import ENERGY_BALANCE, OK
-from ..kernels.team import team_forces
-from ..kernels.team_env import TeamStructs
-from ..kernels.team_loops import team_advance, team_drone_advance, team_winch_advance
-from ..kernels.team_readout import TB_ENERGY_ORIGIN, TB_LOAD_WORK, TB_WINCH_JUMPS, TEAM_BALANCE
-from ..kernels.team_winch import team_winch_forces
+from ..kernels.team.env import TeamStructs
+from ..kernels.team.loops import team_advance, team_drone_advance, team_winch_advance
+from ..kernels.team.readout import TB_ENERGY_ORIGIN, TB_LOAD_WORK, TB_WINCH_JUMPS, TEAM_BALANCE
+from ..kernels.team.step import team_forces
+from ..kernels.team.winch import team_winch_forces
 from ..physics.arrays import copy_into, plain_structs, team_arrays, team_read_arrays
 from ..physics.drone import DroneState
 from ..physics.simulator import SimulationError, Simulator
@@ -81,7 +81,7 @@ class TeamSimulator(TeamReadout, StepClock):
         self.winches = TeamWinches(team, np.concatenate([[self._P.max_len2], self.params.max_len2]),
                                    self.params.start)
         self._read = team_read_arrays(team.scene.string.elements, rows, self.winches.scene_lengths)
-        #: E0, the load force's work and the winches' jumps of H (kernels/team_readout.py TEAM_BALANCE)
+        #: E0, the load force's work and the winches' jumps of H (kernels/team/readout.py TEAM_BALANCE)
         self._balance = np.zeros(TEAM_BALANCE.size)
         self._energy_scale = team_energy_scale(team)  # the watchdog's [J]
         self._unwatched = 0  # steps since the energy watchdog last looked
@@ -254,7 +254,7 @@ class TeamSimulator(TeamReadout, StepClock):
         held; or ``thrust`` (n_drones,) [N] with ``torque`` (n_drones, 3) (body frame) [N m],
         made into held commands through A^-1 (clipped to each rotor's range); or ``thrust`` with
         ``rates`` (n_drones, 3) [rad/s], the rate controller setting the commands before every
-        step (kernels/drone.py ``actuate``). None of them keeps the last call's (at first
+        step (kernels/drone/quadrotor.py ``actuate``). None of them keeps the last call's (at first
         hover: :meth:`Fleet.shares <esp_gym.team.fleet.Fleet.shares>`). ``reel_speeds`` (K,)
         [m/s]: each string's winch reels it out (> 0) or in, held, within its ``winch`` section
         (None: at rest; docs/physics.md, "Winches on a team's strings"). Raises
@@ -306,8 +306,8 @@ class TeamSimulator(TeamReadout, StepClock):
 
     # -- the environment's compiled control step --------------------------------------------
     def structs(self) -> TeamStructs:
-        """The structs a compiled control step (kernels/team_env.py) advances and reads
-        (kernels/team_env.py ``TeamStructs``; the drones None without drones). Only a team whose
+        """The structs a compiled control step (kernels/team/env.py) advances and reads
+        (kernels/team/env.py ``TeamStructs``; the drones None without drones). Only a team whose
         strings keep their scenes' lengths steps there (ValueError for one with winches that have
         reeled, or with :attr:`compiled_reads` off); after each call, :meth:`count_control_step`."""
         if not (self.winches.idle and self.compiled_reads):
@@ -368,7 +368,7 @@ class TeamSimulator(TeamReadout, StepClock):
 
     # -- diagnostics ------------------------------------------------------------------------
     def _reel(self, n: int, speeds: np.ndarray, disturbed: bool) -> None:
-        """:meth:`step`'s ``n`` steps while the winches reel at ``speeds`` (kernels/team_loops.py
+        """:meth:`step`'s ``n`` steps while the winches reel at ``speeds`` (kernels/team/loops.py
         ``team_winch_advance``); a step that would pass an end of a winch's range is cut to end on
         it at its own speed, that string then stops, each change of the reel speeds with H's jump
         at fixed (q, p). On return ``_stats`` counts every step taken (``_step`` not yet moved)."""

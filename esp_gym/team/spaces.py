@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels.drone import ACTUATIONS as DRONE_ACTUATIONS
+from ..kernels.drone.quadrotor import ACTUATIONS as DRONE_ACTUATIONS
 from ..kernels.layout import Layout
 from ..pendulum.env_setup import DRONE_RATE_LIMIT
 

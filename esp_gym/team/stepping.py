@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import SimulationError, termination_reason
 from ..kernels.status import ENERGY_BALANCE, PHYSICS_FAILURES, TERM_NONE
-from ..kernels.team_env import TS_CODE, TS_RESIDUAL, TS_REWARD, TS_SMALLEST, TS_WORK
+from ..kernels.team.env import TS_CODE, TS_RESIDUAL, TS_REWARD, TS_SMALLEST, TS_WORK
 from ..pendulum.control import raw_actions
 from .tasks import AGENT_TERMS, REWARD_TERMS
 

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..kernels.layout import Layout
-from ..kernels.team_task import AGENT_REWARD, OBSERVED, TEAM_REWARD, TEAM_TASK, TeamTaskArrays
+from ..kernels.team.task import AGENT_REWARD, OBSERVED, TEAM_REWARD, TEAM_TASK, TeamTaskArrays
 from ..pendulum.env_setup import DRONE_FLIP_TILT, PRESETS
 from ..pendulum.options import TEAM_LACKS
 from ..physics.arrays import team_task_arrays
@@ -22,7 +22,7 @@ COLLISION = 0.15
 #: ends (the single drone's DRONE_FLIP_TILT).
 FLIP_COSINE = math.cos(math.radians(DRONE_FLIP_TILT))
 #: The team's reward terms, in order (``info["reward_<term>"]``), and those each agent has its own
-#: share of (``info["agent_<term>"]``, one per agent): kernels/team_task.py's layouts.
+#: share of (``info["agent_<term>"]``, one per agent): kernels/team/task.py's layouts.
 REWARD_TERMS = TEAM_REWARD.names
 AGENT_TERMS = AGENT_REWARD.names
 #: The options each preset sets (those given to the environment win): the single env's, less what
@@ -96,7 +96,7 @@ def get_team_task(name: str) -> TeamTask:
 
 
 def task_arrays(task: TeamTask, layout: Layout, size: int) -> TeamTaskArrays:
-    """The compiled task's arrays (kernels/team_task.py) of ``task`` for ``size`` agents observing
+    """The compiled task's arrays (kernels/team/task.py) of ``task`` for ``size`` agents observing
     ``layout`` (esp_gym/team/spaces.py ``agent_layout``): its constants and the layout's fields;
     the targets zero."""
     constants = {"separation": SEPARATION, "collision": COLLISION, "flip_cosine": FLIP_COSINE}

@@ -1,5 +1,5 @@
 """A team's winches, one at each string's pivot (docs/physics.md, "Winches on a team's strings"):
-their arrays for the compiled step (esp_gym/kernels/team_winch.py), their lengths and reel
+their arrays for the compiled step (esp_gym/kernels/team/winch.py), their lengths and reel
 speeds, their checks, and the reeling strings' share of a team's diagnostics.
 
 Every string of a team has a winch (its scene's ``winch`` section: the range and the top speed),
@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernels.layout import WINCH
-from ..kernels.winch import convective_weights
+from ..kernels.step.winch import convective_weights
 from ..physics.arrays import team_winch_arrays, winch_arrays
 from ..physics.winch import winch_state
 from ..scene.scene_input import real_number
@@ -23,7 +23,7 @@ LENGTH, SPEED = WINCH.scalar("length"), WINCH.scalar("reel_speed")
 
 
 class TeamWinches:
-    """The winches of a team's K strings: ``arrays`` (:data:`~esp_gym.kernels.team_winch.TeamWinch`),
+    """The winches of a team's K strings: ``arrays`` (:data:`~esp_gym.kernels.team.winch.TeamWinch`),
     each string's unstretched length [m] and the state's reel speed [m/s]."""
 
     def __init__(self, team: TeamScene, max_len2: np.ndarray, start: np.ndarray):
@@ -120,7 +120,7 @@ class TeamWinches:
 
     def cut_speeds(self, h: float) -> np.ndarray:
         """The state's reel speeds, but (end - length) / h for a string whose next step would pass
-        an end of its range: the speed of the step that ends on it (kernels/team_winch.py
+        an end of its range: the speed of the step that ends on it (kernels/team/winch.py
         ``reel_targets`` holds it there)."""
         lengths, speeds = self.state[:, LENGTH], self.state[:, SPEED]
         targets = lengths + h * speeds

@@ -1,7 +1,7 @@
 """The finite-element model of the elastic string pendulum as a first-order ODE ``y' = f(t, y)``.
 
 This is the *same* spatial model the LGVI discretises in time (consistent mass, the elastic law
-of ``kernels/string.py``, the body of the paper's Sec. 3), written as ordinary differential
+of ``kernels/step/string.py``, the body of the paper's Sec. 3), written as ordinary differential
 equations so that general-purpose integrators (SciPy's RK45, DOP853, Radau, BDF, a compiled RK4)
 can solve it and be compared with the LGVI (``benchmarks/work_precision.py``). Its exact flow
 is what the LGVI converges to as h -> 0.
@@ -40,7 +40,7 @@ equation on SO(3) (variations delta R = R eta^) are::
 [N], ``tau`` body torque [N m], ``T`` spatial torque [N m], as in ``Simulator.step``.
 
 The coupled linear system for (a, Omega') is solved like the LGVI's step and the diagnostics'
-Legendre transform (kernels/diagnostics.py): with ``w = M_tot^-1 e_N`` and
+Legendre transform (kernels/step/diagnostics.py): with ``w = M_tot^-1 e_N`` and
 ``s = (M_tot^-1)_{N,N}``,
 
     Y = M_tot^-1 (rhs of (T) with Omega' = 0)                 (one Thomas solve, 3 columns)
@@ -56,8 +56,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels.diagnostics import diagnostics as diagnostics_kernel
 from ..kernels.layout import DIAG, INPUTS, STEP_DIAG, DiagWork
+from ..kernels.step.diagnostics import diagnostics as diagnostics_kernel
 from ..physics.arrays import diag_work, state_arrays
 from ..physics.state import State, build_params, legendre_momenta
 from ..scene.params import Scene
@@ -173,7 +173,7 @@ class ElasticStringODE:
 
     def from_state(self, state: State) -> np.ndarray:
         """A discrete LGVI state (r, p, R, Pi) -> y, with velocities from the continuous
-        Legendre transform inverted as in the diagnostics (kernels/diagnostics.py)."""
+        Legendre transform inverted as in the diagnostics (kernels/step/diagnostics.py)."""
         D = self._diagnose(state)
         return self.pack(state.r, D.V, state.R, D.omega)
 

@@ -15,7 +15,7 @@ import numpy as np
 from ..kernels.jit import kernel
 from ..kernels.layout import IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_SPATIAL_TORQUE
 from ..kernels.so3 import solve3
-from ..kernels.string import nodal_forces, tridiag_solve
+from ..kernels.step.string import nodal_forces, tridiag_solve
 
 #: Scratch of the right-hand side: full (N+1, 3) node positions (row 0 holds the fixed pivot),
 #: forces and the solve's right-hand side / solution.

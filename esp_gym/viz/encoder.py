@@ -1,7 +1,7 @@
 """The recorder's buffered samples encoded for Rerun (esp_gym/viz/recorder.py writes what this
-gives): :class:`SampleEncoder` turns rows of kernels/recording.py's sample layout into record
+gives): :class:`SampleEncoder` turns rows of kernels/env/recording.py's sample layout into record
 batches (arrow.py) of every entity of esp_gym/viz/entities.py, in stages: the rig's geometry
-(compiled, kernels/recording.py ``sample_geometry``), the env's arrows, the scalar series and the
+(compiled, kernels/env/recording.py ``sample_geometry``), the env's arrows, the scalar series and the
 episode's return, and the targets of the episodes reset among the rows.
 """
 from __future__ import annotations
@@ -10,9 +10,9 @@ import numpy as np
 import pyarrow as pa
 import rerun as rr
 
-from ..kernels.disturbance import DISTURBANCE
-from ..kernels.env_arrays import SENSORS, TARGET
-from ..kernels.recording import GeometryColumns, GeometryStyle, sample_geometry, trail_points
+from ..kernels.env.arrays import SENSORS, TARGET
+from ..kernels.env.recording import GeometryColumns, GeometryStyle, sample_geometry, trail_points
+from ..kernels.step.disturbance import DISTURBANCE
 from . import arrow, palette
 from .entities import (BODY, BODY_TORQUE, HOOK_TENSION, LOAD_TRAIL, PIVOT, PIVOT_FORCE, PUSH, RETURN, STRING,
                        TARGET_LOAD, TARGET_PIVOT, WIND)

@@ -1,5 +1,5 @@
 """What a Rerun recording holds: the entity paths, the scalar series and where each takes its
-values in a sample row (kernels/recording.py ``sample_layout``), the default blueprint, the string's
+values in a sample row (kernels/env/recording.py ``sample_layout``), the default blueprint, the string's
 colour scale and the body's shape archetype. The writing is recorder.py's; the entities, their
 units and frames are listed in esp_gym/viz/recording.py.
 """
@@ -11,10 +11,10 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from ..kernels.disturbance import DISTURBANCE
-from ..kernels.env_arrays import ACTION, REWARD_TERMS, SENSORS
+from ..kernels.env.arrays import ACTION, REWARD_TERMS, SENSORS
 from ..kernels.layout import DIAG
-from ..kernels.recording import (SB_ENERGY_RESIDUAL, SB_PI3_RESIDUAL, SB_WORK, SW_REEL_SPEED, SW_UNSTRETCHED_LENGTH,
+from ..kernels.step.disturbance import DISTURBANCE
+from ..kernels.env.recording import (SB_ENERGY_RESIDUAL, SB_PI3_RESIDUAL, SB_WORK, SW_REEL_SPEED, SW_UNSTRETCHED_LENGTH,
                                 SW_WINCH_WORK)
 from . import palette
 from .geometry import equivalent_box, prism_triangles, quaternion_xyzw
@@ -61,7 +61,7 @@ ACTION_NAMES = ("force_x", "force_y", "force_z", "torque_x", "torque_y", "torque
 
 class Series(NamedTuple):
     """Named scalar series sharing one entity: the names, their sources (a field of
-    :func:`~esp_gym.kernels.recording.sample_layout` and an offset in it), colours, whether only
+    :func:`~esp_gym.kernels.env.recording.sample_layout` and an offset in it), colours, whether only
     samples after a step have values (not resets), whether only env rollouts have them, whether
     only recordings with a winch have them."""
 

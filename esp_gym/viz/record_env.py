@@ -10,8 +10,8 @@ from typing import Optional
 import gymnasium as gym
 import numpy as np
 
-from ..kernels.drone import DRONE_DIAG
-from ..kernels.env_arrays import ACTION, TARGET
+from ..kernels.drone.quadrotor import DRONE_DIAG
+from ..kernels.env.arrays import ACTION, TARGET
 from ..pendulum.control import ControlStep, read_only
 from .recorder import Recorder
 
@@ -33,7 +33,7 @@ class RecordRerun(gym.Wrapper):
     :meth:`close`) and stops the recording; the file keeps what came before.
 
     There is no every-physics-step option: the environment advances its physics steps inside
-    one compiled call (kernels/env_step.py), so the intermediate states never reach Python;
+    one compiled call (kernels/env/step.py), so the intermediate states never reach Python;
     recording them would mean re-stepping the physics outside the environment's own kernel.
 
     The sample is copied by one compiled call (:meth:`Recorder.add_sample`) from the env's

@@ -1,4 +1,4 @@
-"""The Rerun recorder: :class:`Recorder` buffers samples as rows (kernels/recording.py) and
+"""The Rerun recorder: :class:`Recorder` buffers samples as rows (kernels/env/recording.py) and
 writes them as record batches (arrow.py). What a recording holds (entity paths, scalar series,
 blueprint, body shape) is entities.py's; entities, timelines and interruption are described in
 esp_gym/viz/recording.py.
@@ -13,10 +13,10 @@ from typing import Optional
 import numpy as np
 import rerun as rr
 
-from ..kernels.disturbance import DISTURBANCE
-from ..kernels.env_arrays import ACTION, REWARD_TERMS, SENSORS, TARGET
+from ..kernels.env.arrays import ACTION, REWARD_TERMS, SENSORS, TARGET
+from ..kernels.env.recording import capture_sample, sample_layout
 from ..kernels.layout import INPUTS, REPORT, R_NEWTON_TOTAL, R_STEPS, WINCH
-from ..kernels.recording import capture_sample, sample_layout
+from ..kernels.step.disturbance import DISTURBANCE
 from ..pendulum.control import read_only
 from . import lifecycle, palette
 from .drone_track import DroneTrack

@@ -106,14 +106,14 @@ file ends when it has not grown for ``write_timeout`` (a failure, ``errno.ETIMED
 Modules: entities.py (the entity paths and series, the blueprint, the body's shape), recorder.py
 (:class:`Recorder`), drone_track.py (a drone's samples), record_env.py (:class:`RecordRerun`, :func:`record_simulation`), arrow.py
 (the record batches), lifecycle.py (exit and signals), geometry.py and palette.py (shared with
-the rgb_array renderer), esp_gym/kernels/recording.py (the compiled sample, geometry and trail
+the rgb_array renderer), esp_gym/kernels/env/recording.py (the compiled sample, geometry and trail
 kernels). This module is their public face: it asks for the ``record`` extra (Rerun) before they
 import it.
 """
 from ..extras import require
 
 require("rerun", "esp_gym.viz.recording")
-from ..kernels.env_arrays import REWARD_TERMS
+from ..kernels.env.arrays import REWARD_TERMS
 from .geometry import equivalent_box, prism_triangles, quaternion_xyzw
 from .lifecycle import RecordingError
 from .entities import (BODY, BODY_COM, BODY_SHAPE, BODY_TORQUE, DRONE, DRONE_FRAME, DRONE_RATES, DRONE_ROTORS,

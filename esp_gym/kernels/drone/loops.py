@@ -1,0 +1,60 @@
+"""The drone's run of steps (docs/physics.md, "A drone at the pivot", "A drone at an offset hook"):
+one loop, :func:`drone_steps`, for every drone rig, its optional structs pruned where they are
+None (the winch ``WA``, the offset hook ``HK``: compiled once per rig, as
+kernels/team/loops.py's loop is), served to the environment's control step
+(kernels/drone/env.py) and to the drone's simulator (:func:`drone_advance`, esp_gym/physics/drone.py).
+A drone step fails without moving the state, so the loop needs no checkpoint (kernels/step/loops.py
+has the loops that do).
+"""
+from ..jit import kernel
+from ..status import OK
+from ..step.disturbance import kick_before
+from ..step.loops import finish, step_taken
+from ..step.string import nodal_forces
+from .hook import hook_substep, hook_velocities
+from .quadrotor import THRUST_RATES, actuate, drone_substep, drone_winch_step, rate_actuate, start_wrench
+
+
+# A function of its own, not inlined, with the rig's structs as None-or-struct arguments: a runtime
+# flag for the hook had doubled the loop's compile (3.7 -> 7.4 s).
+@kernel
+def drone_steps(S, W, P, WA, D, DR, HK, inputs, nsteps, stats, reel, coupled, disturbed, rates):
+    """Up to ``nsteps`` steps of :func:`~.drone.drone_substep` with the ``inputs`` held, or with the
+    winch ``WA`` of :func:`~.drone.drone_winch_step` reeling at ``reel`` [m/s], or at the offset
+    hook ``HK`` of :func:`~.drone_hook.hook_substep` (``WA``, ``HK`` None where the rig has none);
+    ``rates``: the rate controller before each step, at the body rates J_q^-1 Pi_q, or at an
+    offset hook the Legendre transform's (``D.V`` its scratch); the held external forces
+    (``disturbed``) as kicks of h/2 on both sides of each step (kernels/step/disturbance.py). Stops at
+    the first failure with the last good state (its pending half kick taken back). ``stats``
+    (int64, REPORT's first four): status, steps taken, total and largest Newton iterations per
+    step (the drone's and the load's together)."""
+    kick_before(S, W, P, nsteps, disturbed)
+    start_wrench(DR)
+    total = 0
+    most = 0
+    for k in range(nsteps):
+        if rates:
+            if HK is not None:
+                _, _, omega_q, _ = hook_velocities(S, P, DR, HK, D.V)
+                rate_actuate(DR, omega_q)
+            else:
+                actuate(DR, THRUST_RATES)
+        if WA is not None:
+            status, iters = drone_winch_step(S, W, P, WA, D, DR, inputs, reel, P.compensated)
+        elif HK is not None:
+            status, iters = hook_substep(S, W, P, DR, HK, inputs, P.h, coupled, P.compensated)
+        else:
+            status, iters = drone_substep(S, W, P, DR, inputs, P.h, coupled, P.compensated)
+        failed, total, most = step_taken(S, W, P, stats, status, iters, k, nsteps, total, most, disturbed)
+        if failed:
+            return
+    finish(stats, OK, nsteps, total, most)
+
+
+@kernel(entry=True)
+def drone_advance(S, W, P, D, DR, HK, inputs, nsteps, stats, coupled):
+    """The drone simulator's steps (esp_gym/physics/drone.py): up to ``nsteps`` :func:`drone_steps` of
+    length ``P.h`` with the motor commands held (``HK``: the offset hook, or None), ``S.f`` first
+    the forces at the state."""
+    nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
+    drone_steps(S, W, P, None, D, DR, HK, inputs, nsteps, stats, 0.0, coupled, False, False)
