@@ -1,7 +1,7 @@
 """Sub-environment b of a batch: the row of a struct whose arrays carry a leading batch axis.
 
 A batch holds each struct of one environment (:class:`~.layout.StateArrays`,
-:class:`~.env_arrays.EnvArrays`, ...) with every field stacked along a leading (B,) axis (the
+:class:`~esp_gym.kernels.env.arrays.EnvArrays`, ...) with every field stacked along a leading (B,) axis (the
 constants of :class:`~.layout.LGVIParams` too: a scalar field becomes a (B,) array).
 :func:`row_function` writes, from the struct's ``_fields``, the compiled function that takes row
 b of each field and rebuilds the struct of one environment (views, and scalars where a field is

@@ -16,7 +16,7 @@ from tqdm.auto import tqdm
 from ..kernels.step.diagnostics import diagnostics as diagnostics_kernel
 from .arrays import copy_into, diag_work, state_arrays, work_arrays
 from ..kernels.layout import (BALANCE, DIAG, INPUTS, LOOP_REPORT_SIZE, R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS,
-                             STEP_DIAG, LGVIParams, Snapshots, StateArrays, Work)
+                              STEP_DIAG, LGVIParams, Snapshots, StateArrays, Work)
 from ..kernels.status import OK
 from ..kernels.step.loops import winch_advance, winch_advance_implicit
 from ..kernels.step.specialise import general_kernels, specialised_kernels

@@ -15,7 +15,7 @@ from ..kernels.env.arrays import ACTION, REWARD_TERMS, SENSORS
 from ..kernels.layout import DIAG
 from ..kernels.step.disturbance import DISTURBANCE
 from ..kernels.env.recording import (SB_ENERGY_RESIDUAL, SB_PI3_RESIDUAL, SB_WORK, SW_REEL_SPEED, SW_UNSTRETCHED_LENGTH,
-                                SW_WINCH_WORK)
+                                     SW_WINCH_WORK)
 from . import palette
 from .geometry import equivalent_box, prism_triangles, quaternion_xyzw
 

@@ -7,7 +7,7 @@ the same :func:`drone_control_step`, so their results agree bit for bit.
 
 Its layouts: the action path's constants (:data:`DRONE_ACTION_PARAMS`), the action with a winch
 (:data:`DRONE_WINCH_ACTION`) and the sensors, SENSORS then the drone's (:data:`DRONE_SENSORS`).
-The action is four numbers in [-1, 1] in every actuation (:data:`~.drone.ACTUATIONS`), and the
+The action is four numbers in [-1, 1] in every actuation (:data:`~esp_gym.kernels.drone.quadrotor.ACTUATIONS`), and the
 reel speed fifth with a winch; 0 hovers.
 """
 import math
@@ -17,21 +17,21 @@ from numba import prange
 
 from ..step.diagnostics import diagnostics
 from .quadrotor import (MOTORS, THRUST_RATES, THRUST_TORQUE, DroneArrays, actuate, drone_diagnostics, max_rotor_thrust,
-                    Q_THRUST_COEFFICIENT, QD_RATES)
+                        Q_THRUST_COEFFICIENT, QD_RATES)
 from ..env.arrays import O_UNSTRETCHED_LENGTH, SCHEME_DISTURBED, SENSORS, TP_ENERGY_ORIGIN, TP_STRING_LENGTH, EnvArrays
 from .hook import HookArrays, hook_diagnostics
 from .loops import drone_steps
 from ..env.step import (EntryPoints, close_balances, diag_row, energy_watchdog, env_prepare,
-                       env_row, params_row, state_row, winch_row, work_row)
+                        env_row, params_row, state_row, winch_row, work_row)
 from ..jit import announce_compile, kernel
 from ..layout import (D_ENERGY, R_TERMINATION, WN_LENGTH, WN_MASS_PER_LENGTH, WN_REEL_SPEED, DiagWork, Layout,
-                     LGVIParams, StateArrays, WinchArrays, Work)
+                      LGVIParams, StateArrays, WinchArrays, Work)
 from ..env.task_terms import observe_and_score
 from ..rows import row_function
 from ..status import OK, TERM_DRONE_FLIPPED
 from ..step.winch import length_params, winch_energy
 
-#: The drone's action path: the actuation's code (:data:`~.drone.ACTUATIONS`), the collective
+#: The drone's action path: the actuation's code (:data:`~esp_gym.kernels.drone.quadrotor.ACTUATIONS`), the collective
 #: thrust at action 0, the rig's weight [N], and the largest [N]; the body torque [N m] and the
 #: body rates [rad/s] at |action| = 1 per axis; cos of the tilt past which the drone has flipped;
 #: the winch's largest reel speed [m/s].
@@ -95,8 +95,8 @@ def drone_take_action(raw, qa, action, DR):
 @kernel(inline="always")
 def drone_sensors(DR, sensors):
     """The drone's fields of DRONE_SENSORS: R_q's first two columns and Omega_q (``DR.diag``
-    filled by :func:`~.drone.drone_diagnostics`, J_q^-1 Pi_q, or at an offset hook by
-    :func:`~.drone_hook.hook_diagnostics`)."""
+    filled by :func:`~esp_gym.kernels.drone.quadrotor.drone_diagnostics`, J_q^-1 Pi_q, or at an offset hook by
+    :func:`~esp_gym.kernels.drone.hook.hook_diagnostics`)."""
     for i in range(3):
         sensors[QS_DRONE_ATTITUDE_6D + i] = DR.R[i, 0]
         sensors[QS_DRONE_ATTITUDE_6D + 3 + i] = DR.R[i, 1]
@@ -273,7 +273,7 @@ def threaded_hook_batch(s, w, p, d, e, q, k, raw, active, scheme):
 
 
 def _entries(step, batch, threaded_batch, what):
-    """:class:`~.env_step.EntryPoints`, each announced when it first compiles (``what``: the rig)."""
+    """:class:`~esp_gym.kernels.env.step.EntryPoints`, each announced when it first compiles (``what``: the rig)."""
     return EntryPoints(announce_compile(step, "the environment's step with " + what, COLD_DRONE_ENV_STEP_S),
                        announce_compile(batch, "the batched environment's step with " + what, COLD_DRONE_BATCH_STEP_S),
                        announce_compile(threaded_batch, "the threaded batched environment's step with " + what,

@@ -33,7 +33,7 @@ from ..so3 import cayley_minus_identity, cayley_newton, cross, rotated, solve3, 
 from ..status import NEWTON_FAILED, NON_FINITE, OK
 from ..step.lgvi import end_shift, load_rhs, string_increments
 from ..step.step_shared import (body_momentum_increment, commit_rotation, commit_step, held_inputs, left_torque,
-                          new_positions, next_attitude, weight_torque)
+                                new_positions, next_attitude, weight_torque)
 from ..step.diagnostics import state_diagnostics
 from ..step.string import string_solve, tridiag_solve
 from ..step.switch import settle_switches, switch_errors

@@ -19,9 +19,10 @@ from .quadrotor import THRUST_RATES, actuate, drone_substep, drone_winch_step, r
 # flag for the hook had doubled the loop's compile (3.7 -> 7.4 s).
 @kernel
 def drone_steps(S, W, P, WA, D, DR, HK, inputs, nsteps, stats, reel, coupled, disturbed, rates):
-    """Up to ``nsteps`` steps of :func:`~.drone.drone_substep` with the ``inputs`` held, or with the
-    winch ``WA`` of :func:`~.drone.drone_winch_step` reeling at ``reel`` [m/s], or at the offset
-    hook ``HK`` of :func:`~.drone_hook.hook_substep` (``WA``, ``HK`` None where the rig has none);
+    """Up to ``nsteps`` steps of :func:`~esp_gym.kernels.drone.quadrotor.drone_substep` with the ``inputs``
+    held, or with the winch ``WA`` of :func:`~esp_gym.kernels.drone.quadrotor.drone_winch_step` reeling at
+    ``reel`` [m/s], or at the offset hook ``HK`` of :func:`~esp_gym.kernels.drone.hook.hook_substep` (``WA``,
+    ``HK`` None where the rig has none);
     ``rates``: the rate controller before each step, at the body rates J_q^-1 Pi_q, or at an
     offset hook the Legendre transform's (``D.V`` its scratch); the held external forces
     (``disturbed``) as kicks of h/2 on both sides of each step (kernels/step/disturbance.py). Stops at

@@ -13,7 +13,7 @@ from collections import namedtuple
 
 from ..jit import kernel
 from ..layout import (B_ANGULAR_IMPULSE_Z, B_WINCH_WORK, B_WORK, D_ENERGY, D_PI3, DIAG, IN_BODY_TORQUE, IN_PIVOT_FORCE,
-                     R_NEWTON_TOTAL, R_STEPS, WN_LENGTH, WN_REEL_SPEED, Layout)
+                      R_NEWTON_TOTAL, R_STEPS, WN_LENGTH, WN_REEL_SPEED, Layout)
 from ..step.disturbance import DISTURBANCE
 from .arrays import A_BODY_TORQUE, A_PIVOT_FORCE, ACTION_SIZE, REWARD_TERMS, SENSORS, TARGET
 

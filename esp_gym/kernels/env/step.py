@@ -21,12 +21,12 @@ from ..step.diagnostics import diagnostics
 from ..step.disturbance import disturb, external_potential
 from ..sums import kahan_add
 from ..layout import (B_WINCH_WORK, B_WORK, D_ENERGY, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_PIVOT_FORCE_END,
-                     IN_SPATIAL_TORQUE, R_STATUS,
-                     R_STEPS, R_TERMINATION, WN_LENGTH, WN_MASS_PER_LENGTH, WN_REEL_SPEED, DiagWork, LGVIParams,
-                     StateArrays, WinchArrays, Work)
+                      IN_SPATIAL_TORQUE, R_STATUS,
+                      R_STEPS, R_TERMINATION, WN_LENGTH, WN_MASS_PER_LENGTH, WN_REEL_SPEED, DiagWork, LGVIParams,
+                      StateArrays, WinchArrays, Work)
 from .arrays import (A_BODY_TORQUE, A_PIVOT_FORCE, A_REEL_SPEED, ACTION_SIZE, AP_FORCE_LIMIT, AP_HIGH,
-                         AP_HOVER_FORCE, AP_LOW, AP_MAX_REEL_SPEED, AP_TORQUE_LIMIT, O_UNSTRETCHED_LENGTH,
-                         SCHEME_DISTURBED, TP_ENERGY_BOUND, TP_ENERGY_ORIGIN, TP_ENERGY_WATCHDOG, TP_STRING_LENGTH)
+                     AP_HOVER_FORCE, AP_LOW, AP_MAX_REEL_SPEED, AP_TORQUE_LIMIT, O_UNSTRETCHED_LENGTH,
+                     SCHEME_DISTURBED, TP_ENERGY_BOUND, TP_ENERGY_ORIGIN, TP_ENERGY_WATCHDOG, TP_STRING_LENGTH)
 from ..rows import row_function
 from ..status import ENERGY_BALANCE, OK
 from ..step.loops import advance_loop_explicit, advance_loop_implicit, winch_loop_explicit, winch_loop_implicit
@@ -111,7 +111,7 @@ def env_prepare(S, W, P, D, E, disturbed):
 
 @kernel(inline="always")
 def control_step(S, W, P, D, WA, E, reel, disturbed, winched, implicit):
-    """One control step of one environment (``E``: its :class:`~.env_arrays.EnvArrays`, the
+    """One control step of one environment (``E``: its :class:`~esp_gym.kernels.env.arrays.EnvArrays`, the
     inputs already taken from the action, ``reel`` the reel speed [m/s]): :func:`env_prepare`,
     ``E.nsub[0]`` physics steps with constant inputs by the loop of the configuration,
     :func:`env_finish` (or :func:`env_finish_winched`). ``winched`` and ``implicit`` are the

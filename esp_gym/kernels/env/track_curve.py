@@ -15,7 +15,7 @@ import math
 
 from ..jit import kernel
 from .arrays import (T_AMPLITUDE, T_CENTRE, T_CLOCK, T_DEPTH, T_HARMONIC, T_LOAD, T_ORIENTATION, T_PHASE, T_PIVOT,
-                         T_RATE, T_START, T_VELOCITY)
+                     T_RATE, T_START, T_VELOCITY)
 
 
 @kernel(entry=True)

@@ -13,7 +13,7 @@ import math
 
 from ..jit import kernel
 from ..layout import (D_ENERGY, D_KINETIC_BODY, D_KINETIC_PIVOT, D_KINETIC_STRING, D_LINEAR_MOMENTUM, D_ORTHOGONALITY,
-                     D_PI3, D_POTENTIAL_ELASTIC, D_POTENTIAL_GRAVITY, D_STRETCHED_LENGTH)
+                      D_PI3, D_POTENTIAL_ELASTIC, D_POTENTIAL_GRAVITY, D_STRETCHED_LENGTH)
 from ..so3 import solve3
 from .string import element_strain, tridiag_solve
 

@@ -16,7 +16,7 @@ loops, one per configuration (:func:`shared_advance_loop`, :func:`shared_winch_l
 from ..jit import kernel
 from .diagnostics import diagnostics
 from ..layout import (D_ENERGY, D_ORTHOGONALITY, D_PI3, R_NEWTON_MAX, R_NEWTON_TOTAL, R_STATUS, R_STEPS, SD_ENERGY,
-                     SD_ORTHOGONALITY, SD_PI3)
+                      SD_ORTHOGONALITY, SD_PI3)
 from ..status import OK
 from .disturbance import kick_after, kick_back, kick_before, kick_next
 from .step import lgvi_step, winch_step

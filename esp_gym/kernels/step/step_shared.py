@@ -16,7 +16,7 @@ import numpy as np
 
 from ..jit import kernel
 from ..layout import (B_ANGULAR_IMPULSE_Z, B_GRAVITY_IMPULSE, B_PIVOT_IMPULSE, B_WORK, IN_BODY_TORQUE, IN_PIVOT_FORCE,
-                     IN_PIVOT_FORCE_END, IN_SPATIAL_TORQUE)
+                      IN_PIVOT_FORCE_END, IN_SPATIAL_TORQUE)
 from ..status import BLOW_UP, NON_FINITE, OK
 from ..sums import kahan_add
 from .string import nodal_forces

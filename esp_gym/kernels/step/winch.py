@@ -31,7 +31,7 @@ import numpy as np
 from ..jit import kernel
 from .diagnostics import diagnostics, kinetic_energies, node_velocities
 from ..layout import (B_GRAVITY_IMPULSE, D_ENERGY, D_KINETIC_STRING, D_LINEAR_MOMENTUM, D_PI3, WN_EA, WN_END_SHARE,
-                     WN_LENGTH, WN_MASS_PER_LENGTH, WN_MAX_STRETCH, WN_OFF_SHARE, LGVIParams, StateArrays)
+                      WN_LENGTH, WN_MASS_PER_LENGTH, WN_MAX_STRETCH, WN_OFF_SHARE, LGVIParams, StateArrays)
 from ..status import OK
 from ..sums import kahan_add
 from .lgvi import rigid_increments

@@ -14,7 +14,7 @@ from ..jit import kernel
 from ..layout import IN_PIVOT_FORCE
 from ..status import OK
 
-#: A team's drones: ``arrays`` their :class:`~.drone.DroneArrays` stacked (every field's first
+#: A team's drones: ``arrays`` their :class:`~esp_gym.kernels.drone.quadrotor.DroneArrays` stacked (every field's first
 #: index the drone), ``pivot`` (n,) int64 the pivot each flies (0: string 0's; j >= 1: string j's),
 #: and ``pending`` (n, 2, 3): each rotation's momentum increment dPi_q [kg m^2/s] and Cayley
 #: vector c between its solve and its commit.

@@ -21,7 +21,7 @@ from ..env.arrays import T_LOAD, T_VELOCITY
 from ..env.step import EntryPoints, params_row, state_row, work_row
 from ..jit import announce_compile, kernel
 from ..layout import (B_WINCH_WORK, B_WORK, IN_PIVOT_FORCE, IN_PIVOT_FORCE_END, R_STATUS, Layout, LGVIParams,
-                     StateArrays, Work)
+                      StateArrays, Work)
 from ..env.track_curve import reference_at
 from ..rows import row_function
 from ..so3 import rotated
@@ -30,7 +30,7 @@ from .arrays import TeamArrays, TeamParams
 from .drones import TeamDrones
 from .loops import team_steps
 from .readout import (TB_ENERGY_ORIGIN, TB_LOAD_WORK, TB_WINCH_JUMPS, TR_ELASTIC, TR_GRAVITY, TR_KINETIC,
-                           TeamReadArrays, team_read)
+                      TeamReadArrays, team_read)
 from .task import TeamTaskArrays, team_task
 
 #: A team environment's constants: each point pivot's force at action 1 ``force_scale`` and its
@@ -248,7 +248,7 @@ def team_structs(sim, env):
 
 @kernel(inline="always")
 def team_drones(sim):
-    """The drones (:data:`~.team_drones.TeamDrones`) of an entry point's plain tuples ``sim``."""
+    """The drones (:data:`~esp_gym.kernels.team.drones.TeamDrones`) of an entry point's plain tuples ``sim``."""
     td = sim[5]
     return TeamDrones(DroneArrays(*td[0]), td[1], td[2])
 
@@ -289,7 +289,7 @@ drone_arrays_row = row_function(DroneArrays)
 
 @kernel(inline="always")
 def team_drones_row(TD, b):
-    """Team b's drones of a stacked :data:`~.team_drones.TeamDrones` (its ``arrays`` stacked too)."""
+    """Team b's drones of a stacked :data:`~esp_gym.kernels.team.drones.TeamDrones` (its ``arrays`` stacked too)."""
     return TeamDrones(drone_arrays_row(TD.arrays, b), TD.pivot[b], TD.pending[b])
 
 

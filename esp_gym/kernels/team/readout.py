@@ -1,10 +1,10 @@
 """What a team's state reads out, compiled (docs/physics.md, "Diagnostics of a team"): the node and
-body velocities by the step's own factors (:func:`~.team_switch.team_node_velocities`), the energy
+body velocities by the step's own factors (:func:`~esp_gym.kernels.team.switch.team_node_velocities`), the energy
 terms, momenta and pi3 the watchdog weighs, and what an environment observes of each string and of
 the load, in one call per control step.
 
 It reads a team whose strings are at their scenes' lengths with the winches at rest (the factors
-of :data:`~.team_arrays.TeamParams` are those strings'); a team whose winches have reeled reads
+of :data:`~esp_gym.kernels.team.arrays.TeamParams` are those strings'); a team whose winches have reeled reads
 out in Python (esp_gym/team/readout.py), with its Hamiltonian's flow terms.
 """
 import math
@@ -42,7 +42,7 @@ TB_WINCH_JUMPS = TEAM_BALANCE.scalar("winch_jumps")
 
 #: A team's read-out (string 0 first in every per-string field): the node velocities ``V0``
 #: (N+1, 3) of string 0 and ``Vo`` (rows, 3) of the others, stacked as
-#: :data:`~.team_arrays.TeamArrays`' rows [m/s]; per string its pivot's position ``pivot`` (K, 3)
+#: :data:`~esp_gym.kernels.team.arrays.TeamArrays`' rows [m/s]; per string its pivot's position ``pivot`` (K, 3)
 #: [m] and velocity ``pivot_velocity`` (K, 3) [m/s], the pull of its first element on the pivot
 #: ``tension`` (K, 3) [N] (kappa max(|x| - u, 0) x / |x|, x = r_1 - r_0: spatial), its stretched
 #: over its unstretched length ``stretch`` (K,) [-], its unstretched ``length`` (K,) [m] (the

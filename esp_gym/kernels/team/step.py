@@ -4,11 +4,11 @@ strings on one body").
 String 0 and the body are a single string's arrays (StateArrays, Work, LGVIParams: the lead scene's)
 and run through the single string's stages (kernels/step/lgvi.py, kernels/step/step_shared.py), with the
 body's inertia augmented by the other strings' effective end masses
-(:data:`~.team_arrays.TeamParams` ``mass``, ``rho_inertial``, ``jeff``, and string 0's factors
+(:data:`~esp_gym.kernels.team.arrays.TeamParams` ``mass``, ``rho_inertial``, ``jeff``, and string 0's factors
 ``inv0``, ``cp0``, ``w0`` with that mass on its last row). Gravity keeps the body's own mass and
 offset (P.M, P.rho).
 
-The other strings 1..K-1 are stacked by rows in :data:`~.team_arrays.TeamArrays`: string j owns
+The other strings 1..K-1 are stacked by rows in :data:`~esp_gym.kernels.team.arrays.TeamArrays`: string j owns
 rows ``start[j] .. start[j+1] - 1``, its pivot first and its end, slaved to the body at ``rho[j]``
 from string 0's attachment point (body frame), last. A slaved end carries no momentum of its
 own: its row of ``p`` stays 0 and its share is in the body's (S.p[N], S.Pi).
@@ -24,7 +24,7 @@ from ..so3 import cross, unrotated
 from ..status import BLOW_UP, NON_FINITE, OK
 from ..step.lgvi import end_shift, rigid_increments
 from ..step.step_shared import (body_momentum_increment, commit_body, commit_node, commit_string, guarded_forces,
-                          held_inputs, input_balances, left_torque, new_positions, next_attitude)
+                                held_inputs, input_balances, left_torque, new_positions, next_attitude)
 from ..step.string import nodal_forces, string_solve
 from ..sums import kahan_add
 from .arrays import add_end_loads, pivot_rows

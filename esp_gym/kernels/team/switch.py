@@ -10,7 +10,7 @@ transform (:func:`team_node_velocities`) and both products read as node velociti
 v_x + R (Omega x rho_k)); kernels/step/switch.py's root settles it.
 
 String 0's errors and debts are the single string's (``W.switch``, ``S.owed``); the other
-strings' are per stacked row of :data:`~.team_arrays.TeamArrays` (``A.switch``, ``A.owed``: string j's
+strings' are per stacked row of :data:`~esp_gym.kernels.team.arrays.TeamArrays` (``A.switch``, ``A.owed``: string j's
 element a at row start[j] + a). The settling runs after the step is committed, only on a step
 with an error, and borrows scratch the committed step no longer reads: string 0's ``W.dy``,
 ``W.fr`` (as the single string's), the others' ``A.X`` and ``A.fn``.
@@ -30,7 +30,7 @@ from .arrays import add_end_loads, pivot_rows
 @kernel
 def team_node_velocities(p0, po, Pi, R, first, off0, T, V0, Vo):
     """The team's continuous Legendre transform inverted (docs/physics.md, "Diagnostics of a
-    team"), with the step's factors ``T`` (:data:`~.team_arrays.TeamParams`: each string's M_II, the
+    team"), with the step's factors ``T`` (:data:`~esp_gym.kernels.team.arrays.TeamParams`: each string's M_II, the
     assembled body's M', rho', J'_eff and string 0's factors with M' on its last row): node
     velocities [m/s] of string 0 into ``V0`` (N+1, 3) from its momenta ``p0`` (last row: the body's
     p_x with every end's share) and of the others into ``Vo`` (rows, 3, their ends' rows the ends'

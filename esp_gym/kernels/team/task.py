@@ -91,7 +91,7 @@ TeamTaskArrays = namedtuple("TeamTaskArrays", "params fields load_target target_
 @kernel(entry=True)
 def team_task(RD, drone_R, drone_rates, action, TK, code):
     """Fill ``TK``'s observation, reward terms and distances from the read-out ``RD``
-    (:data:`~.team_readout.TeamReadArrays`) of a state whose drones (a drone team's, else none)
+    (:data:`~esp_gym.kernels.team.readout.TeamReadArrays`) of a state whose drones (a drone team's, else none)
     have the attitudes ``drone_R`` (K, 3, 3) and body rates ``drone_rates`` (K, 3) [rad/s], after
     the applied ``action`` (K, n_a) in [-1, 1]. Returns ``(reward, the smallest distance between
     two pivots [m] (inf with one), code)``: the physics' ``code``, or where it is TERM_NONE the

@@ -6,7 +6,7 @@ step matrix is the single winch's (1w), A_k = Mbar_k - (h c_k / 2)(C_k - C_k^T),
 step (kernels/step/winch.py :func:`~.winch.factor_string`): strings 1..K-1 on their rows before the
 slaved end, which reduces each to an end mass mu_k and a coupling, and string 0 with the body
 whose inertia carries those end masses (as kernels/team/step.py's, recomputed per step). The stages
-after Newton are kernels/team/step.py's with the step's constants (a :data:`~.team.TeamParams` of
+after Newton are kernels/team/step.py's with the step's constants (a :data:`~esp_gym.kernels.team.step.TeamParams` of
 this step's arrays); the convective terms join the loads and impulses:
 the left load h/2 f~_e(r_k) - c*_k - c_k (C^T r_k)_e, the right one
 h/2 (f~_e(r_{k+1}) + (2/h) c_k (C dr)_e) + c*_k + c_k (C^T r_k)_e.
@@ -17,7 +17,7 @@ from collections import namedtuple
 
 from ..jit import kernel
 from ..layout import (B_GRAVITY_IMPULSE, B_WINCH_WORK, WN_EA, WN_END_SHARE, WN_LENGTH, WN_MASS_PER_LENGTH,
-                     WN_MAX_LENGTH, WN_MAX_STRETCH, WN_MIN_LENGTH, WN_OFF_SHARE, WN_REEL_SPEED)
+                      WN_MAX_LENGTH, WN_MAX_STRETCH, WN_MIN_LENGTH, WN_OFF_SHARE, WN_REEL_SPEED)
 from ..so3 import cross, unrotated
 from ..status import OK
 from ..step.lgvi import rigid_increments
@@ -28,7 +28,7 @@ from .arrays import TeamParams, add_end_loads, pivot_rows
 from .step import add_left_load, commit_team_step, other_forces, other_increments
 from .switch import settle_team_switches, team_switch_errors
 from ..step.winch import (add_convective_forces, add_convective_impulse, body_schur, convective_momentum, convective_solve,
-                    factor_string, length_params, midpoint_dH_dl)
+                          factor_string, length_params, midpoint_dH_dl)
 
 #: A team's winches: ``lead`` string 0's :data:`~.layout.WinchArrays` (its ``state`` row 0 of
 #: ``state``); ``state`` (K, WINCH.size) every string's WINCH vector (length, reel speed, its
@@ -288,7 +288,7 @@ def team_winch_substep(S, W, P, T, A, TW, inputs, h, free, forced, coupled, comp
 # Not inlined, as kernels/step/switch.py's settle_switches: it runs only on steps with a switch.
 @kernel
 def settle_reeling_team(S, W, P, T, A, TW, h):
-    """:func:`~.team_switch.settle_team_switches` of a reeling step just committed, with the team's
+    """:func:`~esp_gym.kernels.team.switch.settle_team_switches` of a reeling step just committed, with the team's
     inverse Legendre transform at every string's new length (:func:`velocity_params`) on the
     momenta less the flow's (:func:`flow_free_momenta`), as kernels/step/winch.py's
     ``settle_reeling_switches``."""
