@@ -98,6 +98,8 @@ class TeamCore(TeamStepping):
                              f"one of {ACTUATIONS[1:]})")
         self.task = get_team_task(task)
         self.winch = self._check_winch(o.winch)
+        #: the team's rig (esp_gym/physics/rig.py): its compiled entry points, or none (stepped in Python)
+        self.rig = self._find_rig(scene)
         self.action_size = action_size(self.actuation, self.winch)
         if isinstance(o.sensor_noise, Mapping):
             raise ValueError(f"sensor_noise: a team takes one level (times each field's TEAM_UNIT_NOISE) for now, "
@@ -138,15 +140,18 @@ class TeamCore(TeamStepping):
 
     def _check_winch(self, winch: Optional[bool]) -> bool:
         """Whether the strings reel (the ``winch`` option; None: as the task needs), checked
-        against the task and the pivots."""
+        against the task (against the pivots by the rig table, in :meth:`__init__`)."""
         reels = self.task.needs_winch if winch is None else winch
         if self.task.needs_winch and not reels:
             raise ValueError(f"winch: task {self.task.name!r} reels the strings and needs winch=True")
-        #: the team's rig (esp_gym/physics/rig.py): its compiled entry points, or none (stepped in Python)
-        self.rig = find_rig("drone" if self.drones else "point", "explicit", reels, False, team=True,
-                            settings="winch: a team's drones do not reel yet (docs/physics.md, \"What a team does "
-                                     "not do yet\")" if self.drones and reels else "")
         return reels
+
+    def _find_rig(self, scene: TeamScene):
+        """The rig of ``scene``'s pivots and string scheme with :attr:`winch`, from the rig table (which
+        refuses any other combination)."""
+        reeling_drones = "winch: a team's drones do not reel yet (docs/physics.md, \"What a team does not do yet\")"
+        return find_rig("drone" if self.drones else "point", scene.scene.solver.string, self.winch, False, team=True,
+                        settings=reeling_drones if self.drones and self.winch else "")
 
     def _check_extremes(self, scene: TeamScene) -> None:
         """The episodes' stiffest and heaviest teams (``scene``, or the randomize ranges' corners),
