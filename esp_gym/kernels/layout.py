@@ -89,8 +89,11 @@ class Layout:
 #: ``mdiag``: the mass matrix's diagonal on the unknown nodes (0 on a fixed pivot), for the
 #: implicit string's residual (kernels/step/implicit.py). ``settle``: the explicit string settles its
 #: slack switches (kernels/step/switch.py); ``gradient``: the implicit string's energy-momentum form.
+#: ``damping``: an element's damper coefficient c = EA tau / u [N s/m] (0: no damper, the step
+#: untouched); ``turn_mass`` (3, 3): M^2 rho^ J^-1 rho^T, body frame [kg], the share of the load's
+#: mass its rotation takes from a push at the attachment point with Pi held (kernels/step/damper.py).
 LGVIParams = namedtuple("LGVIParams", "h m kappa u g M Mp rho J Jd Jeff inv cp off w first slack tol max_iter gammas "
-                                      "max_len2 compensated mdiag settle gradient")
+                                      "max_len2 compensated mdiag settle gradient damping turn_mass")
 
 #: The state the kernels advance: positions r and momenta p (N+1, 3), R (3, 3), Pi (3,), the
 #: compensated-summation remainders rc, pc, Rc, Pic of each, the forces f at r (N+1, 3), the
@@ -110,7 +113,11 @@ StateArrays = namedtuple("StateArrays", "r p R Pi rc pc Rc Pic f acc accc owed")
 #: ``switch`` (N,): the explicit string's energy errors of a step's slack switches [J]
 #: (kernels/step/switch.py), which also uses ``dy`` and ``fr`` as scratch (the explicit string's
 #: step does not: the winch's loop reads ``Y``, the step's increments, after it).
-Work = namedtuple("Work", "fn X Y FmI RF Rn jac backup fl fr dy elim taut ext switch")
+#: The damper's half step (kernels/step/damper.py): ``dvel`` (N+1, 3) the node velocities of the
+#: state [m/s], ``dinc`` (N+1, 3) their increments, ``ddir`` (N, 3) the elements' directions,
+#: ``dten`` (N,) their elastic tensions [N], ``dset`` (N,) the damper's state of each (slack,
+#: active, held), ``dfac`` (N+1, 3, 3) the eliminated blocks.
+Work = namedtuple("Work", "fn X Y FmI RF Rn jac backup fl fr dy elim taut ext switch dvel dinc ddir dten dset dfac")
 
 #: The winch's arrays (kernels/step/winch.py): ``state`` (:data:`WINCH`), per element the weights
 #: ``coef`` (N, 3) of its convective kinetic energy (alpha, beta, gamma: docs/physics.md, "The
@@ -153,16 +160,18 @@ DIAG_NAMES = DIAG.scalar_names()
 
 #: Input balances accumulated by the step since the last reset: input work [J], angular
 #: impulse about e3 [kg m^2/s], gravity impulse, pivot-force impulse and the impulse of the
-#: external forces (wind and pushes, kernels/step/disturbance.py) (3 each) [kg m/s], and the
-#: winch's work [J] (kernels/step/winch.py).
+#: external forces (wind and pushes, kernels/step/disturbance.py) (3 each) [kg m/s], the
+#: winch's work [J] (kernels/step/winch.py) and the energy the string's dampers took [J], >= 0
+#: (kernels/step/damper.py): the energy balance is E - E0 - W - W_winch + D.
 BALANCE = Layout(("work", 1), ("angular_impulse_z", 1), ("gravity_impulse", 3), ("pivot_impulse", 3),
-                 ("external_impulse", 3), ("winch_work", 1))
+                 ("external_impulse", 3), ("winch_work", 1), ("dissipation", 1))
 B_WORK = BALANCE.scalar("work")
 B_ANGULAR_IMPULSE_Z = BALANCE.scalar("angular_impulse_z")
 B_GRAVITY_IMPULSE = BALANCE.start("gravity_impulse")
 B_PIVOT_IMPULSE = BALANCE.start("pivot_impulse")
 B_EXTERNAL_IMPULSE = BALANCE.start("external_impulse")
 B_WINCH_WORK = BALANCE.scalar("winch_work")
+B_DISSIPATION = BALANCE.scalar("dissipation")
 
 #: The winch (kernels/step/winch.py): the unstretched length l [m] and the reel speed dl/dt [m/s]
 #: of the state (the speed its momenta were made with), the string's constants mass per length

@@ -34,7 +34,8 @@ class Rig:
     """One rig: what it is (``pivot``: ``"point"`` or ``"drone"``; ``string``: ``"explicit"`` or
     ``"implicit"``; ``winch``; ``hook``: a drone's hook off its centre of mass) and the structs
     its entry points take (a subsequence of :data:`STRUCTS`; none for a rig that steps in Python);
-    ``team``: a team's rig (ElasticStringTeam-v0, every pivot of the one kind)."""
+    ``team``: a team's rig (ElasticStringTeam-v0, every pivot of the one kind); ``damper``: its
+    step damps the string (``string.damping_time``, kernels/step/damper.py)."""
 
     pivot: str
     string: str
@@ -42,6 +43,7 @@ class Rig:
     hook: bool
     structs: tuple
     team: bool = False
+    damper: bool = False
 
     @property
     def name(self) -> str:
@@ -88,7 +90,7 @@ class Rig:
 _POINT = ("state", "work", "params", "diag", "winch", "env")
 _TEAM = ("team", "team_env")
 #: Every rig: ElasticStringPendulum-v0's, then ElasticStringTeam-v0's.
-RIGS = tuple([Rig("point", scheme, winch, False, _POINT) for winch in (False, True)
+RIGS = tuple([Rig("point", scheme, winch, False, _POINT, damper=not winch) for winch in (False, True)
               for scheme in ("explicit", "implicit")]
              + [Rig("drone", "explicit", False, False, ("state", "work", "params", "diag", "env", "drone")),
                 Rig("drone", "explicit", True, False, ("state", "work", "params", "diag", "winch", "env", "drone")),
@@ -101,9 +103,11 @@ RIGS = tuple([Rig("point", scheme, winch, False, _POINT) for winch in (False, Tr
 def rigs() -> str:
     """The table of :data:`RIGS`: each rig's name, environment, pivot, string scheme, winch, offset
     hook and the structs its entry points take (or that it steps in Python)."""
-    rows = [("rig", "environment", "pivot", "string", "winch", "offset hook", "structs its entry points take")]
+    rows = [("rig", "environment", "pivot", "string", "winch", "offset hook", "damper",
+             "structs its entry points take")]
     rows += [(r.name, r.environment, r.pivot, r.string, "yes" if r.winch else "no", "yes" if r.hook else "no",
-              ", ".join(r.structs) if r.compiled else "none: steps in Python") for r in RIGS]
+              "yes" if r.damper else "no", ", ".join(r.structs) if r.compiled else "none: steps in Python")
+             for r in RIGS]
     widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
     return "\n".join("  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip() for row in rows)
 
@@ -113,19 +117,26 @@ def scene_rig(scene, winch: bool) -> Rig:
     the winch; ValueError naming the scene's settings if there is none (:func:`find_rig`)."""
     pivot = scene.pivot
     hooked = pivot.is_drone and pivot.drone.offset_hook
+    damped = scene.string.damping_time > 0.0
     return find_rig("drone" if pivot.is_drone else "point", scene.solver.string, winch, hooked,
                     f"scene {scene.name!r}: solver.string {scene.solver.string!r}, winch={winch}"
-                    + (f", pivot.drone.rho_q = {list(pivot.drone.rho_q)}" if hooked else ""))
+                    + (f", pivot.drone.rho_q = {list(pivot.drone.rho_q)}" if hooked else "")
+                    + (f", string.damping_time = {scene.string.damping_time:g} s" if damped else ""), damped=damped)
 
 
-def find_rig(pivot: str, string: str, winch: bool, hook: bool, settings: str = "", team: bool = False) -> Rig:
+def find_rig(pivot: str, string: str, winch: bool, hook: bool, settings: str = "", team: bool = False,
+             damped: bool = False) -> Rig:
     """The rig of ``pivot`` (``"point"`` or ``"drone"``), ``string`` (``"explicit"`` or
     ``"implicit"``), ``winch`` and ``hook``, a team's if ``team``; ValueError naming the
     combination (and the ``settings`` that asked for it) and listing the environment's rigs of
-    :data:`RIGS` if there is none."""
+    :data:`RIGS` if there is none, or if the string is ``damped`` and the rig has no damper."""
     combination = (pivot, string, bool(winch), bool(hook), bool(team))
     for rig in RIGS:
         if (rig.pivot, rig.string, rig.winch, rig.hook, rig.team) == combination:
+            if damped and not rig.damper:
+                raise ValueError(f"{rig.environment}: the rig {rig.name} has no damper yet" + (f" ({settings})" if settings else "")
+                                 + "; the rigs with one are " + ", ".join(r.name for r in RIGS if r.damper)
+                                 + " (esp_gym.rigs(); docs/physics.md, \"Material damping\")")
             return rig
     asked = Rig(pivot, string, bool(winch), bool(hook), (), bool(team))
     raise ValueError(f"{asked.environment}: no rig is {asked.name}" + (f" ({settings})" if settings else "")

@@ -410,7 +410,8 @@ class Simulator(StepClock):
 
         Scalars: time, energy, kinetic_string, kinetic_body, kinetic_pivot, potential_gravity,
         potential_elastic, pi3, orthogonality, stretched_length; the input balances since the
-        last :meth:`reset_balances`: work, energy_balance_residual (E - E0 - W),
+        last :meth:`reset_balances`: work, dissipation (the energy the string's dampers took, >= 0),
+        energy_balance_residual (E - E0 - W + D),
         angular_impulse_z, pi3_balance_residual (pi3 - pi3_0 - angular impulse); the winch's
         unstretched_length [m], reel_speed [m/s] and winch_work [J], which joins the energy
         balance (E - E0 - W - W_winch; E is the Hamiltonian while the winch reels).
@@ -427,7 +428,9 @@ class Simulator(StepClock):
         out["work"] = float(a.acc[BALANCE.scalar("work")])
         out["unstretched_length"], out["reel_speed"] = self.winch.length, self.winch.reel_speed
         out["winch_work"] = float(a.acc[BALANCE.scalar("winch_work")])
-        out["energy_balance_residual"] = out["energy"] - self._E0 - out["work"] - out["winch_work"]
+        out["dissipation"] = float(a.acc[BALANCE.scalar("dissipation")])
+        out["energy_balance_residual"] = (out["energy"] - self._E0 - out["work"] - out["winch_work"]
+                                          + out["dissipation"])
         out["angular_impulse_z"] = float(a.acc[BALANCE.scalar("angular_impulse_z")])
         out["pi3_balance_residual"] = out["pi3"] - self._pi3_0 - out["angular_impulse_z"]
         out["attach_position"] = a.r[-1].copy()

@@ -143,6 +143,8 @@ def build_params(scene: Scene) -> LGVIParams:
         compensated=bool(scene.solver.compensated), mdiag=diag,
         settle=scene.string.law == "slack" and scene.solver.slack_switch == "settled",
         gradient=scene.solver.implicit_form == "energy_momentum",
+        damping=float(scene.string.damping),
+        turn_mass=M * M * hat(rho) @ np.linalg.solve(J, hat(rho).T),
     )
 
 

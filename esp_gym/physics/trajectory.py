@@ -18,9 +18,10 @@ class Trajectory:
     Units: t [s]; nodes (K, N+1, 3) [m]; R (K, 3, 3); omega (K, 3) body frame [rad/s];
     attach_velocity (K, 3) [m/s]; energies and work [J]; pi3 and angular impulse [kg m^2/s];
     linear momentum and impulses (K, 3) [kg m/s]; strain_energy (K, N) [J]; the winch's
-    unstretched_length (K,) [m] and winch_work (K,) [J]. The balances (work, impulses,
-    residuals) count from the simulator's last balance reset; energy_balance_residual is
-    E - E0 - W - W_winch, E the Hamiltonian while the winch reels (docs/physics.md, "The winch").
+    unstretched_length (K,) [m] and winch_work (K,) [J]; the dissipation D (K,) [J] the string's
+    dampers took. The balances (work, impulses, dissipation, residuals) count from the simulator's
+    last balance reset; energy_balance_residual is E - E0 - W - W_winch + D, E the Hamiltonian while
+    the winch reels (docs/physics.md, "The winch").
     ``*_every_step`` hold (energy, pi3, orthogonality) after every step when requested.
     """
 
@@ -48,6 +49,7 @@ class Trajectory:
     pivot_impulse: np.ndarray
     unstretched_length: Optional[np.ndarray] = None
     winch_work: Optional[np.ndarray] = None
+    dissipation: Optional[np.ndarray] = None
     t_every_step: Optional[np.ndarray] = None
     energy_every_step: Optional[np.ndarray] = None
     pi3_every_step: Optional[np.ndarray] = None
@@ -71,10 +73,10 @@ class Trajectory:
             t=t, nodes=snap.r, R=snap.R, omega=snap.omega, attach_velocity=snap.v, strain_energy=snap.strain,
             linear_momentum=snap.diag[:, DIAG["linear_momentum"]].copy(), work=acc["work"],
             angular_impulse_z=acc["angular_impulse_z"],
-            energy_balance_residual=cols["energy"] - energy0 - acc["work"] - acc["winch_work"],
+            energy_balance_residual=cols["energy"] - energy0 - acc["work"] - acc["winch_work"] + acc["dissipation"],
             pi3_balance_residual=cols["pi3"] - pi3_0 - acc["angular_impulse_z"],
             gravity_impulse=acc["gravity_impulse"], pivot_impulse=acc["pivot_impulse"],
-            unstretched_length=unstretched_length, winch_work=acc["winch_work"],
+            unstretched_length=unstretched_length, winch_work=acc["winch_work"], dissipation=acc["dissipation"],
             steps=steps, newton_iterations=newton_iterations, wall_time_s=wall_time_s, **cols)
         if t_every_step is not None:
             traj.t_every_step = t_every_step

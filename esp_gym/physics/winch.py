@@ -92,7 +92,11 @@ class Winch:
     def check_scene(self, scene: Scene, h: float) -> None:
         """ValueError unless ``scene`` can reel at step ``h``: the explicit string's h stable at the
         winch's shortest length (the assembled string's bound there); the implicit string
-        has no such bound (its steps cut themselves back where the transverse one breaks)."""
+        has no such bound (its steps cut themselves back where the transverse one breaks). A damped
+        string does not reel yet (docs/physics.md, "Material damping")."""
+        if scene.string.damping_time > 0.0:
+            raise ValueError(f"reel_speed: the winch does not reel a damped string yet (string.damping_time = "
+                             f"{scene.string.damping_time:g} s; docs/physics.md, \"Material damping\")")
         if scene.solver.string == "implicit":
             return
         if self._shortest_bound is None:  # the assembled string's, at its shortest elements

@@ -58,6 +58,10 @@ class StringParams(_Frozen):
     auto: Flag = Field(False, description="N and the scene's h were chosen by esp_gym.choose_resolution "
                                            "(the scene file said elements: auto); the environment chooses again for "
                                            "its control period and for each randomised episode")
+    damping_time: Real = bounded("time", default=0.0,
+                                 description="Kelvin-Voigt retardation time tau [s]: a taut element's tension is "
+                                             "EA (strain + tau strain rate), held >= 0 with the slack law (0: no "
+                                             "damping, the paper's conservative string)")
     mass_model: Literal["consistent", "lumped"] = Field(
         "consistent", description="consistent: the paper's finite-element mass (tridiagonal); lumped: "
                                   "m/2 at each end of an element (diagonal; sqrt(3) larger stable steps)")
@@ -76,6 +80,11 @@ class StringParams(_Frozen):
     def kappa(self) -> float:
         """Element stiffness EA/u [N/m]."""
         return self.EA / self.u
+
+    @property
+    def damping(self) -> float:
+        """An element's damper coefficient c = EA tau / u [N s/m] (kernels/step/damper.py)."""
+        return self.kappa * self.damping_time
 
     @property
     def element_bound(self) -> float:
@@ -275,6 +284,13 @@ class Scene(_Frozen):
     ground: Optional[Real] = Field(None, gt=0, allow_inf_nan=False,
                                    description="the ground plane's depth z below the origin [m] (e3 down): an "
                                                "environment's episode ends when the pivot or the load reaches it")
+
+    @model_validator(mode="after")
+    def _a_damper_the_step_has(self) -> "Scene":
+        if self.string.damping_time > 0.0 and self.pivot.is_drone:
+            raise ValueError("string.damping_time: the drone's step has no damper yet (docs/physics.md, \"Material "
+                             "damping\"); take pivot.kind fixed or free, or damping_time 0")
+        return self
 
     @model_validator(mode="before")
     @classmethod

@@ -58,6 +58,7 @@ BOUNDS = {
     "angular_speed": (-1e4, 1e4),    # initial.Omega0, per component [rad/s]
     "stretch": (1e-6, 1e6),          # initial.stretch, solver.max_stretch [rest lengths]
     "elements": (1, 10**15),         # string.elements (memory is checked when a Simulator is built)
+    "time": (0.0, 1e3),              # string.damping_time [s]
 }
 
 

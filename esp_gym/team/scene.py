@@ -83,12 +83,15 @@ class TeamScene(Frozen):
         if lead.solver.scheme.stages != 1:
             raise ValueError(f"scene.solver.order: a team steps at order 2 only, got order {lead.solver.order}")
         pivots = [("scene.pivot", lead.pivot)] + [(f"strings[{i}].pivot", s.pivot) for i, s in enumerate(self.strings)]
+        damped = [name for name, string in [("scene.string", lead.string)]
+                  + [(f"strings[{i}].string", s.string) for i, s in enumerate(self.strings)] if string.damping_time > 0]
         for name, pivot in pivots:  # the string scheme and each pivot a team rig's (esp_gym/physics/rig.py)
             hooked = pivot.is_drone and pivot.drone.offset_hook
             find_rig("drone" if pivot.is_drone else "point", lead.solver.string, False, hooked, team=True,
                      settings=f"scene.solver.string {lead.solver.string!r}" + (
                          f", {name}.drone.rho_q = {list(pivot.drone.rho_q)}" if hooked else "")
-                     + "; docs/physics.md, \"What a team does not do yet\"")
+                     + (f", {damped[0]}.damping_time > 0" if damped else "")
+                     + "; docs/physics.md, \"What a team does not do yet\"", damped=bool(damped))
         for i, s in enumerate(self.strings):
             try:
                 self.member_scene(i + 1)  # the string's own stability bound and ranges at this h

@@ -12,8 +12,8 @@ import math
 from collections import namedtuple
 
 from ..jit import kernel
-from ..layout import (B_ANGULAR_IMPULSE_Z, B_WINCH_WORK, B_WORK, D_ENERGY, D_PI3, DIAG, IN_BODY_TORQUE, IN_PIVOT_FORCE,
-                      R_NEWTON_TOTAL, R_STEPS, WN_LENGTH, WN_REEL_SPEED, Layout)
+from ..layout import (B_ANGULAR_IMPULSE_Z, B_DISSIPATION, B_WINCH_WORK, B_WORK, D_ENERGY, D_PI3, DIAG, IN_BODY_TORQUE,
+                      IN_PIVOT_FORCE, R_NEWTON_TOTAL, R_STEPS, WN_LENGTH, WN_REEL_SPEED, Layout)
 from ..step.disturbance import DISTURBANCE
 from .arrays import A_BODY_TORQUE, A_PIVOT_FORCE, ACTION_SIZE, REWARD_TERMS, SENSORS, TARGET
 
@@ -118,7 +118,8 @@ def capture_sample(buf, i, sources, clock):
         row[S_INPUTS + SI_PIVOT_FORCE + c] = src.inputs[IN_PIVOT_FORCE + c]
         row[S_INPUTS + SI_BODY_TORQUE + c] = src.inputs[IN_BODY_TORQUE + c]
     row[S_BALANCES + SB_WORK] = src.acc[B_WORK]
-    row[S_BALANCES + SB_ENERGY_RESIDUAL] = src.out[D_ENERGY] - clk.E0 - src.acc[B_WORK] - src.acc[B_WINCH_WORK]
+    row[S_BALANCES + SB_ENERGY_RESIDUAL] = (src.out[D_ENERGY] - clk.E0 - src.acc[B_WORK] - src.acc[B_WINCH_WORK]
+                                            + src.acc[B_DISSIPATION])
     row[S_BALANCES + SB_ANGULAR_IMPULSE] = src.acc[B_ANGULAR_IMPULSE_Z]
     row[S_BALANCES + SB_PI3_RESIDUAL] = src.out[D_PI3] - clk.pi30 - src.acc[B_ANGULAR_IMPULSE_Z]
     for k in range(N_TARGET):

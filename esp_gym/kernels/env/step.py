@@ -20,7 +20,7 @@ from ..jit import announce_compile, kernel
 from ..step.diagnostics import diagnostics
 from ..step.disturbance import disturb, external_potential
 from ..sums import kahan_add
-from ..layout import (B_WINCH_WORK, B_WORK, D_ENERGY, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_PIVOT_FORCE_END,
+from ..layout import (B_DISSIPATION, B_WINCH_WORK, B_WORK, D_ENERGY, IN_BODY_TORQUE, IN_PIVOT_FORCE, IN_PIVOT_FORCE_END,
                       IN_SPATIAL_TORQUE, R_STATUS,
                       R_STEPS, R_TERMINATION, WN_LENGTH, WN_MASS_PER_LENGTH, WN_REEL_SPEED, DiagWork, LGVIParams,
                       StateArrays, WinchArrays, Work)
@@ -40,9 +40,9 @@ from .track_curve import advance_reference
 def energy_watchdog(S, D, tp, code):
     """``code``, or ENERGY_BALANCE where the energy balance of the state just observed (``D``
     filled) broke the episode's bound: |E - E0 - W| > f (scale + |W|), W the inputs' and the
-    winch's work, E0 the reset's energy (docs/physics.md, "The energy watchdog"). It outranks
-    the task's terminations."""
-    work = S.acc[B_WORK] + S.acc[B_WINCH_WORK]
+    winch's work less what the string's dampers took, E0 the reset's energy (docs/physics.md,
+    "The energy watchdog"). It outranks the task's terminations."""
+    work = S.acc[B_WORK] + S.acc[B_WINCH_WORK] - S.acc[B_DISSIPATION]
     residual = D.out[D_ENERGY] - tp[TP_ENERGY_ORIGIN] - work
     if not (abs(residual) <= tp[TP_ENERGY_BOUND] + tp[TP_ENERGY_WATCHDOG] * abs(work)):
         return ENERGY_BALANCE

@@ -179,7 +179,7 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
     kick_before(S, W, P, nsteps, disturbed)
     if not forces_ready and not implicit:
         nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
-    composed = P.gammas.shape[0] > 1 or implicit
+    composed = P.gammas.shape[0] > 1 or implicit or P.damping > 0.0
     total = 0
     most = 0
     failed = OK

@@ -14,6 +14,7 @@ from ..jit import kernel
 from ..layout import B_WINCH_WORK, WN_LENGTH, WN_MAX_LENGTH, WN_MIN_LENGTH, WN_REEL_SPEED
 from ..status import NEWTON_FAILED, OK
 from ..sums import kahan_add
+from .damper import damper_half_step
 from .implicit import CUTBACKS, TOO_TENSE, implicit_step_once
 from .lgvi import lgvi_substep
 from .winch import length_shift, midpoint_dH_dl, winch_energy, winch_substep
@@ -90,20 +91,29 @@ def lgvi_step(S, W, P, inputs, free, forced, coupled, compensated, implicit=Fals
     """One step of length ``P.h``: the LGVI itself (one weight ``P.gammas == [1]``) or the
     symmetric composition of LGVI substeps of lengths ``gamma_i h`` (esp_gym/scene/compositions.py);
     with ``implicit`` (a compile-time constant) the implicit string's step
-    (kernels/step/implicit.py; order 2 only). Flags as in :func:`lgvi_substep`. A failing LGVI step
-    leaves the state untouched; a composed step that fails in a later substep leaves it after
-    the last good substep, and the loops below bring it back (:func:`advance_loop`). Returns
-    ``(status, newton_iterations)``."""
-    if implicit:
-        return implicit_substep(S, W, P, inputs, P.h, free, forced, coupled, compensated)
+    (kernels/step/implicit.py; order 2 only). A damped string (``P.damping`` > 0) takes the damper's
+    flow over half of each (sub)step on both sides of it (kernels/step/damper.py: a symmetric
+    splitting, of order 2; with no damper the step is untouched). Flags as in :func:`lgvi_substep`.
+    A failing LGVI step leaves the state untouched; a composed or damped step that fails in a later
+    stage leaves it after the last good one, and the loops below bring it back
+    (:func:`advance_loop`). Returns ``(status, newton_iterations)``."""
+    damped = P.damping > 0.0
     gammas = P.gammas
     total = 0
     for i in range(gammas.shape[0]):  # one substep site: the substep is inlined once
         # gamma = 1.0 for the plain LGVI, and 1.0 * h == h exactly
-        status, iters = lgvi_substep(S, W, P, inputs, gammas[i] * P.h, free, forced, coupled, compensated)
+        h = gammas[i] * P.h
+        if damped:
+            damper_half_step(S, W, P, 0.5 * h, free, compensated)
+        if implicit:
+            status, iters = implicit_substep(S, W, P, inputs, h, free, forced, coupled, compensated)
+        else:
+            status, iters = lgvi_substep(S, W, P, inputs, h, free, forced, coupled, compensated)
         total += iters
         if status != OK:
             return status, total
+        if damped:
+            damper_half_step(S, W, P, 0.5 * h, free, compensated)
     return OK, total
 
 

@@ -192,7 +192,7 @@ def length_params(P, WA, length, m_mean, first, n, diagnostic):
     guard = st[WN_MAX_STRETCH] * u
     return LGVIParams(P.h, m, st[WN_EA] / u, u, P.g, P.M, P.Mp, P.rho, P.J, P.Jd, jeff, inv, cp,
                       st[WN_OFF_SHARE] * m, w, P.first, P.slack, P.tol, P.max_iter, P.gammas, guard * guard,
-                      P.compensated, P.mdiag, P.settle, P.gradient)
+                      P.compensated, P.mdiag, P.settle, P.gradient, P.damping, P.turn_mass)
 
 
 @kernel(inline="always")
