@@ -35,6 +35,10 @@ CASES = {
     "env": ("import gymnasium as gym, esp_gym",
             "env = gym.make('ElasticStringPendulum-v0'); env.reset(seed=0)",
             "env.step(env.action_space.sample())"),
+    "damped env": ("import gymnasium as gym, esp_gym",
+                   "env = gym.make('ElasticStringPendulum-v0', scene_overrides={'string': {'damping_time': 1e-3}}); "
+                   "env.reset(seed=0)",
+                   "env.step(env.action_space.sample())"),
     "vector env (8)": ("import gymnasium as gym, esp_gym",
                        "env = gym.make_vec('ElasticStringPendulum-v0', num_envs=8); env.reset(seed=0)",
                        "env.step(env.action_space.sample())"),

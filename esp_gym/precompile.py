@@ -30,6 +30,7 @@ class Configuration:
     drone: bool = False
     hook: bool = False  #: the drone's hook off its centre of mass (pivot.drone.rho_q)
     team: bool = False  #: a team of TEAM_SIZE strings on one load (ElasticStringTeam-v0)
+    damped: bool = False  #: the string's damper (string.damping_time > 0)
 
     @property
     def name(self) -> str:
@@ -37,13 +38,14 @@ class Configuration:
             else "winch" if self.winch else "fixed"
         if self.team:
             return f"team-{kind}-" + ("batched" if self.batched else "single")
-        return "-".join((kind, "implicit" if self.implicit else "explicit", "batched" if self.batched else "single"))
+        return "-".join((kind, "implicit" if self.implicit else "explicit") + (("damped",) if self.damped else ())
+                        + ("batched" if self.batched else "single",))
 
 
 #: Every configuration: each rig of the table (esp_gym/physics/rig.py RIGS, the first environment's
 #: first, a team's last), single and batched (a team whose strings reel steps one by one, in Python).
 CONFIGURATIONS = tuple(Configuration(rig.winch, rig.string == "implicit", batched, rig.pivot == "drone", rig.hook,
-                                     rig.team)
+                                     rig.team, rig.damper)
                        for rig in RIGS for batched in ((False, True) if rig.compiled else (False,)))
 #: The strings of the team the team configurations compile with (any size: the same kernels).
 TEAM_SIZE = 3
@@ -51,6 +53,8 @@ TEAM_SIZE = 3
 DEFAULT_JOBS = 2
 #: The offset hook the hook configurations compile with [m] (any non-zero one: the same kernels).
 OFFSET_HOOK = [0.0, 0.0, 0.05]
+#: The damping time the damped configurations compile with [s] (any positive one: the same kernels).
+DAMPING_TIME = 1e-3
 
 
 def make_env(config: Configuration):
@@ -74,6 +78,8 @@ def make_env(config: Configuration):
         options["scene_overrides"] = {"solver": {"string": "implicit"}}
     if config.hook:
         options["scene_overrides"] = {"pivot": {"drone": {"rho_q": OFFSET_HOOK}}}
+    if config.damped:
+        options["scene_overrides"] = {**options.get("scene_overrides", {}), "string": {"damping_time": DAMPING_TIME}}
     if config.batched:
         return gym.make_vec(esp_gym.ENV_ID, num_envs=2, **options)
     return gym.make(esp_gym.ENV_ID, disable_env_checker=True, **options)

@@ -17,29 +17,34 @@ DOCS = Path(__file__).resolve().parent.parent / "docs" / "environment.md"
 HOOK = [0.0, 0.0, -0.05]
 
 
-def options(pivot: str, string: str, winch: bool, hook: bool) -> dict:
+def options(pivot: str, string: str, winch: bool, hook: bool, damped: bool = False) -> dict:
     """gym.make's arguments for one combination."""
     overrides = {"solver": {"string": string}}
     if hook:
         overrides["pivot"] = {"drone": {"rho_q": HOOK}}
+    if damped:
+        overrides["string"] = {"damping_time": 1e-3}
     return {"scene": "quadrotor_load" if pivot == "drone" else "drone_load", "task": "lift" if winch else "stabilize",
             "winch": winch, "scene_overrides": overrides, "disable_env_checker": True}
 
 
-COMBINATIONS = [c for c in itertools.product(("point", "drone"), ("explicit", "implicit"), (False, True), (False, True))
-                if c[0] == "drone" or not c[3]]  # a point pivot has no hook
+# a point pivot has no hook; a drone's scene refuses a damped string before any rig is asked
+# (tests/test_damping.py)
+COMBINATIONS = [c for c in itertools.product(("point", "drone"), ("explicit", "implicit"), (False, True), (False, True),
+                                             (False, True))
+                if (c[0] == "drone" or not c[3]) and not (c[0] == "drone" and c[4])]
 
 
 @pytest.mark.parametrize("combination", COMBINATIONS, ids=["-".join(map(str, c)) for c in COMBINATIONS])
 def test_a_combination_is_its_rig_or_refused_by_the_table(combination):
-    pivot, string, winch, hook = combination
-    rigs = [r for r in RIGS if (r.pivot, r.string, r.winch, r.hook) == combination and not r.team]
+    pivot, string, winch, hook, damped = combination
+    rigs = [r for r in RIGS if (r.pivot, r.string, r.winch, r.hook, r.damper) == combination and not r.team]
     if not rigs:
         with pytest.raises(ValueError, match=r"no rig is .*; the rigs are point-explicit, .* \(esp_gym\.rigs\(\)\)$"):
             gym.make(esp_gym.ENV_ID, **options(*combination))
         return
     control = gym.make(esp_gym.ENV_ID, **options(*combination)).unwrapped.control
-    assert control.rig is rigs[0] and find_rig(*combination) is rigs[0]
+    assert control.rig is rigs[0] and find_rig(*combination[:4], damped=damped) is rigs[0]
     # its structs as the entry points take them, in STRUCTS' order
     assert list(control.rig.structs) == [s for s in STRUCTS if s in control.rig.structs]
     assert control.rig.entries.step is not None
@@ -49,7 +54,7 @@ def test_every_rig_steps_one_environment_and_a_batch_through_its_one_call_site()
     """Each rig's single step and batched step (its first sub-environment) from one seed give one
     observation, bit for bit."""
     for rig in (r for r in RIGS if not r.team):  # a team's: tests/test_team_env.py
-        kwargs = options(rig.pivot, rig.string, rig.winch, rig.hook)
+        kwargs = options(rig.pivot, rig.string, rig.winch, rig.hook, rig.damper)
         kwargs.pop("disable_env_checker")
         env = gym.make(esp_gym.ENV_ID, disable_env_checker=True, **kwargs)
         vec = gym.make_vec(esp_gym.ENV_ID, num_envs=2, **kwargs)
@@ -104,7 +109,10 @@ def team_argument(pivot: str, string: str, hook: bool):
     return data
 
 
-@pytest.mark.parametrize("combination", COMBINATIONS, ids=["-".join(map(str, c)) for c in COMBINATIONS])
+TEAM_COMBINATIONS = [c[:4] for c in COMBINATIONS if not c[4]]
+
+
+@pytest.mark.parametrize("combination", TEAM_COMBINATIONS, ids=["-".join(map(str, c)) for c in TEAM_COMBINATIONS])
 def test_a_team_combination_is_its_rig_or_refused_by_the_table(combination):
     """ElasticStringTeam-v0's rig is resolved once from the table: a compiled rig steps through
     its entry points (a control), the winch's in Python; any other combination is refused, whether

@@ -116,8 +116,9 @@ StateArrays = namedtuple("StateArrays", "r p R Pi rc pc Rc Pic f acc accc owed")
 #: The damper's half step (kernels/step/damper.py): ``dvel`` (N+1, 3) the node velocities of the
 #: state [m/s], ``dinc`` (N+1, 3) their increments, ``ddir`` (N, 3) the elements' directions,
 #: ``dten`` (N,) their elastic tensions [N], ``dset`` (N,) the damper's state of each (slack,
-#: active, held), ``dfac`` (N+1, 3, 3) the eliminated blocks.
-Work = namedtuple("Work", "fn X Y FmI RF Rn jac backup fl fr dy elim taut ext switch dvel dinc ddir dten dset dfac")
+#: active, held), ``dfac`` (N+1, 3, 3) the eliminated blocks, ``dmat`` (4, 3, 3) scratch of a row's blocks.
+Work = namedtuple("Work", "fn X Y FmI RF Rn jac backup fl fr dy elim taut ext switch dvel dinc ddir dten dset dfac "
+                          "dmat")
 
 #: The winch's arrays (kernels/step/winch.py): ``state`` (:data:`WINCH`), per element the weights
 #: ``coef`` (N, 3) of its convective kinetic energy (alpha, beta, gamma: docs/physics.md, "The

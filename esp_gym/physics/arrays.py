@@ -39,7 +39,8 @@ def work_arrays(n: int) -> Work:
     return Work(fn=z((n + 1, 3)), X=z((n + 1, 3)), Y=z((n + 1, 3)), FmI=z((3, 3)), RF=z((3, 3)), Rn=z((3, 3)),
                 jac=z((3, 3)), backup=z(state_size(state_arrays(n))), fl=z((n + 1, 3)), fr=z((n + 1, 3)), dy=z((n + 1, 3)),
                 elim=z((n + 1, 3, 3)), taut=z(n), ext=z((n + 2, 3)), switch=z(n), dvel=z((n + 1, 3)),
-                dinc=z((n + 1, 3)), ddir=z((n, 3)), dten=z(n), dset=z(n), dfac=z((n + 1, 3, 3)))
+                dinc=z((n + 1, 3)), ddir=z((n, 3)), dten=z(n), dset=z(n), dfac=z((n + 1, 3, 3)),
+                dmat=z((4, 3, 3)))
 
 
 def diag_work(n: int) -> DiagWork:

@@ -35,7 +35,8 @@ class Rig:
     ``"implicit"``; ``winch``; ``hook``: a drone's hook off its centre of mass) and the structs
     its entry points take (a subsequence of :data:`STRUCTS`; none for a rig that steps in Python);
     ``team``: a team's rig (ElasticStringTeam-v0, every pivot of the one kind); ``damper``: its
-    step damps the string (``string.damping_time``, kernels/step/damper.py)."""
+    step damps the string (``string.damping_time`` > 0, kernels/step/damper.py), a step of its own
+    (an undamped rig's compiled step has no damper in it)."""
 
     pivot: str
     string: str
@@ -48,9 +49,9 @@ class Rig:
     @property
     def name(self) -> str:
         """e.g. ``drone-explicit-winch``, ``point-implicit``, ``drone-explicit-offset-hook``,
-        ``team-drone-explicit``."""
+        ``team-drone-explicit``, ``point-explicit-damped``."""
         return "-".join((("team",) if self.team else ()) + (self.pivot, self.string) + (("winch",) if self.winch else ())
-                        + (("offset-hook",) if self.hook else ()))
+                        + (("offset-hook",) if self.hook else ()) + (("damped",) if self.damper else ()))
 
     @property
     def environment(self) -> str:
@@ -90,8 +91,9 @@ class Rig:
 _POINT = ("state", "work", "params", "diag", "winch", "env")
 _TEAM = ("team", "team_env")
 #: Every rig: ElasticStringPendulum-v0's, then ElasticStringTeam-v0's.
-RIGS = tuple([Rig("point", scheme, winch, False, _POINT, damper=not winch) for winch in (False, True)
+RIGS = tuple([Rig("point", scheme, winch, False, _POINT) for winch in (False, True)
               for scheme in ("explicit", "implicit")]
+             + [Rig("point", scheme, False, False, _POINT, damper=True) for scheme in ("explicit", "implicit")]
              + [Rig("drone", "explicit", False, False, ("state", "work", "params", "diag", "env", "drone")),
                 Rig("drone", "explicit", True, False, ("state", "work", "params", "diag", "winch", "env", "drone")),
                 Rig("drone", "explicit", False, True, ("state", "work", "params", "diag", "env", "drone", "hook")),
@@ -129,16 +131,12 @@ def find_rig(pivot: str, string: str, winch: bool, hook: bool, settings: str = "
     """The rig of ``pivot`` (``"point"`` or ``"drone"``), ``string`` (``"explicit"`` or
     ``"implicit"``), ``winch`` and ``hook``, a team's if ``team``; ValueError naming the
     combination (and the ``settings`` that asked for it) and listing the environment's rigs of
-    :data:`RIGS` if there is none, or if the string is ``damped`` and the rig has no damper."""
-    combination = (pivot, string, bool(winch), bool(hook), bool(team))
+    :data:`RIGS` if there is none (``damped``: the string's damper, a rig of its own)."""
+    combination = (pivot, string, bool(winch), bool(hook), bool(team), bool(damped))
     for rig in RIGS:
-        if (rig.pivot, rig.string, rig.winch, rig.hook, rig.team) == combination:
-            if damped and not rig.damper:
-                raise ValueError(f"{rig.environment}: the rig {rig.name} has no damper yet" + (f" ({settings})" if settings else "")
-                                 + "; the rigs with one are " + ", ".join(r.name for r in RIGS if r.damper)
-                                 + " (esp_gym.rigs(); docs/physics.md, \"Material damping\")")
+        if (rig.pivot, rig.string, rig.winch, rig.hook, rig.team, rig.damper) == combination:
             return rig
-    asked = Rig(pivot, string, bool(winch), bool(hook), (), bool(team))
+    asked = Rig(pivot, string, bool(winch), bool(hook), (), bool(team), bool(damped))
     raise ValueError(f"{asked.environment}: no rig is {asked.name}" + (f" ({settings})" if settings else "")
                      + "; the rigs are " + ", ".join(rig.name for rig in RIGS if rig.team == asked.team)
                      + " (esp_gym.rigs())")

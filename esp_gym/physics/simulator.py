@@ -193,10 +193,12 @@ class Simulator(StepClock):
 
     # -- stepping ---------------------------------------------------------------------------
     def _kernels(self):
-        """``(advance, record)`` for this scene (its body's coupling, its sums, its string's scheme)."""
+        """``(advance, record)`` for this scene (its body's coupling, its sums, its string's scheme
+        and damper)."""
+        damped = self.params.damping > 0.0
         if not self.specialise:
-            return general_kernels(self.implicit)
-        key = (self._coupled, self.params.compensated, self.implicit)
+            return general_kernels(self.implicit, damped)
+        key = (self._coupled, self.params.compensated, self.implicit, damped)
         kernels = self._kernel_cache.get(key)
         if kernels is None:
             kernels = self._kernel_cache[key] = specialised_kernels(*key)

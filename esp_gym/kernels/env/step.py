@@ -29,7 +29,8 @@ from .arrays import (A_BODY_TORQUE, A_PIVOT_FORCE, A_REEL_SPEED, ACTION_SIZE, AP
                      SCHEME_DISTURBED, TP_ENERGY_BOUND, TP_ENERGY_ORIGIN, TP_ENERGY_WATCHDOG, TP_STRING_LENGTH)
 from ..rows import row_function
 from ..status import ENERGY_BALANCE, OK
-from ..step.loops import advance_loop_explicit, advance_loop_implicit, winch_loop_explicit, winch_loop_implicit
+from ..step.loops import (advance_loop_explicit, advance_loop_explicit_damped, advance_loop_implicit,
+                          advance_loop_implicit_damped, winch_loop_explicit, winch_loop_implicit)
 from ..step.winch import length_params, winch_energy
 from .arrays import EnvArrays
 from .task_terms import observe_and_score
@@ -110,13 +111,13 @@ def env_prepare(S, W, P, D, E, disturbed):
 
 
 @kernel(inline="always")
-def control_step(S, W, P, D, WA, E, reel, disturbed, winched, implicit):
+def control_step(S, W, P, D, WA, E, reel, disturbed, winched, implicit, damped=False):
     """One control step of one environment (``E``: its :class:`~esp_gym.kernels.env.arrays.EnvArrays`, the
     inputs already taken from the action, ``reel`` the reel speed [m/s]): :func:`env_prepare`,
     ``E.nsub[0]`` physics steps with constant inputs by the loop of the configuration,
-    :func:`env_finish` (or :func:`env_finish_winched`). ``winched`` and ``implicit`` are the
-    entry point's closure constants: inlined there, the other three loops' calls are pruned and
-    never compiled."""
+    :func:`env_finish` (or :func:`env_finish_winched`). ``winched``, ``implicit`` and ``damped`` (the
+    string's damper: kernels/step/damper.py; not with the winch) are the entry point's closure
+    constants: inlined there, the other loops' calls are pruned and never compiled."""
     phi = env_prepare(S, W, P, D, E, disturbed)
     nsub = E.nsub[0]
     # the general loop: an environment always has inputs and, as a rule, an off-centre load
@@ -127,12 +128,17 @@ def control_step(S, W, P, D, WA, E, reel, disturbed, winched, implicit):
             winch_loop_explicit(S, W, P, WA, D, E.inputs, reel, nsub, E.result, disturbed)
         env_finish_winched(S, W, P, D, WA, E, phi, disturbed)
         return
-    if implicit:
-        advance_loop_implicit(S, W, P, E.inputs, nsub, E.result, P.first == 0, True, True, P.compensated, False,
-                              disturbed)
+    free = P.first == 0
+    if implicit and damped:
+        advance_loop_implicit_damped(S, W, P, E.inputs, nsub, E.result, free, True, True, P.compensated, False,
+                                     disturbed)
+    elif implicit:
+        advance_loop_implicit(S, W, P, E.inputs, nsub, E.result, free, True, True, P.compensated, False, disturbed)
+    elif damped:
+        advance_loop_explicit_damped(S, W, P, E.inputs, nsub, E.result, free, True, True, P.compensated, False,
+                                     disturbed)
     else:
-        advance_loop_explicit(S, W, P, E.inputs, nsub, E.result, P.first == 0, True, True, P.compensated, False,
-                              disturbed)
+        advance_loop_explicit(S, W, P, E.inputs, nsub, E.result, free, True, True, P.compensated, False, disturbed)
     env_finish(S, W, P, D, E, phi, disturbed)
 
 
@@ -193,7 +199,7 @@ env_row = row_function(EnvArrays)
 
 
 @kernel(inline="always")
-def batch_loop(S, W, P, D, WA, E, raw, active, disturbed, winched, implicit):
+def batch_loop(S, W, P, D, WA, E, raw, active, disturbed, winched, implicit, damped=False):
     """:func:`take_action` and :func:`control_step` for every environment b with ``active[b]``
     (each struct's row b by its row function, kernels/rows.py). A ``prange``: on numba's threads
     in an entry compiled with ``parallel=True``, a plain loop in one without."""
@@ -203,7 +209,7 @@ def batch_loop(S, W, P, D, WA, E, raw, active, disturbed, winched, implicit):
             reel = take_action(raw[b], Eb.ap, Eb.action, Eb.inputs)
             if reel != -np.inf:
                 control_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), winch_row(WA, b),
-                             Eb, reel, disturbed, winched, implicit)
+                             Eb, reel, disturbed, winched, implicit, damped)
 
 
 class EntryPoints(NamedTuple):
@@ -215,10 +221,11 @@ class EntryPoints(NamedTuple):
     threaded_batch: Any
 
 
-def _entry_points(winched: bool, implicit: bool):
+def _entry_points(winched: bool, implicit: bool, damped: bool = False):
     """:class:`EntryPoints` ``(step, batch, threaded_batch)``, the compiled entry points of the environment without or with the winch,
-    on the explicit or the implicit string (closure constants: each configuration compiles only
-    its own loop and string step, when it is first asked for: :func:`control_step`).
+    on the explicit or the implicit string, without or with its damper (closure constants: each
+    configuration compiles only its own loop and string step, when it is first asked for:
+    :func:`control_step`).
 
     ``step(s, w, p, d, wa, e, raw, scheme)``: :func:`take_action` of the raw action (ACTION),
     then the control step (:func:`control_step`), for one environment (one compiled call per
@@ -239,8 +246,8 @@ def _entry_points(winched: bool, implicit: bool):
     other, so one thread is the default (docs/performance.md, "Threads").
     """
 
-    # Both take control_step with ``winched`` and ``implicit`` as closure constants (numba prunes the
-    # other loops' calls); the closures hold nothing but the two bools, so numba caches them (it
+    # Both take control_step with ``winched``, ``implicit`` and ``damped`` as closure constants (numba
+    # prunes the other loops' calls); the closures hold nothing but the three bools, so numba caches them (it
     # keys a closure by its cells, and a compiled function in a cell is another key in every process),
     # and kernel() names each configuration after them (jit.name_closure: step__implicit0_winched1).
 
@@ -251,24 +258,24 @@ def _entry_points(winched: bool, implicit: bool):
         if reel == -np.inf:
             return False
         control_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), E, reel,
-                     (scheme & SCHEME_DISTURBED) != 0, winched, implicit)
+                     (scheme & SCHEME_DISTURBED) != 0, winched, implicit, damped)
         return True
 
     @kernel(entry=True)
     def batch(s, w, p, d, wa, e, raw, active, scheme):
         batch_loop(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), EnvArrays(*e), raw,
-                   active, (scheme & SCHEME_DISTURBED) != 0, winched, implicit)
+                   active, (scheme & SCHEME_DISTURBED) != 0, winched, implicit, damped)
 
     # another function, not batch with another option: numba's cache keys a function by its code,
     # not by its options, so the two would load each other's machine code
     @kernel(parallel=True, entry=True)
     def threaded_batch(s, w, p, d, wa, e, raw, active, scheme):
         batch_loop(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), EnvArrays(*e), raw,
-                   active, (scheme & SCHEME_DISTURBED) != 0, winched, implicit)
+                   active, (scheme & SCHEME_DISTURBED) != 0, winched, implicit, damped)
 
     # the cold first steps of benchmarks.cold_start (docs/performance.md, "Start-up")
     which = ("the environment's step" + (" on the implicit string" if implicit else "")
-             + (" with the winch" if winched else ""))
+             + (" with the winch" if winched else "") + (" with the string's damper" if damped else ""))
     return EntryPoints(announce_compile(step, which, COLD_ENV_STEP_S),
                        announce_compile(batch, "the batched " + which[4:], COLD_BATCH_STEP_S),
                        announce_compile(threaded_batch, "the threaded batched " + which[4:], COLD_THREADED_BATCH_STEP_S))
@@ -288,3 +295,5 @@ point_explicit = _entry_points(winched=False, implicit=False)
 point_implicit = _entry_points(winched=False, implicit=True)
 point_explicit_winch = _entry_points(winched=True, implicit=False)
 point_implicit_winch = _entry_points(winched=True, implicit=True)
+point_explicit_damped = _entry_points(winched=False, implicit=False, damped=True)
+point_implicit_damped = _entry_points(winched=False, implicit=True, damped=True)

@@ -27,8 +27,6 @@ from ..jit import kernel
 from ..layout import B_DISSIPATION
 from ..sums import kahan_add
 from .diagnostics import node_velocities
-from .implicit_newton import eliminate_previous, forward_row, store_row
-from .implicit_terms import inverse3
 
 #: The damper's state of an element (``W.dset``): slack (carries nothing), active (T_d = c e), or
 #: held at T_d = -T_e.
@@ -37,10 +35,9 @@ ACTIVE = 1.0
 HELD = 2.0
 #: Solves of one half step at most (each changes the set of at least one element).
 MAX_SOLVES = 8
-ZERO9 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
-@kernel(inline="always")
+@kernel(forceinline=True)
 def element_directions(r, P, dirs, tension, dset):
     """Per element a: its unit direction into ``dirs[a]``, its elastic tension T_e [N] into
     ``tension[a]`` and its damper's state (slack, else active) into ``dset[a]``."""
@@ -76,82 +73,122 @@ def driving_tension(W, P, a):
 
 
 @kernel(inline="always")
-def element_block(W, a, q):
-    """q n_a n_a^T (9, row-major) if element a is active, else zeros."""
+def outer(W, a, q):
+    """q n_a n_a^T of element a if it is active, else 0: its 6 entries (00, 01, 02, 11, 12, 22)."""
     if W.dset[a] != ACTIVE:
-        return ZERO9
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     n0 = W.ddir[a, 0]
     n1 = W.ddir[a, 1]
     n2 = W.ddir[a, 2]
-    return (q * n0 * n0, q * n0 * n1, q * n0 * n2, q * n1 * n0, q * n1 * n1, q * n1 * n2,
-            q * n2 * n0, q * n2 * n1, q * n2 * n2)
+    return q * n0 * n0, q * n0 * n1, q * n0 * n2, q * n1 * n1, q * n1 * n2, q * n2 * n2
 
 
-@kernel(inline="always")
-def rotated_entry(R, T, i, j):
-    """(R T R^T)_ij."""
-    s = 0.0
-    for k in range(3):
-        s += R[i, k] * (T[k, 0] * R[j, 0] + T[k, 1] * R[j, 1] + T[k, 2] * R[j, 2])
-    return s
-
-
-@kernel(inline="always")
-def turn_block(R, T):
-    """R T R^T (9, row-major) for the body-frame ``T`` (3, 3)."""
-    return (rotated_entry(R, T, 0, 0), rotated_entry(R, T, 0, 1), rotated_entry(R, T, 0, 2),
-            rotated_entry(R, T, 1, 0), rotated_entry(R, T, 1, 1), rotated_entry(R, T, 1, 2),
-            rotated_entry(R, T, 2, 0), rotated_entry(R, T, 2, 1), rotated_entry(R, T, 2, 2))
-
-
-@kernel(inline="always")
+@kernel(forceinline=True)
 def row_blocks(S, W, P, a, n, q, eta):
-    """Row ``a`` of the half step's system: its diagonal block (9), right-hand side (3) and
-    coupling to the next node (9; zeros at the attachment node)."""
+    """Row ``a`` of the half step's system, symmetric blocks by their 6 entries (00, 01, 02, 11, 12,
+    22): the diagonal block D, the coupling C to the next node (0 at the attachment node) and the
+    right-hand side r (3). Returns the 15 scalars."""
     d = P.mdiag[a]
-    below = element_block(W, a - 1, q) if a > 0 else ZERO9
-    above = element_block(W, a, q) if a < n else ZERO9
-    turn = turn_block(S.R, P.turn_mass) if a == n else ZERO9
-    diag = (d + below[0] + above[0] - turn[0], below[1] + above[1] - turn[1], below[2] + above[2] - turn[2],
-            below[3] + above[3] - turn[3], d + below[4] + above[4] - turn[4], below[5] + above[5] - turn[5],
-            below[6] + above[6] - turn[6], below[7] + above[7] - turn[7], d + below[8] + above[8] - turn[8])
-    s_below = driving_tension(W, P, a - 1) if a > 0 else 0.0
-    s_above = driving_tension(W, P, a) if a < n else 0.0
-    rhs = (0.0, 0.0, 0.0)
-    if a > 0:
-        rhs = (-eta * s_below * W.ddir[a - 1, 0], -eta * s_below * W.ddir[a - 1, 1], -eta * s_below * W.ddir[a - 1, 2])
-    if a < n:
-        rhs = (rhs[0] + eta * s_above * W.ddir[a, 0], rhs[1] + eta * s_above * W.ddir[a, 1],
-               rhs[2] + eta * s_above * W.ddir[a, 2])
     off = P.off
-    couple = (off - above[0], -above[1], -above[2], -above[3], off - above[4], -above[5], -above[6], -above[7],
-              off - above[8])
-    return diag, rhs, couple
+    b = outer(W, a - 1, q) if a > 0 else (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    t = outer(W, a, q) if a < n else (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    D = (d + b[0] + t[0], b[1] + t[1], b[2] + t[2], d + b[3] + t[3], b[4] + t[4], d + b[5] + t[5])
+    C = (off - t[0], -t[1], -t[2], off - t[3], -t[4], off - t[5]) if a < n else (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    r0 = 0.0
+    r1 = 0.0
+    r2 = 0.0
+    if a > 0:
+        s = eta * driving_tension(W, P, a - 1)
+        r0 -= s * W.ddir[a - 1, 0]
+        r1 -= s * W.ddir[a - 1, 1]
+        r2 -= s * W.ddir[a - 1, 2]
+    if a < n:
+        s = eta * driving_tension(W, P, a)
+        r0 += s * W.ddir[a, 0]
+        r1 += s * W.ddir[a, 1]
+        r2 += s * W.ddir[a, 2]
+    else:  # the load's rotation takes its share of the attachment node's mass: R turn_mass R^T
+        R = S.R
+        T = P.turn_mass
+        m = W.dmat[3]
+        for i in range(3):
+            for j in range(3):
+                m[i, j] = T[i, 0] * R[j, 0] + T[i, 1] * R[j, 1] + T[i, 2] * R[j, 2]  # T R^T
+        D = (D[0] - (R[0, 0] * m[0, 0] + R[0, 1] * m[1, 0] + R[0, 2] * m[2, 0]),
+             D[1] - (R[0, 0] * m[0, 1] + R[0, 1] * m[1, 1] + R[0, 2] * m[2, 1]),
+             D[2] - (R[0, 0] * m[0, 2] + R[0, 1] * m[1, 2] + R[0, 2] * m[2, 2]),
+             D[3] - (R[1, 0] * m[0, 1] + R[1, 1] * m[1, 1] + R[1, 2] * m[2, 1]),
+             D[4] - (R[1, 0] * m[0, 2] + R[1, 1] * m[1, 2] + R[1, 2] * m[2, 2]),
+             D[5] - (R[2, 0] * m[0, 2] + R[2, 1] * m[1, 2] + R[2, 2] * m[2, 2]))
+    return D, C, (r0, r1, r2)
 
 
-@kernel(inline="always")
+@kernel(forceinline=True)
+def eliminate_row(W, a, first, n, D, C, r):
+    """Block elimination of row ``a`` (its blocks from :func:`row_blocks`): the previous row's
+    coupling O (``W.dmat[2]``) times E_{a-1} and z_{a-1} taken off D and r; then E_a = D^-1 C into
+    ``W.dfac[a]`` and z_a = D^-1 r into ``W.dinc[a]``; C kept as the next row's O."""
+    E = W.dfac
+    z = W.dinc
+    O = W.dmat[2]
+    d00, d01, d02, d11, d12, d22 = D
+    r0, r1, r2 = r
+    if a > first:  # D - O E_{a-1} = D - O D_{a-1}^-1 O: symmetric, its 6 entries
+        e = E[a - 1]
+        d00 -= O[0, 0] * e[0, 0] + O[0, 1] * e[1, 0] + O[0, 2] * e[2, 0]
+        d01 -= O[0, 0] * e[0, 1] + O[0, 1] * e[1, 1] + O[0, 2] * e[2, 1]
+        d02 -= O[0, 0] * e[0, 2] + O[0, 1] * e[1, 2] + O[0, 2] * e[2, 2]
+        d11 -= O[1, 0] * e[0, 1] + O[1, 1] * e[1, 1] + O[1, 2] * e[2, 1]
+        d12 -= O[1, 0] * e[0, 2] + O[1, 1] * e[1, 2] + O[1, 2] * e[2, 2]
+        d22 -= O[2, 0] * e[0, 2] + O[2, 1] * e[1, 2] + O[2, 2] * e[2, 2]
+        r0 -= O[0, 0] * z[a - 1, 0] + O[0, 1] * z[a - 1, 1] + O[0, 2] * z[a - 1, 2]
+        r1 -= O[1, 0] * z[a - 1, 0] + O[1, 1] * z[a - 1, 1] + O[1, 2] * z[a - 1, 2]
+        r2 -= O[2, 0] * z[a - 1, 0] + O[2, 1] * z[a - 1, 1] + O[2, 2] * z[a - 1, 2]
+    # the symmetric inverse by cofactors
+    i00 = d11 * d22 - d12 * d12
+    i01 = d02 * d12 - d01 * d22
+    i02 = d01 * d12 - d02 * d11
+    det = 1.0 / (d00 * i00 + d01 * i01 + d02 * i02)
+    i00 *= det
+    i01 *= det
+    i02 *= det
+    i11 = (d00 * d22 - d02 * d02) * det
+    i12 = (d01 * d02 - d00 * d12) * det
+    i22 = (d00 * d11 - d01 * d01) * det
+    z[a, 0] = i00 * r0 + i01 * r1 + i02 * r2
+    z[a, 1] = i01 * r0 + i11 * r1 + i12 * r2
+    z[a, 2] = i02 * r0 + i12 * r1 + i22 * r2
+    if a < n:
+        c00, c01, c02, c11, c12, c22 = C
+        E[a, 0, 0] = i00 * c00 + i01 * c01 + i02 * c02
+        E[a, 0, 1] = i00 * c01 + i01 * c11 + i02 * c12
+        E[a, 0, 2] = i00 * c02 + i01 * c12 + i02 * c22
+        E[a, 1, 0] = i01 * c00 + i11 * c01 + i12 * c02
+        E[a, 1, 1] = i01 * c01 + i11 * c11 + i12 * c12
+        E[a, 1, 2] = i01 * c02 + i11 * c12 + i12 * c22
+        E[a, 2, 0] = i02 * c00 + i12 * c01 + i22 * c02
+        E[a, 2, 1] = i02 * c01 + i12 * c11 + i22 * c12
+        E[a, 2, 2] = i02 * c02 + i12 * c12 + i22 * c22
+        O[0, 0] = c00
+        O[0, 1] = c01
+        O[0, 2] = c02
+        O[1, 0] = c01
+        O[1, 1] = c11
+        O[1, 2] = c12
+        O[2, 0] = c02
+        O[2, 1] = c12
+        O[2, 2] = c22
+
+
+@kernel(forceinline=True)
 def velocity_increments(S, W, P, first, q, eta):
     """Solve the half step's system for dv into ``W.dinc`` (rows below ``first`` 0) by block
-    elimination, pivot -> attachment node, and back substitution (``W.dfac`` the eliminated blocks)."""
+    elimination, pivot -> attachment node, and back substitution (``W.dfac`` the eliminated blocks,
+    ``W.dmat`` scratch)."""
     n = W.dinc.shape[0] - 1
-    prev = ZERO9
-    e = ZERO9
-    z = (0.0, 0.0, 0.0)
     for a in range(first, n + 1):
-        s, r, couple = row_blocks(S, W, P, a, n, q, eta)
-        if a > first:
-            s, r = eliminate_previous(s, r, prev, e, z)
-        if a < n:
-            e, z = forward_row(s, r, couple)
-            store_row(W.dfac, W.dinc, a, e, z)
-            prev = couple
-        else:
-            i = inverse3(s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7], s[8])
-            z = (i[0] * r[0] + i[1] * r[1] + i[2] * r[2], i[3] * r[0] + i[4] * r[1] + i[5] * r[2],
-                 i[6] * r[0] + i[7] * r[1] + i[8] * r[2])
-            W.dinc[n, 0] = z[0]
-            W.dinc[n, 1] = z[1]
-            W.dinc[n, 2] = z[2]
+        D, C, r = row_blocks(S, W, P, a, n, q, eta)
+        eliminate_row(W, a, first, n, D, C, r)
     E = W.dfac
     X = W.dinc
     for k in range(n - first):
@@ -170,7 +207,7 @@ def midpoint_rate(W, a):
     return extension_rate(W.dvel, W.ddir, a) + 0.5 * extension_rate(W.dinc, W.ddir, a)
 
 
-@kernel(inline="always")
+@kernel(forceinline=True)
 def update_holds(W, P):
     """Move the elements whose damper breaks its hold (active, c e < -T_e) to held, and those held
     that no longer need it back; returns how many moved (0 with the two-sided law)."""
@@ -204,7 +241,7 @@ def add_to(p, pc, a, i, d, compensated):
         p[a, i] += d
 
 
-@kernel(inline="always")
+@kernel(forceinline=True)
 def add_momentum(p, pc, a, d0, d1, d2, compensated):
     """p[a] += d (3) (:func:`add_to`)."""
     add_to(p, pc, a, 0, d0, compensated)
@@ -212,7 +249,7 @@ def add_momentum(p, pc, a, d0, d1, d2, compensated):
     add_to(p, pc, a, 2, d2, compensated)
 
 
-@kernel(inline="always")
+@kernel(forceinline=True)
 def apply_damper(S, W, P, first, eta, compensated):
     """The momenta take the damper's impulses -eta T_d g_a; the dissipation eta sum T_d e_mid [J]
     joins ``S.acc`` (B_DISSIPATION)."""

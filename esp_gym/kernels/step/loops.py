@@ -155,7 +155,7 @@ def _rewind(S, W, WA, winched):
 
 @kernel(inline="always")
 def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, forces_ready=False,
-                 implicit=False, disturbed=False):
+                 implicit=False, disturbed=False, damped=False):
     """Take up to ``nsteps`` steps (:func:`lgvi_step`) with constant ``inputs``; stop at the
     first failure with the last good state. ``stats`` (int64, >= 4): status, steps taken, total
     Newton iterations, max per step. The flags are constants in the simulator's specialised
@@ -174,12 +174,13 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
     last step's forces, its first guess: kernels/step/implicit.py) and is never recomputed here.
     ``disturbed``: the held external forces ``W.ext`` act too, as kicks of h/2 on both sides of
     every step (kernels/step/disturbance.py), the kicks between two steps merged into one; after a
-    failure the pending half kick is taken back.
+    failure the pending half kick is taken back. ``damped`` (a constant): the string's damper
+    (kernels/step/damper.py) on both sides of every step, which makes a step that can fail part-way.
     """
     kick_before(S, W, P, nsteps, disturbed)
     if not forces_ready and not implicit:
         nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
-    composed = P.gammas.shape[0] > 1 or implicit or P.damping > 0.0
+    composed = P.gammas.shape[0] > 1 or implicit or damped
     total = 0
     most = 0
     failed = OK
@@ -190,7 +191,7 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
         if composed and failed == OK and k % CHECKPOINT == 0:
             _checkpoint(S, W, None, False)
             k0 = k
-        status, iters = lgvi_step(S, W, P, inputs, free, forced, coupled, compensated, implicit)
+        status, iters = lgvi_step(S, W, P, inputs, free, forced, coupled, compensated, implicit, damped)
         if failed == OK:
             total += iters
             most = max(most, iters)
@@ -243,29 +244,33 @@ def winch_loop(S, W, P, WA, D, inputs, speed, nsteps, stats, disturbed, implicit
     finish(stats, OK, nsteps, total, most)
 
 
-def shared_advance_loop(implicit: bool):
+def shared_advance_loop(implicit: bool, damped: bool = False):
     """:func:`advance_loop` compiled as a function of its own for one string scheme (``implicit``
-    a closure constant, its other branch pruned), the other flags arguments with every branch
-    kept: one compile per scheme serves every value of them (the environment's step,
+    and ``damped`` closure constants, their other branches pruned), the other flags arguments with
+    every branch kept: one compile per scheme serves every value of them (the environment's step,
     kernels/env/step.py; docs/performance.md, "Start-up")."""
 
     @kernel
     def advance_loop_shared(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, forces_ready,
                             disturbed):
         advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensated, forces_ready, implicit,
-                     disturbed)
+                     disturbed, damped)
 
     return advance_loop_shared
 
 
-#: The environment's loops, one per string scheme (module globals, so that the entry points that
-#: call them are cached: numba does not cache a function with a compiled function in its closure).
+#: The environment's loops, one per string scheme and damper (module globals, so that the entry
+#: points that call them are cached: numba does not cache a function with a compiled function in
+#: its closure).
 advance_loop_explicit = shared_advance_loop(False)
 advance_loop_implicit = shared_advance_loop(True)
+advance_loop_explicit_damped = shared_advance_loop(False, True)
+advance_loop_implicit_damped = shared_advance_loop(True, True)
 
 
 @kernel(inline="always")
-def record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled, compensated, implicit=False):
+def record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled, compensated, implicit=False,
+                damped=False):
     """Take ``len(snap.r) * every`` steps, storing a snapshot after every ``every`` steps
     (``D`` is the diagnostics scratch, see kernels/step/diagnostics.py) and, if ``snap.step_diag``
     has rows, energy, pi3 and orthogonality after every step. The steps are taken by
@@ -282,7 +287,8 @@ def record_loop(S, W, P, inputs, every, D, snap, stats, free, forced, coupled, c
     k = 0
     for j in range(snap.r.shape[0]):
         for _ in range(every // chunk):
-            advance_loop(S, W, P, inputs, chunk, stats, free, forced, coupled, compensated, True, implicit)
+            advance_loop(S, W, P, inputs, chunk, stats, free, forced, coupled, compensated, True, implicit, False,
+                         damped)
             total += stats[R_NEWTON_TOTAL]
             most = max(most, stats[R_NEWTON_MAX])
             if stats[R_STATUS] != OK:

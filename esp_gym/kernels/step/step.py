@@ -87,17 +87,17 @@ def winch_implicit_substep(S, W, P, WA, D, inputs, h, l0, l1, free, forced, coup
 
 
 @kernel(inline="always")
-def lgvi_step(S, W, P, inputs, free, forced, coupled, compensated, implicit=False):
+def lgvi_step(S, W, P, inputs, free, forced, coupled, compensated, implicit=False, damped=False):
     """One step of length ``P.h``: the LGVI itself (one weight ``P.gammas == [1]``) or the
     symmetric composition of LGVI substeps of lengths ``gamma_i h`` (esp_gym/scene/compositions.py);
     with ``implicit`` (a compile-time constant) the implicit string's step
-    (kernels/step/implicit.py; order 2 only). A damped string (``P.damping`` > 0) takes the damper's
-    flow over half of each (sub)step on both sides of it (kernels/step/damper.py: a symmetric
-    splitting, of order 2; with no damper the step is untouched). Flags as in :func:`lgvi_substep`.
+    (kernels/step/implicit.py; order 2 only). With ``damped`` (a compile-time constant: the damped
+    rigs' and simulators' kernels; ``P.damping`` > 0) the damper's flow over half of each (sub)step
+    on both sides of it (kernels/step/damper.py: a symmetric splitting, of order 2); without it the
+    damper is not compiled in. Flags as in :func:`lgvi_substep`.
     A failing LGVI step leaves the state untouched; a composed or damped step that fails in a later
     stage leaves it after the last good one, and the loops below bring it back
     (:func:`advance_loop`). Returns ``(status, newton_iterations)``."""
-    damped = P.damping > 0.0
     gammas = P.gammas
     total = 0
     for i in range(gammas.shape[0]):  # one substep site: the substep is inlined once
