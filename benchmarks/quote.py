@@ -777,7 +777,33 @@ def env_throughput_team(data: dict) -> str:
     return "\n".join(lines)
 
 
+# -- damping -------------------------------------------------------------------------------------
+def damping_decay(data: dict) -> str:
+    rows = ["| τ [ms] | ζ | σ measured [1/s] | σ = EAτ/(2 l M_eff) [1/s] | relative error | cycles |",
+            "|---|---|---|---|---|---|"]
+    rows += [f"| {r['tau'] * 1e3:g} | {r['zeta']:.4f} | {r['measured']:.5f} | {r['analytic']:.5f} | {sci(r['error'])} "
+             f"| {r['cycles']} |" for r in data["decay"]]
+    return "\n".join(rows)
+
+
+def damping_order(data: dict) -> str:
+    o = data["order"]
+    worst = ", ".join(sci(w, 2) for w in o["worst"])
+    return (f"largest $|E - E_0 - W + D|$ {worst} J at h = " + ", ".join(sci(h) for h in o["h"])
+            + f" s (slope {o['slope']:.2f}; D = {sci(o['dissipation'][-1], 2)} J over {o['t_final']:g} s)")
+
+
+def damping_cost(data: dict) -> str:
+    c = data["cost"]
+    return (f"{steps_per_second(c['best']['damped'])} env steps/s against {steps_per_second(c['best']['undamped'])} "
+            f"undamped ({c['ratio']:.2f}×; the best of {len(c['runs']['damped'])} interleaved runs of "
+            f"{c['steps']:,} random actions each)")
+
+
 QUOTES = {
+    "damping.decay": Quote("docs/img/damping.json", "python -m benchmarks.damping --out docs/img", damping_decay),
+    "damping.order": Quote("docs/img/damping.json", "python -m benchmarks.damping --out docs/img", damping_order),
+    "damping.cost": Quote("docs/img/damping.json", "python -m benchmarks.damping --out docs/img", damping_cost),
     "cold_start.readme": Quote("docs/img/cold_start.json", "python -m benchmarks.cold_start --repeats 1 --out docs/img",
                                cold_start_readme),
     "cold_start.env": Quote("docs/img/cold_start.json", "python -m benchmarks.cold_start --repeats 1 --out docs/img",

@@ -161,7 +161,8 @@ def test_a_held_damper_never_pulls():
 def test_the_bounce_mode_decays_at_its_analytic_rate():
     """A 1 kg point load on 1 m of light string (EA 1000 N, 1 g/m, tau 2 ms) bouncing vertically:
     M x'' + (EA tau / l) x' + (EA / l) x = 0, so the amplitude decays as exp(-sigma t) with
-    sigma = EA tau / (2 l M_eff), M_eff = M + mu l / 3 (the string's share), within 0.5 %."""
+    sigma = EA tau / (2 l M_eff), M_eff = M + mu l / 3 (the string's share), within 1e-4
+    (measured 3.7e-6: benchmarks/damping.py)."""
     EA, tau, M, mu, length = 1000.0, 2e-3, 1.0, 1e-3, 1.0
     stretch = 1.0 + 2.0 * M * 9.81 / EA  # twice the static stretch: the load starts at one end of the bounce
     scene = esp_gym.Scene(
@@ -181,7 +182,7 @@ def test_the_bounce_mode_decays_at_its_analytic_rate():
     slope = np.polyfit(tr.t[peaks[:k]], np.log(swing), 1)[0]
     sigma = EA * tau / (2.0 * length * (M + mu * length / 3.0))
     assert k > 10
-    assert abs(-slope - sigma) < 5e-3 * sigma, (-slope, sigma)
+    assert abs(-slope - sigma) < 1e-4 * sigma, (-slope, sigma)
 
 
 def test_rigs_without_a_damper_refuse_one():
@@ -229,3 +230,14 @@ def test_the_damped_environment_passes_gymnasiums_check_and_its_balance_closes()
     assert len(runs[0]) > 20 and d["dissipation"] > 1e-4
     assert abs(d["energy_balance_residual"]) < 1e-2 * d["dissipation"]
     assert abs(d["energy_balance_residual"] - d["dissipation"]) > 0.9 * d["dissipation"]
+
+
+def test_the_damping_benchmark_runs_and_writes_its_files(tmp_path):
+    """``python -m benchmarks.damping --quick``: its tables' figures, its JSON and its plot."""
+    from benchmarks.damping import main
+
+    result = main(["--quick", "--out", str(tmp_path)])
+    assert all(abs(row["error"]) < 1e-3 for row in result["decay"])
+    assert 1.8 < result["order"]["slope"] < 2.2
+    assert 0.0 < result["cost"]["ratio"] < 1.0
+    assert (tmp_path / "damping.json").stat().st_size > 0 and (tmp_path / "damping.png").stat().st_size > 0
