@@ -294,8 +294,8 @@ def test_slack_switch_quick_runs(tmp_path):
 
 
 def test_compile_takes_every_configuration_of_the_environment(tmp_path):
-    """``esp-gym compile`` builds, resets and steps an environment of each of the twenty-three
-    configurations of the compiled step, the single environment's eighteen and the team's five
+    """``esp-gym compile`` builds, resets and steps an environment of each of the twenty-five
+    configurations of the compiled step, the single environment's twenty and the team's five
     (here from the cache `make test` filled) and prints their
     seconds as one JSON line; a bad --jobs is one line with exit code 2."""
     from esp_gym.precompile import CONFIGURATIONS
@@ -303,9 +303,10 @@ def test_compile_takes_every_configuration_of_the_environment(tmp_path):
                           capture_output=True, text=True, timeout=1200, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-2000:]
     seconds = json.loads(proc.stdout)["seconds"]
-    assert sorted(seconds) == sorted(c.name for c in CONFIGURATIONS) and len(seconds) == 23
+    assert sorted(seconds) == sorted(c.name for c in CONFIGURATIONS) and len(seconds) == 25
     assert {"team-fixed-single", "team-fixed-batched", "team-drone-single", "team-drone-batched",
-            "team-winch-single", "fixed-explicit-damped-single", "fixed-implicit-damped-batched"} <= set(seconds)
+            "team-winch-single", "fixed-explicit-damped-single", "fixed-implicit-damped-batched",
+            "drone-explicit-damped-single"} <= set(seconds)
     assert all(t >= 0 for t in seconds.values())
     bad = subprocess.run([sys.executable, "-m", "esp_gym.cli", "compile", "--jobs", "0"], capture_output=True,
                          text=True, timeout=600, cwd=tmp_path)

@@ -186,10 +186,11 @@ def test_the_bounce_mode_decays_at_its_analytic_rate():
 
 
 def test_rigs_without_a_damper_refuse_one():
-    """The drone, a team and the winch have no damper yet: each refuses a damped string by name;
-    the point pivot's rigs take one."""
-    with pytest.raises(SceneError, match="damping_time: the drone's step has no damper yet"):
-        esp_gym.load_scene("quadrotor_load", string={"damping_time": 1e-3})
+    """A drone's offset hook, a team and the winch have no damper yet: each refuses a damped string
+    by name; the point pivot's rigs and the drone's at its centre of mass take one."""
+    with pytest.raises(SceneError, match="damping_time: a drone's offset hook has no damper yet"):
+        esp_gym.load_scene("quadrotor_load", string={"damping_time": 1e-3}, pivot={"drone": {"rho_q": [0, 0, 0.05]}})
+    assert esp_gym.load_scene("quadrotor_load", string={"damping_time": 1e-3}).string.damping > 0
     sim = esp_gym.Simulator(_damped(1e-3))
     with pytest.raises(ValueError, match="the winch does not reel a damped string yet"):
         sim.step(1, reel_speed=0.1)
@@ -202,17 +203,20 @@ def test_rigs_without_a_damper_refuse_one():
     assert find_rig("point", "implicit", False, False, damped=True).name == "point-implicit-damped"
 
 
-def test_the_damped_environment_passes_gymnasiums_check_and_its_balance_closes():
-    """ElasticStringPendulum-v0 on a damped string (its own rig): Gymnasium's env checker; seeded
+@pytest.mark.parametrize("scene, rig", [("drone_load", "point-explicit-damped"),
+                                       ("quadrotor_load", "drone-explicit-damped")])
+def test_the_damped_environment_passes_gymnasiums_check_and_its_balance_closes(scene, rig):
+    """ElasticStringPendulum-v0 on a damped string (its own rig), from a point pivot and from a
+    drone: Gymnasium's env checker; seeded
     episodes repeat bit for bit; under random actions the energy balance with the dissipation,
     E - E0 - W + D, stays at the scheme's error while D grows to a visible share of the work.
     Negative control: the balance without D misses by D."""
     import gymnasium as gym
     from gymnasium.utils.env_checker import check_env
 
-    kwargs = dict(scene_overrides={"string": {"damping_time": 2e-3}}, disable_env_checker=True)
+    kwargs = dict(scene=scene, scene_overrides={"string": {"damping_time": 2e-3}}, disable_env_checker=True)
     env = gym.make(esp_gym.ENV_ID, **kwargs)
-    assert env.unwrapped.control.rig.name == "point-explicit-damped"
+    assert env.unwrapped.control.rig.name == rig
     check_env(env.unwrapped, skip_render_check=True)
     runs = []
     for _ in range(2):

@@ -165,7 +165,7 @@ def test_the_drone_reels_with_the_winch(task):
     ({"actuation": "thrust_rates"}, "does not fly scene 'drone_load'"),
     ({"scene": SCENE, "scene_overrides": {"solver": {"string": "implicit"}}},
      r"no rig is drone-implicit \(scene 'quadrotor_load': solver.string 'implicit', winch=False\); the rigs are "
-     r"point-explicit, .*drone-explicit-offset-hook \(esp_gym.rigs\(\)\)$"),
+     r"point-explicit, .*drone-explicit-offset-hook, drone-explicit-damped \(esp_gym.rigs\(\)\)$"),
     ({"scene": SCENE, "scene_overrides": {"solver": {"order": 4}}}, "explicit string of order 2"),
     ({"scene": SCENE, "actuation": "rates"}, "actuation"),
     ({"scene": SCENE, "winch": True, "scene_overrides": {"pivot": {"drone": {"rho_q": [0.0, 0.0, -0.05]}}}},

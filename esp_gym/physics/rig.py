@@ -97,6 +97,7 @@ RIGS = tuple([Rig("point", scheme, winch, False, _POINT) for winch in (False, Tr
              + [Rig("drone", "explicit", False, False, ("state", "work", "params", "diag", "env", "drone")),
                 Rig("drone", "explicit", True, False, ("state", "work", "params", "diag", "winch", "env", "drone")),
                 Rig("drone", "explicit", False, True, ("state", "work", "params", "diag", "env", "drone", "hook")),
+                Rig("drone", "explicit", False, False, ("state", "work", "params", "diag", "env", "drone"), damper=True),
                 Rig("point", "explicit", False, False, _TEAM, team=True),
                 Rig("drone", "explicit", False, False, _TEAM, team=True),
                 Rig("point", "explicit", True, False, (), team=True)])

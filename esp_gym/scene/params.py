@@ -287,9 +287,10 @@ class Scene(_Frozen):
 
     @model_validator(mode="after")
     def _a_damper_the_step_has(self) -> "Scene":
-        if self.string.damping_time > 0.0 and self.pivot.is_drone:
-            raise ValueError("string.damping_time: the drone's step has no damper yet (docs/physics.md, \"Material "
-                             "damping\"); take pivot.kind fixed or free, or damping_time 0")
+        if self.string.damping_time > 0.0 and self.pivot.is_drone and self.pivot.drone.offset_hook:
+            raise ValueError("string.damping_time: a drone's offset hook has no damper yet (docs/physics.md, \"Material "
+                             "damping\"); hang the string from the drone's centre of mass (pivot.drone.rho_q 0), "
+                             "or take damping_time 0")
         return self
 
     @model_validator(mode="before")

@@ -134,16 +134,17 @@ def drone_observe(S, P, D, WA, DR, HK, E):
 
 
 @kernel(inline="always")
-def drone_control_step(S, W, P, D, WA, DR, HK, E, reel, disturbed):
+def drone_control_step(S, W, P, D, WA, DR, HK, E, reel, disturbed, damped):
     """One control step of one environment with a drone (the setpoint already taken from the
     action; ``reel`` the reel speed [m/s] with the winch ``WA``; ``WA``, ``HK`` None where the rig
     has no winch, no offset hook): wind and pushes, the physics steps, the balances closed, the
     observation, reward terms and termination code (a physics failure's status, else the
-    watchdog's, else the task's or the flip)."""
+    watchdog's, else the task's or the flip). ``damped``: None, or True with the string's damper
+    (kernels/drone/loops.py)."""
     phi = env_prepare(S, W, P, D, E, disturbed)
     coupled = P.rho[0] != 0.0 or P.rho[1] != 0.0 or P.rho[2] != 0.0
     drone_steps(S, W, P, WA, D, DR, HK, E.inputs, E.nsub[0], E.result, reel, coupled, disturbed,
-                int(E.ap[QA_ACTUATION]) == THRUST_RATES)
+                int(E.ap[QA_ACTUATION]) == THRUST_RATES, damped)
     status = close_balances(S, W, P, E, phi, disturbed)
     code = drone_observe(S, P, D, WA, DR, HK, E)
     E.result[R_TERMINATION] = status if status != OK else energy_watchdog(S, D, E.tp, code)
@@ -170,28 +171,29 @@ COLD_DRONE_ENV_STEP_S = 25
 COLD_DRONE_BATCH_STEP_S = 26
 
 @kernel(inline="always")
-def drone_env_step(S, W, P, D, WA, E, DR, HK, raw, scheme):
+def drone_env_step(S, W, P, D, WA, E, DR, HK, raw, scheme, damped):
     """:func:`drone_take_action` of the raw action, then :func:`drone_control_step`, for one
     environment (``WA``: its winch's arrays, ``HK``: the hook's, each None where the rig has
-    none). Returns False, with nothing changed, if the raw action is not finite."""
+    none; ``damped`` None, or True with the string's damper). Returns False, with nothing changed,
+    if the raw action is not finite."""
     reel = drone_take_action(raw, E.ap, E.action, DR)
     if reel == -np.inf:
         return False
-    drone_control_step(S, W, P, D, WA, DR, HK, E, reel, (scheme & SCHEME_DISTURBED) != 0)
+    drone_control_step(S, W, P, D, WA, DR, HK, E, reel, (scheme & SCHEME_DISTURBED) != 0, damped)
     return True
 
 
 # A batch loop per rig, not one with the rig's flags: numba inlined drone_env_step into every
 # branch before pruning the two dead ones, and the batch entry compiled 4.5 s against 2.7 s.
 @kernel(inline="always")
-def drone_env_batch(S, W, P, D, E, Q, raw, active, scheme):
+def drone_env_batch(S, W, P, D, E, Q, raw, active, scheme, damped):
     """:func:`drone_env_step` for every environment b with ``active[b]`` (each struct's row b by
-    its row function; the raw actions must be finite). A ``prange``: on numba's threads in an entry
-    compiled with ``parallel=True``, a plain loop in one without."""
+    its row function; the raw actions must be finite; ``damped`` as there). A ``prange``: on numba's
+    threads in an entry compiled with ``parallel=True``, a plain loop in one without."""
     for b in prange(raw.shape[0]):
         if active[b]:
             drone_env_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), None, env_row(E, b),
-                           drone_row(Q, b), None, raw[b], scheme)
+                           drone_row(Q, b), None, raw[b], scheme, damped)
 
 
 @kernel(inline="always")
@@ -200,7 +202,7 @@ def drone_winch_env_batch(S, W, P, D, WA, E, Q, raw, active, scheme):
     for b in prange(raw.shape[0]):
         if active[b]:
             drone_env_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), winch_row(WA, b),
-                           env_row(E, b), drone_row(Q, b), None, raw[b], scheme)
+                           env_row(E, b), drone_row(Q, b), None, raw[b], scheme, None)
 
 
 @kernel(inline="always")
@@ -209,7 +211,7 @@ def hook_env_batch(S, W, P, D, E, Q, K, raw, active, scheme):
     for b in prange(raw.shape[0]):
         if active[b]:
             drone_env_step(state_row(S, b), work_row(W, b), params_row(P, b), diag_row(D, b), None, env_row(E, b),
-                           drone_row(Q, b), hook_row(K, b), raw[b], scheme)
+                           drone_row(Q, b), hook_row(K, b), raw[b], scheme, None)
 
 
 # The entry points: kernels/env/step.py's, with the drone's arrays ``q`` (DroneArrays) after the
@@ -218,19 +220,25 @@ def hook_env_batch(S, W, P, D, E, Q, K, raw, active, scheme):
 @kernel(entry=True)
 def drone_step(s, w, p, d, e, q, raw, scheme):
     return drone_env_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), None, EnvArrays(*e),
-                          DroneArrays(*q), None, raw, scheme)
+                          DroneArrays(*q), None, raw, scheme, None)
+
+
+@kernel(entry=True)
+def damped_drone_step(s, w, p, d, e, q, raw, scheme):
+    return drone_env_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), None, EnvArrays(*e),
+                          DroneArrays(*q), None, raw, scheme, True)
 
 
 @kernel(entry=True)
 def drone_winch_env_step(s, w, p, d, wa, e, q, raw, scheme):
     return drone_env_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), WinchArrays(*wa), EnvArrays(*e),
-                          DroneArrays(*q), None, raw, scheme)
+                          DroneArrays(*q), None, raw, scheme, None)
 
 
 @kernel(entry=True)
 def hook_env_step(s, w, p, d, e, q, k, raw, scheme):
     return drone_env_step(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), None, EnvArrays(*e),
-                          DroneArrays(*q), HookArrays(*k), raw, scheme)
+                          DroneArrays(*q), HookArrays(*k), raw, scheme, None)
 
 
 # The batches in one thread, and on numba's threads (``threads`` > 1: docs/performance.md,
@@ -239,7 +247,13 @@ def hook_env_step(s, w, p, d, e, q, k, raw, scheme):
 @kernel(entry=True)
 def drone_batch(s, w, p, d, e, q, raw, active, scheme):
     drone_env_batch(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), EnvArrays(*e), DroneArrays(*q), raw, active,
-                    scheme)
+                    scheme, None)
+
+
+@kernel(entry=True)
+def damped_drone_batch(s, w, p, d, e, q, raw, active, scheme):
+    drone_env_batch(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), EnvArrays(*e), DroneArrays(*q), raw, active,
+                    scheme, True)
 
 
 @kernel(entry=True)
@@ -257,7 +271,13 @@ def hook_batch(s, w, p, d, e, q, k, raw, active, scheme):
 @kernel(parallel=True, entry=True)
 def threaded_drone_batch(s, w, p, d, e, q, raw, active, scheme):
     drone_env_batch(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), EnvArrays(*e), DroneArrays(*q), raw, active,
-                    scheme)
+                    scheme, None)
+
+
+@kernel(parallel=True, entry=True)
+def threaded_damped_drone_batch(s, w, p, d, e, q, raw, active, scheme):
+    drone_env_batch(StateArrays(*s), Work(*w), LGVIParams(*p), DiagWork(*d), EnvArrays(*e), DroneArrays(*q), raw, active,
+                    scheme, True)
 
 
 @kernel(parallel=True, entry=True)
@@ -288,3 +308,5 @@ drone_explicit = _entries(drone_step, drone_batch, threaded_drone_batch, "a dron
 drone_explicit_winch = _entries(drone_winch_env_step, drone_winch_batch, threaded_drone_winch_batch,
                                 "a drone and the winch")
 drone_explicit_offset_hook = _entries(hook_env_step, hook_batch, threaded_hook_batch, "a drone at an offset hook")
+drone_explicit_damped = _entries(damped_drone_step, damped_drone_batch, threaded_damped_drone_batch,
+                                 "a drone and the string's damper")

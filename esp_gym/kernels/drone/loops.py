@@ -9,7 +9,8 @@ has the loops that do).
 from ..jit import kernel
 from ..status import OK
 from ..step.disturbance import kick_before
-from ..step.loops import finish, step_taken
+from ..step.damper import damper_half_step
+from ..step.loops import finish, restore_state, save_state, step_taken
 from ..step.string import nodal_forces
 from .hook import hook_substep, hook_velocities
 from .quadrotor import THRUST_RATES, actuate, drone_substep, drone_winch_step, rate_actuate, start_wrench
@@ -18,7 +19,7 @@ from .quadrotor import THRUST_RATES, actuate, drone_substep, drone_winch_step, r
 # A function of its own, not inlined, with the rig's structs as None-or-struct arguments: a runtime
 # flag for the hook had doubled the loop's compile (3.7 -> 7.4 s).
 @kernel
-def drone_steps(S, W, P, WA, D, DR, HK, inputs, nsteps, stats, reel, coupled, disturbed, rates):
+def drone_steps(S, W, P, WA, D, DR, HK, inputs, nsteps, stats, reel, coupled, disturbed, rates, damped):
     """Up to ``nsteps`` steps of :func:`~esp_gym.kernels.drone.quadrotor.drone_substep` with the ``inputs``
     held, or with the winch ``WA`` of :func:`~esp_gym.kernels.drone.quadrotor.drone_winch_step` reeling at
     ``reel`` [m/s], or at the offset hook ``HK`` of :func:`~esp_gym.kernels.drone.hook.hook_substep` (``WA``,
@@ -28,7 +29,10 @@ def drone_steps(S, W, P, WA, D, DR, HK, inputs, nsteps, stats, reel, coupled, di
     (``disturbed``) as kicks of h/2 on both sides of each step (kernels/step/disturbance.py). Stops at
     the first failure with the last good state (its pending half kick taken back). ``stats``
     (int64, REPORT's first four): status, steps taken, total and largest Newton iterations per
-    step (the drone's and the load's together)."""
+    step (the drone's and the load's together). ``damped`` (None, or True for the damped rig: a
+    type, so the damper is compiled only there): the string's damper over h/2 on both sides of each
+    step (kernels/step/damper.py), the state saved before it (``W.backup``) and put back if the
+    step fails, which then has moved nothing, as without it."""
     kick_before(S, W, P, nsteps, disturbed)
     start_wrench(DR)
     total = 0
@@ -40,12 +44,20 @@ def drone_steps(S, W, P, WA, D, DR, HK, inputs, nsteps, stats, reel, coupled, di
                 rate_actuate(DR, omega_q)
             else:
                 actuate(DR, THRUST_RATES)
+        if damped is not None:
+            save_state(S, W.backup)
+            damper_half_step(S, W, P, 0.5 * P.h, True, P.compensated)
         if WA is not None:
             status, iters = drone_winch_step(S, W, P, WA, D, DR, inputs, reel, P.compensated)
         elif HK is not None:
             status, iters = hook_substep(S, W, P, DR, HK, inputs, P.h, coupled, P.compensated)
         else:
             status, iters = drone_substep(S, W, P, DR, inputs, P.h, coupled, P.compensated)
+        if damped is not None:
+            if status == OK:
+                damper_half_step(S, W, P, 0.5 * P.h, True, P.compensated)
+            else:
+                restore_state(S, W.backup)
         failed, total, most = step_taken(S, W, P, stats, status, iters, k, nsteps, total, most, disturbed)
         if failed:
             return
@@ -53,9 +65,9 @@ def drone_steps(S, W, P, WA, D, DR, HK, inputs, nsteps, stats, reel, coupled, di
 
 
 @kernel(entry=True)
-def drone_advance(S, W, P, D, DR, HK, inputs, nsteps, stats, coupled):
+def drone_advance(S, W, P, D, DR, HK, inputs, nsteps, stats, coupled, damped):
     """The drone simulator's steps (esp_gym/physics/drone.py): up to ``nsteps`` :func:`drone_steps` of
-    length ``P.h`` with the motor commands held (``HK``: the offset hook, or None), ``S.f`` first
-    the forces at the state."""
+    length ``P.h`` with the motor commands held (``HK``: the offset hook, or None; ``damped``: None,
+    or True with the string's damper), ``S.f`` first the forces at the state."""
     nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
-    drone_steps(S, W, P, None, D, DR, HK, inputs, nsteps, stats, 0.0, coupled, False, False)
+    drone_steps(S, W, P, None, D, DR, HK, inputs, nsteps, stats, 0.0, coupled, False, False, damped)
