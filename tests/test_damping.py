@@ -245,3 +245,26 @@ def test_the_damping_benchmark_runs_and_writes_its_files(tmp_path):
     assert 1.8 < result["order"]["slope"] < 2.2
     assert 0.0 < result["cost"]["ratio"] < 1.0
     assert (tmp_path / "damping.json").stat().st_size > 0 and (tmp_path / "damping.png").stat().st_size > 0
+
+
+def test_the_tether_scenes_carry_their_sources_values():
+    """The four tether scenes load by name, damped and resolved by the rule, with the values their
+    sources give (docs/scenes.md, "Tether scenes"): the Dyneema tether's tau is its damping over
+    its EA, its mass the rope density over the 4 mm circle; the nylon rope's EA is MoorPy's
+    dynamic stiffness at 12 mm; the steel rope's EA and mass the wire-core formulas at 16 mm."""
+    for name in ("dyneema_tether", "dyneema_tether_drone"):
+        s = esp_gym.load_scene(name).string
+        assert s.auto and s.law == "slack"
+        assert s.damping_time == pytest.approx(473.0 / 614600.0, rel=1e-3)
+        assert s.mass_per_length == pytest.approx(724.0 * np.pi * 0.002**2, rel=1e-3)
+    assert esp_gym.load_scene("dyneema_tether_drone").pivot.is_drone
+    nylon = esp_gym.load_scene("nylon_rope")
+    d = 0.012
+    mbl = 230.29e6 * d**3 + 207.0e6 * d**2
+    weight = 9.81 * nylon.body.mass
+    assert nylon.string.EA == pytest.approx(2.08 * mbl + 0.39 * weight, rel=2e-3)
+    assert nylon.string.mass_per_length == pytest.approx(585.15 * d**2, rel=2e-3)
+    steel = esp_gym.load_scene("steel_wire_crane").string
+    assert steel.EA == pytest.approx(4.04e10 * 0.016**2, rel=2e-3)
+    assert steel.mass_per_length == pytest.approx(3.9897e3 * 0.016**2, rel=2e-3)
+    assert all(esp_gym.load_scene(n).string.damping_time > 0 for n in ("nylon_rope", "steel_wire_crane"))
