@@ -32,15 +32,18 @@ def state_arrays(n: int, r=None, p=None, R=None, Pi=None) -> StateArrays:
                        accc=z(BALANCE.size), owed=z(n))
 
 
-def work_arrays(n: int) -> Work:
+def work_arrays(n: int, damped: bool = False) -> Work:
     """The stepper's scratch for a string of ``n`` elements (kernels/layout.py ``Work``), zeros; its
-    ``backup`` holds a checkpoint of the state (kernels/step/loops.py ``save_state``)."""
+    ``backup`` holds a checkpoint of the state (kernels/step/loops.py ``save_state``). The damper's
+    arrays (``dvel`` ... ``dmat``) have their rows only for a ``damped`` string (else none: 20 floats
+    per node that an undamped string never reads)."""
     z = np.zeros
+    d = n if damped else -1  # the damper's node count less one: its rows are d + 1
     return Work(fn=z((n + 1, 3)), X=z((n + 1, 3)), Y=z((n + 1, 3)), FmI=z((3, 3)), RF=z((3, 3)), Rn=z((3, 3)),
                 jac=z((3, 3)), backup=z(state_size(state_arrays(n))), fl=z((n + 1, 3)), fr=z((n + 1, 3)), dy=z((n + 1, 3)),
-                elim=z((n + 1, 3, 3)), taut=z(n), ext=z((n + 2, 3)), switch=z(n), dvel=z((n + 1, 3)),
-                dinc=z((n + 1, 3)), ddir=z((n, 3)), dten=z(n), dset=z(n), dfac=z((n + 1, 3, 3)),
-                dmat=z((4, 3, 3)))
+                elim=z((n + 1, 3, 3)), taut=z(n), ext=z((n + 2, 3)), switch=z(n), dvel=z((d + 1, 3)),
+                dinc=z((d + 1, 3)), ddir=z((max(d, 0), 3)), dten=z(max(d, 0)), dset=z(max(d, 0)),
+                dfac=z((d + 1, 3, 3)), dmat=z((4, 3, 3)))
 
 
 def diag_work(n: int) -> DiagWork:

@@ -72,7 +72,7 @@ class Simulator(StepClock):
     """
 
     def __init__(self, scene: Scene, specialise: bool = True):
-        check_memory(scene.string.elements)
+        check_memory(scene.string.elements, damped=scene.string.damping_time > 0.0)
         self.scene = scene
         self.params = build_params(scene)
         #: Run kernels compiled for this scene (fixed or free pivot, rho_c = 0 or not) and, per
@@ -88,7 +88,7 @@ class Simulator(StepClock):
         st = initial_state(scene)
         self._arrays = state_arrays(n, st.r, st.p, st.R, st.Pi)
         self._step = 0
-        self._work = work_arrays(n)
+        self._work = work_arrays(n, damped=scene.string.damping_time > 0.0)
         self._diag = diag_work(n)
         self._inputs = np.zeros(INPUTS.size)
         self._forced = False  #: any input non-zero (an unforced call then zeroes them, once)
@@ -110,6 +110,9 @@ class Simulator(StepClock):
             a, b = (getattr(getattr(x, section), field) for x in (self.scene, scene))
             if a != b:
                 raise ValueError(f"use_scene: {what} must stay {a!r}, got {b!r}")
+        if (self.scene.string.damping_time > 0.0) != (scene.string.damping_time > 0.0):
+            raise ValueError(f"use_scene: string.damping_time must stay {'positive' if self.params.damping else 0}, "
+                             f"got {scene.string.damping_time!r} (a damped string is a rig of its own)")
         self.scene = scene
         self.params = build_params(scene) if params is None else params
         self.h = scene.h

@@ -91,13 +91,17 @@ def attachment_column(diag, off: float, cp, first: int) -> np.ndarray:
 #: forces, scratch, checkpoint, diagnostics, constants: about 66 floats, and 14 more once the winch
 #: has reeled; tests/test_arguments.py measures it).
 BYTES_PER_NODE = 8 * 86
+#: ... and a damped string's damper (its velocities, increments, directions, tensions, states and
+#: eliminated blocks: esp_gym/physics/arrays.py ``work_arrays``) 20 floats more.
+DAMPER_BYTES_PER_NODE = 8 * 20
 
 
-def check_memory(elements: int, num_envs: Optional[int] = None) -> None:
+def check_memory(elements: int, num_envs: Optional[int] = None, damped: bool = False) -> None:
     """Raise MemoryError, before anything is allocated, if a simulator of a string with
-    ``elements`` elements (and a batch of ``num_envs`` environments of it) would not fit in the
-    memory available now."""
-    needed = BYTES_PER_NODE * (int(elements) + 1) * (1 + int(num_envs or 0))
+    ``elements`` elements (and a batch of ``num_envs`` environments of it; ``damped``: with the
+    string's damper) would not fit in the memory available now."""
+    per_node = BYTES_PER_NODE + (DAMPER_BYTES_PER_NODE if damped else 0)
+    needed = per_node * (int(elements) + 1) * (1 + int(num_envs or 0))
     available = available_memory()
     if available is not None and needed > available:
         many = f"num_envs = {num_envs} environments with " if num_envs else ""
