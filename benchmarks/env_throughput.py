@@ -11,7 +11,8 @@ Prints a table and writes ``OUT/env_throughput.json`` and ``OUT/env_throughput.p
   (``scene_overrides``), random actions, resets included, with the resolution rule
   (``string.elements: auto``), with the scene's 8 elements at the environment's step, and with the
   implicit string asked for (``solver.string: implicit``), the runs of one repeat interleaved;
-  writes ``OUT/env_throughput_ea.json`` and ``.png``;
+  writes ``OUT/env_throughput_ea.json`` and ``.png``; with ``--damping TAU`` every string damped
+  (``string.damping_time`` TAU [s]), into ``OUT/env_throughput_ea_damped.json`` and ``.png``;
 * ``--drone`` (alone): quadrotor_load's drone in each actuation against the same rig with a
   point-mass pivot, single and 8 batched, random actions of amplitude 0.2, interleaved; writes
   ``OUT/env_throughput_drone.json``;
@@ -93,6 +94,8 @@ def main(argv=None) -> dict:
     ap = arg_parser(__doc__, quick="small smoke run, not a measurement")
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--ea-sweep", action="store_true", help="only the sweep over the string's EA")
+    ap.add_argument("--damping", type=float, default=0.0,
+                    help="with --ea-sweep: every string's damping time [s] (default 0: undamped)")
     ap.add_argument("--realism", action="store_true",
                     help="only the realism options (randomize, ...) against the plain environment")
     ap.add_argument("--drone", action="store_true",
@@ -103,6 +106,8 @@ def main(argv=None) -> dict:
     args = ap.parse_args(argv)
     if args.threads:
         return threads(args)
+    if args.damping < 0.0 or (args.damping and not args.ea_sweep):
+        ap.error(f"--damping takes a damping time >= 0 [s] with --ea-sweep, got {args.damping!r}")
     if args.ea_sweep:
         return ea_sweep(args)
     if args.realism:
@@ -152,7 +157,8 @@ def ea_sweep(args) -> dict:
     makers, rates, chosen = {}, {}, {}
     for ea in sweep:
         for name, extra in SWEEP_SCHEMES.items():
-            overrides = {**extra, "string": {**extra.get("string", {}), "EA": ea}}
+            damping = {"damping_time": args.damping} if args.damping else {}
+            overrides = {**extra, "string": {**extra.get("string", {}), "EA": ea, **damping}}
             env = gym.make(esp_gym.ENV_ID, scene_overrides=overrides)
             u = env.unwrapped
             chosen[(ea, name)] = (u.scene.solver.string, u.scene.string.elements, u.setup.substeps)
@@ -177,13 +183,14 @@ def ea_sweep(args) -> dict:
         auto = row["elements auto"]["steps_per_s"]
         print(f"  EA {row['EA']:.0e}: elements auto / its EA = 200 N = {auto / base:.2f}; "
               f"/ N = 8 explicit at this EA = {auto / row['N = 8, explicit']['steps_per_s']:.1f}")
-    finish(args.out, "env_throughput_ea", {"sweep": table, "steps": steps, "repeats": repeats,
-                                           "machine": machine("gymnasium")},
-           {"env_throughput_ea.png": lambda path: _plot_sweep(table, path)})
+    name = "env_throughput_ea_damped" if args.damping else "env_throughput_ea"
+    finish(args.out, name, {"sweep": table, "steps": steps, "repeats": repeats, "damping_time": args.damping,
+                            "machine": machine("gymnasium")},
+           {f"{name}.png": lambda path: _plot_sweep(table, path, args.damping)})
     return {"sweep": table}
 
 
-def _plot_sweep(table: list, path) -> None:
+def _plot_sweep(table: list, path, damping: float = 0.0) -> None:
     fig = figure((6, 3.6), dpi=130)
     ax = fig.subplots()
     for name, marker in zip(SWEEP_SCHEMES, "osd"):
@@ -192,7 +199,8 @@ def _plot_sweep(table: list, path) -> None:
     ax.set_yscale("log")
     ax.set_xlabel("EA [N]")
     ax.set_ylabel("environment steps / s")
-    ax.set_title("drone_load, random actions, one env (2 cores)")
+    ax.set_title("drone_load, random actions, one env (2 cores)"
+                 + (f", τ = {damping * 1e3:g} ms" if damping else ""))
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     fig.savefig(path)

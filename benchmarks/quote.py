@@ -777,6 +777,17 @@ def env_throughput_team(data: dict) -> str:
     return "\n".join(lines)
 
 
+def ea_sweep_damped_table(data: dict) -> str:
+    rows = ["| EA [N] | elements auto: N, steps, env steps/s | N = 8 explicit: steps, env steps/s "
+            "| N = 8 implicit: steps, env steps/s |", "|---|---|---|---|"]
+    for r in data["sweep"]:
+        a, e, i = r["elements auto"], r["N = 8, explicit"], r["N = 8, implicit"]
+        rows.append(f"| {sci(r['EA'], 0).replace('.0', '')} | {a['elements']}, {a['substeps']}, "
+                    f"{a['steps_per_s']:,.0f} | {e['substeps']:,}, {e['steps_per_s']:,.0f} "
+                    f"| {i['substeps']}, {i['steps_per_s']:,.0f} |")
+    return "\n".join(rows)
+
+
 # -- damping -------------------------------------------------------------------------------------
 def damping_decay(data: dict) -> str:
     rows = ["| τ [ms] | ζ | σ measured [1/s] | σ = EAτ/(2 l M_eff) [1/s] | relative error | cycles |",
@@ -801,6 +812,9 @@ def damping_cost(data: dict) -> str:
 
 
 QUOTES = {
+    "ea_sweep_damped.table": Quote("docs/img/env_throughput_ea_damped.json",
+                                   "python -m benchmarks.env_throughput --ea-sweep --damping 7.7e-4 --out docs/img",
+                                   ea_sweep_damped_table),
     "damping.decay": Quote("docs/img/damping.json", "python -m benchmarks.damping --out docs/img", damping_decay),
     "damping.order": Quote("docs/img/damping.json", "python -m benchmarks.damping --out docs/img", damping_order),
     "damping.cost": Quote("docs/img/damping.json", "python -m benchmarks.damping --out docs/img", damping_cost),

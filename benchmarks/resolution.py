@@ -11,8 +11,12 @@ protocol, at each EA of the sweep on ``drone_load``:
   each restart resets the balance), the largest |E - E0 - W| and its largest per 20 s window (a
   trend shows as windows that grow), and the physics failures.
 
+With ``--damping TAU`` every string (the rule's, the reference's and its floor's) is damped,
+``string.damping_time`` TAU [s] (docs/physics.md, "Material damping"), the balance is
+|E - E0 - W + D|, and the files are ``OUT/resolution_damped.json`` and ``.png``.
+
 Prints tables and writes ``OUT/resolution.json`` and ``OUT/resolution.png``.
-Usage: ``python -m benchmarks.resolution [--quick] [--seeds K] [--out DIR]``.
+Usage: ``python -m benchmarks.resolution [--quick] [--seeds K] [--damping TAU] [--out DIR]``.
 """
 from __future__ import annotations
 
@@ -73,11 +77,12 @@ def distance(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.nanmax(np.linalg.norm(a - b, axis=1)))
 
 
-def accuracy(ea: float, seeds: int, bar) -> dict:
-    auto = {"string": {"EA": ea, "elements": "auto"}}
+def accuracy(ea: float, seeds: int, bar, damping: float = 0.0) -> dict:
+    damped = {"damping_time": damping} if damping else {}
+    auto = {"string": {"EA": ea, "elements": "auto", **damped}}
     u = make(auto).unwrapped
     rule_h, elements = u.scene.h, u.scene.string.elements
-    ref_over = {"string": {"EA": ea, "elements": REFERENCE_ELEMENTS}}
+    ref_over = {"string": {"EA": ea, "elements": REFERENCE_ELEMENTS, **damped}}
     h_ref = reference_h(ea, rule_h)
     coarse_h = CONTROL_PERIOD / max(1, int(round(CONTROL_PERIOD / h_ref)) // 2)  # about twice h_ref
     steps = int(round(HORIZON / CONTROL_PERIOD))
@@ -98,8 +103,8 @@ def accuracy(ea: float, seeds: int, bar) -> dict:
             "energy_residual_worst_4s": max(energies), "failures": [f for f in failures if f]}
 
 
-def long_run(ea: float, mode: str, seconds: float) -> dict:
-    env = make({"string": {"EA": ea, "elements": "auto"}})
+def long_run(ea: float, mode: str, seconds: float, damping: float = 0.0) -> dict:
+    env = make({"string": {"EA": ea, "elements": "auto", **({"damping_time": damping} if damping else {})}})
     u = env.unwrapped
     obs, _ = env.reset(seed=0)
     pd, rng = AntiSwayPD(), np.random.default_rng(0)
@@ -126,15 +131,18 @@ def long_run(ea: float, mode: str, seconds: float) -> dict:
 def main(argv=None) -> dict:
     parser = arg_parser(__doc__)
     parser.add_argument("--seeds", type=int, default=10, help="episodes per EA for the accuracy (default 10)")
+    parser.add_argument("--damping", type=float, default=0.0, help="every string's damping time [s] (default 0)")
     args = parser.parse_args(argv)
     if args.seeds < 1:
         parser.error(f"--seeds must be at least 1, got {args.seeds}")
+    if args.damping < 0.0:
+        parser.error(f"--damping must be a damping time >= 0 [s], got {args.damping!r}")
     start = time.perf_counter()
     sweep = SWEEP_EA[:2] if args.quick else SWEEP_EA
     seeds = 2 if args.quick else args.seeds
     seconds = 2.0 if args.quick else 100.0
     with tqdm(total=len(sweep) * seeds, desc="accuracy (seeds)", disable=args.quick) as bar:
-        table = [accuracy(ea, seeds, bar) for ea in sweep]
+        table = [accuracy(ea, seeds, bar, args.damping) for ea in sweep]
     print(f"\naccuracy over {HORIZON:g} s, {seeds} seeds (PD law + +-{NOISE} action noise), lengths in mm")
     print("EA [N]     N  steps | load median  worst | pivot worst | reference floor | energy 4 s [J] | failures")
     for row in table:
@@ -142,16 +150,17 @@ def main(argv=None) -> dict:
               f"{1e3 * row['load_error_worst']:6.2f} | {1e3 * row['pivot_error_worst']:11.2f} | "
               f"{1e3 * row['reference_floor_median']:15.2f} | {row['energy_residual_worst_4s']:14.2e} | "
               f"{len(row['failures'])}")
-    runs = [long_run(ea, mode, seconds) for ea in tqdm(sweep, desc="long runs", disable=args.quick)
+    runs = [long_run(ea, mode, seconds, args.damping) for ea in tqdm(sweep, desc="long runs", disable=args.quick)
             for mode in ("pd+noise", "random")]
-    print(f"\nenergy over {seconds:g} s: largest |E - E0 - W| [J], and per 20 s window")
+    print(f"\nenergy over {seconds:g} s: largest |E - E0 - W + D| [J] (D = 0 undamped), and per 20 s window")
     for run in runs:
         windows = " ".join(f"{w:.3f}" for w in run["windows"])
         print(f"{run['EA']:8.0e} {run['mode']:9s} {run['worst']:.3f}  [{windows}]  "
               f"failures {run['failures']}, episodes {run['episodes']}")
-    finish(args.out, "resolution", {"accuracy": table, "energy": runs, "seeds": seeds, "horizon": HORIZON,
-                                    "noise": NOISE, "machine": machine("gymnasium")},
-           {"resolution.png": lambda path: _plot(table, runs, path)}, start)
+    name = "resolution_damped" if args.damping else "resolution"
+    finish(args.out, name, {"accuracy": table, "energy": runs, "seeds": seeds, "horizon": HORIZON,
+                            "noise": NOISE, "damping_time": args.damping, "machine": machine("gymnasium")},
+           {f"{name}.png": lambda path: _plot(table, runs, path)}, start)
     return {"accuracy": table, "energy": runs}
 
 
