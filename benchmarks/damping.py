@@ -8,6 +8,10 @@ what the damper costs a step.
   M_eff = M + mu l / 3;
 * **order**: the paper's example with the slack law and tau = 1 ms, 0.3 s: the largest
   |E - E0 - W + D| at h = 2e-4 ... 2.5e-5 s, its fitted slope, and the dissipated energy;
+* **drift**: ``drone_load`` at EA = 2e3 N, ``elements: auto``, tau = 7.7e-4 s, 100 s of the resolution
+  protocol's PD law with +-0.5 action noise (benchmarks/resolution.py), at the rule's step, its half
+  and its quarter, and undamped at the rule's step: the largest |E - E0 - W + D| per 20 s window
+  (the splitting's error in the dissipated energy is of order h^2 and accumulates);
 * **cost**: ElasticStringPendulum-v0's default scene (``drone_load``, stabilize) under random
   actions, undamped and with tau = 1 ms (its own rig), env steps per second (the best of
   ``--repeats`` interleaved runs of ``--steps`` steps), and their ratio.
@@ -23,6 +27,7 @@ import gymnasium as gym
 import numpy as np
 
 import esp_gym
+from agents.baselines.pd import AntiSwayPD
 from benchmarks.common import arg_parser, figure, finish, machine
 
 #: The bounce scene's constants: load [kg], string length [m], mass per length [kg/m], EA [N].
@@ -31,6 +36,35 @@ DECAY_TAUS = (1e-3, 2e-3, 5e-3)
 ORDER_HS = (2e-4, 1e-4, 5e-5, 2.5e-5)
 ORDER_TAU = 1e-3
 COST_TAU = 1e-3
+DRIFT_EA = 2e3
+DRIFT_TAU = 7.7e-4
+#: The resolution protocol's action noise (benchmarks/resolution.py NOISE).
+DRIFT_NOISE = 0.5
+
+
+def drift(tau: float, divide: int, seconds: float) -> dict:
+    """The largest |E - E0 - W + D| [J] per 20 s window of the PD law with noise, at the rule's
+    step divided by ``divide``, and the dissipated energy [J]."""
+    overrides = {"string": {"EA": DRIFT_EA, "elements": "auto", **({"damping_time": tau} if tau else {})}}
+    rule = gym.make(esp_gym.ENV_ID, scene_overrides=overrides, disable_env_checker=True).unwrapped.setup.substeps
+    env = gym.make(esp_gym.ENV_ID, scene_overrides=overrides, h=0.02 / (rule * divide), max_episode_steps=10 ** 7,
+                   disable_env_checker=True)
+    u = env.unwrapped
+    obs, _ = env.reset(seed=0)
+    pd, rng = AntiSwayPD(), np.random.default_rng(0)
+    window = int(round(min(20.0, seconds) / 0.02))
+    windows, current = [], 0.0
+    for k in range(int(round(seconds / 0.02))):
+        action = np.clip(pd.act(obs, u.setup) + DRIFT_NOISE * rng.uniform(-1, 1, 6), -1, 1).astype(np.float32)
+        obs, _, terminated, _, _ = env.step(action)
+        d = u.sim.diagnostics()
+        current = max(current, abs(d["energy_balance_residual"]))
+        if (k + 1) % window == 0:
+            windows.append(current)
+            current = 0.0
+        if terminated:
+            break
+    return {"tau": tau, "substeps": rule * divide, "windows": windows, "dissipation": d["dissipation"]}
 
 
 def bounce_scene(tau: float) -> esp_gym.Scene:
@@ -137,6 +171,8 @@ def main(argv=None) -> dict:
     result = {"machine": machine("gymnasium"),
               "decay": [decay(tau, 0.5 if quick else 3.0) for tau in DECAY_TAUS],
               "order": order(0.02 if quick else 0.3),
+              "drift": [drift(DRIFT_TAU, k, 2.0 if quick else 100.0) for k in (1, 2, 4)]
+              + [drift(0.0, 1, 2.0 if quick else 100.0)],
               "cost": cost(1 if quick else args.repeats, 200 if quick else args.steps)}
     print("free decay of the bounce: sigma measured against EA tau / (2 l M_eff)")
     print(f"{'tau [ms]':>9} {'zeta':>7} {'measured [1/s]':>15} {'analytic [1/s]':>15} {'error':>9} {'cycles':>7}")
@@ -148,6 +184,10 @@ def main(argv=None) -> dict:
     for h, w, d in zip(o["h"], o["worst"], o["dissipation"]):
         print(f"  h = {h:.2e} s: max |E - E0 - W + D| = {w:.3e} J  (D = {d:.3e} J)")
     print(f"  slope {o['slope']:.2f}")
+    print(f"\ndrift: EA = {DRIFT_EA:g} N, PD law + noise, largest |E - E0 - W + D| per 20 s window [J]")
+    for row in result["drift"]:
+        print(f"  tau = {row['tau'] * 1e3:g} ms, {row['substeps']:3d} steps per 20 ms: "
+              + " ".join(f"{w:.4f}" for w in row["windows"]) + f"  (D = {row['dissipation']:.3f} J)")
     c = result["cost"]
     print(f"\ncost: env steps/s, default scene, best of {len(c['runs']['damped'])}: undamped {c['best']['undamped']:,.0f}, "
           f"damped (tau = {c['tau'] * 1e3:g} ms) {c['best']['damped']:,.0f}, ratio {c['ratio']:.2f}")

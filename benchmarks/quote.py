@@ -788,6 +788,30 @@ def ea_sweep_damped_table(data: dict) -> str:
     return "\n".join(rows)
 
 
+def resolution_damped_accuracy(data: dict) -> str:
+    rows = ["| EA [N] | N, steps per 20 ms | load: median, worst | pivot: worst | reference floor | energy, 4 s |",
+            "|---|---|---|---|---|---|"]
+    for r in data["accuracy"]:
+        mm = lambda x: f"{1e3 * x:.2f}" if 1e3 * x < 10 else f"{1e3 * x:.1f}"  # noqa: E731
+        rows.append(f"| {sci(r['EA'], 0).replace('.0', '')} | {r['elements']}, {r['substeps']} | "
+                    f"{mm(r['load_error_median'])}, {mm(r['load_error_worst'])} | {mm(r['pivot_error_worst'])} | "
+                    f"{mm(r['reference_floor_median'])} | {sci(r['energy_residual_worst_4s'])} J |")
+    return "\n".join(rows)
+
+
+def resolution_damped_energy(data: dict) -> str:
+    rows = ["| EA [N] | PD + noise: largest, last 20 s window | random actions: largest, last 20 s window | "
+            "physics failures |", "|---|---|---|---|"]
+    by = {}
+    for run in data["energy"]:
+        by.setdefault(run["EA"], {})[run["mode"]] = run
+    for ea, modes in by.items():
+        pd, rnd = modes["pd+noise"], modes["random"]
+        rows.append(f"| {sci(ea, 0).replace('.0', '')} | {sci(pd['worst'])}, {sci(pd['windows'][-1])} J | "
+                    f"{sci(rnd['worst'])}, {sci(rnd['windows'][-1])} J | {pd['failures'] + rnd['failures']} |")
+    return "\n".join(rows)
+
+
 # -- damping -------------------------------------------------------------------------------------
 def damping_decay(data: dict) -> str:
     rows = ["| τ [ms] | ζ | σ measured [1/s] | σ = EAτ/(2 l M_eff) [1/s] | relative error | cycles |",
@@ -804,6 +828,16 @@ def damping_order(data: dict) -> str:
             + f" s (slope {o['slope']:.2f}; D = {sci(o['dissipation'][-1], 2)} J over {o['t_final']:g} s)")
 
 
+def damping_drift(data: dict) -> str:
+    rows = ["| string | steps per 20 ms | largest \\|E − E0 − W + D\\| per 20 s window [J] | D over 100 s [J] |",
+            "|---|---|---|---|"]
+    for r in data["drift"]:
+        what = f"τ = {r['tau'] * 1e3:g} ms" if r["tau"] else "undamped"
+        rows.append(f"| {what} | {r['substeps']} | " + ", ".join(f"{w:.4f}" for w in r["windows"])
+                    + f" | {r['dissipation']:.2f} |")
+    return "\n".join(rows)
+
+
 def damping_cost(data: dict) -> str:
     c = data["cost"]
     return (f"{steps_per_second(c['best']['damped'])} env steps/s against {steps_per_second(c['best']['undamped'])} "
@@ -812,11 +846,18 @@ def damping_cost(data: dict) -> str:
 
 
 QUOTES = {
+    "resolution_damped.accuracy": Quote("docs/img/resolution_damped.json",
+                                        "python -m benchmarks.resolution --damping 7.7e-4 --seeds 10 --out docs/img",
+                                        resolution_damped_accuracy),
+    "resolution_damped.energy": Quote("docs/img/resolution_damped.json",
+                                      "python -m benchmarks.resolution --damping 7.7e-4 --seeds 10 --out docs/img",
+                                      resolution_damped_energy),
     "ea_sweep_damped.table": Quote("docs/img/env_throughput_ea_damped.json",
                                    "python -m benchmarks.env_throughput --ea-sweep --damping 7.7e-4 --out docs/img",
                                    ea_sweep_damped_table),
     "damping.decay": Quote("docs/img/damping.json", "python -m benchmarks.damping --out docs/img", damping_decay),
     "damping.order": Quote("docs/img/damping.json", "python -m benchmarks.damping --out docs/img", damping_order),
+    "damping.drift": Quote("docs/img/damping.json", "python -m benchmarks.damping --out docs/img", damping_drift),
     "damping.cost": Quote("docs/img/damping.json", "python -m benchmarks.damping --out docs/img", damping_cost),
     "cold_start.readme": Quote("docs/img/cold_start.json", "python -m benchmarks.cold_start --repeats 1 --out docs/img",
                                cold_start_readme),
