@@ -115,7 +115,7 @@ class ControlStep:
         #: numba threads a batch steps on (1: its own thread, no pool)
         self.threads = check_threads(threads, self.num_envs)
         batch = () if self.num_envs is None else (self.num_envs,)
-        check_memory(setup.scene.string.elements, self.num_envs, damped=setup.scene.string.damping_time > 0.0)
+        check_memory(setup.scene.string.elements, self.num_envs, damped=setup.scene.string.damped)
         self._physics_structs(batch)
         self._env_buffers(batch)
         #: the rig (esp_gym/physics/rig.py): its compiled step and batched step, the structs they take

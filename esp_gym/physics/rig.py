@@ -120,7 +120,7 @@ def scene_rig(scene, winch: bool) -> Rig:
     the winch; ValueError naming the scene's settings if there is none (:func:`find_rig`)."""
     pivot = scene.pivot
     hooked = pivot.is_drone and pivot.drone.offset_hook
-    damped = scene.string.damping_time > 0.0
+    damped = scene.string.damped
     return find_rig("drone" if pivot.is_drone else "point", scene.solver.string, winch, hooked,
                     f"scene {scene.name!r}: solver.string {scene.solver.string!r}, winch={winch}"
                     + (f", pivot.drone.rho_q = {list(pivot.drone.rho_q)}" if hooked else "")

@@ -72,7 +72,7 @@ class Simulator(StepClock):
     """
 
     def __init__(self, scene: Scene, specialise: bool = True):
-        check_memory(scene.string.elements, damped=scene.string.damping_time > 0.0)
+        check_memory(scene.string.elements, damped=scene.string.damped)
         self.scene = scene
         self.params = build_params(scene)
         #: Run kernels compiled for this scene (fixed or free pivot, rho_c = 0 or not) and, per
@@ -88,7 +88,7 @@ class Simulator(StepClock):
         st = initial_state(scene)
         self._arrays = state_arrays(n, st.r, st.p, st.R, st.Pi)
         self._step = 0
-        self._work = work_arrays(n, damped=scene.string.damping_time > 0.0)
+        self._work = work_arrays(n, damped=scene.string.damped)
         self._diag = diag_work(n)
         self._inputs = np.zeros(INPUTS.size)
         self._forced = False  #: any input non-zero (an unforced call then zeroes them, once)
@@ -105,14 +105,11 @@ class Simulator(StepClock):
         """Run ``scene``, of the same elements, pivot kind and scheme, from here on (a randomised
         episode's: esp_gym/pendulum/randomize.py): run-time constants change, no compiled kernel.
         ``params``: its constants if built. Set a state next (:meth:`set_state`)."""
-        for what in ("string.elements", "pivot.kind", "solver.string"):
+        for what in ("string.elements", "pivot.kind", "solver.string", "string.damped"):
             section, field = what.split(".")
             a, b = (getattr(getattr(x, section), field) for x in (self.scene, scene))
             if a != b:
                 raise ValueError(f"use_scene: {what} must stay {a!r}, got {b!r}")
-        if (self.scene.string.damping_time > 0.0) != (scene.string.damping_time > 0.0):
-            raise ValueError(f"use_scene: string.damping_time must stay {'positive' if self.params.damping else 0}, "
-                             f"got {scene.string.damping_time!r} (a damped string is a rig of its own)")
         self.scene = scene
         self.params = build_params(scene) if params is None else params
         self.h = scene.h
@@ -434,8 +431,7 @@ class Simulator(StepClock):
         out["unstretched_length"], out["reel_speed"] = self.winch.length, self.winch.reel_speed
         out["winch_work"] = float(a.acc[BALANCE.scalar("winch_work")])
         out["dissipation"] = float(a.acc[BALANCE.scalar("dissipation")])
-        out["energy_balance_residual"] = (out["energy"] - self._E0 - out["work"] - out["winch_work"]
-                                          + out["dissipation"])
+        out["energy_balance_residual"] = out["energy"] - self._E0 - out["work"] - out["winch_work"] + out["dissipation"]
         out["angular_impulse_z"] = float(a.acc[BALANCE.scalar("angular_impulse_z")])
         out["pi3_balance_residual"] = out["pi3"] - self._pi3_0 - out["angular_impulse_z"]
         out["attach_position"] = a.r[-1].copy()

@@ -94,7 +94,7 @@ class Winch:
         winch's shortest length (the assembled string's bound there); the implicit string
         has no such bound (its steps cut themselves back where the transverse one breaks). A damped
         string does not reel yet (docs/physics.md, "Material damping")."""
-        if scene.string.damping_time > 0.0:
+        if scene.string.damped:
             raise ValueError(f"reel_speed: the winch does not reel a damped string yet (string.damping_time = "
                              f"{scene.string.damping_time:g} s; docs/physics.md, \"Material damping\")")
         if scene.solver.string == "implicit":

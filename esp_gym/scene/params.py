@@ -87,6 +87,11 @@ class StringParams(_Frozen):
         return self.kappa * self.damping_time
 
     @property
+    def damped(self) -> bool:
+        """Whether the string has a damper (``damping_time`` > 0): a rig of its own."""
+        return self.damping_time > 0.0
+
+    @property
     def element_bound(self) -> float:
         """One free element's bound [s]: 2/omega_e with omega_e = sqrt(12 kappa/m) (consistent mass)
         or sqrt(4 kappa/m) (lumped). A lower bound of the assembled string's
@@ -287,7 +292,7 @@ class Scene(_Frozen):
 
     @model_validator(mode="after")
     def _a_damper_the_step_has(self) -> "Scene":
-        if self.string.damping_time > 0.0 and self.pivot.is_drone and self.pivot.drone.offset_hook:
+        if self.string.damped and self.pivot.is_drone and self.pivot.drone.offset_hook:
             raise ValueError("string.damping_time: a drone's offset hook has no damper yet (docs/physics.md, \"Material "
                              "damping\"); hang the string from the drone's centre of mass (pivot.drone.rho_q 0), "
                              "or take damping_time 0")

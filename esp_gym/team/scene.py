@@ -84,7 +84,7 @@ class TeamScene(Frozen):
             raise ValueError(f"scene.solver.order: a team steps at order 2 only, got order {lead.solver.order}")
         pivots = [("scene.pivot", lead.pivot)] + [(f"strings[{i}].pivot", s.pivot) for i, s in enumerate(self.strings)]
         damped = [name for name, string in [("scene.string", lead.string)]
-                  + [(f"strings[{i}].string", s.string) for i, s in enumerate(self.strings)] if string.damping_time > 0]
+                  + [(f"strings[{i}].string", s.string) for i, s in enumerate(self.strings)] if string.damped]
         for name, pivot in pivots:  # the string scheme and each pivot a team rig's (esp_gym/physics/rig.py)
             hooked = pivot.is_drone and pivot.drone.offset_hook
             find_rig("drone" if pivot.is_drone else "point", lead.solver.string, False, hooked, team=True,
