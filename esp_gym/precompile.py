@@ -108,7 +108,8 @@ def rig_groups(configurations) -> list:
     other had nothing to do."""
     groups = {}
     for config in configurations:
-        groups.setdefault((config.winch, config.implicit, config.drone, config.hook, config.team), []).append(config)
+        key = (config.winch, config.implicit, config.drone, config.hook, config.team, config.damped)
+        groups.setdefault(key, []).append(config)
     return [tuple(sorted(group, key=lambda c: c.batched)) for group in reversed(list(groups.values()))]
 
 

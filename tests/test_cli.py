@@ -347,8 +347,8 @@ def test_compile_takes_a_rigs_single_step_then_its_batch_in_one_worker():
 
     groups = rig_groups(CONFIGURATIONS)
     assert sorted(c.name for g in groups for c in g) == sorted(c.name for c in CONFIGURATIONS)
-    # the team on winches (one by one), the drone team's and the point team's, then the seven rigs
-    assert [[c.batched for c in g] for g in groups] == [[False]] + [[False, True]] * 9
+    # the team on winches (one by one), the drone team's and the point team's, then the ten rigs
+    assert [[c.batched for c in g] for g in groups] == [[False]] + [[False, True]] * 12
     assert groups[0][0].team and groups[-1][0].name == "fixed-explicit-single"  # the longest first
     assert all(len({c.name.rsplit("-", 1)[0] for c in g}) == 1 for g in groups)
 
