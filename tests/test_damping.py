@@ -159,30 +159,19 @@ def test_a_held_damper_never_pulls():
 
 
 def test_the_bounce_mode_decays_at_its_analytic_rate():
-    """A 1 kg point load on 1 m of light string (EA 1000 N, 1 g/m, tau 2 ms) bouncing vertically:
+    """A 1 kg point load on 1 m of light string (EA 1000 N, 1 g/m, tau 2 ms) bouncing vertically
+    (benchmarks/damping.py's bounce and fit):
     M x'' + (EA tau / l) x' + (EA / l) x = 0, so the amplitude decays as exp(-sigma t) with
     sigma = EA tau / (2 l M_eff), M_eff = M + mu l / 3 (the string's share), within 1e-4
     (measured 3.7e-6: benchmarks/damping.py)."""
-    EA, tau, M, mu, length = 1000.0, 2e-3, 1.0, 1e-3, 1.0
-    stretch = 1.0 + 2.0 * M * 9.81 / EA  # twice the static stretch: the load starts at one end of the bounce
-    scene = esp_gym.Scene(
-        name="bounce", h=5e-5,
-        string={"length": length, "mass_per_length": mu, "EA": EA, "elements": 4, "law": "slack",
-                "damping_time": tau},
-        body={"mass": M, "rho_c": [0.0, 0.0, 0.0], "shape": {"kind": "sphere", "radius": 0.02}},
-        initial={"direction": [0.0, 0.0, 1.0], "stretch": stretch})
-    sim = esp_gym.Simulator(scene)
-    tr = sim.run(t_final=3.0, record_every=1)
-    z = tr.nodes[:, -1, 2]
-    inner = z[1:-1]
-    peaks = np.flatnonzero((inner > z[:-2]) & (inner >= z[2:])) + 1
-    troughs = np.flatnonzero((inner < z[:-2]) & (inner <= z[2:])) + 1
-    k = min(len(peaks), len(troughs))
-    swing = z[peaks[:k]] - z[troughs[:k]]
-    slope = np.polyfit(tr.t[peaks[:k]], np.log(swing), 1)[0]
+    from benchmarks.damping import BOUNCE, decay
+
+    tau = 2e-3
+    EA, M, mu, length = BOUNCE["EA"], BOUNCE["M"], BOUNCE["mu"], BOUNCE["length"]
+    row = decay(tau, 3.0)  # the bounce scene, its peak-to-trough swings' decay fitted
     sigma = EA * tau / (2.0 * length * (M + mu * length / 3.0))
-    assert k > 10
-    assert abs(-slope - sigma) < 1e-4 * sigma, (-slope, sigma)
+    assert row["cycles"] > 10
+    assert abs(row["measured"] - sigma) < 1e-4 * sigma, (row["measured"], sigma)
 
 
 def test_rigs_without_a_damper_refuse_one():

@@ -207,7 +207,7 @@ class DroneSimulator(Simulator):
             n -= k
             self._timed(drone_advance, (self._arrays, self._work, self.params, self._diag, self.drone,
                                         self.hook if self._hooked else None, self._inputs, k, self._stats,
-                                        self._coupled, True if self.params.damping > 0.0 else None), k)
+                                        self._coupled, True if self.scene.string.damped else None), k)
 
     def run(self, *args, **kwargs):
         raise NotImplementedError("DroneSimulator records no trajectory yet: call step() and diagnostics()")

@@ -195,7 +195,7 @@ class Simulator(StepClock):
     def _kernels(self):
         """``(advance, record)`` for this scene (its body's coupling, its sums, its string's scheme
         and damper)."""
-        damped = self.params.damping > 0.0
+        damped = self.scene.string.damped
         if not self.specialise:
             return general_kernels(self.implicit, damped)
         key = (self._coupled, self.params.compensated, self.implicit, damped)
