@@ -360,7 +360,7 @@ def physics_steps(resolved: Scene, o, randomizer, winch: bool, keep_unstable: bo
         if elements != resolved.string.elements:
             resolved = resolved.model_copy(update={"string": resolved.string.model_copy(update={"elements": elements})})
             randomizer = None if randomizer is None else Randomizer(resolved, o.randomize)
-        safety = resolution_safety(resolved) if safety is None else safety
+        safety = resolution_safety(resolved, control_period) if safety is None else safety
     safety = 0.5 if safety is None else safety
     # the scene's scheme (explicit unless asked): choose_scheme's cost rule would pick the implicit
     # string for stiff strings, but its accuracy under random actions is not established yet
