@@ -9,9 +9,11 @@ what the damper costs a step.
 * **order**: the paper's example with the slack law and tau = 1 ms, 0.3 s: the largest
   |E - E0 - W + D| at h = 2e-4 ... 2.5e-5 s, its fitted slope, and the dissipated energy;
 * **drift**: ``drone_load`` at EA = 2e3 N, ``elements: auto``, tau = 7.7e-4 s, 100 s of the resolution
-  protocol's PD law with +-0.5 action noise (benchmarks/resolution.py), at the rule's step, its half
-  and its quarter, and undamped at the rule's step: the largest |E - E0 - W + D| per 20 s window
-  (the splitting's error in the dissipated energy is of order h^2 and accumulates);
+  protocol's PD law with +-0.5 action noise (benchmarks/resolution.py), at the slack law's margin
+  alone (SLACK_SAFETY), its half and its quarter step, at the rule's step (set by the drift's
+  prediction, esp_gym.scene.stepsize.dissipation_drift), and undamped at the rule's: the largest
+  |E - E0 - W + D| per 20 s window (the splitting's error in the dissipated energy is of order
+  h^2 and accumulates) against the prediction;
 * **cost**: ElasticStringPendulum-v0's default scene (``drone_load``, stabilize) under random
   actions, undamped and with tau = 1 ms (its own rig), env steps per second (the best of
   ``--repeats`` interleaved runs of ``--steps`` steps), and their ratio.
@@ -29,6 +31,7 @@ import numpy as np
 import esp_gym
 from agents.baselines.pd import AntiSwayPD
 from benchmarks.common import arg_parser, figure, finish, machine
+from esp_gym.scene.stepsize import SLACK_SAFETY, dissipation_drift
 
 #: The bounce scene's constants: load [kg], string length [m], mass per length [kg/m], EA [N].
 BOUNCE = {"M": 1.0, "length": 1.0, "mu": 1e-3, "EA": 1000.0}
@@ -42,12 +45,21 @@ DRIFT_TAU = 7.7e-4
 DRIFT_NOISE = 0.5
 
 
-def drift(tau: float, divide: int, seconds: float) -> dict:
-    """The largest |E - E0 - W + D| [J] per 20 s window of the PD law with noise, at the rule's
-    step divided by ``divide``, and the dissipated energy [J]."""
+def drift_substeps(tau: float) -> dict:
+    """Steps per control step at DRIFT_EA: the resolution rule's, and at the slack law's margin alone."""
     overrides = {"string": {"EA": DRIFT_EA, "elements": "auto", **({"damping_time": tau} if tau else {})}}
-    rule = gym.make(esp_gym.ENV_ID, scene_overrides=overrides, disable_env_checker=True).unwrapped.setup.substeps
-    env = gym.make(esp_gym.ENV_ID, scene_overrides=overrides, h=0.02 / (rule * divide), max_episode_steps=10 ** 7,
+    steps = {margin: gym.make(esp_gym.ENV_ID, scene_overrides=overrides, safety=safety,
+                              disable_env_checker=True).unwrapped.setup.substeps
+             for margin, safety in (("rule", None), ("law", SLACK_SAFETY))}
+    return steps
+
+
+def drift(tau: float, substeps: int, seconds: float, chosen_by: str) -> dict:
+    """The largest |E - E0 - W + D| [J] per 20 s window of the PD law with noise at ``substeps``
+    steps per control step, the dissipated energy [J], and the rule's prediction of the drift
+    (esp_gym.scene.stepsize.dissipation_drift, over 100 s)."""
+    overrides = {"string": {"EA": DRIFT_EA, "elements": "auto", **({"damping_time": tau} if tau else {})}}
+    env = gym.make(esp_gym.ENV_ID, scene_overrides=overrides, h=0.02 / substeps, max_episode_steps=10 ** 7,
                    disable_env_checker=True)
     u = env.unwrapped
     obs, _ = env.reset(seed=0)
@@ -64,7 +76,19 @@ def drift(tau: float, divide: int, seconds: float) -> dict:
             current = 0.0
         if terminated:
             break
-    return {"tau": tau, "substeps": rule * divide, "windows": windows, "dissipation": d["dissipation"]}
+    return {"tau": tau, "substeps": substeps, "chosen_by": chosen_by, "windows": windows,
+            "dissipation": d["dissipation"], "predicted": dissipation_drift(u.scene, u.scene.h)}
+
+
+def drift_rows(seconds: float) -> list:
+    """The drift at the slack law's margin alone, twice and four times its steps, the rule's steps
+    (the dissipation's margin), and undamped at the law's margin."""
+    damped = drift_substeps(DRIFT_TAU)
+    law = damped["law"]
+    rows = [drift(DRIFT_TAU, law * k, seconds, "the slack law's margin" if k == 1 else f"{k} x the law's")
+            for k in (1, 2, 4)]
+    rows.append(drift(DRIFT_TAU, damped["rule"], seconds, "the rule (dissipation)"))
+    return rows + [drift(0.0, drift_substeps(0.0)["rule"], seconds, "the rule")]
 
 
 def bounce_scene(tau: float) -> esp_gym.Scene:
@@ -171,8 +195,7 @@ def main(argv=None) -> dict:
     result = {"machine": machine("gymnasium"),
               "decay": [decay(tau, 0.5 if quick else 3.0) for tau in DECAY_TAUS],
               "order": order(0.02 if quick else 0.3),
-              "drift": [drift(DRIFT_TAU, k, 2.0 if quick else 100.0) for k in (1, 2, 4)]
-              + [drift(0.0, 1, 2.0 if quick else 100.0)],
+              "drift": drift_rows(2.0 if quick else 100.0),
               "cost": cost(1 if quick else args.repeats, 200 if quick else args.steps)}
     print("free decay of the bounce: sigma measured against EA tau / (2 l M_eff)")
     print(f"{'tau [ms]':>9} {'zeta':>7} {'measured [1/s]':>15} {'analytic [1/s]':>15} {'error':>9} {'cycles':>7}")
@@ -186,8 +209,9 @@ def main(argv=None) -> dict:
     print(f"  slope {o['slope']:.2f}")
     print(f"\ndrift: EA = {DRIFT_EA:g} N, PD law + noise, largest |E - E0 - W + D| per 20 s window [J]")
     for row in result["drift"]:
-        print(f"  tau = {row['tau'] * 1e3:g} ms, {row['substeps']:3d} steps per 20 ms: "
-              + " ".join(f"{w:.4f}" for w in row["windows"]) + f"  (D = {row['dissipation']:.3f} J)")
+        print(f"  tau = {row['tau'] * 1e3:g} ms, {row['substeps']:3d} steps per 20 ms ({row['chosen_by']}): "
+              + " ".join(f"{w:.4f}" for w in row["windows"])
+              + f"  (D = {row['dissipation']:.3f} J, predicted over 100 s {row['predicted']:.4f} J)")
     c = result["cost"]
     print(f"\ncost: env steps/s, default scene, best of {len(c['runs']['damped'])}: undamped {c['best']['undamped']:,.0f}, "
           f"damped (tau = {c['tau'] * 1e3:g} ms) {c['best']['damped']:,.0f}, ratio {c['ratio']:.2f}")

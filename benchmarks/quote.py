@@ -829,12 +829,13 @@ def damping_order(data: dict) -> str:
 
 
 def damping_drift(data: dict) -> str:
-    rows = ["| string | steps per 20 ms | largest \\|E − E0 − W + D\\| per 20 s window [J] | D over 100 s [J] |",
-            "|---|---|---|---|"]
+    rows = ["| string | steps per 20 ms | largest \\|E − E0 − W + D\\| per 20 s window [J] | predicted, 100 s [J] "
+            "| D over 100 s [J] |", "|---|---|---|---|---|"]
     for r in data["drift"]:
         what = f"τ = {r['tau'] * 1e3:g} ms" if r["tau"] else "undamped"
-        rows.append(f"| {what} | {r['substeps']} | " + ", ".join(f"{w:.4f}" for w in r["windows"])
-                    + f" | {r['dissipation']:.2f} |")
+        predicted = f"{r['predicted']:.4f}" if r["tau"] else "–"
+        rows.append(f"| {what} | {r['substeps']} ({r['chosen_by']}) | " + ", ".join(f"{w:.4f}" for w in r["windows"])
+                    + f" | {predicted} | {r['dissipation']:.2f} |")
     return "\n".join(rows)
 
 

@@ -31,8 +31,10 @@ def drone_steps(S, W, P, WA, D, DR, HK, inputs, nsteps, stats, reel, coupled, di
     (int64, REPORT's first four): status, steps taken, total and largest Newton iterations per
     step (the drone's and the load's together). ``damped`` (None, or True for the damped rig: a
     type, so the damper is compiled only there): the string's damper over h/2 on both sides of each
-    step (kernels/step/damper.py), the state saved before it (``W.backup``) and put back if the
-    step fails, which then has moved nothing, as without it."""
+    step (kernels/step/damper.py), its two halves between two steps taken as one flow over h (not
+    across a held force's kick): a run is D_{h/2} L (D_h L)^(k-1) D_{h/2}. The state is saved before a
+    step's first half, or before the last step's merged half (``W.backup``), and put back if the
+    step fails (then with the last good step's closing half), so a failed step has moved nothing."""
     kick_before(S, W, P, nsteps, disturbed)
     start_wrench(DR)
     total = 0
@@ -44,7 +46,10 @@ def drone_steps(S, W, P, WA, D, DR, HK, inputs, nsteps, stats, reel, coupled, di
                 rate_actuate(DR, omega_q)
             else:
                 actuate(DR, THRUST_RATES)
-        if damped is not None:
+        # the damper's halves between two steps are one flow over h, but not across a held force's kick
+        lead = disturbed or k == 0
+        merge = not disturbed and k + 1 < nsteps
+        if damped is not None and lead:
             save_state(S, W.backup)
             damper_half_step(S, W, P, 0.5 * P.h, True, P.compensated)
         if WA is not None:
@@ -54,10 +59,15 @@ def drone_steps(S, W, P, WA, D, DR, HK, inputs, nsteps, stats, reel, coupled, di
         else:
             status, iters = drone_substep(S, W, P, DR, inputs, P.h, coupled, P.compensated)
         if damped is not None:
-            if status == OK:
-                damper_half_step(S, W, P, 0.5 * P.h, True, P.compensated)
-            else:
+            # W.backup: the state before the step's first half, else the last step's before its
+            # merged half, which then closes that step with h/2 if this one failed
+            closing = status == OK or not lead
+            if status != OK:
                 restore_state(S, W.backup)
+            elif merge:
+                save_state(S, W.backup)
+            if closing:
+                damper_half_step(S, W, P, P.h if status == OK and merge else 0.5 * P.h, True, P.compensated)
         failed, total, most = step_taken(S, W, P, stats, status, iters, k, nsteps, total, most, disturbed)
         if failed:
             return

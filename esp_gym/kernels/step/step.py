@@ -87,23 +87,28 @@ def winch_implicit_substep(S, W, P, WA, D, inputs, h, l0, l1, free, forced, coup
 
 
 @kernel(inline="always")
-def lgvi_step(S, W, P, inputs, free, forced, coupled, compensated, implicit=False, damped=False):
+def lgvi_step(S, W, P, inputs, free, forced, coupled, compensated, implicit=False, damped=False, lead=True,
+              merge=False):
     """One step of length ``P.h``: the LGVI itself (one weight ``P.gammas == [1]``) or the
     symmetric composition of LGVI substeps of lengths ``gamma_i h`` (esp_gym/scene/compositions.py);
     with ``implicit`` (a compile-time constant) the implicit string's step
     (kernels/step/implicit.py; order 2 only). With ``damped`` (a compile-time constant: the damped
     rigs' and simulators' kernels; ``P.damping`` > 0) the damper's flow over half of each (sub)step
     on both sides of it (kernels/step/damper.py: a symmetric splitting, of order 2); without it the
-    damper is not compiled in. Flags as in :func:`lgvi_substep`.
+    damper is not compiled in. Between two steps of a run the two halves at the same configuration
+    are taken as one flow over gamma h (the weights are palindromic): ``lead`` False, the previous
+    step's last half took this step's first; ``merge``, the last half takes the next step's first
+    too (:func:`~esp_gym.kernels.step.loops.advance_loop`). Flags as in :func:`lgvi_substep`.
     A failing LGVI step leaves the state untouched; a composed or damped step that fails in a later
     stage leaves it after the last good one, and the loops below bring it back
     (:func:`advance_loop`). Returns ``(status, newton_iterations)``."""
     gammas = P.gammas
+    last = gammas.shape[0] - 1
     total = 0
     for i in range(gammas.shape[0]):  # one substep site: the substep is inlined once
         # gamma = 1.0 for the plain LGVI, and 1.0 * h == h exactly
         h = gammas[i] * P.h
-        if damped:
+        if damped and (lead or i > 0):
             damper_half_step(S, W, P, 0.5 * h, free, compensated)
         if implicit:
             status, iters = implicit_substep(S, W, P, inputs, h, free, forced, coupled, compensated)
@@ -113,7 +118,7 @@ def lgvi_step(S, W, P, inputs, free, forced, coupled, compensated, implicit=Fals
         if status != OK:
             return status, total
         if damped:
-            damper_half_step(S, W, P, 0.5 * h, free, compensated)
+            damper_half_step(S, W, P, h if merge and i == last else 0.5 * h, free, compensated)
     return OK, total
 
 
