@@ -174,9 +174,9 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
     last step's forces, its first guess: kernels/step/implicit.py) and is never recomputed here.
     ``disturbed``: the held external forces ``W.ext`` act too, as kicks of h/2 on both sides of
     every step (kernels/step/disturbance.py), the kicks between two steps merged into one; after a
-    failure the pending half kick is taken back. ``damped`` (a constant): the string's damper
-    (kernels/step/damper.py) on both sides of every step, which makes a step that can fail part-way.
-    """
+    failure the pending half kick is taken back. ``damped`` (a constant): the string's damper on both
+    sides of every step (kernels/step/damper.py; a step that can fail part-way), its halves between two
+    steps one flow over h (not across kicks): D_{h/2} L (D_h L)^(k-1) D_{h/2} from each checkpoint."""
     kick_before(S, W, P, nsteps, disturbed)
     if not forces_ready and not implicit:
         nodal_forces(S.r, P.kappa, P.u, P.m, P.M, P.Mp, P.g, P.slack, S.f)
@@ -191,8 +191,6 @@ def advance_loop(S, W, P, inputs, nsteps, stats, free, forced, coupled, compensa
         if composed and failed == OK and k % CHECKPOINT == 0:
             _checkpoint(S, W, None, False)
             k0 = k
-        # the damper's halves between two steps of one checkpoint's run are one flow (lgvi_step), but
-        # not across a held force's kick, which sits between them
         lead = disturbed or k % CHECKPOINT == 0
         merge = not disturbed and k + 1 < target and (k + 1) % CHECKPOINT != 0
         status, iters = lgvi_step(S, W, P, inputs, free, forced, coupled, compensated, implicit, damped, lead,
