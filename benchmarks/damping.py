@@ -14,6 +14,9 @@ what the damper costs a step.
   prediction, esp_gym.scene.stepsize.dissipation_drift), and undamped at the rule's: the largest
   |E - E0 - W + D| per 20 s window (the splitting's error in the dissipated energy is of order
   h^2 and accumulates) against the prediction;
+* **margins**: ``drone_load`` at EA = 2e5 ... 1e7 N with strong, weak and no damping, 100 s of the PD
+  law with noise and of random actions at 0.35, 0.5 and 0.7 of the bound: the damped margin's
+  evidence (esp_gym.scene.stepsize.FLICKER_DAMPING, DAMPED_SAFETY);
 * **cost**: ElasticStringPendulum-v0's default scene (``drone_load``, stabilize) under random
   actions, undamped and with tau = 1 ms (its own rig), env steps per second (the best of
   ``--repeats`` interleaved runs of ``--steps`` steps), and their ratio.
@@ -89,6 +92,45 @@ def drift_rows(seconds: float) -> list:
             for k in (1, 2, 4)]
     rows.append(drift(DRIFT_TAU, damped["rule"], seconds, "the rule (dissipation)"))
     return rows + [drift(0.0, drift_substeps(0.0)["rule"], seconds, "the rule")]
+
+
+#: The margin comparison: (EA [N], tau [s]) on drone_load, each at these fractions of the bound.
+MARGIN_CASES = ((2e5, 7.7e-4), (2e6, 7.7e-4), (1e7, 7.7e-4), (2e6, 1e-4), (2e5, 1e-4), (2e5, 1e-5), (2e5, 0.0))
+MARGINS = (0.35, 0.5, 0.7)
+
+
+def margin_run(ea: float, tau: float, safety: float, mode: str, seconds: float) -> float:
+    """The largest |E - E0 - W + D| [J] over ``seconds`` of the PD law with noise or of random
+    actions (the balance restarting with each episode) at ``safety`` x the bound."""
+    overrides = {"string": {"EA": ea, "elements": "auto", **({"damping_time": tau} if tau else {})}}
+    env = gym.make(esp_gym.ENV_ID, scene_overrides=overrides, safety=safety, max_episode_steps=10 ** 6,
+                   disable_env_checker=True)
+    u = env.unwrapped
+    obs, _ = env.reset(seed=0)
+    pd, rng, worst = AntiSwayPD(), np.random.default_rng(0), 0.0
+    for _ in range(int(round(seconds / 0.02))):
+        if mode == "random":
+            action = rng.uniform(-1, 1, 6)
+        else:
+            action = np.clip(pd.act(obs, u.setup) + DRIFT_NOISE * rng.uniform(-1, 1, 6), -1, 1)
+        obs, _, terminated, _, _ = env.step(action.astype(np.float32))
+        worst = max(worst, abs(u.sim.diagnostics()["energy_balance_residual"]))
+        if terminated:
+            obs, _ = env.reset()
+    return worst
+
+
+def margins(seconds: float) -> list:
+    """MARGIN_CASES at each of MARGINS: the fastest mode's damping ratio tau/bound and the largest
+    residual under both protocols (docs/physics.md, "Material damping": the damped margin)."""
+    rows = []
+    for ea, tau in MARGIN_CASES:
+        scene = esp_gym.load_scene("drone_load", string={"EA": ea, "elements": 1, "damping_time": tau},
+                                   allow_unstable_h=True)
+        rows.append({"EA": ea, "tau": tau, "ratio": tau / scene.stability_bound,
+                     "residuals": {str(s): {m: margin_run(ea, tau, s, m, seconds) for m in ("pd+noise", "random")}
+                                   for s in MARGINS}})
+    return rows
 
 
 def bounce_scene(tau: float) -> esp_gym.Scene:
@@ -196,6 +238,7 @@ def main(argv=None) -> dict:
               "decay": [decay(tau, 0.5 if quick else 3.0) for tau in DECAY_TAUS],
               "order": order(0.02 if quick else 0.3),
               "drift": drift_rows(2.0 if quick else 100.0),
+              "margins": margins(2.0 if quick else 100.0),
               "cost": cost(1 if quick else args.repeats, 200 if quick else args.steps)}
     print("free decay of the bounce: sigma measured against EA tau / (2 l M_eff)")
     print(f"{'tau [ms]':>9} {'zeta':>7} {'measured [1/s]':>15} {'analytic [1/s]':>15} {'error':>9} {'cycles':>7}")
@@ -212,6 +255,10 @@ def main(argv=None) -> dict:
         print(f"  tau = {row['tau'] * 1e3:g} ms, {row['substeps']:3d} steps per 20 ms ({row['chosen_by']}): "
               + " ".join(f"{w:.4f}" for w in row["windows"])
               + f"  (D = {row['dissipation']:.3f} J, predicted over 100 s {row['predicted']:.4f} J)")
+    print("\nmargins: largest |E - E0 - W + D| [J], PD law + noise / random actions, by fraction of the bound")
+    for row in result["margins"]:
+        cells = "  ".join(f"{s}: {r['pd+noise']:.4f} / {r['random']:.4f}" for s, r in row["residuals"].items())
+        print(f"  EA {row['EA']:.0e} N, tau {row['tau'] * 1e3:g} ms (tau/bound {row['ratio']:.3f}):  {cells}")
     c = result["cost"]
     print(f"\ncost: env steps/s, default scene, best of {len(c['runs']['damped'])}: undamped {c['best']['undamped']:,.0f}, "
           f"damped (tau = {c['tau'] * 1e3:g} ms) {c['best']['damped']:,.0f}, ratio {c['ratio']:.2f}")

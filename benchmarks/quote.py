@@ -839,6 +839,16 @@ def damping_drift(data: dict) -> str:
     return "\n".join(rows)
 
 
+def damping_margins(data: dict) -> str:
+    rows = ["| EA, τ | τ/h_b | " + " | ".join(f"{m} of the bound" for m in data["margins"][0]["residuals"]) + " |",
+            "|---|---|" + "---|" * len(data["margins"][0]["residuals"])]
+    for r in data["margins"]:
+        what = f"{r['EA']:.0e} N, " + (f"{r['tau'] * 1e3:g} ms" if r["tau"] else "undamped")
+        cells = " | ".join(f"{v['pd+noise']:.4f} / {v['random']:.4f}" for v in r["residuals"].values())
+        rows.append(f"| {what.replace('e+0', 'e')} | {r['ratio']:.3f} | {cells} |")
+    return "\n".join(rows)
+
+
 def damping_cost(data: dict) -> str:
     c = data["cost"]
     return (f"{steps_per_second(c['best']['damped'])} env steps/s against {steps_per_second(c['best']['undamped'])} "
@@ -859,6 +869,7 @@ QUOTES = {
     "damping.decay": Quote("docs/img/damping.json", "python -m benchmarks.damping --out docs/img", damping_decay),
     "damping.order": Quote("docs/img/damping.json", "python -m benchmarks.damping --out docs/img", damping_order),
     "damping.drift": Quote("docs/img/damping.json", "python -m benchmarks.damping --out docs/img", damping_drift),
+    "damping.margins": Quote("docs/img/damping.json", "python -m benchmarks.damping --out docs/img", damping_margins),
     "damping.cost": Quote("docs/img/damping.json", "python -m benchmarks.damping --out docs/img", damping_cost),
     "cold_start.readme": Quote("docs/img/cold_start.json", "python -m benchmarks.cold_start --repeats 1 --out docs/img",
                                cold_start_readme),

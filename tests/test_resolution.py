@@ -156,3 +156,37 @@ def test_a_damped_strings_step_keeps_its_balance_drift_within_the_budget():
     share = 20.0 / DISSIPATION_HORIZON
     assert pd_noise_residual(damped, 1000) < share * budget
     assert pd_noise_residual(damped, 1000, safety=SLACK_SAFETY) > 3 * share * budget
+
+
+def random_residual(scene_overrides: dict, steps: int, safety=None) -> float:
+    """Largest |E - E0 - W + D| [J] over ``steps`` control steps of uniform random actions, seed 0
+    (the balance restarts with each episode)."""
+    env = gym.make(ENV_ID, scene_overrides=scene_overrides, safety=safety, max_episode_steps=10 ** 6)
+    u = env.unwrapped
+    env.reset(seed=0)
+    rng, worst = np.random.default_rng(0), 0.0
+    for _ in range(steps):
+        _, _, terminated, _, _ = env.step(rng.uniform(-1, 1, 6).astype(np.float32))
+        worst = max(worst, abs(u.sim.diagnostics()["energy_balance_residual"]))
+        if terminated:
+            env.reset()
+    return worst
+
+
+def test_a_strongly_damped_stiff_string_takes_the_wider_margin():
+    """EA = 2e5 N, tau = 0.77 ms: the damper holds the fastest mode at a damping ratio tau/bound of
+    0.4 (at least FLICKER_DAMPING), so the rule takes DAMPED_SAFETY (15 steps per control step, not
+    30), and 20 s of random actions keep the balance within 0.01 J (0.0020 J measured over 100 s);
+    tau = 0.01 ms (ratio 0.005) keeps the slack law's margin. Negative control: at 0.7 of the bound
+    that weakly damped string flickers (0.21 J over 100 s measured; over 0.05 J in 20 s)."""
+    from esp_gym.scene.stepsize import DAMPED_SAFETY, FLICKER_DAMPING, law_safety
+    strong = {"string": {"EA": 2e5, "elements": "auto", "damping_time": 7.7e-4}}
+    weak = {"string": {**strong["string"], "damping_time": 1e-5}}
+    scenes = {name: load_scene("drone_load", **o, allow_unstable_h=True) for name, o in (("strong", strong),
+                                                                                          ("weak", weak))}
+    assert scenes["strong"].string.damping_time >= FLICKER_DAMPING * scenes["strong"].stability_bound
+    assert law_safety(scenes["strong"]) == DAMPED_SAFETY and law_safety(scenes["weak"]) == SLACK_SAFETY
+    assert choose_resolution(scenes["strong"], divides=0.02).substeps == 15
+    assert choose_resolution(scenes["weak"], divides=0.02).substeps == 30
+    assert random_residual(strong, 1000) < 0.01
+    assert random_residual(weak, 1000, safety=DAMPED_SAFETY) > 0.05
