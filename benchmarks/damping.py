@@ -32,9 +32,9 @@ import gymnasium as gym
 import numpy as np
 
 import esp_gym
-from agents.baselines.pd import AntiSwayPD
 from benchmarks.common import arg_parser, figure, finish, machine
-from esp_gym.scene.stepsize import SLACK_SAFETY, dissipation_drift
+from benchmarks.resolution import long_run
+from esp_gym.scene.stepsize import SLACK_SAFETY
 
 #: The bounce scene's constants: load [kg], string length [m], mass per length [kg/m], EA [N].
 BOUNCE = {"M": 1.0, "length": 1.0, "mu": 1e-3, "EA": 1000.0}
@@ -44,8 +44,6 @@ ORDER_TAU = 1e-3
 COST_TAU = 1e-3
 DRIFT_EA = 2e3
 DRIFT_TAU = 7.7e-4
-#: The resolution protocol's action noise (benchmarks/resolution.py NOISE).
-DRIFT_NOISE = 0.5
 
 
 def drift_substeps(tau: float) -> dict:
@@ -60,27 +58,10 @@ def drift_substeps(tau: float) -> dict:
 def drift(tau: float, substeps: int, seconds: float, chosen_by: str) -> dict:
     """The largest |E - E0 - W + D| [J] per 20 s window of the PD law with noise at ``substeps``
     steps per control step, the dissipated energy [J], and the rule's prediction of the drift
-    (esp_gym.scene.stepsize.dissipation_drift, over 100 s)."""
-    overrides = {"string": {"EA": DRIFT_EA, "elements": "auto", **({"damping_time": tau} if tau else {})}}
-    env = gym.make(esp_gym.ENV_ID, scene_overrides=overrides, h=0.02 / substeps, max_episode_steps=10 ** 7,
-                   disable_env_checker=True)
-    u = env.unwrapped
-    obs, _ = env.reset(seed=0)
-    pd, rng = AntiSwayPD(), np.random.default_rng(0)
-    window = int(round(min(20.0, seconds) / 0.02))
-    windows, current = [], 0.0
-    for k in range(int(round(seconds / 0.02))):
-        action = np.clip(pd.act(obs, u.setup) + DRIFT_NOISE * rng.uniform(-1, 1, 6), -1, 1).astype(np.float32)
-        obs, _, terminated, _, _ = env.step(action)
-        d = u.sim.diagnostics()
-        current = max(current, abs(d["energy_balance_residual"]))
-        if (k + 1) % window == 0:
-            windows.append(current)
-            current = 0.0
-        if terminated:
-            break
-    return {"tau": tau, "substeps": substeps, "chosen_by": chosen_by, "windows": windows,
-            "dissipation": d["dissipation"], "predicted": dissipation_drift(u.scene, u.scene.h)}
+    (esp_gym.scene.stepsize.dissipation_drift, over 100 s): benchmarks/resolution.py's long run."""
+    run = long_run(DRIFT_EA, "pd+noise", seconds, tau, h=0.02 / substeps)
+    return {"tau": tau, "substeps": substeps, "chosen_by": chosen_by, "windows": run["windows"],
+            "dissipation": run["dissipation"], "predicted": run["predicted_drift"]}
 
 
 def drift_rows(seconds: float) -> list:
@@ -99,27 +80,6 @@ MARGIN_CASES = ((2e5, 7.7e-4), (2e6, 7.7e-4), (1e7, 7.7e-4), (2e6, 1e-4), (2e5, 
 MARGINS = (0.35, 0.5, 0.7)
 
 
-def margin_run(ea: float, tau: float, safety: float, mode: str, seconds: float) -> float:
-    """The largest |E - E0 - W + D| [J] over ``seconds`` of the PD law with noise or of random
-    actions (the balance restarting with each episode) at ``safety`` x the bound."""
-    overrides = {"string": {"EA": ea, "elements": "auto", **({"damping_time": tau} if tau else {})}}
-    env = gym.make(esp_gym.ENV_ID, scene_overrides=overrides, safety=safety, max_episode_steps=10 ** 6,
-                   disable_env_checker=True)
-    u = env.unwrapped
-    obs, _ = env.reset(seed=0)
-    pd, rng, worst = AntiSwayPD(), np.random.default_rng(0), 0.0
-    for _ in range(int(round(seconds / 0.02))):
-        if mode == "random":
-            action = rng.uniform(-1, 1, 6)
-        else:
-            action = np.clip(pd.act(obs, u.setup) + DRIFT_NOISE * rng.uniform(-1, 1, 6), -1, 1)
-        obs, _, terminated, _, _ = env.step(action.astype(np.float32))
-        worst = max(worst, abs(u.sim.diagnostics()["energy_balance_residual"]))
-        if terminated:
-            obs, _ = env.reset()
-    return worst
-
-
 def margins(seconds: float) -> list:
     """MARGIN_CASES at each of MARGINS: the fastest mode's damping ratio tau/bound and the largest
     residual under both protocols (docs/physics.md, "Material damping": the damped margin)."""
@@ -128,8 +88,8 @@ def margins(seconds: float) -> list:
         scene = esp_gym.load_scene("drone_load", string={"EA": ea, "elements": 1, "damping_time": tau},
                                    allow_unstable_h=True)
         rows.append({"EA": ea, "tau": tau, "ratio": tau / scene.stability_bound,
-                     "residuals": {str(s): {m: margin_run(ea, tau, s, m, seconds) for m in ("pd+noise", "random")}
-                                   for s in MARGINS}})
+                     "residuals": {str(s): {m: long_run(ea, m, seconds, tau, safety=s)["worst"]
+                                            for m in ("pd+noise", "random")} for s in MARGINS}})
     return rows
 
 

@@ -30,6 +30,7 @@ from tqdm import tqdm
 import esp_gym
 from agents.baselines.pd import AntiSwayPD
 from benchmarks.common import arg_parser, figure, finish, machine
+from esp_gym.scene.stepsize import dissipation_drift
 
 #: The EAs of the sweep [N] (benchmarks/env_throughput.py --ea-sweep runs the same).
 SWEEP_EA = (2e2, 2e3, 2e4, 2e5, 2e6, 1e7)
@@ -39,8 +40,8 @@ NOISE, HORIZON = 0.5, 4.0
 REFERENCE_ELEMENTS = 32
 
 
-def make(overrides: dict, h=None):
-    return gym.make(esp_gym.ENV_ID, scene_overrides=overrides, h=h, max_episode_steps=10 ** 7,
+def make(overrides: dict, h=None, safety=None):
+    return gym.make(esp_gym.ENV_ID, scene_overrides=overrides, h=h, safety=safety, max_episode_steps=10 ** 7,
                     disable_env_checker=True)
 
 
@@ -103,8 +104,14 @@ def accuracy(ea: float, seeds: int, bar, damping: float = 0.0) -> dict:
             "energy_residual_worst_4s": max(energies), "failures": [f for f in failures if f]}
 
 
-def long_run(ea: float, mode: str, seconds: float, damping: float = 0.0) -> dict:
-    env = make({"string": {"EA": ea, "elements": "auto", **({"damping_time": damping} if damping else {})}})
+def long_run(ea: float, mode: str, seconds: float, damping: float = 0.0, h=None, safety=None) -> dict:
+    """``seconds`` of the PD law with noise or of random actions (``mode`` "random") on drone_load
+    at ``ea`` [N] with ``elements: auto``, the rule's step or ``h`` [s] or ``safety``: the largest
+    |E - E0 - W + D| [J] per 20 s window (the balance restarting with each episode), the physics
+    failures, the episodes, the last dissipation [J] and the rule's predicted drift over 100 s
+    (esp_gym.scene.stepsize.dissipation_drift)."""
+    env = make({"string": {"EA": ea, "elements": "auto", **({"damping_time": damping} if damping else {})}},
+               h, safety)
     u = env.unwrapped
     obs, _ = env.reset(seed=0)
     pd, rng = AntiSwayPD(), np.random.default_rng(0)
@@ -125,7 +132,8 @@ def long_run(ea: float, mode: str, seconds: float, damping: float = 0.0) -> dict
             obs, _ = env.reset()
             episodes += 1
     return {"EA": ea, "mode": mode, "seconds": seconds, "worst": max(windows), "windows": windows,
-            "failures": failures, "episodes": episodes}
+            "failures": failures, "episodes": episodes, "dissipation": u.sim.diagnostics()["dissipation"],
+            "predicted_drift": dissipation_drift(u.scene, u.scene.h)}
 
 
 def main(argv=None) -> dict:

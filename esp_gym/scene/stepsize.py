@@ -235,27 +235,31 @@ def step_error(scene: Scene, h: float, horizon: float) -> float:
     return weight / attachment_mass(scene.body) * h * h / 8.0 * horizon / PROTOCOL_HORIZON
 
 
-def dissipation_drift(scene: Scene, h: float, control_period: float = PROTOCOL_CONTROL_PERIOD) -> float:
-    """The predicted |E - E0 - W + D| [J] of a damped string stepped at h [s] over
-    DISSIPATION_HORIZON under the protocol's forcing, held per ``control_period`` [s]:
-    (h/bound)^2 (F m g)^2 min((omega_b dt)^2/2, 2)/(k dt) T (0 for an undamped string)."""
+def dissipation_power(scene: Scene, control_period: float = PROTOCOL_CONTROL_PERIOD) -> float:
+    """The power [W] the protocol's forcing, held per ``control_period`` [s], feeds a damped
+    string's bounce mode: (F m g)^2 min((omega_b dt)^2/2, 2)/(k dt) (0 for an undamped string)."""
     from .stability import attachment_mass
     s = scene.string
     if not s.damped:
         return 0.0
     m, stiffness = attachment_mass(scene.body), s.EA / s.length
     swing = stiffness / m * control_period * control_period  # (omega_b dt)^2
-    power = (DISSIPATION_FORCING * m * scene.gravity) ** 2 * min(swing / 2.0, 2.0) / (stiffness * control_period)
-    return (h / scene.stability_bound) ** 2 * power * DISSIPATION_HORIZON
+    return (DISSIPATION_FORCING * m * scene.gravity) ** 2 * min(swing / 2.0, 2.0) / (stiffness * control_period)
+
+
+def dissipation_drift(scene: Scene, h: float, control_period: float = PROTOCOL_CONTROL_PERIOD) -> float:
+    """The predicted |E - E0 - W + D| [J] of a damped string stepped at h [s] over
+    DISSIPATION_HORIZON: (h/bound)^2 times the work :func:`dissipation_power` feeds it."""
+    return (h / scene.stability_bound) ** 2 * dissipation_power(scene, control_period) * DISSIPATION_HORIZON
 
 
 def dissipation_safety(scene: Scene, control_period: float = PROTOCOL_CONTROL_PERIOD) -> float:
     """The largest h/bound whose :func:`dissipation_drift` is within DISSIPATION_BUDGET of the
     load's weight times the string's length (inf for an undamped string)."""
-    unit = dissipation_drift(scene, scene.stability_bound, control_period)
-    if unit == 0.0:
+    fed = dissipation_power(scene, control_period) * DISSIPATION_HORIZON
+    if fed == 0.0:
         return math.inf
-    return math.sqrt(DISSIPATION_BUDGET * scene.body.mass * scene.gravity * scene.string.length / unit)
+    return math.sqrt(DISSIPATION_BUDGET * scene.body.mass * scene.gravity * scene.string.length / fed)
 
 
 def law_safety(scene: Scene) -> float:
@@ -290,9 +294,9 @@ def choose_resolution(scene: Scene, accuracy: float = 5e-3, horizon: float = PRO
                       divides: Optional[float] = None, safety: Optional[float] = None) -> ResolutionChoice:
     """The string's resolution for a load-path ``accuracy`` [m] over ``horizon`` [s]: the fewest
     elements N whose predicted error (:func:`spatial_error`) is at most half of it, then the
-    largest h under ``safety`` x the assembled string's bound at that N (default SLACK_SAFETY for
-    the tension-only law, ELASTIC_SAFETY for the elastic one: the slack law's energy; for a damped
-    string at most :func:`dissipation_safety`, its balance drift over ``divides``) whose
+    largest h under ``safety`` x the assembled string's bound at that N (default
+    :func:`resolution_safety`: the law's energy, and a damped string's balance drift with
+    ``divides`` its control period) whose
     predicted error (:func:`step_error`) is at most the other half, rounded down to divide
     ``divides`` [s] (a control period) when given. The explicit string (docs/physics.md, "The
     string's resolution", for why not the implicit one). Deterministic, and monotone: a tighter
