@@ -812,6 +812,17 @@ def resolution_damped_energy(data: dict) -> str:
     return "\n".join(rows)
 
 
+def resolution_drone_rows(data: dict) -> str:
+    rows = ["| rate loop | steps per 20 ms | drone and load: median, worst [mm] | rule's prediction [mm] |",
+            "|---|---|---|---|"]
+    for r in data["rows"]:
+        loop = f"{1 / r['rate_loop_period']:.0f} Hz" if r["rate_loop_period"] else "every step"
+        predicted = f"{1e3 * r['predicted']:.2f}" if r["predicted"] is not None else "–"
+        rows.append(f"| {loop} | {r['substeps']} | {1e3 * r['error_median']:.2f}, {1e3 * r['error_worst']:.2f} | "
+                    f"{predicted} |")
+    return "\n".join(rows)
+
+
 # -- damping -------------------------------------------------------------------------------------
 def damping_decay(data: dict) -> str:
     rows = ["| τ [ms] | ζ | σ measured [1/s] | σ = EAτ/(2 l M_eff) [1/s] | relative error | cycles |",
@@ -857,6 +868,8 @@ def damping_cost(data: dict) -> str:
 
 
 QUOTES = {
+    "resolution_drone.rows": Quote("docs/img/resolution_drone.json",
+                                   "python -m benchmarks.resolution --drone --out docs/img", resolution_drone_rows),
     "resolution_damped.accuracy": Quote("docs/img/resolution_damped.json",
                                         "python -m benchmarks.resolution --damping 7.7e-4 --seeds 10 --out docs/img",
                                         resolution_damped_accuracy),

@@ -11,12 +11,19 @@ protocol, at each EA of the sweep on ``drone_load``:
   each restart resets the balance), the largest |E - E0 - W| and its largest per 20 s window (a
   trend shows as windows that grow), and the physics failures.
 
+With ``--drone`` (alone) the drone's own step error instead (esp_gym/scene/stepsize.py
+``drone_step_error``): ``quadrotor_load`` at the rule's N with its rate loop at DRONE_RATE_LOOP,
+the geometric cascade (agents.baselines.geometric) in ``thrust_rates`` plus +-0.5 action noise,
+``--seeds`` episodes of 4 s, the drone and the load at DRONE_STEPS steps per 20 ms against
+DRONE_REFERENCE (median and worst over the seeds), beside the rule's prediction; and the same
+with the loop at every physics step (order 1). Writes ``OUT/resolution_drone.json``.
+
 With ``--damping TAU`` every string (the rule's, the reference's and its floor's) is damped,
 ``string.damping_time`` TAU [s] (docs/physics.md, "Material damping"), the balance is
 |E - E0 - W + D|, and the files are ``OUT/resolution_damped.json`` and ``.png``.
 
 Prints tables and writes ``OUT/resolution.json`` and ``OUT/resolution.png``.
-Usage: ``python -m benchmarks.resolution [--quick] [--seeds K] [--damping TAU] [--out DIR]``.
+Usage: ``python -m benchmarks.resolution [--quick] [--seeds K] [--damping TAU | --drone] [--out DIR]``.
 """
 from __future__ import annotations
 
@@ -28,9 +35,10 @@ import numpy as np
 from tqdm import tqdm
 
 import esp_gym
+from agents.baselines.geometric import geometric_controller
 from agents.baselines.pd import AntiSwayPD
 from benchmarks.common import arg_parser, figure, finish, machine
-from esp_gym.scene.stepsize import dissipation_drift
+from esp_gym.scene.stepsize import dissipation_drift, drone_step_error
 
 #: The EAs of the sweep [N] (benchmarks/env_throughput.py --ea-sweep runs the same).
 SWEEP_EA = (2e2, 2e3, 2e4, 2e5, 2e6, 1e7)
@@ -38,6 +46,11 @@ CONTROL_PERIOD = 0.02
 #: The protocol: action noise amplitude and horizon [s].
 NOISE, HORIZON = 0.5, 4.0
 REFERENCE_ELEMENTS = 32
+#: ``--drone``: the rate loop's period [s] (PX4's default gyroscope rate, 800 Hz), the steps per
+#: control step measured and the reference's.
+DRONE_RATE_LOOP = 1.0 / 800.0
+DRONE_STEPS = (16, 32, 64, 128)
+DRONE_REFERENCE = 512
 
 
 def make(overrides: dict, h=None, safety=None):
@@ -66,6 +79,67 @@ def protocol_paths(overrides: dict, h, seed: int, steps: int):
         if terminated:
             return load, pivot, worst, info["termination_reason"]
     return load, pivot, worst, None
+
+
+def drone_paths(rate_period, substeps: int, seed: int, steps: int) -> tuple:
+    """The drone's and the load's centre of mass (steps + 1, 3 each) of ``quadrotor_load`` at the
+    rule's N under the geometric cascade plus noise, ``substeps`` steps per control step, the rate
+    loop every ``rate_period`` [s] (None: every step); NaN after an episode's end."""
+    overrides = {"string": {"elements": "auto"}, "pivot": {"drone": {"rate_loop_period": rate_period}}}
+    env = gym.make(esp_gym.ENV_ID, scene="quadrotor_load", actuation="thrust_rates", scene_overrides=overrides,
+                   h=CONTROL_PERIOD / substeps, max_episode_steps=10 ** 7, disable_env_checker=True)
+    u = env.unwrapped
+    controller = geometric_controller("stabilize", "thrust_rates")
+    obs, _ = env.reset(seed=seed)
+    controller.reset(u)
+    rng = np.random.default_rng(10_000 + seed)
+    drone, load = np.full((steps + 1, 3), np.nan), np.full((steps + 1, 3), np.nan)
+    for k in range(steps + 1):
+        drone[k], load[k] = u.sim.state.r[0], u.load_position()
+        if k == steps:
+            break
+        noise = NOISE * rng.uniform(-1, 1, env.action_space.shape[0])
+        obs, _, terminated, _, _ = env.step(np.clip(controller.act(obs, u.setup) + noise, -1, 1).astype(np.float32))
+        if terminated:
+            break
+    return drone, load
+
+
+def drone_accuracy(seeds: int, substeps=DRONE_STEPS) -> list:
+    """Rows per rate loop (sampled, every step) and steps per control step: the largest distance
+    of the drone and of the load to the reference's, median and worst over ``seeds``, and the
+    rule's predicted drone error."""
+    steps = int(round(HORIZON / CONTROL_PERIOD))
+    scene = esp_gym.load_scene("quadrotor_load", string={"elements": "auto"},
+                               pivot={"drone": {"rate_loop_period": DRONE_RATE_LOOP}})
+    rows = []
+    for period in tqdm((DRONE_RATE_LOOP, None), desc="rate loops"):
+        errors = {n: [] for n in substeps}
+        for seed in range(seeds):
+            ref_drone, ref_load = drone_paths(period, DRONE_REFERENCE, seed, steps)
+            for n in substeps:
+                drone, load = drone_paths(period, n, seed, steps)
+                errors[n].append(max(distance(drone, ref_drone), distance(load, ref_load)))
+        for n in substeps:
+            rows.append({"rate_loop_period": period, "substeps": n, "error_median": float(np.median(errors[n])),
+                         "error_worst": max(errors[n]),
+                         "predicted": drone_step_error(scene, CONTROL_PERIOD / n, HORIZON) if period else None})
+    return rows
+
+
+def drone_main(args, start: float) -> dict:
+    rows = drone_accuracy(2 if args.quick else args.seeds, DRONE_STEPS[:2] if args.quick else DRONE_STEPS)
+    print(f"\nquadrotor_load, geometric cascade + +-{NOISE} noise, {HORIZON:g} s: the drone's and the load's largest "
+          f"distance to {DRONE_REFERENCE} steps per 20 ms [mm]")
+    print("rate loop      steps | median  worst | predicted")
+    for row in rows:
+        loop = f"{1 / row['rate_loop_period']:.0f} Hz" if row["rate_loop_period"] else "every step"
+        predicted = f"{1e3 * row['predicted']:9.2f}" if row["predicted"] is not None else "        -"
+        print(f"{loop:12s} {row['substeps']:7d} | {1e3 * row['error_median']:6.2f} {1e3 * row['error_worst']:6.2f} | "
+              f"{predicted}")
+    finish(args.out, "resolution_drone", {"rows": rows, "reference_substeps": DRONE_REFERENCE, "horizon": HORIZON,
+                                          "noise": NOISE, "machine": machine("gymnasium")}, {}, start)
+    return {"rows": rows}
 
 
 def reference_h(ea: float, rule_h: float) -> float:
@@ -140,12 +214,15 @@ def main(argv=None) -> dict:
     parser = arg_parser(__doc__)
     parser.add_argument("--seeds", type=int, default=10, help="episodes per EA for the accuracy (default 10)")
     parser.add_argument("--damping", type=float, default=0.0, help="every string's damping time [s] (default 0)")
+    parser.add_argument("--drone", action="store_true", help="only the drone's own step error (quadrotor_load)")
     args = parser.parse_args(argv)
     if args.seeds < 1:
         parser.error(f"--seeds must be at least 1, got {args.seeds}")
     if args.damping < 0.0:
         parser.error(f"--damping must be a damping time >= 0 [s], got {args.damping!r}")
     start = time.perf_counter()
+    if args.drone:
+        return drone_main(args, start)
     sweep = SWEEP_EA[:2] if args.quick else SWEEP_EA
     seeds = 2 if args.quick else args.seeds
     seconds = 2.0 if args.quick else 100.0

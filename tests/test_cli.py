@@ -114,7 +114,8 @@ def test_env_throughput_realism_quick_runs(tmp_path):
 
 def test_env_throughput_drone_quick_runs(tmp_path):
     table = quick_benchmark("env_throughput", tmp_path, "env_throughput_drone", "--drone")["table"]
-    assert set(table) == {"point pivot (force)", "drone, thrust_rates", "drone, thrust_torque", "drone, motors"}
+    assert set(table) == {"point pivot (force)", "drone, thrust_rates", "drone, thrust_torque", "drone, motors",
+                          "point env (drone_load)"}
     assert all(row["single"] > 0 and row["batched"] > 0 for row in table.values())
     assert table["point pivot (force)"]["single_ratio"] == 1.0
 
@@ -135,6 +136,18 @@ def test_resolution_quick_measures_accuracy_and_energy(tmp_path):
     soft = result["accuracy"][0]
     assert soft["reference_floor_median"] < 1e-4 and soft["load_error_worst"] < 5e-3
     assert len(result["energy"]) == 4 and (tmp_path / "resolution.png").stat().st_size > 0
+
+
+def test_resolution_drone_quick_measures_the_drones_step_error(tmp_path):
+    """2 seeds at 16 and 32 steps per 20 ms: with the 800 Hz loop the error falls about 4x and stays
+    within the rule's prediction (fitted to the worst of 10 seeds); at every step it falls about 2x."""
+    rows = quick_benchmark("resolution", tmp_path, "resolution_drone", "--drone")["rows"]
+    sampled = [row for row in rows if row["rate_loop_period"]]
+    every = [row for row in rows if not row["rate_loop_period"]]
+    assert [row["substeps"] for row in sampled] == [row["substeps"] for row in every] == [16, 32]
+    assert sampled[0]["error_worst"] / sampled[1]["error_worst"] > 3.0
+    assert every[0]["error_worst"] / every[1]["error_worst"] < 3.0
+    assert all(row["error_worst"] <= row["predicted"] for row in sampled)
 
 
 def test_spatial_convergence_quick_shows_order_2_on_smooth_data(tmp_path):

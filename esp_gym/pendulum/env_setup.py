@@ -23,7 +23,7 @@ from ..kernels.layout import LGVIParams
 from ..physics.rig import Rig, scene_rig
 from ..physics.state import build_params, total_weight
 from ..scene.params import Scene, load_scene, override_scene, scene_from_dict
-from ..scene.stepsize import auto_elements, resolution_safety, scheme_substeps, shortest
+from ..scene.stepsize import auto_elements, rate_loop_substeps, resolution_safety, scheme_substeps, shortest
 from .observe import Observer
 from .options import MAX_FORCE_SHARE, check_substeps, env_options
 from .randomize import Randomizer, episode_param_names, nominal_values
@@ -388,6 +388,9 @@ def physics_steps(resolved: Scene, o, randomizer, winch: bool, keep_unstable: bo
         substeps = int(round(wanted))
         if substeps < 1 or abs(substeps * h - control_period) > 1e-9 * control_period:
             raise ValueError(f"h = {h} s must divide the control period {control_period} s")
+        if rate_loop_substeps(resolved, control_period, substeps) != substeps:
+            raise ValueError(f"h = {h} s must divide the drone's rate-loop period "
+                             f"(pivot.drone.rate_loop_period {resolved.pivot.drone.rate_loop_period:g} s)")
     resolved = scene_from_dict({**resolved.model_dump(), "h": control_period / substeps,
                                 "allow_unstable_h": keep_unstable}, source=repr(resolved.name))
     return resolved, randomizer, safety, substeps

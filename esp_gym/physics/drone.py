@@ -80,6 +80,7 @@ def use_drone(arrays: DroneArrays, drone, h: float) -> None:
     consts[DRONE.scalar("decay_up")], consts[DRONE.scalar("decay_down")] = drone.decays(h)
     consts[DRONE.scalar("max_rotor_speed")] = drone.max_rotor_speed
     consts[DRONE["rate_gain"]] = drone.rate_gain
+    consts[DRONE.scalar("rate_loop_steps")] = drone.rate_loop_steps(h)
     arrays.inertia[...] = J
     arrays.inertia_inv[...] = np.linalg.inv(J)
     arrays.mixer[...] = drone.mixer()

@@ -26,6 +26,9 @@ DRONE_REACH = 2.0
 #: than 1 ms, the period of a 1 kHz rate loop (a flight controller's, sampling its gyroscope); a
 #: loop cannot track faster than it samples.
 MAX_RATE_GAIN = 1e3
+#: The largest K_Omega T_r of a rate loop of period T_r: a sampled proportional loop's error falls by
+#: 1 - K T_r per period, so it must stay within 1 (no overshoot from one sample to the next).
+MAX_RATE_LOOP_GAIN = 1.0
 Point3 = vector("coordinate")
 Velocity3 = vector("speed")
 
@@ -55,6 +58,11 @@ class DroneParams(Frozen):
                                                                  "rate controller'), at most MAX_RATE_GAIN = "
                                                                  "1e3: a time constant of 1 ms or more, a "
                                                                  "1 kHz rate loop's period")
+    rate_loop_period: Optional[Real] = Field(None, gt=0.0, le=1.0, description=(
+        "the rate controller's period T_r [s]: it samples the body rates and sets the motor commands every "
+        "T_r, held in between (docs/physics.md, 'Actuation and the rate controller'), so the closed loop is "
+        "the same whatever the physics step h, which must divide T_r; null runs it at every physics step, "
+        "making the loop's sampling h's. K_Omega T_r at most MAX_RATE_LOOP_GAIN"))
 
     @model_validator(mode="after")
     def _a_rigid_body_with_invertible_rotors(self) -> "DroneParams":
@@ -65,6 +73,10 @@ class DroneParams(Frozen):
         if max(self.rate_gain) > MAX_RATE_GAIN:
             raise ValueError(f"pivot.drone.rate_gain must be at most {MAX_RATE_GAIN:g} 1/s per axis, got "
                              f"{list(self.rate_gain)}: a time constant under 1 ms, faster than a 1 kHz rate loop")
+        if self.rate_loop_period is not None and max(self.rate_gain) * self.rate_loop_period > MAX_RATE_LOOP_GAIN:
+            raise ValueError(f"pivot.drone.rate_loop_period {self.rate_loop_period:g} s times the largest rate_gain "
+                             f"{max(self.rate_gain):g} 1/s is above {MAX_RATE_LOOP_GAIN:g}: the sampled rate loop "
+                             "would overshoot from one sample to the next")
         reach = DRONE_REACH * self.arm_length
         if math.hypot(*self.rho_q) > reach:
             raise ValueError(f"pivot.drone.rho_q {list(self.rho_q)} is {math.hypot(*self.rho_q):g} m from the centre "
@@ -113,6 +125,17 @@ class DroneParams(Frozen):
     def rotor_speed_for(self, thrust: float) -> float:
         """The common rotor speed [rad/s] whose four rotors push with ``thrust`` [N] together."""
         return math.sqrt(max(thrust, 0.0) / (4.0 * self.thrust_coefficient))
+
+    def rate_loop_steps(self, h: float) -> int:
+        """Physics steps of ``h`` [s] per rate-loop period (1 without ``rate_loop_period``: every
+        step); ValueError naming both when h does not divide the period."""
+        if self.rate_loop_period is None:
+            return 1
+        steps = int(round(self.rate_loop_period / h))
+        if steps < 1 or abs(steps * h - self.rate_loop_period) > 1e-9 * self.rate_loop_period:
+            raise ValueError(f"pivot.drone.rate_loop_period {self.rate_loop_period:g} s is not a whole number of "
+                             f"physics steps h = {h:g} s: take an h that divides it")
+        return steps
 
     def decays(self, h: float) -> tuple:
         """(e^(-h/t_up), e^(-h/t_down)) of the motor lag over a step ``h`` [s] (0 for t = 0)."""

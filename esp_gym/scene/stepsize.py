@@ -126,13 +126,44 @@ def implicit_substeps(scene: Scene, control_period: float) -> int:
 
 def scheme_substeps(scene: Scene, control_period: float, safety: float) -> int:
     """Steps per control period of the scene's own scheme (``solver.string``); for a string whose
-    resolution is chosen (``string.auto``) also no fewer than :func:`accurate_step` needs."""
+    resolution is chosen (``string.auto``) also no fewer than :func:`accurate_step` and
+    :func:`accurate_drone_step` need; a whole number per drone's rate-loop period
+    (:func:`rate_loop_substeps`)."""
     if scene.solver.string == "implicit":
-        return implicit_substeps(scene, control_period)
+        return rate_loop_substeps(scene, control_period, implicit_substeps(scene, control_period))
     steps = explicit_substeps(scene, control_period, safety)
     if scene.string.auto:
-        steps = max(steps, math.ceil(control_period / accurate_step(scene) - 1e-9))
-    return steps
+        h_accurate = min(accurate_step(scene), accurate_drone_step(scene))
+        steps = max(steps, math.ceil(control_period / h_accurate - 1e-9))
+    return rate_loop_substeps(scene, control_period, steps)
+
+
+def rate_loop_period(scene: Scene) -> Optional[float]:
+    """The drone's rate-loop period T_r [s] (``pivot.drone.rate_loop_period``), or None: no drone,
+    or its rate controller runs at every physics step."""
+    return scene.pivot.drone.rate_loop_period if scene.pivot.is_drone else None
+
+
+def rate_loop_substeps(scene: Scene, control_period: float, substeps: int) -> int:
+    """The fewest steps per ``control_period`` [s], at least ``substeps``, whose step divides the
+    drone's rate-loop period (:func:`rate_loop_period`; ``substeps`` itself without one)."""
+    loops = rate_loops(scene, control_period)
+    return loops * math.ceil(substeps / loops - 1e-9)
+
+
+def rate_loops(scene: Scene, control_period: float) -> int:
+    """The drone's rate-loop periods per ``control_period`` [s] (1 without a sampled loop). The
+    loop samples from each control step's start, so its period must divide the control period:
+    ValueError naming both otherwise."""
+    period = rate_loop_period(scene)
+    if period is None:
+        return 1
+    loops = int(round(control_period / period))
+    if loops < 1 or abs(loops * period - control_period) > 1e-9 * control_period:
+        raise ValueError(f"control_period {control_period:g} s is not a whole number of the drone's rate-loop "
+                         f"periods (pivot.drone.rate_loop_period {period:g} s): the loop samples from each control "
+                         "step's start; take a control period that it divides")
+    return loops
 
 
 def choose_scheme(scene: Scene, control_period: float, safety: float) -> SchemeChoice:
@@ -191,6 +222,13 @@ DISSIPATION_BUDGET = 0.005
 DISSIPATION_HORIZON = 100.0
 #: The control period the rule assumes when it is not told one [s] (the environment's default).
 PROTOCOL_CONTROL_PERIOD = 0.02
+#: A drone's own step error under its sampled rate loop (``pivot.drone.rate_loop_period``: the
+#: closed loop is then h's only through the integrator, of order 2), e_q = DRONE_STEP_ERROR g h^2
+#: (horizon/PROTOCOL_HORIZON): fitted to the worst of 10 seeds of quadrotor_load's protocol (the
+#: geometric cascade with thrust_rates and +-0.5 action noise, 4 s, N = 1, its 800 Hz loop) against
+#: 512 steps per 20 ms: 2.50, 0.64, 0.16, 0.04 mm at 16, 32, 64, 128 steps, C_q = 163-167
+#: (benchmarks/resolution.py --drone).
+DRONE_STEP_ERROR = 170.0
 #: The largest N the rule considers; beyond it the accuracy is reported as not met.
 MAX_AUTO_ELEMENTS = 256
 
@@ -205,7 +243,7 @@ class ResolutionChoice:
     substeps: Optional[int]  #: steps per ``divides`` (None without it)
     spatial_error: float  #: predicted load-path error of N elements over the horizon
     step_error: float  #: predicted load-path error of the step h over the horizon
-    limited_by: str  #: what set h: "stability" (the energy margin under the bound), "dissipation" or "accuracy"
+    limited_by: str  #: what set h: "stability" (the energy margin under the bound), "dissipation", "accuracy" or "drone"
     reason: str  #: one line for logs
     met: bool = True  #: False when even MAX_AUTO_ELEMENTS elements miss the accuracy
 
@@ -233,6 +271,22 @@ def step_error(scene: Scene, h: float, horizon: float) -> float:
     from .stability import attachment_mass
     weight = scene.gravity * (scene.body.mass + scene.string.length * scene.string.mass_per_length)
     return weight / attachment_mass(scene.body) * h * h / 8.0 * horizon / PROTOCOL_HORIZON
+
+
+def drone_step_error(scene: Scene, h: float, horizon: float) -> float:
+    """The predicted error [m] of a drone's own motion stepped at h [s] over ``horizon`` [s],
+    DRONE_STEP_ERROR g h^2 horizon/PROTOCOL_HORIZON; 0 without a sampled rate loop
+    (:func:`rate_loop_period`), whose error is then the loop's sampling at h, not the step's."""
+    if rate_loop_period(scene) is None:
+        return 0.0
+    return DRONE_STEP_ERROR * scene.gravity * h * h * horizon / PROTOCOL_HORIZON
+
+
+def accurate_drone_step(scene: Scene, accuracy: float = 5e-3, horizon: float = PROTOCOL_HORIZON) -> float:
+    """The largest h [s] whose :func:`drone_step_error` is at most half of ``accuracy`` [m] (inf
+    without a drone's sampled rate loop)."""
+    unit = drone_step_error(scene, 1.0, horizon)
+    return math.inf if unit == 0.0 else math.sqrt(0.5 * accuracy / unit)
 
 
 def dissipation_power(scene: Scene, control_period: float = PROTOCOL_CONTROL_PERIOD) -> float:
@@ -278,6 +332,16 @@ def resolution_safety(scene: Scene, control_period: float = PROTOCOL_CONTROL_PER
     return min(law_safety(scene), dissipation_safety(scene, control_period))
 
 
+def rate_loop_divided(scene: Scene, h: float, divides: Optional[float]) -> tuple:
+    """:func:`divided` with a drone's rate loop: ``(h, substeps)``, the largest step at most ``h`` [s]
+    that divides the rate-loop period (:func:`rate_loop_period`) and ``divides`` [s]."""
+    period = rate_loop_period(scene)
+    if period is None:
+        return divided(h, divides)
+    h, _ = divided(h, period)
+    return h, None if divides is None else rate_loop_substeps(scene, divides, int(round(divides / h)))
+
+
 def auto_elements(scene: Scene, accuracy: float = 5e-3, horizon: float = PROTOCOL_HORIZON) -> int:
     """The fewest elements whose predicted error (:func:`spatial_error`, falling as N^(-1/2)) is at
     most half of ``accuracy`` [m] over ``horizon`` [s], at most MAX_AUTO_ELEMENTS."""
@@ -297,8 +361,9 @@ def choose_resolution(scene: Scene, accuracy: float = 5e-3, horizon: float = PRO
     largest h under ``safety`` x the assembled string's bound at that N (default
     :func:`resolution_safety`: the law's energy, and a damped string's balance drift with
     ``divides`` its control period) whose
-    predicted error (:func:`step_error`) is at most the other half, rounded down to divide
-    ``divides`` [s] (a control period) when given. The explicit string (docs/physics.md, "The
+    predicted error (:func:`step_error`, and a drone's own, :func:`drone_step_error`) is at most the
+    other half, rounded down to divide a drone's rate-loop period and ``divides`` [s] (a control
+    period) when given. The explicit string (docs/physics.md, "The
     string's resolution", for why not the implicit one). Deterministic, and monotone: a tighter
     accuracy never gets fewer elements or a longer step.
 
@@ -317,8 +382,9 @@ def choose_resolution(scene: Scene, accuracy: float = 5e-3, horizon: float = PRO
         margin = "dissipation" if safety < law_safety(at_n) else margin
     h_stable = safety * at_n.stability_bound
     h_accurate = accurate_step(at_n, accuracy, horizon)
-    h, limited = (h_stable, margin) if h_stable <= h_accurate else (h_accurate, "accuracy")
-    h, substeps = divided(h, divides)
+    h_drone = accurate_drone_step(at_n, accuracy, horizon)
+    h, limited = min((h_stable, margin), (h_accurate, "accuracy"), (h_drone, "drone"))
+    h, substeps = rate_loop_divided(at_n, h, divides)
     e_space, e_step = spatial_error(at_n, elements, horizon), step_error(at_n, h, horizon)
     met = e_space <= 0.5 * accuracy * (1 + 1e-12)
     reason = (f"N = {elements}, explicit, h = {h:.4g} s ({limited}): predicted load error {e_space:.2g} m "

@@ -17,7 +17,7 @@ from pydantic import Field, ValidationError, model_validator
 from ..physics.rig import find_rig
 from ..scene.params import PivotParams, Scene, StringParams, WinchParams
 from ..scene.scene_input import Frozen, vector
-from ..scene.stepsize import explicit_substeps, shortest
+from ..scene.stepsize import explicit_substeps, rate_loops, shortest
 
 Point3 = vector("coordinate")
 
@@ -287,8 +287,11 @@ TEAM_SAFETY = 0.5
 
 def team_substeps(scene: TeamScene, control_period: float, winch: bool, safety: float = TEAM_SAFETY) -> int:
     """Physics steps per control period of ``scene``: the fewest that keep h within ``safety`` x
-    every string's stability bound (with ``winch``, at its winch's shortest length)."""
+    every string's stability bound (with ``winch``, at its winch's shortest length), a whole number
+    per each drone's rate-loop period (esp_gym/scene/stepsize.py ``rate_loops``)."""
     members = [scene.member_scene(k) for k in range(scene.size)]
     if winch:
         members = [shortest(m) for m in members]
-    return max(explicit_substeps(m, control_period, safety) for m in members)
+    steps = max(explicit_substeps(m, control_period, safety) for m in members)
+    loops = math.lcm(*(rate_loops(m, control_period) for m in members))
+    return loops * math.ceil(steps / loops - 1e-9)

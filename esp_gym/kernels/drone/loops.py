@@ -13,7 +13,7 @@ from ..step.damper import damper_half_step
 from ..step.loops import finish, restore_state, save_state, step_taken
 from ..step.string import nodal_forces
 from .hook import hook_substep, hook_velocities
-from .quadrotor import THRUST_RATES, actuate, drone_substep, drone_winch_step, rate_actuate, start_wrench
+from .quadrotor import THRUST_RATES, actuate, drone_substep, drone_winch_step, rate_actuate, rate_loop_due, start_wrench
 
 
 # A function of its own, not inlined, with the rig's structs as None-or-struct arguments: a runtime
@@ -24,7 +24,8 @@ def drone_steps(S, W, P, WA, D, DR, HK, inputs, nsteps, stats, reel, coupled, di
     held, or with the winch ``WA`` of :func:`~esp_gym.kernels.drone.quadrotor.drone_winch_step` reeling at
     ``reel`` [m/s], or at the offset hook ``HK`` of :func:`~esp_gym.kernels.drone.hook.hook_substep` (``WA``,
     ``HK`` None where the rig has none);
-    ``rates``: the rate controller before each step, at the body rates J_q^-1 Pi_q, or at an
+    ``rates``: the rate controller before each step its loop samples at (every step, or every
+    ``rate_loop_steps``), at the body rates J_q^-1 Pi_q, or at an
     offset hook the Legendre transform's (``D.V`` its scratch); the held external forces
     (``disturbed``) as kicks of h/2 on both sides of each step (kernels/step/disturbance.py). Stops at
     the first failure with the last good state (its pending half kick taken back). ``stats``
@@ -40,7 +41,7 @@ def drone_steps(S, W, P, WA, D, DR, HK, inputs, nsteps, stats, reel, coupled, di
     total = 0
     most = 0
     for k in range(nsteps):
-        if rates:
+        if rates and rate_loop_due(DR, k):
             if HK is not None:
                 _, _, omega_q, _ = hook_velocities(S, P, DR, HK, D.V)
                 rate_actuate(DR, omega_q)

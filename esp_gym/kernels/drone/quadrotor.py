@@ -27,15 +27,16 @@ from ..sums import kahan_add
 from .rotors import motor_lag, rate_command, rotor_wrench, wrench_command
 
 #: The drone's constants: k_f [N s^2/rad^2], the motor lag's decays over a step e^(-h/t_up) and
-#: e^(-h/t_down) (0 for no lag), the largest rotor speed [rad/s] and the rate controller's gain
-#: K_Omega (3) [1/s].
+#: e^(-h/t_down) (0 for no lag), the largest rotor speed [rad/s], the rate controller's gain
+#: K_Omega (3) [1/s] and the physics steps per rate-loop period (1: every step).
 DRONE = Layout(("thrust_coefficient", 1), ("decay_up", 1), ("decay_down", 1), ("max_rotor_speed", 1),
-               ("rate_gain", 3))
+               ("rate_gain", 3), ("rate_loop_steps", 1))
 Q_THRUST_COEFFICIENT = DRONE.scalar("thrust_coefficient")
 Q_DECAY_UP = DRONE.scalar("decay_up")
 Q_DECAY_DOWN = DRONE.scalar("decay_down")
 Q_MAX_ROTOR_SPEED = DRONE.scalar("max_rotor_speed")
 Q_RATE_GAIN = DRONE.start("rate_gain")
+Q_RATE_LOOP_STEPS = DRONE.scalar("rate_loop_steps")
 
 #: The drone's diagnostics (:func:`drone_diagnostics`): its rotational kinetic energy [J], its
 #: angular momentum about e3, e3 . R_q Pi_q [kg m^2/s], ||I - R_q^T R_q||_F, its body rates
@@ -145,6 +146,13 @@ def actuate(DR, mode):
         rate_actuate(DR, (Ji[0, 0] * Pi[0] + Ji[0, 1] * Pi[1] + Ji[0, 2] * Pi[2],
                           Ji[1, 0] * Pi[0] + Ji[1, 1] * Pi[1] + Ji[1, 2] * Pi[2],
                           Ji[2, 0] * Pi[0] + Ji[2, 1] * Pi[1] + Ji[2, 2] * Pi[2]))
+
+
+@kernel(inline="always")
+def rate_loop_due(DR, k):
+    """Whether the rate controller samples before step ``k`` of a control step: every
+    ``rate_loop_steps`` steps from the control step's start (the period divides the control period)."""
+    return k % int(DR.consts[Q_RATE_LOOP_STEPS]) == 0
 
 
 @kernel(inline="always")

@@ -42,7 +42,7 @@ def team_steps(S, W, P, T, A, TD, TW, inputs, nsteps, stats, disturbed, rates):
                 finish(stats, OK, k, total, most)
                 return
         if TD is not None:
-            status, iters = drones_solve(TD, P, A, inputs, P.h, rates, P.compensated)
+            status, iters = drones_solve(TD, P, A, inputs, P.h, rates, P.compensated, k)
         if status == OK:
             if TW is not None:
                 status, team_iters = team_winch_substep(S, W, P, T, A, TW, inputs, P.h, free, True, True,
