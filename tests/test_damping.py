@@ -102,9 +102,11 @@ def test_a_damped_drone_step_that_fails_holds_the_last_good_step():
     state saved before the last step's merged half and closes that step with h/2 (kernels/drone/loops.py),
     bit for bit the state of a fresh run of the good steps."""
     from esp_gym.physics.drone import DroneSimulator
-    base = esp_gym.load_scene("quadrotor_load")
-    scene = esp_gym.load_scene("quadrotor_load", string={"damping_time": 1e-3}, h=2.0 * base.stability_bound,
-                               allow_unstable_h=True, solver={"energy_watchdog": None})
+    pinned = {"pivot": {"drone": {"rate_loop_period": None}}}  # 8 elements at any h
+    base = esp_gym.load_scene("quadrotor_load", string={"elements": 8}, **pinned)
+    scene = esp_gym.load_scene("quadrotor_load", string={"elements": 8, "damping_time": 1e-3},
+                               h=2.0 * base.stability_bound, allow_unstable_h=True, solver={"energy_watchdog": None},
+                               **pinned)
     sim = DroneSimulator(scene)
     with pytest.raises(esp_gym.SimulationError):
         sim.step(20_000)

@@ -12,6 +12,13 @@ from esp_gym.physics.state import total_weight
 from esp_gym.scene.params import SceneError
 
 SCENE = "quadrotor_load"
+#: quadrotor_load as its physics was verified: 8 elements at the scene file's h, the rate loop at
+#: every step (its own resolution and loop are tests/test_rate_loop.py's).
+PINNED = {"string.elements": 8, "pivot.drone.rate_loop_period": None}
+
+
+def pinned_scene(**overrides):
+    return esp_gym.load_scene(SCENE, **{**PINNED, **overrides})
 E3 = np.array([0.0, 0.0, 1.0])
 #: The drone's hooks the physics tests run on: its centre of mass, and 6 cm below it and off its
 #: axes (hook -> centre of mass, body frame [m]; tests/test_drone_hook.py).
@@ -20,7 +27,7 @@ HOOKS = {"centre": [0.0, 0.0, 0.0], "offset": [0.02, -0.01, -0.06]}
 
 def hooked(hook, **overrides):
     """The drone scene with the hook ``hook`` (a key of HOOKS)."""
-    return esp_gym.load_scene(SCENE, **{"pivot.drone.rho_q": HOOKS[hook], **overrides})
+    return pinned_scene(**{"pivot.drone.rho_q": HOOKS[hook], **overrides})
 
 
 def wobbling_commands(sim, k):
@@ -98,7 +105,7 @@ def test_the_thrust_acts_along_the_body_axis_at_both_ends_of_the_step(name, end_
     """Each step's momentum change against the impulse h/2 (u_k + u_{k+1}), u = -f R_q e3, rebuilt
     from the drone's state: it agrees to 1e-13 of the impulse (the scheme); a thrust held along
     the start's axis, or tilted 1 mrad at the end, misses by more than 1e-7 of it."""
-    sim = DroneSimulator(esp_gym.load_scene(SCENE))
+    sim = DroneSimulator(pinned_scene())
     sim.set_drone_state(Pi=sim.drone.inertia @ np.array([0.5, -0.8, 0.3]))  # turning, so R_{k+1} != R_k
     defect, size = thrust_pair_defects(sim, 40, end_rotation)
     if agrees:
@@ -183,8 +190,7 @@ def test_reversible_without_inputs(hook):
 
 def test_zero_lag_makes_the_wrench_the_command_at_once():
     """t_m = 0: after one step the rotors turn at the command and the thrust is the wrench asked for."""
-    scene = esp_gym.load_scene(SCENE, **{"pivot.drone.motor_time_constant_up": 0.0,
-                                         "pivot.drone.motor_time_constant_down": 0.0})
+    scene = pinned_scene(**{"pivot.drone.motor_time_constant_up": 0.0, "pivot.drone.motor_time_constant_down": 0.0})
     sim = DroneSimulator(scene)
     sim.step(1, thrust=15.0, torque=[0.01, 0.0, -0.002])
     d = sim.diagnostics()
@@ -200,15 +206,15 @@ def test_zero_lag_makes_the_wrench_the_command_at_once():
 ])
 def test_a_bad_drone_section_names_what_is_wrong(overrides, message):
     with pytest.raises(SceneError, match=message):
-        esp_gym.load_scene(SCENE, **overrides)
+        pinned_scene(**overrides)
 
 
 def test_the_drone_simulator_refuses_what_it_cannot_run():
     with pytest.raises(ValueError, match="needs pivot.kind: drone"):
         DroneSimulator(esp_gym.load_scene("drone_load"))
     with pytest.raises(ValueError, match="explicit string of order 2"):
-        DroneSimulator(esp_gym.load_scene(SCENE, **{"solver.string": "implicit"}))
-    sim = DroneSimulator(esp_gym.load_scene(SCENE))
+        DroneSimulator(pinned_scene(**{"solver.string": "implicit"}))
+    sim = DroneSimulator(pinned_scene())
     with pytest.raises(ValueError, match="rotor_commands must lie in"):
         sim.step(1, rotor_commands=[0.0, 0.0, 0.0, 2000.0])
     with pytest.raises(ValueError, match="not both"):

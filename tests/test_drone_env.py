@@ -163,7 +163,7 @@ def test_the_drone_reels_with_the_winch(task):
 @pytest.mark.parametrize("options, message", [
     ({"scene": SCENE, "actuation": "force"}, "does not fly scene 'quadrotor_load'"),
     ({"actuation": "thrust_rates"}, "does not fly scene 'drone_load'"),
-    ({"scene": SCENE, "scene_overrides": {"solver": {"string": "implicit"}}},
+    ({"scene": SCENE, "scene_overrides": {"solver": {"string": "implicit"}, "string": {"elements": 8}}},
      r"no rig is drone-implicit \(scene 'quadrotor_load': solver.string 'implicit', winch=False\); the rigs are "
      r"point-explicit, .*drone-explicit-offset-hook, drone-explicit-damped \(esp_gym.rigs\(\)\)$"),
     ({"scene": SCENE, "scene_overrides": {"solver": {"order": 4}}}, "explicit string of order 2"),

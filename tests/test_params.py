@@ -345,5 +345,7 @@ def test_drone_values_just_inside_the_bounds_load(scene_name):
     for field, value in (("pivot.drone.inertia", [0.999 * largest] * 3),
                          ("pivot.drone.rate_gain", [MAX_RATE_GAIN] * 3),
                          ("pivot.drone.rho_q", [0.0, 0.6 * reach * 0.999, 0.8 * reach * 0.999])):
-        scene = load_scene(scene_name, **{field: value})
+        # the fastest rate gain needs a rate loop of at most 1/K (MAX_RATE_LOOP_GAIN): 1 kHz
+        loop = {"pivot.drone.rate_loop_period": 1.0 / MAX_RATE_GAIN} if field.endswith("rate_gain") else {}
+        scene = load_scene(scene_name, **{field: value}, **loop)
         assert getattr(scene.pivot.drone, field.split(".")[-1]) == tuple(value)

@@ -182,3 +182,14 @@ def test_a_strongly_damped_stiff_string_takes_the_wider_margin():
     assert choose_resolution(scenes["weak"], divides=0.02).substeps == 30
     assert protocol_residual(strong, 1000, mode="random") < 0.01
     assert protocol_residual(weak, 1000, safety=DAMPED_SAFETY, mode="random") > 0.05
+
+
+def test_a_winchs_string_gets_the_elements_of_the_longest_length_it_pays_out():
+    """quadrotor_load's 1 m string needs one element (0.55 mm predicted), but the winch pays it out to
+    2 m (3.1 mm at one element: the error grows as l^(5/2)): the environment takes two."""
+    from esp_gym.scene.stepsize import auto_elements, longest
+    scene = esp_gym.load_scene("quadrotor_load")
+    assert (auto_elements(scene), auto_elements(longest(scene))) == (1, 2)
+    for winch, elements in ((False, 1), (True, 2)):
+        env = gym.make(esp_gym.ENV_ID, scene="quadrotor_load", task="lower" if winch else "stabilize", winch=winch)
+        assert env.unwrapped.scene.string.elements == elements

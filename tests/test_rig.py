@@ -20,10 +20,12 @@ HOOK = [0.0, 0.0, -0.05]
 def options(pivot: str, string: str, winch: bool, hook: bool, damped: bool = False) -> dict:
     """gym.make's arguments for one combination."""
     overrides = {"solver": {"string": string}}
+    if string == "implicit":  # quadrotor_load's elements: auto takes the explicit string
+        overrides["string"] = {"elements": 8}
     if hook:
         overrides["pivot"] = {"drone": {"rho_q": HOOK}}
     if damped:
-        overrides["string"] = {"damping_time": 1e-3}
+        overrides["string"] = {**overrides.get("string", {}), "damping_time": 1e-3}
     return {"scene": "quadrotor_load" if pivot == "drone" else "drone_load", "task": "lift" if winch else "stabilize",
             "winch": winch, "scene_overrides": overrides, "disable_env_checker": True}
 

@@ -287,7 +287,7 @@ class HookGeometricController:
 GEOMETRIC_GAINS = {"stabilize": (4.0, 4.0, 16.0, 6.0, np.inf), "transport": (4.0, 4.0, 16.0, 6.0, np.inf),
                    "track": (8.0, 4.0, 24.0, 6.0, np.inf)}
 #: Where ``motors`` keeps other gains: its torque loop closes at the control rate (50 Hz), not at
-#: the physics rate as the onboard rate controller does. With track's stiff gains some episodes
+#: the onboard rate controller's. With track's stiff gains some episodes
 #: flip (the PD law won on held-out seeds 0-49, -29.9 +- 34.2, where these win); transport's
 #: uncapped ones flipped one episode of 50 (+11.8 +- 18.1), capped at 2 m/s^2 (the tuner's best in
 #: ``motors``, 451.9) none. ``lower`` moves its pivot as transport does and takes the same (uncapped:

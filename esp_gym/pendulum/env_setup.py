@@ -23,7 +23,7 @@ from ..kernels.layout import LGVIParams
 from ..physics.rig import Rig, scene_rig
 from ..physics.state import build_params, total_weight
 from ..scene.params import Scene, load_scene, override_scene, scene_from_dict
-from ..scene.stepsize import auto_elements, rate_loop_substeps, resolution_safety, scheme_substeps, shortest
+from ..scene.stepsize import auto_elements, longest, rate_loop_substeps, resolution_safety, scheme_substeps, shortest
 from .observe import Observer
 from .options import MAX_FORCE_SHARE, check_substeps, env_options
 from .randomize import Randomizer, episode_param_names, nominal_values
@@ -354,9 +354,9 @@ def physics_steps(resolved: Scene, o, randomizer, winch: bool, keep_unstable: bo
     its stability bound, or the user's ``h`` (which must divide the control period)."""
     control_period, h, safety = o.control_period, o.h, o.safety
     if resolved.string.auto and resolved.solver.string == "explicit":
-        # N for the nominal scene (every episode keeps the arrays' shape), each episode's step for
-        # its own draw (EnvSetup.draw_episode, scheme_substeps)
-        elements = auto_elements(resolved)
+        # N for the nominal scene (every episode keeps the arrays' shape) at the longest string a
+        # winch pays out, each episode's step for its own draw (EnvSetup.draw_episode, scheme_substeps)
+        elements = auto_elements(longest(resolved) if winch else resolved)
         if elements != resolved.string.elements:
             resolved = resolved.model_copy(update={"string": resolved.string.model_copy(update={"elements": elements})})
             randomizer = None if randomizer is None else Randomizer(resolved, o.randomize)

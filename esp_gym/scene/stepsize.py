@@ -33,6 +33,12 @@ def shortest(scene: Scene) -> Scene:
     return at_length(scene, scene.winch_range[0])
 
 
+def longest(scene: Scene) -> Scene:
+    """``scene`` with the longest string its winch reaches: the one whose load-path error at N
+    elements is largest (:func:`spatial_error` grows as l^(5/2)); see :func:`at_length`."""
+    return at_length(scene, scene.winch_range[1])
+
+
 #: The smallest accuracy [m] choose_h takes: the positions' rounding (1e-16 of a metre-sized scene
 #: per step, compensated) accumulated over a pilot run's 1e4-1e6 steps is of this order; a target of
 #: 1e-20 m asked for pilot runs that did not end in 20 minutes.

@@ -202,11 +202,13 @@ NOMINAL = dict(length=1.0, mass_per_length=0.05, EA=200.0, pivot_mass=1.0, body_
 
 def quadrotor() -> tuple:
     """``(mass [kg], DroneParams)`` of the quadrotor of ``quadrotor_load`` (esp_gym/scenes: PX4's
-    1.5 kg x500), a team's drone by default."""
+    1.5 kg x500), a team's drone by default, its rate loop at every physics step: the team's
+    baselines and shipped policy were tuned and trained so (a team's steps divide a sampled loop's
+    period when its drones have one: :func:`team_substeps`)."""
     from ..scene.params import load_scene
 
     pivot = load_scene("quadrotor_load").pivot
-    return float(pivot.mass), pivot.drone
+    return float(pivot.mass), pivot.drone.model_copy(update={"rate_loop_period": None})
 
 
 def team_scene(size: int, strings=None, pivot_masses=None, body_mass: float = NOMINAL["body_mass"],
