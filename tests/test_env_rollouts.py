@@ -20,11 +20,12 @@ ROLLOUT_SHA256 = {
     "winch": "d769738964bd02d636627dc3dbb4a8b1d125487cb51acd5edc31d8c5ac17b4ea",
     "implicit_winch": "ce41b43796f4bca643ef77f593da471fce5b4df91c7ff55033b7fa2860fbf46d",
     "track": "84ee7e866206d03ffaaa55e8194c1303cffd732e29a66b2e90b1ca0ab6fa7a8a",
-    # the drone's, first computed at 429d750, before its rigs shared one loop (kernels/drone/loops.py)
-    "drone": "d172508d61e7808b9439045223ee4d266b6bdd7eecaccc7c52d1673fe69e34d8",
-    "drone_winch": "f2f9ae2bc32704ef3fc45f7079cb4d2e018214ec9646cfff2a5a816f3faa6a41",
-    "drone_hook": "1252f309c7b5221a1e40beeba85b237bf5b7f64fb5543a6e421d43c0dc269873",
-    "drone_hard": "4b650448bb1050375d47ea5061b7048ece6da73f56cc3129cb79e152f20a307c",
+    # the drone's, recomputed at 6d5cb47: quadrotor_load at elements auto (1; 2 with the winch) and
+    # its 800 Hz rate loop
+    "drone": "6b16b260ef507e16dd39d3c5665790a2479b917ef6fa42a4c44fe7e046ec9685",
+    "drone_winch": "cefcbd73cbf9fbddd3c3402f97e72f352e3c838a594a1c0af102a7d5efa08d58",
+    "drone_hook": "de9773d02e0f3396dad4c95c65f8f835ce2956bfdbd6da7b2a11a63090f763b9",
+    "drone_hard": "c7ba241d5a287d9ebe72ab02a16e9af448a9930742fadc20d2afcd1652fbb92c",
 }
 VECTOR_SHA256 = "df5ef1b76b3f23c29de03347dd59fa263f7ea298a785ef2ff8945a79329299d9"
 
