@@ -823,6 +823,19 @@ def resolution_drone_rows(data: dict) -> str:
     return "\n".join(rows)
 
 
+def moordyn_compare_table(data: dict) -> str:
+    rows = ["| case | our h [s] | load path vs MoorDyn [m] | end tension vs MoorDyn [N] | our wall time [s] "
+            "| MoorDyn's [s] | peak tension, ours / MoorDyn's [N] |", "|---|---|---|---|---|---|---|"]
+    for r in data["cases"]:
+        case = [r["case"], f"{r['moordyn_wall']:.2f}",
+                f"{r['peak_tension']['ours']:.2f} / {r['peak_tension']['moordyn']:.2f}"]
+        for step in r["steps"]:
+            rows.append(f"| {case[0]} | {sci(step['h'], 2)} | {sci(step['path'], 2)} | {sci(step['tension'], 2)} | "
+                        f"{step['wall']:.2f} | {case[1]} | {case[2]} |")
+            case = ["", "", ""]
+    return "\n".join(rows)
+
+
 # -- damping -------------------------------------------------------------------------------------
 def damping_decay(data: dict) -> str:
     rows = ["| τ [ms] | ζ | σ measured [1/s] | σ = EAτ/(2 l M_eff) [1/s] | relative error | cycles |",
@@ -868,6 +881,8 @@ def damping_cost(data: dict) -> str:
 
 
 QUOTES = {
+    "moordyn_compare.table": Quote("docs/img/moordyn_compare.json", "python -m benchmarks.moordyn_compare --out docs/img",
+                                   moordyn_compare_table),
     "resolution_drone.rows": Quote("docs/img/resolution_drone.json",
                                    "python -m benchmarks.resolution --drone --out docs/img", resolution_drone_rows),
     "resolution_damped.accuracy": Quote("docs/img/resolution_damped.json",

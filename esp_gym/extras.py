@@ -19,6 +19,7 @@ EXTRAS = {
     "threadpoolctl": ("agents", "threadpoolctl"),
     "pettingzoo": ("team", "PettingZoo"),
     "mujoco": ("bench", "MuJoCo"),
+    "moordyn": ("bench", "MoorDyn"),
 }
 
 
