@@ -112,7 +112,9 @@ def cold_start_table(data: dict) -> str:
              "env": '`gym.make("ElasticStringPendulum-v0")`, reset, step',
              "vector env (8)": "`gym.make_vec(..., num_envs=8)`, reset, step",
              "drone env": '`gym.make(..., scene="quadrotor_load")`, reset, step',
-             "drone vector env (8)": '`gym.make_vec(..., num_envs=8, scene="quadrotor_load")`, reset, step'}
+             "drone vector env (8)": '`gym.make_vec(..., num_envs=8, scene="quadrotor_load")`, reset, step',
+             "damped env": '`gym.make(..., scene_overrides={"string": {"damping_time": 1e-3}})`, reset, step',
+             "team env (3)": '`gym.make("ElasticStringTeam-v0", team=3)`, reset, step'}
     lines = ["| case | cold, first step [s] | warm, first step [s] | warm, whole process [s] |",
              "|---|---|---|---|"]
     for case, runs in rows.items():
@@ -899,17 +901,17 @@ QUOTES = {
     "damping.drift": Quote("docs/img/damping.json", "python -m benchmarks.damping --out docs/img", damping_drift),
     "damping.margins": Quote("docs/img/damping.json", "python -m benchmarks.damping --out docs/img", damping_margins),
     "damping.cost": Quote("docs/img/damping.json", "python -m benchmarks.damping --out docs/img", damping_cost),
-    "cold_start.readme": Quote("docs/img/cold_start.json", "python -m benchmarks.cold_start --repeats 1 --out docs/img",
+    "cold_start.readme": Quote("docs/img/cold_start.json", "python -m benchmarks.cold_start --out docs/img",
                                cold_start_readme),
-    "cold_start.env": Quote("docs/img/cold_start.json", "python -m benchmarks.cold_start --repeats 1 --out docs/img",
+    "cold_start.env": Quote("docs/img/cold_start.json", "python -m benchmarks.cold_start --out docs/img",
                             cold_start_env),
     "cold_start.env_compiles": Quote("docs/img/cold_start.json",
-                                     "python -m benchmarks.cold_start --repeats 1 --out docs/img",
+                                     "python -m benchmarks.cold_start --out docs/img",
                                      cold_start_env_compiles),
     "cold_start.vector_compiles": Quote("docs/img/cold_start.json",
-                                        "python -m benchmarks.cold_start --repeats 1 --out docs/img",
+                                        "python -m benchmarks.cold_start --out docs/img",
                                         cold_start_vector_compiles),
-    "cold_start.table": Quote("docs/img/cold_start.json", "python -m benchmarks.cold_start --repeats 1 --out docs/img",
+    "cold_start.table": Quote("docs/img/cold_start.json", "python -m benchmarks.cold_start --out docs/img",
                               cold_start_table),
     "step_cost.lgvi": Quote("docs/img/step_cost.json", "python -m benchmarks.step_cost --out docs/img",
                             step_cost_lgvi),
