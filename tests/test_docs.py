@@ -95,7 +95,7 @@ def cold_start_figures(path=ROOT / "docs" / "img" / "cold_start.json") -> dict:
 
 def test_the_compile_notices_announce_the_measured_cold_start():
     """The compile notices announce at least the cold first step of docs/img/cold_start.json
-    (``python -m benchmarks.cold_start --repeats 1 --out docs/img``), and at most 30 % more."""
+    (``python -m benchmarks.cold_start --out docs/img``), and at most 30 % more."""
     from esp_gym.kernels.drone.env import COLD_DRONE_BATCH_STEP_S, COLD_DRONE_ENV_STEP_S
     from esp_gym.kernels.env.step import COLD_BATCH_STEP_S, COLD_ENV_STEP_S
     from esp_gym.kernels.step.specialise import COLD_SIMULATOR_STEP_S

@@ -167,8 +167,8 @@ hook_row = row_function(HookArrays)
 #: The seconds to the first step of an environment and of a vector environment with a drone on an
 #: empty cache (2 cores; docs/performance.md, "Start-up"; its own kernels on top of the point
 #: pivot's), said when their entry points first compile.
-COLD_DRONE_ENV_STEP_S = 25
-COLD_DRONE_BATCH_STEP_S = 26
+COLD_DRONE_ENV_STEP_S = 37
+COLD_DRONE_BATCH_STEP_S = 47
 
 @kernel(inline="always")
 def drone_env_step(S, W, P, D, WA, E, DR, HK, raw, scheme, damped):

@@ -283,10 +283,10 @@ def _entry_points(winched: bool, implicit: bool, damped: bool = False):
 
 #: The seconds to the first step of an environment and of a vector environment on an empty cache
 #: (2 cores; docs/performance.md, "Start-up"), said when their entry points first compile.
-COLD_ENV_STEP_S = 19
-COLD_BATCH_STEP_S = 19
+COLD_ENV_STEP_S = 30
+COLD_BATCH_STEP_S = 30
 #: ... and of a vector environment with threads > 1 (its threaded entry: numba's parallel transforms)
-COLD_THREADED_BATCH_STEP_S = 28
+COLD_THREADED_BATCH_STEP_S = 42
 
 # The point pivot's entry points ``(step, batch, threaded_batch)`` (:func:`_entry_points`), each
 # named after its rig (esp_gym/physics/rig.py: a rig's name with "_" for "-"); each compiles only for the

@@ -26,7 +26,7 @@ def _compile_specialised(coupled: bool, compensated: bool, implicit: bool, dampe
 
 #: The seconds to the simulator's first step on an empty cache (2 cores; docs/performance.md,
 #: "Start-up"), said when its loops first compile.
-COLD_SIMULATOR_STEP_S = 12
+COLD_SIMULATOR_STEP_S = 22
 
 
 def announced(advance, record):
