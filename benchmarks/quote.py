@@ -825,6 +825,20 @@ def resolution_drone_rows(data: dict) -> str:
     return "\n".join(rows)
 
 
+def resolution_implicit_table(data: dict) -> str:
+    names = list(data["table"][0]["runs"])
+    heads = ["explicit rule" if name == "explicit" else
+             f"implicit, {row['substeps']} step{'s' if row['substeps'] > 1 else ''}"
+             for name, row in data["table"][0]["runs"].items()]
+    rows = ["| EA [N], N | " + " | ".join(heads) + " |",
+            "|---|" + "---|" * len(names)]
+    for row in data["table"]:
+        cells = [f"{1e3 * r['error_median']:.2f} / {1e3 * r['error_worst']:.2f} mm, {steps_per_second(r['steps_per_s'])}/s"
+                 + (f" ({r['substeps']} steps)" if name == "explicit" else "") for name, r in row["runs"].items()]
+        rows.append(f"| {sci(row['EA'], 0).replace('.0', '')}, {row['elements']} | " + " | ".join(cells) + " |")
+    return "\n".join(rows)
+
+
 def moordyn_compare_table(data: dict) -> str:
     rows = ["| case | our h [s] | load path vs MoorDyn [m] | end tension vs MoorDyn [N] | our wall time [s] "
             "| MoorDyn's [s] | peak tension, ours / MoorDyn's [N] |", "|---|---|---|---|---|---|---|"]
@@ -883,6 +897,9 @@ def damping_cost(data: dict) -> str:
 
 
 QUOTES = {
+    "resolution_implicit.table": Quote("docs/img/resolution_implicit.json",
+                                       "python -m benchmarks.resolution --implicit --damping 7.7e-4 --seeds 10 "
+                                       "--out docs/img", resolution_implicit_table),
     "moordyn_compare.table": Quote("docs/img/moordyn_compare.json", "python -m benchmarks.moordyn_compare --out docs/img",
                                    moordyn_compare_table),
     "resolution_drone.rows": Quote("docs/img/resolution_drone.json",

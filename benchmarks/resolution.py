@@ -18,12 +18,18 @@ the geometric cascade (agents.baselines.geometric) in ``thrust_rates`` plus +-0.
 DRONE_REFERENCE (median and worst over the seeds), beside the rule's prediction; and the same
 with the loop at every physics step (order 1). Writes ``OUT/resolution_drone.json``.
 
+With ``--implicit`` (and ``--damping TAU``) the implicit string as the rule's scheme instead
+(docs/physics.md, "The string's resolution"): at IMPLICIT_EA, the rule's N stepped by the
+implicit string at IMPLICIT_STEPS steps per 20 ms, each against the same reference as the rule's
+explicit choice, median and worst over ``--seeds``, and the env steps/s of each and of the
+explicit rule (random actions, the median of 3). Writes ``OUT/resolution_implicit.json``.
+
 With ``--damping TAU`` every string (the rule's, the reference's and its floor's) is damped,
 ``string.damping_time`` TAU [s] (docs/physics.md, "Material damping"), the balance is
 |E - E0 - W + D|, and the files are ``OUT/resolution_damped.json`` and ``.png``.
 
 Prints tables and writes ``OUT/resolution.json`` and ``OUT/resolution.png``.
-Usage: ``python -m benchmarks.resolution [--quick] [--seeds K] [--damping TAU | --drone] [--out DIR]``.
+Usage: ``python -m benchmarks.resolution [--quick] [--seeds K] [--damping TAU] [--drone | --implicit] [--out DIR]``.
 """
 from __future__ import annotations
 
@@ -51,6 +57,9 @@ REFERENCE_ELEMENTS = 32
 DRONE_RATE_LOOP = 1.0 / 800.0
 DRONE_STEPS = (16, 32, 64, 128)
 DRONE_REFERENCE = 512
+#: ``--implicit``: the EAs [N] and the implicit string's steps per control step.
+IMPLICIT_EA = (2e5, 2e6, 1e7)
+IMPLICIT_STEPS = (1, 2, 8, 32)
 
 
 def make(overrides: dict, h=None, safety=None):
@@ -142,6 +151,59 @@ def drone_main(args, start: float) -> dict:
     return {"rows": rows}
 
 
+def env_rate(overrides: dict, h=None, steps: int = 2000) -> float:
+    """Env steps/s of ``overrides`` at ``h`` under uniform random actions (resets included)."""
+    env = make(overrides, h).unwrapped
+    env.reset(seed=0)
+    actions = np.random.default_rng(0).uniform(-1, 1, (steps, 6)).astype(np.float32)
+    began = time.perf_counter()
+    for action in actions:
+        _, _, terminated, truncated, _ = env.step(action)
+        if terminated or truncated:
+            env.reset()
+    return steps / (time.perf_counter() - began)
+
+
+def implicit_accuracy(ea: float, seeds: int, damping: float, substeps=IMPLICIT_STEPS) -> dict:
+    """The rule's explicit choice and the implicit string at the rule's N and ``substeps`` steps
+    per control step: the load's largest distance to the reference (median, worst over
+    ``seeds``) and env steps/s."""
+    damped = {"damping_time": damping} if damping else {}
+    auto = {"string": {"EA": ea, "elements": "auto", **damped}}
+    u = make(auto).unwrapped
+    elements, rule_h = u.scene.string.elements, u.scene.h
+    implicit = {"string": {"EA": ea, "elements": elements, **damped}, "solver": {"string": "implicit"}}
+    reference = {"string": {"EA": ea, "elements": REFERENCE_ELEMENTS, **damped}}
+    h_ref, steps = reference_h(ea, rule_h), int(round(HORIZON / CONTROL_PERIOD))
+    runs = {"explicit": (auto, None), **{f"implicit {n}": (implicit, CONTROL_PERIOD / n) for n in substeps}}
+    errors = {name: [] for name in runs}
+    for seed in range(seeds):
+        ref_load, _, _, _ = protocol_paths(reference, h_ref, seed, steps)
+        for name, (overrides, h) in runs.items():
+            errors[name].append(distance(protocol_paths(overrides, h, seed, steps)[0], ref_load))
+    rows = {name: {"substeps": u.setup.substeps if h is None else int(round(CONTROL_PERIOD / h)),
+                   "error_median": float(np.median(errors[name])), "error_worst": max(errors[name]),
+                   "steps_per_s": float(np.median([env_rate(overrides, h) for _ in range(3)]))}
+            for name, (overrides, h) in runs.items()}
+    return {"EA": ea, "elements": elements, "runs": rows}
+
+
+def implicit_main(args, start: float) -> dict:
+    sweep = IMPLICIT_EA[:1] if args.quick else IMPLICIT_EA
+    seeds = 1 if args.quick else args.seeds
+    table = [implicit_accuracy(ea, seeds, args.damping, IMPLICIT_STEPS[:2] if args.quick else IMPLICIT_STEPS)
+             for ea in tqdm(sweep, desc="EA", disable=args.quick)]
+    print(f"\nthe implicit string at the rule's N against the explicit rule, {seeds} seeds of the protocol, "
+          f"damping time {args.damping:g} s: load error median / worst [mm], env steps/s")
+    for row in table:
+        cells = "  ".join(f"{name} ({r['substeps']}): {1e3 * r['error_median']:.2f} / {1e3 * r['error_worst']:.2f}, "
+                          f"{r['steps_per_s']:,.0f}" for name, r in row["runs"].items())
+        print(f"{row['EA']:8.0e} N = {row['elements']}: {cells}")
+    finish(args.out, "resolution_implicit", {"table": table, "seeds": seeds, "damping_time": args.damping,
+                                             "machine": machine("gymnasium")}, {}, start)
+    return {"table": table}
+
+
 def reference_h(ea: float, rule_h: float) -> float:
     scene = esp_gym.load_scene("drone_load", EA=ea, N=REFERENCE_ELEMENTS, allow_unstable_h=True)
     h = min(rule_h / 8.0, 0.25 * scene.stability_bound)
@@ -215,6 +277,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--seeds", type=int, default=10, help="episodes per EA for the accuracy (default 10)")
     parser.add_argument("--damping", type=float, default=0.0, help="every string's damping time [s] (default 0)")
     parser.add_argument("--drone", action="store_true", help="only the drone's own step error (quadrotor_load)")
+    parser.add_argument("--implicit", action="store_true", help="only the implicit string as the rule's scheme")
     args = parser.parse_args(argv)
     if args.seeds < 1:
         parser.error(f"--seeds must be at least 1, got {args.seeds}")
@@ -223,6 +286,8 @@ def main(argv=None) -> dict:
     start = time.perf_counter()
     if args.drone:
         return drone_main(args, start)
+    if args.implicit:
+        return implicit_main(args, start)
     sweep = SWEEP_EA[:2] if args.quick else SWEEP_EA
     seeds = 2 if args.quick else args.seeds
     seconds = 2.0 if args.quick else 100.0

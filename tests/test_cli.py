@@ -150,6 +150,14 @@ def test_resolution_drone_quick_measures_the_drones_step_error(tmp_path):
     assert all(row["error_worst"] <= row["predicted"] for row in sampled)
 
 
+def test_resolution_implicit_quick_runs_both_schemes_against_one_reference(tmp_path):
+    table = quick_benchmark("resolution", tmp_path, "resolution_implicit", "--implicit", "--damping", "7.7e-4")["table"]
+    assert [row["EA"] for row in table] == [2e5] and set(table[0]["runs"]) == {"explicit", "implicit 1", "implicit 2"}
+    runs = table[0]["runs"]
+    assert [runs[f"implicit {n}"]["substeps"] for n in (1, 2)] == [1, 2]
+    assert runs["explicit"]["error_worst"] < 5e-3 and all(r["steps_per_s"] > 0 for r in runs.values())
+
+
 def test_moordyn_compare_quick_finds_one_ode_while_taut_and_a_damper_that_holds_a_slack_line(tmp_path):
     """0.05 s of each case. The swing (taut): our load path within 1e-8 m of MoorDyn's, converging
     at order 2 towards it (measured 4.0 and 4.2 per halving of h), the end tension within 0.05 N
