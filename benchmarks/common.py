@@ -45,6 +45,31 @@ def wall_times(fn: Callable, repeats: int, setup: Optional[Callable] = None) -> 
     return walls
 
 
+def steps_rate(fn: Callable, steps: int, repeats: int) -> float:
+    """Median over ``repeats`` timed calls of ``fn()`` of ``steps`` / wall time [steps/s]."""
+    return float(np.median([steps / wall for wall in wall_times(fn, repeats)]))
+
+
+def single_env_rate(make: Callable, steps: int, random_actions: bool, repeats: int, amplitude: float = 1.0) -> float:
+    """Steps/s of the environment ``make()`` makes: ``steps`` seeded actions, uniform in
+    +-``amplitude`` (zeros without ``random_actions``), resets included, one untimed step first;
+    the median of ``repeats`` timed runs (:func:`steps_rate`)."""
+    env = make()
+    env.reset(seed=0)
+    shape = (steps,) + env.action_space.shape
+    actions = (np.random.default_rng(0).uniform(-amplitude, amplitude, shape).astype(np.float32) if random_actions
+               else np.zeros(shape, np.float32))
+    env.step(actions[0])
+
+    def run():
+        for action in actions:
+            _, _, terminated, truncated, _ = env.step(action)
+            if terminated or truncated:
+                env.reset()
+
+    return steps_rate(run, steps, repeats)
+
+
 def median_wall(fn: Callable, repeats: int, setup: Optional[Callable] = None) -> float:
     """Median of :func:`wall_times` [s]."""
     return float(np.median(wall_times(fn, repeats, setup)))

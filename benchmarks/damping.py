@@ -32,7 +32,7 @@ import gymnasium as gym
 import numpy as np
 
 import esp_gym
-from benchmarks.common import arg_parser, figure, finish, machine
+from benchmarks.common import arg_parser, figure, finish, machine, single_env_rate
 from benchmarks.resolution import long_run
 from esp_gym.scene.stepsize import SLACK_SAFETY
 
@@ -140,17 +140,8 @@ def env_rate(tau: float, steps: int) -> float:
     """Env steps per second of one run of ``steps`` random actions (the default scene; resets
     timed too, as an episode's end is part of the work)."""
     overrides = {"string": {"damping_time": tau}} if tau else {}
-    env = gym.make(esp_gym.ENV_ID, scene_overrides=overrides, disable_env_checker=True)
-    env.reset(seed=0)
-    env.action_space.seed(0)
-    actions = [env.action_space.sample() for _ in range(steps)]
-    env.step(actions[0])
-    start = time.perf_counter()
-    for a in actions:
-        _, _, terminated, truncated, _ = env.step(a)
-        if terminated or truncated:
-            env.reset()
-    return steps / (time.perf_counter() - start)
+    return single_env_rate(lambda: gym.make(esp_gym.ENV_ID, scene_overrides=overrides, disable_env_checker=True),
+                           steps, True, 1)
 
 
 def cost(repeats: int, steps: int) -> dict:

@@ -46,33 +46,10 @@ import gymnasium as gym
 import numpy as np
 
 import esp_gym
-from benchmarks.common import arg_parser, figure, finish, machine, wall_times
+from benchmarks.common import arg_parser, figure, finish, machine, single_env_rate, steps_rate, wall_times
 from esp_gym.pendulum.sb3_vector import ElasticStringPendulumSB3VecEnv
 from esp_gym.pendulum.env_setup import PRESETS
 from esp_gym.workers import available_cpus
-
-
-def _rate(fn, steps: int, repeats: int) -> float:
-    """Median over ``repeats`` timed calls of ``fn()`` of ``steps`` / wall time [steps/s]."""
-    return float(np.median([steps / wall for wall in wall_times(fn, repeats)]))
-
-
-def single(make, steps, random_actions, repeats, amplitude=1.0):
-    env = make()
-    env.reset(seed=0)
-    rng = np.random.default_rng(0)
-    shape = (steps,) + env.action_space.shape
-    acts = (rng.uniform(-amplitude, amplitude, shape).astype(np.float32) if random_actions
-            else np.zeros(shape, np.float32))
-    env.step(acts[0])
-
-    def run():
-        for a in acts:
-            _, _, te, tr, _ = env.step(a)
-            if te or tr:
-                env.reset()
-
-    return _rate(run, steps, repeats)
 
 
 def batched(make, num_envs, steps, repeats, sb3, amplitude=1.0):
@@ -87,7 +64,7 @@ def batched(make, num_envs, steps, repeats, sb3, amplitude=1.0):
         for _ in range(n):
             venv.step(acts)
 
-    return _rate(run, n * num_envs, repeats)
+    return steps_rate(run, n * num_envs, repeats)
 
 
 def main(argv=None) -> dict:
@@ -121,9 +98,10 @@ def main(argv=None) -> dict:
     counts = [1, 4] if args.quick else [1, 2, 4, 8, 16, 32, 64]
     res = {"single": {}, "batched_gymnasium": {}, "batched_sb3": {}}
     env_id = esp_gym.ENV_ID
-    res["single"]["gymnasium.make, zero actions"] = single(lambda: gym.make(env_id), steps, False, repeats)
-    res["single"]["gymnasium.make, random actions"] = single(lambda: gym.make(env_id), steps, True, repeats)
-    res["single"]["bare env, random actions"] = single(lambda: gym.make(env_id).unwrapped, steps, True, repeats)
+    res["single"]["gymnasium.make, zero actions"] = single_env_rate(lambda: gym.make(env_id), steps, False, repeats)
+    res["single"]["gymnasium.make, random actions"] = single_env_rate(lambda: gym.make(env_id), steps, True, repeats)
+    res["single"]["bare env, random actions"] = single_env_rate(lambda: gym.make(env_id).unwrapped, steps, True,
+                                                                repeats)
     for b in counts:
         res["batched_gymnasium"][b] = batched(lambda n: gym.make_vec(env_id, num_envs=n), b, 4 * steps, repeats, False)
         res["batched_sb3"][b] = batched(lambda n: ElasticStringPendulumSB3VecEnv(num_envs=n), b, 4 * steps, repeats, True)
@@ -166,7 +144,7 @@ def ea_sweep(args) -> dict:
             rates[(ea, name)] = []
     for _ in range(repeats):  # interleaved: each repeat runs every configuration once
         for key, make in makers.items():
-            rates[key].append(single(make, steps, True, 1))
+            rates[key].append(single_env_rate(make, steps, True, 1))
     print(f"{'EA [N]':9s}" + "".join(f" | {name:>15s}: N  steps   steps/s" for name in SWEEP_SCHEMES))
     table = []
     for ea in sweep:
@@ -223,7 +201,8 @@ def realism(args) -> dict:
     rates = {(name, kind): [] for name in REALISM for kind in ("single", "batched")}
     for _ in range(repeats):
         for name, options in REALISM.items():
-            rates[(name, "single")].append(single(lambda o=options: gym.make(esp_gym.ENV_ID, **o), steps, True, 1))
+            rates[(name, "single")].append(single_env_rate(lambda o=options: gym.make(esp_gym.ENV_ID, **o), steps,
+                                                           True, 1))
             rates[(name, "batched")].append(batched(
                 lambda n, o=options: gym.make_vec(esp_gym.ENV_ID, num_envs=n, **o), REALISM_BATCH, 4 * steps, 1, False))
     table = {name: {kind: float(np.median(rates[(name, kind)])) for kind in ("single", "batched")} for name in REALISM}
@@ -262,8 +241,8 @@ def drone(args) -> dict:
     rates = {(name, kind): [] for name in DRONE for kind in ("single", "batched")}
     for _ in range(repeats):
         for name, options in DRONE.items():
-            rates[(name, "single")].append(single(lambda o=options: gym.make(esp_gym.ENV_ID, **o).unwrapped, steps,
-                                                  True, 1, DRONE_AMPLITUDE))
+            rates[(name, "single")].append(single_env_rate(lambda o=options: gym.make(esp_gym.ENV_ID, **o).unwrapped,
+                                                           steps, True, 1, DRONE_AMPLITUDE))
             rates[(name, "batched")].append(batched(lambda n, o=options: gym.make_vec(esp_gym.ENV_ID, num_envs=n, **o),
                                                     REALISM_BATCH, 4 * steps, 1, False, DRONE_AMPLITUDE))
     table = {name: {kind: float(np.median(rates[(name, kind)])) for kind in ("single", "batched")} for name in DRONE}
@@ -303,8 +282,8 @@ def team(args) -> dict:
     rates = {(name, kind): [] for name in TEAM for kind in ("single", "batched")}
     for _ in range(repeats):
         for name, (env_id, options) in TEAM.items():
-            rates[(name, "single")].append(single(lambda i=env_id, o=options: gym.make(i, **o).unwrapped, steps,
-                                                  True, 1, TEAM_AMPLITUDE))
+            rates[(name, "single")].append(single_env_rate(lambda i=env_id, o=options: gym.make(i, **o).unwrapped,
+                                                           steps, True, 1, TEAM_AMPLITUDE))
             rates[(name, "batched")].append(batched(
                 lambda n, i=env_id, o=options: gym.make_vec(i, num_envs=n, vectorization_mode="vector_entry_point",
                                                             **o), TEAM_BATCH, 4 * steps, 1, False, TEAM_AMPLITUDE))

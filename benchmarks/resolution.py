@@ -43,7 +43,7 @@ from tqdm import tqdm
 import esp_gym
 from agents.baselines.geometric import geometric_controller
 from agents.baselines.pd import AntiSwayPD
-from benchmarks.common import arg_parser, figure, finish, machine
+from benchmarks.common import arg_parser, figure, finish, machine, single_env_rate
 from esp_gym.scene.stepsize import dissipation_drift, drone_step_error
 
 #: The EAs of the sweep [N] (benchmarks/env_throughput.py --ea-sweep runs the same).
@@ -151,19 +151,6 @@ def drone_main(args, start: float) -> dict:
     return {"rows": rows}
 
 
-def env_rate(overrides: dict, h=None, steps: int = 2000) -> float:
-    """Env steps/s of ``overrides`` at ``h`` under uniform random actions (resets included)."""
-    env = make(overrides, h).unwrapped
-    env.reset(seed=0)
-    actions = np.random.default_rng(0).uniform(-1, 1, (steps, 6)).astype(np.float32)
-    began = time.perf_counter()
-    for action in actions:
-        _, _, terminated, truncated, _ = env.step(action)
-        if terminated or truncated:
-            env.reset()
-    return steps / (time.perf_counter() - began)
-
-
 def implicit_accuracy(ea: float, seeds: int, damping: float, substeps=IMPLICIT_STEPS) -> dict:
     """The rule's explicit choice and the implicit string at the rule's N and ``substeps`` steps
     per control step: the load's largest distance to the reference (median, worst over
@@ -183,7 +170,7 @@ def implicit_accuracy(ea: float, seeds: int, damping: float, substeps=IMPLICIT_S
             errors[name].append(distance(protocol_paths(overrides, h, seed, steps)[0], ref_load))
     rows = {name: {"substeps": u.setup.substeps if h is None else int(round(CONTROL_PERIOD / h)),
                    "error_median": float(np.median(errors[name])), "error_worst": max(errors[name]),
-                   "steps_per_s": float(np.median([env_rate(overrides, h) for _ in range(3)]))}
+                   "steps_per_s": single_env_rate(lambda o=overrides, h=h: make(o, h).unwrapped, 2000, True, 3)}
             for name, (overrides, h) in runs.items()}
     return {"EA": ea, "elements": elements, "runs": rows}
 
