@@ -22,14 +22,15 @@ TeamDrones = namedtuple("TeamDrones", "arrays pivot pending")
 
 
 @kernel(inline="always")
-def drones_solve(TD, P, A, inputs, h, rates, compensated, k):
+def drones_solve(TD, P, A, inputs, h, rates, compensated, step):
     """Every drone's half of a step before the team's (kernels/drone/quadrotor.py ``drone_solve``), the rate
-    controller first when ``rates`` and its loop samples before step ``k``; each thrust pair into its pivot's force: ``inputs``' pivot
-    force pair for string 0, ``A.force[j - 1]`` for string j. Returns ``(status, iterations)``."""
+    controller first when ``rates`` and its loop samples before the control step's ``step``-th step; each
+    thrust pair into its pivot's force: ``inputs``' pivot force pair for string 0, ``A.force[j - 1]`` for
+    string j. Returns ``(status, iterations)``."""
     total = 0
     for d in range(TD.pivot.shape[0]):
         DR = drone_at(TD.arrays, d)
-        if rates and rate_loop_due(DR, k):
+        if rates and rate_loop_due(DR, step):
             actuate(DR, THRUST_RATES)
         k = TD.pivot[d]
         pair = A.force[k - 1] if k > 0 else inputs[IN_PIVOT_FORCE:IN_PIVOT_FORCE + 6].reshape((2, 3))
